@@ -1,0 +1,69 @@
+"""credcli: can you trust the covariance your estimator reports, and if not, why not?
+
+The method is Yan, Hsu and Sun, "Credible Uncertainty Quantification under Noise and
+System Model Mismatch": NEES/NCI, Gaussian NLL and energy score, an energy-distance
+location test and directional probes (Algorithm 1).
+"""
+
+from credcli.diagnosis import (
+    Diagnosis,
+    DiagnosisConfig,
+    Label,
+    MetricsLevel,
+    SegmentDiagnosis,
+    SrdForm,
+    Variant,
+    diagnose,
+    diagnose_errors,
+    diagnose_log,
+    nci_baseline,
+    nees_baseline,
+)
+from credcli.elt import ELTResult, location_test
+from credcli.errors import CredcliError
+from credcli.logs import CovKind, EstimatorLog, LogSchema, load_log
+from credcli.metrics import (
+    anees,
+    energy_score,
+    expected_norm,
+    gaussian_nll,
+    mse_matrix,
+    nci,
+    nees,
+    probes,
+    srd,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CovKind",
+    "CredcliError",
+    "Diagnosis",
+    "DiagnosisConfig",
+    "ELTResult",
+    "EstimatorLog",
+    "Label",
+    "LogSchema",
+    "MetricsLevel",
+    "SegmentDiagnosis",
+    "SrdForm",
+    "Variant",
+    "__version__",
+    "anees",
+    "diagnose",
+    "diagnose_errors",
+    "diagnose_log",
+    "energy_score",
+    "expected_norm",
+    "gaussian_nll",
+    "load_log",
+    "location_test",
+    "mse_matrix",
+    "nci",
+    "nci_baseline",
+    "nees",
+    "nees_baseline",
+    "probes",
+    "srd",
+]

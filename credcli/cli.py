@@ -1,0 +1,288 @@
+"""The credcli command line: options in, library calls, a renderer out.
+
+Errors raised as CredcliError (and usage errors) become one line on stderr and exit 2.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from credcli.diagnosis import DiagnosisConfig, MetricsLevel, SrdForm, Variant
+from credcli.errors import CredcliError
+from credcli.logs import CovKind
+from credcli.render import OutputFormat
+
+app = typer.Typer(
+    name="credcli",
+    help="Can you trust the covariance your estimator reports, and if not, why not?",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+
+_D = DiagnosisConfig()
+
+
+def _show_version(value: bool) -> None:
+    if value:
+        from credcli import __version__
+
+        print(f"credcli {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_show_version, is_eager=True, help="Show the version."),
+    ] = False,
+) -> None:
+    """Can you trust the covariance your estimator reports, and if not, why not?"""
+
+# Options shared by the commands that diagnose (declared once, reused).
+ConfigOpt = Annotated[
+    Optional[Path], typer.Option("--config", help="TOML config file (see configs/).")
+]
+FormatOpt = Annotated[
+    OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
+]
+OutputOpt = Annotated[
+    Optional[Path], typer.Option("--output", "-o", help="Write the output to FILE (atomically).")
+]
+SeedOpt = Annotated[Optional[int], typer.Option("--seed", help="Seed of the ELT sign flips [default: 0].")]
+TauOpt = Annotated[
+    Optional[float], typer.Option("--tau", help=f"NCI threshold τ in dB [default: {_D.tau_nci}].")
+]
+AlphaOpt = Annotated[
+    Optional[float], typer.Option("--alpha", help=f"ELT significance level [default: {_D.alpha}].")
+]
+COpt = Annotated[
+    Optional[float], typer.Option("--probe-factor", "-c", help=f"Probe scale c > 1 [default: {_D.c}].")
+]
+FlipsOpt = Annotated[
+    Optional[int], typer.Option("--flips", "-B", help=f"ELT sign flips B [default: {_D.n_flips}].")
+]
+BlockOpt = Annotated[
+    Optional[int],
+    typer.Option("--block-length", help="Epochs per ELT sign block (autocorrelated errors) [default: 1]."),
+]
+VariantOpt = Annotated[
+    Optional[Variant],
+    typer.Option("--variant", help="Algorithm 1 variant: ks (authors' code) or paper (as printed) [default: ks]."),
+]
+SrdOpt = Annotated[
+    Optional[SrdForm], typer.Option("--srd-form", help="SRD of Eq. (19): printed or absolute [default: printed].")
+]
+MetricsOpt = Annotated[
+    Optional[MetricsLevel],
+    typer.Option("--metrics", help="needed: probes only where Algorithm 1 uses them; all: always [default: needed]."),
+]
+MinEpochsOpt = Annotated[
+    Optional[int],
+    typer.Option("--min-epochs", help=f"Smallest segment diagnosed [default: {_D.min_epochs}]."),
+]
+MaxEltOpt = Annotated[
+    Optional[int],
+    typer.Option("--max-elt-epochs", help=f"ELT memory budget in epochs [default: {_D.max_elt_epochs}]."),
+]
+
+
+def _diagnosis_cli(tau, alpha, c, flips, block, variant, srd_form, metrics, min_epochs, max_elt):
+    return {
+        "tau_nci": tau,
+        "alpha": alpha,
+        "c": c,
+        "n_flips": flips,
+        "block_length": block,
+        "variant": variant,
+        "srd_form": srd_form,
+        "metrics": metrics,
+        "min_epochs": min_epochs,
+        "max_elt_epochs": max_elt,
+    }
+
+
+def _emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
+    """Print a report to stdout (Rich tables when a terminal) or write it to a file."""
+    from credcli.render import rich_table, to_text
+    from credcli.settings import write_atomic
+
+    if output is not None:
+        write_atomic(output, to_text(report, fmt), inputs)
+        _stderr().print(f"wrote {output}", highlight=False)
+        return
+    if fmt is OutputFormat.TABLE:
+        from rich.console import Console
+
+        console = Console()
+        if not console.is_terminal:
+            console = Console(width=200)
+        for table in report.tables:
+            console.print(rich_table(table))
+        for note in report.notes:
+            console.print(note, markup=False, highlight=False)
+        return
+    sys.stdout.write(to_text(report, fmt))
+
+
+def _stderr():
+    from rich.console import Console
+
+    return Console(stderr=True)
+
+
+class _Progress:
+    """A Rich progress bar on stderr, shown only on a terminal and for runs of at least
+    ``min_total`` steps. Called as ``progress(done, total)``."""
+
+    def __init__(self, description: str, min_total: int = 10) -> None:
+        self.description = description
+        self.min_total = min_total
+        self._bar = None
+        self._task = None
+        self._show = _stderr().is_terminal
+
+    def __enter__(self):
+        return self
+
+    def __call__(self, done: int, total: int) -> None:
+        if self._bar is None and self._show and total >= self.min_total:
+            from rich.progress import Progress
+
+            self._bar = Progress(console=_stderr(), transient=True)
+            self._bar.start()
+            self._task = self._bar.add_task(self.description, total=total)
+        if self._bar is not None:
+            self._bar.update(self._task, completed=done)
+
+    def __exit__(self, *exc) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+@app.command()
+def diagnose(
+    logs: Annotated[list[Path], typer.Argument(help="Estimator logs (CSV or Parquet).", show_default=False)],
+    config: ConfigOpt = None,
+    window: Annotated[
+        Optional[str],
+        typer.Option("--window", "-w", help="Split into windows: a duration (5s, 250ms) or an epoch count (200)."),
+    ] = None,
+    whole: Annotated[bool, typer.Option("--whole", help="Diagnose each log as one segment.")] = False,
+    time_column: Annotated[Optional[str], typer.Option("--time-column", help="Time column [default: time].")] = None,
+    segment_column: Annotated[
+        Optional[str], typer.Option("--segment-column", help="Segment column [default: segment].")
+    ] = None,
+    truth_columns: Annotated[
+        Optional[str], typer.Option("--truth-columns", help="Truth columns, comma-separated.")
+    ] = None,
+    estimate_columns: Annotated[
+        Optional[str], typer.Option("--estimate-columns", help="Estimate columns, comma-separated.")
+    ] = None,
+    cov_columns: Annotated[
+        Optional[str],
+        typer.Option("--cov-columns", help="Covariance columns, comma-separated: d² (full), d(d+1)/2 (upper) or d."),
+    ] = None,
+    cov_kind: Annotated[
+        Optional[CovKind], typer.Option("--cov-kind", help="How --cov-columns store the covariance.")
+    ] = None,
+    drop_invalid: Annotated[
+        bool, typer.Option("--drop-invalid", help="Drop rows with NaN/Inf instead of failing.")
+    ] = False,
+    tau: TauOpt = None,
+    alpha: AlphaOpt = None,
+    probe_factor: COpt = None,
+    flips: FlipsOpt = None,
+    block_length: BlockOpt = None,
+    variant: VariantOpt = None,
+    srd_form: SrdOpt = None,
+    metrics: MetricsOpt = None,
+    min_epochs: MinEpochsOpt = None,
+    max_elt_epochs: MaxEltOpt = None,
+    seed: SeedOpt = None,
+    fmt: FormatOpt = OutputFormat.TABLE,
+    output: OutputOpt = None,
+) -> int:
+    """Diagnose each segment of one or more estimator logs (Algorithm 1)."""
+    from credcli.workflows import run_diagnose
+    from credcli.settings import build_diagnosis_config, build_schema, load_config, split_list
+
+    cfg = load_config(config)
+    schema = build_schema(
+        cfg,
+        {
+            "time": time_column,
+            "segment": segment_column,
+            "truth_columns": split_list(truth_columns),
+            "estimate_columns": split_list(estimate_columns),
+            "cov_columns": split_list(cov_columns),
+            "cov_kind": cov_kind,
+        },
+    )
+    dconf, seed = build_diagnosis_config(
+        cfg,
+        _diagnosis_cli(
+            tau, alpha, probe_factor, flips, block_length, variant, srd_form, metrics,
+            min_epochs, max_elt_epochs,
+        ),
+        seed,
+    )
+    seg_cfg = cfg.get("segments", {})
+    window = window if window is not None else seg_cfg.get("window")
+    with _Progress("diagnosing segments") as bar:
+        report = run_diagnose(
+            logs, schema, dconf, window=window, whole=whole or seg_cfg.get("whole", False),
+            seed=seed, drop_invalid=drop_invalid, progress=bar,
+        )
+    _emit(report, fmt, output, inputs=logs)
+    return 0
+
+
+def _click_exception_types() -> tuple[type, ...]:
+    """Click's exception base: vendored by typer >= 0.2x, the click package before."""
+    types: list[type] = []
+    try:
+        from typer._click.exceptions import ClickException as Vendored
+
+        types.append(Vendored)
+    except ImportError:
+        pass
+    try:
+        from click import ClickException
+
+        types.append(ClickException)
+    except ImportError:
+        pass
+    return tuple(types)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run the app and turn errors into one line on stderr and an exit code."""
+    command = typer.main.get_command(app)
+    try:
+        result = command.main(args=argv, prog_name="credcli", standalone_mode=False)
+    except CredcliError as exc:
+        print(f"credcli: error: {exc.message}", file=sys.stderr)
+        return exc.exit_code
+    except _click_exception_types() as exc:
+        ctx = getattr(exc, "ctx", None)
+        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+            print(ctx.get_help())
+            return 0
+        hint = f" (see 'credcli {ctx.info_name} --help')" if ctx is not None and ctx.parent else ""
+        print(f"credcli: error: {exc.format_message()}{hint}", file=sys.stderr)
+        return 2 if getattr(exc, "exit_code", 2) in (1, 2) else exc.exit_code
+    except (typer.Abort, KeyboardInterrupt):
+        print("credcli: interrupted", file=sys.stderr)
+        return 130
+    return int(result or 0)
+
+
+def entry() -> None:
+    sys.exit(main())

@@ -1,0 +1,16 @@
+"""The one error type users see: a message for stderr and an exit code."""
+
+from __future__ import annotations
+
+
+class CredcliError(Exception):
+    """A user-facing error: bad input, bad option, or a regression-free usage problem.
+
+    The CLI turns it into one line on stderr and ``exit_code`` (2 by default).
+    Library code raises it; it never prints.
+    """
+
+    def __init__(self, message: str, exit_code: int = 2) -> None:
+        super().__init__(message)
+        self.message = message
+        self.exit_code = exit_code

@@ -1,0 +1,398 @@
+"""Reading estimator logs (CSV or Parquet) into one validated EstimatorLog.
+
+The default column convention needs no options: ``time`` and ``segment`` (optional),
+``truth_0 … truth_{d-1}``, ``est_0 … est_{d-1}`` and the claimed covariance as
+``cov_i_j`` (full matrix or upper triangle), ``var_i`` or ``std_i``. A LogSchema maps
+other layouts onto it.
+"""
+
+from __future__ import annotations
+
+import enum
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from credcli.errors import CredcliError
+
+SYMMETRY_RTOL = 1e-6
+
+
+class CovKind(str, enum.Enum):
+    """How the claimed covariance is stored."""
+
+    FULL = "full"  # cov_i_j for every i, j
+    UPPER = "upper"  # cov_i_j for i <= j
+    VAR = "var"  # var_i, a diagonal covariance
+    STD = "std"  # std_i, a diagonal covariance
+
+
+@dataclass(frozen=True)
+class LogSchema:
+    """Column names of a log. Explicit column lists win over prefixes.
+
+    ``cov_columns`` is read by its length: d² entries are the full matrix in row-major
+    order, d(d+1)/2 the upper triangle in row-major order, d the diagonal (variances, or
+    standard deviations when ``cov_kind`` is ``std``).
+    """
+
+    time: str = "time"
+    segment: str = "segment"
+    truth_prefix: str = "truth_"
+    estimate_prefix: str = "est_"
+    cov_prefix: str = "cov_"
+    var_prefix: str = "var_"
+    std_prefix: str = "std_"
+    truth_columns: tuple[str, ...] = ()
+    estimate_columns: tuple[str, ...] = ()
+    cov_columns: tuple[str, ...] = ()
+    cov_kind: CovKind | None = None
+
+    def updated(self, **changes) -> LogSchema:
+        """A copy with the given non-None fields changed (for CLI > config > defaults)."""
+        changes = {k: v for k, v in changes.items() if v is not None}
+        for key in ("truth_columns", "estimate_columns", "cov_columns"):
+            if key in changes:
+                changes[key] = tuple(changes[key])
+        if "cov_kind" in changes:
+            changes["cov_kind"] = CovKind(changes["cov_kind"])
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class EstimatorLog:
+    """One log: truth and estimate (N, d), claimed covariance (N, d, d), optional time and
+    segment (N,), and the file row number of each epoch (1-based data rows)."""
+
+    truth: np.ndarray
+    estimate: np.ndarray
+    cov: np.ndarray
+    time: np.ndarray | None = None
+    segment: np.ndarray | None = None
+    rows: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
+    source: str = "<memory>"
+    dropped_rows: int = 0
+
+    def __post_init__(self) -> None:
+        if self.rows is None:
+            object.__setattr__(self, "rows", np.arange(1, self.truth.shape[0] + 1))
+
+    @property
+    def errors(self) -> np.ndarray:
+        """e_k = x_k − x̂_k."""
+        return self.truth - self.estimate
+
+    @property
+    def n(self) -> int:
+        return self.truth.shape[0]
+
+    @property
+    def dim(self) -> int:
+        return self.truth.shape[1]
+
+    def take(self, index: np.ndarray) -> EstimatorLog:
+        """The epochs at ``index`` (an integer array or a boolean mask)."""
+        return replace(
+            self,
+            truth=self.truth[index],
+            estimate=self.estimate[index],
+            cov=self.cov[index],
+            time=None if self.time is None else self.time[index],
+            segment=None if self.segment is None else self.segment[index],
+            rows=self.rows[index],
+        )
+
+
+def load_schema(path: str | Path) -> LogSchema:
+    """Read the ``[columns]`` table of a TOML config file into a LogSchema."""
+    table = read_toml(path).get("columns", {})
+    allowed = set(LogSchema.__dataclass_fields__)
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise CredcliError(
+            f"{path}: unknown key(s) {', '.join(unknown)} in [columns]; "
+            f"allowed: {', '.join(sorted(allowed))}"
+        )
+    try:
+        return LogSchema().updated(**table)
+    except ValueError as exc:
+        raise CredcliError(f"{path}: [columns]: {exc}") from exc
+
+
+def read_toml(path: str | Path) -> dict:
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    path = Path(path)
+    if not path.is_file():
+        raise CredcliError(f"{path}: config file not found")
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise CredcliError(f"{path}: not valid TOML: {exc}") from exc
+
+
+def load_log(
+    path: str | Path, schema: LogSchema | None = None, drop_invalid: bool = False
+) -> EstimatorLog:
+    """Read and validate an estimator log from CSV or Parquet.
+
+    Raises CredcliError naming the file, row and column of the first problem: a missing or
+    empty file, missing columns, a non-numeric cell, NaN/Inf (unless ``drop_invalid``),
+    an asymmetric or non-positive-definite covariance, mismatched dimensions.
+    """
+    path = Path(path)
+    frame = _read_table(path)
+    return log_from_frame(frame, schema or LogSchema(), str(path), drop_invalid)
+
+
+def _read_table(path: Path):
+    import pandas as pd
+
+    if not path.exists():
+        raise CredcliError(f"{path}: file not found")
+    if path.is_dir():
+        raise CredcliError(f"{path}: is a directory, expected a CSV or Parquet file")
+    if path.stat().st_size == 0:
+        raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows")
+    try:
+        if path.suffix.lower() in (".parquet", ".pq"):
+            frame = pd.read_parquet(path)
+        else:
+            frame = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+    except pd.errors.EmptyDataError as exc:
+        raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
+    except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CredcliError(f"{path}: cannot be read as CSV/Parquet: {first}") from exc
+    if len(frame) == 0:
+        raise CredcliError(f"{path}: header has no rows below it; expected one row per epoch")
+    return frame
+
+
+_INDEXED = re.compile(r"^(\d+)$")
+_PAIR = re.compile(r"^(\d+)_(\d+)$")
+
+
+def _indexed(columns, prefix: str) -> dict[int, str]:
+    found = {}
+    for col in columns:
+        if col.startswith(prefix):
+            m = _INDEXED.match(col[len(prefix):])
+            if m:
+                found[int(m.group(1))] = col
+    return found
+
+
+def _vector_columns(columns, prefix: str, explicit, what: str, source: str) -> list[str]:
+    if explicit:
+        return list(explicit)
+    found = _indexed(columns, prefix)
+    if not found:
+        raise CredcliError(
+            f"{source}: no {what} columns ({prefix}0, {prefix}1, …) found; columns found: "
+            f"{_list(columns)}. Name them with the column options or a [columns] config"
+        )
+    d = max(found) + 1
+    missing = [f"{prefix}{i}" for i in range(d) if i not in found]
+    if missing:
+        raise CredcliError(f"{source}: missing {what} column(s) {', '.join(missing)}")
+    return [found[i] for i in range(d)]
+
+
+def _list(columns) -> str:
+    cols = list(columns)
+    text = ", ".join(str(c) for c in cols[:30])
+    return text + (f", … ({len(cols)} in all)" if len(cols) > 30 else "")
+
+
+def _cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind, list[str]]:
+    """Which covariance columns to read, and how."""
+    if schema.cov_columns:
+        cols = list(schema.cov_columns)
+        by_len = {d * d: CovKind.FULL, d * (d + 1) // 2: CovKind.UPPER, d: CovKind.VAR}
+        if d == 1:
+            kind = schema.cov_kind or CovKind.VAR
+        elif schema.cov_kind is not None:
+            kind = schema.cov_kind
+        elif len(cols) in by_len:
+            kind = by_len[len(cols)]
+        else:
+            raise CredcliError(
+                f"{source}: {len(cols)} covariance columns given for d = {d}; expected "
+                f"{d * d} (full), {d * (d + 1) // 2} (upper triangle) or {d} (diagonal)"
+            )
+        expected = {CovKind.FULL: d * d, CovKind.UPPER: d * (d + 1) // 2}.get(kind, d)
+        if len(cols) != expected:
+            raise CredcliError(
+                f"{source}: {len(cols)} covariance columns given but a {kind.value} "
+                f"covariance for d = {d} needs {expected}"
+            )
+        return kind, cols
+    pairs = {}
+    for col in columns:
+        if col.startswith(schema.cov_prefix):
+            m = _PAIR.match(col[len(schema.cov_prefix):])
+            if m:
+                pairs[(int(m.group(1)), int(m.group(2)))] = col
+    if pairs:
+        bad = sorted(p for p in pairs if max(p) >= d)
+        if bad:
+            i, j = bad[0]
+            raise CredcliError(
+                f"{source}: column {pairs[bad[0]]} refers to index {max(i, j)} but the "
+                f"truth/estimate have d = {d}: dimensions do not match"
+            )
+        full = [(i, j) for i in range(d) for j in range(d)]
+        upper = [(i, j) for i in range(d) for j in range(i, d)]
+        if all(p in pairs for p in full):
+            return CovKind.FULL, [pairs[p] for p in full]
+        if all(p in pairs for p in upper):
+            return CovKind.UPPER, [pairs[p] for p in upper]
+        missing = [f"{schema.cov_prefix}{i}_{j}" for i, j in upper if (i, j) not in pairs]
+        raise CredcliError(
+            f"{source}: incomplete covariance: missing column(s) {', '.join(missing)} "
+            f"(give cov_i_j for every i, j or for i <= j)"
+        )
+    for kind, prefix in ((CovKind.VAR, schema.var_prefix), (CovKind.STD, schema.std_prefix)):
+        found = _indexed(columns, prefix)
+        if found:
+            if max(found) + 1 != d or len(found) != d:
+                raise CredcliError(
+                    f"{source}: {prefix}* columns {sorted(found)} do not match d = {d} "
+                    f"(expected {prefix}0 … {prefix}{d - 1}): dimensions do not match"
+                )
+            return kind, [found[i] for i in range(d)]
+    raise CredcliError(
+        f"{source}: no covariance columns found (cov_i_j, var_i or std_i); columns found: "
+        f"{_list(columns)}"
+    )
+
+
+def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_invalid=False):
+    """Validate a pandas DataFrame into an EstimatorLog (see :func:`load_log`)."""
+    columns = [str(c) for c in frame.columns]
+    frame.columns = columns
+    truth_cols = _vector_columns(columns, schema.truth_prefix, schema.truth_columns, "truth", source)
+    est_cols = _vector_columns(
+        columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
+    )
+    if len(truth_cols) != len(est_cols):
+        raise CredcliError(
+            f"{source}: {len(truth_cols)} truth columns but {len(est_cols)} estimate columns: "
+            "dimensions do not match"
+        )
+    d = len(truth_cols)
+    kind, cov_cols = _cov_layout(columns, schema, d, source)
+    time_col = schema.time if schema.time in columns else None
+    explicit_time = schema.time != LogSchema.time
+    if explicit_time and time_col is None:
+        raise CredcliError(f"{source}: time column '{schema.time}' not found; columns found: {_list(columns)}")
+    seg_col = schema.segment if schema.segment in columns else None
+    if schema.segment != LogSchema.segment and seg_col is None:
+        raise CredcliError(
+            f"{source}: segment column '{schema.segment}' not found; columns found: {_list(columns)}"
+        )
+    numeric_cols = truth_cols + est_cols + cov_cols + ([time_col] if time_col else [])
+    missing = [c for c in numeric_cols if c not in columns]
+    if missing:
+        raise CredcliError(
+            f"{source}: missing column(s) {', '.join(missing)}; columns found: {_list(columns)}"
+        )
+    values = _numeric(frame, numeric_cols, source)
+    rows = np.arange(1, len(frame) + 1)
+    bad = ~np.isfinite(values).all(axis=1)
+    dropped = 0
+    if bad.any():
+        if not drop_invalid:
+            bad_rows = rows[bad]
+            shown = ", ".join(str(r) for r in bad_rows[:10])
+            more = f" and {bad_rows.size - 10} more" if bad_rows.size > 10 else ""
+            first_col = numeric_cols[int(np.argmax(~np.isfinite(values[bad][0])))]
+            raise CredcliError(
+                f"{source}: NaN, Inf or empty value in row(s) {shown}{more} (first in column "
+                f"'{first_col}'); fix them or pass --drop-invalid to drop those rows"
+            )
+        dropped = int(bad.sum())
+        values, rows = values[~bad], rows[~bad]
+        if values.shape[0] == 0:
+            raise CredcliError(f"{source}: every row has a NaN/Inf value; nothing left to diagnose")
+    truth = values[:, :d]
+    estimate = values[:, d : 2 * d]
+    cov = _build_cov(values[:, 2 * d : 2 * d + len(cov_cols)], kind, d)
+    _check_cov(cov, rows, source)
+    segment = None
+    if seg_col is not None:
+        seg_values = frame[seg_col].astype(str).to_numpy()
+        segment = seg_values[rows - 1]
+    time = values[:, -1] if time_col else None
+    return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped)
+
+
+def _numeric(frame, cols: list[str], source: str) -> np.ndarray:
+    import pandas as pd
+
+    out = np.empty((len(frame), len(cols)))
+    for j, col in enumerate(cols):
+        series = frame[col]
+        if series.dtype == object or pd.api.types.is_string_dtype(series.dtype):
+            text = series.astype(str).str.strip()
+            converted = pd.to_numeric(text, errors="coerce")
+            empty = text.eq("") | text.str.lower().isin(["nan", "inf", "-inf", "+inf", "infinity"])
+            bad = converted.isna() & ~empty
+            if bad.any():
+                i = int(np.argmax(bad.to_numpy()))
+                raise CredcliError(
+                    f"{source}: row {i + 1}, column '{col}': '{series.iloc[i]}' is not a number"
+                )
+            lowered = text.str.lower()
+            converted = converted.where(~lowered.isin(["inf", "+inf", "infinity"]), np.inf)
+            converted = converted.where(lowered != "-inf", -np.inf)
+            out[:, j] = converted.to_numpy(dtype=float, na_value=np.nan)
+        elif pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(
+            series.dtype
+        ):
+            out[:, j] = series.to_numpy(dtype=float, na_value=np.nan)
+        else:
+            raise CredcliError(f"{source}: column '{col}' has type {series.dtype}, not numbers")
+    return out
+
+
+def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
+    n = values.shape[0]
+    cov = np.zeros((n, d, d))
+    if kind is CovKind.FULL:
+        cov[:] = values.reshape(n, d, d)
+    elif kind is CovKind.UPPER:
+        iu = np.triu_indices(d)
+        cov[:, iu[0], iu[1]] = values
+        cov[:, iu[1], iu[0]] = values
+    else:
+        diag = values**2 if kind is CovKind.STD else values
+        idx = np.arange(d)
+        cov[:, idx, idx] = diag
+    return cov
+
+
+def _check_cov(cov: np.ndarray, rows: np.ndarray, source: str) -> None:
+    scale = np.abs(cov).max(axis=(1, 2))
+    asym = np.abs(cov - np.swapaxes(cov, 1, 2)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
+    if asym.any():
+        i = int(np.argmax(asym))
+        raise CredcliError(
+            f"{source}: row {rows[i]}: covariance is not symmetric (relative asymmetry above "
+            f"{SYMMETRY_RTOL:g}); check the cov_i_j columns"
+        )
+    sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+    cov[:] = sym
+    min_eig = np.linalg.eigvalsh(sym)[:, 0]
+    not_pd = ~(min_eig > 1e-12 * np.maximum(scale, np.finfo(float).tiny))
+    if not_pd.any():
+        i = int(np.argmax(not_pd))
+        raise CredcliError(
+            f"{source}: row {rows[i]}: covariance is not positive definite (smallest eigenvalue "
+            f"{min_eig[i]:.3g}); a claimed covariance must be positive definite"
+        )

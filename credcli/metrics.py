@@ -1,0 +1,303 @@
+"""Credibility metrics of Section II: NEES, NCI, Gaussian NLL and energy score.
+
+Pure array functions. Epochs are on axis 0: errors ``e`` have shape ``(N, d)`` and
+claimed covariances ``cov`` have shape ``(N, d, d)``. Errors follow the paper,
+``e_k = x_k - x̂_k`` (truth minus estimate). Nothing here knows about files or options.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from credcli.errors import CredcliError
+
+_LOG10 = np.log(10.0)
+_LN_2PI = np.log(2.0 * np.pi)
+
+# Trapezoidal nodes in u = log t for the energy-score integral (see `_expected_norm`).
+# The integrand is analytic in the strip |Im u| < pi and bounded by 2 on |Im u| = pi/2,
+# so the discretisation error is O(exp(-pi^2 / h)) ~ 2e-11 for h = 0.4; the window
+# [-54, 30] leaves a truncation error below 1e-12 after the analytic upper tail.
+# Measured against 30-digit mpmath quadrature: worst relative error below 1e-10.
+_QUAD_H = 0.4
+_QUAD_U = np.arange(-54.0, 30.0 + _QUAD_H / 2, _QUAD_H)
+_QUAD_T = np.exp(_QUAD_U)
+_QUAD_W = _QUAD_H * np.exp(-_QUAD_U / 2) / (2.0 * np.sqrt(np.pi))
+# Past the window 1 - E[exp(-tQ)] = 1 to double precision: continue the trapezoid grid
+# analytically (a geometric series) so the rule stays one infinite trapezoid sum.
+_QUAD_TAIL = _QUAD_W[-1] * np.exp(-_QUAD_H / 2) / (1.0 - np.exp(-_QUAD_H / 2))
+_QUAD_CHUNK_ELEMENTS = 2_000_000
+
+
+def _check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    errors = np.asarray(errors, dtype=float)
+    cov = np.asarray(cov, dtype=float)
+    if errors.ndim == 1:
+        errors = errors[:, None]
+    if cov.ndim == 1:
+        cov = cov[:, None, None]
+    if errors.ndim != 2 or cov.ndim != 3:
+        raise CredcliError(
+            f"errors must have shape (N, d) and cov (N, d, d); got {errors.shape} and {cov.shape}"
+        )
+    n, d = errors.shape
+    if cov.shape != (n, d, d):
+        raise CredcliError(
+            f"cov must have shape (N, d, d) = ({n}, {d}, {d}) to match errors; got {cov.shape}"
+        )
+    return errors, cov
+
+
+def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    r"""Normalized estimation error squared per epoch, Eq. (1).
+
+    .. math:: \epsilon_k = e_k^\top \hat\Sigma_k^{-1} e_k
+
+    Solved through a batched Cholesky factor, never an explicit inverse.
+
+    Examples
+    --------
+    >>> nees(np.array([[1.0, 0.0]]), np.eye(2)[None] * 4.0)
+    array([0.25])
+    """
+    errors, cov = _check_errors_cov(errors, cov)
+    return _nees(errors, np.linalg.cholesky(cov))
+
+
+def _nees(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
+    z = _solve_lower(chol, errors)
+    return np.einsum("ni,ni->n", z, z)
+
+
+def _solve_lower(chol: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve L z = b for a stack of lower-triangular L (N, d, d) and b (N, d)."""
+    return np.linalg.solve(chol, b[..., None])[..., 0]
+
+
+def anees(errors: np.ndarray, cov: np.ndarray) -> float:
+    r"""Average NEES normalised by the dimension: :math:`\frac{1}{Nd}\sum_k \epsilon_k`.
+
+    Equals 1 for a credible estimator, since E[ε_k] = d by Eq. (2).
+    """
+    errors, cov = _check_errors_cov(errors, cov)
+    return float(np.mean(nees(errors, cov)) / errors.shape[1])
+
+
+def mse_matrix(errors: np.ndarray) -> np.ndarray:
+    r"""Estimate the MSE matrix :math:`\mathcal{M} = \Sigma + \mu\mu^\top` of Section II.
+
+    ``Σ`` is the unbiased sample covariance of the errors and ``μ`` their mean.
+    """
+    errors = np.asarray(errors, dtype=float)
+    mean = errors.mean(axis=0)
+    centred = errors - mean
+    sigma = centred.T @ centred / max(errors.shape[0] - 1, 1)
+    return sigma + np.outer(mean, mean)
+
+
+def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> float:
+    r"""Noncredibility index in dB, Eq. (4).
+
+    .. math::
+        \mathrm{NCI} = \frac{10}{N}\sum_k \log_{10}\epsilon_k
+                     - \frac{10}{N}\sum_k \log_{10}\epsilon_k^*,
+        \qquad \epsilon_k^* = e_k^\top \mathcal{M}_k^{-1} e_k
+
+    Parameters
+    ----------
+    mse : array, optional
+        The MSE matrix, shape ``(d, d)`` or ``(N, d, d)``. Estimated from the errors
+        (:func:`mse_matrix`) when not given.
+
+    Under pure scaling (Σ̂ = ρΣ, M = Σ) this is exactly −10 log10 ρ, Eq. (5).
+    """
+    errors, cov = _check_errors_cov(errors, cov)
+    if mse is None:
+        mse = mse_matrix(errors)
+    mse = np.broadcast_to(np.asarray(mse, dtype=float), cov.shape)
+    return _nci(errors, np.linalg.cholesky(cov), np.linalg.cholesky(mse))
+
+
+def _nci(errors: np.ndarray, chol: np.ndarray, chol_mse: np.ndarray) -> float:
+    eps = _nees(errors, chol)
+    eps_star = _nees(errors, chol_mse)
+    return float(10.0 * np.mean(np.log(eps) - np.log(eps_star)) / _LOG10)
+
+
+def gaussian_nll(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    r"""Gaussian negative log-likelihood per epoch, Eqs. (6)–(7).
+
+    .. math::
+        \mathrm{NLL}_k = \tfrac12\left(\epsilon_k/s + \ln|s\hat\Sigma_k| + d\ln 2\pi\right)
+
+    for the predictive :math:`\mathcal N(\hat x_k, s\hat\Sigma_k)`; ``scale`` is ``s``
+    (1 for the claimed covariance, 1/c and c for the probes of Eq. (18)).
+    The log-determinant comes from the Cholesky factor.
+    """
+    errors, cov = _check_errors_cov(errors, cov)
+    chol = np.linalg.cholesky(cov)
+    return _nll(_nees(errors, chol), _logdet(chol), errors.shape[1], scale)
+
+
+def _logdet(chol: np.ndarray) -> np.ndarray:
+    return 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(axis=-1)
+
+
+def _nll(eps: np.ndarray, logdet: np.ndarray, d: int, scale: float) -> np.ndarray:
+    return 0.5 * (eps / scale + logdet + d * np.log(scale) + d * _LN_2PI)
+
+
+def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    r"""E‖W‖ for W ~ N(m, S), per epoch, without Monte Carlo noise.
+
+    Uses :math:`\sqrt q = \frac{1}{2\sqrt\pi}\int_0^\infty (1-e^{-tq})\,t^{-3/2}\,dt`
+    and the Laplace transform of Q = ‖W‖²,
+
+    .. math::
+        \mathbb E[e^{-tQ}] = \prod_i (1+2t\lambda_i)^{-1/2}
+        \exp\Big(-t\sum_i \frac{\nu_i^2}{1+2t\lambda_i}\Big),
+
+    with λ the eigenvalues of S and ν = Uᵀm. The integral is evaluated by a fixed
+    trapezoidal rule in log t (relative error below 1e-9).
+    """
+    mean, cov = _check_errors_cov(mean, cov)
+    lam, vecs = np.linalg.eigh(cov)
+    nu = np.einsum("nji,nj->ni", vecs, mean)
+    return _expected_norm(lam, nu**2)
+
+
+def _expected_norm(lam: np.ndarray, nu2: np.ndarray) -> np.ndarray:
+    """Core of :func:`expected_norm` on eigenvalues ``lam`` and squared ``nu`` (N, d)."""
+    scale = lam.sum(axis=1) + nu2.sum(axis=1)  # E[Q]; work with E[Q'] = 1
+    lam = lam / scale[:, None]
+    nu2 = nu2 / scale[:, None]
+    n, d = lam.shape
+    out = np.empty(n)
+    step = max(1, _QUAD_CHUNK_ELEMENTS // (_QUAD_T.size * d))
+    for start in range(0, n, step):  # chunks of epochs bound memory, not a per-epoch loop
+        sl = slice(start, start + step)
+        two_t_lam = 2.0 * _QUAD_T[None, :, None] * lam[sl, None, :]
+        log_phi = -0.5 * np.log1p(two_t_lam).sum(axis=2) - _QUAD_T[None, :] * (
+            nu2[sl, None, :] / (1.0 + two_t_lam)
+        ).sum(axis=2)
+        out[sl] = -np.expm1(log_phi) @ _QUAD_W + _QUAD_TAIL
+    return out * np.sqrt(scale)
+
+
+@dataclass(frozen=True)
+class _Eigen:
+    """Eigen-decomposition of the claimed covariances and the rotated errors."""
+
+    lam: np.ndarray  # (N, d) eigenvalues of Σ̂_k
+    nu2: np.ndarray  # (N, d) squared components of U_kᵀ e_k
+
+    @classmethod
+    def of(cls, errors: np.ndarray, cov: np.ndarray) -> _Eigen:
+        lam, vecs = np.linalg.eigh(cov)
+        nu = np.einsum("nji,nj->ni", vecs, errors)
+        return cls(lam, nu**2)
+
+
+def _energy_scores(eig: _Eigen, scales: tuple[float, ...]) -> list[np.ndarray]:
+    """ES per epoch for each covariance scale s (predictive N(x̂, sΣ̂)), Eq. (10)."""
+    spread = 0.5 * _expected_norm(2.0 * eig.lam, np.zeros_like(eig.nu2))  # ½E‖Y−Y′‖ at s=1
+    return [_expected_norm(s * eig.lam, eig.nu2) - np.sqrt(s) * spread for s in scales]
+
+
+def energy_score(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    r"""Energy score of the Gaussian predictive N(x̂_k, sΣ̂_k) at the truth, per epoch, Eq. (10).
+
+    .. math::
+        \mathrm{ES}_k = \mathbb E\|Y-x_k\| - \tfrac12\mathbb E\|Y-Y'\|,
+        \quad Y - x_k \sim \mathcal N(-e_k, s\hat\Sigma_k),\ Y-Y' \sim \mathcal N(0, 2s\hat\Sigma_k)
+
+    Both expectations are exact Gaussian norm moments (:func:`expected_norm`), so the
+    score carries no Monte Carlo noise. ``scale`` is ``s``.
+    """
+    errors, cov = _check_errors_cov(errors, cov)
+    return _energy_scores(_Eigen.of(errors, cov), (scale,))[0]
+
+
+@dataclass(frozen=True)
+class Probes:
+    """Mean scores at covariance scales 1/c, 1 and c, the probes (18) and SRDs (19)."""
+
+    c: float
+    nll_minus: float  # mean NLL at scale 1/c
+    nll: float  # mean NLL at scale 1
+    nll_plus: float  # mean NLL at scale c
+    es_minus: float
+    es: float
+    es_plus: float
+    delta_nll_minus: float
+    delta_nll_plus: float
+    delta_es_minus: float
+    delta_es_plus: float
+    srd_nll: float
+    srd_es: float
+
+    @property
+    def all_positive(self) -> bool:
+        """All four probes > 0: both scores rise when the covariance moves either way."""
+        return min(self.delta_nll_minus, self.delta_nll_plus, self.delta_es_minus,
+                   self.delta_es_plus) > 0
+
+
+def srd(delta_minus: float, delta_plus: float, c: float, absolute: bool = False) -> float:
+    r"""Slope relative difference, Eq. (19).
+
+    .. math:: \mathrm{SRD} = \frac{c|\Delta^-| - |\Delta^+|}{|\Delta^+|}
+
+    With ``absolute=True`` the absolute value of the whole expression is returned
+    (the form in the authors' public code).
+    """
+    value = (c * abs(delta_minus) - abs(delta_plus)) / abs(delta_plus)
+    return abs(value) if absolute else value
+
+
+def probes(
+    errors: np.ndarray, cov: np.ndarray, c: float = 2.0, srd_absolute: bool = False
+) -> Probes:
+    r"""Directional probes of NLL and ES, Eq. (18), and both SRDs, Eq. (19).
+
+    .. math::
+        \Delta^\mp_{\mathrm{NLL}} = \overline{\mathrm{NLL}}(c^{\mp1}) - \overline{\mathrm{NLL}}(1),
+        \qquad
+        \Delta^\mp_{\mathrm{ES}} = \overline{\mathrm{ES}}(c^{\mp1}) - \overline{\mathrm{ES}}(1)
+
+    where the bar is the mean over epochs and the argument the covariance scale.
+    Pass centred errors to obtain the probes of F̃_k in Section III-C.
+    """
+    errors, cov = _check_errors_cov(errors, cov)
+    if not c > 1:
+        raise CredcliError(f"the probe factor c must be > 1; got {c}")
+    chol = np.linalg.cholesky(cov)
+    return _probes(errors, cov, chol, c, srd_absolute)
+
+
+def _probes(errors, cov, chol, c: float, srd_absolute: bool) -> Probes:
+    eps = _nees(errors, chol)
+    logdet = _logdet(chol)
+    d = errors.shape[1]
+    scales = (1.0 / c, 1.0, c)
+    nll = [float(np.mean(_nll(eps, logdet, d, s))) for s in scales]
+    es = [float(np.mean(v)) for v in _energy_scores(_Eigen.of(errors, cov), scales)]
+    dn_minus, dn_plus = nll[0] - nll[1], nll[2] - nll[1]
+    de_minus, de_plus = es[0] - es[1], es[2] - es[1]
+    return Probes(
+        c=c,
+        nll_minus=nll[0],
+        nll=nll[1],
+        nll_plus=nll[2],
+        es_minus=es[0],
+        es=es[1],
+        es_plus=es[2],
+        delta_nll_minus=dn_minus,
+        delta_nll_plus=dn_plus,
+        delta_es_minus=de_minus,
+        delta_es_plus=de_plus,
+        srd_nll=srd(dn_minus, dn_plus, c, srd_absolute),
+        srd_es=srd(de_minus, de_plus, c, srd_absolute),
+    )

@@ -1,0 +1,308 @@
+"""Renderers: Rich tables, CSV, JSON and Markdown, from plain records.
+
+A command builds a Report (parameters, tables, and the JSON document); the renderers only
+format it. Floats keep full precision in CSV and JSON; tables round them for reading.
+"""
+
+from __future__ import annotations
+
+import csv
+import enum
+import io
+import json
+import math
+from dataclasses import dataclass, field
+
+from credcli.diagnosis import Diagnosis, SegmentDiagnosis
+
+
+class OutputFormat(str, enum.Enum):
+    TABLE = "table"
+    CSV = "csv"
+    JSON = "json"
+    MARKDOWN = "markdown"
+
+
+@dataclass(frozen=True)
+class Column:
+    key: str
+    header: str
+    digits: int = 4  # significant digits in tables; 0 for text/int columns
+
+
+@dataclass(frozen=True)
+class Table:
+    title: str
+    columns: tuple[Column, ...]
+    rows: list[dict]
+    caption: str = ""
+
+
+@dataclass(frozen=True)
+class Report:
+    """What a command outputs: tables for people, ``document`` for machines (JSON)."""
+
+    tables: list[Table]
+    document: dict
+    notes: list[str] = field(default_factory=list)
+
+
+SEGMENT_KEYS = (
+    "log",
+    "segment",
+    "t_start",
+    "t_end",
+    "n",
+    "dim",
+    "label",
+    "elt_statistic",
+    "elt_pvalue",
+    "elt_n_used",
+    "elt_subsampled",
+    "smm_detected",
+    "nci",
+    "nci_centered",
+    "anees",
+    "cov_scale",
+    "ks_pvalue",
+    "nees_label",
+    "nci_label",
+    "nll",
+    "es",
+    "nll_minus",
+    "nll_plus",
+    "es_minus",
+    "es_plus",
+    "delta_nll_minus",
+    "delta_nll_plus",
+    "delta_es_minus",
+    "delta_es_plus",
+    "srd_nll",
+    "srd_es",
+)
+
+SEGMENT_COLUMNS = (
+    Column("segment", "segment", 0),
+    Column("n", "N", 0),
+    Column("dim", "d", 0),
+    Column("label", "label", 0),
+    Column("elt_pvalue", "ELT p", 3),
+    Column("nci", "NCI [dB]", 3),
+    Column("anees", "ANEES", 4),
+    Column("nees_label", "NEES baseline", 0),
+    Column("nci_label", "NCI baseline", 0),
+)
+
+SEGMENT_COLUMNS_ALL = SEGMENT_COLUMNS + (
+    Column("nci_centered", "NCI centred", 3),
+    Column("nll", "NLL", 4),
+    Column("es", "ES", 4),
+    Column("delta_nll_minus", "ΔNLL−", 3),
+    Column("delta_nll_plus", "ΔNLL+", 3),
+    Column("delta_es_minus", "ΔES−", 3),
+    Column("delta_es_plus", "ΔES+", 3),
+    Column("srd_nll", "SRD NLL", 3),
+    Column("srd_es", "SRD ES", 3),
+)
+
+
+def _value(x):
+    """JSON-safe scalar: enums to their value, NaN/Inf to None."""
+    if isinstance(x, enum.Enum):
+        return x.value
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def diagnosis_record(diag: Diagnosis) -> dict:
+    """The flat record of one Diagnosis (every key of SEGMENT_KEYS but log/segment/times)."""
+    scores, probes = diag.scores, diag.probes
+    rec = {
+        "n": diag.n,
+        "dim": diag.dim,
+        "label": diag.label.value,
+        "elt_statistic": diag.elt_statistic,
+        "elt_pvalue": diag.elt_pvalue,
+        "elt_n_used": None if diag.elt is None else diag.elt.n_used,
+        "elt_subsampled": None if diag.elt is None else diag.elt.subsampled,
+        "smm_detected": diag.smm_detected,
+        "nci": diag.nci,
+        "nci_centered": diag.nci_centered,
+        "anees": diag.anees,
+        "cov_scale": diag.cov_scale,
+        "ks_pvalue": diag.ks_pvalue,
+        "nees_label": diag.nees_label,
+        "nci_label": diag.nci_label,
+        "nll": None if scores is None else scores.nll,
+        "es": None if scores is None else scores.es,
+        "nll_minus": None if scores is None else scores.nll_minus,
+        "nll_plus": None if scores is None else scores.nll_plus,
+        "es_minus": None if scores is None else scores.es_minus,
+        "es_plus": None if scores is None else scores.es_plus,
+    }
+    for key in ("delta_nll_minus", "delta_nll_plus", "delta_es_minus", "delta_es_plus",
+                "srd_nll", "srd_es"):
+        rec[key] = None if probes is None else getattr(probes, key)
+    return {k: _value(v) for k, v in rec.items()}
+
+
+def segment_record(result: SegmentDiagnosis) -> dict:
+    rec = {
+        "log": result.log,
+        "segment": result.segment,
+        "t_start": result.t_start,
+        "t_end": result.t_end,
+    }
+    rec.update(diagnosis_record(result.diagnosis))
+    return {k: _value(rec[k]) for k in SEGMENT_KEYS}
+
+
+def _cell(value, digits: int) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        if digits == 0:
+            return f"{value:g}"
+        if value != 0 and abs(value) < 10 ** (-digits):
+            return f"{value:.{digits - 1}e}"
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+def _csv_cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+_LABEL_STYLE = {"credible": "green", "insufficient-data": "dim"}
+
+
+def rich_table(table: Table):
+    """A rich.table.Table for the terminal."""
+    from rich.table import Table as RichTable
+
+    out = RichTable(title=table.title, caption=table.caption or None, title_justify="left")
+    for col in table.columns:
+        out.add_column(col.header, justify="right" if col.digits else "left", no_wrap=True)
+    for row in table.rows:
+        cells = []
+        for col in table.columns:
+            text = _cell(row.get(col.key), col.digits)
+            if col.key.endswith("label") and isinstance(row.get(col.key), str):
+                text = f"[{_LABEL_STYLE.get(text, 'bold yellow')}]{text}[/]"
+            cells.append(text)
+        out.add_row(*cells)
+    return out
+
+
+def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
+    """The whole report as text in ``fmt`` (a plain table without colour for TABLE)."""
+    if fmt is OutputFormat.JSON:
+        return json.dumps(report.document, indent=2, allow_nan=False) + "\n"
+    if fmt is OutputFormat.CSV:
+        return _csv(report)
+    if fmt is OutputFormat.MARKDOWN:
+        return _markdown(report)
+    from rich.console import Console
+
+    buf = io.StringIO()
+    console = Console(file=buf, width=width, color_system=None, force_terminal=False)
+    for table in report.tables:
+        console.print(rich_table(table))
+    for note in report.notes:
+        console.print(note, markup=False)
+    return buf.getvalue()
+
+
+def _csv(report: Report) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    many = len(report.tables) > 1
+    for i, table in enumerate(report.tables):
+        if many:
+            if i:
+                buf.write("\n")
+            buf.write(f"# {table.title}\n")
+        keys = [c.key for c in table.columns] if many else _csv_keys(table)
+        writer.writerow(keys)
+        for row in table.rows:
+            writer.writerow([_csv_cell(row.get(k)) for k in keys])
+    return buf.getvalue()
+
+
+def _csv_keys(table: Table) -> list[str]:
+    """A single table's CSV holds every key of its records, not only the shown columns."""
+    keys: list[str] = []
+    for row in table.rows:
+        keys.extend(k for k in row if k not in keys)
+    return keys or [c.key for c in table.columns]
+
+
+def _markdown(report: Report) -> str:
+    lines: list[str] = []
+    for table in report.tables:
+        lines.append(f"### {table.title}")
+        lines.append("")
+        lines.append("| " + " | ".join(c.header for c in table.columns) + " |")
+        lines.append("|" + "|".join("---" if not c.digits else "---:" for c in table.columns) + "|")
+        for row in table.rows:
+            cells = [_cell(row.get(c.key), c.digits).replace("|", "\\|") for c in table.columns]
+            lines.append("| " + " | ".join(cells) + " |")
+        if table.caption:
+            lines.extend(["", table.caption])
+        lines.append("")
+    lines.extend(f"{note}  " for note in report.notes)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def config_parameters(config) -> dict:
+    """Every DiagnosisConfig setting as JSON-safe values."""
+    import dataclasses
+
+    return {f.name: _value(getattr(config, f.name)) for f in dataclasses.fields(config)}
+
+
+def diagnose_report(
+    results: list[SegmentDiagnosis], parameters: dict, logs: list[dict], show_all: bool
+) -> Report:
+    """The `credcli diagnose` report: one row per segment, and the JSON document."""
+    from credcli import __version__
+
+    records = [segment_record(r) for r in results]
+    multi = len({r["log"] for r in records}) > 1
+    columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
+    if multi:
+        columns = (Column("log", "log", 0),) + columns
+    notes = []
+    sub = [r["segment"] for r in records if r["elt_subsampled"]]
+    if sub:
+        notes.append(
+            f"ELT ran on a random subsample of {parameters['max_elt_epochs']} epochs in "
+            f"segment(s) {', '.join(sub)} (memory budget; see --max-elt-epochs)."
+        )
+    for info in logs:
+        if info["dropped_rows"]:
+            notes.append(f"{info['path']}: dropped {info['dropped_rows']} row(s) with NaN/Inf.")
+    short = [r["segment"] for r in records if r["label"] == "insufficient-data"]
+    if short:
+        notes.append(
+            f"insufficient-data: segment(s) {', '.join(short)} have fewer epochs than "
+            f"{parameters['min_epochs']} (see --min-epochs)."
+        )
+    table = Table("credcli diagnose", columns, records)
+    document = {
+        "version": __version__,
+        "command": "diagnose",
+        "parameters": parameters,
+        "logs": logs,
+        "segments": records,
+    }
+    return Report([table], document, notes)

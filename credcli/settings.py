@@ -1,0 +1,94 @@
+"""Settings from a TOML config file and the command line: CLI over config over defaults."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import tempfile
+from pathlib import Path
+
+from credcli.diagnosis import DiagnosisConfig
+from credcli.errors import CredcliError
+from credcli.logs import LogSchema, read_toml
+
+CONFIG_SECTIONS = ("columns", "diagnosis", "segments", "output", "simulate", "uwb", "gate")
+
+
+def load_config(path: str | Path | None) -> dict:
+    """The config file's tables (empty when no file is given)."""
+    if path is None:
+        return {}
+    data = read_toml(path)
+    unknown = sorted(set(data) - set(CONFIG_SECTIONS))
+    if unknown:
+        raise CredcliError(
+            f"{path}: unknown table(s) [{'], ['.join(unknown)}]; allowed: "
+            f"[{'], ['.join(CONFIG_SECTIONS)}]"
+        )
+    return data
+
+
+def merged(section: dict, cli: dict, allowed, where: str) -> dict:
+    """Config values overridden by CLI values that were given (not None)."""
+    unknown = sorted(set(section) - set(allowed))
+    if unknown:
+        raise CredcliError(
+            f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}"
+        )
+    out = dict(section)
+    out.update({k: v for k, v in cli.items() if v is not None})
+    return out
+
+
+def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> LogSchema:
+    values = merged(config.get("columns", {}), cli, LogSchema.__dataclass_fields__, where)
+    try:
+        return LogSchema().updated(**values)
+    except ValueError as exc:
+        raise CredcliError(f"{where}: {exc}") from exc
+
+
+def build_diagnosis_config(
+    config: dict, cli: dict, seed: int | None = None
+) -> tuple[DiagnosisConfig, int]:
+    """The DiagnosisConfig and the seed (default 0) from [diagnosis] and the CLI."""
+    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)} | {"seed"}
+    values = merged(config.get("diagnosis", {}), cli | {"seed": seed}, fields, "config [diagnosis]")
+    seed_value = values.pop("seed", 0)
+    if not isinstance(seed_value, int) or seed_value < 0:
+        raise CredcliError(f"the seed must be a non-negative integer; got {seed_value!r}")
+    try:
+        return DiagnosisConfig(**values), seed_value
+    except (TypeError, ValueError) as exc:
+        raise CredcliError(f"invalid diagnosis setting: {exc}") from exc
+
+
+def split_list(text: str | None) -> tuple[str, ...] | None:
+    """'a,b, c' -> ('a', 'b', 'c'); None stays None."""
+    if text is None:
+        return None
+    items = tuple(t.strip() for t in text.split(",") if t.strip())
+    if not items:
+        raise CredcliError(f"expected a comma-separated list of column names; got '{text}'")
+    return items
+
+
+def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename; refuse to
+    overwrite any of ``inputs``."""
+    path = Path(path)
+    target = path.resolve()
+    for src in inputs:
+        if Path(src).resolve() == target:
+            raise CredcliError(f"{path}: refusing to overwrite an input file; choose another --output")
+    if not target.parent.is_dir():
+        raise CredcliError(f"{path}: directory {target.parent} does not exist")
+    data = text.encode() if isinstance(text, str) else text
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

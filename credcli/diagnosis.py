@@ -175,9 +175,10 @@ def nci_baseline(nci_value: float, tau: float = 0.5) -> Label:
 def ks_chi2_pvalue(eps: np.ndarray, dim: int) -> float:
     """Two-sided Kolmogorov–Smirnov p-value of NEES values against χ²_d.
 
-    p = min(1, 2·S_n(D)), with S_n the exact one-sided Smirnov tail; this equals the
-    exact two-sided p-value to within 1e-6 wherever p < 0.2 (so at every usual level)
-    and avoids importing scipy.stats on the hot path.
+    p = min(1, 2·S_n(D)), with S_n the exact one-sided Smirnov tail. Against
+    ``scipy.stats.kstest(method="exact")`` over 3000 samples (n = 20–300) the largest
+    difference was 1.5e-8 where p < 0.02, 7e-7 where p < 0.05 and 2e-4 where p < 0.2, so the
+    decision at the 1% level is the exact test's; it avoids importing scipy.stats.
     """
     x = np.sort(eps)
     n = x.size

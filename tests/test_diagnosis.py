@@ -1,0 +1,151 @@
+"""Algorithm 1, its variants, and the single-metric baselines."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from credcli import diagnosis as dg
+from credcli.diagnosis import DiagnosisConfig, Label, Variant
+from credcli.errors import CredcliError
+from credcli.metrics import Probes
+from conftest import gaussian_segment
+
+PLANTED = {
+    Label.CREDIBLE: (1.0, None),
+    Label.OPTIMISM: (0.3, None),
+    Label.PESSIMISM: (4.0, None),
+    Label.SMM: (1.0, [2.0, -1.0]),
+    Label.OPTIMISM_SMM: (0.2, [2.0, -1.0]),
+    Label.PESSIMISM_SMM: (5.0, [2.0, -1.0]),
+}
+
+
+@pytest.mark.parametrize("label", list(PLANTED))
+def test_every_label_is_reachable_from_planted_data(label):
+    rho, bias = PLANTED[label]
+    gen = np.random.default_rng(21)
+    errors, cov = gaussian_segment(gen, n=400, d=2, rho=rho, bias=bias)
+    assert dg.diagnose_errors(errors, cov, rng=0).label is label
+
+
+def test_insufficient_data_is_never_a_guess(rng):
+    errors, cov = gaussian_segment(rng, n=9, d=2)
+    d = dg.diagnose_errors(errors, cov, rng=0)
+    assert d.label is Label.INSUFFICIENT and d.elt is None and d.nci is None
+    assert dg.diagnose_errors(*gaussian_segment(rng, n=10, d=2), rng=0).label is not Label.INSUFFICIENT
+    # with sign blocks of 5 epochs, 25 epochs give 5 blocks: p < 0.05 would be impossible
+    config = DiagnosisConfig(block_length=5)
+    assert config.min_n(2) == 26
+    assert dg.diagnose_errors(*gaussian_segment(rng, n=25, d=2), config, 0).label is Label.INSUFFICIENT
+
+
+def _probes(**kw):
+    base = dict(c=2.0, nll_minus=0, nll=0, nll_plus=0, es_minus=0, es=0, es_plus=0,
+                delta_nll_minus=1.0, delta_nll_plus=1.0, delta_es_minus=1.0,
+                delta_es_plus=1.0, srd_nll=0.0, srd_es=0.0)
+    base.update(kw)
+    return Probes(**base)
+
+
+def test_smm_branch_decisions():
+    """Lines 11–23 of Algorithm 1, branch by branch."""
+    tau = 0.5
+    assert dg._label_with_smm(-0.6, None, tau) is Label.PESSIMISM_SMM
+    assert dg._label_with_smm(0.3, None, tau) is Label.SMM
+    assert dg._label_with_smm(0.6, _probes(), tau) is Label.SMM  # all four probes positive
+    mixed = dict(delta_nll_plus=-0.2)
+    assert dg._label_with_smm(0.6, _probes(**mixed, srd_nll=3, srd_es=1), tau) is Label.OPTIMISM_SMM
+    assert dg._label_with_smm(0.6, _probes(**mixed, srd_nll=1, srd_es=3), tau) is Label.SMM
+
+
+def test_no_smm_branch_variants():
+    paper = DiagnosisConfig(variant=Variant.PAPER)
+    ks = DiagnosisConfig(variant=Variant.KS)
+    assert dg._label_without_smm(0.8, 0.5, paper) is Label.OPTIMISM
+    assert dg._label_without_smm(-0.8, 0.5, paper) is Label.PESSIMISM
+    assert dg._label_without_smm(0.2, 0.0, paper) is Label.CREDIBLE
+    assert dg._label_without_smm(0.8, 0.5, ks) is Label.CREDIBLE  # KS does not reject
+    assert dg._label_without_smm(0.8, 0.001, ks) is Label.OPTIMISM  # KS rejects, NCI > τ
+    assert dg._label_without_smm(-0.8, 0.001, ks) is Label.PESSIMISM
+    assert dg._label_without_smm(0.4, 0.001, ks) is Label.CREDIBLE  # |NCI| <= τ
+
+
+def test_ks_variant_raises_credible_rate_at_n100():
+    """The fact behind (a): as printed, Algorithm 1 calls ~76% of credible trials credible
+    at N = 100; with the KS check, ~94%."""
+    hits = {Variant.PAPER: 0, Variant.KS: 0}
+    for k in range(150):
+        gen = np.random.default_rng(500 + k)
+        errors, cov = gaussian_segment(gen, n=100, d=2)
+        for v in hits:
+            hits[v] += dg.diagnose_errors(errors, cov, DiagnosisConfig(variant=v), k).label is Label.CREDIBLE
+    assert 0.60 <= hits[Variant.PAPER] / 150 <= 0.85
+    assert hits[Variant.KS] / 150 >= 0.88
+
+
+def test_nees_baseline_thresholds_match_scipy_chi2():
+    n, d = 100, 2
+    lo, hi = stats.chi2.ppf([0.025, 0.975], n * d)
+    eps = np.full(n, hi / n * 1.0001)
+    assert dg.nees_baseline(eps, d) is Label.OPTIMISM
+    assert dg.nees_baseline(np.full(n, hi / n * 0.9999), d) is Label.CREDIBLE
+    assert dg.nees_baseline(np.full(n, lo / n * 0.9999), d) is Label.PESSIMISM
+    assert dg.nees_baseline(np.full(n, lo / n * 1.0001), d) is Label.CREDIBLE
+
+
+def test_nci_baseline():
+    assert dg.nci_baseline(0.51) is Label.OPTIMISM
+    assert dg.nci_baseline(-0.51) is Label.PESSIMISM
+    assert dg.nci_baseline(0.5) is Label.CREDIBLE
+
+
+def test_ks_pvalue_agrees_with_scipy_exact(rng):
+    for d in (1, 2, 5):
+        for scale in (1.0, 1.3, 0.7):
+            eps = stats.chi2.rvs(d, size=120, random_state=rng) * scale
+            ours = dg.ks_chi2_pvalue(eps, d)
+            ref = stats.kstest(eps, "chi2", args=(d,), method="exact").pvalue
+            if ref < 0.05:
+                assert ours == pytest.approx(ref, abs=1e-6)
+            assert (ours < 0.01) == (ref < 0.01)
+
+
+def test_result_carries_every_intermediate_number(rng):
+    errors, cov = gaussian_segment(rng, n=200, d=2, rho=0.2, bias=[2, 0])
+    d = dg.diagnose_errors(errors, cov, DiagnosisConfig(metrics="all"), rng=1)
+    assert dataclasses.is_dataclass(d)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        d.label = Label.CREDIBLE
+    assert d.n == 200 and d.dim == 2
+    assert d.cov_scale == pytest.approx(np.mean(np.einsum("ni,nij,nj->n", errors, np.linalg.inv(cov), errors)) / 2)
+    assert d.probes is not None and d.scores is not None
+    assert d.elt_pvalue is not None and d.nci_centered is not None and d.ks_pvalue is not None
+
+
+def test_same_seed_same_result_and_segment_streams_independent(rng):
+    errors, cov = gaussian_segment(rng, n=80, d=2)
+    a = dg.diagnose_errors(errors, cov, rng=dg.segment_seed(0, "a"))
+    b = dg.diagnose_errors(errors, cov, rng=dg.segment_seed(0, "a"))
+    c = dg.diagnose_errors(errors, cov, rng=dg.segment_seed(0, "b"))
+    np.testing.assert_array_equal(a.elt.null_distribution, b.elt.null_distribution)
+    assert not np.array_equal(a.elt.null_distribution, c.elt.null_distribution)
+
+
+@pytest.mark.parametrize("field, value", [("tau_nci", 0), ("alpha", 1.5), ("c", 1.0), ("n_flips", 0)])
+def test_config_validation(field, value):
+    with pytest.raises(CredcliError, match="invalid setting"):
+        DiagnosisConfig(**{field: value})
+
+
+def test_diagnose_truth_estimate_api(rng):
+    errors, cov = gaussian_segment(rng, n=100, d=2)
+    truth = rng.normal(size=(100, 2))
+    a = dg.diagnose(truth, truth - errors, cov, rng=4)
+    b = dg.diagnose_errors(errors, cov, rng=4)
+    assert a.label is b.label
+    assert a.nci == pytest.approx(b.nci, rel=1e-12)
+    assert a.elt_pvalue == b.elt_pvalue

@@ -1,0 +1,144 @@
+"""Empirical location test, Eqs. (11)–(17)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from credcli import elt
+from credcli.errors import CredcliError
+from conftest import gaussian_segment
+
+
+def _direct_statistic(s):
+    """Eq. (13) by its double sum over i < j."""
+    n = len(s)
+    total = 0.0
+    for i in range(n):
+        for j in range(i + 1, n):
+            total += np.linalg.norm(s[i] + s[j]) - np.linalg.norm(s[i] - s[j])
+    return 2 * total / (n * (n - 1))
+
+
+def test_whitening_uses_symmetric_inverse_square_root(rng):
+    errors, cov = gaussian_segment(rng, n=20, d=3, varying=True)
+    s = elt.whiten(errors, cov)
+    for e, c, sk in zip(errors, cov, s):
+        lam, u = np.linalg.eigh(c)
+        inv_sqrt = u @ np.diag(lam**-0.5) @ u.T
+        np.testing.assert_allclose(sk, inv_sqrt @ e, rtol=1e-10, atol=1e-12)
+
+
+def test_quadratic_form_equals_pairwise_formula(rng):
+    errors, cov = gaussian_segment(rng, n=40, d=2, bias=[0.3, 0.1], varying=True)
+    s = elt.whiten(errors, cov)
+    direct = _direct_statistic(s)
+    assert elt.energy_statistic(s) == pytest.approx(direct, rel=1e-12)
+    result = elt.location_test(errors, cov, n_flips=50, rng=1)
+    assert result.statistic == pytest.approx(direct, rel=1e-12)
+    # every flipped statistic equals (13) on the flipped set
+    gen = np.random.default_rng(7)
+    signs = gen.integers(0, 2, size=(50, 40), dtype=np.int8) * 2 - 1
+    null = elt.location_test(errors, cov, n_flips=50, rng=7).null_distribution
+    for b in range(5):
+        assert null[b] == pytest.approx(_direct_statistic(signs[b][:, None] * s), rel=1e-10)
+
+
+def test_pvalue_matches_exact_enumeration():
+    """For N = 10 the sign-flip null can be enumerated (2¹⁰ patterns); the randomised
+    p-value with large B agrees with the exact one."""
+    rng = np.random.default_rng(5)
+    errors, cov = gaussian_segment(rng, n=10, d=2, bias=[0.6, 0.0])
+    s = elt.whiten(errors, cov)
+    a = elt.pair_matrix(s)
+    t_obs = a.sum() / 90
+    patterns = np.array(list(itertools.product([-1.0, 1.0], repeat=10)))
+    null = np.einsum("bi,ij,bj->b", patterns, a, patterns) / 90
+    exact = np.mean(null >= t_obs - 1e-12)
+    result = elt.location_test(errors, cov, n_flips=20_000, rng=3)
+    assert result.pvalue == pytest.approx(exact, abs=0.01)
+
+
+def test_pvalue_formula_counts_ties(rng):
+    """p = (1 + #{T_b >= T_obs}) / (B + 1), Eq. (16)."""
+    errors, cov = gaussian_segment(rng, n=30, d=2)
+    r = elt.location_test(errors, cov, n_flips=99, rng=2)
+    assert r.pvalue == (1 + np.count_nonzero(r.null_distribution >= r.statistic * (1 - 1e-13))) / 100
+
+
+def test_pvalues_uniform_under_h0():
+    ps = []
+    for k in range(300):
+        gen = np.random.default_rng(100 + k)
+        errors, cov = gaussian_segment(gen, n=60, d=2, varying=True)
+        ps.append(elt.location_test(errors, cov, n_flips=199, rng=gen).pvalue)
+    ps = np.array(ps)
+    assert stats.kstest(ps, "uniform").pvalue > 0.01
+    assert 0.02 <= np.mean(ps < 0.05) <= 0.09
+
+
+def test_power_under_bias():
+    rejected = 0
+    for k in range(100):
+        gen = np.random.default_rng(1000 + k)
+        errors, cov = gaussian_segment(gen, n=100, d=2, bias=[0.6, -0.4])
+        rejected += elt.location_test(errors, cov, n_flips=299, rng=gen).pvalue < 0.05
+    assert rejected >= 95
+
+
+def test_block_flips_share_a_sign_within_blocks(rng):
+    errors, cov = gaussian_segment(rng, n=30, d=2)
+    s = elt.whiten(errors, cov)
+    a = elt.pair_matrix(s)
+    r = elt.location_test(errors, cov, n_flips=40, rng=9, block_length=4)
+    gen = np.random.default_rng(9)
+    signs = (gen.integers(0, 2, size=(40, 8), dtype=np.int8) * 2 - 1).astype(float)
+    xi = np.repeat(signs, 4, axis=1)[:, :30]
+    np.testing.assert_allclose(r.null_distribution, np.einsum("bi,ij,bj->b", xi, a, xi) / 870)
+    assert r.block_length == 4
+
+
+def test_block_flips_keep_level_under_autocorrelation():
+    """AR(1) errors (φ = 0.9) inflate the false-alarm rate of per-epoch flips; blocks of
+    20 epochs bring it back near the nominal 5%."""
+    def ar1(gen, n=400, phi=0.9):
+        w = gen.normal(size=(n, 2))
+        x = np.empty_like(w)
+        x[0] = w[0]
+        for k in range(1, n):
+            x[k] = phi * x[k - 1] + np.sqrt(1 - phi**2) * w[k]
+        return x
+
+    eye = np.broadcast_to(np.eye(2), (400, 2, 2))
+    per_epoch = blocked = 0
+    for k in range(60):
+        gen = np.random.default_rng(2000 + k)
+        e = ar1(gen)
+        per_epoch += elt.location_test(e, eye, 199, rng=k).pvalue < 0.05
+        blocked += elt.location_test(e, eye, 199, rng=k, block_length=20).pvalue < 0.05
+    assert per_epoch >= 15  # far above the 3 expected at the nominal level
+    assert blocked <= 9
+
+
+def test_subsample_when_over_memory_budget(rng):
+    errors, cov = gaussian_segment(rng, n=500, d=2, bias=[0.5, 0])
+    r = elt.location_test(errors, cov, n_flips=99, rng=1, max_epochs=120)
+    assert r.subsampled and r.n_used == 120 and r.pvalue == 0.01
+    r2 = elt.location_test(errors, cov, n_flips=99, rng=1, max_epochs=120)
+    assert r2.statistic == r.statistic  # seeded subsample
+    full = elt.location_test(errors, cov, n_flips=99, rng=1)
+    assert not full.subsampled and full.n_used == 500
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [({"n_flips": 0}, "positive integer"), ({"block_length": 0}, "block-length"),
+     ({"max_epochs": 1}, "memory budget")],
+)
+def test_invalid_arguments(kwargs, message, rng):
+    errors, cov = gaussian_segment(rng, n=20, d=2)
+    with pytest.raises(CredcliError, match=message):
+        elt.location_test(errors, cov, **kwargs)

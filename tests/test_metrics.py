@@ -1,0 +1,208 @@
+"""Metrics of Section II against closed forms, scipy and independent computations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import integrate, special, stats
+
+from credcli import metrics
+from conftest import gaussian_segment
+
+
+def test_nees_matches_explicit_inverse(rng):
+    errors, cov = gaussian_segment(rng, n=50, d=3, varying=True)
+    expected = np.array([e @ np.linalg.inv(c) @ e for e, c in zip(errors, cov)])
+    np.testing.assert_allclose(metrics.nees(errors, cov), expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("rho", [0.25, 1.0, 4.0])
+def test_mean_nees_is_d_over_rho(rho):
+    """E[ε] = d/ρ under pure scaling, Eq. (3); checked within 5 standard errors."""
+    rng = np.random.default_rng(1)
+    d, n = 3, 200_000
+    errors, cov = gaussian_segment(rng, n=n, d=d, rho=rho)
+    eps = metrics.nees(errors, cov)
+    # ε ρ ~ χ²_d, so sd(mean ε) = sqrt(2d)/ρ/sqrt(n)
+    assert abs(eps.mean() - d / rho) < 5 * np.sqrt(2 * d) / rho / np.sqrt(n)
+    assert metrics.anees(errors, cov) == pytest.approx(eps.mean() / d)
+
+
+@pytest.mark.parametrize("rho", [0.1, 0.5, 2.0, 10.0])
+def test_nci_is_minus_10_log10_rho_under_pure_scaling(rho, rng):
+    """Eq. (5): with M = Σ known, NCI = −10 log10 ρ exactly, epoch by epoch."""
+    errors, cov = gaussian_segment(rng, n=100, d=2, rho=rho, varying=True)
+    assert metrics.nci(errors, cov, mse=cov / rho) == pytest.approx(-10 * np.log10(rho), abs=1e-10)
+
+
+def test_nci_with_estimated_mse_is_close_to_closed_form(rng):
+    errors, cov = gaussian_segment(rng, n=5000, d=2, rho=3.0)
+    assert metrics.nci(errors, cov) == pytest.approx(-10 * np.log10(3.0), abs=0.1)
+
+
+def test_nci_non_negative_under_bias(rng):
+    """Appendix A: with Σ̂ = Σ and M = Σ + μμᵀ every term of (4) is >= 0."""
+    for _ in range(20):
+        bias = rng.normal(size=2) * 2
+        errors, cov = gaussian_segment(rng, n=200, d=2, bias=bias)
+        mse = cov[0] + np.outer(bias, bias)
+        eps = metrics.nees(errors, cov)
+        eps_star = metrics.nees(errors, np.broadcast_to(mse, cov.shape))
+        assert np.all(eps >= eps_star * (1 - 1e-12))
+        assert metrics.nci(errors, cov, mse=mse) >= 0
+
+
+def test_mse_matrix_is_covariance_plus_outer_mean(rng):
+    errors = rng.normal(size=(40, 3)) + 1.0
+    expected = np.cov(errors.T) + np.outer(errors.mean(0), errors.mean(0))
+    np.testing.assert_allclose(metrics.mse_matrix(errors), expected, rtol=1e-12)
+
+
+def test_nll_matches_scipy_logpdf(rng):
+    errors, cov = gaussian_segment(rng, n=30, d=3, varying=True)
+    expected = [-stats.multivariate_normal(np.zeros(3), c).logpdf(e) for e, c in zip(errors, cov)]
+    np.testing.assert_allclose(metrics.gaussian_nll(errors, cov), expected, rtol=1e-12)
+    scaled = [-stats.multivariate_normal(np.zeros(3), 2 * c).logpdf(e) for e, c in zip(errors, cov)]
+    np.testing.assert_allclose(metrics.gaussian_nll(errors, cov, scale=2.0), scaled, rtol=1e-12)
+
+
+@pytest.mark.parametrize("rho", [0.3, 1.0, 3.0])
+def test_expected_nll_eq8(rho):
+    """E[NLL] = ½(d/ρ + d ln ρ + ln|Σ| + d ln 2π), Eq. (8), within 5 standard errors."""
+    rng = np.random.default_rng(2)
+    d, n = 2, 200_000
+    errors, cov = gaussian_segment(rng, n=n, d=d, rho=rho)
+    nll = metrics.gaussian_nll(errors, cov)
+    true_logdet = np.linalg.slogdet(cov[0] / rho)[1]
+    expected = 0.5 * (d / rho + d * np.log(rho) + true_logdet + d * np.log(2 * np.pi))
+    assert abs(nll.mean() - expected) < 5 * nll.std() / np.sqrt(n)
+
+
+def _crps_gaussian(mu, sigma, y):
+    z = (y - mu) / sigma
+    return sigma * (z * (2 * special.ndtr(z) - 1) + 2 * np.exp(-z * z / 2) / np.sqrt(2 * np.pi) - 1 / np.sqrt(np.pi))
+
+
+def test_energy_score_d1_is_gaussian_crps(rng):
+    """In d = 1 the energy score is the CRPS, with the closed form of Gneiting & Raftery (2007)."""
+    errors = rng.normal(size=(200, 1)) * 3
+    sigma = rng.uniform(0.1, 5, 200)
+    cov = (sigma**2)[:, None, None]
+    # predictive N(x̂, σ²) at truth x = x̂ + e
+    np.testing.assert_allclose(
+        metrics.energy_score(errors, cov), _crps_gaussian(0.0, sigma, errors[:, 0]), rtol=1e-9
+    )
+
+
+def test_expected_norm_d1_folded_normal(rng):
+    m = rng.normal(size=50) * 2
+    s = rng.uniform(0.01, 3, 50)
+    folded = s * np.sqrt(2 / np.pi) * np.exp(-(m**2) / (2 * s**2)) + m * (1 - 2 * special.ndtr(-m / s))
+    got = metrics.expected_norm(m[:, None], (s**2)[:, None, None])
+    np.testing.assert_allclose(got, folded, rtol=1e-9)
+
+
+def test_expected_norm_d2_zero_mean_is_elliptic_integral(rng):
+    """E‖W‖ for W ~ N(0, diag(a², b²)), a >= b, is √(2/π)·a·E(1 − b²/a²)."""
+    a = rng.uniform(0.1, 5, 40)
+    b = a * rng.uniform(1e-4, 1, 40)
+    rot = rng.uniform(0, np.pi, 40)
+    c, s = np.cos(rot), np.sin(rot)
+    r = np.stack([np.c_[c, -s], np.c_[s, c]], axis=1)
+    cov = r @ (np.eye(2) * np.c_[a**2, b**2][:, None, :]) @ np.swapaxes(r, 1, 2)
+    expected = np.sqrt(2 / np.pi) * a * special.ellipe(1 - b**2 / a**2)
+    np.testing.assert_allclose(metrics.expected_norm(np.zeros((40, 2)), cov), expected, rtol=1e-9)
+
+
+def test_expected_norm_d2_with_mean_against_polar_quadrature():
+    """Independent reference: the 2-D Gaussian density integrated in polar coordinates."""
+    mean = np.array([0.7, -1.3])
+    cov = np.array([[2.0, 0.6], [0.6, 0.5]])
+    inv = np.linalg.inv(cov)
+    norm = 1 / (2 * np.pi * np.sqrt(np.linalg.det(cov)))
+
+    def density(r, th):
+        x = np.array([r * np.cos(th), r * np.sin(th)]) - mean
+        return norm * np.exp(-0.5 * x @ inv @ x)
+
+    ref, _ = integrate.dblquad(lambda r, th: r * r * density(r, th), 0, 2 * np.pi, 0, 40, epsabs=1e-12)
+    got = metrics.expected_norm(mean[None], cov[None])[0]
+    assert got == pytest.approx(ref, rel=1e-8)
+
+
+def test_energy_score_against_million_sample_monte_carlo():
+    rng = np.random.default_rng(3)
+    d = 3
+    errors = rng.normal(size=(1, d))
+    a = rng.normal(size=(d, d))
+    cov = (a @ a.T + np.eye(d))[None]
+    m = 1_000_000
+    y = rng.multivariate_normal(np.zeros(d), cov[0], size=m)  # Y − x̂
+    y2 = rng.multivariate_normal(np.zeros(d), cov[0], size=m)
+    first = np.linalg.norm(y - errors[0], axis=1)  # ‖Y − x‖ with x = x̂ + e
+    second = np.linalg.norm(y - y2, axis=1)
+    mc = first.mean() - 0.5 * second.mean()
+    se = np.sqrt(first.var() / m + 0.25 * second.var() / m)
+    got = metrics.energy_score(errors, cov)[0]
+    assert abs(got - mc) < 5 * se
+
+
+def test_energy_score_is_non_negative_and_scale_equivariant(rng):
+    errors, cov = gaussian_segment(rng, n=100, d=4, varying=True)
+    es = metrics.energy_score(errors, cov)
+    assert np.all(es > 0)
+    # ES(kx̂, k²Σ̂; kx) = k·ES (energy score is homogeneous of degree 1 in distance)
+    np.testing.assert_allclose(metrics.energy_score(3 * errors, 9 * cov), 3 * es, rtol=1e-9)
+
+
+def test_energy_score_invariant_to_rotation(rng):
+    errors, cov = gaussian_segment(rng, n=50, d=3)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    rotated = metrics.energy_score(errors @ q.T, q @ cov @ q.T)
+    np.testing.assert_allclose(rotated, metrics.energy_score(errors, cov), rtol=1e-9)
+
+
+def test_fig1_asymmetry_es_penalises_pessimism_nll_optimism():
+    """Fig. 1a and Appendix B: at scale ρ and 1/ρ, ES is larger for pessimism (ρ > 1)
+    and NLL is larger for optimism (ρ < 1)."""
+    rng = np.random.default_rng(4)
+    errors = rng.normal(size=(20_000, 2))
+    eye = np.broadcast_to(np.eye(2), (20_000, 2, 2))
+    for rho in (2.0, 4.0, 8.0):
+        es_pess = metrics.energy_score(errors, eye, rho).mean()
+        es_opt = metrics.energy_score(errors, eye, 1 / rho).mean()
+        nll_pess = metrics.gaussian_nll(errors, eye, rho).mean()
+        nll_opt = metrics.gaussian_nll(errors, eye, 1 / rho).mean()
+        assert es_pess > es_opt
+        assert nll_opt > nll_pess
+    # ES is minimised at ρ = 1 (propriety) along the curve of Fig. 1a
+    curve = [metrics.energy_score(errors, eye, r).mean() for r in (0.5, 0.8, 1.0, 1.25, 2.0)]
+    assert int(np.argmin(curve)) == 2
+
+
+def test_probes_nll_closed_form(rng):
+    """Δ∓NLL from Eq. (7): ½((c^{±1} − 1)·mean ε ∓ d ln c)."""
+    errors, cov = gaussian_segment(rng, n=300, d=2, rho=0.5)
+    c = 2.0
+    p = metrics.probes(errors, cov, c)
+    eps = metrics.nees(errors, cov).mean()
+    assert p.delta_nll_minus == pytest.approx(0.5 * ((c - 1) * eps - 2 * np.log(c)), rel=1e-10)
+    assert p.delta_nll_plus == pytest.approx(0.5 * ((1 / c - 1) * eps + 2 * np.log(c)), rel=1e-10)
+    es = [metrics.energy_score(errors, cov, s).mean() for s in (1 / c, 1.0, c)]
+    assert p.delta_es_minus == pytest.approx(es[0] - es[1], rel=1e-10)
+    assert p.delta_es_plus == pytest.approx(es[2] - es[1], rel=1e-10)
+    assert p.srd_nll == pytest.approx(
+        (c * abs(p.delta_nll_minus) - abs(p.delta_nll_plus)) / abs(p.delta_nll_plus)
+    )
+
+
+def test_srd_absolute_form():
+    assert metrics.srd(-0.1, 1.0, 2.0) == pytest.approx(-0.8)
+    assert metrics.srd(-0.1, 1.0, 2.0, absolute=True) == pytest.approx(0.8)
+
+
+def test_shape_errors_are_reported():
+    from credcli.errors import CredcliError
+
+    with pytest.raises(CredcliError, match="cov must have shape"):
+        metrics.nees(np.zeros((3, 2)), np.zeros((3, 3, 3)))

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -45,51 +45,65 @@ def _root(
 ) -> None:
     """Can you trust the covariance your estimator reports, and if not, why not?"""
 
+
 # Options shared by the commands that diagnose (declared once, reused).
 ConfigOpt = Annotated[
-    Optional[Path], typer.Option("--config", help="TOML config file (see configs/).")
+    Path | None, typer.Option("--config", help="TOML config file (see configs/).")
 ]
 FormatOpt = Annotated[
     OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
 ]
 OutputOpt = Annotated[
-    Optional[Path], typer.Option("--output", "-o", help="Write the output to FILE (atomically).")
+    Path | None, typer.Option("--output", "-o", help="Write the output to FILE (atomically).")
 ]
-SeedOpt = Annotated[Optional[int], typer.Option("--seed", help="Seed of the ELT sign flips [default: 0].")]
+SeedOpt = Annotated[
+    int | None, typer.Option("--seed", help="Seed of the ELT sign flips [default: 0].")
+]
 TauOpt = Annotated[
-    Optional[float], typer.Option("--tau", help=f"NCI threshold τ in dB [default: {_D.tau_nci}].")
+    float | None, typer.Option("--tau", help=f"NCI threshold τ in dB [default: {_D.tau_nci}].")
 ]
 AlphaOpt = Annotated[
-    Optional[float], typer.Option("--alpha", help=f"ELT significance level [default: {_D.alpha}].")
+    float | None, typer.Option("--alpha", help=f"ELT significance level [default: {_D.alpha}].")
 ]
 COpt = Annotated[
-    Optional[float], typer.Option("--probe-factor", "-c", help=f"Probe scale c > 1 [default: {_D.c}].")
+    float | None, typer.Option("--probe-factor", "-c", help=f"Probe scale c > 1 [default: {_D.c}].")
 ]
 FlipsOpt = Annotated[
-    Optional[int], typer.Option("--flips", "-B", help=f"ELT sign flips B [default: {_D.n_flips}].")
+    int | None, typer.Option("--flips", "-B", help=f"ELT sign flips B [default: {_D.n_flips}].")
 ]
 BlockOpt = Annotated[
-    Optional[int],
-    typer.Option("--block-length", help="Epochs per ELT sign block (autocorrelated errors) [default: 1]."),
+    int | None,
+    typer.Option(
+        "--block-length", help="Epochs per ELT sign block (autocorrelated errors) [default: 1]."
+    ),
 ]
 VariantOpt = Annotated[
-    Optional[Variant],
-    typer.Option("--variant", help="Algorithm 1 variant: ks (authors' code) or paper (as printed) [default: ks]."),
+    Variant | None,
+    typer.Option(
+        "--variant",
+        help="Algorithm 1 variant: ks (authors' code) or paper (as printed) [default: ks].",
+    ),
 ]
 SrdOpt = Annotated[
-    Optional[SrdForm], typer.Option("--srd-form", help="SRD of Eq. (19): printed or absolute [default: printed].")
+    SrdForm | None,
+    typer.Option("--srd-form", help="SRD of Eq. (19): printed or absolute [default: printed]."),
 ]
 MetricsOpt = Annotated[
-    Optional[MetricsLevel],
-    typer.Option("--metrics", help="needed: probes only where Algorithm 1 uses them; all: always [default: needed]."),
+    MetricsLevel | None,
+    typer.Option(
+        "--metrics",
+        help="needed: probes only where Algorithm 1 uses them; all: always [default: needed].",
+    ),
 ]
 MinEpochsOpt = Annotated[
-    Optional[int],
+    int | None,
     typer.Option("--min-epochs", help=f"Smallest segment diagnosed [default: {_D.min_epochs}]."),
 ]
 MaxEltOpt = Annotated[
-    Optional[int],
-    typer.Option("--max-elt-epochs", help=f"ELT memory budget in epochs [default: {_D.max_elt_epochs}]."),
+    int | None,
+    typer.Option(
+        "--max-elt-epochs", help=f"ELT memory budget in epochs [default: {_D.max_elt_epochs}]."
+    ),
 ]
 
 
@@ -168,29 +182,42 @@ class _Progress:
 
 @app.command()
 def diagnose(
-    logs: Annotated[list[Path], typer.Argument(help="Estimator logs (CSV or Parquet).", show_default=False)],
+    logs: Annotated[
+        list[Path], typer.Argument(help="Estimator logs (CSV or Parquet).", show_default=False)
+    ],
     config: ConfigOpt = None,
     window: Annotated[
-        Optional[str],
-        typer.Option("--window", "-w", help="Split into windows: a duration (5s, 250ms) or an epoch count (200)."),
+        str | None,
+        typer.Option(
+            "--window",
+            "-w",
+            help="Split into windows: a duration (5s, 250ms) or an epoch count (200).",
+        ),
     ] = None,
-    whole: Annotated[bool, typer.Option("--whole", help="Diagnose each log as one segment.")] = False,
-    time_column: Annotated[Optional[str], typer.Option("--time-column", help="Time column [default: time].")] = None,
+    whole: Annotated[
+        bool, typer.Option("--whole", help="Diagnose each log as one segment.")
+    ] = False,
+    time_column: Annotated[
+        str | None, typer.Option("--time-column", help="Time column [default: time].")
+    ] = None,
     segment_column: Annotated[
-        Optional[str], typer.Option("--segment-column", help="Segment column [default: segment].")
+        str | None, typer.Option("--segment-column", help="Segment column [default: segment].")
     ] = None,
     truth_columns: Annotated[
-        Optional[str], typer.Option("--truth-columns", help="Truth columns, comma-separated.")
+        str | None, typer.Option("--truth-columns", help="Truth columns, comma-separated.")
     ] = None,
     estimate_columns: Annotated[
-        Optional[str], typer.Option("--estimate-columns", help="Estimate columns, comma-separated.")
+        str | None, typer.Option("--estimate-columns", help="Estimate columns, comma-separated.")
     ] = None,
     cov_columns: Annotated[
-        Optional[str],
-        typer.Option("--cov-columns", help="Covariance columns, comma-separated: d² (full), d(d+1)/2 (upper) or d."),
+        str | None,
+        typer.Option(
+            "--cov-columns",
+            help="Covariance columns, comma-separated: d² (full), d(d+1)/2 (upper) or d.",
+        ),
     ] = None,
     cov_kind: Annotated[
-        Optional[CovKind], typer.Option("--cov-kind", help="How --cov-columns store the covariance.")
+        CovKind | None, typer.Option("--cov-kind", help="How --cov-columns store the covariance.")
     ] = None,
     drop_invalid: Annotated[
         bool, typer.Option("--drop-invalid", help="Drop rows with NaN/Inf instead of failing.")
@@ -210,8 +237,8 @@ def diagnose(
     output: OutputOpt = None,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (Algorithm 1)."""
-    from credcli.workflows import run_diagnose
     from credcli.settings import build_diagnosis_config, build_schema, load_config, split_list
+    from credcli.workflows import run_diagnose
 
     cfg = load_config(config)
     schema = build_schema(
@@ -228,8 +255,16 @@ def diagnose(
     dconf, seed = build_diagnosis_config(
         cfg,
         _diagnosis_cli(
-            tau, alpha, probe_factor, flips, block_length, variant, srd_form, metrics,
-            min_epochs, max_elt_epochs,
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            min_epochs,
+            max_elt_epochs,
         ),
         seed,
     )
@@ -237,8 +272,14 @@ def diagnose(
     window = window if window is not None else seg_cfg.get("window")
     with _Progress("diagnosing segments") as bar:
         report = run_diagnose(
-            logs, schema, dconf, window=window, whole=whole or seg_cfg.get("whole", False),
-            seed=seed, drop_invalid=drop_invalid, progress=bar,
+            logs,
+            schema,
+            dconf,
+            window=window,
+            whole=whole or seg_cfg.get("whole", False),
+            seed=seed,
+            drop_invalid=drop_invalid,
+            progress=bar,
         )
     _emit(report, fmt, output, inputs=logs)
     return 0

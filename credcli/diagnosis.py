@@ -253,10 +253,10 @@ def _diagnose(errors, cov, chol, config: DiagnosisConfig, gen, mse) -> Diagnosis
         return Diagnosis(label=Label.INSUFFICIENT, n=n, dim=d, config=config)
     eps = metrics._nees(errors, chol)
     mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
-    chol_mse = np.linalg.cholesky(np.broadcast_to(mse, cov.shape))
+    chol_mse = _mse_cholesky(np.broadcast_to(mse, cov.shape))
     nci_raw = metrics._nci(errors, chol, chol_mse)
     centred = errors - errors.mean(axis=0)
-    chol_cmse = np.linalg.cholesky(np.broadcast_to(metrics.mse_matrix(centred), cov.shape))
+    chol_cmse = _mse_cholesky(np.broadcast_to(metrics.mse_matrix(centred), cov.shape))
     nci_centred = metrics._nci(centred, chol, chol_cmse)
     elt = location_test(
         errors, cov, config.n_flips, gen, config.block_length, config.max_elt_epochs
@@ -266,12 +266,13 @@ def _diagnose(errors, cov, chol, config: DiagnosisConfig, gen, mse) -> Diagnosis
     absolute = config.srd_form is SrdForm.ABSOLUTE
     everything = config.metrics is MetricsLevel.ALL
     needs_probes = smm and nci_centred > config.tau_nci
+    eigen = metrics._CovEigen(cov) if needs_probes or everything else None
     probes = (
-        metrics._probes(centred, cov, chol, config.c, absolute)
+        metrics._probes(centred, eigen, chol, config.c, absolute)
         if needs_probes or everything
         else None
     )
-    scores = metrics._probes(errors, cov, chol, config.c, absolute) if everything else None
+    scores = metrics._probes(errors, eigen, chol, config.c, absolute) if everything else None
     if smm:
         label = _label_with_smm(nci_centred, probes, config.tau_nci)
     else:
@@ -294,9 +295,22 @@ def _diagnose(errors, cov, chol, config: DiagnosisConfig, gen, mse) -> Diagnosis
     )
 
 
+def _mse_cholesky(mse: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.cholesky(mse)
+    except np.linalg.LinAlgError as exc:
+        raise CredcliError(
+            "the errors span fewer than d dimensions (for example a component whose error is "
+            "the same in every epoch), so the MSE matrix of the NCI, Eq. (4), is singular; "
+            "drop that component or give the MSE matrix"
+        ) from exc
+
+
 def _label_without_smm(nci_value: float, ks_p: float, config: DiagnosisConfig) -> Label:
     """Lines 2–8 of Algorithm 1, with the KS check of the authors' code for Variant.KS."""
-    if config.variant is Variant.KS and (ks_p >= config.ks_alpha or abs(nci_value) <= config.tau_nci):
+    if config.variant is Variant.KS and (
+        ks_p >= config.ks_alpha or abs(nci_value) <= config.tau_nci
+    ):
         return Label.CREDIBLE
     return nci_baseline(nci_value, config.tau_nci)
 
@@ -347,14 +361,17 @@ def diagnose_log(
     out = []
     for done, seg in enumerate(segments, start=1):
         cov = log.cov[seg.index]
-        diag = _diagnose(
-            errors[seg.index],
-            cov,
-            np.linalg.cholesky(cov),
-            config,
-            as_generator(segment_seed(seed, seg.name)),
-            None,
-        )
+        try:
+            diag = _diagnose(
+                errors[seg.index],
+                cov,
+                np.linalg.cholesky(cov),
+                config,
+                as_generator(segment_seed(seed, seg.name)),
+                None,
+            )
+        except CredcliError as exc:
+            raise CredcliError(f"{log.source}: segment '{seg.name}': {exc.message}") from exc
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
             progress(done)

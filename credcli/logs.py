@@ -162,7 +162,7 @@ def _read_table(path: Path):
         if path.suffix.lower() in (".parquet", ".pq"):
             frame = pd.read_parquet(path)
         else:
-            frame = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+            frame = pd.read_csv(path, skipinitialspace=True)
     except pd.errors.EmptyDataError as exc:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
     except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
@@ -181,7 +181,7 @@ def _indexed(columns, prefix: str) -> dict[int, str]:
     found = {}
     for col in columns:
         if col.startswith(prefix):
-            m = _INDEXED.match(col[len(prefix):])
+            m = _INDEXED.match(col[len(prefix) :])
             if m:
                 found[int(m.group(1))] = col
     return found
@@ -235,7 +235,7 @@ def _cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKin
     pairs = {}
     for col in columns:
         if col.startswith(schema.cov_prefix):
-            m = _PAIR.match(col[len(schema.cov_prefix):])
+            m = _PAIR.match(col[len(schema.cov_prefix) :])
             if m:
                 pairs[(int(m.group(1)), int(m.group(2)))] = col
     if pairs:
@@ -276,11 +276,25 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
     """Validate a pandas DataFrame into an EstimatorLog (see :func:`load_log`)."""
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
-    truth_cols = _vector_columns(columns, schema.truth_prefix, schema.truth_columns, "truth", source)
+    truth_cols = _vector_columns(
+        columns, schema.truth_prefix, schema.truth_columns, "truth", source
+    )
     est_cols = _vector_columns(
         columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
     )
     if len(truth_cols) != len(est_cols):
+        if not (schema.truth_columns or schema.estimate_columns):
+            short, prefix, what = (
+                (est_cols, schema.estimate_prefix, "estimate")
+                if len(est_cols) < len(truth_cols)
+                else (truth_cols, schema.truth_prefix, "truth")
+            )
+            d = max(len(truth_cols), len(est_cols))
+            missing = ", ".join(f"{prefix}{i}" for i in range(len(short), d))
+            raise CredcliError(
+                f"{source}: missing {what} column(s) {missing}: truth and estimate must both "
+                f"have d = {d} columns (dimensions do not match)"
+            )
         raise CredcliError(
             f"{source}: {len(truth_cols)} truth columns but {len(est_cols)} estimate columns: "
             "dimensions do not match"
@@ -290,7 +304,9 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
     time_col = schema.time if schema.time in columns else None
     explicit_time = schema.time != LogSchema.time
     if explicit_time and time_col is None:
-        raise CredcliError(f"{source}: time column '{schema.time}' not found; columns found: {_list(columns)}")
+        raise CredcliError(
+            f"{source}: time column '{schema.time}' not found; columns found: {_list(columns)}"
+        )
     seg_col = schema.segment if schema.segment in columns else None
     if schema.segment != LogSchema.segment and seg_col is None:
         raise CredcliError(
@@ -339,18 +355,14 @@ def _numeric(frame, cols: list[str], source: str) -> np.ndarray:
     for j, col in enumerate(cols):
         series = frame[col]
         if series.dtype == object or pd.api.types.is_string_dtype(series.dtype):
-            text = series.astype(str).str.strip()
-            converted = pd.to_numeric(text, errors="coerce")
-            empty = text.eq("") | text.str.lower().isin(["nan", "inf", "-inf", "+inf", "infinity"])
-            bad = converted.isna() & ~empty
+            # the parser found a cell that is not a number: name the first one
+            converted = pd.to_numeric(series, errors="coerce")
+            bad = converted.isna() & series.notna()
             if bad.any():
                 i = int(np.argmax(bad.to_numpy()))
                 raise CredcliError(
                     f"{source}: row {i + 1}, column '{col}': '{series.iloc[i]}' is not a number"
                 )
-            lowered = text.str.lower()
-            converted = converted.where(~lowered.isin(["inf", "+inf", "infinity"]), np.inf)
-            converted = converted.where(lowered != "-inf", -np.inf)
             out[:, j] = converted.to_numpy(dtype=float, na_value=np.nan)
         elif pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(
             series.dtype

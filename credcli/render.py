@@ -141,8 +141,14 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "es_minus": None if scores is None else scores.es_minus,
         "es_plus": None if scores is None else scores.es_plus,
     }
-    for key in ("delta_nll_minus", "delta_nll_plus", "delta_es_minus", "delta_es_plus",
-                "srd_nll", "srd_es"):
+    for key in (
+        "delta_nll_minus",
+        "delta_nll_plus",
+        "delta_es_minus",
+        "delta_es_plus",
+        "srd_nll",
+        "srd_es",
+    ):
         rec[key] = None if probes is None else getattr(probes, key)
     return {k: _value(v) for k, v in rec.items()}
 

@@ -83,7 +83,7 @@ def write_samples(outdir: Path) -> list[Path]:
     outdir.mkdir(parents=True, exist_ok=True)
     log = estimator_log()
     written = [outdir / "estimator_log.csv", outdir / "estimator_log.parquet"]
-    log.to_csv(written[0], index=False, float_format="%.9g")
+    log.to_csv(written[0], index=False)
     log.to_parquet(written[1], index=False)
     return written
 

@@ -79,7 +79,9 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
                 "or name the time column"
             )
         if np.any(np.diff(time) < 0):
-            raise CredcliError("the time column is not sorted; sort the log by time to use --window")
+            raise CredcliError(
+                "the time column is not sorted; sort the log by time to use --window"
+            )
         k = np.floor((time - time[0]) / window.length).astype(np.int64)
     else:
         k = np.arange(n) // int(window.length)

@@ -80,7 +80,9 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
     target = path.resolve()
     for src in inputs:
         if Path(src).resolve() == target:
-            raise CredcliError(f"{path}: refusing to overwrite an input file; choose another --output")
+            raise CredcliError(
+                f"{path}: refusing to overwrite an input file; choose another --output"
+            )
     if not target.parent.is_dir():
         raise CredcliError(f"{path}: directory {target.parent} does not exist")
     data = text.encode() if isinstance(text, str) else text

@@ -56,8 +56,13 @@ def run_diagnose(
         "drop_invalid": drop_invalid,
     }
     logs = [
-        {"path": log.source, "epochs": log.n, "dim": log.dim, "dropped_rows": log.dropped_rows,
-         "segments": len(s)}
+        {
+            "path": log.source,
+            "epochs": log.n,
+            "dim": log.dim,
+            "dropped_rows": log.dropped_rows,
+            "segments": len(s),
+        }
         for log, s in plans
     ]
     return diagnose_report(results, parameters, logs, config.metrics is MetricsLevel.ALL)

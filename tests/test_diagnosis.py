@@ -6,13 +6,13 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import gaussian_segment
 from scipy import stats
 
 from credcli import diagnosis as dg
 from credcli.diagnosis import DiagnosisConfig, Label, Variant
 from credcli.errors import CredcliError
 from credcli.metrics import Probes
-from conftest import gaussian_segment
 
 PLANTED = {
     Label.CREDIBLE: (1.0, None),
@@ -36,17 +36,33 @@ def test_insufficient_data_is_never_a_guess(rng):
     errors, cov = gaussian_segment(rng, n=9, d=2)
     d = dg.diagnose_errors(errors, cov, rng=0)
     assert d.label is Label.INSUFFICIENT and d.elt is None and d.nci is None
-    assert dg.diagnose_errors(*gaussian_segment(rng, n=10, d=2), rng=0).label is not Label.INSUFFICIENT
+    assert (
+        dg.diagnose_errors(*gaussian_segment(rng, n=10, d=2), rng=0).label is not Label.INSUFFICIENT
+    )
     # with sign blocks of 5 epochs, 25 epochs give 5 blocks: p < 0.05 would be impossible
     config = DiagnosisConfig(block_length=5)
     assert config.min_n(2) == 26
-    assert dg.diagnose_errors(*gaussian_segment(rng, n=25, d=2), config, 0).label is Label.INSUFFICIENT
+    assert (
+        dg.diagnose_errors(*gaussian_segment(rng, n=25, d=2), config, 0).label is Label.INSUFFICIENT
+    )
 
 
 def _probes(**kw):
-    base = dict(c=2.0, nll_minus=0, nll=0, nll_plus=0, es_minus=0, es=0, es_plus=0,
-                delta_nll_minus=1.0, delta_nll_plus=1.0, delta_es_minus=1.0,
-                delta_es_plus=1.0, srd_nll=0.0, srd_es=0.0)
+    base = dict(
+        c=2.0,
+        nll_minus=0,
+        nll=0,
+        nll_plus=0,
+        es_minus=0,
+        es=0,
+        es_plus=0,
+        delta_nll_minus=1.0,
+        delta_nll_plus=1.0,
+        delta_es_minus=1.0,
+        delta_es_plus=1.0,
+        srd_nll=0.0,
+        srd_es=0.0,
+    )
     base.update(kw)
     return Probes(**base)
 
@@ -82,7 +98,10 @@ def test_ks_variant_raises_credible_rate_at_n100():
         gen = np.random.default_rng(500 + k)
         errors, cov = gaussian_segment(gen, n=100, d=2)
         for v in hits:
-            hits[v] += dg.diagnose_errors(errors, cov, DiagnosisConfig(variant=v), k).label is Label.CREDIBLE
+            hits[v] += (
+                dg.diagnose_errors(errors, cov, DiagnosisConfig(variant=v), k).label
+                is Label.CREDIBLE
+            )
     assert 0.60 <= hits[Variant.PAPER] / 150 <= 0.85
     assert hits[Variant.KS] / 150 >= 0.88
 
@@ -121,7 +140,9 @@ def test_result_carries_every_intermediate_number(rng):
     with pytest.raises(dataclasses.FrozenInstanceError):
         d.label = Label.CREDIBLE
     assert d.n == 200 and d.dim == 2
-    assert d.cov_scale == pytest.approx(np.mean(np.einsum("ni,nij,nj->n", errors, np.linalg.inv(cov), errors)) / 2)
+    assert d.cov_scale == pytest.approx(
+        np.mean(np.einsum("ni,nij,nj->n", errors, np.linalg.inv(cov), errors)) / 2
+    )
     assert d.probes is not None and d.scores is not None
     assert d.elt_pvalue is not None and d.nci_centered is not None and d.ks_pvalue is not None
 
@@ -135,7 +156,9 @@ def test_same_seed_same_result_and_segment_streams_independent(rng):
     assert not np.array_equal(a.elt.null_distribution, c.elt.null_distribution)
 
 
-@pytest.mark.parametrize("field, value", [("tau_nci", 0), ("alpha", 1.5), ("c", 1.0), ("n_flips", 0)])
+@pytest.mark.parametrize(
+    "field, value", [("tau_nci", 0), ("alpha", 1.5), ("c", 1.0), ("n_flips", 0)]
+)
 def test_config_validation(field, value):
     with pytest.raises(CredcliError, match="invalid setting"):
         DiagnosisConfig(**{field: value})

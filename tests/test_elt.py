@@ -6,11 +6,11 @@ import itertools
 
 import numpy as np
 import pytest
+from conftest import gaussian_segment
 from scipy import stats
 
 from credcli import elt
 from credcli.errors import CredcliError
-from conftest import gaussian_segment
 
 
 def _direct_statistic(s):
@@ -66,7 +66,9 @@ def test_pvalue_formula_counts_ties(rng):
     """p = (1 + #{T_b >= T_obs}) / (B + 1), Eq. (16)."""
     errors, cov = gaussian_segment(rng, n=30, d=2)
     r = elt.location_test(errors, cov, n_flips=99, rng=2)
-    assert r.pvalue == (1 + np.count_nonzero(r.null_distribution >= r.statistic * (1 - 1e-13))) / 100
+    assert (
+        r.pvalue == (1 + np.count_nonzero(r.null_distribution >= r.statistic * (1 - 1e-13))) / 100
+    )
 
 
 def test_pvalues_uniform_under_h0():
@@ -104,6 +106,7 @@ def test_block_flips_share_a_sign_within_blocks(rng):
 def test_block_flips_keep_level_under_autocorrelation():
     """AR(1) errors (φ = 0.9) inflate the false-alarm rate of per-epoch flips; blocks of
     20 epochs bring it back near the nominal 5%."""
+
     def ar1(gen, n=400, phi=0.9):
         w = gen.normal(size=(n, 2))
         x = np.empty_like(w)
@@ -135,10 +138,33 @@ def test_subsample_when_over_memory_budget(rng):
 
 @pytest.mark.parametrize(
     "kwargs, message",
-    [({"n_flips": 0}, "positive integer"), ({"block_length": 0}, "block-length"),
-     ({"max_epochs": 1}, "memory budget")],
+    [
+        ({"n_flips": 0}, "positive integer"),
+        ({"block_length": 0}, "block-length"),
+        ({"max_epochs": 1}, "memory budget"),
+    ],
 )
 def test_invalid_arguments(kwargs, message, rng):
     errors, cov = gaussian_segment(rng, n=20, d=2)
     with pytest.raises(CredcliError, match=message):
         elt.location_test(errors, cov, **kwargs)
+
+
+def test_fast_product_decides_every_flip_as_float64():
+    """The float32 product with its float64 recheck gives the float64 p-value exactly."""
+    for k in range(6):
+        gen = np.random.default_rng(300 + k)
+        errors, cov = gaussian_segment(gen, n=400, d=2, bias=[0.05 * k, 0.0])
+        r = elt.location_test(errors, cov, n_flips=500, rng=k)
+        a = elt.pair_matrix(elt.whiten(errors, cov))
+        signs = np.random.default_rng(k).integers(0, 2, size=(500, 400), dtype=np.int8)
+        xi = signs.astype(float) * 2 - 1
+        exact = np.einsum("bi,bi->b", xi @ a, xi) / (400 * 399)
+        t_obs = a.sum() / (400 * 399)
+        expected = (
+            1 + np.count_nonzero(exact >= t_obs - 100 * np.finfo(float).eps * abs(t_obs))
+        ) / 501
+        assert r.pvalue == expected
+        np.testing.assert_allclose(
+            r.null_distribution, exact, rtol=0, atol=1e-6 * np.abs(exact).max()
+        )

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import gaussian_segment
 from scipy import integrate, special, stats
 
 from credcli import metrics
-from conftest import gaussian_segment
 
 
 def test_nees_matches_explicit_inverse(rng):
@@ -80,7 +80,11 @@ def test_expected_nll_eq8(rho):
 
 def _crps_gaussian(mu, sigma, y):
     z = (y - mu) / sigma
-    return sigma * (z * (2 * special.ndtr(z) - 1) + 2 * np.exp(-z * z / 2) / np.sqrt(2 * np.pi) - 1 / np.sqrt(np.pi))
+    return sigma * (
+        z * (2 * special.ndtr(z) - 1)
+        + 2 * np.exp(-z * z / 2) / np.sqrt(2 * np.pi)
+        - 1 / np.sqrt(np.pi)
+    )
 
 
 def test_energy_score_d1_is_gaussian_crps(rng):
@@ -97,7 +101,9 @@ def test_energy_score_d1_is_gaussian_crps(rng):
 def test_expected_norm_d1_folded_normal(rng):
     m = rng.normal(size=50) * 2
     s = rng.uniform(0.01, 3, 50)
-    folded = s * np.sqrt(2 / np.pi) * np.exp(-(m**2) / (2 * s**2)) + m * (1 - 2 * special.ndtr(-m / s))
+    folded = s * np.sqrt(2 / np.pi) * np.exp(-(m**2) / (2 * s**2)) + m * (
+        1 - 2 * special.ndtr(-m / s)
+    )
     got = metrics.expected_norm(m[:, None], (s**2)[:, None, None])
     np.testing.assert_allclose(got, folded, rtol=1e-9)
 
@@ -125,7 +131,9 @@ def test_expected_norm_d2_with_mean_against_polar_quadrature():
         x = np.array([r * np.cos(th), r * np.sin(th)]) - mean
         return norm * np.exp(-0.5 * x @ inv @ x)
 
-    ref, _ = integrate.dblquad(lambda r, th: r * r * density(r, th), 0, 2 * np.pi, 0, 40, epsabs=1e-12)
+    ref, _ = integrate.dblquad(
+        lambda r, th: r * r * density(r, th), 0, 2 * np.pi, 0, 40, epsabs=1e-12
+    )
     got = metrics.expected_norm(mean[None], cov[None])[0]
     assert got == pytest.approx(ref, rel=1e-8)
 

@@ -1,0 +1,3 @@
+from credcli.cli import entry
+
+entry()

@@ -1,0 +1,80 @@
+"""`make bench`: measured wall time and peak memory of credcli's main jobs.
+
+Each job runs the real command line in a fresh subprocess (start-up included), a few
+times; the best and median wall times and the peak resident memory are printed. These
+are measurements, not tests: shared machines are noisy.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared" / "data" / "starloc"
+
+
+def _run(args: list[str], repeat: int) -> tuple[list[float], float]:
+    """Wall times (s) of `credcli args` and the peak RSS (MiB) of the slowest child."""
+    times, peak = [], 0.0
+    for _ in range(repeat):
+        start = time.perf_counter()
+        pid = os.fork()
+        if pid == 0:  # child: exec the CLI with output discarded
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, 1)
+            os.execv(sys.executable, [sys.executable, "-m", "credcli", *args])
+        _, status, usage = os.wait4(pid, 0)
+        times.append(time.perf_counter() - start)
+        if os.waitstatus_to_exitcode(status) not in (0, 1):
+            raise SystemExit(f"bench: credcli {' '.join(args)} failed")
+        peak = max(peak, usage.ru_maxrss / 1024)
+    return times, peak
+
+
+def big_log(path: Path, segments: int = 100, per_segment: int = 1000, seed: int = 0) -> Path:
+    """A d = 2 log of segments × per_segment epochs with mixed planted conditions."""
+    import pandas as pd
+
+    from credcli.samples import GOOD_SEGMENTS, estimator_log
+
+    plan = [GOOD_SEGMENTS[k % len(GOOD_SEGMENTS)] for k in range(segments)]
+    plan = [type(p)(f"{p.name}-{k:03d}", p.rho, p.bias) for k, p in enumerate(plan)]
+    frame = estimator_log(plan, epochs_per_segment=per_segment, seed=seed)
+    assert isinstance(frame, pd.DataFrame)
+    frame.to_csv(path, index=False)
+    return path
+
+
+def _report(name: str, times: list[float], peak: float, target: str = "") -> None:
+    line = (
+        f"{name:<58} best {min(times):6.2f} s   median {statistics.median(times):6.2f} s"
+        f"   peak RSS {peak:7.1f} MiB"
+    )
+    print(line + (f"   (target {target})" if target else ""), flush=True)
+
+
+def main() -> int:
+    print(
+        f"credcli bench on {os.cpu_count()} CPU(s), Python {sys.version.split()[0]}, "
+        f"numpy {np.__version__}"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        log = big_log(Path(tmp) / "big.csv")
+        times, peak = _run(["diagnose", str(log), "-f", "json"], 3)
+        _report("diagnose: 100,000 epochs, 100 segments, B = 1000", times, peak)
+        times, peak = _run(["diagnose", str(log), "-f", "json", "--metrics", "all"], 1)
+        _report("diagnose --metrics all: same log", times, peak)
+    times, peak = _run(["diagnose", str(ROOT / "sample_data" / "estimator_log.csv")], 3)
+    _report("diagnose: sample log (1,800 epochs, 6 segments)", times, peak)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,185 @@
+"""`credcli diagnose` end to end: formats, determinism, JSON equal to the library."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import SAMPLE
+
+from credcli import DiagnosisConfig, diagnose_log, load_log
+from credcli.cli import main
+from credcli.render import SEGMENT_KEYS
+from credcli.workflows import split
+
+LOG = SAMPLE / "estimator_log.csv"
+REQUIRED = {
+    "segment",
+    "n",
+    "dim",
+    "label",
+    "elt_statistic",
+    "elt_pvalue",
+    "nci",
+    "nci_centered",
+    "anees",
+    "cov_scale",
+    "nees_label",
+    "nci_label",
+    "nll",
+    "es",
+    "delta_nll_minus",
+    "delta_nll_plus",
+    "delta_es_minus",
+    "delta_es_plus",
+    "srd_nll",
+    "srd_es",
+}
+
+
+def _run(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_equals_library_result(capsys):
+    code, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--seed", "3", "--metrics", "all")
+    assert code == 0
+    doc = json.loads(out)
+    assert set(doc) >= {"parameters", "version", "segments"}
+    assert doc["parameters"]["seed"] == 3 and doc["parameters"]["n_flips"] == 1000
+    log = load_log(LOG)
+    results = diagnose_log(log, split(log), DiagnosisConfig(metrics="all"), seed=3)
+    assert [s["segment"] for s in doc["segments"]] == [r.segment for r in results]
+    for rec, res in zip(doc["segments"], results):
+        assert REQUIRED <= set(rec) and list(rec) == list(SEGMENT_KEYS)
+        d = res.diagnosis
+        assert rec["label"] == d.label.value
+        assert rec["elt_pvalue"] == d.elt.pvalue and rec["elt_statistic"] == d.elt.statistic
+        assert rec["nci"] == d.nci and rec["nci_centered"] == d.nci_centered
+        assert rec["anees"] == d.anees and rec["cov_scale"] == d.cov_scale
+        assert rec["nees_label"] == d.nees_label.value and rec["nci_label"] == d.nci_label.value
+        assert rec["nll"] == d.scores.nll and rec["es"] == d.scores.es
+        assert rec["delta_es_plus"] == d.probes.delta_es_plus and rec["srd_nll"] == d.probes.srd_nll
+
+
+def test_sample_log_labels_differ_and_values_are_null_when_not_computed(capsys):
+    code, out, _ = _run(capsys, "diagnose", LOG, "-f", "json")
+    doc = json.loads(out)
+    labels = [s["label"] for s in doc["segments"]]
+    assert labels == ["credible", "optimism", "pessimism", "smm", "pessimism+smm", "optimism+smm"]
+    cruise = doc["segments"][0]
+    assert cruise["delta_nll_minus"] is None and cruise["nll"] is None  # probes not needed
+    urban = doc["segments"][-1]
+    assert urban["delta_nll_minus"] is not None  # optimism+smm goes through the probes
+
+
+@pytest.mark.parametrize("fmt", ["table", "csv", "json", "markdown"])
+def test_same_seed_same_bytes(tmp_path, capsys, fmt):
+    outs = []
+    for k in range(2):
+        path = tmp_path / f"out{k}.{fmt}"
+        assert _run(capsys, "diagnose", LOG, "-f", fmt, "--seed", "11", "-o", path)[0] == 0
+        outs.append(path.read_bytes())
+    assert outs[0] == outs[1] and len(outs[0]) > 100
+    path = tmp_path / "other"
+    _run(capsys, "diagnose", LOG, "-f", "json", "--seed", "12", "-o", path)
+    if fmt == "json":
+        assert path.read_bytes() != outs[0]
+
+
+def test_csv_holds_every_key(capsys):
+    _, out, _ = _run(capsys, "diagnose", LOG, "-f", "csv")
+    rows = list(csv.DictReader(io.StringIO(out)))
+    assert len(rows) == 6 and list(rows[0]) == list(SEGMENT_KEYS)
+    assert float(rows[1]["nci"]) > 0.5
+
+
+def test_markdown_and_table(capsys):
+    _, out, _ = _run(capsys, "diagnose", LOG, "-f", "markdown")
+    assert out.startswith("### credcli diagnose") and "| hover | 300 | 2 | pessimism |" in out
+    _, out, _ = _run(capsys, "diagnose", LOG)
+    for word in ("segment", "ELT p", "NCI", "ANEES", "NEES baseline", "optimism+smm"):
+        assert word in out
+
+
+def test_window_by_epochs_and_duration(capsys):
+    _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--window", "600")
+    segs = json.loads(out)["segments"]
+    assert [s["segment"] for s in segs] == ["w001", "w002", "w003"] and all(
+        s["n"] == 600 for s in segs
+    )
+    _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--window", "45s")
+    segs = json.loads(out)["segments"]
+    assert [s["n"] for s in segs] == [450, 450, 450, 450]
+    assert segs[1]["t_start"] == pytest.approx(45.0)
+    _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--whole")
+    assert json.loads(out)["segments"][0]["n"] == 1800
+
+
+def test_insufficient_data_segment(capsys):
+    _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--window", "299")
+    last = json.loads(out)["segments"][-1]
+    assert last["n"] == 1800 - 6 * 299 and last["label"] == "insufficient-data"
+    assert last["elt_pvalue"] is None
+
+
+def test_output_is_atomic_and_never_over_an_input(tmp_path, capsys):
+    copy = tmp_path / "log.csv"
+    copy.write_bytes(LOG.read_bytes())
+    code, _, err = _run(capsys, "diagnose", copy, "-o", copy)
+    assert code == 2 and "refusing to overwrite an input file" in err
+    assert copy.read_bytes() == LOG.read_bytes()
+    out = tmp_path / "result.json"
+    assert _run(capsys, "diagnose", copy, "-f", "json", "-o", out)[0] == 0
+    assert json.loads(out.read_text())["segments"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "result.json"]  # no temp left
+    code, _, err = _run(capsys, "diagnose", copy, "-o", tmp_path / "no" / "dir.json")
+    assert code == 2 and "does not exist" in err
+
+
+def test_bad_options_are_one_line(capsys):
+    code, _, err = _run(capsys, "diagnose", LOG, "--window", "abc")
+    assert code == 2 and err.startswith("credcli: error: --window 'abc'") and err.count("\n") == 1
+    code, _, err = _run(capsys, "diagnose", LOG, "--tau", "-1")
+    assert code == 2 and "tau_nci" in err
+    code, _, err = _run(capsys, "diagnose", LOG, "--format", "xml")
+    assert code == 2 and err.count("\n") == 1
+
+
+def test_parquet_sample_gives_same_labels(capsys):
+    _, a, _ = _run(capsys, "diagnose", LOG, "-f", "csv")
+    _, b, _ = _run(capsys, "diagnose", SAMPLE / "estimator_log.parquet", "-f", "csv")
+    strip = lambda text: [line.split(",", 1)[1] for line in text.splitlines()[1:]]  # noqa: E731
+    assert strip(a) == strip(b)
+
+
+def test_console_script_runs_as_subprocess():
+    proc = subprocess.run(
+        [sys.executable, "-m", "credcli", "diagnose", str(LOG), "-f", "json"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert len(json.loads(proc.stdout)["segments"]) == 6
+    proc = subprocess.run(
+        [sys.executable, "-m", "credcli", "diagnose", "missing.csv"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert proc.returncode == 2 and proc.stderr == "credcli: error: missing.csv: file not found\n"
+
+
+def test_multiple_logs_have_a_log_column(tmp_path, capsys):
+    _, out, _ = _run(capsys, "diagnose", LOG, SAMPLE / "estimator_log.parquet", "-f", "json")
+    doc = json.loads(out)
+    assert len(doc["segments"]) == 12 and len(doc["logs"]) == 2
+    assert np.unique([s["log"] for s in doc["segments"]]).size == 2

@@ -1,0 +1,255 @@
+"""Log loading: layouts, config mapping, and every bad-input case (one line, exit 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import ROOT
+
+from credcli import load_log
+from credcli.cli import main
+from credcli.errors import CredcliError
+from credcli.logs import LogSchema, load_schema
+
+
+def _frame(n=30, d=2, seed=0):
+    gen = np.random.default_rng(seed)
+    a = gen.normal(size=(n, d, d))
+    cov = a @ np.swapaxes(a, 1, 2) + np.eye(d)
+    truth = gen.normal(size=(n, d))
+    est = truth + gen.normal(size=(n, d))
+    cols = {"time": np.arange(n) * 0.1}
+    cols |= {f"truth_{i}": truth[:, i] for i in range(d)}
+    cols |= {f"est_{i}": est[:, i] for i in range(d)}
+    return pd.DataFrame(cols), cov
+
+
+def _with_cov(frame, cov, kind):
+    frame = frame.copy()
+    d = cov.shape[1]
+    for i in range(d):
+        for j in range(d):
+            if kind == "full" or (kind == "upper" and j >= i):
+                frame[f"cov_{i}_{j}"] = cov[:, i, j]
+    if kind in ("var", "std"):
+        for i in range(d):
+            frame[f"{kind}_{i}"] = cov[:, i, i] if kind == "var" else np.sqrt(cov[:, i, i])
+    return frame
+
+
+@pytest.mark.parametrize("d", [1, 2, 3])
+@pytest.mark.parametrize("kind", ["full", "upper"])
+def test_full_and_upper_layouts(tmp_path, d, kind):
+    frame, cov = _frame(d=d)
+    path = tmp_path / "log.csv"
+    _with_cov(frame, cov, kind).to_csv(path, index=False)
+    log = load_log(path)
+    assert log.dim == d and log.n == 30
+    np.testing.assert_allclose(log.cov, cov, rtol=1e-14)
+    np.testing.assert_allclose(
+        log.errors,
+        frame[[f"truth_{i}" for i in range(d)]].to_numpy()
+        - frame[[f"est_{i}" for i in range(d)]].to_numpy(),
+    )
+
+
+@pytest.mark.parametrize("kind", ["var", "std"])
+def test_diagonal_layouts(tmp_path, kind):
+    frame, cov = _frame(d=3)
+    path = tmp_path / "log.csv"
+    _with_cov(frame, cov, kind).to_csv(path, index=False)
+    log = load_log(path)
+    np.testing.assert_allclose(
+        log.cov, np.eye(3) * np.diagonal(cov, axis1=1, axis2=2)[:, None, :], rtol=1e-14
+    )
+
+
+def test_parquet_equals_csv(tmp_path):
+    frame, cov = _frame()
+    frame = _with_cov(frame, cov, "upper")
+    frame["segment"] = ["a"] * 15 + ["b"] * 15
+    frame.to_csv(tmp_path / "log.csv", index=False)
+    frame.to_parquet(tmp_path / "log.parquet", index=False)
+    a, b = load_log(tmp_path / "log.csv"), load_log(tmp_path / "log.parquet")
+    np.testing.assert_array_equal(a.cov, b.cov)
+    np.testing.assert_array_equal(a.segment, b.segment)
+    np.testing.assert_array_equal(a.time, b.time)
+
+
+def test_custom_layout_from_config_and_cli_precedence(tmp_path):
+    frame, cov = _frame()
+    renamed = pd.DataFrame(
+        {
+            "t": frame["time"],
+            "x_true": frame["truth_0"],
+            "y_true": frame["truth_1"],
+            "x_est": frame["est_0"],
+            "y_est": frame["est_1"],
+            "pxx": cov[:, 0, 0],
+            "pxy": cov[:, 0, 1],
+            "pyy": cov[:, 1, 1],
+            "other_x": frame["truth_0"] + 1.0,
+        }
+    )
+    path = tmp_path / "custom.csv"
+    renamed.to_csv(path, index=False)
+    config = tmp_path / "layout.toml"
+    config.write_text(
+        '[columns]\ntime = "t"\ntruth_columns = ["x_true", "y_true"]\n'
+        'estimate_columns = ["x_est", "y_est"]\ncov_columns = ["pxx", "pxy", "pyy"]\n'
+    )
+    log = load_log(path, load_schema(config))
+    np.testing.assert_allclose(log.cov, cov)
+    np.testing.assert_allclose(log.time, frame["time"])
+    # CLI over config: --truth-columns replaces the config's truth columns
+    from credcli.settings import build_schema, load_config
+
+    schema = build_schema(load_config(config), {"truth_columns": ("other_x", "y_true")})
+    shifted = load_log(path, schema)
+    np.testing.assert_allclose(shifted.truth[:, 0], log.truth[:, 0] + 1.0)
+
+
+def test_bundled_config_example_maps_its_layout(tmp_path):
+    """configs/custom-layout.toml documents a renamed layout; it must load such a file."""
+    frame, cov = _frame()
+    pd.DataFrame(
+        {
+            "t": frame["time"],
+            "run": "r1",
+            "x": frame["truth_0"],
+            "y": frame["truth_1"],
+            "x_hat": frame["est_0"],
+            "y_hat": frame["est_1"],
+            "sigma_x": np.sqrt(cov[:, 0, 0]),
+            "sigma_y": np.sqrt(cov[:, 1, 1]),
+        }
+    ).to_csv(tmp_path / "nav.csv", index=False)
+    log = load_log(tmp_path / "nav.csv", load_schema(ROOT / "configs" / "custom-layout.toml"))
+    np.testing.assert_allclose(np.diagonal(log.cov, axis1=1, axis2=2)[:, 0], cov[:, 0, 0])
+    assert set(log.segment) == {"r1"}
+
+
+# --- bad input: each case gives one specific line on stderr and exit code 2 ------------
+
+
+def _run(capsys, *args):
+    code = main(list(map(str, args)))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _write(tmp_path, text, name="bad.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+GOOD_HEADER = "time,truth_0,truth_1,est_0,est_1,var_0,var_1\n"
+GOOD_ROW = "0.0,1,2,1.1,2.1,0.5,0.5\n"
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("", "file is empty"),
+        (GOOD_HEADER, "header has no rows"),
+        ("time,truth_0,est_0\n1,2,3\n", "no covariance columns found"),
+        (
+            "time,truth_0,truth_1,est_0,var_0,var_1\n" + "1,2,3,4,5,6\n",
+            "missing estimate column(s) est_1",
+        ),
+        (
+            "time,truth_0,truth_1,est_0,est_1,est_2,var_0,var_1\n1,2,3,4,5,6,7,8\n",
+            "dimensions do not match",
+        ),
+        (
+            "time,truth_0,truth_1,est_0,est_1,var_0,var_1,var_2\n1,2,3,4,5,6,7,8\n",
+            "do not match d = 2",
+        ),
+        (
+            GOOD_HEADER + GOOD_ROW + "0.1,1,abc,1,2,0.5,0.5\n",
+            "row 2, column 'truth_1': 'abc' is not a number",
+        ),
+        (
+            GOOD_HEADER + GOOD_ROW + "0.1,1,nan,1,2,0.5,0.5\n" + "0.2,1,2,inf,2,0.5,0.5\n",
+            "NaN, Inf or empty value in row(s) 2, 3",
+        ),
+        (GOOD_HEADER + GOOD_ROW + "0.1,1,2,1,2,,0.5\n", "row(s) 2 (first in column 'var_0')"),
+        (
+            GOOD_HEADER + GOOD_ROW + "0.1,1,2,1,2,-0.5,0.5\n",
+            "row 2: covariance is not positive definite",
+        ),
+        (
+            "truth_0,truth_1,est_0,est_1,cov_0_0,cov_0_1,cov_1_0,cov_1_1\n1,2,1,2,1,0.5,0.1,1\n",
+            "row 1: covariance is not symmetric",
+        ),
+        (
+            "truth_0,truth_1,est_0,est_1,cov_0_0,cov_1_1\n1,2,1,2,1,1\n",
+            "incomplete covariance: missing column(s) cov_0_1",
+        ),
+        (
+            "truth_0,est_0,cov_0_0,cov_1_1\n1,2,1,1\n",
+            "refers to index 1 but the truth/estimate have d = 1",
+        ),
+        ("x,y\n1,2\n", "no truth columns (truth_0, truth_1, …) found; columns found: x, y"),
+    ],
+)
+def test_bad_input_one_line_exit_2(tmp_path, capsys, text, expected):
+    path = _write(tmp_path, text)
+    code, out, err = _run(capsys, "diagnose", path)
+    assert code == 2
+    assert expected in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert str(path) in err
+    assert out == ""
+
+
+def test_missing_file(tmp_path, capsys):
+    code, _, err = _run(capsys, "diagnose", tmp_path / "nope.csv")
+    assert code == 2 and "nope.csv: file not found" in err
+
+
+def test_unknown_column_option_names_it(tmp_path, capsys):
+    path = _write(tmp_path, GOOD_HEADER + GOOD_ROW * 3)
+    code, _, err = _run(capsys, "diagnose", path, "--truth-columns", "tx,ty")
+    assert code == 2 and "missing column(s) tx, ty; columns found: time, truth_0" in err
+    code, _, err = _run(capsys, "diagnose", path, "--time-column", "stamp")
+    assert code == 2 and "time column 'stamp' not found" in err
+
+
+def test_drop_invalid_reports_count(tmp_path, capsys):
+    gen = np.random.default_rng(0)
+    rows = "".join(
+        f"{k / 10},{k},{k},{k + gen.normal()},{k + gen.normal()},1,1\n" for k in range(20)
+    )
+    path = _write(tmp_path, GOOD_HEADER + rows + "9,1,nan,1,1,1,1\n" + "9.1,1,1,inf,1,1,1\n")
+    code, out, err = _run(capsys, "diagnose", path, "--drop-invalid", "-f", "json")
+    assert code == 0
+    import json
+
+    doc = json.loads(out)
+    assert doc["logs"][0]["dropped_rows"] == 2 and doc["segments"][0]["n"] == 20
+
+
+def test_degenerate_errors_are_a_clear_error(tmp_path, capsys):
+    rows = "".join(f"{k / 10},{k},{k},{k + 0.5},{k - 0.3},1,1\n" for k in range(20))
+    path = _write(tmp_path, GOOD_HEADER + rows)
+    code, _, err = _run(capsys, "diagnose", path)
+    assert code == 2 and "segment 'all': the errors span fewer than d dimensions" in err
+
+
+def test_invalid_config_file(tmp_path, capsys):
+    path = _write(tmp_path, GOOD_HEADER + GOOD_ROW)
+    cfg = _write(tmp_path, "[diagnosis]\ntau = 1\n", "c.toml")
+    code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
+    assert code == 2 and "unknown key(s) tau" in err
+    cfg = _write(tmp_path, "[diagnosis\n", "c2.toml")
+    code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
+    assert code == 2 and "not valid TOML" in err
+
+
+def test_api_raises_credcli_error(tmp_path):
+    with pytest.raises(CredcliError, match="file not found"):
+        load_log(tmp_path / "x.csv")
+    assert LogSchema().updated(time=None).time == "time"

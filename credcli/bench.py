@@ -29,6 +29,7 @@ def _run(args: list[str], repeat: int) -> tuple[list[float], float]:
         if pid == 0:  # child: exec the CLI with output discarded
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, 1)
+            os.dup2(devnull, 2)
             os.execv(sys.executable, [sys.executable, "-m", "credcli", *args])
         _, status, usage = os.wait4(pid, 0)
         times.append(time.perf_counter() - start)
@@ -73,6 +74,11 @@ def main() -> int:
         _report("diagnose --metrics all: same log", times, peak)
     times, peak = _run(["diagnose", str(ROOT / "sample_data" / "estimator_log.csv")], 3)
     _report("diagnose: sample log (1,800 epochs, 6 segments)", times, peak)
+    times, peak = _run(["simulate", "-f", "json"], 5)
+    _report("simulate: paper protocol (6 x 50 trials, N=100, B=1000)", times, peak, "<= 2 s")
+    for jobs in (1, 2):
+        times, peak = _run(["simulate", "--trials", "500", "-f", "json", "--jobs", str(jobs)], 2)
+        _report(f"simulate --trials 500 (3,000 trials) --jobs {jobs}", times, peak)
     return 0
 
 

@@ -303,6 +303,112 @@ def _click_exception_types() -> tuple[type, ...]:
     return tuple(types)
 
 
+@app.command()
+def simulate(
+    scenario: Annotated[
+        str,
+        typer.Option(
+            "--scenario",
+            "-s",
+            help="all, a label (credible, optimism, …) or alias (cred, opt, pess, opt+smm, pess+smm); comma-separated for several.",
+        ),
+    ] = "all",
+    trials: Annotated[
+        int | None, typer.Option("--trials", help="Trials per scenario [default: 50].")
+    ] = None,
+    n: Annotated[int | None, typer.Option("--n", help="Epochs per trial [default: 100].")] = None,
+    dim: Annotated[
+        int | None, typer.Option("--dim", help="State dimension d [default: 2].")
+    ] = None,
+    rho_optimism: Annotated[
+        str | None,
+        typer.Option("--rho-optimism", help="ρ range of optimism, lo:hi [default: 0.1:0.8]."),
+    ] = None,
+    rho_pessimism: Annotated[
+        str | None,
+        typer.Option("--rho-pessimism", help="ρ range of pessimism, lo:hi [default: 1.25:10]."),
+    ] = None,
+    bias: Annotated[
+        str | None, typer.Option("--bias", help="‖μ‖ range of SMM, lo:hi [default: 1.6:2.4].")
+    ] = None,
+    eigenvalues: Annotated[
+        str | None,
+        typer.Option("--eigenvalues", help="Range of the eigenvalues of Σ_true [default: 0.5:2]."),
+    ] = None,
+    sweep: Annotated[
+        str | None,
+        typer.Option(
+            "--sweep",
+            help="Sweep one parameter: rho=0.1:10:20, bias=0:3:13, n=25,50,100, dim=…, B=…, tau=…",
+        ),
+    ] = None,
+    curves: Annotated[
+        bool,
+        typer.Option(
+            "--curves", help="Print the Fig. 1 curves (mean ES and NLL against ρ and γ) instead."
+        ),
+    ] = False,
+    curve_runs: Annotated[
+        int, typer.Option("--curve-runs", help="Monte Carlo runs per curve point.")
+    ] = 5000,
+    jobs: Annotated[
+        int, typer.Option("--jobs", "-j", help="Worker processes (same output for any value).")
+    ] = 1,
+    config: ConfigOpt = None,
+    tau: TauOpt = None,
+    alpha: AlphaOpt = None,
+    probe_factor: COpt = None,
+    flips: FlipsOpt = None,
+    block_length: BlockOpt = None,
+    variant: VariantOpt = None,
+    srd_form: SrdOpt = None,
+    seed: SeedOpt = None,
+    fmt: FormatOpt = OutputFormat.TABLE,
+    output: OutputOpt = None,
+) -> int:
+    """The paper's Monte Carlo study (Tables II and III), sweeps and the Fig. 1 curves."""
+    import time
+
+    from credcli.settings import build_simulation_config, load_config
+    from credcli.workflows import run_simulate
+
+    if jobs < 1:
+        raise CredcliError(f"--jobs must be >= 1; got {jobs}")
+    if curve_runs < 1:
+        raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
+    cfg = load_config(config)
+    sim = build_simulation_config(
+        cfg,
+        {
+            "trials": trials,
+            "n": n,
+            "dim": dim,
+            "rho_optimism": rho_optimism,
+            "rho_pessimism": rho_pessimism,
+            "bias": bias,
+            "eigenvalues": eigenvalues,
+            "seed": seed,
+        },
+        _diagnosis_cli(
+            tau, alpha, probe_factor, flips, block_length, variant, srd_form, None, None, None
+        ),
+    )
+    start = time.perf_counter()
+    with _Progress("simulating trials", min_total=1) as bar:
+        report, summary = run_simulate(
+            sim,
+            scenario,
+            sweep=sweep,
+            curves=curves,
+            curve_runs=curve_runs,
+            jobs=jobs,
+            progress=bar,
+        )
+    _emit(report, fmt, output)
+    _stderr().print(f"{summary} in {time.perf_counter() - start:.2f} s", highlight=False)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app and turn errors into one line on stderr and an exit code."""
     command = typer.main.get_command(app)

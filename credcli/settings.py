@@ -63,6 +63,39 @@ def build_diagnosis_config(
         raise CredcliError(f"invalid diagnosis setting: {exc}") from exc
 
 
+def parse_range(text, what: str) -> tuple[float, float] | None:
+    """'lo:hi' (or a 2-list from a config file) -> (lo, hi)."""
+    if text is None:
+        return None
+    if isinstance(text, (list, tuple)):
+        parts = list(text)
+    else:
+        parts = str(text).split(":")
+    try:
+        lo, hi = (float(p) for p in parts)
+    except (TypeError, ValueError) as exc:
+        raise CredcliError(f"{what}: expected a range lo:hi, got '{text}'") from exc
+    if lo > hi:
+        raise CredcliError(f"{what}: lower end {lo:g} is above the upper end {hi:g}")
+    return lo, hi
+
+
+def build_simulation_config(config: dict, cli: dict, diagnosis_cli: dict):
+    """SimulationConfig from [simulate], [diagnosis] and the CLI."""
+    from credcli.simulate import SimulationConfig
+
+    fields = {f.name for f in dataclasses.fields(SimulationConfig)} - {"diagnosis"}
+    values = merged(config.get("simulate", {}), cli, fields, "config [simulate]")
+    for key in ("rho_optimism", "rho_pessimism", "bias", "eigenvalues"):
+        if key in values:
+            values[key] = parse_range(values[key], f"--{key.replace('_', '-')}")
+    diagnosis, seed = build_diagnosis_config(config, diagnosis_cli, values.pop("seed", None))
+    try:
+        return SimulationConfig(**values, seed=seed, diagnosis=diagnosis)
+    except TypeError as exc:
+        raise CredcliError(f"invalid simulation setting: {exc}") from exc
+
+
 def split_list(text: str | None) -> tuple[str, ...] | None:
     """'a,b, c' -> ('a', 'b', 'c'); None stays None."""
     if text is None:

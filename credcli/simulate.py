@@ -1,0 +1,418 @@
+"""The Monte Carlo study of Section IV (Tables II and III), sweeps, and the Fig. 1 curves.
+
+Each trial draws Σ_true = Q diag(λ) Qᵀ (Q from the QR decomposition of a standard Gaussian
+matrix, λ_i ~ U[0.5, 2]), a covariance scale ρ and a bias μ (‖μ‖ ~ U[lo, hi] in a uniform
+direction), then N errors. Every trial has its own random stream, keyed by the seed, the
+scenario and the trial number, so results do not depend on how trials are spread over
+processes.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from credcli import metrics
+from credcli.diagnosis import DIAGNOSIS_LABELS, DiagnosisConfig, Label, diagnose_errors
+from credcli.errors import CredcliError
+
+
+class Method(str, enum.Enum):
+    PROPOSED = "proposed"
+    NEES = "nees"
+    NCI = "nci"
+
+
+SCENARIO_ALIASES = {
+    "cred": Label.CREDIBLE,
+    "opt": Label.OPTIMISM,
+    "pess": Label.PESSIMISM,
+    "opt+smm": Label.OPTIMISM_SMM,
+    "pess+smm": Label.PESSIMISM_SMM,
+}
+
+
+def parse_scenarios(text: str) -> list[Label]:
+    """'all', a label name or a short alias, or a comma-separated list of them."""
+    if text.strip().lower() == "all":
+        return list(DIAGNOSIS_LABELS)
+    out = []
+    for item in (t.strip().lower() for t in text.split(",")):
+        label = SCENARIO_ALIASES.get(item)
+        if label is None:
+            try:
+                label = Label(item)
+            except ValueError:
+                label = None
+        if label is None or label is Label.INSUFFICIENT:
+            names = ", ".join([lab.value for lab in DIAGNOSIS_LABELS] + list(SCENARIO_ALIASES))
+            raise CredcliError(f"--scenario: unknown scenario '{item}'; choose all, {names}")
+        if label not in out:
+            out.append(label)
+    return out
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """How one group of trials is drawn; ``rho`` and ``bias`` are uniform ranges
+    (a bias range of (0, 0) means no bias)."""
+
+    rho: tuple[float, float]
+    bias: tuple[float, float]
+
+    @property
+    def truth(self) -> Label:
+        """The label a perfect diagnosis would give these trials."""
+        lo, hi = self.rho
+        if lo < 1 < hi or (lo < 1 and hi == 1) or (lo == 1 and hi > 1):
+            raise CredcliError(f"a ρ range must not straddle 1; got [{lo:g}, {hi:g}]")
+        noise = "optimism" if hi < 1 else "pessimism" if lo > 1 else ""
+        smm = self.bias[1] > 0
+        if smm and self.bias[0] <= 0:
+            raise CredcliError(f"a bias range must be all zero or all positive; got {self.bias}")
+        name = "+".join(p for p in (noise, "smm" if smm else "") if p) or "credible"
+        return Label(name)
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Every setting of the study. Defaults are the paper's Section IV-A."""
+
+    trials: int = 50
+    n: int = 100
+    dim: int = 2
+    rho_optimism: tuple[float, float] = (0.1, 0.8)
+    rho_pessimism: tuple[float, float] = (1.25, 10.0)
+    bias: tuple[float, float] = (1.6, 2.4)
+    eigenvalues: tuple[float, float] = (0.5, 2.0)
+    seed: int = 0
+    diagnosis: DiagnosisConfig = field(default_factory=DiagnosisConfig)
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.trials >= 1, f"--trials must be >= 1; got {self.trials}"),
+            (self.n >= 2, f"--n must be >= 2; got {self.n}"),
+            (self.dim >= 1, f"--dim must be >= 1; got {self.dim}"),
+            (
+                0 < self.rho_optimism[0] <= self.rho_optimism[1] < 1,
+                f"the optimism ρ range must lie in (0, 1); got {self.rho_optimism}",
+            ),
+            (
+                1 < self.rho_pessimism[0] <= self.rho_pessimism[1],
+                f"the pessimism ρ range must lie above 1; got {self.rho_pessimism}",
+            ),
+            (0 < self.bias[0] <= self.bias[1], f"the bias range must be positive; got {self.bias}"),
+            (
+                0 < self.eigenvalues[0] <= self.eigenvalues[1],
+                f"the eigenvalue range must be positive; got {self.eigenvalues}",
+            ),
+            (self.seed >= 0, f"--seed must be >= 0; got {self.seed}"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise CredcliError(message)
+
+    def spec(self, scenario: Label) -> ScenarioSpec:
+        conditions = scenario.conditions
+        rho = (
+            self.rho_optimism
+            if "optimism" in conditions
+            else self.rho_pessimism
+            if "pessimism" in conditions
+            else (1.0, 1.0)
+        )
+        return ScenarioSpec(rho, self.bias if "smm" in conditions else (0.0, 0.0))
+
+
+def draw_trial(spec: ScenarioSpec, n: int, dim: int, eigenvalues, rng: np.random.Generator):
+    """Errors (n, dim) and claimed covariances (n, dim, dim) of one trial.
+
+    x_k ~ N(0, Σ), x̂_k ~ N(x_k + μ, Σ) gives e_k = x_k − x̂_k ~ N(−μ, Σ); every metric depends
+    on x and x̂ only through e, so e is drawn directly. Σ̂_k = ρΣ.
+    """
+    q, _ = np.linalg.qr(rng.standard_normal((dim, dim)))
+    lam = rng.uniform(*eigenvalues, size=dim)
+    sigma = (q * lam) @ q.T
+    rho = rng.uniform(*spec.rho)
+    mu = np.zeros(dim)
+    if spec.bias[1] > 0:
+        direction = rng.standard_normal(dim)
+        mu = direction / np.linalg.norm(direction) * rng.uniform(*spec.bias)
+    z = rng.standard_normal((n, dim))
+    errors = -mu - z @ (q * np.sqrt(lam)).T
+    cov = np.broadcast_to(rho * sigma, (n, dim, dim))
+    return errors, cov
+
+
+def trial_seed(seed: int, group: int, trial: int) -> np.random.SeedSequence:
+    return np.random.SeedSequence(entropy=seed, spawn_key=(group, trial))
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    truth: Label
+    proposed: Label
+    nees: Label
+    nci: Label
+
+
+def _run_chunk(args) -> list[TrialResult]:
+    """Worker: run trials [start, stop) of one group (top level, so processes can pickle it)."""
+    spec, group, start, stop, config = args
+    out = []
+    for trial in range(start, stop):
+        gen = np.random.default_rng(trial_seed(config.seed, group, trial))
+        errors, cov = draw_trial(spec, config.n, config.dim, config.eigenvalues, gen)
+        d = diagnose_errors(errors, cov, config.diagnosis, gen)
+        out.append(TrialResult(spec.truth, d.label, d.nees_label, d.nci_label))
+    return out
+
+
+_BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def _start_pool(tasks, jobs: int):
+    """Worker processes with single-threaded BLAS (each trial's products are small; several
+    BLAS threads per process would only fight over the cores). Workers are spawned with
+    the variables set, since BLAS reads them when it loads."""
+    import multiprocessing as mp
+
+    saved = {k: os.environ.get(k) for k in _BLAS_THREAD_VARIABLES}
+    os.environ.update({k: "1" for k in _BLAS_THREAD_VARIABLES})
+    try:
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
+        outputs = pool.map(_run_chunk, tasks)  # submits every task: workers start now
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+    return pool, outputs
+
+
+def _group_key(spec: ScenarioSpec) -> int:
+    """A stable number for a group's random streams, from its parameters."""
+    import zlib
+
+    return zlib.crc32(repr((spec.rho, spec.bias)).encode())
+
+
+def run_groups(
+    specs: list[ScenarioSpec], config: SimulationConfig, jobs: int = 1, progress=None
+) -> list[list[TrialResult]]:
+    """Run ``config.trials`` trials of each spec; ``jobs`` processes share the work."""
+    chunk = max(1, min(25, math.ceil(config.trials / max(1, 2 * jobs))))
+    tasks = [
+        (spec, _group_key(spec), a, min(a + chunk, config.trials), config)
+        for spec in specs
+        for a in range(0, config.trials, chunk)
+    ]
+    total = len(specs) * config.trials
+    done = 0
+    results: list[list[TrialResult]] = []
+    if jobs <= 1:
+        outputs = map(_run_chunk, tasks)
+        pool = None
+    else:
+        pool, outputs = _start_pool(tasks, jobs)
+    try:
+        for out in outputs:
+            results.append(out)
+            done += len(out)
+            if progress is not None:
+                progress(done, total)
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+    per_group: list[list[TrialResult]] = [[] for _ in specs]
+    for task, out in zip(tasks, results):
+        per_group[specs.index(task[0])].extend(out)
+    return per_group
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """Tables II and III for a set of scenarios."""
+
+    scenarios: list[Label]
+    accuracy: dict[Method, dict[Label, float]]
+    confusion: dict[Label, dict[Label, int]]
+    trials: int
+
+
+def _method_label(r: TrialResult, method: Method) -> Label:
+    return {Method.PROPOSED: r.proposed, Method.NEES: r.nees, Method.NCI: r.nci}[method]
+
+
+def summarise(truths: list[Label], groups: list[list[TrialResult]]) -> StudyResult:
+    accuracy = {
+        m: {
+            t: float(np.mean([_method_label(r, m) is t for r in g])) for t, g in zip(truths, groups)
+        }
+        for m in Method
+    }
+    confusion = {
+        t: {lab: sum(r.proposed is lab for r in g) for lab in DIAGNOSIS_LABELS}
+        for t, g in zip(truths, groups)
+    }
+    return StudyResult(truths, accuracy, confusion, len(groups[0]) if groups else 0)
+
+
+def run_study(
+    config: SimulationConfig, scenarios: list[Label], jobs: int = 1, progress=None
+) -> StudyResult:
+    """Tables II and III: every listed scenario, ``config.trials`` trials each."""
+    specs = [config.spec(s) for s in scenarios]
+    return summarise(scenarios, run_groups(specs, config, jobs, progress))
+
+
+class SweepParameter(str, enum.Enum):
+    RHO = "rho"
+    BIAS = "bias"
+    N = "n"
+    DIM = "dim"
+    B = "B"
+    TAU = "tau"
+
+
+@dataclass(frozen=True)
+class Sweep:
+    parameter: SweepParameter
+    values: tuple[float, ...]
+
+    @classmethod
+    def parse(cls, text: str) -> Sweep:
+        """``name=start:stop:count`` (evenly spaced) or ``name=v1,v2,...``."""
+        if "=" not in text:
+            raise CredcliError(f"--sweep '{text}': expected NAME=start:stop:count or NAME=v1,v2,…")
+        name, spec = (t.strip() for t in text.split("=", 1))
+        by_name = {p.value.lower(): p for p in SweepParameter}
+        param = by_name.get(name.lower())
+        if param is None:
+            raise CredcliError(
+                f"--sweep: unknown parameter '{name}'; choose {', '.join(p.value for p in SweepParameter)}"
+            )
+        try:
+            if ":" in spec:
+                start, stop, count = spec.split(":")
+                values = tuple(np.linspace(float(start), float(stop), int(count)).tolist())
+            else:
+                values = tuple(float(v) for v in spec.split(",") if v.strip())
+        except ValueError as exc:
+            raise CredcliError(f"--sweep '{text}': {exc}") from exc
+        if not values:
+            raise CredcliError(f"--sweep '{text}': no values")
+        if param in (SweepParameter.N, SweepParameter.DIM, SweepParameter.B):
+            if any(v != int(v) or v < 1 for v in values):
+                raise CredcliError(f"--sweep {param.value}: values must be positive integers")
+        if param in (SweepParameter.RHO, SweepParameter.TAU) and any(v <= 0 for v in values):
+            raise CredcliError(f"--sweep {param.value}: values must be > 0")
+        if param is SweepParameter.BIAS and any(v < 0 for v in values):
+            raise CredcliError("--sweep bias: values must be >= 0")
+        return cls(param, values)
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    value: float
+    truth: Label
+    accuracy: dict[Method, float]
+    trials: int
+
+
+def sweep_specs(sweep: Sweep, value: float, config: SimulationConfig, scenarios: list[Label]):
+    """The groups and configuration of one sweep value (deduplicated by their parameters)."""
+    cfg = config
+    specs = [config.spec(s) for s in scenarios]
+    if sweep.parameter is SweepParameter.RHO:
+        specs = [replace(s, rho=(value, value)) for s in specs]
+    elif sweep.parameter is SweepParameter.BIAS:
+        specs = [replace(s, bias=(value, value)) for s in specs]
+    elif sweep.parameter is SweepParameter.N:
+        cfg = replace(config, n=int(value))
+    elif sweep.parameter is SweepParameter.DIM:
+        cfg = replace(config, dim=int(value))
+    elif sweep.parameter is SweepParameter.B:
+        cfg = replace(config, diagnosis=replace(config.diagnosis, n_flips=int(value)))
+    else:
+        cfg = replace(config, diagnosis=replace(config.diagnosis, tau_nci=value))
+    unique = list(dict.fromkeys(specs))
+    return unique, cfg
+
+
+def run_sweep(
+    sweep: Sweep, config: SimulationConfig, scenarios: list[Label], jobs: int = 1, progress=None
+) -> list[SweepPoint]:
+    """Accuracy of every method per sweep value and true label."""
+    plans = [(v, *sweep_specs(sweep, v, config, scenarios)) for v in sweep.values]
+    total = sum(len(specs) for _, specs, _ in plans) * config.trials
+    points: list[SweepPoint] = []
+    done = 0
+    for value, specs, cfg in plans:
+        tick = None if progress is None else (lambda k, _t, o=done: progress(o + k, total))
+        groups = run_groups(specs, cfg, jobs, tick)
+        done += len(specs) * config.trials
+        for spec, group in zip(specs, groups):
+            acc = {
+                m: float(np.mean([_method_label(r, m) is spec.truth for r in group]))
+                for m in Method
+            }
+            points.append(SweepPoint(value, spec.truth, acc, len(group)))
+    return points
+
+
+@dataclass(frozen=True)
+class CurvePoint:
+    """Fig. 1: scores of N(x̂, ρΣ) with x = 0, Σ = I_d, x̂ ~ N(μ, Σ), μ = γ·1."""
+
+    rho: float
+    gamma: float
+    mean_es: float  # sample mean over the runs
+    expected_es: float  # exact expectation
+    mean_nll: float
+    expected_nll: float
+
+
+def fig1_curves(
+    rhos, gammas, runs: int = 5000, dim: int = 2, seed: int = 0
+) -> tuple[list[CurvePoint], list[CurvePoint]]:
+    """Fig. 1a (ES against ρ, γ = 0) and Fig. 1b (ES against γ, ρ = 1), with NLL beside.
+
+    The sample means follow the paper (``runs`` Monte Carlo runs per point); the exact
+    expectations use Y − x ~ N(μ, (1 + ρ)Σ) and Y − Y′ ~ N(0, 2ρΣ):
+    E[ES] = E‖N(μ, (1+ρ)I)‖ − ½√ρ·E‖N(0, 2I)‖ and E[NLL] from Eq. (7).
+    """
+    gen = np.random.default_rng(seed)
+    z = gen.standard_normal((runs, dim))
+    eye = np.broadcast_to(np.eye(dim), (runs, dim, dim))
+    spread = 0.5 * metrics.expected_norm(np.zeros((1, dim)), 2 * np.eye(dim)[None])[0]
+
+    def point(rho: float, gamma: float) -> CurvePoint:
+        mu = np.full(dim, gamma)
+        errors = -(mu + z)  # e = x − x̂ with x = 0, x̂ = μ + z
+        es = metrics.energy_score(errors, eye, rho)
+        nll = metrics.gaussian_nll(errors, eye, rho)
+        expected_first = metrics.expected_norm(mu[None], ((1 + rho) * np.eye(dim))[None])[0]
+        expected_nll = 0.5 * (
+            (dim + mu @ mu) / rho + dim * math.log(rho) + dim * math.log(2 * math.pi)
+        )
+        return CurvePoint(
+            rho,
+            gamma,
+            float(es.mean()),
+            float(expected_first - math.sqrt(rho) * spread),
+            float(nll.mean()),
+            float(expected_nll),
+        )
+
+    return [point(r, 0.0) for r in rhos], [point(1.0, g) for g in gammas]
+
+
+def default_jobs() -> int:
+    return max(1, min(os.cpu_count() or 1, 8))

@@ -74,6 +74,14 @@ def main() -> int:
         _report("diagnose --metrics all: same log", times, peak)
     times, peak = _run(["diagnose", str(ROOT / "sample_data" / "estimator_log.csv")], 3)
     _report("diagnose: sample log (1,800 epochs, 6 segments)", times, peak)
+    real = SHARED / "loop-2d-fast_s2_uwb.csv"
+    if real.exists():
+        times, peak = _run(["uwb", str(real), "--window", "5s", "-f", "json"], 5)
+        _report("uwb: real loop-2d-fast_s2 (7,725 ranges), --window 5s", times, peak, "<= 2 s")
+    else:
+        print(f"uwb: skipped, {real} not found (../shared absent)")
+    times, peak = _run(["uwb", str(ROOT / "sample_data" / "starloc_grid_uwb.csv"), "-f", "json"], 3)
+    _report("uwb: sample grid (12,320 ranges, 6 static periods)", times, peak)
     times, peak = _run(["simulate", "-f", "json"], 5)
     _report("simulate: paper protocol (6 x 50 trials, N=100, B=1000)", times, peak, "<= 2 s")
     for jobs in (1, 2):

@@ -354,7 +354,7 @@ def diagnose_log(
 
     Each segment's sign flips come from :func:`segment_seed` (the seed and the segment's
     name), so a segment's result does not depend on the other segments.
-    ``progress``, if given, is called with the number of segments done after each one.
+    ``progress``, if given, is called as ``progress(done, total)`` after each segment.
     """
     config = config or DiagnosisConfig()
     errors = log.errors
@@ -374,5 +374,5 @@ def diagnose_log(
             raise CredcliError(f"{log.source}: segment '{seg.name}': {exc.message}") from exc
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
-            progress(done)
+            progress(done, len(segments))
     return out

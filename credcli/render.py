@@ -189,20 +189,24 @@ def _csv_cell(value) -> str:
 
 
 _LABEL_STYLE = {"credible": "green", "insufficient-data": "dim"}
+_LABEL_KEYS = {"label", "nees_label", "nci_label", "baseline_label"}
 
 
 def rich_table(table: Table):
     """A rich.table.Table for the terminal."""
+    from rich.markup import escape
     from rich.table import Table as RichTable
 
-    out = RichTable(title=table.title, caption=table.caption or None, title_justify="left")
+    out = RichTable(
+        title=escape(table.title), caption=escape(table.caption) or None, title_justify="left"
+    )
     for col in table.columns:
-        out.add_column(col.header, justify="right" if col.digits else "left", no_wrap=True)
+        out.add_column(escape(col.header), justify="right" if col.digits else "left", no_wrap=True)
     for row in table.rows:
         cells = []
         for col in table.columns:
-            text = _cell(row.get(col.key), col.digits)
-            if col.key.endswith("label") and isinstance(row.get(col.key), str):
+            text = escape(_cell(row.get(col.key), col.digits))
+            if col.key in _LABEL_KEYS and isinstance(row.get(col.key), str):
                 text = f"[{_LABEL_STYLE.get(text, 'bold yellow')}]{text}[/]"
             cells.append(text)
         out.add_row(*cells)
@@ -458,3 +462,92 @@ def curves_report(by_rho, by_gamma, parameters: dict) -> Report:
         "curves": {"rho": [asdict(p) for p in by_rho], "gamma": [asdict(p) for p in by_gamma]},
     }
     return Report(tables, document)
+
+
+UWB_COLUMNS = (
+    Column("segment", "period", 0),
+    Column("t_start", "t start [s]", 4),
+    Column("t_end", "t end [s]", 4),
+    Column("n", "fixes", 0),
+    Column("label", "proposed", 0),
+    Column("nees_label", "NEES", 0),
+    Column("nci_label", "NCI", 0),
+    Column("elt_pvalue", "ELT p", 3),
+    Column("nci", "NCI [dB]", 3),
+    Column("anees", "ANEES", 4),
+)
+
+
+def uwb_report(run, results, parameters: dict) -> Report:
+    """Table IV per period, the range-level table (Figs. 4 and 5) and the anchors."""
+    from credcli import __version__
+
+    segments = [segment_record(r) for r in results]
+    ranges = [
+        {
+            "segment": s.segment,
+            "anchor": s.anchor,
+            "n": s.n,
+            "mean_error": s.mean_error,
+            "std_error": _value(s.std_error),
+            "median_std": s.median_std,
+            "std_ratio": _value(s.std_ratio),
+        }
+        for s in run.range_stats
+    ]
+    anchors = [
+        {
+            "id": a.id,
+            "x": float(a.position[0]),
+            "y": float(a.position[1]),
+            "z": float(a.position[2]),
+            "source": a.source,
+            "rms_mm": 1000 * a.rms,
+            "rows": a.n,
+        }
+        for a in run.anchors
+    ]
+    range_cols = (
+        Column("segment", "period", 0),
+        Column("anchor", "anchor", 0),
+        Column("n", "ranges", 0),
+        Column("mean_error", "mean error [m]", 3),
+        Column("std_error", "empirical std [m]", 3),
+        Column("median_std", "median reported std [m]", 3),
+        Column("std_ratio", "empirical / reported", 3),
+    )
+    anchor_cols = (
+        Column("id", "anchor", 0),
+        Column("x", "x [m]", 4),
+        Column("y", "y [m]", 4),
+        Column("z", "z [m]", 4),
+        Column("source", "source", 0),
+        Column("rms_mm", "gt_range RMS [mm]", 3),
+        Column("rows", "ranges", 0),
+    )
+    notes = list(run.ranges.notes)
+    notes.append(
+        f"{run.packets} packets of >= {parameters['min_anchors']} anchors within "
+        f"{parameters['packet_window']:g} s; {run.fixes.time.size} fixes "
+        f"({run.fixes.dropped} dropped: degenerate geometry or no convergence); "
+        f"{run.log.n} fixes in {len(results)} period(s)."
+    )
+    tables = [
+        Table("Anchors", anchor_cols, anchors),
+        Table(
+            "Range errors per period and anchor (Figs. 4 and 5)",
+            range_cols,
+            ranges,
+            caption=f"range column: {run.ranges.range_column}; error = range − gt_range",
+        ),
+        Table("Table IV: diagnosis per period", UWB_COLUMNS, segments),
+    ]
+    document = {
+        "version": __version__,
+        "command": "uwb",
+        "parameters": parameters,
+        "segments": segments,
+        "anchors": anchors,
+        "ranges": ranges,
+    }
+    return Report(tables, document, notes)

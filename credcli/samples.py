@@ -85,6 +85,8 @@ def write_samples(outdir: Path) -> list[Path]:
     written = [outdir / "estimator_log.csv", outdir / "estimator_log.parquet"]
     log.to_csv(written[0], index=False)
     log.to_parquet(written[1], index=False)
+    written.append(outdir / "starloc_grid_uwb.csv")
+    starloc_log().to_csv(written[-1], index=False)
     return written
 
 
@@ -94,6 +96,103 @@ def main(argv: list[str] | None = None) -> int:
     for path in write_samples(outdir):
         print(f"wrote {path}")
     return 0
+
+
+STARLOC_ANCHORS = {  # id: (x, y, z) in m, a layout like STAR-loc's eight anchors
+    4: (-3.06, -3.05, 2.01),
+    5: (0.20, -0.89, 2.84),
+    6: (3.00, 2.96, 0.94),
+    7: (-2.97, 3.08, 0.82),
+    9: (2.99, -3.00, 2.07),
+    10: (-3.06, 0.00, 1.22),
+    11: (-3.03, 3.04, 2.07),
+    12: (2.99, 2.98, 2.20),
+}
+
+
+def starloc_log(
+    seed: int = 3,
+    stops=((-1.5, -1.0), (0.0, -1.0), (1.5, -1.0), (1.5, 1.0), (0.0, 1.0), (-1.5, 1.0)),
+    dwell_s: float = 6.0,
+    speed: float = 0.4,
+    rate_hz: float = 220.0,
+    noise_std: float = 0.04,
+    std_factor: float = 2.0,
+    antenna_offset: tuple[float, float] = (0.15, -0.10),
+    bias_range: tuple[float, float] = (0.0, 0.03),
+):
+    """A synthetic STAR-loc ``uwb.csv``: a grid trajectory with static stops, two tags on the
+    rig, eight anchors ranged in turn at ``rate_hz`` (alternating tags), range biases per
+    anchor, true range noise ``noise_std`` and a reported std ``std_factor`` times larger.
+
+    The range bias of an anchor has two parts: the projection on the line of sight of a
+    horizontal ``antenna_offset`` between the UWB antenna and the tracked tag position (so
+    it differs per anchor and per stop, and shifts every fix the same way: SMM), and a small
+    fixed bias per anchor drawn from ``bias_range``. The diagnosis of every stop should be
+    pessimism+smm, as Table IV for the real grid_s3 run.
+    """
+    import pandas as pd
+
+    rng = np.random.default_rng(seed)
+    # rig trajectory: dwell at each stop, move in a straight line between stops
+    legs, t = [], 0.0
+    for k, stop in enumerate(stops):
+        legs.append((t, t + dwell_s, np.array(stop), np.array(stop)))
+        t += dwell_s
+        if k + 1 < len(stops):
+            nxt = np.array(stops[k + 1])
+            dur = float(np.linalg.norm(nxt - np.array(stop)) / speed)
+            legs.append((t, t + dur, np.array(stop), nxt))
+            t += dur
+    n = int(t * rate_hz)
+    time = np.sort(np.arange(n) / rate_hz + rng.uniform(-2e-4, 2e-4, n))
+    time -= time[0]
+    rig = np.zeros((n, 3))
+    for t0, t1, p0, p1 in legs:
+        sel = (time >= t0) & (time < t1) if t1 < t else (time >= t0)
+        frac = ((time[sel] - t0) / (t1 - t0))[:, None]
+        rig[sel, :2] = p0 + frac * (p1 - p0)
+    rig[:, 2] = 1.0 + 0.02 * np.sin(0.3 * time)
+    tag = np.where(np.arange(n) % 2 == 0, 1, 2)
+    offsets = {1: np.array([0.2, 0.1, 0.0]), 2: np.array([-0.2, -0.1, 0.05])}
+    tag_pos = rig + np.stack([offsets[k] for k in tag])
+    ids = np.array(sorted(STARLOC_ANCHORS))
+    anchor = ids[(np.arange(n) // 2) % ids.size]
+    anchor_pos = np.array([STARLOC_ANCHORS[a] for a in anchor])
+    gt_range = np.linalg.norm(tag_pos - anchor_pos, axis=1)
+    antenna = tag_pos + np.r_[antenna_offset, 0.0]
+    geometric = np.linalg.norm(antenna - anchor_pos, axis=1) - gt_range
+    anchor_bias = dict(zip(ids, rng.uniform(*bias_range, ids.size)))
+    bias_calib = (
+        geometric + np.array([anchor_bias[a] for a in anchor]) + noise_std * rng.standard_normal(n)
+    )
+    range_calib = gt_range + bias_calib
+    raw = range_calib + 0.08 + 0.01 * rng.standard_normal(n)
+    reported = std_factor * noise_std * rng.uniform(0.9, 1.1, n)
+    frame = pd.DataFrame(
+        {
+            "time_s": time,
+            "range": raw,
+            "from_id": tag,
+            "to_id": anchor,
+            "x": rig[:, 0],
+            "y": rig[:, 1],
+            "z": rig[:, 2],
+            "w": 1.0,
+            "rot_x": 0.0,
+            "rot_y": 0.0,
+            "rot_z": 0.0,
+            "tag_pos_x": tag_pos[:, 0],
+            "tag_pos_y": tag_pos[:, 1],
+            "tag_pos_z": tag_pos[:, 2],
+            "bias": raw - gt_range,
+            "gt_range": gt_range,
+            "range_calib": range_calib,
+            "bias_calib": bias_calib,
+            "std": reported,
+        }
+    )
+    return frame.round(6)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from credcli import segments as seg
 from credcli.diagnosis import DiagnosisConfig, MetricsLevel, diagnose_log
+from credcli.errors import CredcliError
 from credcli.logs import EstimatorLog, LogSchema, load_log
 from credcli.render import Report, config_parameters, diagnose_report
 
@@ -48,7 +49,7 @@ def run_diagnose(
     results = []
     for log, segments in plans:
         offset = len(results)
-        tick = None if progress is None else (lambda k, o=offset: progress(o + k, total))
+        tick = None if progress is None else (lambda k, _n, o=offset: progress(o + k, total))
         results.extend(diagnose_log(log, segments, config, seed, tick))
     parameters = config_parameters(config) | {
         "seed": seed,
@@ -122,3 +123,53 @@ def run_simulate(
         f"{100 * mean:.1f}% correct on average"
     )
     return simulate_report(study, parameters, paper_protocol), summary
+
+
+def export_log_text(log: EstimatorLog) -> str:
+    """An EstimatorLog in diagnose's default CSV format (upper-triangle covariance)."""
+    import io
+
+    import pandas as pd
+
+    d = log.dim
+    columns = {"time": log.time} if log.time is not None else {}
+    if log.segment is not None:
+        columns["segment"] = log.segment
+    columns |= {f"truth_{i}": log.truth[:, i] for i in range(d)}
+    columns |= {f"est_{i}": log.estimate[:, i] for i in range(d)}
+    columns |= {f"cov_{i}_{j}": log.cov[:, i, j] for i in range(d) for j in range(i, d)}
+    buf = io.StringIO()
+    pd.DataFrame(columns).to_csv(buf, index=False)
+    return buf.getvalue()
+
+
+def run_uwb(
+    path: Path,
+    settings,
+    config: DiagnosisConfig,
+    anchors: Path | None = None,
+    window: str | None = None,
+    whole: bool = False,
+    seed: int = 0,
+    progress=None,
+):
+    """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (report, run)."""
+    import dataclasses
+
+    from credcli import uwb
+    from credcli.render import uwb_report
+
+    run = uwb.run_pipeline(path, settings, anchors, window, whole)
+    if not run.segments:
+        raise CredcliError(f"{path}: no fix falls in any period; try --window 5s or --whole")
+    results = diagnose_log(run.log, run.segments, config, seed, progress)
+    parameters = (
+        config_parameters(config)
+        | {
+            "seed": seed,
+            "segmentation": "static" if not (window or whole) else segmentation_name(window, whole),
+        }
+        | {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
+        | {"anchors": str(anchors) if anchors else "self-calibrated"}
+    )
+    return uwb_report(run, results, parameters), run

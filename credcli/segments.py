@@ -100,27 +100,29 @@ def whole(n: int, time: np.ndarray | None) -> list[Segment]:
     return [Segment("all", idx, *_span(time, idx))]
 
 
+SPEED_LAG_S = 0.1
+"""Half-width of the centred difference used for speeds (s). Mocap positions at ~220 Hz
+with near-coincident rows make one-step differences noisy; ±0.1 s does not."""
+
+
 def static_periods(
     time: np.ndarray, position: np.ndarray, max_speed: float = 0.1, min_duration: float = 4.0
-) -> list[Segment]:
-    """Periods where the speed from ``position`` (N, 3) stays below ``max_speed`` for at least
-    ``min_duration`` seconds (Section V-A). Speed is the finite difference over each
-    sample step; periods are named ``P1``, ``P2``, … in time order.
+) -> tuple[list[Segment], np.ndarray]:
+    """Static periods of Section V-A: the 3-D speed of ``position`` (N, 3), sorted by
+    ``time``, stays below ``max_speed`` for at least ``min_duration`` s.
+
+    The speed is the centred difference over ±SPEED_LAG_S (positions interpolated in time).
+    Returns the periods, named P1, P2, … (index: the rows), and the speed of every row.
     """
-    order = np.argsort(time, kind="stable")
-    t, p = time[order], position[order]
-    dt = np.diff(t)
-    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.where(dt > 0, step / np.where(dt > 0, dt, 1.0), 0.0)
-    slow = np.r_[speed < max_speed, False]  # sample i is slow if the step to i+1 is slow
-    edges = np.diff(np.r_[0, slow.astype(np.int8), 0])
-    starts = np.flatnonzero(edges == 1)
-    stops = np.flatnonzero(edges == -1)  # exclusive; the last slow step ends at sample stop
-    segments = []
+    t = time
+    ahead = np.stack([np.interp(t + SPEED_LAG_S, t, position[:, i]) for i in range(3)], axis=1)
+    behind = np.stack([np.interp(t - SPEED_LAG_S, t, position[:, i]) for i in range(3)], axis=1)
+    span = np.minimum(t + SPEED_LAG_S, t[-1]) - np.maximum(t - SPEED_LAG_S, t[0])
+    speed = np.linalg.norm(ahead - behind, axis=1) / np.maximum(span, 1e-9)
+    edges = np.diff(np.r_[0, (speed < max_speed).astype(np.int8), 0])
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = []
     for a, b in zip(starts, stops):
-        t0, t1 = t[a], t[min(b, len(t) - 1)]
-        if t1 - t0 >= min_duration:
-            idx = order[a : b + 1] if b < len(t) else order[a:b]
-            segments.append(Segment(f"P{len(segments) + 1}", np.sort(idx), float(t0), float(t1)))
-    return segments
+        if t[b - 1] - t[a] >= min_duration:
+            out.append(Segment(f"P{len(out) + 1}", np.arange(a, b), float(t[a]), float(t[b - 1])))
+    return out, speed

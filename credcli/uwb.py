@@ -15,10 +15,6 @@ import numpy as np
 from credcli.errors import CredcliError
 from credcli.logs import EstimatorLog
 
-SPEED_LAG_S = 0.1
-"""Half-width of the centred difference used for the rig speed (s). Mocap positions at
-~220 Hz with near-coincident rows make one-step differences noisy; ±0.1 s does not."""
-
 
 @dataclass(frozen=True)
 class UwbSettings:
@@ -379,28 +375,6 @@ def _linear_start(anchor_xy: np.ndarray, horiz2: np.ndarray, weight: np.ndarray)
     return out
 
 
-def static_periods(ranges: RangeLog, max_speed: float = 0.1, min_duration: float = 4.0):
-    """Static periods of Section V-A: the rig's 3-D speed stays below ``max_speed`` for at
-    least ``min_duration`` s. Speed is the centred difference of the ground-truth rig
-    position over ±SPEED_LAG_S (interpolated in time). Returns Segments named P1, P2, …
-    with their time spans (index: range rows)."""
-    from credcli.segments import Segment
-
-    t, pos = ranges.time, ranges.rig_pos
-    ahead = np.stack([np.interp(t + SPEED_LAG_S, t, pos[:, i]) for i in range(3)], axis=1)
-    behind = np.stack([np.interp(t - SPEED_LAG_S, t, pos[:, i]) for i in range(3)], axis=1)
-    span = np.minimum(t + SPEED_LAG_S, t[-1]) - np.maximum(t - SPEED_LAG_S, t[0])
-    speed = np.linalg.norm(ahead - behind, axis=1) / np.maximum(span, 1e-9)
-    slow = speed < max_speed
-    edges = np.diff(np.r_[0, slow.astype(np.int8), 0])
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    out = []
-    for a, b in zip(starts, stops):
-        if t[b - 1] - t[a] >= min_duration:
-            out.append(Segment(f"P{len(out) + 1}", np.arange(a, b), float(t[a]), float(t[b - 1])))
-    return out, speed
-
-
 @dataclass(frozen=True)
 class RangeStats:
     """Range-level evidence of one period and anchor (Figs. 4 and 5 as numbers)."""
@@ -481,7 +455,9 @@ def position_log(
         )
         spans = [(s.name, s.t_start, s.t_end) for s in segments]
         return log, segments, spans
-    periods, _ = static_periods(ranges, settings.max_speed, settings.min_static)
+    periods, _ = seg.static_periods(
+        ranges.time, ranges.rig_pos, settings.max_speed, settings.min_static
+    )
     if not periods:
         raise CredcliError(
             f"{ranges.source}: no static period found (rig speed below {settings.max_speed:g} m/s "

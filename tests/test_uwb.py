@@ -12,6 +12,7 @@ from conftest import SAMPLE, SHARED
 from credcli import uwb
 from credcli.cli import main
 from credcli.samples import STARLOC_ANCHORS
+from credcli.segments import static_periods
 
 GRID = SAMPLE / "starloc_grid_uwb.csv"
 REAL = SHARED / "data" / "starloc" / "loop-2d-fast_s2_uwb.csv"
@@ -93,7 +94,7 @@ def test_wls_recovers_position_and_covariance():
 
 def test_static_periods_of_the_grid_sample():
     r = uwb.read_starloc(GRID)
-    periods, speed = uwb.static_periods(r)
+    periods, speed = static_periods(r.time, r.rig_pos)
     assert [p.name for p in periods] == ["P1", "P2", "P3", "P4", "P5", "P6"]
     # dwell 6 s at each stop; the speed window (±0.1 s) trims ~0.1 s at each end
     for p in periods:

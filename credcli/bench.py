@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -72,6 +73,14 @@ def main() -> int:
         _report("diagnose: 100,000 epochs, 100 segments, B = 1000", times, peak)
         times, peak = _run(["diagnose", str(log), "-f", "json", "--metrics", "all"], 1)
         _report("diagnose --metrics all: same log", times, peak)
+        base = Path(tmp) / "baseline.json"
+        subprocess.run(
+            [sys.executable, "-m", "credcli", "baseline", str(log), "-o", str(base)],
+            check=True,
+            capture_output=True,
+        )
+        times, peak = _run(["gate", str(log), "--baseline", str(base)], 3)
+        _report("gate: same log against its baseline", times, peak)
     times, peak = _run(["diagnose", str(ROOT / "sample_data" / "estimator_log.csv")], 3)
     _report("diagnose: sample log (1,800 epochs, 6 segments)", times, peak)
     real = SHARED / "loop-2d-fast_s2_uwb.csv"

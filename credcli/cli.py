@@ -180,48 +180,99 @@ class _Progress:
             self._bar.stop()
 
 
+LogsArg = Annotated[
+    list[Path], typer.Argument(help="Estimator logs (CSV or Parquet).", show_default=False)
+]
+WindowOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--window", "-w", help="Split into windows: a duration (5s, 250ms) or an epoch count (200)."
+    ),
+]
+WholeOpt = Annotated[bool | None, typer.Option("--whole", help="Diagnose each log as one segment.")]
+TimeColOpt = Annotated[
+    str | None, typer.Option("--time-column", help="Time column [default: time].")
+]
+SegColOpt = Annotated[
+    str | None, typer.Option("--segment-column", help="Segment column [default: segment].")
+]
+TruthColsOpt = Annotated[
+    str | None, typer.Option("--truth-columns", help="Truth columns, comma-separated.")
+]
+EstColsOpt = Annotated[
+    str | None, typer.Option("--estimate-columns", help="Estimate columns, comma-separated.")
+]
+CovColsOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--cov-columns",
+        help="Covariance columns, comma-separated: d² (full), d(d+1)/2 (upper) or d.",
+    ),
+]
+CovKindOpt = Annotated[
+    CovKind | None, typer.Option("--cov-kind", help="How --cov-columns store the covariance.")
+]
+DropOpt = Annotated[
+    bool | None, typer.Option("--drop-invalid", help="Drop rows with NaN/Inf instead of failing.")
+]
+JunitOpt = Annotated[
+    Path | None, typer.Option("--junit", help="Write a JUnit XML report (one case per segment).")
+]
+SummaryOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--summary",
+        help="Write a Markdown summary (also appended to $GITHUB_STEP_SUMMARY when set).",
+    ),
+]
+
+
+def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, drop_invalid) -> dict:
+    """Settings of a diagnosis run: command line > config file > defaults."""
+    from credcli.settings import build_diagnosis_config, build_schema, load_config, split_list
+
+    cfg = load_config(config)
+    for key in ("truth_columns", "estimate_columns", "cov_columns"):
+        columns[key] = split_list(columns[key])
+    schema = build_schema(cfg, columns)
+    dconf, seed = build_diagnosis_config(cfg, method, seed)
+    seg_cfg = cfg.get("segments", {})
+    return {
+        "schema": schema,
+        "config": dconf,
+        "seed": seed,
+        "window": window if window is not None else seg_cfg.get("window"),
+        "whole": bool(whole if whole is not None else seg_cfg.get("whole", False)),
+        "drop_invalid": bool(drop_invalid),
+    }
+
+
+def _write_ci_reports(
+    junit: Path | None, summary: Path | None, cases, markdown: str, inputs
+) -> None:
+    from credcli.ci_reports import append_step_summary, junit_xml
+    from credcli.settings import write_atomic
+
+    if junit is not None:
+        write_atomic(junit, junit_xml("credcli", cases), inputs)
+    if summary is not None:
+        write_atomic(summary, markdown, inputs)
+    append_step_summary(markdown)
+
+
 @app.command()
 def diagnose(
-    logs: Annotated[
-        list[Path], typer.Argument(help="Estimator logs (CSV or Parquet).", show_default=False)
-    ],
+    logs: LogsArg,
     config: ConfigOpt = None,
-    window: Annotated[
-        str | None,
-        typer.Option(
-            "--window",
-            "-w",
-            help="Split into windows: a duration (5s, 250ms) or an epoch count (200).",
-        ),
-    ] = None,
-    whole: Annotated[
-        bool, typer.Option("--whole", help="Diagnose each log as one segment.")
-    ] = False,
-    time_column: Annotated[
-        str | None, typer.Option("--time-column", help="Time column [default: time].")
-    ] = None,
-    segment_column: Annotated[
-        str | None, typer.Option("--segment-column", help="Segment column [default: segment].")
-    ] = None,
-    truth_columns: Annotated[
-        str | None, typer.Option("--truth-columns", help="Truth columns, comma-separated.")
-    ] = None,
-    estimate_columns: Annotated[
-        str | None, typer.Option("--estimate-columns", help="Estimate columns, comma-separated.")
-    ] = None,
-    cov_columns: Annotated[
-        str | None,
-        typer.Option(
-            "--cov-columns",
-            help="Covariance columns, comma-separated: d² (full), d(d+1)/2 (upper) or d.",
-        ),
-    ] = None,
-    cov_kind: Annotated[
-        CovKind | None, typer.Option("--cov-kind", help="How --cov-columns store the covariance.")
-    ] = None,
-    drop_invalid: Annotated[
-        bool, typer.Option("--drop-invalid", help="Drop rows with NaN/Inf instead of failing.")
-    ] = False,
+    window: WindowOpt = None,
+    whole: WholeOpt = None,
+    time_column: TimeColOpt = None,
+    segment_column: SegColOpt = None,
+    truth_columns: TruthColsOpt = None,
+    estimate_columns: EstColsOpt = None,
+    cov_columns: CovColsOpt = None,
+    cov_kind: CovKindOpt = None,
+    drop_invalid: DropOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
     probe_factor: COpt = None,
@@ -235,25 +286,35 @@ def diagnose(
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
+    fail_on: Annotated[
+        str | None,
+        typer.Option(
+            "--fail-on",
+            help="Exit 1 if a segment's label contains one of these: optimism, pessimism, smm, insufficient-data, or noncredible.",
+        ),
+    ] = None,
+    junit: JunitOpt = None,
+    summary: SummaryOpt = None,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (Algorithm 1)."""
-    from credcli.settings import build_diagnosis_config, build_schema, load_config, split_list
+    from credcli.gate import fail_on_verdict, parse_fail_on
     from credcli.workflows import run_diagnose
 
-    cfg = load_config(config)
-    schema = build_schema(
-        cfg,
+    conditions = parse_fail_on(fail_on) if fail_on is not None else None
+    if (junit or summary) and conditions is None:
+        raise CredcliError(
+            "--junit and --summary report a verdict: give --fail-on too (e.g. --fail-on noncredible)"
+        )
+    setup = _diagnose_setup(
+        config,
         {
             "time": time_column,
             "segment": segment_column,
-            "truth_columns": split_list(truth_columns),
-            "estimate_columns": split_list(estimate_columns),
-            "cov_columns": split_list(cov_columns),
+            "truth_columns": truth_columns,
+            "estimate_columns": estimate_columns,
+            "cov_columns": cov_columns,
             "cov_kind": cov_kind,
         },
-    )
-    dconf, seed = build_diagnosis_config(
-        cfg,
         _diagnosis_cli(
             tau,
             alpha,
@@ -267,40 +328,173 @@ def diagnose(
             max_elt_epochs,
         ),
         seed,
+        window,
+        whole,
+        drop_invalid,
     )
-    seg_cfg = cfg.get("segments", {})
-    window = window if window is not None else seg_cfg.get("window")
     with _Progress("diagnosing segments") as bar:
-        report = run_diagnose(
-            logs,
-            schema,
-            dconf,
-            window=window,
-            whole=whole or seg_cfg.get("whole", False),
-            seed=seed,
-            drop_invalid=drop_invalid,
-            progress=bar,
-        )
+        report = run_diagnose(logs, progress=bar, **setup)
     _emit(report, fmt, output, inputs=logs)
+    if conditions is None:
+        return 0
+    from credcli.ci_reports import fail_on_cases, fail_on_markdown
+
+    records = report.document["segments"]
+    passed, verdict, failing = fail_on_verdict(records, conditions)
+    _write_ci_reports(
+        junit,
+        summary,
+        fail_on_cases(records, failing, conditions),
+        fail_on_markdown(records, failing, verdict),
+        logs,
+    )
+    print(f"credcli: {verdict}", file=sys.stderr)
+    return 0 if passed else 1
+
+
+@app.command()
+def baseline(
+    log: Annotated[Path, typer.Argument(help="The estimator log to record.", show_default=False)],
+    output: OutputOpt = None,
+    config: ConfigOpt = None,
+    window: WindowOpt = None,
+    whole: WholeOpt = None,
+    time_column: TimeColOpt = None,
+    segment_column: SegColOpt = None,
+    truth_columns: TruthColsOpt = None,
+    estimate_columns: EstColsOpt = None,
+    cov_columns: CovColsOpt = None,
+    cov_kind: CovKindOpt = None,
+    drop_invalid: DropOpt = None,
+    tau: TauOpt = None,
+    alpha: AlphaOpt = None,
+    probe_factor: COpt = None,
+    flips: FlipsOpt = None,
+    block_length: BlockOpt = None,
+    variant: VariantOpt = None,
+    srd_form: SrdOpt = None,
+    metrics: MetricsOpt = None,
+    min_epochs: MinEpochsOpt = None,
+    max_elt_epochs: MaxEltOpt = None,
+    seed: SeedOpt = None,
+) -> int:
+    """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
+    from credcli.workflows import run_baseline
+
+    setup = _diagnose_setup(
+        config,
+        {
+            "time": time_column,
+            "segment": segment_column,
+            "truth_columns": truth_columns,
+            "estimate_columns": estimate_columns,
+            "cov_columns": cov_columns,
+            "cov_kind": cov_kind,
+        },
+        _diagnosis_cli(
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            min_epochs,
+            max_elt_epochs,
+        ),
+        seed,
+        window,
+        whole,
+        drop_invalid,
+    )
+    with _Progress("diagnosing segments") as bar:
+        report = run_baseline(log, progress=bar, **setup)
+    _emit(report, OutputFormat.JSON, output, inputs=[log])
     return 0
 
 
-def _click_exception_types() -> tuple[type, ...]:
-    """Click's exception base: vendored by typer >= 0.2x, the click package before."""
-    types: list[type] = []
-    try:
-        from typer._click.exceptions import ClickException as Vendored
+@app.command()
+def gate(
+    log: Annotated[Path, typer.Argument(help="The estimator log to check.", show_default=False)],
+    baseline_file: Annotated[
+        Path,
+        typer.Option(
+            "--baseline", "-b", help="Baseline JSON from `credcli baseline`.", show_default=False
+        ),
+    ],
+    max_nci_increase: Annotated[
+        float,
+        typer.Option("--max-nci-increase", help="Fail when |NCI| grows by more than this (dB)."),
+    ] = 1.0,
+    max_anees_ratio: Annotated[
+        float,
+        typer.Option(
+            "--max-anees-ratio",
+            help="Fail when ANEES moves further from 1 by more than this factor.",
+        ),
+    ] = 1.25,
+    allow_new_segments: Annotated[
+        bool,
+        typer.Option(
+            "--allow-new-segments", help="New or missing segments are reported, not failures."
+        ),
+    ] = False,
+    junit: JunitOpt = None,
+    summary: SummaryOpt = None,
+    fmt: FormatOpt = OutputFormat.TABLE,
+    output: OutputOpt = None,
+    window: WindowOpt = None,
+    whole: WholeOpt = None,
+    tau: TauOpt = None,
+    alpha: AlphaOpt = None,
+    probe_factor: COpt = None,
+    flips: FlipsOpt = None,
+    block_length: BlockOpt = None,
+    variant: VariantOpt = None,
+    srd_form: SrdOpt = None,
+    metrics: MetricsOpt = None,
+    min_epochs: MinEpochsOpt = None,
+    max_elt_epochs: MaxEltOpt = None,
+    seed: SeedOpt = None,
+) -> int:
+    """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
+    from credcli.ci_reports import gate_cases, gate_markdown
+    from credcli.gate import Thresholds
+    from credcli.workflows import run_gate
 
-        types.append(Vendored)
-    except ImportError:
-        pass
-    try:
-        from click import ClickException
-
-        types.append(ClickException)
-    except ImportError:
-        pass
-    return tuple(types)
+    thresholds = Thresholds(max_nci_increase, max_anees_ratio, allow_new_segments)
+    requested = {
+        k: (v.value if hasattr(v, "value") else v)
+        for k, v in _diagnosis_cli(
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            min_epochs,
+            max_elt_epochs,
+        ).items()
+    }
+    requested |= {"seed": seed, "window": window, "whole": whole}
+    with _Progress("diagnosing segments") as bar:
+        report, comparisons, passed, verdict = run_gate(
+            log, baseline_file, thresholds, requested, bar
+        )
+    inputs = [log, baseline_file]
+    _emit(report, fmt, output, inputs=inputs)
+    _write_ci_reports(
+        junit,
+        summary,
+        gate_cases(comparisons, thresholds, str(log)),
+        gate_markdown(comparisons, thresholds, verdict, str(log), str(baseline_file)),
+        inputs,
+    )
+    print(f"credcli: {verdict}", file=sys.stderr)
+    return 0 if passed else 1
 
 
 @app.command()
@@ -486,6 +680,24 @@ def uwb(
         _stderr().print(f"wrote {export_log} ({run.log.n} fixes)", highlight=False)
     _emit(report, fmt, output, inputs=inputs)
     return 0
+
+
+def _click_exception_types() -> tuple[type, ...]:
+    """Click's exception base: vendored by typer >= 0.2x, the click package before."""
+    types: list[type] = []
+    try:
+        from typer._click.exceptions import ClickException as Vendored
+
+        types.append(Vendored)
+    except ImportError:
+        pass
+    try:
+        from click import ClickException
+
+        types.append(ClickException)
+    except ImportError:
+        pass
+    return tuple(types)
 
 
 def main(argv: list[str] | None = None) -> int:

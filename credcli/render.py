@@ -28,6 +28,7 @@ class Column:
     key: str
     header: str
     digits: int = 4  # significant digits in tables; 0 for text/int columns
+    wrap: int = 0  # wrap text at this width in Rich tables (0: never wrap)
 
 
 @dataclass(frozen=True)
@@ -188,8 +189,14 @@ def _csv_cell(value) -> str:
     return str(value)
 
 
-_LABEL_STYLE = {"credible": "green", "insufficient-data": "dim"}
-_LABEL_KEYS = {"label", "nees_label", "nci_label", "baseline_label"}
+_LABEL_STYLE = {
+    "credible": "green",
+    "insufficient-data": "dim",
+    "regressed": "bold red",
+    "improved": "green",
+    "unchanged": "dim",
+}
+_LABEL_KEYS = {"label", "nees_label", "nci_label", "status"}
 
 
 def rich_table(table: Table):
@@ -201,7 +208,13 @@ def rich_table(table: Table):
         title=escape(table.title), caption=escape(table.caption) or None, title_justify="left"
     )
     for col in table.columns:
-        out.add_column(escape(col.header), justify="right" if col.digits else "left", no_wrap=True)
+        out.add_column(
+            escape(col.header),
+            justify="right" if col.digits else "left",
+            no_wrap=not col.wrap,
+            max_width=col.wrap or None,
+            overflow="fold" if col.wrap else "ellipsis",
+        )
     for row in table.rows:
         cells = []
         for col in table.columns:
@@ -551,3 +564,61 @@ def uwb_report(run, results, parameters: dict) -> Report:
         "ranges": ranges,
     }
     return Report(tables, document, notes)
+
+
+GATE_COLUMNS = (
+    Column("segment", "segment", 0),
+    Column("status", "status", 0),
+    Column("labels", "label (baseline → now)", 0),
+    Column("nci", "NCI [dB]", 0),
+    Column("anees", "ANEES", 0),
+    Column("elt", "ELT p", 0),
+    Column("why", "why", 0, wrap=60),
+)
+
+
+def _pair(old, new, key):
+    def f(rec):
+        v = (rec or {}).get(key)
+        return "—" if v is None else f"{v:.3g}"
+
+    return f"{f(old)} → {f(new)}"
+
+
+def gate_report(comparisons, parameters: dict, baseline: str, passed: bool, verdict: str) -> Report:
+    from credcli import __version__
+
+    rows = [
+        {
+            "segment": c.segment,
+            "status": c.status.value,
+            "labels": f"{(c.old or {}).get('label', '—')} → {(c.new or {}).get('label', '—')}",
+            "nci": _pair(c.old, c.new, "nci"),
+            "anees": _pair(c.old, c.new, "anees"),
+            "elt": _pair(c.old, c.new, "elt_pvalue"),
+            "why": "; ".join(c.reasons + c.improvements) or "—",
+        }
+        for c in comparisons
+    ]
+    document = {
+        "version": __version__,
+        "command": "gate",
+        "baseline": baseline,
+        "parameters": parameters,
+        "passed": passed,
+        "verdict": verdict,
+        "segments": [
+            {
+                "segment": c.segment,
+                "status": c.status.value,
+                "baseline_label": (c.old or {}).get("label"),
+                "label": (c.new or {}).get("label"),
+                "reasons": list(c.reasons),
+                "improvements": list(c.improvements),
+                "baseline": c.old,
+                "current": c.new,
+            }
+            for c in comparisons
+        ],
+    }
+    return Report([Table("credcli gate", GATE_COLUMNS, rows)], document)

@@ -35,6 +35,16 @@ GOOD_SEGMENTS = (
 )
 
 
+REGRESSED_SEGMENTS = (
+    PlantedSegment("cruise", 0.4, (0.0, 0.0)),  # credible -> optimism
+    GOOD_SEGMENTS[1],
+    PlantedSegment("hover", 3.0, (1.0, 0.8)),  # pessimism -> pessimism+smm
+    *GOOD_SEGMENTS[3:],
+)
+"""The sample log after a change that broke two segments (for `credcli gate`). The random
+draws are the same as for GOOD_SEGMENTS, so the other segments are unchanged."""
+
+
 def estimator_log(
     segments=GOOD_SEGMENTS, epochs_per_segment: int = 300, rate_hz: float = 10.0, seed: int = 1
 ):
@@ -85,6 +95,8 @@ def write_samples(outdir: Path) -> list[Path]:
     written = [outdir / "estimator_log.csv", outdir / "estimator_log.parquet"]
     log.to_csv(written[0], index=False)
     log.to_parquet(written[1], index=False)
+    written.append(outdir / "estimator_log_regressed.csv")
+    estimator_log(REGRESSED_SEGMENTS).to_csv(written[-1], index=False)
     written.append(outdir / "starloc_grid_uwb.csv")
     starloc_log().to_csv(written[-1], index=False)
     return written

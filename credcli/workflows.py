@@ -32,6 +32,16 @@ def segmentation_name(window: str | None, whole: bool) -> str:
     return f"window:{seg.Window.parse(window)}" if window is not None else "column"
 
 
+def schema_parameters(schema: LogSchema) -> dict:
+    import dataclasses
+
+    out = {}
+    for f in dataclasses.fields(schema):
+        value = getattr(schema, f.name)
+        out[f.name] = list(value) if isinstance(value, tuple) else getattr(value, "value", value)
+    return out
+
+
 def run_diagnose(
     paths: list[Path],
     schema: LogSchema,
@@ -54,7 +64,10 @@ def run_diagnose(
     parameters = config_parameters(config) | {
         "seed": seed,
         "segmentation": segmentation_name(window, whole),
+        "window": window,
+        "whole": whole,
         "drop_invalid": drop_invalid,
+        "columns": schema_parameters(schema),
     }
     logs = [
         {
@@ -173,3 +186,51 @@ def run_uwb(
         | {"anchors": str(anchors) if anchors else "self-calibrated"}
     )
     return uwb_report(run, results, parameters), run
+
+
+def run_baseline(path: Path, **setup) -> Report:
+    """`diagnose` on one log, marked as a baseline of the current schema version."""
+    from credcli.gate import BASELINE_KIND, BASELINE_SCHEMA_VERSION
+
+    report = run_diagnose([path], **setup)
+    report.document.update(kind=BASELINE_KIND, schema_version=BASELINE_SCHEMA_VERSION)
+    report.document["command"] = "baseline"
+    return report
+
+
+def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progress=None):
+    """Diagnose ``path`` with the baseline's parameters and compare segment by segment."""
+    import dataclasses
+    import json
+
+    from credcli.gate import check_baseline, check_same_parameters, compare, verdict_line
+    from credcli.render import gate_report
+
+    try:
+        baseline = json.loads(Path(baseline_path).read_text())
+    except FileNotFoundError as exc:
+        raise CredcliError(f"{baseline_path}: baseline file not found") from exc
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CredcliError(f"{baseline_path}: not valid JSON ({exc})") from exc
+    check_baseline(baseline, str(baseline_path))
+    check_same_parameters(baseline, requested, str(baseline_path))
+    params = baseline["parameters"]
+    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
+    try:
+        config = DiagnosisConfig(**{k: v for k, v in params.items() if k in fields})
+        schema = LogSchema().updated(**params["columns"])
+        setup = {
+            "window": params["window"],
+            "whole": params["whole"],
+            "seed": params["seed"],
+            "drop_invalid": params["drop_invalid"],
+        }
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CredcliError(
+            f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
+        ) from exc
+    current = run_diagnose([path], schema, config, progress=progress, **setup).document
+    comparisons = compare(baseline, current, thresholds)
+    passed, verdict = verdict_line(comparisons, thresholds)
+    report = gate_report(comparisons, current["parameters"], str(baseline_path), passed, verdict)
+    return report, comparisons, passed, verdict

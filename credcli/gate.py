@@ -1,0 +1,228 @@
+"""CI gate: `--fail-on` conditions, baselines, and segment-by-segment regression checks."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+from credcli.diagnosis import Label
+from credcli.errors import CredcliError
+
+BASELINE_SCHEMA_VERSION = 1
+BASELINE_KIND = "credcli-baseline"
+
+_CONDITIONS = ("optimism", "pessimism", "smm")
+NONCREDIBLE = "noncredible"
+
+
+def parse_fail_on(text: str) -> frozenset[str]:
+    """Conditions from ``optimism,smm``, ``noncredible`` or label names (``optimism+smm``).
+
+    ``noncredible`` is every label except ``credible`` (``insufficient-data`` included).
+    """
+    out: set[str] = set()
+    for item in (t.strip().lower() for t in text.split(",")):
+        if not item:
+            continue
+        if item in (NONCREDIBLE, Label.INSUFFICIENT.value) or item in _CONDITIONS:
+            out.add(item)
+            continue
+        try:
+            label = Label(item)
+        except ValueError:
+            label = None
+        if label is None or label is Label.CREDIBLE:
+            raise CredcliError(
+                f"--fail-on: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
+                f"{Label.INSUFFICIENT.value}, {NONCREDIBLE} or a label such as optimism+smm"
+            )
+        out |= label.conditions
+    if not out:
+        raise CredcliError("--fail-on: give at least one condition, e.g. --fail-on noncredible")
+    return frozenset(out)
+
+
+def fails(label: Label, fail_on: frozenset[str]) -> bool:
+    """Whether a segment's label contains one of the listed conditions."""
+    if NONCREDIBLE in fail_on:
+        return label is not Label.CREDIBLE
+    if label is Label.INSUFFICIENT:
+        return Label.INSUFFICIENT.value in fail_on
+    return bool(label.conditions & fail_on)
+
+
+class Status(str, enum.Enum):
+    UNCHANGED = "unchanged"
+    IMPROVED = "improved"
+    REGRESSED = "regressed"
+    NEW = "new"
+    MISSING = "missing"
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    max_nci_increase: float = 1.0  # dB of |NCI|
+    max_anees_ratio: float = 1.25  # factor on max(ANEES, 1/ANEES)
+    allow_new_segments: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.max_nci_increase >= 0:
+            raise CredcliError(f"--max-nci-increase must be >= 0; got {self.max_nci_increase}")
+        if not self.max_anees_ratio >= 1:
+            raise CredcliError(f"--max-anees-ratio must be >= 1; got {self.max_anees_ratio}")
+
+
+@dataclass(frozen=True)
+class SegmentComparison:
+    """One segment of the baseline against the same segment now."""
+
+    segment: str
+    status: Status
+    old: dict | None  # the baseline's segment record
+    new: dict | None  # the current segment record
+    reasons: tuple[str, ...]  # why it regressed (or is new / missing)
+    improvements: tuple[str, ...]
+
+    @property
+    def failed(self) -> bool:
+        return self.status is Status.REGRESSED
+
+    def failed_with(self, thresholds: Thresholds) -> bool:
+        if self.status in (Status.NEW, Status.MISSING):
+            return not thresholds.allow_new_segments
+        return self.failed
+
+
+def _anees_deviation(a: float) -> float:
+    return max(a, 1.0 / a)
+
+
+def compare_segment(
+    name: str, old: dict, new: dict, alpha: float, th: Thresholds
+) -> SegmentComparison:
+    """The regression rules of the gate, for one matched segment."""
+    reasons, better = [], []
+    old_label, new_label = Label(old["label"]), Label(new["label"])
+    if old_label is Label.CREDIBLE and new_label is not Label.CREDIBLE:
+        reasons.append(f"label credible -> {new_label.value}")
+    else:
+        gained = sorted(new_label.conditions - old_label.conditions)
+        if gained:
+            reasons.append(
+                f"label {old_label.value} -> {new_label.value} (gained {'+'.join(gained)})"
+            )
+    if new_label is not old_label and not reasons:
+        lost = sorted(old_label.conditions - new_label.conditions)
+        if lost or new_label is Label.CREDIBLE:
+            better.append(f"label {old_label.value} -> {new_label.value}")
+    if old.get("nci") is not None and new.get("nci") is not None:
+        change = abs(new["nci"]) - abs(old["nci"])
+        if change > th.max_nci_increase:
+            reasons.append(
+                f"|NCI| {abs(old['nci']):.2f} -> {abs(new['nci']):.2f} dB (+{change:.2f} > {th.max_nci_increase:g})"
+            )
+        elif change < -th.max_nci_increase:
+            better.append(f"|NCI| {abs(old['nci']):.2f} -> {abs(new['nci']):.2f} dB")
+    if old.get("anees") and new.get("anees"):
+        ratio = _anees_deviation(new["anees"]) / _anees_deviation(old["anees"])
+        if ratio > th.max_anees_ratio:
+            reasons.append(
+                f"ANEES {old['anees']:.3g} -> {new['anees']:.3g} (further from 1 by x{ratio:.2f} > {th.max_anees_ratio:g})"
+            )
+        elif ratio < 1 / th.max_anees_ratio:
+            better.append(f"ANEES {old['anees']:.3g} -> {new['anees']:.3g} (closer to 1)")
+    if old.get("elt_pvalue") is not None and new.get("elt_pvalue") is not None:
+        if old["elt_pvalue"] >= alpha > new["elt_pvalue"]:
+            reasons.append(
+                f"ELT newly rejects (p {old['elt_pvalue']:.3g} -> {new['elt_pvalue']:.3g} < {alpha:g})"
+            )
+        elif new["elt_pvalue"] >= alpha > old["elt_pvalue"]:
+            better.append(
+                f"ELT no longer rejects (p {old['elt_pvalue']:.3g} -> {new['elt_pvalue']:.3g})"
+            )
+    status = Status.REGRESSED if reasons else Status.IMPROVED if better else Status.UNCHANGED
+    return SegmentComparison(name, status, old, new, tuple(reasons), tuple(better))
+
+
+def compare(baseline: dict, current: dict, th: Thresholds) -> list[SegmentComparison]:
+    """Every segment of the baseline and of the current run, matched by name, in the
+    baseline's order followed by new segments."""
+    alpha = baseline["parameters"]["alpha"]
+    old = {s["segment"]: s for s in baseline["segments"]}
+    new = {s["segment"]: s for s in current["segments"]}
+    out = []
+    for name, rec in old.items():
+        if name in new:
+            out.append(compare_segment(name, rec, new[name], alpha, th))
+        else:
+            out.append(
+                SegmentComparison(
+                    name, Status.MISSING, rec, None, ("segment missing from the log",), ()
+                )
+            )
+    for name, rec in new.items():
+        if name not in old:
+            out.append(
+                SegmentComparison(name, Status.NEW, None, rec, ("segment not in the baseline",), ())
+            )
+    return out
+
+
+def check_baseline(doc: dict, source: str) -> None:
+    """Refuse a file that is not a credcli baseline of a known schema version."""
+    if not isinstance(doc, dict) or doc.get("kind") != BASELINE_KIND:
+        raise CredcliError(
+            f"{source}: not a credcli baseline (make one with `credcli baseline LOG -o FILE`)"
+        )
+    version = doc.get("schema_version")
+    if version != BASELINE_SCHEMA_VERSION:
+        raise CredcliError(
+            f"{source}: baseline schema version {version!r} is not supported (this credcli reads "
+            f"version {BASELINE_SCHEMA_VERSION}); record the baseline again with this version"
+        )
+    for key in ("parameters", "segments"):
+        if key not in doc:
+            raise CredcliError(f"{source}: baseline has no '{key}'; record it again")
+
+
+def check_same_parameters(baseline: dict, requested: dict, source: str) -> None:
+    """Options given on the gate's command line must equal the baseline's."""
+    params = baseline["parameters"]
+    diff = [
+        f"{k}: baseline {params.get(k)!r}, now {v!r}"
+        for k, v in requested.items()
+        if v is not None and params.get(k) != v
+    ]
+    if diff:
+        raise CredcliError(
+            f"{source}: the baseline was made with different parameters ({'; '.join(diff)}); "
+            "gate with the baseline's settings or record a new baseline"
+        )
+
+
+def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[bool, str]:
+    failed = [c for c in comparisons if c.failed_with(th)]
+    counts = {s: sum(c.status is s for c in comparisons) for s in Status}
+    tally = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n)
+    if failed:
+        first = failed[0]
+        return False, (
+            f"FAIL: {len(failed)} of {len(comparisons)} segment(s) regressed ({tally}); "
+            f"first: {first.segment}: {first.reasons[0]}"
+        )
+    return True, f"PASS: no regression in {len(comparisons)} segment(s) ({tally})"
+
+
+def fail_on_verdict(records: list[dict], fail_on: frozenset[str]) -> tuple[bool, str, list[dict]]:
+    """(passed, one-line verdict, failing records) of `diagnose --fail-on`."""
+    bad = [r for r in records if fails(Label(r["label"]), fail_on)]
+    listed = ",".join(sorted(fail_on))
+    if bad:
+        shown = ", ".join(f"{r['segment']} ({r['label']})" for r in bad[:5])
+        more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+        return (
+            False,
+            f"FAIL: {len(bad)} of {len(records)} segment(s) match --fail-on {listed}: {shown}{more}",
+            bad,
+        )
+    return True, f"PASS: none of {len(records)} segment(s) match --fail-on {listed}", []

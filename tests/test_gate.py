@@ -1,0 +1,230 @@
+"""CI gate: --fail-on, baselines, regressions, JUnit and Markdown reports (end to end)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import pytest
+from conftest import SAMPLE
+
+from credcli import gate
+from credcli.diagnosis import Label
+from credcli.errors import CredcliError
+
+GOOD = SAMPLE / "estimator_log.csv"
+REGRESSED = SAMPLE / "estimator_log_regressed.csv"
+
+
+def _cli(*args, env=None):
+    """The real command line, as a subprocess (as CI runs it)."""
+    full_env = {k: v for k, v in os.environ.items() if k != "GITHUB_STEP_SUMMARY"}
+    full_env.update(env or {})
+    return subprocess.run(
+        [sys.executable, "-m", "credcli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        env=full_env,
+        check=False,
+    )
+
+
+def test_fail_on_parsing_and_matching():
+    assert gate.parse_fail_on("optimism,smm") == {"optimism", "smm"}
+    assert gate.parse_fail_on("pessimism+smm") == {"pessimism", "smm"}
+    nc = gate.parse_fail_on("noncredible")
+    assert all(gate.fails(lab, nc) for lab in Label if lab is not Label.CREDIBLE)
+    assert not gate.fails(Label.CREDIBLE, nc)
+    smm = gate.parse_fail_on("smm")
+    assert gate.fails(Label.OPTIMISM_SMM, smm) and not gate.fails(Label.OPTIMISM, smm)
+    assert not gate.fails(Label.INSUFFICIENT, smm)
+    assert gate.fails(Label.INSUFFICIENT, gate.parse_fail_on("insufficient-data"))
+    for bad in ("credible", "bias", ""):
+        with pytest.raises(CredcliError, match="--fail-on"):
+            gate.parse_fail_on(bad)
+
+
+def _rec(label, nci=0.1, anees=1.0, p=0.5):
+    return {"segment": "s", "label": label, "nci": nci, "anees": anees, "elt_pvalue": p}
+
+
+@pytest.mark.parametrize(
+    "old, new, regressed, reason",
+    [
+        (_rec("credible"), _rec("optimism"), True, "label credible -> optimism"),
+        (_rec("optimism"), _rec("optimism+smm", p=0.5), True, "gained smm"),
+        (_rec("optimism"), _rec("optimism"), False, None),
+        (_rec("smm", nci=1.0), _rec("smm", nci=2.1), True, "|NCI| 1.00 -> 2.10 dB"),
+        (_rec("smm", nci=1.0), _rec("smm", nci=-1.9), False, None),  # |NCI| +0.9 <= 1
+        (
+            _rec("pessimism", anees=0.5),
+            _rec("pessimism", anees=0.39),
+            True,
+            "further from 1 by x1.28",
+        ),
+        (_rec("pessimism", anees=0.5), _rec("pessimism", anees=0.41), False, None),
+        (_rec("optimism", anees=2.0), _rec("optimism", anees=2.6), True, "x1.30"),
+        (_rec("credible", p=0.2), _rec("credible", p=0.01), True, "ELT newly rejects"),
+        (_rec("optimism+smm"), _rec("optimism"), False, None),  # lost a condition: improved
+    ],
+)
+def test_regression_rules(old, new, regressed, reason):
+    c = gate.compare_segment("s", old, new, 0.05, gate.Thresholds())
+    assert c.failed is regressed
+    if reason:
+        assert any(reason in r for r in c.reasons)
+
+
+def test_improvements_are_reported():
+    c = gate.compare_segment(
+        "s",
+        _rec("optimism+smm", nci=5, anees=3, p=0.001),
+        _rec("credible", nci=0.2, anees=1.1, p=0.4),
+        0.05,
+        gate.Thresholds(),
+    )
+    assert c.status is gate.Status.IMPROVED
+    assert len(c.improvements) == 4
+
+
+def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path):
+    base = tmp_path / "baseline.json"
+    proc = _cli("baseline", GOOD, "-o", base)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(base.read_text())
+    assert (
+        doc["schema_version"] == gate.BASELINE_SCHEMA_VERSION and doc["kind"] == gate.BASELINE_KIND
+    )
+    assert doc["parameters"]["seed"] == 0 and len(doc["segments"]) == 6
+
+    junit, summary, step = tmp_path / "ok.xml", tmp_path / "ok.md", tmp_path / "step.md"
+    proc = _cli(
+        "gate",
+        GOOD,
+        "--baseline",
+        base,
+        "--junit",
+        junit,
+        "--summary",
+        summary,
+        env={"GITHUB_STEP_SUMMARY": str(step)},
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert (
+        proc.stderr.strip()
+        .splitlines()[-1]
+        .startswith("credcli: PASS: no regression in 6 segment(s)")
+    )
+    assert "\x1b[" not in proc.stdout  # no colour codes when not a terminal
+    suite = ET.parse(junit).getroot()
+    assert suite.get("tests") == "6" and suite.get("failures") == "0"
+
+    junit, summary = tmp_path / "bad.xml", tmp_path / "bad.md"
+    proc = _cli(
+        "gate",
+        REGRESSED,
+        "--baseline",
+        base,
+        "--junit",
+        junit,
+        "--summary",
+        summary,
+        env={"GITHUB_STEP_SUMMARY": str(step)},
+    )
+    assert proc.returncode == 1
+    verdict = proc.stderr.strip().splitlines()[-1]
+    assert verdict.startswith("credcli: FAIL: 2 of 6 segment(s) regressed")
+    cases = {tc.get("name"): tc for tc in ET.parse(junit).getroot().iter("testcase")}
+    assert len(cases) == 6
+    failed = {
+        name: tc.find("failure").get("message")
+        for name, tc in cases.items()
+        if tc.find("failure") is not None
+    }
+    assert set(failed) == {"cruise", "hover"}
+    assert "label credible -> optimism" in failed["cruise"]
+    assert "gained smm" in failed["hover"] and "ELT newly rejects" in failed["hover"]
+    md = summary.read_text()
+    assert "**FAIL: 2 of 6 segment(s) regressed" in md
+    assert "| cruise | ❌ regressed | credible → optimism |" in md
+    assert "| turn | ➖ unchanged |" in md
+    # the step summary got both runs appended
+    step_text = step.read_text()
+    assert step_text.count("## credcli gate") == 2 and "PASS" in step_text and "FAIL" in step_text
+
+
+def test_gate_json_output(tmp_path):
+    base = tmp_path / "b.json"
+    _cli("baseline", GOOD, "-o", base)
+    proc = _cli("gate", REGRESSED, "--baseline", base, "-f", "json")
+    doc = json.loads(proc.stdout)
+    assert doc["passed"] is False
+    status = {s["segment"]: s["status"] for s in doc["segments"]}
+    assert status == {
+        "cruise": "regressed",
+        "turn": "unchanged",
+        "hover": "regressed",
+        "gps-multipath": "unchanged",
+        "tunnel": "unchanged",
+        "urban": "unchanged",
+    }
+
+
+def test_missing_and_new_segments(tmp_path):
+    base = tmp_path / "b.json"
+    _cli("baseline", GOOD, "-o", base)
+    fewer = tmp_path / "fewer.csv"
+    lines = GOOD.read_text().splitlines(keepends=True)
+    fewer.write_text("".join(line for line in lines if ",urban," not in line))
+    proc = _cli("gate", fewer, "--baseline", base)
+    assert proc.returncode == 1 and "missing" in proc.stdout
+    proc = _cli("gate", fewer, "--baseline", base, "--allow-new-segments")
+    assert proc.returncode == 0 and "1 missing" in proc.stderr
+
+
+def test_different_parameters_or_schema_are_errors(tmp_path):
+    base = tmp_path / "b.json"
+    _cli("baseline", GOOD, "-o", base, "--tau", "0.8")
+    proc = _cli("gate", GOOD, "--baseline", base, "--tau", "0.5")
+    assert (
+        proc.returncode == 2
+        and "different parameters (tau_nci: baseline 0.8, now 0.5)" in proc.stderr
+    )
+    proc = _cli("gate", GOOD, "--baseline", base)  # the baseline's tau is used
+    assert proc.returncode == 0
+    doc = json.loads(base.read_text())
+    doc["schema_version"] = 99
+    base.write_text(json.dumps(doc))
+    proc = _cli("gate", GOOD, "--baseline", base)
+    assert proc.returncode == 2 and "schema version 99 is not supported" in proc.stderr
+    base.write_text("{not json")
+    assert _cli("gate", GOOD, "--baseline", base).returncode == 2
+    plain = tmp_path / "plain.json"
+    plain.write_text(_cli("diagnose", GOOD, "-f", "json").stdout)
+    proc = _cli("gate", GOOD, "--baseline", plain)
+    assert proc.returncode == 2 and "not a credcli baseline" in proc.stderr
+
+
+def test_diagnose_fail_on(tmp_path):
+    proc = _cli("diagnose", GOOD, "--fail-on", "optimism,smm")
+    assert proc.returncode == 1
+    assert proc.stderr.strip().endswith(
+        "gps-multipath (smm), tunnel (pessimism+smm), urban (optimism+smm)"
+    )
+    assert "FAIL: 4 of 6 segment(s) match --fail-on optimism,smm" in proc.stderr
+    proc = _cli("diagnose", GOOD, "--whole", "--window", "300", "--fail-on", "insufficient-data")
+    assert proc.returncode == 0 and "PASS" in proc.stderr
+    junit = tmp_path / "j.xml"
+    proc = _cli("diagnose", GOOD, "--fail-on", "noncredible", "--junit", junit)
+    assert proc.returncode == 1
+    fails = [
+        tc.get("name")
+        for tc in ET.parse(junit).getroot().iter("testcase")
+        if tc.find("failure") is not None
+    ]
+    assert fails == ["turn", "hover", "gps-multipath", "tunnel", "urban"]
+    assert _cli("diagnose", GOOD, "--fail-on", "bogus").returncode == 2
+    assert _cli("diagnose", "missing.csv", "--fail-on", "smm").returncode == 2

@@ -218,6 +218,10 @@ DropOpt = Annotated[
 JunitOpt = Annotated[
     Path | None, typer.Option("--junit", help="Write a JUnit XML report (one case per segment).")
 ]
+PlotsOpt = Annotated[
+    Path | None,
+    typer.Option("--plots", help="Write PNG figures into this directory (needs credcli[plots])."),
+]
 SummaryOpt = Annotated[
     Path | None,
     typer.Option(
@@ -245,6 +249,22 @@ def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, dr
         "whole": bool(whole if whole is not None else seg_cfg.get("whole", False)),
         "drop_invalid": bool(drop_invalid),
     }
+
+
+def _check_plotting(*wanted) -> None:
+    if any(w is not None for w in wanted):
+        from credcli.plots import require_plotting
+
+        require_plotting()
+
+
+def _write_plots(run, directory: Path | None) -> None:
+    if directory is None:
+        return
+    from credcli.plots import write_plots
+
+    paths = write_plots(run.plots, directory)
+    _stderr().print(f"wrote {len(paths)} figure(s) to {directory}", highlight=False)
 
 
 def _write_ci_reports(
@@ -295,6 +315,7 @@ def diagnose(
     ] = None,
     junit: JunitOpt = None,
     summary: SummaryOpt = None,
+    plots: PlotsOpt = None,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (Algorithm 1)."""
     from credcli.gate import fail_on_verdict, parse_fail_on
@@ -333,8 +354,10 @@ def diagnose(
         drop_invalid,
     )
     with _Progress("diagnosing segments") as bar:
-        report = run_diagnose(logs, progress=bar, **setup)
+        run = run_diagnose(logs, progress=bar, plots=plots is not None, **setup)
+    report = run.report
     _emit(report, fmt, output, inputs=logs)
+    _write_plots(run, plots)
     if conditions is None:
         return 0
     from credcli.ci_reports import fail_on_cases, fail_on_markdown
@@ -409,8 +432,8 @@ def baseline(
         drop_invalid,
     )
     with _Progress("diagnosing segments") as bar:
-        report = run_baseline(log, progress=bar, **setup)
-    _emit(report, OutputFormat.JSON, output, inputs=[log])
+        recorded = run_baseline(log, progress=bar, **setup)
+    _emit(recorded, OutputFormat.JSON, output, inputs=[log])
     return 0
 
 
@@ -548,6 +571,7 @@ def simulate(
     jobs: Annotated[
         int, typer.Option("--jobs", "-j", help="Worker processes (same output for any value).")
     ] = 1,
+    plots: PlotsOpt = None,
     config: ConfigOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
@@ -570,6 +594,8 @@ def simulate(
         raise CredcliError(f"--jobs must be >= 1; got {jobs}")
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
+    _check_plotting(plots)
+    _check_plotting(plots)
     cfg = load_config(config)
     sim = build_simulation_config(
         cfg,
@@ -589,7 +615,7 @@ def simulate(
     )
     start = time.perf_counter()
     with _Progress("simulating trials", min_total=1) as bar:
-        report, summary = run_simulate(
+        run, summary = run_simulate(
             sim,
             scenario,
             sweep=sweep,
@@ -597,8 +623,10 @@ def simulate(
             curve_runs=curve_runs,
             jobs=jobs,
             progress=bar,
+            plots=plots is not None,
         )
-    _emit(report, fmt, output)
+    _emit(run.report, fmt, output)
+    _write_plots(run, plots)
     _stderr().print(f"{summary} in {time.perf_counter() - start:.2f} s", highlight=False)
     return 0
 
@@ -638,6 +666,10 @@ def uwb(
     export_log: Annotated[
         Path | None, typer.Option("--export-log", help="Write the fixes as a diagnose log (CSV).")
     ] = None,
+    plots: PlotsOpt = None,
+    report_file: Annotated[
+        Path | None, typer.Option("--report", help="Write a self-contained HTML report.")
+    ] = None,
     config: ConfigOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
@@ -673,12 +705,101 @@ def uwb(
         min_static=min_static,
     )
     with _Progress("diagnosing periods") as bar:
-        report, run = run_uwb(file, settings, dconf, anchors, window, whole, seed, bar)
+        result, run = run_uwb(
+            file,
+            settings,
+            dconf,
+            anchors,
+            window,
+            whole,
+            seed,
+            bar,
+            plots=plots is not None or report_file is not None,
+        )
     inputs = [file] + ([anchors] if anchors else [])
     if export_log is not None:
         write_atomic(export_log, export_log_text(run.log), inputs)
         _stderr().print(f"wrote {export_log} ({run.log.n} fixes)", highlight=False)
-    _emit(report, fmt, output, inputs=inputs)
+    _emit(result.report, fmt, output, inputs=inputs)
+    _write_plots(result, plots)
+    if report_file is not None:
+        from credcli.html_report import build_html
+
+        write_atomic(
+            report_file,
+            build_html(f"credcli uwb: {file.name}", result.report, result.plots, str(file)),
+            inputs,
+        )
+        _stderr().print(f"wrote {report_file}", highlight=False)
+    return 0
+
+
+@app.command()
+def report(
+    logs: LogsArg,
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="The HTML file to write.", show_default=False)
+    ],
+    config: ConfigOpt = None,
+    window: WindowOpt = None,
+    whole: WholeOpt = None,
+    time_column: TimeColOpt = None,
+    segment_column: SegColOpt = None,
+    truth_columns: TruthColsOpt = None,
+    estimate_columns: EstColsOpt = None,
+    cov_columns: CovColsOpt = None,
+    cov_kind: CovKindOpt = None,
+    drop_invalid: DropOpt = None,
+    tau: TauOpt = None,
+    alpha: AlphaOpt = None,
+    probe_factor: COpt = None,
+    flips: FlipsOpt = None,
+    block_length: BlockOpt = None,
+    variant: VariantOpt = None,
+    srd_form: SrdOpt = None,
+    metrics: MetricsOpt = None,
+    min_epochs: MinEpochsOpt = None,
+    max_elt_epochs: MaxEltOpt = None,
+    seed: SeedOpt = None,
+) -> int:
+    """Diagnose logs and write one self-contained HTML report (table, parameters, figures)."""
+    from credcli.html_report import build_html
+    from credcli.settings import write_atomic
+    from credcli.workflows import run_diagnose
+
+    _check_plotting(output)
+    setup = _diagnose_setup(
+        config,
+        {
+            "time": time_column,
+            "segment": segment_column,
+            "truth_columns": truth_columns,
+            "estimate_columns": estimate_columns,
+            "cov_columns": cov_columns,
+            "cov_kind": cov_kind,
+        },
+        _diagnosis_cli(
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            min_epochs,
+            max_elt_epochs,
+        ),
+        seed,
+        window,
+        whole,
+        drop_invalid,
+    )
+    with _Progress("diagnosing segments") as bar:
+        run = run_diagnose(logs, progress=bar, plots=True, **setup)
+    title = "credcli report: " + ", ".join(p.name for p in logs)
+    write_atomic(output, build_html(title, run.report, run.plots, ", ".join(map(str, logs))), logs)
+    _stderr().print(f"wrote {output} ({len(run.plots)} figures)", highlight=False)
     return 0
 
 

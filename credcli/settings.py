@@ -106,6 +106,12 @@ def split_list(text: str | None) -> tuple[str, ...] | None:
     return items
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename; refuse to
     overwrite any of ``inputs``."""
@@ -121,6 +127,7 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
     data = text.encode() if isinstance(text, str) else text
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         os.replace(tmp, target)

@@ -5,6 +5,7 @@ Each function is what one command does, minus option parsing and printing.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from credcli import segments as seg
@@ -42,6 +43,14 @@ def schema_parameters(schema: LogSchema) -> dict:
     return out
 
 
+@dataclass(frozen=True)
+class Run:
+    """What a command produced: the report, and the plots when they were asked for."""
+
+    report: Report
+    plots: list = field(default_factory=list)
+
+
 def run_diagnose(
     paths: list[Path],
     schema: LogSchema,
@@ -51,8 +60,9 @@ def run_diagnose(
     seed: int = 0,
     drop_invalid: bool = False,
     progress=None,
-) -> Report:
-    """Load, segment and diagnose every log; return the `diagnose` report."""
+    plots: bool = False,
+) -> Run:
+    """Load, segment and diagnose every log; return the `diagnose` report (and plots)."""
     loaded = [load_log(p, schema, drop_invalid) for p in paths]
     plans = [(log, split(log, window, whole)) for log in loaded]
     total = sum(len(s) for _, s in plans)
@@ -79,7 +89,18 @@ def run_diagnose(
         }
         for log, s in plans
     ]
-    return diagnose_report(results, parameters, logs, config.metrics is MetricsLevel.ALL)
+    report = diagnose_report(results, parameters, logs, config.metrics is MetricsLevel.ALL)
+    figures = []
+    if plots:
+        from credcli.plots import segment_plots
+
+        k = 0
+        for log, segments in plans:
+            mine = results[k : k + len(segments)]
+            k += len(segments)
+            prefix = f"{Path(log.source).stem}_" if len(plans) > 1 else ""
+            figures.extend(segment_plots(log, mine, segments, prefix))
+    return Run(report, figures)
 
 
 def run_simulate(
@@ -90,8 +111,9 @@ def run_simulate(
     curve_runs: int = 5000,
     jobs: int = 1,
     progress=None,
-) -> tuple[Report, str]:
-    """The `simulate` report and a one-line summary."""
+    plots: bool = False,
+) -> tuple[Run, str]:
+    """The `simulate` report (and plots) and a one-line summary."""
     import dataclasses
 
     import numpy as np
@@ -111,23 +133,37 @@ def run_simulate(
         "eigenvalues": list(config.eigenvalues),
         "seed": config.seed,
     } | config_parameters(config.diagnosis)
-    if curves:
+
+    def fig1():
         rhos = np.round(np.geomspace(0.1, 10.0, 21), 6)
         gammas = np.round(np.linspace(0.0, 3.0, 13), 6)
-        by_rho, by_gamma = sim.fig1_curves(rhos, gammas, curve_runs, config.dim, config.seed)
+        return sim.fig1_curves(rhos, gammas, curve_runs, config.dim, config.seed)
+
+    figures = []
+    if plots or curves:
+        by_rho, by_gamma = fig1()
+    if plots:
+        from credcli import plots as figs
+
+        figures.append(figs.curves_plot(by_rho, by_gamma))
+    if curves:
         parameters |= {"curve_runs": curve_runs}
-        return curves_report(by_rho, by_gamma, parameters), (
-            f"Fig. 1 curves: {len(rhos)} values of ρ and {len(gammas)} of γ, {curve_runs} runs each"
+        return Run(curves_report(by_rho, by_gamma, parameters), figures), (
+            f"Fig. 1 curves: {len(by_rho)} values of ρ and {len(by_gamma)} of γ, {curve_runs} runs each"
         )
     if sweep is not None:
         spec = sim.Sweep.parse(sweep)
         points = sim.run_sweep(spec, config, scenarios, jobs, progress)
         parameters |= {"sweep": sweep}
         n_trials = sum(p.trials for p in points)
-        return sweep_report(spec, points, parameters), (
+        if plots:
+            figures.append(figs.sweep_plot(spec, points))
+        return Run(sweep_report(spec, points, parameters), figures), (
             f"sweep of {spec.parameter.value} over {len(spec.values)} values: {n_trials} trials"
         )
     study = sim.run_study(config, scenarios, jobs, progress)
+    if plots:
+        figures.insert(0, figs.confusion_plot(study))
     default = sim.SimulationConfig(seed=config.seed)
     paper_protocol = dataclasses.replace(config, seed=0) == dataclasses.replace(default, seed=0)
     mean = float(np.mean(list(study.accuracy[sim.Method.PROPOSED].values())))
@@ -135,7 +171,7 @@ def run_simulate(
         f"{len(scenarios)} scenario(s) x {config.trials} trials: proposed method "
         f"{100 * mean:.1f}% correct on average"
     )
-    return simulate_report(study, parameters, paper_protocol), summary
+    return Run(simulate_report(study, parameters, paper_protocol), figures), summary
 
 
 def export_log_text(log: EstimatorLog) -> str:
@@ -165,8 +201,9 @@ def run_uwb(
     whole: bool = False,
     seed: int = 0,
     progress=None,
+    plots: bool = False,
 ):
-    """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (report, run)."""
+    """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (Run, UwbRun)."""
     import dataclasses
 
     from credcli import uwb
@@ -185,14 +222,19 @@ def run_uwb(
         | {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
         | {"anchors": str(anchors) if anchors else "self-calibrated"}
     )
-    return uwb_report(run, results, parameters), run
+    figures = []
+    if plots:
+        from credcli.plots import segment_plots, uwb_plots
+
+        figures = uwb_plots(run) + segment_plots(run.log, results, run.segments)
+    return Run(uwb_report(run, results, parameters), figures), run
 
 
 def run_baseline(path: Path, **setup) -> Report:
     """`diagnose` on one log, marked as a baseline of the current schema version."""
     from credcli.gate import BASELINE_KIND, BASELINE_SCHEMA_VERSION
 
-    report = run_diagnose([path], **setup)
+    report = run_diagnose([path], **setup).report
     report.document.update(kind=BASELINE_KIND, schema_version=BASELINE_SCHEMA_VERSION)
     report.document["command"] = "baseline"
     return report
@@ -229,7 +271,7 @@ def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progr
         raise CredcliError(
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
-    current = run_diagnose([path], schema, config, progress=progress, **setup).document
+    current = run_diagnose([path], schema, config, progress=progress, **setup).report.document
     comparisons = compare(baseline, current, thresholds)
     passed, verdict = verdict_line(comparisons, thresholds)
     report = gate_report(comparisons, current["parameters"], str(baseline_path), passed, verdict)

@@ -1,0 +1,445 @@
+"""Pictures of the evidence (matplotlib, Agg backend; an optional extra).
+
+Every function returns a Plot: the PNG bytes and the data that was drawn, so that tests
+can check a figure against the numbers it claims to show.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from credcli.errors import CredcliError
+
+INSTALL_HINT = "pip install 'credcli[plots]' (or pip install matplotlib)"
+
+
+@dataclass(frozen=True)
+class Plot:
+    name: str  # file name without extension
+    title: str
+    png: bytes
+    data: dict = field(repr=False)
+
+
+def _pyplot():
+    try:
+        import matplotlib
+    except ModuleNotFoundError as exc:
+        raise CredcliError(
+            f"plots need matplotlib, which is not installed: {INSTALL_HINT}"
+        ) from exc
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def require_plotting() -> None:
+    """Fail early, with the install hint, when matplotlib is missing."""
+    _pyplot()
+
+
+def _finish(fig, name: str, title: str, data: dict) -> Plot:
+    plt = _pyplot()
+    fig.suptitle(title)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
+    plt.close(fig)
+    return Plot(name, title, buf.getvalue(), data)
+
+
+def safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(text)).strip("_") or "segment"
+
+
+def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
+    """Write each plot as DIR/<name>.png (atomically); create DIR if needed."""
+    from credcli.settings import write_atomic
+
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise CredcliError(f"--plots {directory}: exists and is not a directory")
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for plot in plots:
+        path = directory / f"{plot.name}.png"
+        write_atomic(path, plot.png)
+        paths.append(path)
+    return paths
+
+
+# --- diagnose: one segment -------------------------------------------------------------
+
+
+def nees_plot(name: str, time, nees: np.ndarray, dim: int, title: str) -> Plot:
+    """NEES per epoch with the two-sided 95% χ²_d bounds, and the ANEES (mean NEES / d)
+    with the 95% bounds of the mean (χ²_{Nd} / N)."""
+    from scipy import special
+
+    plt = _pyplot()
+    n = nees.size
+    x = np.arange(n) if time is None else np.asarray(time)
+    lower, upper = special.chdtri(dim, 0.975), special.chdtri(dim, 0.025)
+    mean_lower = special.chdtri(n * dim, 0.975) / n
+    mean_upper = special.chdtri(n * dim, 0.025) / n
+    mean = float(nees.mean())
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    ax.plot(x, nees, ".", ms=3, color="tab:blue", label="NEES ε_k")
+    ax.axhline(upper, color="tab:red", ls="--", lw=1, label=f"95% bounds of χ²_{dim}")
+    ax.axhline(lower, color="tab:red", ls="--", lw=1)
+    ax.axhline(
+        mean, color="black", lw=1.5, label=f"mean NEES = {mean:.3g} (ANEES {mean / dim:.3g})"
+    )
+    ax.axhspan(mean_lower, mean_upper, color="tab:green", alpha=0.2, label="95% band of the mean")
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]" if time is not None else "epoch")
+    ax.set_ylabel("NEES")
+    ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    data = {
+        "x": x,
+        "nees": nees,
+        "lower": lower,
+        "upper": upper,
+        "mean_nees": mean,
+        "anees": mean / dim,
+        "mean_lower": mean_lower,
+        "mean_upper": mean_upper,
+    }
+    return _finish(fig, name, title, data)
+
+
+def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) -> Plot:
+    """The ELT's picture: whitened errors s_k and their mirror image −s_k (Eq. (12))."""
+    plt = _pyplot()
+    d = s.shape[1]
+    fig, ax = plt.subplots(figsize=(5, 5))
+    ptxt = "—" if pvalue is None else f"{pvalue:.3g}"
+    if d == 1:
+        bins = np.linspace(-max(np.abs(s).max(), 1e-9), max(np.abs(s).max(), 1e-9), 31)
+        ax.hist(s[:, 0], bins=bins, alpha=0.6, label="s_k")
+        ax.hist(-s[:, 0], bins=bins, alpha=0.6, label="−s_k")
+        ax.set_xlabel("whitened error")
+        ax.set_ylabel("epochs")
+        shown = s[:, :1]
+    else:
+        shown = s[:, :2]
+        ax.plot(
+            -shown[:, 0],
+            -shown[:, 1],
+            "o",
+            mfc="none",
+            ms=4,
+            color="tab:orange",
+            label="−s_k (mirror)",
+        )
+        ax.plot(shown[:, 0], shown[:, 1], ".", ms=4, color="tab:blue", label="s_k")
+        m = shown.mean(axis=0)
+        ax.plot(*m, "k*", ms=14, label=f"mean ({m[0]:.2f}, {m[1]:.2f})")
+        lim = float(np.abs(shown).max()) * 1.05 or 1.0
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.axhline(0, color="grey", lw=0.5)
+        ax.axvline(0, color="grey", lw=0.5)
+        ax.set_xlabel("s_k,1 (whitened, unitless)")
+        ax.set_ylabel("s_k,2 (whitened, unitless)")
+        if d > 2:
+            ax.text(
+                0.02, 0.02, f"first two of d = {d} components", transform=ax.transAxes, fontsize=8
+            )
+    ax.set_title(f"ELT p = {ptxt}", fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    return _finish(fig, name, title, {"s": shown, "mirror": -shown, "pvalue": pvalue})
+
+
+def scale_plot(name: str, errors: np.ndarray, cov: np.ndarray, c: float, title: str) -> Plot:
+    """Mean NLL and mean ES against the covariance scale (1/4 to 4), for the claimed
+    predictive and the centred one F̃ (Section III-C), with the probes at 1/c, 1, c."""
+    from credcli import metrics
+
+    plt = _pyplot()
+    scales = np.unique(np.r_[np.geomspace(0.25, 4.0, 17), 1.0 / c, 1.0, c])
+    centred = errors - errors.mean(axis=0)
+    eig = metrics._CovEigen(cov)
+    curves = {}
+    for key, e in (("claimed", errors), ("centred", centred)):
+        nll = np.array([metrics.gaussian_nll(e, cov, s).mean() for s in scales])
+        es = np.array([v.mean() for v in eig.energy_scores(e, tuple(scales))])
+        curves[key] = (nll, es)
+    probe_idx = [int(np.argmin(np.abs(scales - p))) for p in (1.0 / c, 1.0, c)]
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
+    for ax, k, label in ((axes[0], 0, "mean NLL"), (axes[1], 1, "mean ES")):
+        ax.plot(scales, curves["claimed"][k], "-", color="tab:blue", label="claimed N(x̂, sΣ̂)")
+        ax.plot(scales, curves["centred"][k], "--", color="tab:purple", label="centred F̃(s)")
+        ax.plot(
+            scales[probe_idx],
+            curves["centred"][k][probe_idx],
+            "o",
+            color="tab:red",
+            label=f"probes at 1/c, 1, c (c = {c:g})",
+        )
+        ax.set_xscale("log")
+        ax.set_xticks([0.25, 0.5, 1, 2, 4], ["1/4", "1/2", "1", "2", "4"])
+        ax.minorticks_off()
+        ax.set_xlabel("covariance scale s")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8)
+    data = {
+        "scales": scales,
+        "nll": curves["claimed"][0],
+        "es": curves["claimed"][1],
+        "nll_centred": curves["centred"][0],
+        "es_centred": curves["centred"][1],
+        "probe_scales": scales[probe_idx],
+    }
+    return _finish(fig, name, title, data)
+
+
+def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
+    """The three pictures of every diagnosed segment of a log."""
+    from credcli import metrics
+    from credcli.elt import whiten
+
+    by_name = {s.name: s for s in segments}
+    plots = []
+    for res in results:
+        seg = by_name[res.segment]
+        diag = res.diagnosis
+        errors, cov = log.errors[seg.index], log.cov[seg.index]
+        time = None if log.time is None else log.time[seg.index]
+        stem = safe_name(f"{prefix}{res.segment}")
+        head = f"{res.segment}: {diag.label.value} (N = {diag.n})"
+        plots.append(nees_plot(f"{stem}_nees", time, metrics.nees(errors, cov), log.dim, head))
+        plots.append(whitened_plot(f"{stem}_whitened", whiten(errors, cov), diag.elt_pvalue, head))
+        if diag.label.value != "insufficient-data":
+            plots.append(scale_plot(f"{stem}_scores", errors, cov, diag.config.c, head))
+    return plots
+
+
+# --- simulate ------------------------------------------------------------------------
+
+
+def confusion_plot(study) -> Plot:
+    from credcli.diagnosis import DIAGNOSIS_LABELS
+
+    plt = _pyplot()
+    rows = study.scenarios
+    counts = np.array([[study.confusion[t][lab] for lab in DIAGNOSIS_LABELS] for t in rows])
+    fig, ax = plt.subplots(figsize=(7, 0.6 * len(rows) + 2))
+    im = ax.imshow(counts, cmap="Blues", vmin=0)
+    short = ["Credible", "O", "P", "SMM", "O+SMM", "P+SMM"]
+    ax.set_xticks(range(len(DIAGNOSIS_LABELS)), short)
+    ax.set_yticks(range(len(rows)), [r.value for r in rows])
+    ax.set_xlabel("diagnosed label")
+    ax.set_ylabel("true scenario")
+    for i in range(counts.shape[0]):
+        for j in range(counts.shape[1]):
+            ax.text(
+                j,
+                i,
+                str(counts[i, j]),
+                ha="center",
+                va="center",
+                color="white" if counts[i, j] > counts.max() / 2 else "black",
+            )
+    fig.colorbar(im, ax=ax, label="trials")
+    return _finish(
+        fig,
+        "confusion_matrix",
+        "Table III: confusion matrix of the proposed method",
+        {"counts": counts, "rows": [r.value for r in rows]},
+    )
+
+
+def curves_plot(by_rho, by_gamma) -> Plot:
+    plt = _pyplot()
+    rho = np.array([p.rho for p in by_rho])
+    gamma = np.array([p.gamma for p in by_gamma])
+    data = {
+        "rho": rho,
+        "es_rho": np.array([p.mean_es for p in by_rho]),
+        "expected_es_rho": np.array([p.expected_es for p in by_rho]),
+        "gamma": gamma,
+        "es_gamma": np.array([p.mean_es for p in by_gamma]),
+        "expected_es_gamma": np.array([p.expected_es for p in by_gamma]),
+    }
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    axes[0].plot(rho, data["es_rho"], "o", ms=4, label="sample mean")
+    axes[0].plot(rho, data["expected_es_rho"], "-", label="exact expectation")
+    axes[0].set_xscale("log")
+    axes[0].axvline(1.0, color="grey", lw=0.5)
+    axes[0].set_xlabel("covariance scale ρ (< 1 optimism, > 1 pessimism)")
+    axes[0].set_ylabel("mean ES")
+    axes[0].set_title("(a) ES against ρ", fontsize=10)
+    axes[1].plot(gamma, data["es_gamma"], "o", ms=4, label="sample mean")
+    axes[1].plot(gamma, data["expected_es_gamma"], "-", label="exact expectation")
+    axes[1].set_xlabel("bias γ (μ = γ·[1, 1])")
+    axes[1].set_ylabel("mean ES")
+    axes[1].set_title("(b) ES against γ", fontsize=10)
+    for ax in axes:
+        ax.legend(fontsize=8)
+    return _finish(fig, "fig1_energy_score", "Fig. 1: energy score under scaling and bias", data)
+
+
+def sweep_plot(sweep, points) -> Plot:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4))
+    data = {}
+    for truth in dict.fromkeys(p.truth for p in points):
+        mine = [p for p in points if p.truth is truth]
+        x = np.array([p.value for p in mine])
+        y = 100 * np.array([p.accuracy[next(iter(p.accuracy))] for p in mine])
+        ax.plot(x, y, "o-", label=truth.value)
+        data[truth.value] = (x, y)
+    if sweep.parameter.value in ("rho", "B") and min(sweep.values) > 0:
+        ax.set_xscale("log")
+    ax.set_ylim(-5, 105)
+    ax.set_xlabel(sweep.parameter.value)
+    ax.set_ylabel("accuracy of the proposed method [%]")
+    ax.legend(fontsize=8, title="true label")
+    return _finish(
+        fig, f"sweep_{sweep.parameter.value}", f"Accuracy against {sweep.parameter.value}", data
+    )
+
+
+# --- uwb -----------------------------------------------------------------------------
+
+
+def _period_colours(n: int):
+    plt = _pyplot()
+    cmap = plt.get_cmap("tab10")
+    return [cmap(k % 10) for k in range(n)]
+
+
+def uwb_plots(run) -> list[Plot]:
+    """Figs. 3a, 3b, 4 and 5 of the paper for a UWB run."""
+    plt = _pyplot()
+    ranges, log = run.ranges, run.log
+    spans = [(s.name, s.t_start, s.t_end) for s in run.segments]
+    colours = _period_colours(len(spans))
+    plots = []
+
+    # Fig. 3a: rig position over time, periods shaded
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    for i, axis in enumerate("xyz"):
+        ax.plot(ranges.time, ranges.rig_pos[:, i], lw=1, label=axis)
+    for (name, t0, t1), col in zip(spans, colours):
+        ax.axvspan(t0, t1, color=col, alpha=0.2)
+        ax.text((t0 + t1) / 2, ax.get_ylim()[1], name, ha="center", va="top", fontsize=8)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("rig position [m]")
+    ax.legend(fontsize=8, loc="lower right")
+    plots.append(
+        _finish(
+            fig,
+            "uwb_positions_over_time",
+            "Fig. 3a: rig position and the periods",
+            {"time": ranges.time, "position": ranges.rig_pos, "spans": spans},
+        )
+    )
+
+    # Fig. 3b: trajectory, fixes and truth per period
+    fig, ax = plt.subplots(figsize=(6.5, 6))
+    for k, tag in enumerate(np.unique(ranges.tag)):
+        path = ranges.tag_pos[ranges.tag == tag]
+        ax.plot(
+            path[:, 0],
+            path[:, 1],
+            "-",
+            color="lightgrey",
+            lw=1,
+            label="tag paths (truth)" if k == 0 else None,
+        )
+    per_period = {}
+    for seg, col in zip(run.segments, colours):
+        est, truth = log.estimate[seg.index], log.truth[seg.index]
+        ax.plot(est[:, 0], est[:, 1], "o", ms=2, color=col, alpha=0.5)
+        # one star per distinct truth position (each tag of a static rig), to 1 cm
+        spots = np.unique(np.round(truth, 2), axis=0)
+        if len(spots) > 8:  # a moving window: show its mean truth only
+            spots = truth.mean(axis=0, keepdims=True)
+        ax.plot(
+            spots[:, 0],
+            spots[:, 1],
+            "*",
+            ms=14,
+            color=col,
+            mec="black",
+            ls="none",
+            label=f"{seg.name} truth",
+        )
+        per_period[seg.name] = {"estimate": est, "truth": truth, "truth_marks": spots}
+    anchors = np.array([a.position for a in run.anchors])
+    ax.plot(anchors[:, 0], anchors[:, 1], "k^", ms=8, label="anchors")
+    for a in run.anchors:
+        ax.annotate(
+            str(a.id), a.position[:2], textcoords="offset points", xytext=(4, 4), fontsize=8
+        )
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(fontsize=7, loc="best")
+    plots.append(
+        _finish(
+            fig,
+            "uwb_trajectory",
+            "Fig. 3b: fixes (circles) and truth (stars) per period",
+            {"periods": per_period, "anchors": anchors},
+        )
+    )
+
+    # Figs. 4 and 5: per period and anchor
+    anchor_ids = sorted({a.id for a in run.anchors})
+    n = len(spans)
+    cols = min(3, n) or 1
+    rows = int(np.ceil(n / cols)) or 1
+    err = ranges.range_error
+    box_data, std_data = {}, {}
+    fig4, axes4 = plt.subplots(rows, cols, figsize=(4 * cols, 3 * rows), squeeze=False)
+    fig5, axes5 = plt.subplots(rows, cols, figsize=(4 * cols, 3 * rows), squeeze=False)
+    for k, (name, t0, t1) in enumerate(spans):
+        ax4, ax5 = axes4[k // cols][k % cols], axes5[k // cols][k % cols]
+        in_span = (ranges.time >= t0) & (ranges.time <= t1)
+        errs = [err[in_span & (ranges.anchor == a)] for a in anchor_ids]
+        stds = [ranges.std[in_span & (ranges.anchor == a)] for a in anchor_ids]
+        ax4.boxplot(errs, tick_labels=[str(a) for a in anchor_ids], showfliers=False)
+        ax4.axhline(0, color="grey", lw=0.5)
+        ax4.set_title(name, fontsize=9)
+        ax4.set_xlabel("anchor")
+        ax4.set_ylabel("range error [m]")
+        empirical = np.array([e.std(ddof=1) if e.size > 1 else np.nan for e in errs])
+        ax5.boxplot(stds, tick_labels=[str(a) for a in anchor_ids], showfliers=False)
+        ax5.plot(np.arange(1, len(anchor_ids) + 1), empirical, "r*", ms=10, label="empirical std")
+        ax5.set_title(name, fontsize=9)
+        ax5.set_xlabel("anchor")
+        ax5.set_ylabel("std [m]")
+        box_data[name] = errs
+        std_data[name] = {"reported": stds, "empirical": empirical}
+        if k == 0:
+            ax5.legend(fontsize=7)
+    for k in range(n, rows * cols):
+        axes4[k // cols][k % cols].axis("off")
+        axes5[k // cols][k % cols].axis("off")
+    plots.append(
+        _finish(
+            fig4,
+            "uwb_range_errors",
+            f"Fig. 4: range errors ({ranges.range_column} − gt_range)",
+            {"anchors": anchor_ids, "errors": box_data},
+        )
+    )
+    plots.append(
+        _finish(
+            fig5,
+            "uwb_reported_std",
+            "Fig. 5: reported std (boxes) and empirical std (stars)",
+            {"anchors": anchor_ids, "std": std_data},
+        )
+    )
+    return plots

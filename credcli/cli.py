@@ -251,6 +251,37 @@ def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, dr
     }
 
 
+def _setup_from(opts: dict) -> dict:
+    """`_diagnose_setup` from a command's parameters (its ``locals()``)."""
+    return _diagnose_setup(
+        opts["config"],
+        {
+            "time": opts["time_column"],
+            "segment": opts["segment_column"],
+            "truth_columns": opts["truth_columns"],
+            "estimate_columns": opts["estimate_columns"],
+            "cov_columns": opts["cov_columns"],
+            "cov_kind": opts["cov_kind"],
+        },
+        _diagnosis_cli(
+            opts["tau"],
+            opts["alpha"],
+            opts["probe_factor"],
+            opts["flips"],
+            opts["block_length"],
+            opts["variant"],
+            opts["srd_form"],
+            opts["metrics"],
+            opts["min_epochs"],
+            opts["max_elt_epochs"],
+        ),
+        opts["seed"],
+        opts["window"],
+        opts["whole"],
+        opts["drop_invalid"],
+    )
+
+
 def _check_plotting(*wanted) -> None:
     if any(w is not None for w in wanted):
         from credcli.plots import require_plotting
@@ -326,33 +357,7 @@ def diagnose(
         raise CredcliError(
             "--junit and --summary report a verdict: give --fail-on too (e.g. --fail-on noncredible)"
         )
-    setup = _diagnose_setup(
-        config,
-        {
-            "time": time_column,
-            "segment": segment_column,
-            "truth_columns": truth_columns,
-            "estimate_columns": estimate_columns,
-            "cov_columns": cov_columns,
-            "cov_kind": cov_kind,
-        },
-        _diagnosis_cli(
-            tau,
-            alpha,
-            probe_factor,
-            flips,
-            block_length,
-            variant,
-            srd_form,
-            metrics,
-            min_epochs,
-            max_elt_epochs,
-        ),
-        seed,
-        window,
-        whole,
-        drop_invalid,
-    )
+    setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=plots is not None, **setup)
     report = run.report
@@ -404,33 +409,7 @@ def baseline(
     """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
     from credcli.workflows import run_baseline
 
-    setup = _diagnose_setup(
-        config,
-        {
-            "time": time_column,
-            "segment": segment_column,
-            "truth_columns": truth_columns,
-            "estimate_columns": estimate_columns,
-            "cov_columns": cov_columns,
-            "cov_kind": cov_kind,
-        },
-        _diagnosis_cli(
-            tau,
-            alpha,
-            probe_factor,
-            flips,
-            block_length,
-            variant,
-            srd_form,
-            metrics,
-            min_epochs,
-            max_elt_epochs,
-        ),
-        seed,
-        window,
-        whole,
-        drop_invalid,
-    )
+    setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
         recorded = run_baseline(log, progress=bar, **setup)
     _emit(recorded, OutputFormat.JSON, output, inputs=[log])
@@ -768,33 +747,7 @@ def report(
     from credcli.workflows import run_diagnose
 
     _check_plotting(output)
-    setup = _diagnose_setup(
-        config,
-        {
-            "time": time_column,
-            "segment": segment_column,
-            "truth_columns": truth_columns,
-            "estimate_columns": estimate_columns,
-            "cov_columns": cov_columns,
-            "cov_kind": cov_kind,
-        },
-        _diagnosis_cli(
-            tau,
-            alpha,
-            probe_factor,
-            flips,
-            block_length,
-            variant,
-            srd_form,
-            metrics,
-            min_epochs,
-            max_elt_epochs,
-        ),
-        seed,
-        window,
-        whole,
-        drop_invalid,
-    )
+    setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=True, **setup)
     title = "credcli report: " + ", ".join(p.name for p in logs)

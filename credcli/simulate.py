@@ -116,6 +116,12 @@ class SimulationConfig:
         for ok, message in checks:
             if not ok:
                 raise CredcliError(message)
+        smallest = self.diagnosis.min_n(self.dim)
+        if self.n < smallest:
+            raise CredcliError(
+                f"--n {self.n} is below the smallest segment that is diagnosed ({smallest} epochs "
+                f"for d = {self.dim}); every trial would be insufficient-data"
+            )
 
     def spec(self, scenario: Label) -> ScenarioSpec:
         conditions = scenario.conditions

@@ -134,18 +134,15 @@ def run_simulate(
         "seed": config.seed,
     } | config_parameters(config.diagnosis)
 
-    def fig1():
-        rhos = np.round(np.geomspace(0.1, 10.0, 21), 6)
-        gammas = np.round(np.linspace(0.0, 3.0, 13), 6)
-        return sim.fig1_curves(rhos, gammas, curve_runs, config.dim, config.seed)
-
-    figures = []
-    if plots or curves:
-        by_rho, by_gamma = fig1()
     if plots:
         from credcli import plots as figs
-
-        figures.append(figs.curves_plot(by_rho, by_gamma))
+    figures = []
+    if plots or curves:
+        rhos = np.round(np.geomspace(0.1, 10.0, 21), 6)
+        gammas = np.round(np.linspace(0.0, 3.0, 13), 6)
+        by_rho, by_gamma = sim.fig1_curves(rhos, gammas, curve_runs, config.dim, config.seed)
+        if plots:
+            figures.append(figs.curves_plot(by_rho, by_gamma))
     if curves:
         parameters |= {"curve_runs": curve_runs}
         return Run(curves_report(by_rho, by_gamma, parameters), figures), (
@@ -164,8 +161,7 @@ def run_simulate(
     study = sim.run_study(config, scenarios, jobs, progress)
     if plots:
         figures.insert(0, figs.confusion_plot(study))
-    default = sim.SimulationConfig(seed=config.seed)
-    paper_protocol = dataclasses.replace(config, seed=0) == dataclasses.replace(default, seed=0)
+    paper_protocol = dataclasses.replace(config, seed=0) == sim.SimulationConfig()
     mean = float(np.mean(list(study.accuracy[sim.Method.PROPOSED].values())))
     summary = (
         f"{len(scenarios)} scenario(s) x {config.trials} trials: proposed method "

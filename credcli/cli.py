@@ -233,20 +233,26 @@ SummaryOpt = Annotated[
 
 def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, drop_invalid) -> dict:
     """Settings of a diagnosis run: command line > config file > defaults."""
-    from credcli.settings import build_diagnosis_config, build_schema, load_config, split_list
+    from credcli.settings import (
+        build_diagnosis_config,
+        build_schema,
+        load_config,
+        segment_settings,
+        split_list,
+    )
 
     cfg = load_config(config)
     for key in ("truth_columns", "estimate_columns", "cov_columns"):
         columns[key] = split_list(columns[key])
     schema = build_schema(cfg, columns)
     dconf, seed = build_diagnosis_config(cfg, method, seed)
-    seg_cfg = cfg.get("segments", {})
+    window, whole = segment_settings(cfg, window, whole)
     return {
         "schema": schema,
         "config": dconf,
         "seed": seed,
-        "window": window if window is not None else seg_cfg.get("window"),
-        "whole": bool(whole if whole is not None else seg_cfg.get("whole", False)),
+        "window": window,
+        "whole": whole,
         "drop_invalid": bool(drop_invalid),
     }
 

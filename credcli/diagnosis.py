@@ -253,11 +253,9 @@ def _diagnose(errors, cov, chol, config: DiagnosisConfig, gen, mse) -> Diagnosis
         return Diagnosis(label=Label.INSUFFICIENT, n=n, dim=d, config=config)
     eps = metrics._nees(errors, chol)
     mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
-    chol_mse = _mse_cholesky(np.broadcast_to(mse, cov.shape))
-    nci_raw = metrics._nci(errors, chol, chol_mse)
+    nci_raw = metrics._nci(errors, chol, _mse_cholesky(mse))
     centred = errors - errors.mean(axis=0)
-    chol_cmse = _mse_cholesky(np.broadcast_to(metrics.mse_matrix(centred), cov.shape))
-    nci_centred = metrics._nci(centred, chol, chol_cmse)
+    nci_centred = metrics._nci(centred, chol, _mse_cholesky(metrics.mse_matrix(centred)))
     elt = location_test(
         errors, cov, config.n_flips, gen, config.block_length, config.max_elt_epochs
     )

@@ -137,8 +137,10 @@ def location_test(
     return _sign_flip_test(s, blocks, n_flips, gen, block_length, subsampled)
 
 
-def _flipped_statistics(a: np.ndarray, signs: np.ndarray, t_obs: float) -> np.ndarray:
-    """ξ_bᵀ A ξ_b for every row ξ_b of ``signs`` (±1, unnormalised), exact where it matters.
+def _flipped_statistics(a: np.ndarray, signs: np.ndarray, observed: float) -> np.ndarray:
+    """ξ_bᵀ A ξ_b for every row ξ_b of ``signs`` (±1), exact where it matters.
+
+    ``observed`` is 1ᵀA1, the unnormalised observed statistic.
 
     The B×N×N product runs in float32 (three times faster here). Rounding of A to float32
     and the float32 product change each ξᵀAξ by at most (u + γ_N(1 + u))·Σ|A_ij| with
@@ -158,7 +160,7 @@ def _flipped_statistics(a: np.ndarray, signs: np.ndarray, t_obs: float) -> np.nd
     product = xi32 @ a.astype(np.float32)
     product *= xi32  # exact: a sign change
     values = product.sum(axis=1, dtype=np.float64)
-    close = np.flatnonzero(np.abs(values - t_obs) <= bound)
+    close = np.flatnonzero(np.abs(values - observed) <= bound)
     if close.size:
         xi = signs[close].astype(np.float64)
         values[close] = np.einsum("bi,bi->b", xi @ a, xi)

@@ -92,34 +92,6 @@ class EstimatorLog:
     def dim(self) -> int:
         return self.truth.shape[1]
 
-    def take(self, index: np.ndarray) -> EstimatorLog:
-        """The epochs at ``index`` (an integer array or a boolean mask)."""
-        return replace(
-            self,
-            truth=self.truth[index],
-            estimate=self.estimate[index],
-            cov=self.cov[index],
-            time=None if self.time is None else self.time[index],
-            segment=None if self.segment is None else self.segment[index],
-            rows=self.rows[index],
-        )
-
-
-def load_schema(path: str | Path) -> LogSchema:
-    """Read the ``[columns]`` table of a TOML config file into a LogSchema."""
-    table = read_toml(path).get("columns", {})
-    allowed = set(LogSchema.__dataclass_fields__)
-    unknown = sorted(set(table) - allowed)
-    if unknown:
-        raise CredcliError(
-            f"{path}: unknown key(s) {', '.join(unknown)} in [columns]; "
-            f"allowed: {', '.join(sorted(allowed))}"
-        )
-    try:
-        return LogSchema().updated(**table)
-    except ValueError as exc:
-        raise CredcliError(f"{path}: [columns]: {exc}") from exc
-
 
 def read_toml(path: str | Path) -> dict:
     try:
@@ -338,8 +310,9 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
             raise CredcliError(f"{source}: every row has a NaN/Inf value; nothing left to diagnose")
     truth = values[:, :d]
     estimate = values[:, d : 2 * d]
-    cov = _build_cov(values[:, 2 * d : 2 * d + len(cov_cols)], kind, d)
-    _check_cov(cov, rows, source)
+    cov = _validated_cov(
+        _build_cov(values[:, 2 * d : 2 * d + len(cov_cols)], kind, d), rows, source
+    )
     segment = None
     if seg_col is not None:
         seg_values = frame[seg_col].astype(str).to_numpy()
@@ -389,7 +362,9 @@ def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
     return cov
 
 
-def _check_cov(cov: np.ndarray, rows: np.ndarray, source: str) -> None:
+def _validated_cov(cov: np.ndarray, rows: np.ndarray, source: str) -> np.ndarray:
+    """The covariances, exactly symmetrised, after checking that each is symmetric to
+    SYMMETRY_RTOL and positive definite (naming the first bad row)."""
     scale = np.abs(cov).max(axis=(1, 2))
     asym = np.abs(cov - np.swapaxes(cov, 1, 2)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
     if asym.any():
@@ -399,7 +374,6 @@ def _check_cov(cov: np.ndarray, rows: np.ndarray, source: str) -> None:
             f"{SYMMETRY_RTOL:g}); check the cov_i_j columns"
         )
     sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
-    cov[:] = sym
     min_eig = np.linalg.eigvalsh(sym)[:, 0]
     not_pd = ~(min_eig > 1e-12 * np.maximum(scale, np.finfo(float).tiny))
     if not_pd.any():
@@ -408,3 +382,4 @@ def _check_cov(cov: np.ndarray, rows: np.ndarray, source: str) -> None:
             f"{source}: row {rows[i]}: covariance is not positive definite (smallest eigenvalue "
             f"{min_eig[i]:.3g}); a claimed covariance must be positive definite"
         )
+    return sym

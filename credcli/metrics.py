@@ -69,13 +69,12 @@ def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 
 def _nees(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
-    z = _solve_lower(chol, errors)
+    """e_kᵀ (L Lᵀ)⁻¹ e_k for a factor per epoch (N, d, d) or one shared factor (d, d)."""
+    if chol.ndim == 2:
+        z = np.linalg.solve(chol, errors.T).T
+    else:
+        z = np.linalg.solve(chol, errors[..., None])[..., 0]
     return np.einsum("ni,ni->n", z, z)
-
-
-def _solve_lower(chol: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve L z = b for a stack of lower-triangular L (N, d, d) and b (N, d)."""
-    return np.linalg.solve(chol, b[..., None])[..., 0]
 
 
 def anees(errors: np.ndarray, cov: np.ndarray) -> float:
@@ -84,7 +83,7 @@ def anees(errors: np.ndarray, cov: np.ndarray) -> float:
     Equals 1 for a credible estimator, since E[ε_k] = d by Eq. (2).
     """
     errors, cov = _check_errors_cov(errors, cov)
-    return float(np.mean(nees(errors, cov)) / errors.shape[1])
+    return float(np.mean(_nees(errors, np.linalg.cholesky(cov))) / errors.shape[1])
 
 
 def mse_matrix(errors: np.ndarray) -> np.ndarray:
@@ -110,15 +109,13 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
     Parameters
     ----------
     mse : array, optional
-        The MSE matrix, shape ``(d, d)`` or ``(N, d, d)``. Estimated from the errors
-        (:func:`mse_matrix`) when not given.
+        The MSE matrix, shape ``(d, d)`` (one for the segment) or ``(N, d, d)``. Estimated
+        from the errors (:func:`mse_matrix`) when not given.
 
     Under pure scaling (Σ̂ = ρΣ, M = Σ) this is exactly −10 log10 ρ, Eq. (5).
     """
     errors, cov = _check_errors_cov(errors, cov)
-    if mse is None:
-        mse = mse_matrix(errors)
-    mse = np.broadcast_to(np.asarray(mse, dtype=float), cov.shape)
+    mse = mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
     return _nci(errors, np.linalg.cholesky(cov), np.linalg.cholesky(mse))
 
 
@@ -162,7 +159,8 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
         \exp\Big(-t\sum_i \frac{\nu_i^2}{1+2t\lambda_i}\Big),
 
     with λ the eigenvalues of S and ν = Uᵀm. The integral is evaluated by a fixed
-    trapezoidal rule in log t (relative error below 1e-9).
+    116-node trapezoidal rule in log t with analytic tails (worst relative error 1.2e-12
+    against 30-digit quadrature; see the constants above).
     """
     mean, cov = _check_errors_cov(mean, cov)
     lam, vecs = np.linalg.eigh(cov)

@@ -11,7 +11,8 @@ from credcli.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError
 from credcli.logs import LogSchema, read_toml
 
-CONFIG_SECTIONS = ("columns", "diagnosis", "segments", "output", "simulate", "uwb", "gate")
+CONFIG_SECTIONS = ("columns", "diagnosis", "segments", "simulate")
+"""The tables a config file may hold; any other table is an error, never silently ignored."""
 
 
 def load_config(path: str | Path | None) -> dict:
@@ -46,6 +47,19 @@ def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> Lo
         return LogSchema().updated(**values)
     except ValueError as exc:
         raise CredcliError(f"{where}: {exc}") from exc
+
+
+def segment_settings(
+    config: dict, window: str | None, whole: bool | None
+) -> tuple[str | None, bool]:
+    """``--window`` and ``--whole`` from the command line, else from [segments]."""
+    values = merged(
+        config.get("segments", {}),
+        {"window": window, "whole": whole},
+        ("window", "whole"),
+        "config [segments]",
+    )
+    return values.get("window"), bool(values.get("whole", False))
 
 
 def build_diagnosis_config(

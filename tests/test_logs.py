@@ -10,7 +10,8 @@ from conftest import ROOT
 from credcli import load_log
 from credcli.cli import main
 from credcli.errors import CredcliError
-from credcli.logs import LogSchema, load_schema
+from credcli.logs import LogSchema
+from credcli.settings import build_schema, load_config
 
 
 def _frame(n=30, d=2, seed=0):
@@ -99,12 +100,10 @@ def test_custom_layout_from_config_and_cli_precedence(tmp_path):
         '[columns]\ntime = "t"\ntruth_columns = ["x_true", "y_true"]\n'
         'estimate_columns = ["x_est", "y_est"]\ncov_columns = ["pxx", "pxy", "pyy"]\n'
     )
-    log = load_log(path, load_schema(config))
+    log = load_log(path, build_schema(load_config(config), {}))
     np.testing.assert_allclose(log.cov, cov)
     np.testing.assert_allclose(log.time, frame["time"])
     # CLI over config: --truth-columns replaces the config's truth columns
-    from credcli.settings import build_schema, load_config
-
     schema = build_schema(load_config(config), {"truth_columns": ("other_x", "y_true")})
     shifted = load_log(path, schema)
     np.testing.assert_allclose(shifted.truth[:, 0], log.truth[:, 0] + 1.0)
@@ -125,7 +124,8 @@ def test_bundled_config_example_maps_its_layout(tmp_path):
             "sigma_y": np.sqrt(cov[:, 1, 1]),
         }
     ).to_csv(tmp_path / "nav.csv", index=False)
-    log = load_log(tmp_path / "nav.csv", load_schema(ROOT / "configs" / "custom-layout.toml"))
+    layout = build_schema(load_config(ROOT / "configs" / "custom-layout.toml"), {})
+    log = load_log(tmp_path / "nav.csv", layout)
     np.testing.assert_allclose(np.diagonal(log.cov, axis1=1, axis2=2)[:, 0], cov[:, 0, 0])
     assert set(log.segment) == {"r1"}
 
@@ -247,6 +247,16 @@ def test_invalid_config_file(tmp_path, capsys):
     cfg = _write(tmp_path, "[diagnosis\n", "c2.toml")
     code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
     assert code == 2 and "not valid TOML" in err
+
+
+def test_config_tables_and_keys_that_nothing_reads_are_errors(tmp_path, capsys):
+    path = _write(tmp_path, GOOD_HEADER + GOOD_ROW)
+    cfg = _write(tmp_path, "[uwb]\nmax_speed = 0.2\n", "c.toml")
+    code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
+    assert code == 2 and "unknown table(s) [uwb]" in err
+    cfg = _write(tmp_path, '[segments]\nwindw = "5s"\n', "c2.toml")
+    code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
+    assert code == 2 and "config [segments]: unknown key(s) windw" in err
 
 
 def test_api_raises_credcli_error(tmp_path):

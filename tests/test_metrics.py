@@ -35,6 +35,15 @@ def test_nci_is_minus_10_log10_rho_under_pure_scaling(rho, rng):
     assert metrics.nci(errors, cov, mse=cov / rho) == pytest.approx(-10 * np.log10(rho), abs=1e-10)
 
 
+def test_nci_accepts_one_mse_matrix_or_one_per_epoch(rng):
+    errors, cov = gaussian_segment(rng, n=50, d=3, rho=2.0, varying=True)
+    mse = metrics.mse_matrix(errors)
+    shared = metrics.nci(errors, cov, mse=mse)
+    per_epoch = metrics.nci(errors, cov, mse=np.broadcast_to(mse, cov.shape))
+    assert shared == pytest.approx(per_epoch, rel=1e-12)
+    assert metrics.nci(errors, cov) == shared  # the default estimates the same matrix
+
+
 def test_nci_with_estimated_mse_is_close_to_closed_form(rng):
     errors, cov = gaussian_segment(rng, n=5000, d=2, rho=3.0)
     assert metrics.nci(errors, cov) == pytest.approx(-10 * np.log10(3.0), abs=0.1)

@@ -161,7 +161,8 @@ def trial_seed(seed: int, group: int, trial: int) -> np.random.SeedSequence:
 
 @dataclass(frozen=True)
 class TrialResult:
-    truth: Label
+    """The label of each method on one trial (attributes named as Method values)."""
+
     proposed: Label
     nees: Label
     nci: Label
@@ -169,13 +170,14 @@ class TrialResult:
 
 def _run_chunk(args) -> list[TrialResult]:
     """Worker: run trials [start, stop) of one group (top level, so processes can pickle it)."""
-    spec, group, start, stop, config = args
+    spec, start, stop, config = args
+    stream = _stream_key(spec)
     out = []
     for trial in range(start, stop):
-        gen = np.random.default_rng(trial_seed(config.seed, group, trial))
+        gen = np.random.default_rng(trial_seed(config.seed, stream, trial))
         errors, cov = draw_trial(spec, config.n, config.dim, config.eigenvalues, gen)
         d = diagnose_errors(errors, cov, config.diagnosis, gen)
-        out.append(TrialResult(spec.truth, d.label, d.nees_label, d.nci_label))
+        out.append(TrialResult(d.label, d.nees_label, d.nci_label))
     return out
 
 
@@ -202,7 +204,7 @@ def _start_pool(tasks, jobs: int):
     return pool, outputs
 
 
-def _group_key(spec: ScenarioSpec) -> int:
+def _stream_key(spec: ScenarioSpec) -> int:
     """A stable number for a group's random streams, from its parameters."""
     import zlib
 
@@ -214,31 +216,25 @@ def run_groups(
 ) -> list[list[TrialResult]]:
     """Run ``config.trials`` trials of each spec; ``jobs`` processes share the work."""
     chunk = max(1, min(25, math.ceil(config.trials / max(1, 2 * jobs))))
-    tasks = [
-        (spec, _group_key(spec), a, min(a + chunk, config.trials), config)
-        for spec in specs
-        for a in range(0, config.trials, chunk)
-    ]
+    starts = range(0, config.trials, chunk)
+    tasks = [(spec, a, min(a + chunk, config.trials), config) for spec in specs for a in starts]
     total = len(specs) * config.trials
     done = 0
-    results: list[list[TrialResult]] = []
+    per_group: list[list[TrialResult]] = [[] for _ in specs]
     if jobs <= 1:
         outputs = map(_run_chunk, tasks)
         pool = None
     else:
         pool, outputs = _start_pool(tasks, jobs)
     try:
-        for out in outputs:
-            results.append(out)
+        for k, out in enumerate(outputs):  # in task order: group k // len(starts)
+            per_group[k // len(starts)].extend(out)
             done += len(out)
             if progress is not None:
                 progress(done, total)
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
-    per_group: list[list[TrialResult]] = [[] for _ in specs]
-    for task, out in zip(tasks, results):
-        per_group[specs.index(task[0])].extend(out)
     return per_group
 
 
@@ -252,14 +248,11 @@ class StudyResult:
     trials: int
 
 
-def _method_label(r: TrialResult, method: Method) -> Label:
-    return {Method.PROPOSED: r.proposed, Method.NEES: r.nees, Method.NCI: r.nci}[method]
-
-
 def summarise(truths: list[Label], groups: list[list[TrialResult]]) -> StudyResult:
+    """Accuracy of every method and the confusion counts of the proposed one, per group."""
     accuracy = {
         m: {
-            t: float(np.mean([_method_label(r, m) is t for r in g])) for t, g in zip(truths, groups)
+            t: float(np.mean([getattr(r, m.value) is t for r in g])) for t, g in zip(truths, groups)
         }
         for m in Method
     }
@@ -362,14 +355,13 @@ def run_sweep(
     done = 0
     for value, specs, cfg in plans:
         tick = None if progress is None else (lambda k, _t, o=done: progress(o + k, total))
-        groups = run_groups(specs, cfg, jobs, tick)
+        truths = [spec.truth for spec in specs]
+        study = summarise(truths, run_groups(specs, cfg, jobs, tick))
         done += len(specs) * config.trials
-        for spec, group in zip(specs, groups):
-            acc = {
-                m: float(np.mean([_method_label(r, m) is spec.truth for r in group]))
-                for m in Method
-            }
-            points.append(SweepPoint(value, spec.truth, acc, len(group)))
+        points.extend(
+            SweepPoint(value, t, {m: study.accuracy[m][t] for m in Method}, study.trials)
+            for t in truths
+        )
     return points
 
 
@@ -418,7 +410,3 @@ def fig1_curves(
         )
 
     return [point(r, 0.0) for r in rhos], [point(1.0, g) for g in gammas]
-
-
-def default_jobs() -> int:
-    return max(1, min(os.cpu_count() or 1, 8))

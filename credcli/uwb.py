@@ -290,7 +290,6 @@ class Fixes:
     estimate: np.ndarray  # (M, 2)
     truth: np.ndarray  # (M, 2)
     cov: np.ndarray  # (M, 2, 2) = (HᵀWH)⁻¹
-    n_anchors: np.ndarray
     dropped: int  # packets without a usable solution (degenerate geometry, no convergence)
 
 
@@ -307,10 +306,10 @@ def solve_packets(
     rows = packets.rows
     valid = rows >= 0
     safe = np.where(valid, rows, 0)
-    lookup = {a.id: a.position for a in anchors}
-    anchor_pos = np.stack([lookup[int(a)] for a in ranges.anchor[safe].ravel()]).reshape(
-        *rows.shape, 3
-    )
+    ids = np.array([a.id for a in anchors])
+    order = np.argsort(ids)
+    positions = np.array([a.position for a in anchors])[order]
+    anchor_pos = positions[np.searchsorted(ids[order], ranges.anchor[safe])]  # (M, K, 3)
     weight = np.where(valid, 1.0 / ranges.std[safe] ** 2, 0.0)
     meas = np.where(valid, ranges.range[safe], 0.0)
     count = valid.sum(axis=1)
@@ -321,27 +320,16 @@ def solve_packets(
     pos = _linear_start(anchor_pos[..., :2], meas**2 - dz2, weight)
     ok = np.isfinite(pos).all(axis=1)
     pos = np.where(ok[:, None], pos, anchor_pos[:, 0, :2])
-    for _ in range(iterations):
-        diff = pos[:, None, :] - anchor_pos[..., :2]
-        dist = np.sqrt(np.sum(diff**2, axis=2) + dz2)
-        jac = diff / np.maximum(dist, 1e-9)[..., None]
-        res = meas - dist
-        normal = np.einsum("mki,mk,mkj->mij", jac, weight, jac)
-        grad = np.einsum("mki,mk,mk->mi", jac, weight, res)
-        det = normal[:, 0, 0] * normal[:, 1, 1] - normal[:, 0, 1] ** 2
-        good = det > 1e-12 * np.maximum(normal[:, 0, 0] * normal[:, 1, 1], 1e-300)
+    step = np.full_like(pos, np.inf)
+    for _ in range(max(1, iterations)):
+        normal, grad, good = _normal_equations(pos, anchor_pos[..., :2], dz2, weight, meas, 1e-12)
         step = np.zeros_like(pos)
         step[good] = np.linalg.solve(normal[good], grad[good][..., None])[..., 0]
         pos = pos + step
         if np.max(np.abs(step)) < 1e-9:
             break
-    diff = pos[:, None, :] - anchor_pos[..., :2]
-    dist = np.sqrt(np.sum(diff**2, axis=2) + dz2)
-    jac = diff / np.maximum(dist, 1e-9)[..., None]
-    normal = np.einsum("mki,mk,mkj->mij", jac, weight, jac)
-    det = normal[:, 0, 0] * normal[:, 1, 1] - normal[:, 0, 1] ** 2
-    keep = (det > 1e-9 * normal[:, 0, 0] * normal[:, 1, 1]) & np.isfinite(pos).all(axis=1)
-    keep &= np.max(np.abs(step), axis=1) < 1e-6
+    normal, _, well_posed = _normal_equations(pos, anchor_pos[..., :2], dz2, weight, meas, 1e-9)
+    keep = well_posed & np.isfinite(pos).all(axis=1) & (np.max(np.abs(step), axis=1) < 1e-6)
     cov = np.linalg.inv(normal[keep])
     order = np.argsort(time[keep], kind="stable")
     return Fixes(
@@ -350,9 +338,21 @@ def solve_packets(
         estimate=pos[keep][order],
         truth=tag_pos[keep][order, :2],
         cov=cov[order],
-        n_anchors=count[keep][order],
         dropped=int((~keep).sum()),
     )
+
+
+def _normal_equations(pos, anchor_xy, dz2, weight, meas, rcond: float):
+    """HᵀWH, HᵀW(r − ρ(p)) and whether HᵀWH is well conditioned (det above ``rcond`` times
+    the product of its diagonal), at the positions ``pos`` of every packet."""
+    diff = pos[:, None, :] - anchor_xy
+    dist = np.sqrt(np.sum(diff**2, axis=2) + dz2)
+    jac = diff / np.maximum(dist, 1e-9)[..., None]
+    normal = np.einsum("mki,mk,mkj->mij", jac, weight, jac)
+    grad = np.einsum("mki,mk,mk->mi", jac, weight, meas - dist)
+    diag = normal[:, 0, 0] * normal[:, 1, 1]
+    det = diag - normal[:, 0, 1] ** 2
+    return normal, grad, det > rcond * np.maximum(diag, 1e-300)
 
 
 def _linear_start(anchor_xy: np.ndarray, horiz2: np.ndarray, weight: np.ndarray) -> np.ndarray:
@@ -434,16 +434,14 @@ def position_log(
     from credcli import segments as seg
 
     if whole or window is not None:
-        base = EstimatorLog(
-            fixes.truth, fixes.estimate, fixes.cov, fixes.time, None, source=ranges.source
-        )
+        n = fixes.time.size
         segments = (
-            seg.whole(base.n, base.time)
+            seg.whole(n, fixes.time)
             if whole
-            else seg.by_window(base.n, seg.Window.parse(window), base.time)
+            else seg.by_window(n, seg.Window.parse(window), fixes.time)
         )
-        names = np.empty(base.n, dtype=object)
-        for s in segments:
+        names = np.empty(n, dtype=object)
+        for s in segments:  # one assignment per segment
             names[s.index] = s.name
         log = EstimatorLog(
             fixes.truth,
@@ -453,8 +451,7 @@ def position_log(
             names.astype(str),
             source=ranges.source,
         )
-        spans = [(s.name, s.t_start, s.t_end) for s in segments]
-        return log, segments, spans
+        return log, segments, [(s.name, s.t_start, s.t_end) for s in segments]
     periods, _ = seg.static_periods(
         ranges.time, ranges.rig_pos, settings.max_speed, settings.min_static
     )
@@ -468,7 +465,7 @@ def position_log(
     for k, p in enumerate(periods):
         period_of[(fixes.time >= p.t_start) & (fixes.time <= p.t_end)] = k
     inside = period_of >= 0
-    names = np.array([periods[k].name for k in period_of[inside]], dtype=str)
+    names = np.array([p.name for p in periods])[period_of[inside]]
     log = EstimatorLog(
         fixes.truth[inside],
         fixes.estimate[inside],

@@ -7,6 +7,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from credcli.errors import CredcliError
+from credcli.render import _cell
 
 
 @dataclass(frozen=True)
@@ -57,10 +58,6 @@ def append_step_summary(markdown: str) -> None:
         ) from exc
 
 
-def _fmt(x, spec=".3g"):
-    return "—" if x is None else format(x, spec)
-
-
 def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
     cases = []
     for c in comparisons:
@@ -85,7 +82,8 @@ def fail_on_cases(records: list[dict], failing: list[dict], fail_on) -> list[Cas
             r["segment"],
             f"credcli.diagnose.{_classname(r['log'])}",
             f"label {r['label']} matches --fail-on {listed}" if id(r) in bad else None,
-            f"label {r['label']}, ELT p {_fmt(r['elt_pvalue'])}, NCI {_fmt(r['nci'])} dB, ANEES {_fmt(r['anees'])}",
+            f"label {r['label']}, ELT p {_cell(r['elt_pvalue'], 3)}, NCI {_cell(r['nci'], 3)} dB, "
+            f"ANEES {_cell(r['anees'], 3)}",
         )
         for r in records
     ]
@@ -96,48 +94,13 @@ def _classname(path: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in stem) or "log"
 
 
-_ICON = {"regressed": "❌", "improved": "✅", "unchanged": "➖", "new": "🆕", "missing": "⚠️"}
+def summary_markdown(heading: str, verdict: str, report, context: str = "") -> str:
+    """The Markdown summary of a CI run: a heading, the verdict, then the report's own
+    tables (the same ones the other output formats show)."""
+    from credcli.render import OutputFormat, to_text
 
-
-def gate_markdown(comparisons, thresholds, verdict: str, log: str, baseline: str) -> str:
-    lines = [
-        f"## credcli gate: {log}",
-        "",
-        f"**{verdict}**",
-        "",
-        f"Baseline `{baseline}`; thresholds: |NCI| +{thresholds.max_nci_increase:g} dB, "
-        f"ANEES ×{thresholds.max_anees_ratio:g} further from 1, label gaining a condition, "
-        f"ELT newly rejecting{'; new/missing segments allowed' if thresholds.allow_new_segments else ''}.",
-        "",
-        "| segment | status | label | NCI [dB] | ANEES | ELT p | why |",
-        "|---|---|---|---:|---:|---:|---|",
-    ]
-    for c in comparisons:
-        old, new = c.old or {}, c.new or {}
-        label = f"{old.get('label', '—')} → {new.get('label', '—')}"
-        why = "; ".join(c.reasons + c.improvements).replace("|", "\\|") or "—"
-        lines.append(
-            f"| {c.segment} | {_ICON[c.status.value]} {c.status.value} | {label} | "
-            f"{_fmt(old.get('nci'))} → {_fmt(new.get('nci'))} | {_fmt(old.get('anees'))} → "
-            f"{_fmt(new.get('anees'))} | {_fmt(old.get('elt_pvalue'))} → {_fmt(new.get('elt_pvalue'))} | {why} |"
-        )
-    return "\n".join(lines) + "\n"
-
-
-def fail_on_markdown(records: list[dict], failing: list[dict], verdict: str) -> str:
-    bad = {id(r) for r in failing}
-    lines = [
-        "## credcli diagnose",
-        "",
-        f"**{verdict}**",
-        "",
-        "| log | segment | N | label | ELT p | NCI [dB] | ANEES | result |",
-        "|---|---|---:|---|---:|---:|---:|---|",
-    ]
-    for r in records:
-        lines.append(
-            f"| {os.path.basename(r['log'])} | {r['segment']} | {r['n']} | {r['label']} | "
-            f"{_fmt(r['elt_pvalue'])} | {_fmt(r['nci'])} | {_fmt(r['anees'])} | "
-            f"{'❌ fail' if id(r) in bad else '✅ pass'} |"
-        )
-    return "\n".join(lines) + "\n"
+    parts = [f"## {heading}", "", f"**{verdict}**", ""]
+    if context:
+        parts += [context, ""]
+    parts.append(to_text(report, OutputFormat.MARKDOWN))
+    return "\n".join(parts)

@@ -371,7 +371,7 @@ def diagnose(
     _write_plots(run, plots)
     if conditions is None:
         return 0
-    from credcli.ci_reports import fail_on_cases, fail_on_markdown
+    from credcli.ci_reports import fail_on_cases, summary_markdown
 
     records = report.document["segments"]
     passed, verdict, failing = fail_on_verdict(records, conditions)
@@ -379,7 +379,7 @@ def diagnose(
         junit,
         summary,
         fail_on_cases(records, failing, conditions),
-        fail_on_markdown(records, failing, verdict),
+        summary_markdown("credcli diagnose", verdict, report),
         logs,
     )
     print(f"credcli: {verdict}", file=sys.stderr)
@@ -467,7 +467,7 @@ def gate(
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
-    from credcli.ci_reports import gate_cases, gate_markdown
+    from credcli.ci_reports import gate_cases, summary_markdown
     from credcli.gate import Thresholds
     from credcli.workflows import run_gate
 
@@ -498,7 +498,12 @@ def gate(
         junit,
         summary,
         gate_cases(comparisons, thresholds, str(log)),
-        gate_markdown(comparisons, thresholds, verdict, str(log), str(baseline_file)),
+        summary_markdown(
+            f"credcli gate: {log}",
+            verdict,
+            report,
+            f"Baseline `{baseline_file}`; {thresholds.describe()}.",
+        ),
         inputs,
     )
     print(f"credcli: {verdict}", file=sys.stderr)

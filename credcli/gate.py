@@ -65,6 +65,13 @@ class Thresholds:
     max_anees_ratio: float = 1.25  # factor on max(ANEES, 1/ANEES)
     allow_new_segments: bool = False
 
+    def describe(self) -> str:
+        return (
+            f"thresholds: |NCI| +{self.max_nci_increase:g} dB, ANEES x{self.max_anees_ratio:g} "
+            "further from 1, a label gaining a condition, the ELT newly rejecting"
+            + ("; new/missing segments allowed" if self.allow_new_segments else "")
+        )
+
     def __post_init__(self) -> None:
         if not self.max_nci_increase >= 0:
             raise CredcliError(f"--max-nci-increase must be >= 0; got {self.max_nci_increase}")

@@ -167,9 +167,12 @@ def scale_plot(name: str, errors: np.ndarray, cov: np.ndarray, c: float, title: 
     scales = np.unique(np.r_[np.geomspace(0.25, 4.0, 17), 1.0 / c, 1.0, c])
     centred = errors - errors.mean(axis=0)
     eig = metrics._CovEigen(cov)
+    chol = np.linalg.cholesky(cov)
+    logdet, d = metrics._logdet(chol), errors.shape[1]
     curves = {}
     for key, e in (("claimed", errors), ("centred", centred)):
-        nll = np.array([metrics.gaussian_nll(e, cov, s).mean() for s in scales])
+        eps = metrics._nees(e, chol)  # NLL at every scale from one NEES, Eq. (7)
+        nll = np.array([metrics._nll(eps, logdet, d, s).mean() for s in scales])
         es = np.array([v.mean() for v in eig.energy_scores(e, tuple(scales))])
         curves[key] = (nll, es)
     probe_idx = [int(np.argmin(np.abs(scales - p))) for p in (1.0 / c, 1.0, c)]
@@ -207,11 +210,12 @@ def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
     from credcli.elt import whiten
 
     by_name = {s.name: s for s in segments}
+    all_errors = log.errors
     plots = []
     for res in results:
         seg = by_name[res.segment]
         diag = res.diagnosis
-        errors, cov = log.errors[seg.index], log.cov[seg.index]
+        errors, cov = all_errors[seg.index], log.cov[seg.index]
         time = None if log.time is None else log.time[seg.index]
         stem = safe_name(f"{prefix}{res.segment}")
         head = f"{res.segment}: {diag.label.value} (N = {diag.n})"

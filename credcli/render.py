@@ -48,40 +48,6 @@ class Report:
     notes: list[str] = field(default_factory=list)
 
 
-SEGMENT_KEYS = (
-    "log",
-    "segment",
-    "t_start",
-    "t_end",
-    "n",
-    "dim",
-    "label",
-    "elt_statistic",
-    "elt_pvalue",
-    "elt_n_used",
-    "elt_subsampled",
-    "smm_detected",
-    "nci",
-    "nci_centered",
-    "anees",
-    "cov_scale",
-    "ks_pvalue",
-    "nees_label",
-    "nci_label",
-    "nll",
-    "es",
-    "nll_minus",
-    "nll_plus",
-    "es_minus",
-    "es_plus",
-    "delta_nll_minus",
-    "delta_nll_plus",
-    "delta_es_minus",
-    "delta_es_plus",
-    "srd_nll",
-    "srd_es",
-)
-
 SEGMENT_COLUMNS = (
     Column("segment", "segment", 0),
     Column("n", "N", 0),
@@ -116,17 +82,32 @@ def _value(x):
     return x
 
 
+_SCORE_KEYS = ("nll", "es", "nll_minus", "nll_plus", "es_minus", "es_plus")
+_PROBE_KEYS = (
+    "delta_nll_minus",
+    "delta_nll_plus",
+    "delta_es_minus",
+    "delta_es_plus",
+    "srd_nll",
+    "srd_es",
+)
+
+
 def diagnosis_record(diag: Diagnosis) -> dict:
-    """The flat record of one Diagnosis (every key of SEGMENT_KEYS but log/segment/times)."""
-    scores, probes = diag.scores, diag.probes
+    """The flat, JSON-safe record of one Diagnosis; its key order is the CSV column order.
+
+    ``nll``, ``es`` and the ``*_minus``/``*_plus`` scores come from ``diag.scores`` (the
+    claimed predictive); ``delta_*`` and ``srd_*`` from ``diag.probes`` (the centred one).
+    """
+    elt = diag.elt
     rec = {
         "n": diag.n,
         "dim": diag.dim,
-        "label": diag.label.value,
+        "label": diag.label,
         "elt_statistic": diag.elt_statistic,
         "elt_pvalue": diag.elt_pvalue,
-        "elt_n_used": None if diag.elt is None else diag.elt.n_used,
-        "elt_subsampled": None if diag.elt is None else diag.elt.subsampled,
+        "elt_n_used": None if elt is None else elt.n_used,
+        "elt_subsampled": None if elt is None else elt.subsampled,
         "smm_detected": diag.smm_detected,
         "nci": diag.nci,
         "nci_centered": diag.nci_centered,
@@ -135,34 +116,20 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "ks_pvalue": diag.ks_pvalue,
         "nees_label": diag.nees_label,
         "nci_label": diag.nci_label,
-        "nll": None if scores is None else scores.nll,
-        "es": None if scores is None else scores.es,
-        "nll_minus": None if scores is None else scores.nll_minus,
-        "nll_plus": None if scores is None else scores.nll_plus,
-        "es_minus": None if scores is None else scores.es_minus,
-        "es_plus": None if scores is None else scores.es_plus,
     }
-    for key in (
-        "delta_nll_minus",
-        "delta_nll_plus",
-        "delta_es_minus",
-        "delta_es_plus",
-        "srd_nll",
-        "srd_es",
-    ):
-        rec[key] = None if probes is None else getattr(probes, key)
+    for source, keys in ((diag.scores, _SCORE_KEYS), (diag.probes, _PROBE_KEYS)):
+        rec.update({k: None if source is None else getattr(source, k) for k in keys})
     return {k: _value(v) for k, v in rec.items()}
 
 
 def segment_record(result: SegmentDiagnosis) -> dict:
-    rec = {
+    """The record of a segment: where it is, then :func:`diagnosis_record`."""
+    return {
         "log": result.log,
         "segment": result.segment,
         "t_start": result.t_start,
         "t_end": result.t_end,
-    }
-    rec.update(diagnosis_record(result.diagnosis))
-    return {k: _value(rec[k]) for k in SEGMENT_KEYS}
+    } | diagnosis_record(result.diagnosis)
 
 
 def _cell(value, digits: int) -> str:

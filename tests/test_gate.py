@@ -32,6 +32,15 @@ def _cli(*args, env=None):
     )
 
 
+@pytest.fixture(scope="module")
+def baseline(tmp_path_factory):
+    """A baseline of the good sample log, recorded once with the real command line."""
+    path = tmp_path_factory.mktemp("baseline") / "baseline.json"
+    proc = _cli("baseline", GOOD, "-o", path)
+    assert proc.returncode == 0, proc.stderr
+    return path
+
+
 def test_fail_on_parsing_and_matching():
     assert gate.parse_fail_on("optimism,smm") == {"optimism", "smm"}
     assert gate.parse_fail_on("pessimism+smm") == {"pessimism", "smm"}
@@ -90,10 +99,8 @@ def test_improvements_are_reported():
     assert len(c.improvements) == 4
 
 
-def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path):
-    base = tmp_path / "baseline.json"
-    proc = _cli("baseline", GOOD, "-o", base)
-    assert proc.returncode == 0, proc.stderr
+def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
+    base = baseline
     doc = json.loads(base.read_text())
     assert (
         doc["schema_version"] == gate.BASELINE_SCHEMA_VERSION and doc["kind"] == gate.BASELINE_KIND
@@ -149,17 +156,16 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path):
     assert "gained smm" in failed["hover"] and "ELT newly rejects" in failed["hover"]
     md = summary.read_text()
     assert "**FAIL: 2 of 6 segment(s) regressed" in md
-    assert "| cruise | ❌ regressed | credible → optimism |" in md
-    assert "| turn | ➖ unchanged |" in md
+    assert "| cruise | regressed | credible → optimism | 0.141 → 4.12 |" in md
+    assert "| turn | unchanged | optimism → optimism |" in md
+    assert "ELT newly rejects (p 0.959 -> 0.000999 < 0.05)" in md
     # the step summary got both runs appended
     step_text = step.read_text()
-    assert step_text.count("## credcli gate") == 2 and "PASS" in step_text and "FAIL" in step_text
+    assert step_text.count("## credcli gate:") == 2 and "PASS" in step_text and "FAIL" in step_text
 
 
-def test_gate_json_output(tmp_path):
-    base = tmp_path / "b.json"
-    _cli("baseline", GOOD, "-o", base)
-    proc = _cli("gate", REGRESSED, "--baseline", base, "-f", "json")
+def test_gate_json_output(baseline):
+    proc = _cli("gate", REGRESSED, "--baseline", baseline, "-f", "json")
     doc = json.loads(proc.stdout)
     assert doc["passed"] is False
     status = {s["segment"]: s["status"] for s in doc["segments"]}
@@ -173,9 +179,8 @@ def test_gate_json_output(tmp_path):
     }
 
 
-def test_missing_and_new_segments(tmp_path):
-    base = tmp_path / "b.json"
-    _cli("baseline", GOOD, "-o", base)
+def test_missing_and_new_segments(tmp_path, baseline):
+    base = baseline
     fewer = tmp_path / "fewer.csv"
     lines = GOOD.read_text().splitlines(keepends=True)
     fewer.write_text("".join(line for line in lines if ",urban," not in line))
@@ -217,9 +222,14 @@ def test_diagnose_fail_on(tmp_path):
     assert "FAIL: 4 of 6 segment(s) match --fail-on optimism,smm" in proc.stderr
     proc = _cli("diagnose", GOOD, "--whole", "--window", "300", "--fail-on", "insufficient-data")
     assert proc.returncode == 0 and "PASS" in proc.stderr
-    junit = tmp_path / "j.xml"
-    proc = _cli("diagnose", GOOD, "--fail-on", "noncredible", "--junit", junit)
+    junit, summary = tmp_path / "j.xml", tmp_path / "s.md"
+    proc = _cli(
+        "diagnose", GOOD, "--fail-on", "noncredible", "--junit", junit, "--summary", summary
+    )
     assert proc.returncode == 1
+    md = summary.read_text()
+    assert "**FAIL: 5 of 6 segment(s) match --fail-on noncredible" in md
+    assert "| cruise | 300 | 2 | credible |" in md
     fails = [
         tc.get("name")
         for tc in ET.parse(junit).getroot().iter("testcase")

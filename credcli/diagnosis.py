@@ -5,15 +5,16 @@ from __future__ import annotations
 import enum
 import math
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import special
 
-from credcli import metrics
+from credcli import dependence, metrics
 from credcli._rng import RngLike, as_generator
-from credcli.elt import DEFAULT_MAX_EPOCHS, ELTResult, location_test
+from credcli.elt import DEFAULT_MAX_EPOCHS, ELTResult, whiten, whitened_location_test
 from credcli.errors import CredcliError
+from credcli.scale import ScaleTest, gls_residuals, scale_test
 
 
 class Label(str, enum.Enum):
@@ -40,15 +41,23 @@ DIAGNOSIS_LABELS = tuple(lab for lab in Label if lab is not Label.INSUFFICIENT)
 
 
 class Variant(str, enum.Enum):
-    """How the no-SMM branch of Algorithm 1 decides.
+    """The decision rule.
 
+    CALIBRATED (default): α is the overall false-alarm level, split by Šidák between the
+    ELT (SMM) and a χ² scale test on GLS-centred errors (optimism / pessimism), both
+    adjusted for serial dependence; see :func:`diagnose_errors`.
     PAPER: Algorithm 1 as printed (NCI against ±τ).
     KS: the authors' public code: `credible` also when a Kolmogorov–Smirnov test of the
     NEES values against χ²_d does not reject at ``ks_alpha``; otherwise NCI against ±τ.
     """
 
+    CALIBRATED = "calibrated"
     PAPER = "paper"
     KS = "ks"
+
+
+AUTO = "auto"
+"""``block_length = AUTO``: estimated from the data (calibrated), 1 (paper, ks)."""
 
 
 class SrdForm(str, enum.Enum):
@@ -67,10 +76,17 @@ class MetricsLevel(str, enum.Enum):
 
 @dataclass(frozen=True)
 class DiagnosisConfig:
-    """Every setting of the diagnosis. Defaults are the paper's (Section IV-A).
+    """Every setting of the diagnosis. τ, α, c and B are the paper's (Section IV-A).
 
-    ``min_epochs``: segments with fewer epochs (or fewer than ``d + 2``, or fewer than 6
-    sign blocks) get ``insufficient-data``: with 5 independent signs the sign-flip null has
+    ``alpha``: in the calibrated variant, the overall false-alarm level on credible data,
+    split as α_L = α_S = 1 − √(1 − α); in ``paper`` and ``ks``, the ELT's level α_sig.
+    ``tau_nci``: the NCI threshold of ``paper`` and ``ks``; in the calibrated variant the
+    relevance floor of the scale label, |10 log₁₀ κ̂| > τ.
+    ``block_length``: epochs per ELT sign block, or ``"auto"`` (estimated from the data
+    in the calibrated variant, 1 in ``paper`` and ``ks``). A fixed 1 in the calibrated
+    variant declares the epochs independent: the scale test is then the exact χ²_{(N−1)d}.
+    ``min_epochs``: segments with fewer epochs (or fewer than ``d + 2``, or too few sign
+    blocks) get ``insufficient-data``: with 5 independent signs the sign-flip null has
     16 distinct values, so p < 0.05 is impossible, and the MSE matrix needs N > d errors.
     """
 
@@ -78,8 +94,8 @@ class DiagnosisConfig:
     alpha: float = 0.05
     c: float = 2.0
     n_flips: int = 1000
-    block_length: int = 1
-    variant: Variant = Variant.KS
+    block_length: int | str = AUTO
+    variant: Variant = Variant.CALIBRATED
     srd_form: SrdForm = SrdForm.PRINTED
     ks_alpha: float = 0.01
     nees_alpha: float = 0.05
@@ -93,7 +109,11 @@ class DiagnosisConfig:
             (0 < self.alpha < 1, "alpha (ELT significance) must be in (0, 1)"),
             (self.c > 1, "c (probe factor) must be > 1"),
             (self.n_flips >= 1, "B (sign flips) must be >= 1"),
-            (self.block_length >= 1, "block length must be >= 1"),
+            (
+                self.block_length == AUTO
+                or (isinstance(self.block_length, int) and self.block_length >= 1),
+                f"block_length must be 'auto' or an integer >= 1; got {self.block_length!r}",
+            ),
             (0 < self.ks_alpha < 1, "ks_alpha must be in (0, 1)"),
             (0 < self.nees_alpha < 1, "nees_alpha must be in (0, 1)"),
             (self.min_epochs >= 2, "min_epochs must be >= 2"),
@@ -106,9 +126,41 @@ class DiagnosisConfig:
         object.__setattr__(self, "srd_form", SrdForm(self.srd_form))
         object.__setattr__(self, "metrics", MetricsLevel(self.metrics))
 
+    @property
+    def calibrated(self) -> bool:
+        return self.variant is Variant.CALIBRATED
+
+    @property
+    def location_level(self) -> float:
+        """The ELT's level: α_L = 1 − √(1 − α) (Šidák) in the calibrated variant, else α."""
+        return 1.0 - math.sqrt(1.0 - self.alpha) if self.calibrated else self.alpha
+
+    @property
+    def scale_level(self) -> float:
+        """The scale test's two-sided level α_S = 1 − √(1 − α) (Šidák)."""
+        return 1.0 - math.sqrt(1.0 - self.alpha)
+
+    @property
+    def fixed_block_length(self) -> int | None:
+        """The block length when it is not estimated from the data, else None."""
+        if self.block_length != AUTO:
+            return int(self.block_length)
+        return None if self.calibrated else 1
+
+    @property
+    def min_blocks(self) -> int:
+        """Fewest sign blocks the ELT needs: 6 in ``paper``/``ks``; in the calibrated
+        variant the fewest m whose smallest exact p-value, 2^{1−m}, is at most α_L/2."""
+        if not self.calibrated:
+            return 6
+        return max(6, math.ceil(math.log2(4.0 / self.location_level) - 1e-12))
+
     def min_n(self, dim: int) -> int:
-        """Smallest segment size that is diagnosed."""
-        return max(self.min_epochs, dim + 2, 5 * self.block_length + 1)
+        """Smallest segment size that is diagnosed (with the fixed block length, or 1)."""
+        blocks = self.min_blocks * (self.fixed_block_length or 1)
+        if not self.calibrated:
+            blocks = 5 * (self.fixed_block_length or 1) + 1
+        return max(self.min_epochs, dim + 2, blocks)
 
 
 @dataclass(frozen=True)
@@ -133,7 +185,16 @@ class Diagnosis:
     nci_label: Label | None = None
     scores: metrics.Probes | None = None
     probes: metrics.Probes | None = None
+    scale: ScaleTest | None = None
+    block_length: int | None = None
+    effective_n: float | None = None
+    autocorrelation: float | None = None
+    reason: str | None = None
     config: DiagnosisConfig = field(default_factory=DiagnosisConfig, repr=False)
+
+    def __repr__(self) -> str:
+        kappa = "" if self.scale is None else f", scale_factor={self.scale.scale_factor:.4g}"
+        return f"Diagnosis(label={self.label.value!r}, n={self.n}, dim={self.dim}{kappa})"
 
     @property
     def cov_scale(self) -> float | None:
@@ -248,49 +309,146 @@ def diagnose_errors(
 
 
 def _diagnose(errors, cov, chol, config: DiagnosisConfig, gen, mse) -> Diagnosis:
+    return _diagnose_variants(errors, cov, chol, [config], gen, mse)[0]
+
+
+def diagnose_variants(
+    errors: np.ndarray,
+    cov: np.ndarray,
+    variants: list[Variant],
+    config: DiagnosisConfig | None = None,
+    rng: RngLike = None,
+) -> dict[Variant, Diagnosis]:
+    """Diagnose one segment with several variants, computing shared evidence once.
+
+    The variants' configurations are ``config`` with only the variant changed. ELTs with
+    the same block length and pair set are run once, in the order the variants are listed,
+    so a variant listed first draws its sign flips exactly as :func:`diagnose_errors` does.
+    """
+    errors, cov = metrics._check_errors_cov(errors, cov)
+    config = config or DiagnosisConfig()
+    configs = [replace(config, variant=Variant(v)) for v in variants]
+    try:
+        chol = np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError as exc:
+        raise CredcliError("a claimed covariance is not positive definite") from exc
+    results = _diagnose_variants(errors, cov, chol, configs, as_generator(rng), None)
+    return {c.variant: r for c, r in zip(configs, results)}
+
+
+def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
+    """Evidence once (metrics, dependence, scale tests, ELTs by block length), then each
+    configuration's rule."""
     n, d = errors.shape
-    if n < config.min_n(d):
-        return Diagnosis(label=Label.INSUFFICIENT, n=n, dim=d, config=config)
+    if n < min(c.min_n(d) for c in configs):
+        return [_too_short(n, d, c) for c in configs]
     eps = metrics._nees(errors, chol)
     mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
     nci_raw = metrics._nci(errors, chol, _mse_cholesky(mse))
     centred = errors - errors.mean(axis=0)
     nci_centred = metrics._nci(centred, chol, _mse_cholesky(metrics.mse_matrix(centred)))
-    elt = location_test(
-        errors, cov, config.n_flips, gen, config.block_length, config.max_elt_epochs
-    )
-    smm = elt.pvalue < config.alpha
     ks_p = ks_chi2_pvalue(eps, d)
-    absolute = config.srd_form is SrdForm.ABSOLUTE
-    everything = config.metrics is MetricsLevel.ALL
-    needs_probes = smm and nci_centred > config.tau_nci
-    eigen = metrics._CovEigen(cov) if needs_probes or everything else None
-    probes = (
-        metrics._probes(centred, eigen, chol, config.c, absolute)
-        if needs_probes or everything
-        else None
-    )
-    scores = metrics._probes(errors, eigen, chol, config.c, absolute) if everything else None
-    if smm:
-        label = _label_with_smm(nci_centred, probes, config.tau_nci)
-    else:
-        label = _label_without_smm(nci_raw, ks_p, config)
+    s = whiten(errors, cov)
+    tau = dependence.variance_ratio(s)
+    if not dependence.serially_dependent(s):
+        tau = np.ones_like(tau)
+    autocorr = float(np.max(dependence.autocorrelation(s)))
+    effective_n = float(n / max(1.0, float(np.max(tau))))
+    gls = gls_residuals(errors, chol)
+    scales: dict = {}
+    elts: dict = {}
+    eigen = None
+    out = []
+    for config in configs:
+        if n < config.min_n(d):
+            out.append(_too_short(n, d, config))
+            continue
+        independent = config.block_length == 1
+        key = (independent, config.scale_level)
+        if key not in scales:
+            scales[key] = scale_test(gls, config.scale_level, None if independent else tau)
+        scale = scales[key]
+        block = config.fixed_block_length or dependence.block_length(tau)
+        common = {
+            "n": n,
+            "dim": d,
+            "nci": nci_raw,
+            "nci_centered": nci_centred,
+            "anees": float(np.mean(eps) / d),
+            "ks_pvalue": ks_p,
+            "nees_label": nees_baseline(eps, d, config.nees_alpha),
+            "nci_label": nci_baseline(nci_raw, config.tau_nci),
+            "scale": scale,
+            "block_length": block,
+            "effective_n": effective_n,
+            "autocorrelation": autocorr,
+            "config": config,
+        }
+        n_blocks = math.ceil(min(n, config.max_elt_epochs) / block)
+        if n_blocks < config.min_blocks:
+            reason = (
+                f"too few independent blocks: serial dependence (variance ratio "
+                f"{float(np.max(tau)):.3g}, lag-1 autocorrelation {autocorr:.2f}) needs sign "
+                f"blocks of {block} epochs, which leaves {n_blocks} of the {config.min_blocks} "
+                f"the location test needs; effective sample N/τ = {effective_n:.3g}"
+            )
+            out.append(Diagnosis(label=Label.INSUFFICIENT, reason=reason, **common))
+            continue
+        separate = config.calibrated and block > 1
+        elt_key = (block, separate, config.n_flips, config.max_elt_epochs)
+        if elt_key not in elts:
+            elts[elt_key] = whitened_location_test(
+                s, config.n_flips, gen, block, config.max_elt_epochs, separate_blocks=separate
+            )
+        elt = elts[elt_key]
+        smm = elt.pvalue < config.location_level
+        everything = config.metrics is MetricsLevel.ALL
+        needs_probes = not config.calibrated and smm and nci_centred > config.tau_nci
+        if (needs_probes or everything) and eigen is None:
+            eigen = metrics._CovEigen(cov)
+        absolute = config.srd_form is SrdForm.ABSOLUTE
+        probes = (
+            metrics._probes(centred, eigen, chol, config.c, absolute)
+            if needs_probes or everything
+            else None
+        )
+        scores = metrics._probes(errors, eigen, chol, config.c, absolute) if everything else None
+        if config.calibrated:
+            label = _calibrated_label(scale, smm, config)
+        elif smm:
+            label = _label_with_smm(nci_centred, probes, config.tau_nci)
+        else:
+            label = _label_without_smm(nci_raw, ks_p, config)
+        out.append(
+            Diagnosis(
+                label=label, elt=elt, smm_detected=smm, scores=scores, probes=probes, **common
+            )
+        )
+    return out
+
+
+def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
+    smallest = config.min_n(d)
     return Diagnosis(
-        label=label,
+        label=Label.INSUFFICIENT,
         n=n,
         dim=d,
-        elt=elt,
-        smm_detected=smm,
-        nci=nci_raw,
-        nci_centered=nci_centred,
-        anees=float(np.mean(eps) / d),
-        ks_pvalue=ks_p,
-        nees_label=nees_baseline(eps, d, config.nees_alpha),
-        nci_label=nci_baseline(nci_raw, config.tau_nci),
-        scores=scores,
-        probes=probes,
+        reason=f"{n} epochs; at least {smallest} are needed (min_epochs {config.min_epochs}, "
+        f"d + 2, and {config.min_blocks} sign blocks)",
         config=config,
     )
+
+
+def _calibrated_label(scale: ScaleTest, smm: bool, config: DiagnosisConfig) -> Label:
+    """Scale part (χ² test, two-sided at α_S, with the relevance floor τ) plus SMM."""
+    half = config.scale_level / 2
+    db = 10.0 * math.log10(scale.scale_factor) if scale.scale_factor > 0 else -math.inf
+    noise = ""
+    if scale.pvalue_upper < half and db > config.tau_nci:
+        noise = "optimism"
+    elif scale.pvalue_lower < half and db < -config.tau_nci:
+        noise = "pessimism"
+    return Label("+".join(p for p in (noise, "smm" if smm else "") if p) or "credible")
 
 
 def _mse_cholesky(mse: np.ndarray) -> np.ndarray:

@@ -230,15 +230,15 @@ def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
 
 
 def confusion_plot(study) -> Plot:
-    from credcli.diagnosis import DIAGNOSIS_LABELS
+    from credcli.simulate import CONFUSION_LABELS
 
     plt = _pyplot()
     rows = study.scenarios
-    counts = np.array([[study.confusion[t][lab] for lab in DIAGNOSIS_LABELS] for t in rows])
+    counts = np.array([[study.confusion[t][lab] for lab in CONFUSION_LABELS] for t in rows])
     fig, ax = plt.subplots(figsize=(7, 0.6 * len(rows) + 2))
     im = ax.imshow(counts, cmap="Blues", vmin=0)
-    short = ["Credible", "O", "P", "SMM", "O+SMM", "P+SMM"]
-    ax.set_xticks(range(len(DIAGNOSIS_LABELS)), short)
+    short = ["Credible", "O", "P", "SMM", "O+SMM", "P+SMM", "insuff."]
+    ax.set_xticks(range(len(CONFUSION_LABELS)), short)
     ax.set_yticks(range(len(rows)), [r.value for r in rows])
     ax.set_xlabel("diagnosed label")
     ax.set_ylabel("true scenario")
@@ -256,7 +256,7 @@ def confusion_plot(study) -> Plot:
     return _finish(
         fig,
         "confusion_matrix",
-        "Table III: confusion matrix of the proposed method",
+        f"Table III: confusion matrix of the {study.variant.value} variant",
         {"counts": counts, "rows": [r.value for r in rows]},
     )
 
@@ -298,14 +298,14 @@ def sweep_plot(sweep, points) -> Plot:
     for truth in dict.fromkeys(p.truth for p in points):
         mine = [p for p in points if p.truth is truth]
         x = np.array([p.value for p in mine])
-        y = 100 * np.array([p.accuracy[next(iter(p.accuracy))] for p in mine])
+        y = 100 * np.array([p.accuracy[next(iter(p.accuracy))] for p in mine])  # calibrated
         ax.plot(x, y, "o-", label=truth.value)
         data[truth.value] = (x, y)
     if sweep.parameter.value in ("rho", "B") and min(sweep.values) > 0:
         ax.set_xscale("log")
     ax.set_ylim(-5, 105)
     ax.set_xlabel(sweep.parameter.value)
-    ax.set_ylabel("accuracy of the proposed method [%]")
+    ax.set_ylabel(f"accuracy, {next(iter(points[0].accuracy)).value} variant [%]")
     ax.legend(fontsize=8, title="true label")
     return _finish(
         fig, f"sweep_{sweep.parameter.value}", f"Accuracy against {sweep.parameter.value}", data

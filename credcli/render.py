@@ -11,6 +11,7 @@ import enum
 import io
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from credcli.diagnosis import Diagnosis, SegmentDiagnosis
@@ -29,6 +30,10 @@ class Column:
     header: str
     digits: int = 4  # significant digits in tables; 0 for text/int columns
     wrap: int = 0  # wrap text at this width in Rich tables (0: never wrap)
+    show: Callable[[dict], object] | None = None  # the cell from the whole row (display only)
+
+    def value(self, row: dict):
+        return self.show(row) if self.show is not None else row.get(self.key)
 
 
 @dataclass(frozen=True)
@@ -53,7 +58,11 @@ SEGMENT_COLUMNS = (
     Column("n", "N", 0),
     Column("dim", "d", 0),
     Column("label", "label", 0),
+    Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r)),
+    Column("scale_pvalue", "scale p", 3),
     Column("elt_pvalue", "ELT p", 3),
+    Column("bias_mahalanobis", "|bias| [σ]", 3),
+    Column("block_length", "L", 0),
     Column("nci", "NCI [dB]", 3),
     Column("anees", "ANEES", 4),
     Column("nees_label", "NEES baseline", 0),
@@ -98,8 +107,12 @@ def diagnosis_record(diag: Diagnosis) -> dict:
 
     ``nll``, ``es`` and the ``*_minus``/``*_plus`` scores come from ``diag.scores`` (the
     claimed predictive); ``delta_*`` and ``srd_*`` from ``diag.probes`` (the centred one).
+    The scale test's numbers (``scale_*``, ``bias*``) and the dependence estimates
+    (``block_length``, ``effective_n``, ``autocorrelation``) follow; ``reason`` says why a
+    segment is ``insufficient-data``.
     """
     elt = diag.elt
+    sc = diag.scale
     rec = {
         "n": diag.n,
         "dim": diag.dim,
@@ -119,7 +132,51 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     }
     for source, keys in ((diag.scores, _SCORE_KEYS), (diag.probes, _PROBE_KEYS)):
         rec.update({k: None if source is None else getattr(source, k) for k in keys})
+    rec |= {
+        "scale_factor": None if sc is None else sc.scale_factor,
+        "scale_factor_low": None if sc is None else sc.scale_factor_low,
+        "scale_factor_high": None if sc is None else sc.scale_factor_high,
+        "scale_pvalue": None if sc is None else sc.pvalue,
+        "bias": None if sc is None else [float(v) for v in sc.bias],
+        "bias_stderr": None if sc is None else [float(v) for v in sc.bias_stderr],
+        "bias_mahalanobis": None if sc is None else sc.bias_mahalanobis,
+        "block_length": diag.block_length,
+        "effective_n": diag.effective_n,
+        "autocorrelation": diag.autocorrelation,
+        "reason": diag.reason,
+    }
     return {k: _value(v) for k, v in rec.items()}
+
+
+def _number(x: float) -> str:
+    """A short number for sentences: 3 significant digits, no float noise."""
+    return f"{x:.3g}"
+
+
+def scale_interval(rec: dict) -> str | None:
+    """'2.3 (1.9–2.8)': κ̂ with its interval, for tables."""
+    if rec.get("scale_factor") is None:
+        return None
+    return (
+        f"{_number(rec['scale_factor'])} ({_number(rec['scale_factor_low'])}–"
+        f"{_number(rec['scale_factor_high'])})"
+    )
+
+
+def advice(rec: dict) -> str | None:
+    """What a user acts on for a segment that is not credible, in one line."""
+    label = rec["label"]
+    if label == "credible":
+        return None
+    if label == "insufficient-data":
+        return f"{rec['segment']}: no verdict: {rec['reason']}"
+    parts = []
+    if "optimism" in label or "pessimism" in label:
+        parts.append(f"multiply the covariance by {scale_interval(rec)}")
+    if "smm" in label:
+        bias = ", ".join(_number(b) for b in rec["bias"])
+        parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
+    return f"{rec['segment']}: " + "; ".join(parts)
 
 
 def segment_record(result: SegmentDiagnosis) -> dict:
@@ -133,6 +190,10 @@ def segment_record(result: SegmentDiagnosis) -> dict:
 
 
 def _cell(value, digits: int) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, list):
+        return "(" + ", ".join(_cell(v, digits) for v in value) + ")"
     if value is None:
         return "—"
     if isinstance(value, bool):
@@ -153,6 +214,8 @@ def _csv_cell(value) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return repr(value)
+    if isinstance(value, list):
+        return " ".join(_csv_cell(v) for v in value)
     return str(value)
 
 
@@ -185,7 +248,7 @@ def rich_table(table: Table):
     for row in table.rows:
         cells = []
         for col in table.columns:
-            text = escape(_cell(row.get(col.key), col.digits))
+            text = escape(_cell(col.value(row), col.digits))
             if col.key in _LABEL_KEYS and isinstance(row.get(col.key), str):
                 text = f"[{_LABEL_STYLE.get(text, 'bold yellow')}]{text}[/]"
             cells.append(text)
@@ -244,7 +307,7 @@ def _markdown(report: Report) -> str:
         lines.append("| " + " | ".join(c.header for c in table.columns) + " |")
         lines.append("|" + "|".join("---" if not c.digits else "---:" for c in table.columns) + "|")
         for row in table.rows:
-            cells = [_cell(row.get(c.key), c.digits).replace("|", "\\|") for c in table.columns]
+            cells = [_cell(c.value(row), c.digits).replace("|", "\\|") for c in table.columns]
             lines.append("| " + " | ".join(cells) + " |")
         if table.caption:
             lines.extend(["", table.caption])
@@ -281,13 +344,8 @@ def diagnose_report(
     for info in logs:
         if info["dropped_rows"]:
             notes.append(f"{info['path']}: dropped {info['dropped_rows']} row(s) with NaN/Inf.")
-    short = [r["segment"] for r in records if r["label"] == "insufficient-data"]
-    if short:
-        notes.append(
-            f"insufficient-data: segment(s) {', '.join(short)} have fewer epochs than "
-            f"{parameters['min_epochs']} (see --min-epochs)."
-        )
-    table = Table("credcli diagnose", columns, records)
+    notes.extend(_advice_lines(records))
+    table = Table("credcli diagnose", columns, records, caption=_level_caption(parameters))
     document = {
         "version": __version__,
         "command": "diagnose",
@@ -296,6 +354,22 @@ def diagnose_report(
         "segments": records,
     }
     return Report([table], document, notes)
+
+
+def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
+    lines = [a for a in (advice(r) for r in records) if a]
+    if len(lines) > limit:
+        lines = lines[:limit] + [f"... and {len(lines) - limit} more segment(s); see --format json"]
+    return lines
+
+
+def _level_caption(parameters: dict) -> str:
+    if parameters.get("variant") != "calibrated":
+        return f"variant {parameters.get('variant')}: ELT at α = {parameters['alpha']:g}"
+    return (
+        f"calibrated rule: false-alarm level {parameters['alpha']:g} per segment "
+        "(ELT and scale test at 1 − √(1 − α) each); cov ×: factor for the claimed covariance"
+    )
 
 
 PAPER_TABLE_II = {
@@ -315,6 +389,7 @@ _SHORT = {
     "smm": "SMM",
     "optimism+smm": "O+SMM",
     "pessimism+smm": "P+SMM",
+    "insufficient-data": "insuff.",
 }
 
 
@@ -322,10 +397,23 @@ def _pct(x):
     return None if x is None else round(100.0 * x, 1)
 
 
+_METHOD_HEADERS = {
+    "calibrated": "calibrated [%]",
+    "ks": "ks [%]",
+    "paper": "paper rule [%]",
+    "nees": "NEES [%]",
+    "nci": "NCI [%]",
+}
+
+
+def _method_columns(methods) -> tuple[Column, ...]:
+    return tuple(Column(m.value, _METHOD_HEADERS[m.value], 3) for m in methods)
+
+
 def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
     """Table II (accuracy per scenario and method) and Table III (confusion matrix)."""
     from credcli import __version__
-    from credcli.diagnosis import DIAGNOSIS_LABELS
+    from credcli.simulate import CONFUSION_LABELS
 
     rows = []
     for s in study.scenarios:
@@ -333,27 +421,29 @@ def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
         for method, acc in study.accuracy.items():
             row[method.value] = _pct(acc[s])
         if paper_protocol:
-            row["paper"] = _pct(PAPER_TABLE_II[s.value])
+            row["published"] = _pct(PAPER_TABLE_II[s.value])
         rows.append(row)
-    cols = (
-        Column("scenario", "scenario", 0),
-        Column("proposed", "Proposed [%]", 3),
-        Column("nees", "NEES [%]", 3),
-        Column("nci", "NCI [%]", 3),
-    )
+    cols = (Column("scenario", "scenario", 0),) + _method_columns(study.accuracy)
     if paper_protocol:
-        cols += (Column("paper", "paper, proposed [%]", 3),)
+        cols += (Column("published", "published [%]", 3),)
     table2 = Table(
-        "Table II: diagnosis accuracy", cols, rows, caption=f"{study.trials} trials per scenario"
+        "Table II: diagnosis accuracy",
+        cols,
+        rows,
+        caption=f"{study.trials} trials per scenario; ks = the authors' code, paper rule = "
+        "Algorithm 1 as printed"
+        + ("; published = the paper's Table II (proposed method)" if paper_protocol else ""),
     )
     conf_rows = [
-        {"scenario": t.value} | {lab.value: study.confusion[t][lab] for lab in DIAGNOSIS_LABELS}
+        {"scenario": t.value} | {lab.value: study.confusion[t][lab] for lab in CONFUSION_LABELS}
         for t in study.scenarios
     ]
     conf_cols = (Column("scenario", "true \\ diagnosed", 0),) + tuple(
-        Column(lab.value, _SHORT[lab.value], 0) for lab in DIAGNOSIS_LABELS
+        Column(lab.value, _SHORT[lab.value], 0) for lab in CONFUSION_LABELS
     )
-    table3 = Table("Table III: confusion matrix of the proposed method", conf_cols, conf_rows)
+    table3 = Table(
+        f"Table III: confusion matrix of the {study.variant.value} variant", conf_cols, conf_rows
+    )
     document = {
         "version": __version__,
         "command": "simulate",
@@ -361,8 +451,9 @@ def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
         "accuracy": {
             m.value: {s.value: acc[s] for s in study.scenarios} for m, acc in study.accuracy.items()
         },
+        "confusion_variant": study.variant.value,
         "confusion": {
-            t.value: {lab.value: study.confusion[t][lab] for lab in DIAGNOSIS_LABELS}
+            t.value: {lab.value: study.confusion[t][lab] for lab in CONFUSION_LABELS}
             for t in study.scenarios
         },
     }
@@ -381,10 +472,7 @@ def sweep_report(sweep, points, parameters: dict) -> Report:
         Column("value", sweep.parameter.value, 4),
         Column("scenario", "true label", 0),
         Column("trials", "trials", 0),
-        Column("proposed", "Proposed [%]", 3),
-        Column("nees", "NEES [%]", 3),
-        Column("nci", "NCI [%]", 3),
-    )
+    ) + _method_columns(points[0].accuracy if points else ())
     document = {
         "version": __version__,
         "command": "simulate",

@@ -18,14 +18,84 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from credcli import metrics
-from credcli.diagnosis import DIAGNOSIS_LABELS, DiagnosisConfig, Label, diagnose_errors
+from credcli.diagnosis import (
+    DIAGNOSIS_LABELS,
+    DiagnosisConfig,
+    Label,
+    Variant,
+    diagnose_variants,
+)
 from credcli.errors import CredcliError
 
 
 class Method(str, enum.Enum):
-    PROPOSED = "proposed"
+    """A column of Table II: each variant of the rule, then the single-metric baselines."""
+
+    CALIBRATED = "calibrated"
+    KS = "ks"
+    PAPER = "paper"
     NEES = "nees"
     NCI = "nci"
+
+
+VARIANT_ORDER = (Variant.KS, Variant.PAPER, Variant.CALIBRATED)
+"""Order in which a trial is diagnosed: ks first, so its sign flips are drawn exactly as
+in credcli 0.1 and the paper's variants reproduce their earlier figures seed for seed."""
+
+
+class Noise(str, enum.Enum):
+    GAUSSIAN = "gaussian"
+    STUDENT_T = "student-t"
+
+
+@dataclass(frozen=True)
+class ErrorModel:
+    """How whitened errors are drawn: Gaussian or multivariate Student-t with ``nu`` degrees
+    of freedom (scaled to unit covariance), then an AR(1) filter of coefficient ``ar`` in
+    time, x_k = φ x_{k−1} + √(1 − φ²) z_k with x_0 = z_0, which keeps the marginal
+    covariance unchanged."""
+
+    noise: Noise = Noise.GAUSSIAN
+    nu: float | None = None
+    ar: float = 0.0
+
+    @classmethod
+    def parse(cls, noise: str = "gaussian", ar: float = 0.0) -> ErrorModel:
+        text = noise.strip().lower()
+        if text == Noise.GAUSSIAN.value:
+            model = cls(Noise.GAUSSIAN, None, ar)
+        elif text.startswith(Noise.STUDENT_T.value + ":"):
+            try:
+                nu = float(text.split(":", 1)[1])
+            except ValueError:
+                nu = float("nan")
+            if not (math.isfinite(nu) and nu > 2):
+                raise CredcliError(
+                    f"noise '{noise}': the degrees of freedom must be a number > 2 "
+                    "(the covariance must exist), e.g. student-t:5"
+                )
+            model = cls(Noise.STUDENT_T, nu, ar)
+        else:
+            raise CredcliError(f"noise '{noise}': use gaussian or student-t:NU, e.g. student-t:5")
+        if not (math.isfinite(ar) and -1 < ar < 1):
+            raise CredcliError(f"ar must be in (-1, 1); got {ar}")
+        return model
+
+    def __str__(self) -> str:
+        return self.noise.value + (f":{self.nu:g}" if self.nu is not None else "")
+
+    def draw(self, rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
+        """Whitened errors (n, dim) with unit marginal covariance."""
+        z = rng.standard_normal((n, dim))
+        if self.noise is Noise.STUDENT_T:
+            w = rng.chisquare(self.nu, size=(n, 1)) / (self.nu - 2.0)
+            z /= np.sqrt(w)
+        if self.ar:
+            from scipy.signal import lfilter
+
+            c = math.sqrt(1.0 - self.ar**2)
+            z = lfilter([c], [1.0, -self.ar], z, axis=0, zi=((1.0 - c) * z[:1]))[0]
+        return z
 
 
 SCENARIO_ALIASES = {
@@ -91,7 +161,13 @@ class SimulationConfig:
     bias: tuple[float, float] = (1.6, 2.4)
     eigenvalues: tuple[float, float] = (0.5, 2.0)
     seed: int = 0
+    ar: float = 0.0
+    noise: str = "gaussian"
     diagnosis: DiagnosisConfig = field(default_factory=DiagnosisConfig)
+
+    @property
+    def error_model(self) -> ErrorModel:
+        return ErrorModel.parse(self.noise, self.ar)
 
     def __post_init__(self) -> None:
         checks = [
@@ -116,6 +192,7 @@ class SimulationConfig:
         for ok, message in checks:
             if not ok:
                 raise CredcliError(message)
+        self.error_model  # noqa: B018 (validates noise and ar)
         smallest = self.diagnosis.min_n(self.dim)
         if self.n < smallest:
             raise CredcliError(
@@ -135,11 +212,19 @@ class SimulationConfig:
         return ScenarioSpec(rho, self.bias if "smm" in conditions else (0.0, 0.0))
 
 
-def draw_trial(spec: ScenarioSpec, n: int, dim: int, eigenvalues, rng: np.random.Generator):
+def draw_trial(
+    spec: ScenarioSpec,
+    n: int,
+    dim: int,
+    eigenvalues,
+    rng: np.random.Generator,
+    model: ErrorModel | None = None,
+):
     """Errors (n, dim) and claimed covariances (n, dim, dim) of one trial.
 
     x_k ~ N(0, Σ), x̂_k ~ N(x_k + μ, Σ) gives e_k = x_k − x̂_k ~ N(−μ, Σ); every metric depends
-    on x and x̂ only through e, so e is drawn directly. Σ̂_k = ρΣ.
+    on x and x̂ only through e, so e is drawn directly. Σ̂_k = ρΣ. ``model`` replaces the
+    Gaussian whitened errors (heavy tails, AR(1) in time) with the same covariance Σ.
     """
     q, _ = np.linalg.qr(rng.standard_normal((dim, dim)))
     lam = rng.uniform(*eigenvalues, size=dim)
@@ -149,7 +234,7 @@ def draw_trial(spec: ScenarioSpec, n: int, dim: int, eigenvalues, rng: np.random
     if spec.bias[1] > 0:
         direction = rng.standard_normal(dim)
         mu = direction / np.linalg.norm(direction) * rng.uniform(*spec.bias)
-    z = rng.standard_normal((n, dim))
+    z = rng.standard_normal((n, dim)) if model is None else model.draw(rng, n, dim)
     errors = -mu - z @ (q * np.sqrt(lam)).T
     cov = np.broadcast_to(rho * sigma, (n, dim, dim))
     return errors, cov
@@ -163,7 +248,9 @@ def trial_seed(seed: int, group: int, trial: int) -> np.random.SeedSequence:
 class TrialResult:
     """The label of each method on one trial (attributes named as Method values)."""
 
-    proposed: Label
+    calibrated: Label
+    ks: Label
+    paper: Label
     nees: Label
     nci: Label
 
@@ -172,12 +259,23 @@ def _run_chunk(args) -> list[TrialResult]:
     """Worker: run trials [start, stop) of one group (top level, so processes can pickle it)."""
     spec, start, stop, config = args
     stream = _stream_key(spec)
+    model = config.error_model
+    model = None if model == ErrorModel() else model
     out = []
     for trial in range(start, stop):
         gen = np.random.default_rng(trial_seed(config.seed, stream, trial))
-        errors, cov = draw_trial(spec, config.n, config.dim, config.eigenvalues, gen)
-        d = diagnose_errors(errors, cov, config.diagnosis, gen)
-        out.append(TrialResult(d.label, d.nees_label, d.nci_label))
+        errors, cov = draw_trial(spec, config.n, config.dim, config.eigenvalues, gen, model)
+        labels = diagnose_variants(errors, cov, VARIANT_ORDER, config.diagnosis, gen)
+        ks = labels[Variant.KS]
+        out.append(
+            TrialResult(
+                calibrated=labels[Variant.CALIBRATED].label,
+                ks=ks.label,
+                paper=labels[Variant.PAPER].label,
+                nees=ks.nees_label,
+                nci=ks.nci_label,
+            )
+        )
     return out
 
 
@@ -238,18 +336,26 @@ def run_groups(
     return per_group
 
 
+CONFUSION_LABELS = DIAGNOSIS_LABELS + (Label.INSUFFICIENT,)
+"""Columns of Table III: the six diagnoses, and insufficient-data (calibrated variant)."""
+
+
 @dataclass(frozen=True)
 class StudyResult:
-    """Tables II and III for a set of scenarios."""
+    """Tables II and III for a set of scenarios; Table III is of ``variant``."""
 
     scenarios: list[Label]
     accuracy: dict[Method, dict[Label, float]]
     confusion: dict[Label, dict[Label, int]]
     trials: int
+    variant: Variant = Variant.CALIBRATED
 
 
-def summarise(truths: list[Label], groups: list[list[TrialResult]]) -> StudyResult:
-    """Accuracy of every method and the confusion counts of the proposed one, per group."""
+def summarise(
+    truths: list[Label], groups: list[list[TrialResult]], variant: Variant = Variant.CALIBRATED
+) -> StudyResult:
+    """Accuracy of every method and the confusion counts of ``variant``, per group."""
+    variant = Variant(variant)
     accuracy = {
         m: {
             t: float(np.mean([getattr(r, m.value) is t for r in g])) for t, g in zip(truths, groups)
@@ -257,10 +363,10 @@ def summarise(truths: list[Label], groups: list[list[TrialResult]]) -> StudyResu
         for m in Method
     }
     confusion = {
-        t: {lab: sum(r.proposed is lab for r in g) for lab in DIAGNOSIS_LABELS}
+        t: {lab: sum(getattr(r, variant.value) is lab for r in g) for lab in CONFUSION_LABELS}
         for t, g in zip(truths, groups)
     }
-    return StudyResult(truths, accuracy, confusion, len(groups[0]) if groups else 0)
+    return StudyResult(truths, accuracy, confusion, len(groups[0]) if groups else 0, variant)
 
 
 def run_study(
@@ -268,7 +374,8 @@ def run_study(
 ) -> StudyResult:
     """Tables II and III: every listed scenario, ``config.trials`` trials each."""
     specs = [config.spec(s) for s in scenarios]
-    return summarise(scenarios, run_groups(specs, config, jobs, progress))
+    groups = run_groups(specs, config, jobs, progress)
+    return summarise(scenarios, groups, config.diagnosis.variant)
 
 
 class SweepParameter(str, enum.Enum):
@@ -278,6 +385,7 @@ class SweepParameter(str, enum.Enum):
     DIM = "dim"
     B = "B"
     TAU = "tau"
+    AR = "ar"
 
 
 @dataclass(frozen=True)
@@ -314,6 +422,8 @@ class Sweep:
             raise CredcliError(f"--sweep {param.value}: values must be > 0")
         if param is SweepParameter.BIAS and any(v < 0 for v in values):
             raise CredcliError("--sweep bias: values must be >= 0")
+        if param is SweepParameter.AR and any(not -1 < v < 1 for v in values):
+            raise CredcliError("--sweep ar: values must be in (-1, 1)")
         return cls(param, values)
 
 
@@ -339,6 +449,8 @@ def sweep_specs(sweep: Sweep, value: float, config: SimulationConfig, scenarios:
         cfg = replace(config, dim=int(value))
     elif sweep.parameter is SweepParameter.B:
         cfg = replace(config, diagnosis=replace(config.diagnosis, n_flips=int(value)))
+    elif sweep.parameter is SweepParameter.AR:
+        cfg = replace(config, ar=value)
     else:
         cfg = replace(config, diagnosis=replace(config.diagnosis, tau_nci=value))
     unique = list(dict.fromkeys(specs))
@@ -356,7 +468,7 @@ def run_sweep(
     for value, specs, cfg in plans:
         tick = None if progress is None else (lambda k, _t, o=done: progress(o + k, total))
         truths = [spec.truth for spec in specs]
-        study = summarise(truths, run_groups(specs, cfg, jobs, tick))
+        study = summarise(truths, run_groups(specs, cfg, jobs, tick), config.diagnosis.variant)
         done += len(specs) * config.trials
         points.extend(
             SweepPoint(value, t, {m: study.accuracy[m][t] for m in Method}, study.trials)

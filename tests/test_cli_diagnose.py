@@ -75,8 +75,10 @@ def test_sample_log_labels_differ_and_values_are_null_when_not_computed(capsys):
     assert labels == ["credible", "optimism", "pessimism", "smm", "pessimism+smm", "optimism+smm"]
     cruise = doc["segments"][0]
     assert cruise["delta_nll_minus"] is None and cruise["nll"] is None  # probes not needed
-    urban = doc["segments"][-1]
-    assert urban["delta_nll_minus"] is not None  # optimism+smm goes through the probes
+    assert all(s["delta_nll_minus"] is None for s in doc["segments"])  # calibrated: no probes
+    _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--variant", "ks")
+    urban = json.loads(out)["segments"][-1]
+    assert urban["delta_nll_minus"] is not None  # ks: optimism+smm goes through the probes
 
 
 @pytest.mark.parametrize("fmt", ["table", "csv", "json", "markdown"])

@@ -40,11 +40,16 @@ def test_insufficient_data_is_never_a_guess(rng):
         dg.diagnose_errors(*gaussian_segment(rng, n=10, d=2), rng=0).label is not Label.INSUFFICIENT
     )
     # with sign blocks of 5 epochs, 25 epochs give 5 blocks: p < 0.05 would be impossible
-    config = DiagnosisConfig(block_length=5)
+    config = DiagnosisConfig(block_length=5, variant="ks")
     assert config.min_n(2) == 26
     assert (
         dg.diagnose_errors(*gaussian_segment(rng, n=25, d=2), config, 0).label is Label.INSUFFICIENT
     )
+    # calibrated: α_L = 1 − √0.95 = 0.0253 needs 2^(1−m) <= α_L/2, i.e. m >= 8 blocks
+    config = DiagnosisConfig(block_length=5)
+    assert config.min_blocks == 8 and config.min_n(2) == 40
+    short = dg.diagnose_errors(*gaussian_segment(rng, n=39, d=2), config, 0)
+    assert short.label is Label.INSUFFICIENT and "40 are needed" in short.reason
 
 
 def _probes(**kw):

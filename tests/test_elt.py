@@ -140,7 +140,7 @@ def test_subsample_when_over_memory_budget(rng):
     "kwargs, message",
     [
         ({"n_flips": 0}, "positive integer"),
-        ({"block_length": 0}, "block-length"),
+        ({"block_length": 0}, "block_length"),
         ({"max_epochs": 1}, "memory budget"),
     ],
 )

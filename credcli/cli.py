@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from credcli.diagnosis import DiagnosisConfig, MetricsLevel, SrdForm, Variant
+from credcli.diagnosis import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, Variant
 from credcli.errors import CredcliError
 from credcli.logs import CovKind
 from credcli.render import OutputFormat
@@ -72,16 +72,19 @@ FlipsOpt = Annotated[
     int | None, typer.Option("--flips", "-B", help=f"ELT sign flips B [default: {_D.n_flips}].")
 ]
 BlockOpt = Annotated[
-    int | None,
+    str | None,
     typer.Option(
-        "--block-length", help="Epochs per ELT sign block (autocorrelated errors) [default: 1]."
+        "--block-length",
+        help="Epochs per ELT sign block, or auto (estimated from the serial dependence in the "
+        "calibrated variant; 1 in paper and ks) [default: auto].",
     ),
 ]
 VariantOpt = Annotated[
     Variant | None,
     typer.Option(
         "--variant",
-        help="Algorithm 1 variant: ks (authors' code) or paper (as printed) [default: ks].",
+        help="Decision rule: calibrated (level-α tests, dependence-aware), ks (the authors' "
+        f"code) or paper (Algorithm 1 as printed) [default: {_D.variant.value}].",
     ),
 ]
 SrdOpt = Annotated[
@@ -107,7 +110,21 @@ MaxEltOpt = Annotated[
 ]
 
 
+def _block_length(text: str | None) -> int | str | None:
+    """--block-length: 'auto' or a positive integer."""
+    if text is None or text.strip().lower() == AUTO:
+        return None if text is None else AUTO
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise CredcliError(f"--block-length: expected auto or an integer >= 1; got '{text}'")
+    return value
+
+
 def _diagnosis_cli(tau, alpha, c, flips, block, variant, srd_form, metrics, min_epochs, max_elt):
+    block = _block_length(block)
     return {
         "tau_nci": tau,
         "alpha": alpha,
@@ -546,7 +563,7 @@ def simulate(
         str | None,
         typer.Option(
             "--sweep",
-            help="Sweep one parameter: rho=0.1:10:20, bias=0:3:13, n=25,50,100, dim=…, B=…, tau=…",
+            help="Sweep one parameter: rho=0.1:10:20, bias=0:3:13, n=25,50,100, dim=…, B=…, tau=…, ar=0,0.5,0.9",
         ),
     ] = None,
     curves: Annotated[
@@ -558,6 +575,20 @@ def simulate(
     curve_runs: Annotated[
         int, typer.Option("--curve-runs", help="Monte Carlo runs per curve point.")
     ] = 5000,
+    ar: Annotated[
+        float | None,
+        typer.Option(
+            "--ar",
+            help="AR(1) coefficient φ of the whitened errors in time (marginal covariance "
+            "unchanged) [default: 0].",
+        ),
+    ] = None,
+    noise: Annotated[
+        str | None,
+        typer.Option(
+            "--noise", help="Error distribution: gaussian or student-t:NU [default: gaussian]."
+        ),
+    ] = None,
     jobs: Annotated[
         int, typer.Option("--jobs", "-j", help="Worker processes (same output for any value).")
     ] = 1,
@@ -585,7 +616,6 @@ def simulate(
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
     _check_plotting(plots)
-    _check_plotting(plots)
     cfg = load_config(config)
     sim = build_simulation_config(
         cfg,
@@ -598,6 +628,8 @@ def simulate(
             "bias": bias,
             "eigenvalues": eigenvalues,
             "seed": seed,
+            "ar": ar,
+            "noise": noise,
         },
         _diagnosis_cli(
             tau, alpha, probe_factor, flips, block_length, variant, srd_form, None, None, None

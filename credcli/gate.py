@@ -141,7 +141,7 @@ def compare_segment(
     if old.get("elt_pvalue") is not None and new.get("elt_pvalue") is not None:
         if old["elt_pvalue"] >= alpha > new["elt_pvalue"]:
             reasons.append(
-                f"ELT newly rejects (p {old['elt_pvalue']:.3g} -> {new['elt_pvalue']:.3g} < {alpha:g})"
+                f"ELT newly rejects (p {old['elt_pvalue']:.3g} -> {new['elt_pvalue']:.3g} < {alpha:.3g})"
             )
         elif new["elt_pvalue"] >= alpha > old["elt_pvalue"]:
             better.append(
@@ -151,10 +151,14 @@ def compare_segment(
     return SegmentComparison(name, status, old, new, tuple(reasons), tuple(better))
 
 
-def compare(baseline: dict, current: dict, th: Thresholds) -> list[SegmentComparison]:
+def compare(
+    baseline: dict, current: dict, th: Thresholds, alpha: float | None = None
+) -> list[SegmentComparison]:
     """Every segment of the baseline and of the current run, matched by name, in the
-    baseline's order followed by new segments."""
-    alpha = baseline["parameters"]["alpha"]
+    baseline's order followed by new segments. ``alpha`` is the ELT's level (α_L in the
+    calibrated variant); the baseline's α when not given."""
+    if alpha is None:
+        alpha = baseline["parameters"]["alpha"]
     old = {s["segment"]: s for s in baseline["segments"]}
     new = {s["segment"]: s for s in current["segments"]}
     out = []

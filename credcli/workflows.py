@@ -278,7 +278,7 @@ def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progr
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
     current = run_diagnose([path], schema, config, progress=progress, **setup).report.document
-    comparisons = compare(baseline, current, thresholds)
+    comparisons = compare(baseline, current, thresholds, config.location_level)
     passed, verdict = verdict_line(comparisons, thresholds)
     report = gate_report(comparisons, current["parameters"], str(baseline_path), passed, verdict)
     return report, comparisons, passed, verdict

@@ -158,7 +158,7 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
     assert "**FAIL: 2 of 6 segment(s) regressed" in md
     assert "| cruise | regressed | credible → optimism | 0.141 → 4.12 |" in md
     assert "| turn | unchanged | optimism → optimism |" in md
-    assert "ELT newly rejects (p 0.959 -> 0.000999 < 0.05)" in md
+    assert "ELT newly rejects (p 0.959 -> 0.000999 < 0.0253)" in md
     # the step summary got both runs appended
     step_text = step.read_text()
     assert step_text.count("## credcli gate:") == 2 and "PASS" in step_text and "FAIL" in step_text
@@ -238,3 +238,15 @@ def test_diagnose_fail_on(tmp_path):
     assert fails == ["turn", "hover", "gps-multipath", "tunnel", "urban"]
     assert _cli("diagnose", GOOD, "--fail-on", "bogus").returncode == 2
     assert _cli("diagnose", "missing.csv", "--fail-on", "smm").returncode == 2
+
+
+def test_a_baseline_of_one_variant_is_not_gated_with_another(tmp_path):
+    base = tmp_path / "ks.json"
+    assert _cli("baseline", GOOD, "-o", base, "--variant", "ks").returncode == 0
+    assert json.loads(base.read_text())["parameters"]["variant"] == "ks"
+    proc = _cli("gate", GOOD, "--baseline", base, "--variant", "calibrated")
+    assert proc.returncode == 2
+    assert "variant: baseline 'ks', now 'calibrated'" in proc.stderr
+    assert proc.stderr.count("\n") == 1
+    ok = _cli("gate", GOOD, "--baseline", base, "-f", "json")  # the baseline's variant is used
+    assert ok.returncode == 0 and json.loads(ok.stdout)["parameters"]["variant"] == "ks"

@@ -32,7 +32,8 @@ format: $(STAMP)
 
 ## bench: measured wall time and peak memory of the main jobs (not a test)
 bench: $(STAMP)
-	$(BIN)/python -m credcli.bench
+	$(BIN)/python benchmarks/bench.py
+	$(BIN)/python benchmarks/calibrated_rule.py
 
 ## sample-data: regenerate sample_data/ from the generators in credcli/samples.py
 sample-data: $(STAMP)

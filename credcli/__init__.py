@@ -16,11 +16,13 @@ from credcli.diagnosis import (
     diagnose,
     diagnose_errors,
     diagnose_log,
+    diagnose_variants,
     nci_baseline,
     nees_baseline,
 )
 from credcli.elt import ELTResult, location_test
 from credcli.errors import CredcliError
+from credcli.scale import ScaleTest
 from credcli.logs import CovKind, EstimatorLog, LogSchema, load_log
 from credcli.metrics import (
     anees,
@@ -46,6 +48,7 @@ __all__ = [
     "Label",
     "LogSchema",
     "MetricsLevel",
+    "ScaleTest",
     "SegmentDiagnosis",
     "SrdForm",
     "Variant",
@@ -54,6 +57,7 @@ __all__ = [
     "diagnose",
     "diagnose_errors",
     "diagnose_log",
+    "diagnose_variants",
     "energy_score",
     "expected_norm",
     "gaussian_nll",

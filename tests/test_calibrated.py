@@ -253,3 +253,25 @@ def test_json_record_equals_the_library_result(tmp_path, capsys):
     assert rec["bias"] == list(d.scale.bias) and rec["bias_stderr"] == list(d.scale.bias_stderr)
     assert rec["block_length"] == d.block_length and rec["reason"] is None
     assert rec["scale_pvalue"] == d.scale.pvalue and rec["effective_n"] == d.effective_n
+
+
+def test_tail_factor_reads_student_t_tails():
+    """Student-t(ν) components: Var(q)/2d = 1 + (d + 2)k/6 with k = 6/(ν − 4); for ν = 5, d = 2
+    that is 5 and for ν = 8 it is 2. Normal components give 1."""
+    from credcli.scale import tail_factor
+
+    rng = np.random.default_rng(12)
+    assert tail_factor(rng.standard_normal((100_000, 2))) == 1.0
+    assert tail_factor(rng.standard_t(5, (100_000, 2))) == pytest.approx(5.0, rel=0.2)
+    assert tail_factor(rng.standard_t(8, (100_000, 2))) == pytest.approx(2.0, rel=0.2)
+    # the ratio is scale-free
+    u = rng.standard_t(6, (5_000, 3))
+    assert tail_factor(u * 1e-20) == pytest.approx(tail_factor(u), rel=1e-9)
+
+
+def test_heavy_tails_widen_the_scale_reference():
+    rng = np.random.default_rng(13)
+    u = rng.standard_t(5, (2_000, 2)) * math.sqrt(3 / 5)  # unit variance
+    r = scale_test(gls_residuals(u, np.eye(2)), ALPHA_S, np.ones(2))
+    assert r.satterthwaite > 2.5 and r.dof < 2 * 1999 / 2.5
+    assert r.scale_factor_low < 1.0 < r.scale_factor_high

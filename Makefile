@@ -35,9 +35,9 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/calibrated_rule.py
 
-## sample-data: regenerate sample_data/ from the generators in credcli/samples.py
+## sample-data: regenerate sample_data/ from the generators in credcli/studies/samples.py
 sample-data: $(STAMP)
-	$(BIN)/python -m credcli.samples sample_data
+	$(BIN)/python -m credcli.studies.samples sample_data
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache *.egg-info

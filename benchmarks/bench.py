@@ -44,7 +44,7 @@ def big_log(path: Path, segments: int = 100, per_segment: int = 1000, seed: int 
     """A d = 2 log of segments × per_segment epochs with mixed planted conditions."""
     import pandas as pd
 
-    from credcli.samples import GOOD_SEGMENTS, estimator_log
+    from credcli.studies.samples import GOOD_SEGMENTS, estimator_log
 
     plan = [GOOD_SEGMENTS[k % len(GOOD_SEGMENTS)] for k in range(segments)]
     plan = [type(p)(f"{p.name}-{k:03d}", p.rho, p.bias) for k, p in enumerate(plan)]

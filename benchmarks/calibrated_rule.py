@@ -45,8 +45,8 @@ def _seed_table(seeds: int = 20) -> None:
 
 def _chunk(args) -> dict:
     n, ar, noise, start, stop = args
-    from credcli.diagnosis import Label, Variant, diagnose_variants
-    from credcli.simulate import SimulationConfig, draw_trial, trial_seed
+    from credcli.engine.diagnosis import Label, Variant, diagnose_variants
+    from credcli.studies.simulate import SimulationConfig, draw_trial, trial_seed
 
     config = SimulationConfig(n=n, ar=ar, noise=noise)
     spec = config.spec(Label.CREDIBLE)

@@ -5,7 +5,7 @@ System Model Mismatch": NEES/NCI, Gaussian NLL and energy score, an energy-dista
 location test and directional probes (Algorithm 1).
 """
 
-from credcli.diagnosis import (
+from credcli.engine.diagnosis import (
     Diagnosis,
     DiagnosisConfig,
     Label,
@@ -20,11 +20,8 @@ from credcli.diagnosis import (
     nci_baseline,
     nees_baseline,
 )
-from credcli.elt import ELTResult, location_test
-from credcli.errors import CredcliError
-from credcli.scale import ScaleTest
-from credcli.logs import CovKind, EstimatorLog, LogSchema, load_log
-from credcli.metrics import (
+from credcli.engine.elt import ELTResult, location_test
+from credcli.engine.metrics import (
     anees,
     energy_score,
     expected_norm,
@@ -35,6 +32,9 @@ from credcli.metrics import (
     probes,
     srd,
 )
+from credcli.engine.scale import ScaleTest
+from credcli.errors import CredcliError
+from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log
 
 __version__ = "0.1.0"
 

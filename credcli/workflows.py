@@ -9,10 +9,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from credcli import segments as seg
-from credcli.diagnosis import DiagnosisConfig, MetricsLevel, diagnose_log
+from credcli.engine.diagnosis import DiagnosisConfig, MetricsLevel, diagnose_log
 from credcli.errors import CredcliError
-from credcli.logs import EstimatorLog, LogSchema, load_log
-from credcli.render import Report, config_parameters, diagnose_report
+from credcli.io.logs import EstimatorLog, LogSchema, load_log
+from credcli.report.render import Report, config_parameters, diagnose_report
 
 
 def split(log: EstimatorLog, window: str | None = None, whole: bool = False) -> list[seg.Segment]:
@@ -92,7 +92,7 @@ def run_diagnose(
     report = diagnose_report(results, parameters, logs, config.metrics is MetricsLevel.ALL)
     figures = []
     if plots:
-        from credcli.plots import segment_plots
+        from credcli.report.plots import segment_plots
 
         k = 0
         for log, segments in plans:
@@ -118,8 +118,8 @@ def run_simulate(
 
     import numpy as np
 
-    from credcli import simulate as sim
-    from credcli.render import curves_report, simulate_report, sweep_report
+    from credcli.report.render import curves_report, simulate_report, sweep_report
+    from credcli.studies import simulate as sim
 
     scenarios = sim.parse_scenarios(scenario)
     parameters = {
@@ -137,7 +137,7 @@ def run_simulate(
     } | config_parameters(config.diagnosis)
 
     if plots:
-        from credcli import plots as figs
+        from credcli.report import plots as figs
     figures = []
     if plots or curves:
         rhos = np.round(np.geomspace(0.1, 10.0, 21), 6)
@@ -212,8 +212,8 @@ def run_uwb(
     """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (Run, UwbRun)."""
     import dataclasses
 
-    from credcli import uwb
-    from credcli.render import uwb_report
+    from credcli.report.render import uwb_report
+    from credcli.studies import uwb
 
     run = uwb.run_pipeline(path, settings, anchors, window, whole)
     if not run.segments:
@@ -230,7 +230,7 @@ def run_uwb(
     )
     figures = []
     if plots:
-        from credcli.plots import segment_plots, uwb_plots
+        from credcli.report.plots import segment_plots, uwb_plots
 
         figures = uwb_plots(run) + segment_plots(run.log, results, run.segments)
     return Run(uwb_report(run, results, parameters), figures), run
@@ -238,7 +238,7 @@ def run_uwb(
 
 def run_baseline(path: Path, **setup) -> Report:
     """`diagnose` on one log, marked as a baseline of the current schema version."""
-    from credcli.gate import BASELINE_KIND, BASELINE_SCHEMA_VERSION
+    from credcli.ci.gate import BASELINE_KIND, BASELINE_SCHEMA_VERSION
 
     report = run_diagnose([path], **setup).report
     report.document.update(kind=BASELINE_KIND, schema_version=BASELINE_SCHEMA_VERSION)
@@ -251,8 +251,8 @@ def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progr
     import dataclasses
     import json
 
-    from credcli.gate import check_baseline, check_same_parameters, compare, verdict_line
-    from credcli.render import gate_report
+    from credcli.ci.gate import check_baseline, check_same_parameters, compare, verdict_line
+    from credcli.report.render import gate_report
 
     try:
         baseline = json.loads(Path(baseline_path).read_text())

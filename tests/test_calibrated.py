@@ -11,10 +11,10 @@ import pytest
 from kalman import run_filter
 from scipy import special
 
-from credcli import dependence
 from credcli.cli import main
-from credcli.diagnosis import DiagnosisConfig, Label, diagnose_errors
-from credcli.scale import gls_residuals, scale_test
+from credcli.engine import dependence
+from credcli.engine.diagnosis import DiagnosisConfig, Label, diagnose_errors
+from credcli.engine.scale import gls_residuals, scale_test
 
 ALPHA_S = 1 - math.sqrt(0.95)
 
@@ -241,7 +241,7 @@ def test_json_record_equals_the_library_result(tmp_path, capsys):
     pd.DataFrame(cols).to_csv(path, index=False)
     assert main(["diagnose", str(path), "-f", "json", "--seed", "3"]) == 0
     rec = json.loads(capsys.readouterr().out)["segments"][0]
-    from credcli.diagnosis import segment_seed
+    from credcli.engine.diagnosis import segment_seed
 
     d = diagnose_errors(e, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=segment_seed(3, "all"))
     assert rec["label"] == d.label.value == "optimism+smm"
@@ -258,7 +258,7 @@ def test_json_record_equals_the_library_result(tmp_path, capsys):
 def test_tail_factor_reads_student_t_tails():
     """Student-t(ν) components: Var(q)/2d = 1 + (d + 2)k/6 with k = 6/(ν − 4); for ν = 5, d = 2
     that is 5 and for ν = 8 it is 2. Normal components give 1."""
-    from credcli.scale import tail_factor
+    from credcli.engine.scale import tail_factor
 
     rng = np.random.default_rng(12)
     assert tail_factor(rng.standard_normal((100_000, 2))) == 1.0

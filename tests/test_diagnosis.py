@@ -9,10 +9,10 @@ import pytest
 from conftest import gaussian_segment
 from scipy import stats
 
-from credcli import diagnosis as dg
-from credcli.diagnosis import DiagnosisConfig, Label, Variant
+from credcli.engine import diagnosis as dg
+from credcli.engine.diagnosis import DiagnosisConfig, Label, Variant
+from credcli.engine.metrics import Probes
 from credcli.errors import CredcliError
-from credcli.metrics import Probes
 
 PLANTED = {
     Label.CREDIBLE: (1.0, None),

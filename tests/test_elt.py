@@ -9,7 +9,7 @@ import pytest
 from conftest import gaussian_segment
 from scipy import stats
 
-from credcli import elt
+from credcli.engine import elt
 from credcli.errors import CredcliError
 
 

@@ -11,8 +11,8 @@ import xml.etree.ElementTree as ET
 import pytest
 from conftest import SAMPLE
 
-from credcli import gate
-from credcli.diagnosis import Label
+from credcli.ci import gate
+from credcli.engine.diagnosis import Label
 from credcli.errors import CredcliError
 
 GOOD = SAMPLE / "estimator_log.csv"

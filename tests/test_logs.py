@@ -9,9 +9,9 @@ from conftest import ROOT
 
 from credcli import load_log
 from credcli.cli import main
+from credcli.cli.settings import build_schema, load_config
 from credcli.errors import CredcliError
-from credcli.logs import LogSchema
-from credcli.settings import build_schema, load_config
+from credcli.io.logs import LogSchema
 
 
 def _frame(n=30, d=2, seed=0):

@@ -7,7 +7,7 @@ import pytest
 from conftest import gaussian_segment
 from scipy import integrate, special, stats
 
-from credcli import metrics
+from credcli.engine import metrics
 
 
 def test_nees_matches_explicit_inverse(rng):

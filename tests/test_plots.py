@@ -17,11 +17,13 @@ pytest.importorskip("matplotlib", reason="matplotlib (credcli[plots]) not instal
 
 from conftest import SAMPLE  # noqa: E402
 
-from credcli import DiagnosisConfig, load_log, metrics, plots  # noqa: E402
-from credcli import simulate as sim  # noqa: E402
+from credcli import DiagnosisConfig, load_log  # noqa: E402
 from credcli.cli import main  # noqa: E402
-from credcli.diagnosis import diagnose_log  # noqa: E402
-from credcli.elt import whiten  # noqa: E402
+from credcli.engine import metrics  # noqa: E402
+from credcli.engine.diagnosis import diagnose_log  # noqa: E402
+from credcli.engine.elt import whiten  # noqa: E402
+from credcli.report import plots  # noqa: E402
+from credcli.studies import simulate as sim  # noqa: E402
 from credcli.workflows import split  # noqa: E402
 
 LOG = SAMPLE / "estimator_log.csv"
@@ -156,7 +158,7 @@ def test_uwb_plots_and_report(tmp_path, capsys):
         "P1_nees.png",
     } <= names
     ranges = json.loads(out)["ranges"]
-    from credcli import uwb
+    from credcli.studies import uwb
 
     run = uwb.run_pipeline(GRID)
     fig5 = next(p for p in plots.uwb_plots(run) if p.name == "uwb_reported_std")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 from conftest import SAMPLE
 
-from credcli.samples import write_samples
+from credcli.studies.samples import write_samples
 
 
 def test_sample_data_is_reproducible(tmp_path):

@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from credcli import metrics
-from credcli import simulate as sim
 from credcli.cli import main
-from credcli.diagnosis import DIAGNOSIS_LABELS, Label
+from credcli.engine import metrics
+from credcli.engine.diagnosis import DIAGNOSIS_LABELS, Label
 from credcli.errors import CredcliError
-from credcli.render import PAPER_TABLE_II
+from credcli.report.render import PAPER_TABLE_II
+from credcli.studies import simulate as sim
 
 
 def _run(capsys, *args):

@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 from conftest import SAMPLE, SHARED
 
-from credcli import uwb
 from credcli.cli import main
-from credcli.samples import STARLOC_ANCHORS
 from credcli.segments import static_periods
+from credcli.studies import uwb
+from credcli.studies.samples import STARLOC_ANCHORS
 
 GRID = SAMPLE / "starloc_grid_uwb.csv"
 REAL = SHARED / "data" / "starloc" / "loop-2d-fast_s2_uwb.csv"

@@ -60,7 +60,7 @@ def safe_name(text: str) -> str:
 
 def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
     """Write each plot as DIR/<name>.png (atomically); create DIR if needed."""
-    from credcli.settings import write_atomic
+    from credcli.cli.settings import write_atomic
 
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
@@ -161,7 +161,7 @@ def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) ->
 def scale_plot(name: str, errors: np.ndarray, cov: np.ndarray, c: float, title: str) -> Plot:
     """Mean NLL and mean ES against the covariance scale (1/4 to 4), for the claimed
     predictive and the centred one F̃ (Section III-C), with the probes at 1/c, 1, c."""
-    from credcli import metrics
+    from credcli.engine import metrics
 
     plt = _pyplot()
     scales = np.unique(np.r_[np.geomspace(0.25, 4.0, 17), 1.0 / c, 1.0, c])
@@ -206,8 +206,8 @@ def scale_plot(name: str, errors: np.ndarray, cov: np.ndarray, c: float, title: 
 
 def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
     """The three pictures of every diagnosed segment of a log."""
-    from credcli import metrics
-    from credcli.elt import whiten
+    from credcli.engine import metrics
+    from credcli.engine.elt import whiten
 
     by_name = {s.name: s for s in segments}
     all_errors = log.errors
@@ -230,7 +230,7 @@ def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
 
 
 def confusion_plot(study) -> Plot:
-    from credcli.simulate import CONFUSION_LABELS
+    from credcli.studies.simulate import CONFUSION_LABELS
 
     plt = _pyplot()
     rows = study.scenarios

@@ -5,7 +5,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from credcli.diagnosis import Label
+from credcli.engine.diagnosis import Label
 from credcli.errors import CredcliError
 
 BASELINE_SCHEMA_VERSION = 1

@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from credcli.errors import CredcliError
-from credcli.render import _cell
+from credcli.report.render import _cell
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
         cases.append(
             Case(
                 c.segment,
-                f"credcli.gate.{_classname(log)}",
+                f"credcli.ci.gate.{_classname(log)}",
                 "; ".join(c.reasons) if failed else None,
                 details,
             )
@@ -97,7 +97,7 @@ def _classname(path: str) -> str:
 def summary_markdown(heading: str, verdict: str, report, context: str = "") -> str:
     """The Markdown summary of a CI run: a heading, the verdict, then the report's own
     tables (the same ones the other output formats show)."""
-    from credcli.render import OutputFormat, to_text
+    from credcli.report.render import OutputFormat, to_text
 
     parts = [f"## {heading}", "", f"**{verdict}**", ""]
     if context:

@@ -12,7 +12,7 @@ Eq. (1) on centred errors, so the test keeps its level under SMM, unlike the NCI
 Dependent or heavy-tailed errors make T more variable than χ²_ν. The reference then is a
 Satterthwaite-scaled χ² (Satterthwaite 1946): T/f ~ χ²_{ν₀/f}, matching the mean ν₀ and
 the variance N·Ω_q, with Ω_q the long-run variance of q_k = (e_k − μ̂)ᵀW_k(e_k − μ̂)
-(:func:`credcli.dependence.long_run_variance`), so serial correlation and kurtosis both
+(:func:`credcli.engine.dependence.long_run_variance`), so serial correlation and kurtosis both
 widen it. Because a short heavy-tailed sample that misses its rare large errors
 underestimates Ω_q exactly when T is small, f is at least the factor implied by the
 sample's quantile tails (:func:`tail_factor`). ν₀ = Nd − Σ_i max(1, τ_i): estimating the mean removes τ_i degrees of freedom per
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from credcli import dependence
+from credcli.engine import dependence
 
 
 @dataclass(frozen=True)
@@ -165,7 +165,7 @@ def scale_test(
         α_S: the interval is 1 − α_S, each tail of the test α_S/2.
     tau : array (d,), optional
         Variance ratios τ_i of the whitened components
-        (:func:`credcli.dependence.variance_ratio`). None: independent epochs, the exact
+        (:func:`credcli.engine.dependence.variance_ratio`). None: independent epochs, the exact
         χ²_{(N−1)d} reference with no Satterthwaite factor.
 
     Examples

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from credcli._rng import RngLike, as_generator
+from credcli.engine._rng import RngLike, as_generator
 from credcli.errors import CredcliError
 
 DEFAULT_MAX_EPOCHS = 4000

@@ -11,10 +11,10 @@ from typing import Annotated
 
 import typer
 
-from credcli.diagnosis import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, Variant
+from credcli.engine.diagnosis import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, Variant
 from credcli.errors import CredcliError
-from credcli.logs import CovKind
-from credcli.render import OutputFormat
+from credcli.io.logs import CovKind
+from credcli.report.render import OutputFormat
 
 app = typer.Typer(
     name="credcli",
@@ -141,8 +141,8 @@ def _diagnosis_cli(tau, alpha, c, flips, block, variant, srd_form, metrics, min_
 
 def _emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
     """Print a report to stdout (Rich tables when a terminal) or write it to a file."""
-    from credcli.render import rich_table, to_text
-    from credcli.settings import write_atomic
+    from credcli.cli.settings import write_atomic
+    from credcli.report.render import rich_table, to_text
 
     if output is not None:
         write_atomic(output, to_text(report, fmt), inputs)
@@ -250,7 +250,7 @@ SummaryOpt = Annotated[
 
 def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, drop_invalid) -> dict:
     """Settings of a diagnosis run: command line > config file > defaults."""
-    from credcli.settings import (
+    from credcli.cli.settings import (
         build_diagnosis_config,
         build_schema,
         load_config,
@@ -307,7 +307,7 @@ def _setup_from(opts: dict) -> dict:
 
 def _check_plotting(*wanted) -> None:
     if any(w is not None for w in wanted):
-        from credcli.plots import require_plotting
+        from credcli.report.plots import require_plotting
 
         require_plotting()
 
@@ -315,7 +315,7 @@ def _check_plotting(*wanted) -> None:
 def _write_plots(run, directory: Path | None) -> None:
     if directory is None:
         return
-    from credcli.plots import write_plots
+    from credcli.report.plots import write_plots
 
     paths = write_plots(run.plots, directory)
     _stderr().print(f"wrote {len(paths)} figure(s) to {directory}", highlight=False)
@@ -324,8 +324,8 @@ def _write_plots(run, directory: Path | None) -> None:
 def _write_ci_reports(
     junit: Path | None, summary: Path | None, cases, markdown: str, inputs
 ) -> None:
-    from credcli.ci_reports import append_step_summary, junit_xml
-    from credcli.settings import write_atomic
+    from credcli.ci.reports import append_step_summary, junit_xml
+    from credcli.cli.settings import write_atomic
 
     if junit is not None:
         write_atomic(junit, junit_xml("credcli", cases), inputs)
@@ -372,7 +372,7 @@ def diagnose(
     plots: PlotsOpt = None,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (Algorithm 1)."""
-    from credcli.gate import fail_on_verdict, parse_fail_on
+    from credcli.ci.gate import fail_on_verdict, parse_fail_on
     from credcli.workflows import run_diagnose
 
     conditions = parse_fail_on(fail_on) if fail_on is not None else None
@@ -388,7 +388,7 @@ def diagnose(
     _write_plots(run, plots)
     if conditions is None:
         return 0
-    from credcli.ci_reports import fail_on_cases, summary_markdown
+    from credcli.ci.reports import fail_on_cases, summary_markdown
 
     records = report.document["segments"]
     passed, verdict, failing = fail_on_verdict(records, conditions)
@@ -484,8 +484,8 @@ def gate(
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
-    from credcli.ci_reports import gate_cases, summary_markdown
-    from credcli.gate import Thresholds
+    from credcli.ci.gate import Thresholds
+    from credcli.ci.reports import gate_cases, summary_markdown
     from credcli.workflows import run_gate
 
     thresholds = Thresholds(max_nci_increase, max_anees_ratio, allow_new_segments)
@@ -608,7 +608,7 @@ def simulate(
     """The paper's Monte Carlo study (Tables II and III), sweeps and the Fig. 1 curves."""
     import time
 
-    from credcli.settings import build_simulation_config, load_config
+    from credcli.cli.settings import build_simulation_config, load_config
     from credcli.workflows import run_simulate
 
     if jobs < 1:
@@ -706,8 +706,8 @@ def uwb(
     output: OutputOpt = None,
 ) -> int:
     """The paper's UWB pipeline on a STAR-loc uwb.csv (Section V, Table IV)."""
-    from credcli.settings import build_diagnosis_config, load_config, write_atomic
-    from credcli.uwb import UwbSettings
+    from credcli.cli.settings import build_diagnosis_config, load_config, write_atomic
+    from credcli.studies.uwb import UwbSettings
     from credcli.workflows import export_log_text, run_uwb
 
     cfg = load_config(config)
@@ -745,7 +745,7 @@ def uwb(
     _emit(result.report, fmt, output, inputs=inputs)
     _write_plots(result, plots)
     if report_file is not None:
-        from credcli.html_report import build_html
+        from credcli.report.html import build_html
 
         write_atomic(
             report_file,
@@ -785,8 +785,8 @@ def report(
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose logs and write one self-contained HTML report (table, parameters, figures)."""
-    from credcli.html_report import build_html
-    from credcli.settings import write_atomic
+    from credcli.cli.settings import write_atomic
+    from credcli.report.html import build_html
     from credcli.workflows import run_diagnose
 
     _check_plotting(output)

@@ -10,11 +10,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import special
 
-from credcli import dependence, metrics
-from credcli._rng import RngLike, as_generator
-from credcli.elt import DEFAULT_MAX_EPOCHS, ELTResult, whiten, whitened_location_test
+from credcli.engine import dependence, metrics
+from credcli.engine._rng import RngLike, as_generator
+from credcli.engine.elt import DEFAULT_MAX_EPOCHS, ELTResult, whiten, whitened_location_test
+from credcli.engine.scale import ScaleTest, gls_residuals, scale_test
 from credcli.errors import CredcliError
-from credcli.scale import ScaleTest, gls_residuals, scale_test
 
 
 class Label(str, enum.Enum):

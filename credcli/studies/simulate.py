@@ -17,8 +17,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from credcli import metrics
-from credcli.diagnosis import (
+from credcli.engine import metrics
+from credcli.engine.diagnosis import (
     DIAGNOSIS_LABELS,
     DiagnosisConfig,
     Label,

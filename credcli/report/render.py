@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from credcli.diagnosis import Diagnosis, SegmentDiagnosis
+from credcli.engine.diagnosis import Diagnosis, SegmentDiagnosis
 
 
 class OutputFormat(str, enum.Enum):
@@ -413,7 +413,7 @@ def _method_columns(methods) -> tuple[Column, ...]:
 def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
     """Table II (accuracy per scenario and method) and Table III (confusion matrix)."""
     from credcli import __version__
-    from credcli.simulate import CONFUSION_LABELS
+    from credcli.studies.simulate import CONFUSION_LABELS
 
     rows = []
     for s in study.scenarios:

@@ -4,7 +4,7 @@ Filter and smoother errors are correlated in time, and heavy tails inflate the v
 squared errors the same way. The calibrated rule needs two numbers from the data:
 
 - the long-run variance Ω = Σ_h γ(h) of a series, for the reference distribution of the
-  scale test (:mod:`credcli.scale`);
+  scale test (:mod:`credcli.engine.scale`);
 - a block length L for the ELT's sign flips, long enough that flipping whole blocks keeps
   almost all of the variance of the statistic.
 

@@ -7,9 +7,9 @@ import os
 import tempfile
 from pathlib import Path
 
-from credcli.diagnosis import DiagnosisConfig
+from credcli.engine.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError
-from credcli.logs import LogSchema, read_toml
+from credcli.io.logs import LogSchema, read_toml
 
 CONFIG_SECTIONS = ("columns", "diagnosis", "segments", "simulate")
 """The tables a config file may hold; any other table is an error, never silently ignored."""
@@ -96,7 +96,7 @@ def parse_range(text, what: str) -> tuple[float, float] | None:
 
 def build_simulation_config(config: dict, cli: dict, diagnosis_cli: dict):
     """SimulationConfig from [simulate], [diagnosis] and the CLI."""
-    from credcli.simulate import SimulationConfig
+    from credcli.studies.simulate import SimulationConfig
 
     fields = {f.name for f in dataclasses.fields(SimulationConfig)} - {"diagnosis"}
     values = merged(config.get("simulate", {}), cli, fields, "config [simulate]")

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.logs import EstimatorLog
+from credcli.io.logs import EstimatorLog
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     Without ``range_calib`` (setup s5) the raw ``range`` column is used, with a note.
     Without ``std`` a fixed ``settings.std`` is required.
     """
-    from credcli.logs import _numeric, _read_table
+    from credcli.io.logs import _numeric, _read_table
 
     path = Path(path)
     frame = _read_table(path)
@@ -151,7 +151,7 @@ class Anchor:
 
 def read_markers(path: str | Path) -> dict[int, np.ndarray]:
     """Anchor positions from a STAR-loc markers file (first column the id, then x, y, z)."""
-    from credcli.logs import _read_table
+    from credcli.io.logs import _read_table
 
     path = Path(path)
     frame = _read_table(path)

@@ -10,7 +10,7 @@ import base64
 import html
 import json
 
-from credcli.render import Report, _cell
+from credcli.report.render import Report, _cell
 
 _STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;

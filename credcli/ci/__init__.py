@@ -1,0 +1,1 @@
+"""The CI gate: --fail-on conditions, baselines, regression rules, JUnit and Markdown."""

@@ -1,0 +1,1 @@
+"""Files in: estimator logs and their column layouts."""

@@ -1,0 +1,1 @@
+"""Output: records and tables (table, CSV, JSON, Markdown), plots and the HTML report."""

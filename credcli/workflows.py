@@ -250,14 +250,22 @@ def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progr
     """Diagnose ``path`` with the baseline's parameters and compare segment by segment."""
     import dataclasses
     import json
+    import typing
 
     from credcli.ci.gate import check_baseline, check_same_parameters, compare, verdict_line
+    from credcli.io.checks import check_types
     from credcli.report.render import gate_report
 
     try:
         baseline = json.loads(Path(baseline_path).read_text())
     except FileNotFoundError as exc:
         raise CredcliError(f"{baseline_path}: baseline file not found") from exc
+    except IsADirectoryError as exc:
+        raise CredcliError(
+            f"{baseline_path}: is a directory, expected a baseline JSON file"
+        ) from exc
+    except OSError as exc:
+        raise CredcliError(f"{baseline_path}: cannot be read ({exc.strerror})") from exc
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise CredcliError(f"{baseline_path}: not valid JSON ({exc})") from exc
     check_baseline(baseline, str(baseline_path))
@@ -265,6 +273,18 @@ def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progr
     params = baseline["parameters"]
     fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
     try:
+        hints = typing.get_type_hints(DiagnosisConfig) | {
+            "seed": int,
+            "window": str | None,
+            "whole": bool,
+            "drop_invalid": bool,
+        }
+        check_types(params, hints, "baseline parameters")
+        if not isinstance(params.get("columns"), dict):
+            raise CredcliError("baseline parameters: 'columns' must be an object")
+        check_types(params["columns"], typing.get_type_hints(LogSchema), "baseline columns")
+        if params["seed"] < 0:
+            raise CredcliError("baseline parameters: seed must be >= 0")
         config = DiagnosisConfig(**{k: v for k, v in params.items() if k in fields})
         schema = LogSchema().updated(**params["columns"])
         setup = {
@@ -273,6 +293,8 @@ def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progr
             "seed": params["seed"],
             "drop_invalid": params["drop_invalid"],
         }
+    except CredcliError as exc:
+        raise CredcliError(f"{baseline_path}: {exc.message}; record the baseline again") from exc
     except (KeyError, TypeError, ValueError) as exc:
         raise CredcliError(
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"

@@ -194,6 +194,26 @@ def check_baseline(doc: dict, source: str) -> None:
     for key in ("parameters", "segments"):
         if key not in doc:
             raise CredcliError(f"{source}: baseline has no '{key}'; record it again")
+    if not isinstance(doc["parameters"], dict) or not isinstance(doc["segments"], list):
+        raise CredcliError(
+            f"{source}: baseline 'parameters' must be an object and 'segments' a list; "
+            "record it again"
+        )
+    labels = {lab.value for lab in Label}
+    for k, rec in enumerate(doc["segments"], start=1):
+        where = f"{source}: segment {k}"
+        if not isinstance(rec, dict) or not isinstance(rec.get("segment"), str):
+            raise CredcliError(f"{where}: needs a 'segment' name (a string); record it again")
+        where = f"{source}: segment '{rec['segment']}'"
+        if rec.get("label") not in labels:
+            got = "no label" if "label" not in rec else f"label {rec['label']!r}"
+            raise CredcliError(f"{where}: {got}; a label is one of {', '.join(sorted(labels))}")
+        for key in ("nci", "anees", "elt_pvalue"):
+            value = rec.get(key)
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, (int, float))
+            ):
+                raise CredcliError(f"{where}: '{key}' must be a number or null; got {value!r}")
 
 
 def check_same_parameters(baseline: dict, requested: dict, source: str) -> None:

@@ -42,6 +42,10 @@ def _root(
         bool,
         typer.Option("--version", callback=_show_version, is_eager=True, help="Show the version."),
     ] = False,
+    debug: Annotated[
+        bool,
+        typer.Option("--debug", help="Show the traceback of an internal error (exit code 3)."),
+    ] = False,
 ) -> None:
     """Can you trust the covariance your estimator reports, and if not, why not?"""
 
@@ -141,7 +145,7 @@ def _diagnosis_cli(tau, alpha, c, flips, block, variant, srd_form, metrics, min_
 
 def _emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
     """Print a report to stdout (Rich tables when a terminal) or write it to a file."""
-    from credcli.cli.settings import write_atomic
+    from credcli.io.files import write_atomic
     from credcli.report.render import rich_table, to_text
 
     if output is not None:
@@ -305,6 +309,16 @@ def _setup_from(opts: dict) -> dict:
     )
 
 
+def _guard(outputs: dict, inputs, plots: Path | None = None) -> None:
+    """Before any work: no output may be an input or another output, or a directory; the
+    --plots directory may not be an input file."""
+    from credcli.io.files import check_outputs
+
+    check_outputs(outputs, [p for p in inputs if p is not None])
+    if plots is not None and plots.exists() and not plots.is_dir():
+        raise CredcliError(f"--plots {plots}: exists and is not a directory")
+
+
 def _check_plotting(*wanted) -> None:
     if any(w is not None for w in wanted):
         from credcli.report.plots import require_plotting
@@ -325,7 +339,7 @@ def _write_ci_reports(
     junit: Path | None, summary: Path | None, cases, markdown: str, inputs
 ) -> None:
     from credcli.ci.reports import append_step_summary, junit_xml
-    from credcli.cli.settings import write_atomic
+    from credcli.io.files import write_atomic
 
     if junit is not None:
         write_atomic(junit, junit_xml("credcli", cases), inputs)
@@ -380,11 +394,13 @@ def diagnose(
         raise CredcliError(
             "--junit and --summary report a verdict: give --fail-on too (e.g. --fail-on noncredible)"
         )
+    inputs = [*logs, config]
+    _guard({"--output": output, "--junit": junit, "--summary": summary}, inputs, plots)
     setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=plots is not None, **setup)
     report = run.report
-    _emit(report, fmt, output, inputs=logs)
+    _emit(report, fmt, output, inputs=inputs)
     _write_plots(run, plots)
     if conditions is None:
         return 0
@@ -397,7 +413,7 @@ def diagnose(
         summary,
         fail_on_cases(records, failing, conditions),
         summary_markdown("credcli diagnose", verdict, report),
-        logs,
+        inputs,
     )
     print(f"credcli: {verdict}", file=sys.stderr)
     return 0 if passed else 1
@@ -432,10 +448,12 @@ def baseline(
     """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
     from credcli.workflows import run_baseline
 
+    inputs = [log, config]
+    _guard({"--output": output}, inputs)
     setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
         recorded = run_baseline(log, progress=bar, **setup)
-    _emit(recorded, OutputFormat.JSON, output, inputs=[log])
+    _emit(recorded, OutputFormat.JSON, output, inputs=inputs)
     return 0
 
 
@@ -489,6 +507,8 @@ def gate(
     from credcli.workflows import run_gate
 
     thresholds = Thresholds(max_nci_increase, max_anees_ratio, allow_new_segments)
+    inputs = [log, baseline_file]
+    _guard({"--output": output, "--junit": junit, "--summary": summary}, inputs)
     requested = {
         k: (v.value if hasattr(v, "value") else v)
         for k, v in _diagnosis_cli(
@@ -509,7 +529,6 @@ def gate(
         report, comparisons, passed, verdict = run_gate(
             log, baseline_file, thresholds, requested, bar
         )
-    inputs = [log, baseline_file]
     _emit(report, fmt, output, inputs=inputs)
     _write_ci_reports(
         junit,
@@ -613,6 +632,7 @@ def simulate(
 
     if jobs < 1:
         raise CredcliError(f"--jobs must be >= 1; got {jobs}")
+    _guard({"--output": output}, [config], plots)
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
     _check_plotting(plots)
@@ -647,7 +667,7 @@ def simulate(
             progress=bar,
             plots=plots is not None,
         )
-    _emit(run.report, fmt, output)
+    _emit(run.report, fmt, output, inputs=[config])
     _write_plots(run, plots)
     _stderr().print(f"{summary} in {time.perf_counter() - start:.2f} s", highlight=False)
     return 0
@@ -706,10 +726,13 @@ def uwb(
     output: OutputOpt = None,
 ) -> int:
     """The paper's UWB pipeline on a STAR-loc uwb.csv (Section V, Table IV)."""
-    from credcli.cli.settings import build_diagnosis_config, load_config, write_atomic
+    from credcli.cli.settings import build_diagnosis_config, load_config
+    from credcli.io.files import write_atomic
     from credcli.studies.uwb import UwbSettings
     from credcli.workflows import export_log_text, run_uwb
 
+    inputs = [file, anchors, config]
+    _guard({"--output": output, "--export-log": export_log, "--report": report_file}, inputs, plots)
     cfg = load_config(config)
     dconf, seed = build_diagnosis_config(
         cfg,
@@ -738,7 +761,6 @@ def uwb(
             bar,
             plots=plots is not None or report_file is not None,
         )
-    inputs = [file] + ([anchors] if anchors else [])
     if export_log is not None:
         write_atomic(export_log, export_log_text(run.log), inputs)
         _stderr().print(f"wrote {export_log} ({run.log.n} fixes)", highlight=False)
@@ -785,16 +807,20 @@ def report(
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose logs and write one self-contained HTML report (table, parameters, figures)."""
-    from credcli.cli.settings import write_atomic
+    from credcli.io.files import write_atomic
     from credcli.report.html import build_html
     from credcli.workflows import run_diagnose
 
     _check_plotting(output)
+    inputs = [*logs, config]
+    _guard({"--output": output}, inputs)
     setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=True, **setup)
     title = "credcli report: " + ", ".join(p.name for p in logs)
-    write_atomic(output, build_html(title, run.report, run.plots, ", ".join(map(str, logs))), logs)
+    write_atomic(
+        output, build_html(title, run.report, run.plots, ", ".join(map(str, logs))), inputs
+    )
     _stderr().print(f"wrote {output} ({len(run.plots)} figures)", highlight=False)
     return 0
 
@@ -818,11 +844,52 @@ def _click_exception_types() -> tuple[type, ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the app and turn errors into one line on stderr and an exit code."""
+    """Entry point: run the app and turn every outcome into an exit code.
+
+    0 ok; 1 a regression verdict (gate, --fail-on); 2 bad input or usage, one line on
+    stderr; 3 an internal error, one line (the traceback with --debug); 130 interrupted.
+    Numerical warnings are never printed raw: the engine turns a numerical problem into a
+    message naming the segment, and any other warning becomes one note line on stderr.
+    """
+    import warnings
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = (
+        "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]
+    )
     command = typer.main.get_command(app)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            code = _run(command, args, debug)
+        finally:
+            _note_warnings(caught, debug)
+    return code
+
+
+def app_commands() -> set[str]:
+    return {c.name or c.callback.__name__ for c in app.registered_commands}
+
+
+def _note_warnings(caught, debug: bool) -> None:
+    seen = set()
+    for w in caught:
+        text = f"{w.category.__name__}: {str(w.message).splitlines()[0] if str(w.message) else ''}"
+        if text in seen:
+            continue
+        seen.add(text)
+        where = f" ({w.filename}:{w.lineno})" if debug else ""
+        print(f"credcli: note: {text}{where}", file=sys.stderr)
+
+
+def _run(command, args: list[str], debug: bool) -> int:
     try:
-        result = command.main(args=argv, prog_name="credcli", standalone_mode=False)
+        result = command.main(args=args, prog_name="credcli", standalone_mode=False)
     except CredcliError as exc:
+        if debug:
+            import traceback
+
+            traceback.print_exc()
         print(f"credcli: error: {exc.message}", file=sys.stderr)
         return exc.exit_code
     except _click_exception_types() as exc:
@@ -836,7 +903,47 @@ def main(argv: list[str] | None = None) -> int:
     except (typer.Abort, KeyboardInterrupt):
         print("credcli: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        _silence_stdout()
+        return 0
+    except SystemExit as exc:  # Typer's answer to a closed pipe (EPIPE) is sys.exit(1)
+        if exc.code == 1:
+            _silence_stdout()
+            return 0
+        return int(exc.code or 0)
+    except MemoryError:
+        print(
+            "credcli: error: not enough memory for this run; use fewer --flips, a smaller "
+            "--max-elt-epochs or shorter segments",
+            file=sys.stderr,
+        )
+        return 2
+    except Exception as exc:  # noqa: BLE001 (the outer edge: one line, or the traceback)
+        if debug:
+            import traceback
+
+            traceback.print_exc()
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        print(
+            f"credcli: internal error: {type(exc).__name__}{': ' + first if first else ''}; "
+            "run with --debug for the traceback",
+            file=sys.stderr,
+        )
+        return 3
+    if result == 130:  # Typer turns KeyboardInterrupt into a silent Exit(130)
+        print("credcli: interrupted", file=sys.stderr)
     return int(result or 0)
+
+
+def _silence_stdout() -> None:
+    """After a closed pipe (credcli … | head), stop Python from failing again at exit."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 def entry() -> None:

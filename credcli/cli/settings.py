@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 import dataclasses
-import os
-import tempfile
+import typing
 from pathlib import Path
 
 from credcli.engine.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError
-from credcli.io.logs import LogSchema, read_toml
+from credcli.io.checks import check_types
+from credcli.io.files import read_toml
+from credcli.io.logs import LogSchema
 
 CONFIG_SECTIONS = ("columns", "diagnosis", "segments", "simulate")
 """The tables a config file may hold; any other table is an error, never silently ignored."""
+
+
+KEY_ALIASES = {"tau": "tau_nci", "flips": "n_flips", "probe_factor": "c"}
+"""Config keys spelled as the command-line flags, beside the field names."""
 
 
 def load_config(path: str | Path | None) -> dict:
@@ -23,26 +28,41 @@ def load_config(path: str | Path | None) -> dict:
     unknown = sorted(set(data) - set(CONFIG_SECTIONS))
     if unknown:
         raise CredcliError(
-            f"{path}: unknown table(s) [{'], ['.join(unknown)}]; allowed: "
-            f"[{'], ['.join(CONFIG_SECTIONS)}]"
+            f"{path}: unknown table(s) or key(s) {', '.join(unknown)}; a config holds only the "
+            f"tables [{'], ['.join(CONFIG_SECTIONS)}]"
         )
-    return data
+    for name, table in data.items():
+        if not isinstance(table, dict):
+            raise CredcliError(
+                f"{path}: '{name}' must be a table ([{name}] with keys below it); "
+                f"got {name} = {table!r}"
+            )
+    return {name: {KEY_ALIASES.get(k, k): v for k, v in t.items()} for name, t in data.items()}
 
 
-def merged(section: dict, cli: dict, allowed, where: str) -> dict:
-    """Config values overridden by CLI values that were given (not None)."""
+def merged(section: dict, cli: dict, allowed, where: str, hints: dict | None = None) -> dict:
+    """Config values (type-checked against ``hints``) overridden by CLI values that were
+    given (not None)."""
     unknown = sorted(set(section) - set(allowed))
     if unknown:
         raise CredcliError(
             f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}"
         )
+    if hints is not None:
+        check_types(section, hints, where)
     out = dict(section)
     out.update({k: v for k, v in cli.items() if v is not None})
     return out
 
 
 def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> LogSchema:
-    values = merged(config.get("columns", {}), cli, LogSchema.__dataclass_fields__, where)
+    values = merged(
+        config.get("columns", {}),
+        cli,
+        LogSchema.__dataclass_fields__,
+        where,
+        typing.get_type_hints(LogSchema),
+    )
     try:
         return LogSchema().updated(**values)
     except ValueError as exc:
@@ -58,6 +78,7 @@ def segment_settings(
         {"window": window, "whole": whole},
         ("window", "whole"),
         "config [segments]",
+        {"window": str, "whole": bool},
     )
     return values.get("window"), bool(values.get("whole", False))
 
@@ -67,7 +88,10 @@ def build_diagnosis_config(
 ) -> tuple[DiagnosisConfig, int]:
     """The DiagnosisConfig and the seed (default 0) from [diagnosis] and the CLI."""
     fields = {f.name for f in dataclasses.fields(DiagnosisConfig)} | {"seed"}
-    values = merged(config.get("diagnosis", {}), cli | {"seed": seed}, fields, "config [diagnosis]")
+    hints = typing.get_type_hints(DiagnosisConfig) | {"seed": int}
+    values = merged(
+        config.get("diagnosis", {}), cli | {"seed": seed}, fields, "config [diagnosis]", hints
+    )
     seed_value = values.pop("seed", 0)
     if not isinstance(seed_value, int) or seed_value < 0:
         raise CredcliError(f"the seed must be a non-negative integer; got {seed_value!r}")
@@ -99,7 +123,13 @@ def build_simulation_config(config: dict, cli: dict, diagnosis_cli: dict):
     from credcli.studies.simulate import SimulationConfig
 
     fields = {f.name for f in dataclasses.fields(SimulationConfig)} - {"diagnosis"}
-    values = merged(config.get("simulate", {}), cli, fields, "config [simulate]")
+    values = merged(
+        config.get("simulate", {}),
+        cli,
+        fields,
+        "config [simulate]",
+        typing.get_type_hints(SimulationConfig),
+    )
     for key in ("rho_optimism", "rho_pessimism", "bias", "eigenvalues"):
         if key in values:
             values[key] = parse_range(values[key], f"--{key.replace('_', '-')}")
@@ -118,33 +148,3 @@ def split_list(text: str | None) -> tuple[str, ...] | None:
     if not items:
         raise CredcliError(f"expected a comma-separated list of column names; got '{text}'")
     return items
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename; refuse to
-    overwrite any of ``inputs``."""
-    path = Path(path)
-    target = path.resolve()
-    for src in inputs:
-        if Path(src).resolve() == target:
-            raise CredcliError(
-                f"{path}: refusing to overwrite an input file; choose another --output"
-            )
-    if not target.parent.is_dir():
-        raise CredcliError(f"{path}: directory {target.parent} does not exist")
-    data = text.encode() if isinstance(text, str) else text
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

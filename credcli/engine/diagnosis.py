@@ -59,6 +59,11 @@ class Variant(str, enum.Enum):
 AUTO = "auto"
 """``block_length = AUTO``: estimated from the data (calibrated), 1 (paper, ks)."""
 
+MAX_FLIPS = 10_000_000
+"""Largest B: 80 MB of null distribution; more adds nothing to a p-value at level 0.01."""
+MIN_ELT_EPOCHS = 100
+"""Smallest ELT memory budget (max_elt_epochs)."""
+
 
 class SrdForm(str, enum.Enum):
     """Form of the SRD of Eq. (19): as printed, or the absolute value of the whole ratio."""
@@ -104,24 +109,62 @@ class DiagnosisConfig:
     metrics: MetricsLevel = MetricsLevel.NEEDED
 
     def __post_init__(self) -> None:
+        numbers = ("tau_nci", "alpha", "c", "ks_alpha", "nees_alpha")
+        integers = ("n_flips", "min_epochs", "max_elt_epochs")
+        for name in numbers:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise CredcliError(f"invalid setting: {name} must be a number; got {value!r}")
+        for name in integers:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise CredcliError(f"invalid setting: {name} must be an integer; got {value!r}")
+        try:
+            variant = Variant(self.variant)
+        except ValueError:
+            names = ", ".join(v.value for v in Variant)
+            raise CredcliError(
+                f"invalid setting: variant must be one of {names}; got {self.variant!r}"
+            ) from None
         checks = [
-            (self.tau_nci > 0, "tau_nci (NCI threshold, dB) must be > 0"),
-            (0 < self.alpha < 1, "alpha (ELT significance) must be in (0, 1)"),
-            (self.c > 1, "c (probe factor) must be > 1"),
-            (self.n_flips >= 1, "B (sign flips) must be >= 1"),
+            (0 < self.tau_nci < math.inf, "tau_nci (dB) must be finite and > 0"),
+            (0 < self.alpha < 1, "alpha must be in (0, 1)"),
+            (1 < self.c < math.inf, "c (probe factor) must be finite and > 1"),
+            (
+                self.n_flips <= MAX_FLIPS,
+                f"n_flips {self.n_flips} would need {self.n_flips * 8 / 2**30:.3g} GiB for the "
+                f"null distribution alone; at most {MAX_FLIPS:,} are allowed (the p-value's "
+                "Monte Carlo error is already below 1e-4 there)",
+            ),
             (
                 self.block_length == AUTO
-                or (isinstance(self.block_length, int) and self.block_length >= 1),
+                or (
+                    isinstance(self.block_length, (int, np.integer))
+                    and not isinstance(self.block_length, bool)
+                    and self.block_length >= 1
+                ),
                 f"block_length must be 'auto' or an integer >= 1; got {self.block_length!r}",
             ),
             (0 < self.ks_alpha < 1, "ks_alpha must be in (0, 1)"),
             (0 < self.nees_alpha < 1, "nees_alpha must be in (0, 1)"),
             (self.min_epochs >= 2, "min_epochs must be >= 2"),
-            (self.max_elt_epochs >= 2, "max_elt_epochs must be >= 2"),
+            (
+                self.max_elt_epochs >= MIN_ELT_EPOCHS,
+                f"max_elt_epochs must be >= {MIN_ELT_EPOCHS}: a smaller budget leaves the ELT "
+                f"almost no power; got {self.max_elt_epochs}",
+            ),
         ]
         for ok, message in checks:
             if not ok:
                 raise CredcliError(f"invalid setting: {message}")
+        level = 1.0 - math.sqrt(1.0 - self.alpha) if variant is Variant.CALIBRATED else self.alpha
+        smallest = math.ceil(1.0 / level - 1e-9) - 1
+        if self.n_flips < smallest:
+            raise CredcliError(
+                f"invalid setting: n_flips {self.n_flips} is too few: the ELT's p-value "
+                f"(1 + count)/(B + 1) can only fall below its level {level:.3g} with "
+                f"B >= {smallest}"
+            )
         object.__setattr__(self, "variant", Variant(self.variant))
         object.__setattr__(self, "srd_form", SrdForm(self.srd_form))
         object.__setattr__(self, "metrics", MetricsLevel(self.metrics))

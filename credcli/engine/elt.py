@@ -187,14 +187,25 @@ def _flipped_statistics(a: np.ndarray, signs: np.ndarray, observed: float) -> np
     return values
 
 
+def _power_of_two_scale(s: np.ndarray) -> float:
+    """2^k near the largest |s|: dividing by it is exact and keeps the squares of the
+    pair matrix far from overflow and underflow, whatever the units of the log."""
+    peak = float(np.max(np.abs(s))) if s.size else 0.0
+    if not (peak > 0 and np.isfinite(peak)):
+        return 1.0
+    return float(2.0 ** np.round(np.log2(peak)))
+
+
 def _sign_flip_test(
     s, blocks, block_ids, n_flips, gen, block_length, subsampled, separate_blocks=False
 ) -> ELTResult:
     """Flip B sign vectors of the blocks. With blocks of L > 1 epochs the N×N pair matrix
     is summed into an m×m block matrix first: ξᵀAξ = ηᵀA_bη for block signs η, so the
-    flips cost m²B instead of N²B."""
+    flips cost m²B instead of N²B. The statistic is homogeneous of degree 1 in s, so it is
+    computed on s/2^k and multiplied back, exactly."""
     n = s.shape[0]
-    a = pair_matrix(s)
+    unit = _power_of_two_scale(s)
+    a = pair_matrix(s / unit)
     n_blocks = int(blocks[-1]) + 1
     if n_blocks < n:
         starts = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]])
@@ -216,8 +227,9 @@ def _sign_flip_test(
     signs -= 1  # Rademacher ±1
     null = _flipped_statistics(a, signs, total) / (norm if norm > 0 else 1.0)
     count = int(np.count_nonzero(null >= t_obs - _PVALUE_RTOL * abs(t_obs)))
+    null *= unit
     return ELTResult(
-        statistic=t_obs,
+        statistic=t_obs * unit,
         pvalue=(1 + count) / (n_flips + 1),
         null_distribution=null,
         n_used=n,

@@ -258,6 +258,8 @@ def srd(delta_minus: float, delta_plus: float, c: float, absolute: bool = False)
     With ``absolute=True`` the absolute value of the whole expression is returned
     (the form in the authors' public code).
     """
+    if delta_plus == 0 or not np.isfinite(delta_plus):
+        return float("nan")  # the score does not change with the scale: no slope to compare
     value = (c * abs(delta_minus) - abs(delta_plus)) / abs(delta_plus)
     return abs(value) if absolute else value
 

@@ -188,8 +188,9 @@ def scale_test(
         tau = np.maximum(np.asarray(tau, dtype=float), 1.0)
         nu0 = float(n * d - tau.sum())
         q_mean = total / n
-        omega_q = float(dependence.long_run_variance(q)[0])
-        factor = max(1.0, nu0 * omega_q / (2.0 * n * q_mean**2)) if q_mean > 0 else 1.0
+        # scale-free: the long-run variance of q/q̄ (q̄² can overflow for extreme scales)
+        omega = float(dependence.long_run_variance(q / q_mean)[0]) if q_mean > 0 else 0.0
+        factor = max(1.0, nu0 * omega / (2.0 * n))
         factor = max(factor, tail_factor(residuals.whitened))
         inflation = float(tau.max())
     nu0 = max(nu0, 1.0)

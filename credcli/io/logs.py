@@ -93,20 +93,6 @@ class EstimatorLog:
         return self.truth.shape[1]
 
 
-def read_toml(path: str | Path) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        import tomli as tomllib
-    path = Path(path)
-    if not path.is_file():
-        raise CredcliError(f"{path}: config file not found")
-    try:
-        return tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise CredcliError(f"{path}: not valid TOML: {exc}") from exc
-
-
 def load_log(
     path: str | Path, schema: LogSchema | None = None, drop_invalid: bool = False
 ) -> EstimatorLog:
@@ -146,6 +132,20 @@ def _read_table(path: Path):
 
 
 _INDEXED = re.compile(r"^(\d+)$")
+_MANGLED = re.compile(r"^(.*)\.(\d+)$")
+
+
+def _mangled(columns: list[str]) -> set[str]:
+    """Names pandas renamed because they were repeated in a CSV header ('x' and 'x.1')."""
+    present = set(columns)
+    out = set()
+    for col in columns:
+        m = _MANGLED.match(col)
+        if m and m.group(1) in present:
+            out.add(m.group(1))
+    return out
+
+
 _PAIR = re.compile(r"^(\d+)_(\d+)$")
 
 
@@ -248,6 +248,12 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
     """Validate a pandas DataFrame into an EstimatorLog (see :func:`load_log`)."""
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
+    repeated = sorted({c for c in columns if columns.count(c) > 1} | _mangled(columns))
+    if repeated:
+        raise CredcliError(
+            f"{source}: column(s) {', '.join(repeated)} appear more than once in the header; "
+            "each column name must be unique"
+        )
     truth_cols = _vector_columns(
         columns, schema.truth_prefix, schema.truth_columns, "truth", source
     )
@@ -313,8 +319,24 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
     cov = _validated_cov(
         _build_cov(values[:, 2 * d : 2 * d + len(cov_cols)], kind, d), rows, source
     )
+    if kind is CovKind.STD:
+        negative = (values[:, 2 * d : 2 * d + len(cov_cols)] < 0).any(axis=1)
+        if negative.any():
+            i = int(np.argmax(negative))
+            raise CredcliError(
+                f"{source}: row {rows[i]}: a standard deviation (std_i column) is negative; "
+                "standard deviations must be >= 0"
+            )
     segment = None
     if seg_col is not None:
+        missing_seg = frame[seg_col].isna().to_numpy()
+        if missing_seg.any():
+            first = int(np.argmax(missing_seg)) + 1
+            raise CredcliError(
+                f"{source}: segment column '{seg_col}' is empty or NA in {int(missing_seg.sum())} "
+                f"row(s), first in row {first}; fill in the segment names, or name another "
+                "column with --segment-column"
+            )
         seg_values = frame[seg_col].astype(str).to_numpy()
         segment = seg_values[rows - 1]
     time = values[:, -1] if time_col else None

@@ -54,13 +54,31 @@ def _finish(fig, name: str, title: str, data: dict) -> Plot:
     return Plot(name, title, buf.getvalue(), data)
 
 
+MAX_STEM = 80
+"""Longest file-name stem taken from a segment name (file systems allow 255 bytes)."""
+
+
 def safe_name(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(text)).strip("_") or "segment"
+    """A file-name stem for ``text``: itself when it is short and made of safe characters;
+    otherwise the safe characters, cut to MAX_STEM, and a checksum of the whole name, so
+    that names differing only in unsafe characters ('a b', 'a/b') stay apart."""
+    import zlib
+
+    text = str(text)
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text[: 4 * MAX_STEM]).strip("_.") or "segment"
+    if stem == text and len(stem) <= MAX_STEM:
+        return stem
+    return f"{stem[:MAX_STEM]}-{zlib.crc32(text.encode()):08x}"
+
+
+def short_title(text: str, limit: int = 80) -> str:
+    text = str(text)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
     """Write each plot as DIR/<name>.png (atomically); create DIR if needed."""
-    from credcli.cli.settings import write_atomic
+    from credcli.io.files import write_atomic
 
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
@@ -218,7 +236,7 @@ def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
         errors, cov = all_errors[seg.index], log.cov[seg.index]
         time = None if log.time is None else log.time[seg.index]
         stem = safe_name(f"{prefix}{res.segment}")
-        head = f"{res.segment}: {diag.label.value} (N = {diag.n})"
+        head = f"{short_title(res.segment)}: {diag.label.value} (N = {diag.n})"
         plots.append(nees_plot(f"{stem}_nees", time, metrics.nees(errors, cov), log.dim, head))
         plots.append(whitened_plot(f"{stem}_whitened", whiten(errors, cov), diag.elt_pvalue, head))
         if diag.label.value != "insufficient-data":

@@ -31,9 +31,13 @@ class Column:
     digits: int = 4  # significant digits in tables; 0 for text/int columns
     wrap: int = 0  # wrap text at this width in Rich tables (0: never wrap)
     show: Callable[[dict], object] | None = None  # the cell from the whole row (display only)
+    limit: int = 0  # shorten longer text to this many characters in tables (0: never)
 
     def value(self, row: dict):
-        return self.show(row) if self.show is not None else row.get(self.key)
+        value = self.show(row) if self.show is not None else row.get(self.key)
+        if self.limit and isinstance(value, str) and len(value) > self.limit:
+            return value[: self.limit - 1] + "…"
+        return value
 
 
 @dataclass(frozen=True)
@@ -53,8 +57,11 @@ class Report:
     notes: list[str] = field(default_factory=list)
 
 
+NAME_LIMIT = 60
+"""Longest segment or log name shown in a table cell (JSON and CSV keep the whole name)."""
+
 SEGMENT_COLUMNS = (
-    Column("segment", "segment", 0),
+    Column("segment", "segment", 0, limit=NAME_LIMIT),
     Column("n", "N", 0),
     Column("dim", "d", 0),
     Column("label", "label", 0),
@@ -333,7 +340,7 @@ def diagnose_report(
     multi = len({r["log"] for r in records}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
     if multi:
-        columns = (Column("log", "log", 0),) + columns
+        columns = (Column("log", "log", 0, limit=NAME_LIMIT),) + columns
     notes = []
     sub = [r["segment"] for r in records if r["elt_subsampled"]]
     if sub:
@@ -533,7 +540,7 @@ def curves_report(by_rho, by_gamma, parameters: dict) -> Report:
 
 
 UWB_COLUMNS = (
-    Column("segment", "period", 0),
+    Column("segment", "period", 0, limit=NAME_LIMIT),
     Column("t_start", "t start [s]", 4),
     Column("t_end", "t end [s]", 4),
     Column("n", "fixes", 0),
@@ -622,7 +629,7 @@ def uwb_report(run, results, parameters: dict) -> Report:
 
 
 GATE_COLUMNS = (
-    Column("segment", "segment", 0),
+    Column("segment", "segment", 0, limit=NAME_LIMIT),
     Column("status", "status", 0),
     Column("labels", "label (baseline → now)", 0),
     Column("nci", "NCI [dB]", 0),

@@ -171,9 +171,9 @@ class SimulationConfig:
 
     def __post_init__(self) -> None:
         checks = [
-            (self.trials >= 1, f"--trials must be >= 1; got {self.trials}"),
-            (self.n >= 2, f"--n must be >= 2; got {self.n}"),
-            (self.dim >= 1, f"--dim must be >= 1; got {self.dim}"),
+            (1 <= self.trials <= 1_000_000, f"trials must be 1 … 1,000,000; got {self.trials}"),
+            (2 <= self.n <= 10_000_000, f"n must be 2 … 10,000,000; got {self.n}"),
+            (1 <= self.dim <= 64, f"dim must be 1 … 64; got {self.dim}"),
             (
                 0 < self.rho_optimism[0] <= self.rho_optimism[1] < 1,
                 f"the optimism ρ range must lie in (0, 1); got {self.rho_optimism}",
@@ -378,6 +378,10 @@ def run_study(
     return summarise(scenarios, groups, config.diagnosis.variant)
 
 
+MAX_SWEEP_VALUES = 1000
+"""Most values one sweep may hold."""
+
+
 class SweepParameter(str, enum.Enum):
     RHO = "rho"
     BIAS = "bias"
@@ -408,13 +412,24 @@ class Sweep:
         try:
             if ":" in spec:
                 start, stop, count = spec.split(":")
-                values = tuple(np.linspace(float(start), float(stop), int(count)).tolist())
+                count = int(count)
+                if not 1 <= count <= MAX_SWEEP_VALUES:
+                    raise CredcliError(
+                        f"--sweep '{text}': the count must be 1 … {MAX_SWEEP_VALUES}; got {count}"
+                    )
+                values = tuple(np.linspace(float(start), float(stop), count).tolist())
             else:
                 values = tuple(float(v) for v in spec.split(",") if v.strip())
         except ValueError as exc:
-            raise CredcliError(f"--sweep '{text}': {exc}") from exc
+            raise CredcliError(
+                f"--sweep '{text}': expected NAME=start:stop:count or NAME=v1,v2,… with numbers"
+            ) from exc
         if not values:
             raise CredcliError(f"--sweep '{text}': no values")
+        if len(values) > MAX_SWEEP_VALUES:
+            raise CredcliError(f"--sweep '{text}': at most {MAX_SWEEP_VALUES} values")
+        if not all(math.isfinite(v) for v in values):
+            raise CredcliError(f"--sweep '{text}': every value must be a finite number")
         if param in (SweepParameter.N, SweepParameter.DIM, SweepParameter.B):
             if any(v != int(v) or v < 1 for v in values):
                 raise CredcliError(f"--sweep {param.value}: values must be positive integers")

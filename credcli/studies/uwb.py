@@ -120,6 +120,13 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     if np.any(std <= 0):
         row = int(np.argmax(std <= 0)) + 1
         raise CredcliError(f"{source}: row {row}, column 'std': a reported std must be > 0")
+    for name in ("from_id", "to_id"):
+        fractional = col[name] != np.round(col[name])
+        if fractional.any():
+            row = int(np.argmax(fractional)) + 1
+            raise CredcliError(
+                f"{source}: row {row}, column '{name}': {col[name][row - 1]:g} is not an integer id"
+            )
     order = np.argsort(col["time_s"], kind="stable")
     tag_pos = np.c_[col["tag_pos_x"], col["tag_pos_y"], col["tag_pos_z"]]
     rig_pos = np.c_[col["x"], col["y"], col["z"]] if rig_cols else tag_pos

@@ -1,0 +1,64 @@
+"""Type checks of values read from files (TOML configs, baseline JSON) against the
+dataclass fields they will fill, with messages that name the key and the expected type."""
+
+from __future__ import annotations
+
+import enum
+import types
+import typing
+
+from credcli.errors import CredcliError
+
+
+def _describe(hint) -> str:
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_describe(h) for h in typing.get_args(hint) if h is not type(None))
+    if origin is tuple:
+        args = typing.get_args(hint)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a list of {'strings' if args[0] is str else 'numbers'}"
+        return f"a list of {len(args)} numbers (or 'lo:hi')"
+    if isinstance(hint, type) and issubclass(hint, enum.Enum):
+        return "one of " + ", ".join(repr(m.value) for m in hint)
+    return {int: "an integer", float: "a number", str: "a string", bool: "true or false"}.get(
+        hint, getattr(hint, "__name__", str(hint))
+    )
+
+
+def _type_ok(value, hint) -> bool:
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        return any(_type_ok(value, h) for h in typing.get_args(hint))
+    if hint is type(None):
+        return value is None
+    if origin is tuple:
+        args = typing.get_args(hint)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return isinstance(value, (list, tuple)) and all(_type_ok(v, args[0]) for v in value)
+        return isinstance(value, str) or (
+            isinstance(value, (list, tuple))
+            and len(value) == len(args)
+            and all(_type_ok(v, a) for a, v in zip(args, value))
+        )
+    if isinstance(hint, type) and issubclass(hint, enum.Enum):
+        return isinstance(value, str) and value in {m.value for m in hint}
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if hint is str:
+        return isinstance(value, str)
+    return True
+
+
+def check_types(section: dict, hints: dict, where: str) -> None:
+    """Each config value against its field's type, naming the key and the expected type."""
+    for key, value in section.items():
+        hint = hints.get(key)
+        if hint is not None and not _type_ok(value, hint):
+            raise CredcliError(
+                f"{where}: {key} must be {_describe(hint)}; got {type(value).__name__} {value!r}"
+            )

@@ -1,0 +1,564 @@
+"""The hardened edge: exit codes, messages, files that are never lost, parameters that would
+make a test powerless. Every case of the issue has a test; Hypothesis looks for the rest."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import stat
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from credcli.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+LOG = ROOT / "sample_data" / "estimator_log.csv"
+UWB = ROOT / "sample_data" / "starloc_grid_uwb.csv"
+
+
+def run(*args) -> tuple[int, str, str]:
+    """credcli in-process: (exit code, stdout, stderr)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in args])
+    return code, out.getvalue(), err.getvalue()
+
+
+def error_line(code: int, err: str, expected_code: int = 2) -> str:
+    """The run failed with ``expected_code`` and one line on stderr, without a traceback."""
+    assert code == expected_code, err
+    assert "Traceback" not in err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+@pytest.fixture
+def frame() -> pd.DataFrame:
+    return pd.read_csv(LOG)
+
+
+# --- exit codes ---------------------------------------------------------------------------
+
+
+def test_internal_error_is_exit_3_with_one_line_and_debug_shows_the_traceback(monkeypatch):
+    import credcli.workflows as wf
+
+    def broken(*a, **k):
+        raise ZeroDivisionError("planted")
+
+    monkeypatch.setattr(wf, "run_diagnose", broken)
+    code, _, err = run("diagnose", LOG)
+    line = error_line(code, err, 3)
+    assert line == (
+        "credcli: internal error: ZeroDivisionError: planted; run with --debug for the traceback"
+    )
+    code, _, err = run("--debug", "diagnose", LOG)
+    assert code == 3 and "Traceback" in err and "ZeroDivisionError: planted" in err
+
+
+def test_interrupt_is_130_and_leaves_no_temporary_file(tmp_path, monkeypatch):
+    import credcli.io.files as files
+
+    real = os.replace
+
+    def interrupted(src, dst):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(files.os, "replace", interrupted)
+    code, _, err = run("diagnose", LOG, "-o", tmp_path / "out.json", "-f", "json")
+    assert code == 130 and err.strip().endswith("credcli: interrupted")
+    monkeypatch.setattr(files.os, "replace", real)
+    assert list(tmp_path.iterdir()) == []
+
+
+# --- files that must never be lost ---------------------------------------------------------
+
+
+def test_device_nodes_are_written_directly_not_replaced():
+    before = os.stat("/dev/null")
+    code, _, err = run("diagnose", LOG, "-o", "/dev/null")
+    after = os.stat("/dev/null")
+    assert code == 0, err
+    assert stat.S_ISCHR(after.st_mode) and after.st_rdev == before.st_rdev
+
+
+def test_fifo_output_is_written_directly(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    import threading
+
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_text()))
+    reader.start()
+    code, _, err = run("diagnose", LOG, "-o", fifo, "-f", "csv")
+    reader.join(10)
+    assert code == 0, err
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode) and got[0].startswith("log,segment,")
+
+
+@pytest.mark.parametrize("option", ["-o", "--junit", "--summary"])
+def test_a_directory_as_output_is_refused(tmp_path, option):
+    extra = ["--fail-on", "smm"] if option != "-o" else []
+    line = error_line(*run("diagnose", LOG, option, tmp_path, *extra)[::2])
+    assert "is a directory" in line
+
+
+def test_report_to_a_directory_is_refused(tmp_path):
+    assert "is a directory" in error_line(*run("report", LOG, "-o", tmp_path)[::2])
+
+
+def test_unwritable_place_is_exit_2():
+    line = error_line(*run("diagnose", LOG, "-o", "/proc/credcli-test.json")[::2])
+    assert "cannot" in line
+
+
+def test_a_full_device_is_exit_2():
+    assert "No space left" in error_line(*run("diagnose", LOG, "-o", "/dev/full")[::2])
+
+
+def test_no_output_may_be_an_input(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text("[diagnosis]\ntau = 0.5\n")
+    before = config.read_bytes()
+    line = error_line(*run("diagnose", LOG, "-o", config, "--config", config)[::2])
+    assert "is also an input" in line and config.read_bytes() == before
+    base = tmp_path / "b.json"
+    assert run("baseline", LOG, "-o", base)[0] == 0
+    kept = base.read_bytes()
+    code, _, err = run("gate", LOG, "--baseline", base, "-o", base)
+    assert "is also an input" in error_line(code, err) and base.read_bytes() == kept
+    line = error_line(*run("diagnose", LOG, "--junit", LOG, "--fail-on", "smm")[::2])
+    assert "is also an input" in line
+
+
+def test_uwb_markers_file_is_an_input(tmp_path):
+    from credcli.studies.samples import STARLOC_ANCHORS
+
+    markers = tmp_path / "markers.csv"
+    pd.DataFrame(
+        [{"id": i, "x": p[0], "y": p[1], "z": p[2]} for i, p in STARLOC_ANCHORS.items()]
+    ).to_csv(markers, index=False)
+    before = markers.read_bytes()
+    line = error_line(*run("uwb", UWB, "--anchors", markers, "--export-log", markers)[::2])
+    assert "is also an input" in line and markers.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("diagnose", LOG, "-o", "X", "--junit", "X", "--fail-on", "smm"),
+        ("diagnose", LOG, "-o", "X", "--summary", "./X", "--fail-on", "smm"),
+        ("uwb", UWB, "-o", "X", "--export-log", "X"),
+        ("uwb", UWB, "--report", "X", "--export-log", "X"),
+    ],
+)
+def test_two_outputs_may_not_share_a_path(tmp_path, monkeypatch, args):
+    monkeypatch.chdir(tmp_path)
+    assert "are the same file" in error_line(*run(*args)[::2])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_plot_names_are_unique_and_short(tmp_path, frame):
+    frame["segment"] = np.where(np.arange(len(frame)) < 900, "a b", "a/b")
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False)
+    assert run("diagnose", path, "--plots", tmp_path / "figs")[0] == 0
+    names = sorted(p.name for p in (tmp_path / "figs").iterdir())
+    assert len(names) == 6 and len({n.split("_", 1)[0] for n in names}) == 1
+    assert len({n.rsplit("_", 1)[0] for n in names}) == 2  # two stems, not one overwritten
+    frame["segment"] = "x" * 300
+    frame.to_csv(path, index=False)
+    assert run("diagnose", path, "--plots", tmp_path / "long")[0] == 0
+    assert all(len(p.name) < 120 for p in (tmp_path / "long").iterdir())
+
+
+# --- bad input: exit 2, one line -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("where", ["first", "all"])
+@pytest.mark.parametrize("fmt", ["csv", "parquet-category", "parquet-string"])
+def test_missing_segment_names_are_an_error(tmp_path, frame, where, fmt):
+    rows = slice(None) if where == "all" else 5
+    if fmt == "parquet-category":
+        frame["segment"] = frame["segment"].astype("category")
+    elif fmt == "parquet-string":
+        frame["segment"] = frame["segment"].astype("string")
+    frame.loc[rows, "segment"] = None
+    path = tmp_path / ("log.csv" if fmt == "csv" else "log.parquet")
+    frame.to_csv(path, index=False) if fmt == "csv" else frame.to_parquet(path)
+    line = error_line(*run("diagnose", path)[::2])
+    assert "segment column 'segment' is empty or NA" in line
+    assert ("first in row 1" if where == "all" else "first in row 6") in line
+
+
+def test_duplicate_columns_are_an_error(tmp_path, frame):
+    frame.insert(5, "dup", frame["est_0"])
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False, header=[c if c != "dup" else "est_0" for c in frame.columns])
+    assert "est_0 appear more than once" in error_line(*run("diagnose", path)[::2])
+
+
+def test_negative_std_is_an_error(tmp_path, frame):
+    frame = frame.drop(columns=["cov_0_0", "cov_0_1", "cov_1_1"])
+    frame["std_0"], frame["std_1"] = 1.0, 1.0
+    frame.loc[7, "std_1"] = -1.0
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False)
+    assert "row 8: a standard deviation" in error_line(*run("diagnose", path)[::2])
+
+
+def test_fractional_uwb_id_is_an_error(tmp_path):
+    frame = pd.read_csv(UWB)
+    frame["to_id"] = frame["to_id"].astype(float)
+    frame.loc[3, "to_id"] = 4.5
+    path = tmp_path / "uwb.csv"
+    frame.to_csv(path, index=False)
+    assert "row 4, column 'to_id': 4.5 is not an integer id" in error_line(*run("uwb", path)[::2])
+
+
+@pytest.mark.parametrize("exponent", [-40, -120, -250])
+def test_tiny_covariances_are_extreme_optimism_not_a_crash(tmp_path, frame, exponent):
+    for col in ("cov_0_0", "cov_0_1", "cov_1_1"):
+        frame[col] *= 10.0**exponent
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False)
+    for variant in ("calibrated", "ks"):
+        code, out, err = run(
+            "diagnose", path, "-f", "json", "--variant", variant, "--metrics", "all"
+        )
+        assert code == 0, err
+        labels = [s["label"] for s in json.loads(out)["segments"]]
+        if variant == "calibrated":  # ks's probes send optimism+smm to smm (issue 9)
+            assert all(lab.startswith("optimism") for lab in labels), labels
+
+
+@pytest.mark.parametrize("exponent", [-30, 30])
+def test_labels_do_not_change_when_errors_and_covariance_scale_together(tmp_path, frame, exponent):
+    ref = json.loads(run("diagnose", LOG, "-f", "json", "--variant", "ks", "--metrics", "all")[1])
+    k = 10.0**exponent
+    for col in ("truth_0", "truth_1", "est_0", "est_1"):
+        frame[col] *= k
+    for col in ("cov_0_0", "cov_0_1", "cov_1_1"):
+        frame[col] *= k * k
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False)
+    for variant in ("calibrated", "ks"):
+        ref = json.loads(run("diagnose", LOG, "-f", "json", "--variant", variant)[1])["segments"]
+        got = json.loads(run("diagnose", path, "-f", "json", "--variant", variant)[1])["segments"]
+        assert [s["label"] for s in got] == [s["label"] for s in ref]
+        assert [s["elt_pvalue"] for s in got] == [s["elt_pvalue"] for s in ref]
+        for a, b in zip(got, ref):
+            assert a["scale_factor"] == pytest.approx(b["scale_factor"], rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "toml, words",
+    [
+        ("[columns]\ntruth_columns = 5\n", "truth_columns must be a list of strings; got int 5"),
+        ('[columns]\ntruth_columns = "truth_0"\n', "truth_columns must be a list of strings"),
+        ("diagnosis = 5\n", "'diagnosis' must be a table"),
+        ("[diagnosis]\nflips = 2.5\n", "n_flips must be an integer; got float 2.5"),
+        ('[diagnosis]\nvariant = "best"\n', "variant must be one of 'calibrated', 'paper', 'ks'"),
+        ('[segments]\nwhole = "yes"\n', "whole must be true or false"),
+    ],
+)
+def test_config_type_errors_name_the_key_and_type(tmp_path, toml, words):
+    config = tmp_path / "c.toml"
+    config.write_text(toml)
+    assert words in error_line(*run("diagnose", LOG, "--config", config)[::2])
+
+
+@pytest.mark.parametrize(
+    "toml, words",
+    [
+        ("[simulate]\ntrials = 2.5\n", "trials must be an integer; got float 2.5"),
+        ("[simulate]\ndim = 2.0\n", "dim must be an integer; got float 2.0"),
+    ],
+)
+def test_simulate_config_type_errors(tmp_path, toml, words):
+    config = tmp_path / "c.toml"
+    config.write_text(toml)
+    assert words in error_line(*run("simulate", "--config", config)[::2])
+
+
+def test_non_utf8_config(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_bytes(b"\xff\xfe[columns]\n")
+    assert "not UTF-8" in error_line(*run("diagnose", LOG, "--config", config)[::2])
+
+
+def test_config_keys_are_the_flag_names(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text("[diagnosis]\ntau = 0.7\nflips = 200\n")
+    doc = json.loads(run("diagnose", LOG, "--config", config, "-f", "json")[1])
+    assert doc["parameters"]["tau_nci"] == 0.7 and doc["parameters"]["n_flips"] == 200
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (lambda d: d["segments"][0].pop("label"), "segment 'cruise': no label"),
+        (lambda d: d["segments"][0].update(label="great"), "label 'great'"),
+        (lambda d: d["segments"][0].update(nci="0.5"), "'nci' must be a number or null"),
+        (lambda d: d["segments"][1].update(anees="x"), "'anees' must be a number or null"),
+        (lambda d: d["parameters"].update(n_flips=10**9), "n_flips 1000000000 would need"),
+        (lambda d: d.update(segments=5), "'segments' a list"),
+    ],
+)
+def test_hand_edited_baselines(tmp_path, edit, words):
+    base = tmp_path / "b.json"
+    assert run("baseline", LOG, "-o", base)[0] == 0
+    doc = json.loads(base.read_text())
+    edit(doc)
+    base.write_text(json.dumps(doc))
+    line = error_line(*run("gate", LOG, "--baseline", base)[::2])
+    assert words in line and str(base) in line
+
+
+def test_baseline_that_is_a_directory(tmp_path):
+    assert "is a directory" in error_line(*run("gate", LOG, "--baseline", tmp_path)[::2])
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (("--flips", "1000000000"), "would need 7.45 GiB"),
+        (("-B", "38"), "B >= 39"),  # α_L = 0.0253: 1/(B + 1) < α_L needs B >= 39
+        (("-B", "18", "--variant", "ks"), "B >= 19"),
+        (("--max-elt-epochs", "99"), "max_elt_epochs must be >= 100"),
+        (("--tau", "inf"), "tau_nci (dB) must be finite"),
+        (("-c", "inf"), "c (probe factor) must be finite"),
+        (("--block-length", "0"), "--block-length"),
+    ],
+)
+def test_parameters_that_make_a_test_powerless_are_refused(args, words):
+    assert words in error_line(*run("diagnose", LOG, *args)[::2])
+
+
+def test_smallest_b_is_accepted():
+    assert run("diagnose", LOG, "-B", "39")[0] == 0
+
+
+@pytest.mark.parametrize(
+    "sweep", ["rho=nan", "rho=inf", "bias=inf", "rho=0.1:10:100000000", "n=1e30", "ar=1"]
+)
+def test_bad_sweeps(sweep):
+    error_line(*run("simulate", "--sweep", sweep, "--trials", "2")[::2])
+
+
+# --- property-based: no input, however strange, gives a traceback or loses a file ----------
+
+_HEADER = st.sampled_from(
+    [
+        "truth_0",
+        "truth_1",
+        "est_0",
+        "est_1",
+        "cov_0_0",
+        "cov_0_1",
+        "cov_1_1",
+        "var_0",
+        "std_0",
+        "time",
+        "segment",
+        "x",
+        "est_0",
+    ]
+)
+_CELL = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True, width=64),
+    st.sampled_from(["", "NA", "nan", "inf", "-inf", "1e308", "-1e-320", "abc", " ", "1,5"]),
+    st.integers(-(10**20), 10**20),
+)
+
+
+def _assert_clean(code: int, err: str, files: dict[Path, bytes]) -> None:
+    assert code in (0, 1, 2), err
+    assert "Traceback" not in err and "internal error" not in err, err
+    for path, content in files.items():
+        assert path.read_bytes() == content, path
+
+
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    header=st.lists(_HEADER, min_size=1, max_size=9),
+    rows=st.lists(st.lists(_CELL, min_size=0, max_size=10), min_size=0, max_size=14),
+    sep=st.sampled_from([",", ";", "\t"]),
+)
+def test_random_csv_logs_never_crash(tmp_path, header, rows, sep):
+    path = tmp_path / "log.csv"
+    lines = [sep.join(header)] + [sep.join(str(c) for c in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    before = path.read_bytes()
+    code, _, err = run("diagnose", path, "-f", "json", "-B", "99")
+    _assert_clean(code, err, {path: before})
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    n=st.integers(0, 40),
+    d=st.integers(1, 3),
+    scale=st.sampled_from([1e-300, 1e-150, 1e-30, 1.0, 1e30, 1e150]),
+    bias=st.floats(-1e3, 1e3),
+    dtype=st.sampled_from(["float64", "float32", "int64"]),
+    parquet=st.booleans(),
+    seed=st.integers(0, 2**16),
+)
+def test_random_numeric_logs_never_crash(tmp_path, n, d, scale, bias, dtype, parquet, seed):
+    rng = np.random.default_rng(seed)
+    cols = {f"truth_{i}": rng.standard_normal(n) * scale + bias for i in range(d)}
+    cols |= {f"est_{i}": np.zeros(n) for i in range(d)}
+    cols |= {f"var_{i}": np.abs(rng.standard_normal(n)) * scale**2 for i in range(d)}
+    with np.errstate(over="ignore", invalid="ignore"):  # float32/int64 casts of huge values
+        frame = pd.DataFrame(cols).astype(dtype, errors="ignore")
+    path = tmp_path / ("log.parquet" if parquet else "log.csv")
+    frame.to_parquet(path) if parquet else frame.to_csv(path, index=False)
+    before = path.read_bytes()
+    code, _, err = run("diagnose", path, "-f", "csv", "-B", "99", "--metrics", "all")
+    _assert_clean(code, err, {path: before})
+
+
+@settings(
+    max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(data=st.binary(max_size=400), suffix=st.sampled_from([".csv", ".parquet", ".toml"]))
+def test_random_bytes_never_crash(tmp_path, data, suffix):
+    path = tmp_path / f"in{suffix}"
+    path.write_bytes(data)
+    before = path.read_bytes()
+    if suffix == ".toml":
+        code, _, err = run("diagnose", LOG, "--config", path, "-B", "99")
+    else:
+        code, _, err = run("diagnose", path)
+    _assert_clean(code, err, {path: before})
+
+
+_TOML_VALUE = st.one_of(
+    st.integers(-5, 10**12),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.booleans(),
+    st.sampled_from(['"auto"', '"ks"', '"x"', '"truth_0"', "[]", '["a", "b"]', "[1, 2]", '"1s"']),
+)
+_TOML_KEY = st.sampled_from(
+    [
+        "tau",
+        "tau_nci",
+        "alpha",
+        "flips",
+        "n_flips",
+        "c",
+        "block_length",
+        "variant",
+        "metrics",
+        "min_epochs",
+        "max_elt_epochs",
+        "seed",
+        "truth_columns",
+        "window",
+        "whole",
+        "time",
+        "bogus",
+    ]
+)
+
+
+def _toml_literal(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return (
+            "nan"
+            if value != value
+            else ("inf" if value > 0 else "-inf")
+            if abs(value) == float("inf")
+            else repr(value)
+        )
+    return str(value)
+
+
+@settings(
+    max_examples=50, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    table=st.sampled_from(["diagnosis", "columns", "segments", "simulate", "other"]),
+    items=st.dictionaries(_TOML_KEY, _TOML_VALUE, max_size=4),
+)
+def test_random_configs_never_crash(tmp_path, table, items):
+    config = tmp_path / "c.toml"
+    body = "".join(f"{k} = {_toml_literal(v)}\n" for k, v in items.items())
+    config.write_text(f"[{table}]\n{body}")
+    before = config.read_bytes()
+    code, _, err = run("diagnose", LOG, "--config", config, "-f", "json")
+    _assert_clean(code, err, {config: before})
+
+
+_JSON = st.recursive(
+    st.one_of(
+        st.none(), st.booleans(), st.integers(-(10**12), 10**12), st.floats(), st.text(max_size=8)
+    ),
+    lambda children: st.one_of(
+        st.lists(children, max_size=3), st.dictionaries(st.text(max_size=6), children, max_size=3)
+    ),
+    max_leaves=8,
+)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory) -> dict:
+    path = tmp_path_factory.mktemp("base") / "b.json"
+    assert run("baseline", LOG, "-o", path, "-B", "99")[0] == 0
+    return json.loads(path.read_text())
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    where=st.sampled_from(["parameters", "segment", "top"]),
+    key=st.sampled_from(
+        [
+            "label",
+            "nci",
+            "anees",
+            "elt_pvalue",
+            "segment",
+            "n_flips",
+            "alpha",
+            "variant",
+            "block_length",
+            "seed",
+            "window",
+            "columns",
+            "kind",
+            "x",
+        ]
+    ),
+    value=_JSON,
+)
+def test_random_baseline_edits_never_crash(tmp_path, recorded, where, key, value):
+    doc = json.loads(json.dumps(recorded))
+    target = (
+        doc["parameters"]
+        if where == "parameters"
+        else doc["segments"][0]
+        if where == "segment"
+        else doc
+    )
+    target[key] = value
+    base = tmp_path / "b.json"
+    base.write_text(json.dumps(doc))
+    before = base.read_bytes()
+    code, _, err = run("gate", LOG, "--baseline", base, "-f", "json")
+    _assert_clean(code, err, {base: before, LOG: LOG.read_bytes()})

@@ -1,73 +1,72 @@
 """credcli: can you trust the covariance your estimator reports, and if not, why not?
 
-The method is Yan, Hsu and Sun, "Credible Uncertainty Quantification under Noise and
-System Model Mismatch": NEES/NCI, Gaussian NLL and energy score, an energy-distance
-location test and directional probes (Algorithm 1).
+The method starts from Yan, Hsu and Sun, "Credible Uncertainty Quantification under Noise
+and System Model Mismatch": NEES/NCI, Gaussian NLL and energy score, an energy-distance
+location test and directional probes (Algorithm 1), and adds a calibrated, dependence-aware
+decision rule (the default).
+
+The Python API, in one path (see the README's "Python API")::
+
+    log = credcli.read_log("log.csv")
+    results = credcli.diagnose_log(log)          # or segments="5s", "whole", [...]
+    results.to_frame(); results.to_dict()
+    credcli.diagnose(errors, cov)                # arrays
+
+Names are imported on first use, so ``import credcli`` (and ``credcli --help``) stays fast.
 """
 
-from credcli.engine.diagnosis import (
-    Diagnosis,
-    DiagnosisConfig,
-    Label,
-    MetricsLevel,
-    SegmentDiagnosis,
-    SrdForm,
-    Variant,
-    diagnose,
-    diagnose_errors,
-    diagnose_log,
-    diagnose_variants,
-    nci_baseline,
-    nees_baseline,
-)
-from credcli.engine.elt import ELTResult, location_test
-from credcli.engine.metrics import (
-    anees,
-    energy_score,
-    expected_norm,
-    gaussian_nll,
-    mse_matrix,
-    nci,
-    nees,
-    probes,
-    srd,
-)
-from credcli.engine.scale import ScaleTest
-from credcli.errors import CredcliError
-from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log
+from __future__ import annotations
+
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "CovKind",
-    "CredcliError",
-    "Diagnosis",
-    "DiagnosisConfig",
-    "ELTResult",
-    "EstimatorLog",
-    "Label",
-    "LogSchema",
-    "MetricsLevel",
-    "ScaleTest",
-    "SegmentDiagnosis",
-    "SrdForm",
-    "Variant",
-    "__version__",
-    "anees",
-    "diagnose",
-    "diagnose_errors",
-    "diagnose_log",
-    "diagnose_variants",
-    "energy_score",
-    "expected_norm",
-    "gaussian_nll",
-    "load_log",
-    "location_test",
-    "mse_matrix",
-    "nci",
-    "nci_baseline",
-    "nees",
-    "nees_baseline",
-    "probes",
-    "srd",
-]
+_EXPORTS = {
+    "read_log": "credcli.api",
+    "diagnose_log": "credcli.api",
+    "diagnose": "credcli.api",
+    "Results": "credcli.api",
+    "Diagnosis": "credcli.engine.diagnosis",
+    "DiagnosisConfig": "credcli.engine.diagnosis",
+    "Label": "credcli.engine.diagnosis",
+    "MetricsLevel": "credcli.engine.diagnosis",
+    "SegmentDiagnosis": "credcli.engine.diagnosis",
+    "SrdForm": "credcli.engine.diagnosis",
+    "Variant": "credcli.engine.diagnosis",
+    "diagnose_errors": "credcli.engine.diagnosis",
+    "diagnose_variants": "credcli.engine.diagnosis",
+    "nci_baseline": "credcli.engine.diagnosis",
+    "nees_baseline": "credcli.engine.diagnosis",
+    "ELTResult": "credcli.engine.elt",
+    "location_test": "credcli.engine.elt",
+    "ScaleTest": "credcli.engine.scale",
+    "anees": "credcli.engine.metrics",
+    "energy_score": "credcli.engine.metrics",
+    "expected_norm": "credcli.engine.metrics",
+    "gaussian_nll": "credcli.engine.metrics",
+    "mse_matrix": "credcli.engine.metrics",
+    "nci": "credcli.engine.metrics",
+    "nees": "credcli.engine.metrics",
+    "probes": "credcli.engine.metrics",
+    "srd": "credcli.engine.metrics",
+    "CredcliError": "credcli.errors",
+    "CovKind": "credcli.io.logs",
+    "EstimatorLog": "credcli.io.logs",
+    "LogSchema": "credcli.io.logs",
+    "load_log": "credcli.io.logs",
+}
+
+__all__ = sorted([*_EXPORTS, "__version__"])
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'credcli' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

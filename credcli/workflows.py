@@ -246,8 +246,11 @@ def run_baseline(path: Path, **setup) -> Report:
     return report
 
 
-def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progress=None):
-    """Diagnose ``path`` with the baseline's parameters and compare segment by segment."""
+def run_gate(
+    path: Path, baseline_path: Path, thresholds, requested: dict, progress=None, plots=False
+):
+    """Diagnose ``path`` with the baseline's parameters and compare segment by segment;
+    returns (report, comparisons, passed, verdict, figures)."""
     import dataclasses
     import json
     import typing
@@ -299,8 +302,9 @@ def run_gate(path: Path, baseline_path: Path, thresholds, requested: dict, progr
         raise CredcliError(
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
-    current = run_diagnose([path], schema, config, progress=progress, **setup).report.document
+    run = run_diagnose([path], schema, config, progress=progress, plots=plots, **setup)
+    current = run.report.document
     comparisons = compare(baseline, current, thresholds, config.location_level)
     passed, verdict = verdict_line(comparisons, thresholds)
     report = gate_report(comparisons, current["parameters"], str(baseline_path), passed, verdict)
-    return report, comparisons, passed, verdict
+    return report, comparisons, passed, verdict, run.plots

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 from conftest import SAMPLE
 
-from credcli import DiagnosisConfig, diagnose_log, load_log
+from credcli import DiagnosisConfig, load_log
 from credcli.cli import main
+from credcli.engine.diagnosis import diagnose_log
 from credcli.workflows import split
 
 LOG = SAMPLE / "estimator_log.csv"

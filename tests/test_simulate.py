@@ -128,7 +128,15 @@ def test_json_structure_and_seed(capsys):
 def test_scenario_alias_on_the_command_line(capsys):
     code, out, _ = _run(capsys, "simulate", "--scenario", "pess+smm", "--trials", "5", "-f", "csv")
     assert code == 0
-    assert "# Table II: diagnosis accuracy" in out and "pessimism+smm,100.0" in out
+    import csv
+    import io
+
+    rows = list(csv.DictReader(io.StringIO(out)))  # one valid CSV, a `table` column
+    table2 = [r for r in rows if r["table"] == "Table II: diagnosis accuracy"]
+    assert len(table2) == 1 and table2[0]["scenario"] == "pessimism+smm"
+    assert table2[0]["calibrated"] == "100.0"
+    table3 = [r for r in rows if r["table"].startswith("Table III")]
+    assert len(table3) == 1 and table3[0]["pessimism+smm"] == "5"
 
 
 def test_baselines_never_say_smm():

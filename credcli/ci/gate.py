@@ -5,7 +5,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from credcli.engine.diagnosis import Label
+from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
 from credcli.errors import CredcliError
 
 BASELINE_SCHEMA_VERSION = 1
@@ -27,14 +27,12 @@ def parse_fail_on(text: str) -> frozenset[str]:
         if item in (NONCREDIBLE, Label.INSUFFICIENT.value) or item in _CONDITIONS:
             out.add(item)
             continue
-        try:
-            label = Label(item)
-        except ValueError:
-            label = None
+        label = parse_label(item)
         if label is None or label is Label.CREDIBLE:
             raise CredcliError(
                 f"--fail-on: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
-                f"{Label.INSUFFICIENT.value}, {NONCREDIBLE} or a label such as optimism+smm"
+                f"{Label.INSUFFICIENT.value}, {NONCREDIBLE}, a label such as optimism+smm, or "
+                f"an alias ({', '.join(a for a in LABEL_ALIASES if a != 'cred')})"
             )
         out |= label.conditions
     if not out:
@@ -205,7 +203,8 @@ def check_baseline(doc: dict, source: str) -> None:
         if not isinstance(rec, dict) or not isinstance(rec.get("segment"), str):
             raise CredcliError(f"{where}: needs a 'segment' name (a string); record it again")
         where = f"{source}: segment '{rec['segment']}'"
-        if rec.get("label") not in labels:
+        label = rec.get("label")
+        if not isinstance(label, str) or label not in labels:
             got = "no label" if "label" not in rec else f"label {rec['label']!r}"
             raise CredcliError(f"{where}: {got}; a label is one of {', '.join(sorted(labels))}")
         for key in ("nci", "anees", "elt_pvalue"):

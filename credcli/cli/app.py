@@ -102,6 +102,19 @@ MetricsOpt = Annotated[
         help="needed: probes only where Algorithm 1 uses them; all: always [default: needed].",
     ),
 ]
+KsAlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--ks-alpha", help=f"Level of the KS check of the ks variant [default: {_D.ks_alpha}]."
+    ),
+]
+NeesAlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--nees-alpha",
+        help=f"Level of the NEES baseline's χ² test [default: {_D.nees_alpha}].",
+    ),
+]
 MinEpochsOpt = Annotated[
     int | None,
     typer.Option("--min-epochs", help=f"Smallest segment diagnosed [default: {_D.min_epochs}]."),
@@ -127,9 +140,24 @@ def _block_length(text: str | None) -> int | str | None:
     return value
 
 
-def _diagnosis_cli(tau, alpha, c, flips, block, variant, srd_form, metrics, min_epochs, max_elt):
+def _diagnosis_cli(
+    tau,
+    alpha,
+    c,
+    flips,
+    block,
+    variant,
+    srd_form,
+    metrics,
+    min_epochs,
+    max_elt,
+    ks_alpha=None,
+    nees_alpha=None,
+):
     block = _block_length(block)
     return {
+        "ks_alpha": ks_alpha,
+        "nees_alpha": nees_alpha,
         "tau_nci": tau,
         "alpha": alpha,
         "c": c,
@@ -159,7 +187,7 @@ def _emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
         if not console.is_terminal:
             console = Console(width=200)
         for table in report.tables:
-            console.print(rich_table(table))
+            console.print(rich_table(table, console.width))
         for note in report.notes:
             console.print(note, markup=False, highlight=False)
         return
@@ -301,12 +329,23 @@ def _setup_from(opts: dict) -> dict:
             opts["metrics"],
             opts["min_epochs"],
             opts["max_elt_epochs"],
+            opts["ks_alpha"],
+            opts["nees_alpha"],
         ),
         opts["seed"],
         opts["window"],
         opts["whole"],
         opts["drop_invalid"],
     )
+
+
+def _write_html(path: Path, title: str, run, sources, inputs) -> None:
+    from credcli.io.files import write_atomic
+    from credcli.report.html import build_html
+
+    html = build_html(title, run.report, run.plots, ", ".join(map(str, sources)))
+    write_atomic(path, html, inputs)
+    _stderr().print(f"wrote {path} ({len(run.plots)} figures)", highlight=False)
 
 
 def _guard(outputs: dict, inputs, plots: Path | None = None) -> None:
@@ -327,11 +366,12 @@ def _check_plotting(*wanted) -> None:
 
 
 def _write_plots(run, directory: Path | None) -> None:
+    """Write the figures of a Run (or a list of figures) into ``directory``, if given."""
     if directory is None:
         return
     from credcli.report.plots import write_plots
 
-    paths = write_plots(run.plots, directory)
+    paths = write_plots(run if isinstance(run, list) else run.plots, directory)
     _stderr().print(f"wrote {len(paths)} figure(s) to {directory}", highlight=False)
 
 
@@ -371,6 +411,8 @@ def diagnose(
     metrics: MetricsOpt = None,
     min_epochs: MinEpochsOpt = None,
     max_elt_epochs: MaxEltOpt = None,
+    ks_alpha: KsAlphaOpt = None,
+    nees_alpha: NeesAlphaOpt = None,
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
@@ -384,8 +426,11 @@ def diagnose(
     junit: JunitOpt = None,
     summary: SummaryOpt = None,
     plots: PlotsOpt = None,
+    report_file: Annotated[
+        Path | None, typer.Option("--report", help="Also write a self-contained HTML report.")
+    ] = None,
 ) -> int:
-    """Diagnose each segment of one or more estimator logs (Algorithm 1)."""
+    """Diagnose each segment of one or more estimator logs (calibrated rule by default)."""
     from credcli.ci.gate import fail_on_verdict, parse_fail_on
     from credcli.workflows import run_diagnose
 
@@ -395,13 +440,21 @@ def diagnose(
             "--junit and --summary report a verdict: give --fail-on too (e.g. --fail-on noncredible)"
         )
     inputs = [*logs, config]
-    _guard({"--output": output, "--junit": junit, "--summary": summary}, inputs, plots)
+    outputs = {"--output": output, "--junit": junit, "--summary": summary, "--report": report_file}
+    _guard(outputs, inputs, plots)
+    _check_plotting(plots, report_file)
     setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
-        run = run_diagnose(logs, progress=bar, plots=plots is not None, **setup)
+        run = run_diagnose(
+            logs, progress=bar, plots=plots is not None or report_file is not None, **setup
+        )
     report = run.report
     _emit(report, fmt, output, inputs=inputs)
     _write_plots(run, plots)
+    if report_file is not None:
+        _write_html(
+            report_file, "credcli diagnose: " + ", ".join(p.name for p in logs), run, logs, inputs
+        )
     if conditions is None:
         return 0
     from credcli.ci.reports import fail_on_cases, summary_markdown
@@ -443,6 +496,8 @@ def baseline(
     metrics: MetricsOpt = None,
     min_epochs: MinEpochsOpt = None,
     max_elt_epochs: MaxEltOpt = None,
+    ks_alpha: KsAlphaOpt = None,
+    nees_alpha: NeesAlphaOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
@@ -487,6 +542,8 @@ def gate(
     summary: SummaryOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
+    config: ConfigOpt = None,
+    plots: PlotsOpt = None,
     window: WindowOpt = None,
     whole: WholeOpt = None,
     tau: TauOpt = None,
@@ -499,17 +556,21 @@ def gate(
     metrics: MetricsOpt = None,
     min_epochs: MinEpochsOpt = None,
     max_elt_epochs: MaxEltOpt = None,
+    ks_alpha: KsAlphaOpt = None,
+    nees_alpha: NeesAlphaOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
     from credcli.ci.gate import Thresholds
     from credcli.ci.reports import gate_cases, summary_markdown
+    from credcli.cli.settings import gate_requests, load_config
     from credcli.workflows import run_gate
 
     thresholds = Thresholds(max_nci_increase, max_anees_ratio, allow_new_segments)
-    inputs = [log, baseline_file]
-    _guard({"--output": output, "--junit": junit, "--summary": summary}, inputs)
-    requested = {
+    inputs = [log, baseline_file, config]
+    _guard({"--output": output, "--junit": junit, "--summary": summary}, inputs, plots)
+    _check_plotting(plots)
+    cli = {
         k: (v.value if hasattr(v, "value") else v)
         for k, v in _diagnosis_cli(
             tau,
@@ -522,14 +583,18 @@ def gate(
             metrics,
             min_epochs,
             max_elt_epochs,
+            ks_alpha,
+            nees_alpha,
         ).items()
     }
-    requested |= {"seed": seed, "window": window, "whole": whole}
+    cli |= {"seed": seed, "window": window, "whole": whole}
+    requested = gate_requests(load_config(config), cli)
     with _Progress("diagnosing segments") as bar:
-        report, comparisons, passed, verdict = run_gate(
-            log, baseline_file, thresholds, requested, bar
+        report, comparisons, passed, verdict, figures = run_gate(
+            log, baseline_file, thresholds, requested, bar, plots=plots is not None
         )
     _emit(report, fmt, output, inputs=inputs)
+    _write_plots(figures, plots)
     _write_ci_reports(
         junit,
         summary,
@@ -620,6 +685,8 @@ def simulate(
     block_length: BlockOpt = None,
     variant: VariantOpt = None,
     srd_form: SrdOpt = None,
+    ks_alpha: KsAlphaOpt = None,
+    nees_alpha: NeesAlphaOpt = None,
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
@@ -652,7 +719,18 @@ def simulate(
             "noise": noise,
         },
         _diagnosis_cli(
-            tau, alpha, probe_factor, flips, block_length, variant, srd_form, None, None, None
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            None,
+            None,
+            None,
+            ks_alpha,
+            nees_alpha,
         ),
     )
     start = time.perf_counter()
@@ -721,6 +799,8 @@ def uwb(
     variant: VariantOpt = None,
     srd_form: SrdOpt = None,
     metrics: MetricsOpt = None,
+    ks_alpha: KsAlphaOpt = None,
+    nees_alpha: NeesAlphaOpt = None,
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
@@ -737,7 +817,18 @@ def uwb(
     dconf, seed = build_diagnosis_config(
         cfg,
         _diagnosis_cli(
-            tau, alpha, probe_factor, flips, block_length, variant, srd_form, metrics, None, None
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            None,
+            None,
+            ks_alpha,
+            nees_alpha,
         ),
         seed,
     )
@@ -804,11 +895,11 @@ def report(
     metrics: MetricsOpt = None,
     min_epochs: MinEpochsOpt = None,
     max_elt_epochs: MaxEltOpt = None,
+    ks_alpha: KsAlphaOpt = None,
+    nees_alpha: NeesAlphaOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose logs and write one self-contained HTML report (table, parameters, figures)."""
-    from credcli.io.files import write_atomic
-    from credcli.report.html import build_html
     from credcli.workflows import run_diagnose
 
     _check_plotting(output)
@@ -817,11 +908,7 @@ def report(
     setup = _setup_from(locals())
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=True, **setup)
-    title = "credcli report: " + ", ".join(p.name for p in logs)
-    write_atomic(
-        output, build_html(title, run.report, run.plots, ", ".join(map(str, logs))), inputs
-    )
-    _stderr().print(f"wrote {output} ({len(run.plots)} figures)", highlight=False)
+    _write_html(output, "credcli report: " + ", ".join(p.name for p in logs), run, logs, inputs)
     return 0
 
 

@@ -148,3 +148,20 @@ def split_list(text: str | None) -> tuple[str, ...] | None:
     if not items:
         raise CredcliError(f"expected a comma-separated list of column names; got '{text}'")
     return items
+
+
+def gate_requests(config: dict, cli: dict) -> dict:
+    """What `gate` was asked for: [diagnosis] and [segments] of its config, overridden by
+    the command line; each must equal the baseline's parameter of the same name."""
+    hints = typing.get_type_hints(DiagnosisConfig) | {"seed": int}
+    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)} | {"seed"}
+    out = merged(config.get("diagnosis", {}), {}, fields, "config [diagnosis]", hints)
+    out |= merged(
+        config.get("segments", {}),
+        {},
+        ("window", "whole"),
+        "config [segments]",
+        {"window": str, "whole": bool},
+    )
+    out.update({k: v for k, v in cli.items() if v is not None})
+    return out

@@ -84,7 +84,7 @@ def long_run_variance(x: np.ndarray) -> np.ndarray:
     For white noise Ω is the variance:
 
     >>> x = np.random.default_rng(0).standard_normal(100_000)
-    >>> round(float(long_run_variance(x)[0]), 2)
+    >>> round(float(long_run_variance(x)[0]), 1)
     1.0
     """
     x = np.asarray(x, dtype=float)

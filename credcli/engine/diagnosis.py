@@ -39,6 +39,26 @@ class Label(str, enum.Enum):
 DIAGNOSIS_LABELS = tuple(lab for lab in Label if lab is not Label.INSUFFICIENT)
 """The six labels Algorithm 1 can output, in the paper's order."""
 
+LABEL_ALIASES = {
+    "cred": Label.CREDIBLE,
+    "opt": Label.OPTIMISM,
+    "pess": Label.PESSIMISM,
+    "opt+smm": Label.OPTIMISM_SMM,
+    "pess+smm": Label.PESSIMISM_SMM,
+}
+"""Short names accepted wherever a label is typed (simulate --scenario, --fail-on)."""
+
+
+def parse_label(text: str) -> Label | None:
+    """A label from its name or alias (case-insensitive); None when it is neither."""
+    text = text.strip().lower()
+    if text in LABEL_ALIASES:
+        return LABEL_ALIASES[text]
+    try:
+        return Label(text)
+    except ValueError:
+        return None
+
 
 class Variant(str, enum.Enum):
     """The decision rule.

@@ -47,6 +47,17 @@ class ELTResult:
     subsampled: bool
     block_length: int
 
+    def __iter__(self):
+        """``statistic, pvalue = result``, as for scipy's test results."""
+        return iter((self.statistic, self.pvalue))
+
+    def __repr__(self) -> str:
+        return (
+            f"ELTResult(statistic={self.statistic:.4g}, pvalue={self.pvalue:.4g}, "
+            f"n_used={self.n_used}, block_length={self.block_length}, "
+            f"B={self.null_distribution.size})"
+        )
+
 
 def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k` with the symmetric inverse square root."""

@@ -10,11 +10,11 @@ import csv
 import enum
 import io
 import json
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from credcli.engine.diagnosis import Diagnosis, SegmentDiagnosis
+from credcli.engine.diagnosis import SegmentDiagnosis
+from credcli.io.records import json_value, segment_record
 
 
 class OutputFormat(str, enum.Enum):
@@ -32,11 +32,16 @@ class Column:
     wrap: int = 0  # wrap text at this width in Rich tables (0: never wrap)
     show: Callable[[dict], object] | None = None  # the cell from the whole row (display only)
     limit: int = 0  # shorten longer text to this many characters in tables (0: never)
+    keep: bool = False  # never shortened on a narrow terminal (labels, N, d)
+    rank: int = 5  # on a narrow terminal, columns of the highest rank are hidden first
+    pvalue: bool = False  # a p-value: below 0.001 it reads "<0.001"
 
     def value(self, row: dict):
         value = self.show(row) if self.show is not None else row.get(self.key)
         if self.limit and isinstance(value, str) and len(value) > self.limit:
             return value[: self.limit - 1] + "…"
+        if self.pvalue and isinstance(value, float) and value < PVALUE_FLOOR:
+            return f"<{PVALUE_FLOOR:g}"
         return value
 
 
@@ -57,23 +62,26 @@ class Report:
     notes: list[str] = field(default_factory=list)
 
 
+PVALUE_FLOOR = 0.001
+"""Tables print smaller p-values as "<0.001" (JSON and CSV keep the number)."""
+
 NAME_LIMIT = 60
 """Longest segment or log name shown in a table cell (JSON and CSV keep the whole name)."""
 
 SEGMENT_COLUMNS = (
-    Column("segment", "segment", 0, limit=NAME_LIMIT),
-    Column("n", "N", 0),
-    Column("dim", "d", 0),
-    Column("label", "label", 0),
-    Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r)),
-    Column("scale_pvalue", "scale p", 3),
-    Column("elt_pvalue", "ELT p", 3),
-    Column("bias_mahalanobis", "|bias| [σ]", 3),
-    Column("block_length", "L", 0),
-    Column("nci", "NCI [dB]", 3),
-    Column("anees", "ANEES", 4),
-    Column("nees_label", "NEES baseline", 0),
-    Column("nci_label", "NCI baseline", 0),
+    Column("segment", "segment", 0, limit=NAME_LIMIT, rank=0),
+    Column("n", "N", 0, keep=True, rank=0),
+    Column("dim", "d", 0, keep=True, rank=0),
+    Column("label", "label", 0, keep=True, rank=0),
+    Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r), rank=1),
+    Column("scale_pvalue", "scale p", 3, pvalue=True, rank=3),
+    Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
+    Column("bias_mahalanobis", "|bias| [σ]", 3, rank=3),
+    Column("block_length", "L", 0, rank=4),
+    Column("nci", "NCI [dB]", 3, rank=5),
+    Column("anees", "ANEES", 4, rank=5),
+    Column("nees_label", "NEES baseline", 0, rank=6),
+    Column("nci_label", "NCI baseline", 0, rank=6),
 )
 
 SEGMENT_COLUMNS_ALL = SEGMENT_COLUMNS + (
@@ -87,72 +95,6 @@ SEGMENT_COLUMNS_ALL = SEGMENT_COLUMNS + (
     Column("srd_nll", "SRD NLL", 3),
     Column("srd_es", "SRD ES", 3),
 )
-
-
-def _value(x):
-    """JSON-safe scalar: enums to their value, NaN/Inf to None."""
-    if isinstance(x, enum.Enum):
-        return x.value
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
-
-_SCORE_KEYS = ("nll", "es", "nll_minus", "nll_plus", "es_minus", "es_plus")
-_PROBE_KEYS = (
-    "delta_nll_minus",
-    "delta_nll_plus",
-    "delta_es_minus",
-    "delta_es_plus",
-    "srd_nll",
-    "srd_es",
-)
-
-
-def diagnosis_record(diag: Diagnosis) -> dict:
-    """The flat, JSON-safe record of one Diagnosis; its key order is the CSV column order.
-
-    ``nll``, ``es`` and the ``*_minus``/``*_plus`` scores come from ``diag.scores`` (the
-    claimed predictive); ``delta_*`` and ``srd_*`` from ``diag.probes`` (the centred one).
-    The scale test's numbers (``scale_*``, ``bias*``) and the dependence estimates
-    (``block_length``, ``effective_n``, ``autocorrelation``) follow; ``reason`` says why a
-    segment is ``insufficient-data``.
-    """
-    elt = diag.elt
-    sc = diag.scale
-    rec = {
-        "n": diag.n,
-        "dim": diag.dim,
-        "label": diag.label,
-        "elt_statistic": diag.elt_statistic,
-        "elt_pvalue": diag.elt_pvalue,
-        "elt_n_used": None if elt is None else elt.n_used,
-        "elt_subsampled": None if elt is None else elt.subsampled,
-        "smm_detected": diag.smm_detected,
-        "nci": diag.nci,
-        "nci_centered": diag.nci_centered,
-        "anees": diag.anees,
-        "cov_scale": diag.cov_scale,
-        "ks_pvalue": diag.ks_pvalue,
-        "nees_label": diag.nees_label,
-        "nci_label": diag.nci_label,
-    }
-    for source, keys in ((diag.scores, _SCORE_KEYS), (diag.probes, _PROBE_KEYS)):
-        rec.update({k: None if source is None else getattr(source, k) for k in keys})
-    rec |= {
-        "scale_factor": None if sc is None else sc.scale_factor,
-        "scale_factor_low": None if sc is None else sc.scale_factor_low,
-        "scale_factor_high": None if sc is None else sc.scale_factor_high,
-        "scale_pvalue": None if sc is None else sc.pvalue,
-        "bias": None if sc is None else [float(v) for v in sc.bias],
-        "bias_stderr": None if sc is None else [float(v) for v in sc.bias_stderr],
-        "bias_mahalanobis": None if sc is None else sc.bias_mahalanobis,
-        "block_length": diag.block_length,
-        "effective_n": diag.effective_n,
-        "autocorrelation": diag.autocorrelation,
-        "reason": diag.reason,
-    }
-    return {k: _value(v) for k, v in rec.items()}
 
 
 def _number(x: float) -> str:
@@ -184,16 +126,6 @@ def advice(rec: dict) -> str | None:
         bias = ", ".join(_number(b) for b in rec["bias"])
         parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
     return f"{rec['segment']}: " + "; ".join(parts)
-
-
-def segment_record(result: SegmentDiagnosis) -> dict:
-    """The record of a segment: where it is, then :func:`diagnosis_record`."""
-    return {
-        "log": result.log,
-        "segment": result.segment,
-        "t_start": result.t_start,
-        "t_end": result.t_end,
-    } | diagnosis_record(result.diagnosis)
 
 
 def _cell(value, digits: int) -> str:
@@ -236,26 +168,59 @@ _LABEL_STYLE = {
 _LABEL_KEYS = {"label", "nees_label", "nci_label", "status"}
 
 
-def rich_table(table: Table):
-    """A rich.table.Table for the terminal."""
+def _fitting_columns(table: Table, texts, width: int | None) -> list[int]:
+    """Indices of the columns to show: all when they fit in ``width``; otherwise the columns
+    of the highest rank (the rightmost first) are hidden until the rest fits. Columns of
+    rank 0 (segment, N, d, label) are always shown."""
+    shown = list(range(len(table.columns)))
+    if width is None:
+        return shown
+
+    def need(k: int) -> int:
+        return max([len(table.columns[k].header)] + [len(t[k]) for t in texts]) + 3
+
+    while sum(need(k) for k in shown) + 1 > width:
+        droppable = [k for k in shown if table.columns[k].rank > 0]
+        if not droppable:
+            break
+        shown.remove(max(droppable, key=lambda k: (table.columns[k].rank, k)))
+    return shown
+
+
+def rich_table(table: Table, width: int | None = None):
+    """A rich.table.Table for the terminal, hiding the least important columns when the
+    table would be wider than ``width`` (the caption names them)."""
     from rich.markup import escape
     from rich.table import Table as RichTable
 
+    texts = [[_cell(col.value(row), col.digits) for col in table.columns] for row in table.rows]
+    shown = _fitting_columns(table, texts, width)
+    caption = table.caption
+    if len(shown) < len(table.columns):
+        hidden = ", ".join(c.header for k, c in enumerate(table.columns) if k not in shown)
+        caption = (caption + "; " if caption else "") + (
+            f"not shown at this width: {hidden} (see --format json or csv)"
+        )
+    columns = [table.columns[k] for k in shown]
+    texts = [[t[k] for k in shown] for t in texts]
+    table = Table(table.title, tuple(columns), table.rows, caption)
     out = RichTable(
         title=escape(table.title), caption=escape(table.caption) or None, title_justify="left"
     )
-    for col in table.columns:
+    for k, col in enumerate(table.columns):
+        widest = max([len(col.header)] + [len(t[k]) for t in texts])
         out.add_column(
             escape(col.header),
             justify="right" if col.digits else "left",
             no_wrap=not col.wrap,
             max_width=col.wrap or None,
+            min_width=widest if col.keep else None,
             overflow="fold" if col.wrap else "ellipsis",
         )
-    for row in table.rows:
+    for row, row_texts in zip(table.rows, texts):
         cells = []
-        for col in table.columns:
-            text = escape(_cell(col.value(row), col.digits))
+        for col, raw in zip(table.columns, row_texts):
+            text = escape(raw)
             if col.key in _LABEL_KEYS and isinstance(row.get(col.key), str):
                 text = f"[{_LABEL_STYLE.get(text, 'bold yellow')}]{text}[/]"
             cells.append(text)
@@ -276,25 +241,30 @@ def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
     buf = io.StringIO()
     console = Console(file=buf, width=width, color_system=None, force_terminal=False)
     for table in report.tables:
-        console.print(rich_table(table))
+        console.print(rich_table(table, width))
     for note in report.notes:
         console.print(note, markup=False)
     return buf.getvalue()
 
 
 def _csv(report: Report) -> str:
+    """One valid CSV. Several tables share it: a first column ``table`` names each row's
+    table, and the header is the union of the tables' columns."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    many = len(report.tables) > 1
-    for i, table in enumerate(report.tables):
-        if many:
-            if i:
-                buf.write("\n")
-            buf.write(f"# {table.title}\n")
-        keys = [c.key for c in table.columns] if many else _csv_keys(table)
+    if len(report.tables) == 1:
+        keys = _csv_keys(report.tables[0])
         writer.writerow(keys)
-        for row in table.rows:
+        for row in report.tables[0].rows:
             writer.writerow([_csv_cell(row.get(k)) for k in keys])
+        return buf.getvalue()
+    keys: list[str] = []
+    for table in report.tables:
+        keys.extend(c.key for c in table.columns if c.key not in keys)
+    writer.writerow(["table", *keys])
+    for table in report.tables:
+        for row in table.rows:
+            writer.writerow([table.title, *(_csv_cell(row.get(k)) for k in keys)])
     return buf.getvalue()
 
 
@@ -327,7 +297,7 @@ def config_parameters(config) -> dict:
     """Every DiagnosisConfig setting as JSON-safe values."""
     import dataclasses
 
-    return {f.name: _value(getattr(config, f.name)) for f in dataclasses.fields(config)}
+    return {f.name: json_value(getattr(config, f.name)) for f in dataclasses.fields(config)}
 
 
 def diagnose_report(
@@ -543,11 +513,11 @@ UWB_COLUMNS = (
     Column("segment", "period", 0, limit=NAME_LIMIT),
     Column("t_start", "t start [s]", 4),
     Column("t_end", "t end [s]", 4),
-    Column("n", "fixes", 0),
-    Column("label", "proposed", 0),
+    Column("n", "fixes", 0, keep=True),
+    Column("label", "label", 0, keep=True),
     Column("nees_label", "NEES", 0),
     Column("nci_label", "NCI", 0),
-    Column("elt_pvalue", "ELT p", 3),
+    Column("elt_pvalue", "ELT p", 3, pvalue=True),
     Column("nci", "NCI [dB]", 3),
     Column("anees", "ANEES", 4),
 )
@@ -564,9 +534,9 @@ def uwb_report(run, results, parameters: dict) -> Report:
             "anchor": s.anchor,
             "n": s.n,
             "mean_error": s.mean_error,
-            "std_error": _value(s.std_error),
+            "std_error": json_value(s.std_error),
             "median_std": s.median_std,
-            "std_ratio": _value(s.std_ratio),
+            "std_ratio": json_value(s.std_ratio),
         }
         for s in run.range_stats
     ]

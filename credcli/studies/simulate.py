@@ -20,10 +20,12 @@ import numpy as np
 from credcli.engine import metrics
 from credcli.engine.diagnosis import (
     DIAGNOSIS_LABELS,
+    LABEL_ALIASES,
     DiagnosisConfig,
     Label,
     Variant,
     diagnose_variants,
+    parse_label,
 )
 from credcli.errors import CredcliError
 
@@ -98,29 +100,15 @@ class ErrorModel:
         return z
 
 
-SCENARIO_ALIASES = {
-    "cred": Label.CREDIBLE,
-    "opt": Label.OPTIMISM,
-    "pess": Label.PESSIMISM,
-    "opt+smm": Label.OPTIMISM_SMM,
-    "pess+smm": Label.PESSIMISM_SMM,
-}
-
-
 def parse_scenarios(text: str) -> list[Label]:
     """'all', a label name or a short alias, or a comma-separated list of them."""
     if text.strip().lower() == "all":
         return list(DIAGNOSIS_LABELS)
     out = []
     for item in (t.strip().lower() for t in text.split(",")):
-        label = SCENARIO_ALIASES.get(item)
-        if label is None:
-            try:
-                label = Label(item)
-            except ValueError:
-                label = None
+        label = parse_label(item)
         if label is None or label is Label.INSUFFICIENT:
-            names = ", ".join([lab.value for lab in DIAGNOSIS_LABELS] + list(SCENARIO_ALIASES))
+            names = ", ".join([lab.value for lab in DIAGNOSIS_LABELS] + list(LABEL_ALIASES))
             raise CredcliError(f"--scenario: unknown scenario '{item}'; choose all, {names}")
         if label not in out:
             out.append(label)
@@ -417,7 +405,9 @@ class Sweep:
                     raise CredcliError(
                         f"--sweep '{text}': the count must be 1 … {MAX_SWEEP_VALUES}; got {count}"
                     )
-                values = tuple(np.linspace(float(start), float(stop), count).tolist())
+                grid = np.linspace(float(start), float(stop), count)
+                # 12 significant digits: no float noise such as 19.950000000000003
+                values = tuple(float(f"{v:.12g}") for v in grid)
             else:
                 values = tuple(float(v) for v in spec.split(",") if v.strip())
         except ValueError as exc:

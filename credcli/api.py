@@ -1,0 +1,114 @@
+"""The Python API: one obvious path from a file (or arrays) to results.
+
+>>> import credcli
+>>> log = credcli.read_log("sample_data/estimator_log.csv")
+>>> results = credcli.diagnose_log(log)              # the log's segments, calibrated rule
+>>> [r.diagnosis.label.value for r in results][:3]
+['credible', 'optimism', 'pessimism']
+>>> results.to_frame().loc[1, ["segment", "label"]].tolist()
+['turn', 'optimism']
+>>> round(results.to_dict()[1]["scale_factor"], 2)   # multiply the covariance by this
+3.08
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from credcli import segments as seg
+from credcli.engine._rng import RngLike
+from credcli.engine.diagnosis import Diagnosis, DiagnosisConfig, SegmentDiagnosis, diagnose_errors
+from credcli.engine.diagnosis import diagnose_log as _diagnose_segments
+from credcli.io.logs import EstimatorLog, LogSchema, load_log
+from credcli.io.records import segment_record
+
+
+class Results(Sequence):
+    """The diagnoses of a log's segments, in order; ``to_dict`` and ``to_frame`` give the
+    same records as ``credcli diagnose --format json`` / ``csv``."""
+
+    def __init__(self, items: list[SegmentDiagnosis]) -> None:
+        self._items = list(items)
+
+    def __getitem__(self, index):
+        return self._items[index]
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        labels = ", ".join(f"{r.segment}: {r.diagnosis.label.value}" for r in self._items[:4])
+        more = f", … ({len(self)} in all)" if len(self) > 4 else ""
+        return f"Results([{labels}{more}])"
+
+    def to_dict(self) -> list[dict]:
+        """One JSON-safe record per segment."""
+        return [segment_record(r) for r in self._items]
+
+    def to_frame(self):
+        """A pandas DataFrame with one row per segment and one column per record key."""
+        import pandas as pd
+
+        return pd.DataFrame(self.to_dict())
+
+
+def read_log(
+    path: str | Path, columns: LogSchema | None = None, drop_invalid: bool = False
+) -> EstimatorLog:
+    """Read and validate an estimator log (CSV or Parquet); see the README's log format."""
+    return load_log(path, columns, drop_invalid)
+
+
+def diagnose_log(
+    log: EstimatorLog,
+    segments: str | Sequence[seg.Segment] | None = None,
+    config: DiagnosisConfig | None = None,
+    seed: int = 0,
+) -> Results:
+    """Diagnose every segment of ``log``.
+
+    Parameters
+    ----------
+    segments : None, "whole", a window such as "5s" or "200", or a list of Segment
+        None: the log's segment column (the whole log when it has none).
+    config : DiagnosisConfig, optional
+        The calibrated rule with its defaults when not given.
+    seed : int
+        Each segment's sign flips come from (seed, segment name): the same as the CLI's.
+    """
+    if segments is None:
+        plan = seg.by_column(log.segment, log.time) if log.segment is not None else None
+        plan = plan or seg.whole(log.n, log.time)
+    elif isinstance(segments, str):
+        if segments == "whole":
+            plan = seg.whole(log.n, log.time)
+        else:
+            plan = seg.by_window(log.n, seg.Window.parse(segments), log.time)
+    else:
+        plan = list(segments)
+    return Results(_diagnose_segments(log, plan, config, seed))
+
+
+def diagnose(
+    errors: np.ndarray,
+    cov: np.ndarray,
+    config: DiagnosisConfig | None = None,
+    rng: RngLike = None,
+) -> Diagnosis:
+    """Diagnose one segment of errors e_k = x_k − x̂_k (N, d) with claimed covariances
+    (N, d, d) (or (d, d), shared by every epoch).
+
+    >>> import numpy as np, credcli
+    >>> e = np.random.default_rng(0).standard_normal((400, 2)) * 2.0
+    >>> d = credcli.diagnose(e, np.eye(2), rng=0)
+    >>> d.label.value, round(d.scale.scale_factor, 1)
+    ('optimism', 4.0)
+    """
+    errors = np.asarray(errors, dtype=float)
+    cov = np.asarray(cov, dtype=float)
+    if errors.ndim == 2 and cov.ndim == 2 and cov.shape == (errors.shape[1],) * 2:
+        cov = np.broadcast_to(cov, (errors.shape[0], *cov.shape))
+    return diagnose_errors(errors, cov, config, rng)

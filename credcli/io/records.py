@@ -1,0 +1,86 @@
+"""Records: a Diagnosis as a flat, JSON-safe dict. The only place that knows the keys of a
+segment record; the renderers, the CI gate and the Python API's ``to_dict``/``to_frame``
+all read them from here."""
+
+from __future__ import annotations
+
+import enum
+import math
+
+from credcli.engine.diagnosis import Diagnosis, SegmentDiagnosis
+
+
+def json_value(x):
+    """JSON-safe scalar: enums to their value, NaN/Inf to None."""
+    if isinstance(x, enum.Enum):
+        return x.value
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+_SCORE_KEYS = ("nll", "es", "nll_minus", "nll_plus", "es_minus", "es_plus")
+_PROBE_KEYS = (
+    "delta_nll_minus",
+    "delta_nll_plus",
+    "delta_es_minus",
+    "delta_es_plus",
+    "srd_nll",
+    "srd_es",
+)
+
+
+def diagnosis_record(diag: Diagnosis) -> dict:
+    """The flat, JSON-safe record of one Diagnosis; its key order is the CSV column order.
+
+    ``nll``, ``es`` and the ``*_minus``/``*_plus`` scores come from ``diag.scores`` (the
+    claimed predictive); ``delta_*`` and ``srd_*`` from ``diag.probes`` (the centred one).
+    The scale test's numbers (``scale_*``, ``bias*``) and the dependence estimates
+    (``block_length``, ``effective_n``, ``autocorrelation``) follow; ``reason`` says why a
+    segment is ``insufficient-data``.
+    """
+    elt = diag.elt
+    sc = diag.scale
+    rec = {
+        "n": diag.n,
+        "dim": diag.dim,
+        "label": diag.label,
+        "elt_statistic": diag.elt_statistic,
+        "elt_pvalue": diag.elt_pvalue,
+        "elt_n_used": None if elt is None else elt.n_used,
+        "elt_subsampled": None if elt is None else elt.subsampled,
+        "smm_detected": diag.smm_detected,
+        "nci": diag.nci,
+        "nci_centered": diag.nci_centered,
+        "anees": diag.anees,
+        "cov_scale": diag.cov_scale,
+        "ks_pvalue": diag.ks_pvalue,
+        "nees_label": diag.nees_label,
+        "nci_label": diag.nci_label,
+    }
+    for source, keys in ((diag.scores, _SCORE_KEYS), (diag.probes, _PROBE_KEYS)):
+        rec.update({k: None if source is None else getattr(source, k) for k in keys})
+    rec |= {
+        "scale_factor": None if sc is None else sc.scale_factor,
+        "scale_factor_low": None if sc is None else sc.scale_factor_low,
+        "scale_factor_high": None if sc is None else sc.scale_factor_high,
+        "scale_pvalue": None if sc is None else sc.pvalue,
+        "bias": None if sc is None else [float(v) for v in sc.bias],
+        "bias_stderr": None if sc is None else [float(v) for v in sc.bias_stderr],
+        "bias_mahalanobis": None if sc is None else sc.bias_mahalanobis,
+        "block_length": diag.block_length,
+        "effective_n": diag.effective_n,
+        "autocorrelation": diag.autocorrelation,
+        "reason": diag.reason,
+    }
+    return {k: json_value(v) for k, v in rec.items()}
+
+
+def segment_record(result: SegmentDiagnosis) -> dict:
+    """The record of a segment: where it is, then :func:`diagnosis_record`."""
+    return {
+        "log": result.log,
+        "segment": result.segment,
+        "t_start": result.t_start,
+        "t_end": result.t_end,
+    } | diagnosis_record(result.diagnosis)

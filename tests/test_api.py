@@ -1,0 +1,63 @@
+"""The Python API: the README's example runs, and the API gives what the CLI gives."""
+
+from __future__ import annotations
+
+import doctest
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+import credcli
+from credcli.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_readme_python_api_runs(monkeypatch):
+    monkeypatch.chdir(ROOT)
+    failures, tried = doctest.testfile(
+        str(ROOT / "README.md"),
+        module_relative=False,
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+    )
+    assert tried >= 10 and failures == 0
+
+
+def test_to_dict_equals_the_cli_json(capsys):
+    log = credcli.read_log(ROOT / "sample_data" / "estimator_log.csv")
+    records = credcli.diagnose_log(log, seed=4).to_dict()
+    assert (
+        main(
+            [
+                "diagnose",
+                str(ROOT / "sample_data" / "estimator_log.csv"),
+                "-f",
+                "json",
+                "--seed",
+                "4",
+            ]
+        )
+        == 0
+    )
+    cli = json.loads(capsys.readouterr().out)["segments"]
+    for a, b in zip(records, cli):
+        a = dict(a, log=os.path.basename(a["log"]))
+        b = dict(b, log=os.path.basename(b["log"]))
+        assert a == b
+
+
+def test_segments_argument():
+    log = credcli.read_log(ROOT / "sample_data" / "estimator_log.csv")
+    assert len(credcli.diagnose_log(log, "whole")) == 1
+    assert len(credcli.diagnose_log(log, "30s")) == 6  # 1,800 epochs at 10 Hz
+    assert len(credcli.diagnose_log(log, "300")) == 6
+
+
+def test_short_reprs_and_unpacking():
+    e = np.random.default_rng(0).standard_normal((200, 2))
+    d = credcli.diagnose(e, np.eye(2), rng=0)
+    assert len(repr(d)) < 120 and len(repr(d.elt)) < 120 and len(repr(d.scale)) < 120
+    statistic, pvalue = d.elt
+    assert (statistic, pvalue) == (d.elt.statistic, d.elt.pvalue)

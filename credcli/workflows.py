@@ -49,6 +49,7 @@ class Run:
 
     report: Report
     plots: list = field(default_factory=list)
+    results: list = field(default_factory=list)  # SegmentDiagnosis, in report order
 
 
 def run_diagnose(
@@ -100,7 +101,7 @@ def run_diagnose(
             k += len(segments)
             prefix = f"{Path(log.source).stem}_" if len(plans) > 1 else ""
             figures.extend(segment_plots(log, mine, segments, prefix))
-    return Run(report, figures)
+    return Run(report, figures, results)
 
 
 def run_simulate(
@@ -255,7 +256,13 @@ def run_gate(
     import json
     import typing
 
-    from credcli.ci.gate import check_baseline, check_same_parameters, compare, verdict_line
+    from credcli.ci.gate import (
+        Snapshot,
+        check_baseline,
+        check_same_parameters,
+        compare,
+        verdict_line,
+    )
     from credcli.io.checks import check_types
     from credcli.report.render import gate_report
 
@@ -303,8 +310,13 @@ def run_gate(
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
     run = run_diagnose([path], schema, config, progress=progress, plots=plots, **setup)
-    current = run.report.document
-    comparisons = compare(baseline, current, thresholds, config.location_level)
+    comparisons = compare(
+        [Snapshot.from_record(r) for r in baseline["segments"]],
+        [Snapshot.from_result(r) for r in run.results],
+        thresholds,
+        config.location_level,
+    )
     passed, verdict = verdict_line(comparisons, thresholds)
-    report = gate_report(comparisons, current["parameters"], str(baseline_path), passed, verdict)
+    parameters = run.report.document["parameters"]
+    report = gate_report(comparisons, parameters, str(baseline_path), passed, verdict)
     return report, comparisons, passed, verdict, run.plots

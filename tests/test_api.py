@@ -61,3 +61,20 @@ def test_short_reprs_and_unpacking():
     assert len(repr(d)) < 120 and len(repr(d.elt)) < 120 and len(repr(d.scale)) < 120
     statistic, pvalue = d.elt
     assert (statistic, pvalue) == (d.elt.statistic, d.elt.pvalue)
+
+
+def test_the_command_line_starts_without_the_numeric_stack():
+    """`credcli --help` and `--version` import no numpy, scipy or pandas (start-up)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, credcli, credcli.cli.app; "
+        "print(sorted(m for m in ('numpy', 'scipy', 'pandas', 'matplotlib') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    help_text = subprocess.run(
+        [sys.executable, "-m", "credcli", "--help"], capture_output=True, text=True, check=True
+    ).stdout
+    assert "diagnose" in help_text and "--debug" in help_text

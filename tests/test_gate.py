@@ -57,7 +57,9 @@ def test_fail_on_parsing_and_matching():
 
 
 def _rec(label, nci=0.1, anees=1.0, p=0.5):
-    return {"segment": "s", "label": label, "nci": nci, "anees": anees, "elt_pvalue": p}
+    return gate.Snapshot.from_record(
+        {"segment": "s", "label": label, "nci": nci, "anees": anees, "elt_pvalue": p}
+    )
 
 
 @pytest.mark.parametrize(

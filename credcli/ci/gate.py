@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
+from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
+from credcli.engine.diagnosis import LABEL_ALIASES, Label, SegmentDiagnosis, parse_label
 from credcli.errors import CredcliError
+from credcli.io.records import segment_record
 
 BASELINE_SCHEMA_VERSION = 1
 BASELINE_KIND = "credcli-baseline"
@@ -58,23 +60,33 @@ class Status(str, enum.Enum):
 
 
 @dataclass(frozen=True)
-class Thresholds:
-    max_nci_increase: float = 1.0  # dB of |NCI|
-    max_anees_ratio: float = 1.25  # factor on max(ANEES, 1/ANEES)
-    allow_new_segments: bool = False
+class Snapshot:
+    """What the gate compares of one segment, typed; ``record`` is the whole record, kept
+    only to be reported."""
 
-    def describe(self) -> str:
-        return (
-            f"thresholds: |NCI| +{self.max_nci_increase:g} dB, ANEES x{self.max_anees_ratio:g} "
-            "further from 1, a label gaining a condition, the ELT newly rejecting"
-            + ("; new/missing segments allowed" if self.allow_new_segments else "")
+    segment: str
+    label: Label
+    nci: float | None
+    anees: float | None
+    elt_pvalue: float | None
+    record: dict = field(repr=False, compare=False, default_factory=dict)
+
+    @classmethod
+    def from_record(cls, rec: dict) -> Snapshot:
+        """From a baseline's segment record (checked by :func:`check_baseline`)."""
+        return cls(
+            rec["segment"],
+            Label(rec["label"]),
+            rec.get("nci"),
+            rec.get("anees"),
+            rec.get("elt_pvalue"),
+            rec,
         )
 
-    def __post_init__(self) -> None:
-        if not self.max_nci_increase >= 0:
-            raise CredcliError(f"--max-nci-increase must be >= 0; got {self.max_nci_increase}")
-        if not self.max_anees_ratio >= 1:
-            raise CredcliError(f"--max-anees-ratio must be >= 1; got {self.max_anees_ratio}")
+    @classmethod
+    def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
+        d = result.diagnosis
+        return cls(result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result))
 
 
 @dataclass(frozen=True)
@@ -83,8 +95,8 @@ class SegmentComparison:
 
     segment: str
     status: Status
-    old: dict | None  # the baseline's segment record
-    new: dict | None  # the current segment record
+    old: Snapshot | None  # the baseline's segment
+    new: Snapshot | None  # the segment now
     reasons: tuple[str, ...]  # why it regressed (or is new / missing)
     improvements: tuple[str, ...]
 
@@ -103,11 +115,11 @@ def _anees_deviation(a: float) -> float:
 
 
 def compare_segment(
-    name: str, old: dict, new: dict, alpha: float, th: Thresholds
+    name: str, old: Snapshot, new: Snapshot, alpha: float, th: Thresholds
 ) -> SegmentComparison:
     """The regression rules of the gate, for one matched segment."""
     reasons, better = [], []
-    old_label, new_label = Label(old["label"]), Label(new["label"])
+    old_label, new_label = old.label, new.label
     if old_label is Label.CREDIBLE and new_label is not Label.CREDIBLE:
         reasons.append(f"label credible -> {new_label.value}")
     else:
@@ -120,45 +132,41 @@ def compare_segment(
         lost = sorted(old_label.conditions - new_label.conditions)
         if lost or new_label is Label.CREDIBLE:
             better.append(f"label {old_label.value} -> {new_label.value}")
-    if old.get("nci") is not None and new.get("nci") is not None:
-        change = abs(new["nci"]) - abs(old["nci"])
+    if old.nci is not None and new.nci is not None:
+        change = abs(new.nci) - abs(old.nci)
         if change > th.max_nci_increase:
             reasons.append(
-                f"|NCI| {abs(old['nci']):.2f} -> {abs(new['nci']):.2f} dB (+{change:.2f} > {th.max_nci_increase:g})"
+                f"|NCI| {abs(old.nci):.2f} -> {abs(new.nci):.2f} dB (+{change:.2f} > {th.max_nci_increase:g})"
             )
         elif change < -th.max_nci_increase:
-            better.append(f"|NCI| {abs(old['nci']):.2f} -> {abs(new['nci']):.2f} dB")
-    if old.get("anees") and new.get("anees"):
-        ratio = _anees_deviation(new["anees"]) / _anees_deviation(old["anees"])
+            better.append(f"|NCI| {abs(old.nci):.2f} -> {abs(new.nci):.2f} dB")
+    if old.anees and new.anees:
+        ratio = _anees_deviation(new.anees) / _anees_deviation(old.anees)
         if ratio > th.max_anees_ratio:
             reasons.append(
-                f"ANEES {old['anees']:.3g} -> {new['anees']:.3g} (further from 1 by x{ratio:.2f} > {th.max_anees_ratio:g})"
+                f"ANEES {old.anees:.3g} -> {new.anees:.3g} (further from 1 by x{ratio:.2f} > {th.max_anees_ratio:g})"
             )
         elif ratio < 1 / th.max_anees_ratio:
-            better.append(f"ANEES {old['anees']:.3g} -> {new['anees']:.3g} (closer to 1)")
-    if old.get("elt_pvalue") is not None and new.get("elt_pvalue") is not None:
-        if old["elt_pvalue"] >= alpha > new["elt_pvalue"]:
+            better.append(f"ANEES {old.anees:.3g} -> {new.anees:.3g} (closer to 1)")
+    if old.elt_pvalue is not None and new.elt_pvalue is not None:
+        if old.elt_pvalue >= alpha > new.elt_pvalue:
             reasons.append(
-                f"ELT newly rejects (p {old['elt_pvalue']:.3g} -> {new['elt_pvalue']:.3g} < {alpha:.3g})"
+                f"ELT newly rejects (p {old.elt_pvalue:.3g} -> {new.elt_pvalue:.3g} < {alpha:.3g})"
             )
-        elif new["elt_pvalue"] >= alpha > old["elt_pvalue"]:
-            better.append(
-                f"ELT no longer rejects (p {old['elt_pvalue']:.3g} -> {new['elt_pvalue']:.3g})"
-            )
+        elif new.elt_pvalue >= alpha > old.elt_pvalue:
+            better.append(f"ELT no longer rejects (p {old.elt_pvalue:.3g} -> {new.elt_pvalue:.3g})")
     status = Status.REGRESSED if reasons else Status.IMPROVED if better else Status.UNCHANGED
     return SegmentComparison(name, status, old, new, tuple(reasons), tuple(better))
 
 
 def compare(
-    baseline: dict, current: dict, th: Thresholds, alpha: float | None = None
+    baseline: list[Snapshot], current: list[Snapshot], th: Thresholds, alpha: float
 ) -> list[SegmentComparison]:
     """Every segment of the baseline and of the current run, matched by name, in the
     baseline's order followed by new segments. ``alpha`` is the ELT's level (α_L in the
-    calibrated variant); the baseline's α when not given."""
-    if alpha is None:
-        alpha = baseline["parameters"]["alpha"]
-    old = {s["segment"]: s for s in baseline["segments"]}
-    new = {s["segment"]: s for s in current["segments"]}
+    calibrated variant)."""
+    old = {s.segment: s for s in baseline}
+    new = {s.segment: s for s in current}
     out = []
     for name, rec in old.items():
         if name in new:

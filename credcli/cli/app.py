@@ -11,10 +11,12 @@ from typing import Annotated
 
 import typer
 
-from credcli.engine.diagnosis import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, Variant
+from credcli.ci.thresholds import Thresholds
+from credcli.engine.config import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, Variant
 from credcli.errors import CredcliError
-from credcli.io.logs import CovKind
-from credcli.report.render import OutputFormat
+from credcli.io.schema import CovKind, LogSchema
+from credcli.report.formats import OutputFormat
+from credcli.studies.settings import SimulationConfig, UwbSettings
 
 app = typer.Typer(
     name="credcli",
@@ -26,6 +28,14 @@ app = typer.Typer(
 )
 
 _D = DiagnosisConfig()
+_S = SimulationConfig()
+_U = UwbSettings()
+_T = Thresholds()
+_L = LogSchema()
+
+
+def _range(pair) -> str:
+    return f"{pair[0]:g}:{pair[1]:g}"
 
 
 def _show_version(value: bool) -> None:
@@ -61,7 +71,7 @@ OutputOpt = Annotated[
     Path | None, typer.Option("--output", "-o", help="Write the output to FILE (atomically).")
 ]
 SeedOpt = Annotated[
-    int | None, typer.Option("--seed", help="Seed of the ELT sign flips [default: 0].")
+    int | None, typer.Option("--seed", help=f"Seed of the ELT sign flips [default: {_S.seed}].")
 ]
 TauOpt = Annotated[
     float | None, typer.Option("--tau", help=f"NCI threshold τ in dB [default: {_D.tau_nci}].")
@@ -80,7 +90,7 @@ BlockOpt = Annotated[
     typer.Option(
         "--block-length",
         help="Epochs per ELT sign block, or auto (estimated from the serial dependence in the "
-        "calibrated variant; 1 in paper and ks) [default: auto].",
+        f"calibrated variant; 1 in paper and ks) [default: {_D.block_length}].",
     ),
 ]
 VariantOpt = Annotated[
@@ -93,13 +103,17 @@ VariantOpt = Annotated[
 ]
 SrdOpt = Annotated[
     SrdForm | None,
-    typer.Option("--srd-form", help="SRD of Eq. (19): printed or absolute [default: printed]."),
+    typer.Option(
+        "--srd-form",
+        help=f"SRD of Eq. (19): printed or absolute [default: {_D.srd_form.value}].",
+    ),
 ]
 MetricsOpt = Annotated[
     MetricsLevel | None,
     typer.Option(
         "--metrics",
-        help="needed: probes only where Algorithm 1 uses them; all: always [default: needed].",
+        help="needed: probes only where Algorithm 1 uses them; all: always "
+        f"[default: {_D.metrics.value}].",
     ),
 ]
 KsAlphaOpt = Annotated[
@@ -240,10 +254,11 @@ WindowOpt = Annotated[
 ]
 WholeOpt = Annotated[bool | None, typer.Option("--whole", help="Diagnose each log as one segment.")]
 TimeColOpt = Annotated[
-    str | None, typer.Option("--time-column", help="Time column [default: time].")
+    str | None, typer.Option("--time-column", help=f"Time column [default: {_L.time}].")
 ]
 SegColOpt = Annotated[
-    str | None, typer.Option("--segment-column", help="Segment column [default: segment].")
+    str | None,
+    typer.Option("--segment-column", help=f"Segment column [default: {_L.segment}]."),
 ]
 TruthColsOpt = Annotated[
     str | None, typer.Option("--truth-columns", help="Truth columns, comma-separated.")
@@ -524,20 +539,20 @@ def gate(
     max_nci_increase: Annotated[
         float,
         typer.Option("--max-nci-increase", help="Fail when |NCI| grows by more than this (dB)."),
-    ] = 1.0,
+    ] = _T.max_nci_increase,
     max_anees_ratio: Annotated[
         float,
         typer.Option(
             "--max-anees-ratio",
             help="Fail when ANEES moves further from 1 by more than this factor.",
         ),
-    ] = 1.25,
+    ] = _T.max_anees_ratio,
     allow_new_segments: Annotated[
         bool,
         typer.Option(
             "--allow-new-segments", help="New or missing segments are reported, not failures."
         ),
-    ] = False,
+    ] = _T.allow_new_segments,
     junit: JunitOpt = None,
     summary: SummaryOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
@@ -622,26 +637,38 @@ def simulate(
         ),
     ] = "all",
     trials: Annotated[
-        int | None, typer.Option("--trials", help="Trials per scenario [default: 50].")
+        int | None, typer.Option("--trials", help=f"Trials per scenario [default: {_S.trials}].")
     ] = None,
-    n: Annotated[int | None, typer.Option("--n", help="Epochs per trial [default: 100].")] = None,
+    n: Annotated[
+        int | None, typer.Option("--n", help=f"Epochs per trial [default: {_S.n}].")
+    ] = None,
     dim: Annotated[
-        int | None, typer.Option("--dim", help="State dimension d [default: 2].")
+        int | None, typer.Option("--dim", help=f"State dimension d [default: {_S.dim}].")
     ] = None,
     rho_optimism: Annotated[
         str | None,
-        typer.Option("--rho-optimism", help="ρ range of optimism, lo:hi [default: 0.1:0.8]."),
+        typer.Option(
+            "--rho-optimism",
+            help=f"ρ range of optimism, lo:hi [default: {_range(_S.rho_optimism)}].",
+        ),
     ] = None,
     rho_pessimism: Annotated[
         str | None,
-        typer.Option("--rho-pessimism", help="ρ range of pessimism, lo:hi [default: 1.25:10]."),
+        typer.Option(
+            "--rho-pessimism",
+            help=f"ρ range of pessimism, lo:hi [default: {_range(_S.rho_pessimism)}].",
+        ),
     ] = None,
     bias: Annotated[
-        str | None, typer.Option("--bias", help="‖μ‖ range of SMM, lo:hi [default: 1.6:2.4].")
+        str | None,
+        typer.Option("--bias", help=f"‖μ‖ range of SMM, lo:hi [default: {_range(_S.bias)}]."),
     ] = None,
     eigenvalues: Annotated[
         str | None,
-        typer.Option("--eigenvalues", help="Range of the eigenvalues of Σ_true [default: 0.5:2]."),
+        typer.Option(
+            "--eigenvalues",
+            help=f"Range of the eigenvalues of Σ_true [default: {_range(_S.eigenvalues)}].",
+        ),
     ] = None,
     sweep: Annotated[
         str | None,
@@ -664,13 +691,14 @@ def simulate(
         typer.Option(
             "--ar",
             help="AR(1) coefficient φ of the whitened errors in time (marginal covariance "
-            "unchanged) [default: 0].",
+            f"unchanged) [default: {_S.ar:g}].",
         ),
     ] = None,
     noise: Annotated[
         str | None,
         typer.Option(
-            "--noise", help="Error distribution: gaussian or student-t:NU [default: gaussian]."
+            "--noise",
+            help=f"Error distribution: gaussian or student-t:NU [default: {_S.noise}].",
         ),
     ] = None,
     jobs: Annotated[
@@ -768,21 +796,23 @@ def uwb(
     whole: Annotated[bool, typer.Option("--whole", help="The whole run as one period.")] = False,
     range_column: Annotated[
         str, typer.Option("--range-column", help="range_calib (calibrated) or range (raw).")
-    ] = "range_calib",
+    ] = _U.range_column,
     std: Annotated[
         float | None,
         typer.Option("--std", help="Range std in m for files without a std column (s5)."),
     ] = None,
     max_speed: Annotated[
         float, typer.Option("--max-speed", help="Static: speed below this (m/s).")
-    ] = 0.1,
+    ] = _U.max_speed,
     min_static: Annotated[
         float, typer.Option("--min-static", help="Static: for at least this long (s).")
-    ] = 4.0,
+    ] = _U.min_static,
     packet_window: Annotated[
         float, typer.Option("--packet-window", help="Packet: distinct anchors within this (s).")
-    ] = 0.03,
-    min_anchors: Annotated[int, typer.Option("--min-anchors", help="Anchors per 2-D fix.")] = 3,
+    ] = _U.packet_window,
+    min_anchors: Annotated[
+        int, typer.Option("--min-anchors", help="Anchors per 2-D fix.")
+    ] = _U.min_anchors,
     export_log: Annotated[
         Path | None, typer.Option("--export-log", help="Write the fixes as a diagnose log (CSV).")
     ] = None,

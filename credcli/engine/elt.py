@@ -11,11 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from credcli.engine._rng import RngLike, as_generator
+from credcli.engine.config import DEFAULT_MAX_EPOCHS
 from credcli.errors import CredcliError
-
-DEFAULT_MAX_EPOCHS = 4000
-"""Largest N whose N×N matrix is formed (4000² float64 = 128 MB); larger segments are
-tested on a seeded random subsample of this many epochs."""
 
 _PVALUE_RTOL = 100 * np.finfo(float).eps
 

@@ -308,3 +308,19 @@ def _probes(errors, eigen: _CovEigen, chol, c: float, srd_absolute: bool) -> Pro
         srd_nll=srd(dn_minus, dn_plus, c, srd_absolute),
         srd_es=srd(de_minus, de_plus, c, srd_absolute),
     )
+
+
+def score_curves(errors: np.ndarray, cov: np.ndarray, scales) -> tuple[np.ndarray, np.ndarray]:
+    """Mean NLL and mean ES of the predictive N(x̂_k, sΣ̂_k) for each scale s, Eqs. (7), (10).
+
+    One Cholesky factor and one eigen-decomposition serve every scale: the NEES is divided
+    by s, and E‖Y − Y′‖ grows with √s.
+    """
+    errors, cov = _check_errors_cov(errors, cov)
+    scales = tuple(float(x) for x in scales)
+    chol = np.linalg.cholesky(cov)
+    eps = _nees(errors, chol)
+    logdet, d = _logdet(chol), errors.shape[1]
+    nll = np.array([_nll(eps, logdet, d, x).mean() for x in scales])
+    es = np.array([v.mean() for v in _CovEigen(cov).energy_scores(errors, scales)])
+    return nll, es

@@ -176,23 +176,19 @@ def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) ->
     return _finish(fig, name, title, {"s": shown, "mirror": -shown, "pvalue": pvalue})
 
 
-def scale_plot(name: str, errors: np.ndarray, cov: np.ndarray, c: float, title: str) -> Plot:
-    """Mean NLL and mean ES against the covariance scale (1/4 to 4), for the claimed
-    predictive and the centred one F̃ (Section III-C), with the probes at 1/c, 1, c."""
-    from credcli.engine import metrics
+PROBE_CURVE_SCALES = (0.25, 4.0, 17)
+"""The covariance scales of the score curves: geomspace(1/4, 4, 17), plus 1/c, 1 and c."""
 
+
+def curve_scales(c: float) -> np.ndarray:
+    return np.unique(np.r_[np.geomspace(*PROBE_CURVE_SCALES), 1.0 / c, 1.0, c])
+
+
+def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str) -> Plot:
+    """Mean NLL and mean ES against the covariance scale, for the claimed predictive and
+    the centred one F̃ (Section III-C), with the probes at 1/c, 1, c. ``curves`` maps
+    "claimed" and "centred" to (mean NLL, mean ES) arrays over ``scales``."""
     plt = _pyplot()
-    scales = np.unique(np.r_[np.geomspace(0.25, 4.0, 17), 1.0 / c, 1.0, c])
-    centred = errors - errors.mean(axis=0)
-    eig = metrics._CovEigen(cov)
-    chol = np.linalg.cholesky(cov)
-    logdet, d = metrics._logdet(chol), errors.shape[1]
-    curves = {}
-    for key, e in (("claimed", errors), ("centred", centred)):
-        eps = metrics._nees(e, chol)  # NLL at every scale from one NEES, Eq. (7)
-        nll = np.array([metrics._nll(eps, logdet, d, s).mean() for s in scales])
-        es = np.array([v.mean() for v in eig.energy_scores(e, tuple(scales))])
-        curves[key] = (nll, es)
     probe_idx = [int(np.argmin(np.abs(scales - p))) for p in (1.0 / c, 1.0, c)]
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
     for ax, k, label in ((axes[0], 0, "mean NLL"), (axes[1], 1, "mean ES")):
@@ -224,8 +220,8 @@ def scale_plot(name: str, errors: np.ndarray, cov: np.ndarray, c: float, title: 
 
 def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
     """The three pictures of every diagnosed segment of a log."""
-    from credcli.engine import metrics
     from credcli.engine.elt import whiten
+    from credcli.engine.metrics import nees, score_curves
 
     by_name = {s.name: s for s in segments}
     all_errors = log.errors
@@ -237,10 +233,16 @@ def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
         time = None if log.time is None else log.time[seg.index]
         stem = safe_name(f"{prefix}{res.segment}")
         head = f"{short_title(res.segment)}: {diag.label.value} (N = {diag.n})"
-        plots.append(nees_plot(f"{stem}_nees", time, metrics.nees(errors, cov), log.dim, head))
+        plots.append(nees_plot(f"{stem}_nees", time, nees(errors, cov), log.dim, head))
         plots.append(whitened_plot(f"{stem}_whitened", whiten(errors, cov), diag.elt_pvalue, head))
         if diag.label.value != "insufficient-data":
-            plots.append(scale_plot(f"{stem}_scores", errors, cov, diag.config.c, head))
+            c = diag.config.c
+            scales = curve_scales(c)
+            curves = {
+                "claimed": score_curves(errors, cov, scales),
+                "centred": score_curves(errors - errors.mean(axis=0), cov, scales),
+            }
+            plots.append(scale_plot(f"{stem}_scores", scales, curves, c, head))
     return plots
 
 

@@ -7,7 +7,6 @@ format it. Floats keep full precision in CSV and JSON; tables round them for rea
 from __future__ import annotations
 
 import csv
-import enum
 import io
 import json
 from collections.abc import Callable
@@ -15,13 +14,7 @@ from dataclasses import dataclass, field
 
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.io.records import json_value, segment_record
-
-
-class OutputFormat(str, enum.Enum):
-    TABLE = "table"
-    CSV = "csv"
-    JSON = "json"
-    MARKDOWN = "markdown"
+from credcli.report.formats import OutputFormat  # noqa: F401 (re-exported)
 
 
 @dataclass(frozen=True)
@@ -610,11 +603,15 @@ GATE_COLUMNS = (
 
 
 def _pair(old, new, key):
-    def f(rec):
-        v = (rec or {}).get(key)
+    def f(snap):
+        v = None if snap is None else getattr(snap, key)
         return "—" if v is None else f"{v:.3g}"
 
     return f"{f(old)} → {f(new)}"
+
+
+def _label(snap) -> str | None:
+    return None if snap is None else snap.label.value
 
 
 def gate_report(comparisons, parameters: dict, baseline: str, passed: bool, verdict: str) -> Report:
@@ -624,7 +621,7 @@ def gate_report(comparisons, parameters: dict, baseline: str, passed: bool, verd
         {
             "segment": c.segment,
             "status": c.status.value,
-            "labels": f"{(c.old or {}).get('label', '—')} → {(c.new or {}).get('label', '—')}",
+            "labels": f"{_label(c.old) or '—'} → {_label(c.new) or '—'}",
             "nci": _pair(c.old, c.new, "nci"),
             "anees": _pair(c.old, c.new, "anees"),
             "elt": _pair(c.old, c.new, "elt_pvalue"),
@@ -643,12 +640,12 @@ def gate_report(comparisons, parameters: dict, baseline: str, passed: bool, verd
             {
                 "segment": c.segment,
                 "status": c.status.value,
-                "baseline_label": (c.old or {}).get("label"),
-                "label": (c.new or {}).get("label"),
+                "baseline_label": _label(c.old),
+                "label": _label(c.new),
                 "reasons": list(c.reasons),
                 "improvements": list(c.improvements),
-                "baseline": c.old,
-                "current": c.new,
+                "baseline": None if c.old is None else c.old.record,
+                "current": None if c.new is None else c.new.record,
             }
             for c in comparisons
         ],

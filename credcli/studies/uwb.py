@@ -14,34 +14,7 @@ import numpy as np
 
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
-
-
-@dataclass(frozen=True)
-class UwbSettings:
-    """Settings of the UWB pipeline (defaults are the paper's Section V-A)."""
-
-    range_column: str = "range_calib"
-    std: float | None = None  # fixed range std (m) for files without a `std` column
-    packet_window: float = 0.03  # s: ranges from distinct anchors within this window
-    min_anchors: int = 3  # for a 2-D fix
-    max_speed: float = 0.1  # m/s: static if the rig's 3-D speed stays below ...
-    min_static: float = 4.0  # s: ... for at least this long
-    wls_iterations: int = 20
-
-    def __post_init__(self) -> None:
-        checks = [
-            (self.std is None or self.std > 0, f"--std must be > 0; got {self.std}"),
-            (self.packet_window > 0, f"--packet-window must be > 0; got {self.packet_window}"),
-            (
-                self.min_anchors >= 3,
-                f"--min-anchors must be >= 3 for a 2-D fix; got {self.min_anchors}",
-            ),
-            (self.max_speed > 0, f"--max-speed must be > 0; got {self.max_speed}"),
-            (self.min_static > 0, f"--min-static must be > 0; got {self.min_static}"),
-        ]
-        for ok, message in checks:
-            if not ok:
-                raise CredcliError(message)
+from credcli.studies.settings import UwbSettings  # noqa: F401 (re-exported)
 
 
 @dataclass(frozen=True)

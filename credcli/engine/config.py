@@ -1,0 +1,227 @@
+"""The settings of a diagnosis and the names it uses: labels, variants, forms.
+
+Plain Python (no numpy), so that the command line can read every default from here
+without loading the engine.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import numbers
+from dataclasses import dataclass
+
+from credcli.errors import CredcliError
+
+DEFAULT_MAX_EPOCHS = 4000
+"""Largest N whose N×N ELT matrix is formed (4000² float64 = 128 MB); larger segments are
+tested on a seeded random subsample of this many epochs."""
+
+
+class Label(str, enum.Enum):
+    """Diagnosis labels. A label is a set of conditions joined by '+'."""
+
+    CREDIBLE = "credible"
+    OPTIMISM = "optimism"
+    PESSIMISM = "pessimism"
+    SMM = "smm"
+    OPTIMISM_SMM = "optimism+smm"
+    PESSIMISM_SMM = "pessimism+smm"
+    INSUFFICIENT = "insufficient-data"
+
+    @property
+    def conditions(self) -> frozenset[str]:
+        """The non-credibility conditions in the label: subsets of {optimism, pessimism, smm}."""
+        if self in (Label.CREDIBLE, Label.INSUFFICIENT):
+            return frozenset()
+        return frozenset(self.value.split("+"))
+
+
+DIAGNOSIS_LABELS = tuple(lab for lab in Label if lab is not Label.INSUFFICIENT)
+"""The six labels Algorithm 1 can output, in the paper's order."""
+
+LABEL_ALIASES = {
+    "cred": Label.CREDIBLE,
+    "opt": Label.OPTIMISM,
+    "pess": Label.PESSIMISM,
+    "opt+smm": Label.OPTIMISM_SMM,
+    "pess+smm": Label.PESSIMISM_SMM,
+}
+"""Short names accepted wherever a label is typed (simulate --scenario, --fail-on)."""
+
+
+def parse_label(text: str) -> Label | None:
+    """A label from its name or alias (case-insensitive); None when it is neither."""
+    text = text.strip().lower()
+    if text in LABEL_ALIASES:
+        return LABEL_ALIASES[text]
+    try:
+        return Label(text)
+    except ValueError:
+        return None
+
+
+class Variant(str, enum.Enum):
+    """The decision rule.
+
+    CALIBRATED (default): α is the overall false-alarm level, split by Šidák between the
+    ELT (SMM) and a χ² scale test on GLS-centred errors (optimism / pessimism), both
+    adjusted for serial dependence; see :func:`diagnose_errors`.
+    PAPER: Algorithm 1 as printed (NCI against ±τ).
+    KS: the authors' public code: `credible` also when a Kolmogorov–Smirnov test of the
+    NEES values against χ²_d does not reject at ``ks_alpha``; otherwise NCI against ±τ.
+    """
+
+    CALIBRATED = "calibrated"
+    PAPER = "paper"
+    KS = "ks"
+
+
+AUTO = "auto"
+"""``block_length = AUTO``: estimated from the data (calibrated), 1 (paper, ks)."""
+
+MAX_FLIPS = 10_000_000
+"""Largest B: 80 MB of null distribution; more adds nothing to a p-value at level 0.01."""
+MIN_ELT_EPOCHS = 100
+"""Smallest ELT memory budget (max_elt_epochs)."""
+
+
+class SrdForm(str, enum.Enum):
+    """Form of the SRD of Eq. (19): as printed, or the absolute value of the whole ratio."""
+
+    PRINTED = "printed"
+    ABSOLUTE = "absolute"
+
+
+class MetricsLevel(str, enum.Enum):
+    """NEEDED computes the NLL/ES probes only where Algorithm 1 reaches them; ALL always."""
+
+    NEEDED = "needed"
+    ALL = "all"
+
+
+@dataclass(frozen=True)
+class DiagnosisConfig:
+    """Every setting of the diagnosis. τ, α, c and B are the paper's (Section IV-A).
+
+    ``alpha``: in the calibrated variant, the overall false-alarm level on credible data,
+    split as α_L = α_S = 1 − √(1 − α); in ``paper`` and ``ks``, the ELT's level α_sig.
+    ``tau_nci``: the NCI threshold of ``paper`` and ``ks``; in the calibrated variant the
+    relevance floor of the scale label, |10 log₁₀ κ̂| > τ.
+    ``block_length``: epochs per ELT sign block, or ``"auto"`` (estimated from the data
+    in the calibrated variant, 1 in ``paper`` and ``ks``). A fixed 1 in the calibrated
+    variant declares the epochs independent: the scale test is then the exact χ²_{(N−1)d}.
+    ``min_epochs``: segments with fewer epochs (or fewer than ``d + 2``, or too few sign
+    blocks) get ``insufficient-data``: with 5 independent signs the sign-flip null has
+    16 distinct values, so p < 0.05 is impossible, and the MSE matrix needs N > d errors.
+    """
+
+    tau_nci: float = 0.5
+    alpha: float = 0.05
+    c: float = 2.0
+    n_flips: int = 1000
+    block_length: int | str = AUTO
+    variant: Variant = Variant.CALIBRATED
+    srd_form: SrdForm = SrdForm.PRINTED
+    ks_alpha: float = 0.01
+    nees_alpha: float = 0.05
+    min_epochs: int = 10
+    max_elt_epochs: int = DEFAULT_MAX_EPOCHS
+    metrics: MetricsLevel = MetricsLevel.NEEDED
+
+    def __post_init__(self) -> None:
+        reals = ("tau_nci", "alpha", "c", "ks_alpha", "nees_alpha")
+        integers = ("n_flips", "min_epochs", "max_elt_epochs")
+        for name in reals:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise CredcliError(f"invalid setting: {name} must be a number; got {value!r}")
+        for name in integers:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+                raise CredcliError(f"invalid setting: {name} must be an integer; got {value!r}")
+        try:
+            variant = Variant(self.variant)
+        except ValueError:
+            names = ", ".join(v.value for v in Variant)
+            raise CredcliError(
+                f"invalid setting: variant must be one of {names}; got {self.variant!r}"
+            ) from None
+        checks = [
+            (0 < self.tau_nci < math.inf, "tau_nci (dB) must be finite and > 0"),
+            (0 < self.alpha < 1, "alpha must be in (0, 1)"),
+            (1 < self.c < math.inf, "c (probe factor) must be finite and > 1"),
+            (
+                self.n_flips <= MAX_FLIPS,
+                f"n_flips {self.n_flips} would need {self.n_flips * 8 / 2**30:.3g} GiB for the "
+                f"null distribution alone; at most {MAX_FLIPS:,} are allowed (the p-value's "
+                "Monte Carlo error is already below 1e-4 there)",
+            ),
+            (
+                self.block_length == AUTO
+                or (
+                    isinstance(self.block_length, numbers.Integral)
+                    and not isinstance(self.block_length, bool)
+                    and self.block_length >= 1
+                ),
+                f"block_length must be 'auto' or an integer >= 1; got {self.block_length!r}",
+            ),
+            (0 < self.ks_alpha < 1, "ks_alpha must be in (0, 1)"),
+            (0 < self.nees_alpha < 1, "nees_alpha must be in (0, 1)"),
+            (self.min_epochs >= 2, "min_epochs must be >= 2"),
+            (
+                self.max_elt_epochs >= MIN_ELT_EPOCHS,
+                f"max_elt_epochs must be >= {MIN_ELT_EPOCHS}: a smaller budget leaves the ELT "
+                f"almost no power; got {self.max_elt_epochs}",
+            ),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise CredcliError(f"invalid setting: {message}")
+        level = 1.0 - math.sqrt(1.0 - self.alpha) if variant is Variant.CALIBRATED else self.alpha
+        smallest = math.ceil(1.0 / level - 1e-9) - 1
+        if self.n_flips < smallest:
+            raise CredcliError(
+                f"invalid setting: n_flips {self.n_flips} is too few: the ELT's p-value "
+                f"(1 + count)/(B + 1) can only fall below its level {level:.3g} with "
+                f"B >= {smallest}"
+            )
+        object.__setattr__(self, "variant", Variant(self.variant))
+        object.__setattr__(self, "srd_form", SrdForm(self.srd_form))
+        object.__setattr__(self, "metrics", MetricsLevel(self.metrics))
+
+    @property
+    def calibrated(self) -> bool:
+        return self.variant is Variant.CALIBRATED
+
+    @property
+    def location_level(self) -> float:
+        """The ELT's level: α_L = 1 − √(1 − α) (Šidák) in the calibrated variant, else α."""
+        return 1.0 - math.sqrt(1.0 - self.alpha) if self.calibrated else self.alpha
+
+    @property
+    def scale_level(self) -> float:
+        """The scale test's two-sided level α_S = 1 − √(1 − α) (Šidák)."""
+        return 1.0 - math.sqrt(1.0 - self.alpha)
+
+    @property
+    def fixed_block_length(self) -> int | None:
+        """The block length when it is not estimated from the data, else None."""
+        if self.block_length != AUTO:
+            return int(self.block_length)
+        return None if self.calibrated else 1
+
+    @property
+    def min_blocks(self) -> int:
+        """Fewest sign blocks the ELT needs: 6 in ``paper``/``ks``; in the calibrated
+        variant the fewest m whose smallest exact p-value, 2^{1−m}, is at most α_L/2."""
+        if not self.calibrated:
+            return 6
+        return max(6, math.ceil(math.log2(4.0 / self.location_level) - 1e-12))
+
+    def min_n(self, dim: int) -> int:
+        """Smallest segment size that is diagnosed (with the fixed block length, or 1)."""
+        blocks = self.min_blocks * (self.fixed_block_length or 1)
+        if not self.calibrated:
+            blocks = 5 * (self.fixed_block_length or 1) + 1
+        return max(self.min_epochs, dim + 2, blocks)

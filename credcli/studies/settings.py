@@ -1,0 +1,181 @@
+"""Settings of the studies: the Monte Carlo study and the UWB pipeline. Plain Python (no
+numpy at import), so that the command line reads every default from here."""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+from credcli.engine.config import DiagnosisConfig, Label
+from credcli.errors import CredcliError
+
+
+class Noise(str, enum.Enum):
+    GAUSSIAN = "gaussian"
+    STUDENT_T = "student-t"
+
+
+@dataclass(frozen=True)
+class ErrorModel:
+    """How whitened errors are drawn: Gaussian or multivariate Student-t with ``nu`` degrees
+    of freedom (scaled to unit covariance), then an AR(1) filter of coefficient ``ar`` in
+    time, x_k = φ x_{k−1} + √(1 − φ²) z_k with x_0 = z_0, which keeps the marginal
+    covariance unchanged."""
+
+    noise: Noise = Noise.GAUSSIAN
+    nu: float | None = None
+    ar: float = 0.0
+
+    @classmethod
+    def parse(cls, noise: str = "gaussian", ar: float = 0.0) -> ErrorModel:
+        text = noise.strip().lower()
+        if text == Noise.GAUSSIAN.value:
+            model = cls(Noise.GAUSSIAN, None, ar)
+        elif text.startswith(Noise.STUDENT_T.value + ":"):
+            try:
+                nu = float(text.split(":", 1)[1])
+            except ValueError:
+                nu = float("nan")
+            if not (math.isfinite(nu) and nu > 2):
+                raise CredcliError(
+                    f"noise '{noise}': the degrees of freedom must be a number > 2 "
+                    "(the covariance must exist), e.g. student-t:5"
+                )
+            model = cls(Noise.STUDENT_T, nu, ar)
+        else:
+            raise CredcliError(f"noise '{noise}': use gaussian or student-t:NU, e.g. student-t:5")
+        if not (math.isfinite(ar) and -1 < ar < 1):
+            raise CredcliError(f"ar must be in (-1, 1); got {ar}")
+        return model
+
+    def __str__(self) -> str:
+        return self.noise.value + (f":{self.nu:g}" if self.nu is not None else "")
+
+    def draw(self, rng, n: int, dim: int):
+        """Whitened errors (n, dim) with unit marginal covariance (a numpy array)."""
+        import numpy as np
+
+        z = rng.standard_normal((n, dim))
+        if self.noise is Noise.STUDENT_T:
+            w = rng.chisquare(self.nu, size=(n, 1)) / (self.nu - 2.0)
+            z /= np.sqrt(w)
+        if self.ar:
+            from scipy.signal import lfilter
+
+            c = math.sqrt(1.0 - self.ar**2)
+            z = lfilter([c], [1.0, -self.ar], z, axis=0, zi=((1.0 - c) * z[:1]))[0]
+        return z
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """How one group of trials is drawn; ``rho`` and ``bias`` are uniform ranges
+    (a bias range of (0, 0) means no bias)."""
+
+    rho: tuple[float, float]
+    bias: tuple[float, float]
+
+    @property
+    def truth(self) -> Label:
+        """The label a perfect diagnosis would give these trials."""
+        lo, hi = self.rho
+        if lo < 1 < hi or (lo < 1 and hi == 1) or (lo == 1 and hi > 1):
+            raise CredcliError(f"a ρ range must not straddle 1; got [{lo:g}, {hi:g}]")
+        noise = "optimism" if hi < 1 else "pessimism" if lo > 1 else ""
+        smm = self.bias[1] > 0
+        if smm and self.bias[0] <= 0:
+            raise CredcliError(f"a bias range must be all zero or all positive; got {self.bias}")
+        name = "+".join(p for p in (noise, "smm" if smm else "") if p) or "credible"
+        return Label(name)
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Every setting of the study. Defaults are the paper's Section IV-A."""
+
+    trials: int = 50
+    n: int = 100
+    dim: int = 2
+    rho_optimism: tuple[float, float] = (0.1, 0.8)
+    rho_pessimism: tuple[float, float] = (1.25, 10.0)
+    bias: tuple[float, float] = (1.6, 2.4)
+    eigenvalues: tuple[float, float] = (0.5, 2.0)
+    seed: int = 0
+    ar: float = 0.0
+    noise: str = "gaussian"
+    diagnosis: DiagnosisConfig = field(default_factory=DiagnosisConfig)
+
+    @property
+    def error_model(self) -> ErrorModel:
+        return ErrorModel.parse(self.noise, self.ar)
+
+    def __post_init__(self) -> None:
+        checks = [
+            (1 <= self.trials <= 1_000_000, f"trials must be 1 … 1,000,000; got {self.trials}"),
+            (2 <= self.n <= 10_000_000, f"n must be 2 … 10,000,000; got {self.n}"),
+            (1 <= self.dim <= 64, f"dim must be 1 … 64; got {self.dim}"),
+            (
+                0 < self.rho_optimism[0] <= self.rho_optimism[1] < 1,
+                f"the optimism ρ range must lie in (0, 1); got {self.rho_optimism}",
+            ),
+            (
+                1 < self.rho_pessimism[0] <= self.rho_pessimism[1],
+                f"the pessimism ρ range must lie above 1; got {self.rho_pessimism}",
+            ),
+            (0 < self.bias[0] <= self.bias[1], f"the bias range must be positive; got {self.bias}"),
+            (
+                0 < self.eigenvalues[0] <= self.eigenvalues[1],
+                f"the eigenvalue range must be positive; got {self.eigenvalues}",
+            ),
+            (self.seed >= 0, f"--seed must be >= 0; got {self.seed}"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise CredcliError(message)
+        self.error_model  # noqa: B018 (validates noise and ar)
+        smallest = self.diagnosis.min_n(self.dim)
+        if self.n < smallest:
+            raise CredcliError(
+                f"--n {self.n} is below the smallest segment that is diagnosed ({smallest} epochs "
+                f"for d = {self.dim}); every trial would be insufficient-data"
+            )
+
+    def spec(self, scenario: Label) -> ScenarioSpec:
+        conditions = scenario.conditions
+        rho = (
+            self.rho_optimism
+            if "optimism" in conditions
+            else self.rho_pessimism
+            if "pessimism" in conditions
+            else (1.0, 1.0)
+        )
+        return ScenarioSpec(rho, self.bias if "smm" in conditions else (0.0, 0.0))
+
+
+@dataclass(frozen=True)
+class UwbSettings:
+    """Settings of the UWB pipeline (defaults are the paper's Section V-A)."""
+
+    range_column: str = "range_calib"
+    std: float | None = None  # fixed range std (m) for files without a `std` column
+    packet_window: float = 0.03  # s: ranges from distinct anchors within this window
+    min_anchors: int = 3  # for a 2-D fix
+    max_speed: float = 0.1  # m/s: static if the rig's 3-D speed stays below ...
+    min_static: float = 4.0  # s: ... for at least this long
+    wls_iterations: int = 20
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.std is None or self.std > 0, f"--std must be > 0; got {self.std}"),
+            (self.packet_window > 0, f"--packet-window must be > 0; got {self.packet_window}"),
+            (
+                self.min_anchors >= 3,
+                f"--min-anchors must be >= 3 for a 2-D fix; got {self.min_anchors}",
+            ),
+            (self.max_speed > 0, f"--max-speed must be > 0; got {self.max_speed}"),
+            (self.min_static > 0, f"--min-static must be > 0; got {self.min_static}"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise CredcliError(message)

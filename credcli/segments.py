@@ -32,14 +32,14 @@ class Window:
         m = re.fullmatch(r"\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|min)?\s*", str(text))
         if not m:
             raise CredcliError(
-                f"--window '{text}' is not a duration like 5s, 250ms, 2min or an epoch count like 200"
+                f"window '{text}' is not a duration like 5s, 250ms, 2min or an epoch count like 200"
             )
         value, unit = float(m.group(1)), m.group(2)
         if value <= 0:
-            raise CredcliError(f"--window must be positive; got '{text}'")
+            raise CredcliError(f"window must be positive; got '{text}'")
         if unit is None:
             if value != int(value):
-                raise CredcliError(f"--window '{text}': an epoch count must be a whole number")
+                raise CredcliError(f"window '{text}': an epoch count must be a whole number")
             return cls(value, False)
         return cls(value * {"ms": 1e-3, "s": 1.0, "min": 60.0}[unit], True)
 

@@ -152,7 +152,7 @@ def test_bad_options_are_one_line(capsys):
     code, _, err = _run(capsys, "diagnose", LOG, "--window", "abc")
     assert code == 2 and err.startswith("credcli: error: --window 'abc'") and err.count("\n") == 1
     code, _, err = _run(capsys, "diagnose", LOG, "--tau", "-1")
-    assert code == 2 and "tau_nci" in err
+    assert code == 2 and "--tau must be finite and > 0" in err
     code, _, err = _run(capsys, "diagnose", LOG, "--format", "xml")
     assert code == 2 and err.count("\n") == 1
 

@@ -333,9 +333,9 @@ def test_baseline_that_is_a_directory(tmp_path):
         (("--flips", "1000000000"), "would need 7.45 GiB"),
         (("-B", "38"), "B >= 39"),  # α_L = 0.0253: 1/(B + 1) < α_L needs B >= 39
         (("-B", "18", "--variant", "ks"), "B >= 19"),
-        (("--max-elt-epochs", "99"), "max_elt_epochs must be >= 100"),
-        (("--tau", "inf"), "tau_nci (dB) must be finite"),
-        (("-c", "inf"), "c (probe factor) must be finite"),
+        (("--max-elt-epochs", "99"), "--max-elt-epochs must be >= 100"),
+        (("--tau", "inf"), "--tau must be finite"),
+        (("-c", "inf"), "--probe-factor must be finite"),
         (("--block-length", "0"), "--block-length"),
     ],
 )
@@ -562,3 +562,80 @@ def test_random_baseline_edits_never_crash(tmp_path, recorded, where, key, value
     before = base.read_bytes()
     code, _, err = run("gate", LOG, "--baseline", base, "-f", "json")
     _assert_clean(code, err, {base: before, LOG: LOG.read_bytes()})
+
+
+# --- consistency a user notices -------------------------------------------------------------
+
+
+def test_labels_and_sizes_are_never_cut_on_80_columns():
+    from credcli.engine.diagnosis import DiagnosisConfig
+    from credcli.io.logs import LogSchema
+    from credcli.report.render import OutputFormat, to_text
+    from credcli.workflows import run_diagnose
+
+    report = run_diagnose([LOG], LogSchema(), DiagnosisConfig()).report
+    text = to_text(report, OutputFormat.TABLE, width=80)
+    assert max(len(line) for line in text.splitlines()) <= 80
+    for label in ("pessimism+smm", "optimism+smm", "credible"):
+        assert label in text
+    assert "│ 300 │ 2 │" in text  # N and d
+    assert "not shown at" in text
+
+
+def test_pvalue_floor_and_no_float_noise():
+    code, out, _ = run("diagnose", LOG, "-f", "markdown")
+    assert code == 0 and "<0.001" in out and "9.99e-04" not in out
+    code, out, _ = run(
+        "simulate", "--sweep", "tau=0.05:2:40", "--trials", "1", "-s", "cred", "-f", "json"
+    )
+    values = json.loads(out)["sweep"]["values"]
+    assert all(len(repr(v)) <= 6 for v in values), values  # 1.95, not 1.9500000000000002
+
+
+def test_multi_table_csv_is_one_valid_csv():
+    import csv
+
+    code, out, _ = run("uwb", UWB, "-f", "csv")
+    assert code == 0
+    rows = list(csv.reader(io.StringIO(out)))
+    assert rows[0][0] == "table" and all(len(r) == len(rows[0]) for r in rows)
+    assert {r[0] for r in rows[1:]} == {
+        "Anchors",
+        "Range errors per period and anchor (Figs. 4 and 5)",
+        "Table IV: diagnosis per period",
+    }
+
+
+def test_gate_takes_config_and_plots(tmp_path):
+    base = tmp_path / "b.json"
+    assert run("baseline", LOG, "-o", base)[0] == 0
+    config = tmp_path / "c.toml"
+    config.write_text("[diagnosis]\ntau = 0.8\n")
+    line = error_line(*run("gate", LOG, "--baseline", base, "--config", config)[::2])
+    assert "tau_nci: baseline 0.5, now 0.8" in line
+    config.write_text("[diagnosis]\ntau = 0.5\n")
+    code, _, err = run(
+        "gate", LOG, "--baseline", base, "--config", config, "--plots", tmp_path / "f"
+    )
+    assert code == 0, err
+    assert len(list((tmp_path / "f").glob("*.png"))) == 18
+
+
+def test_fail_on_accepts_label_aliases():
+    code, _, err = run("diagnose", LOG, "--fail-on", "opt+smm")
+    assert code == 1 and "match --fail-on optimism,smm" in err
+    assert run("diagnose", LOG, "--fail-on", "pess")[0] == 1
+
+
+def test_diagnose_writes_an_html_report(tmp_path):
+    path = tmp_path / "r.html"
+    code, _, err = run("diagnose", LOG, "--report", path)
+    assert code == 0, err
+    html = path.read_text()
+    assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 18
+
+
+def test_ks_and_nees_alpha_flags_reach_the_settings():
+    code, out, _ = run("diagnose", LOG, "-f", "json", "--ks-alpha", "0.2", "--nees-alpha", "0.1")
+    params = json.loads(out)["parameters"]
+    assert code == 0 and params["ks_alpha"] == 0.2 and params["nees_alpha"] == 0.1

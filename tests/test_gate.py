@@ -52,7 +52,7 @@ def test_fail_on_parsing_and_matching():
     assert not gate.fails(Label.INSUFFICIENT, smm)
     assert gate.fails(Label.INSUFFICIENT, gate.parse_fail_on("insufficient-data"))
     for bad in ("credible", "bias", ""):
-        with pytest.raises(CredcliError, match="--fail-on"):
+        with pytest.raises(CredcliError, match="fail_on"):
             gate.parse_fail_on(bad)
 
 

@@ -32,13 +32,13 @@ def parse_fail_on(text: str) -> frozenset[str]:
         label = parse_label(item)
         if label is None or label is Label.CREDIBLE:
             raise CredcliError(
-                f"--fail-on: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
+                f"fail_on: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
                 f"{Label.INSUFFICIENT.value}, {NONCREDIBLE}, a label such as optimism+smm, or "
                 f"an alias ({', '.join(a for a in LABEL_ALIASES if a != 'cred')})"
             )
         out |= label.conditions
     if not out:
-        raise CredcliError("--fail-on: give at least one condition, e.g. --fail-on noncredible")
+        raise CredcliError("fail_on: give at least one condition, e.g. noncredible")
     return frozenset(out)
 
 

@@ -5,6 +5,7 @@ Errors raised as CredcliError (and usage errors) become one line on stderr and e
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -321,37 +322,16 @@ def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, dr
     }
 
 
-def _setup_from(opts: dict) -> dict:
-    """`_diagnose_setup` from a command's parameters (its ``locals()``)."""
-    return _diagnose_setup(
-        opts["config"],
-        {
-            "time": opts["time_column"],
-            "segment": opts["segment_column"],
-            "truth_columns": opts["truth_columns"],
-            "estimate_columns": opts["estimate_columns"],
-            "cov_columns": opts["cov_columns"],
-            "cov_kind": opts["cov_kind"],
-        },
-        _diagnosis_cli(
-            opts["tau"],
-            opts["alpha"],
-            opts["probe_factor"],
-            opts["flips"],
-            opts["block_length"],
-            opts["variant"],
-            opts["srd_form"],
-            opts["metrics"],
-            opts["min_epochs"],
-            opts["max_elt_epochs"],
-            opts["ks_alpha"],
-            opts["nees_alpha"],
-        ),
-        opts["seed"],
-        opts["window"],
-        opts["whole"],
-        opts["drop_invalid"],
-    )
+def _columns(time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind):
+    """The column options of a command, by LogSchema field name."""
+    return {
+        "time": time_column,
+        "segment": segment_column,
+        "truth_columns": truth_columns,
+        "estimate_columns": estimate_columns,
+        "cov_columns": cov_columns,
+        "cov_kind": cov_kind,
+    }
 
 
 def _write_html(path: Path, title: str, run, sources, inputs) -> None:
@@ -458,7 +438,30 @@ def diagnose(
     outputs = {"--output": output, "--junit": junit, "--summary": summary, "--report": report_file}
     _guard(outputs, inputs, plots)
     _check_plotting(plots, report_file)
-    setup = _setup_from(locals())
+    setup = _diagnose_setup(
+        config,
+        _columns(
+            time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind
+        ),
+        _diagnosis_cli(
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            min_epochs,
+            max_elt_epochs,
+            ks_alpha,
+            nees_alpha,
+        ),
+        seed,
+        window,
+        whole,
+        drop_invalid,
+    )
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(
             logs, progress=bar, plots=plots is not None or report_file is not None, **setup
@@ -520,7 +523,30 @@ def baseline(
 
     inputs = [log, config]
     _guard({"--output": output}, inputs)
-    setup = _setup_from(locals())
+    setup = _diagnose_setup(
+        config,
+        _columns(
+            time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind
+        ),
+        _diagnosis_cli(
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            min_epochs,
+            max_elt_epochs,
+            ks_alpha,
+            nees_alpha,
+        ),
+        seed,
+        window,
+        whole,
+        drop_invalid,
+    )
     with _Progress("diagnosing segments") as bar:
         recorded = run_baseline(log, progress=bar, **setup)
     _emit(recorded, OutputFormat.JSON, output, inputs=inputs)
@@ -935,7 +961,30 @@ def report(
     _check_plotting(output)
     inputs = [*logs, config]
     _guard({"--output": output}, inputs)
-    setup = _setup_from(locals())
+    setup = _diagnose_setup(
+        config,
+        _columns(
+            time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind
+        ),
+        _diagnosis_cli(
+            tau,
+            alpha,
+            probe_factor,
+            flips,
+            block_length,
+            variant,
+            srd_form,
+            metrics,
+            min_epochs,
+            max_elt_epochs,
+            ks_alpha,
+            nees_alpha,
+        ),
+        seed,
+        window,
+        whole,
+        drop_invalid,
+    )
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=True, **setup)
     _write_html(output, "credcli report: " + ", ".join(p.name for p in logs), run, logs, inputs)
@@ -1007,7 +1056,7 @@ def _run(command, args: list[str], debug: bool) -> int:
             import traceback
 
             traceback.print_exc()
-        print(f"credcli: error: {exc.message}", file=sys.stderr)
+        print(f"credcli: error: {flag_names(exc.message)}", file=sys.stderr)
         return exc.exit_code
     except _click_exception_types() as exc:
         ctx = getattr(exc, "ctx", None)
@@ -1050,6 +1099,48 @@ def _run(command, args: list[str], debug: bool) -> int:
     if result == 130:  # Typer turns KeyboardInterrupt into a silent Exit(130)
         print("credcli: interrupted", file=sys.stderr)
     return int(result or 0)
+
+
+FLAG_NAMES = {
+    "n_flips": "--flips",
+    "tau_nci": "--tau",
+    "alpha": "--alpha",
+    "c": "--probe-factor",
+    "block_length": "--block-length",
+    "variant": "--variant",
+    "min_epochs": "--min-epochs",
+    "max_elt_epochs": "--max-elt-epochs",
+    "ks_alpha": "--ks-alpha",
+    "nees_alpha": "--nees-alpha",
+    "max_nci_increase": "--max-nci-increase",
+    "max_anees_ratio": "--max-anees-ratio",
+    "fail_on": "--fail-on",
+    "plots": "--plots",
+    "window": "--window",
+    "scenario": "--scenario",
+    "sweep": "--sweep",
+    "seed": "--seed",
+    "trials": "--trials",
+    "n": "--n",
+    "dim": "--dim",
+    "std": "--std",
+    "packet_window": "--packet-window",
+    "min_anchors": "--min-anchors",
+    "max_speed": "--max-speed",
+    "min_static": "--min-static",
+}
+"""Library parameter names and the flags that set them."""
+
+_LEADING_PARAMETER = re.compile(r"^(invalid setting: )?([a-z_]+)\b")
+
+
+def flag_names(message: str) -> str:
+    """A library message names a parameter first ("n_flips 5 is too few …"); on the command
+    line it names the flag ("--flips 5 is too few …"). Messages about files are untouched."""
+    m = _LEADING_PARAMETER.match(message)
+    if m and m[2] in FLAG_NAMES:
+        return message[: m.start(2)] + FLAG_NAMES[m[2]] + message[m.end(2) :]
+    return message
 
 
 def _silence_stdout() -> None:

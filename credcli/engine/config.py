@@ -13,6 +13,12 @@ from dataclasses import dataclass
 
 from credcli.errors import CredcliError
 
+def sidak(alpha: float) -> float:
+    """The level of each of two independent tests whose union has level ``alpha``:
+    1 − √(1 − α), written α/(1 + √(1 − α)) so that it does not round to 0 for tiny α."""
+    return alpha / (1.0 + math.sqrt(1.0 - alpha))
+
+
 DEFAULT_MAX_EPOCHS = 4000
 """Largest N whose N×N ELT matrix is formed (4000² float64 = 128 MB); larger segments are
 tested on a seeded random subsample of this many epochs."""
@@ -148,9 +154,9 @@ class DiagnosisConfig:
                 f"invalid setting: variant must be one of {names}; got {self.variant!r}"
             ) from None
         checks = [
-            (0 < self.tau_nci < math.inf, "tau_nci (dB) must be finite and > 0"),
+            (0 < self.tau_nci < math.inf, "tau_nci must be finite and > 0 (dB)"),
             (0 < self.alpha < 1, "alpha must be in (0, 1)"),
-            (1 < self.c < math.inf, "c (probe factor) must be finite and > 1"),
+            (1 < self.c < math.inf, "c must be finite and > 1 (the probe factor of Eq. (18))"),
             (
                 self.n_flips <= MAX_FLIPS,
                 f"n_flips {self.n_flips} would need {self.n_flips * 8 / 2**30:.3g} GiB for the "
@@ -178,8 +184,13 @@ class DiagnosisConfig:
         for ok, message in checks:
             if not ok:
                 raise CredcliError(f"invalid setting: {message}")
-        level = 1.0 - math.sqrt(1.0 - self.alpha) if variant is Variant.CALIBRATED else self.alpha
+        level = sidak(self.alpha) if variant is Variant.CALIBRATED else self.alpha
         smallest = math.ceil(1.0 / level - 1e-9) - 1
+        if smallest > MAX_FLIPS:
+            raise CredcliError(
+                f"invalid setting: alpha {self.alpha:g} is too small to test: the ELT's p-value "
+                f"can only reach its level {level:.3g} with more than {MAX_FLIPS:,} sign flips"
+            )
         if self.n_flips < smallest:
             raise CredcliError(
                 f"invalid setting: n_flips {self.n_flips} is too few: the ELT's p-value "
@@ -197,12 +208,12 @@ class DiagnosisConfig:
     @property
     def location_level(self) -> float:
         """The ELT's level: α_L = 1 − √(1 − α) (Šidák) in the calibrated variant, else α."""
-        return 1.0 - math.sqrt(1.0 - self.alpha) if self.calibrated else self.alpha
+        return sidak(self.alpha) if self.calibrated else self.alpha
 
     @property
     def scale_level(self) -> float:
         """The scale test's two-sided level α_S = 1 − √(1 − α) (Šidák)."""
-        return 1.0 - math.sqrt(1.0 - self.alpha)
+        return sidak(self.alpha)
 
     @property
     def fixed_block_length(self) -> int | None:

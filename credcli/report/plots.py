@@ -82,7 +82,7 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
 
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
-        raise CredcliError(f"--plots {directory}: exists and is not a directory")
+        raise CredcliError(f"plots {directory}: exists and is not a directory")
     directory.mkdir(parents=True, exist_ok=True)
     paths = []
     for plot in plots:

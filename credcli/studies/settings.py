@@ -128,7 +128,7 @@ class SimulationConfig:
                 0 < self.eigenvalues[0] <= self.eigenvalues[1],
                 f"the eigenvalue range must be positive; got {self.eigenvalues}",
             ),
-            (self.seed >= 0, f"--seed must be >= 0; got {self.seed}"),
+            (self.seed >= 0, f"seed must be >= 0; got {self.seed}"),
         ]
         for ok, message in checks:
             if not ok:
@@ -137,7 +137,7 @@ class SimulationConfig:
         smallest = self.diagnosis.min_n(self.dim)
         if self.n < smallest:
             raise CredcliError(
-                f"--n {self.n} is below the smallest segment that is diagnosed ({smallest} epochs "
+                f"n {self.n} is below the smallest segment that is diagnosed ({smallest} epochs "
                 f"for d = {self.dim}); every trial would be insufficient-data"
             )
 
@@ -167,14 +167,14 @@ class UwbSettings:
 
     def __post_init__(self) -> None:
         checks = [
-            (self.std is None or self.std > 0, f"--std must be > 0; got {self.std}"),
-            (self.packet_window > 0, f"--packet-window must be > 0; got {self.packet_window}"),
+            (self.std is None or self.std > 0, f"std must be > 0; got {self.std}"),
+            (self.packet_window > 0, f"packet_window must be > 0; got {self.packet_window}"),
             (
                 self.min_anchors >= 3,
-                f"--min-anchors must be >= 3 for a 2-D fix; got {self.min_anchors}",
+                f"min_anchors must be >= 3 for a 2-D fix; got {self.min_anchors}",
             ),
-            (self.max_speed > 0, f"--max-speed must be > 0; got {self.max_speed}"),
-            (self.min_static > 0, f"--min-static must be > 0; got {self.min_static}"),
+            (self.max_speed > 0, f"max_speed must be > 0; got {self.max_speed}"),
+            (self.min_static > 0, f"min_static must be > 0; got {self.min_static}"),
         ]
         for ok, message in checks:
             if not ok:

@@ -52,7 +52,7 @@ def test_insufficient_data_is_never_a_guess(rng):
     assert short.label is Label.INSUFFICIENT and "40 are needed" in short.reason
 
 
-def _probes(**kw):
+def probes_eigen(**kw):
     base = dict(
         c=2.0,
         nll_minus=0,
@@ -77,10 +77,13 @@ def test_smm_branch_decisions():
     tau = 0.5
     assert dg._label_with_smm(-0.6, None, tau) is Label.PESSIMISM_SMM
     assert dg._label_with_smm(0.3, None, tau) is Label.SMM
-    assert dg._label_with_smm(0.6, _probes(), tau) is Label.SMM  # all four probes positive
+    assert dg._label_with_smm(0.6, probes_eigen(), tau) is Label.SMM  # all four probes positive
     mixed = dict(delta_nll_plus=-0.2)
-    assert dg._label_with_smm(0.6, _probes(**mixed, srd_nll=3, srd_es=1), tau) is Label.OPTIMISM_SMM
-    assert dg._label_with_smm(0.6, _probes(**mixed, srd_nll=1, srd_es=3), tau) is Label.SMM
+    assert (
+        dg._label_with_smm(0.6, probes_eigen(**mixed, srd_nll=3, srd_es=1), tau)
+        is Label.OPTIMISM_SMM
+    )
+    assert dg._label_with_smm(0.6, probes_eigen(**mixed, srd_nll=1, srd_es=3), tau) is Label.SMM
 
 
 def test_no_smm_branch_variants():

@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from credcli.errors import CredcliError
-from credcli.report.render import _cell
+from credcli.report.render import format_cell
 
 
 @dataclass(frozen=True)
@@ -82,8 +82,8 @@ def fail_on_cases(records: list[dict], failing: list[dict], fail_on) -> list[Cas
             r["segment"],
             f"credcli.diagnose.{_classname(r['log'])}",
             f"label {r['label']} matches --fail-on {listed}" if id(r) in bad else None,
-            f"label {r['label']}, ELT p {_cell(r['elt_pvalue'], 3)}, NCI {_cell(r['nci'], 3)} dB, "
-            f"ANEES {_cell(r['anees'], 3)}",
+            f"label {r['label']}, ELT p {format_cell(r['elt_pvalue'], 3)}, NCI {format_cell(r['nci'], 3)} dB, "
+            f"ANEES {format_cell(r['anees'], 3)}",
         )
         for r in records
     ]

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from credcli.errors import CredcliError
 
+
 def sidak(alpha: float) -> float:
     """The level of each of two independent tests whose union has level ``alpha``:
     1 − √(1 − α), written α/(1 + √(1 − α)) so that it does not round to 0 for tiny α."""

@@ -166,7 +166,7 @@ def diagnose_errors(
     mse: np.ndarray | None = None,
 ) -> Diagnosis:
     """Algorithm 1 on errors e_k = x_k − x̂_k (N, d) and claimed covariances (N, d, d)."""
-    errors, cov = metrics._check_errors_cov(errors, cov)
+    errors, cov = metrics.check_errors_cov(errors, cov)
     config = config or DiagnosisConfig()
     try:
         chol = np.linalg.cholesky(cov)
@@ -192,7 +192,7 @@ def diagnose_variants(
     the same block length and pair set are run once, in the order the variants are listed,
     so a variant listed first draws its sign flips exactly as :func:`diagnose_errors` does.
     """
-    errors, cov = metrics._check_errors_cov(errors, cov)
+    errors, cov = metrics.check_errors_cov(errors, cov)
     config = config or DiagnosisConfig()
     configs = [replace(config, variant=Variant(v)) for v in variants]
     try:
@@ -209,11 +209,11 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
     n, d = errors.shape
     if n < min(c.min_n(d) for c in configs):
         return [_too_short(n, d, c) for c in configs]
-    eps = metrics._nees(errors, chol)
+    eps = metrics.nees_factored(errors, chol)
     mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
-    nci_raw = metrics._nci(errors, chol, _mse_cholesky(mse))
+    nci_raw = metrics.nci_factored(errors, chol, _mse_cholesky(mse))
     centred = errors - errors.mean(axis=0)
-    nci_centred = metrics._nci(centred, chol, _mse_cholesky(metrics.mse_matrix(centred)))
+    nci_centred = metrics.nci_factored(centred, chol, _mse_cholesky(metrics.mse_matrix(centred)))
     ks_p = ks_chi2_pvalue(eps, d)
     s = whiten(errors, cov)
     tau = dependence.variance_ratio(s)
@@ -272,14 +272,16 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
         everything = config.metrics is MetricsLevel.ALL
         needs_probes = not config.calibrated and smm and nci_centred > config.tau_nci
         if (needs_probes or everything) and eigen is None:
-            eigen = metrics._CovEigen(cov)
+            eigen = metrics.CovEigen(cov)
         absolute = config.srd_form is SrdForm.ABSOLUTE
         probes = (
-            metrics._probes(centred, eigen, chol, config.c, absolute)
+            metrics.probes_eigen(centred, eigen, chol, config.c, absolute)
             if needs_probes or everything
             else None
         )
-        scores = metrics._probes(errors, eigen, chol, config.c, absolute) if everything else None
+        scores = (
+            metrics.probes_eigen(errors, eigen, chol, config.c, absolute) if everything else None
+        )
         if config.calibrated:
             label = _calibrated_label(scale, smm, config)
         elif smm:

@@ -33,7 +33,7 @@ _QUAD_TAILS = _QUAD_W[-1] * _GEOMETRIC + _QUAD_W[0] * _QUAD_T[0] * _GEOMETRIC
 _QUAD_CHUNK_ELEMENTS = 2_000_000
 
 
-def _check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     errors = np.asarray(errors, dtype=float)
     cov = np.asarray(cov, dtype=float)
     if errors.ndim == 1:
@@ -64,11 +64,11 @@ def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     >>> nees(np.array([[1.0, 0.0]]), np.eye(2)[None] * 4.0)
     array([0.25])
     """
-    errors, cov = _check_errors_cov(errors, cov)
-    return _nees(errors, np.linalg.cholesky(cov))
+    errors, cov = check_errors_cov(errors, cov)
+    return nees_factored(errors, np.linalg.cholesky(cov))
 
 
-def _nees(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
+def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
     """e_kᵀ (L Lᵀ)⁻¹ e_k for a factor per epoch (N, d, d) or one shared factor (d, d)."""
     if chol.ndim == 2:
         z = np.linalg.solve(chol, errors.T).T
@@ -82,8 +82,8 @@ def anees(errors: np.ndarray, cov: np.ndarray) -> float:
 
     Equals 1 for a credible estimator, since E[ε_k] = d by Eq. (2).
     """
-    errors, cov = _check_errors_cov(errors, cov)
-    return float(np.mean(_nees(errors, np.linalg.cholesky(cov))) / errors.shape[1])
+    errors, cov = check_errors_cov(errors, cov)
+    return float(np.mean(nees_factored(errors, np.linalg.cholesky(cov))) / errors.shape[1])
 
 
 def mse_matrix(errors: np.ndarray) -> np.ndarray:
@@ -114,14 +114,14 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
 
     Under pure scaling (Σ̂ = ρΣ, M = Σ) this is exactly −10 log10 ρ, Eq. (5).
     """
-    errors, cov = _check_errors_cov(errors, cov)
+    errors, cov = check_errors_cov(errors, cov)
     mse = mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
-    return _nci(errors, np.linalg.cholesky(cov), np.linalg.cholesky(mse))
+    return nci_factored(errors, np.linalg.cholesky(cov), np.linalg.cholesky(mse))
 
 
-def _nci(errors: np.ndarray, chol: np.ndarray, chol_mse: np.ndarray) -> float:
-    eps = _nees(errors, chol)
-    eps_star = _nees(errors, chol_mse)
+def nci_factored(errors: np.ndarray, chol: np.ndarray, chol_mse: np.ndarray) -> float:
+    eps = nees_factored(errors, chol)
+    eps_star = nees_factored(errors, chol_mse)
     return float(10.0 * np.mean(np.log(eps) - np.log(eps_star)) / _LOG10)
 
 
@@ -135,16 +135,16 @@ def gaussian_nll(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     (1 for the claimed covariance, 1/c and c for the probes of Eq. (18)).
     The log-determinant comes from the Cholesky factor.
     """
-    errors, cov = _check_errors_cov(errors, cov)
+    errors, cov = check_errors_cov(errors, cov)
     chol = np.linalg.cholesky(cov)
-    return _nll(_nees(errors, chol), _logdet(chol), errors.shape[1], scale)
+    return nll_from_nees(nees_factored(errors, chol), log_det(chol), errors.shape[1], scale)
 
 
-def _logdet(chol: np.ndarray) -> np.ndarray:
+def log_det(chol: np.ndarray) -> np.ndarray:
     return 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(axis=-1)
 
 
-def _nll(eps: np.ndarray, logdet: np.ndarray, d: int, scale: float) -> np.ndarray:
+def nll_from_nees(eps: np.ndarray, logdet: np.ndarray, d: int, scale: float) -> np.ndarray:
     return 0.5 * (eps / scale + logdet + d * np.log(scale) + d * _LN_2PI)
 
 
@@ -162,7 +162,7 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
     116-node trapezoidal rule in log t with analytic tails (worst relative error 1.2e-12
     against 30-digit quadrature; see the constants above).
     """
-    mean, cov = _check_errors_cov(mean, cov)
+    mean, cov = check_errors_cov(mean, cov)
     lam, vecs = np.linalg.eigh(cov)
     nu = np.einsum("nji,nj->ni", vecs, mean)
     return _expected_norm(lam, nu**2)
@@ -187,7 +187,7 @@ def _expected_norm(lam: np.ndarray, nu2: np.ndarray) -> np.ndarray:
     return out * np.sqrt(scale)
 
 
-class _CovEigen:
+class CovEigen:
     """Eigen-decomposition of the claimed covariances Σ̂_k, and the sharpness term
     ½E‖Y − Y′‖ of Eq. (10) at scale 1 (Y − Y′ ~ N(0, 2Σ̂_k)), computed once and shared."""
 
@@ -219,8 +219,8 @@ def energy_score(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     Both expectations are exact Gaussian norm moments (:func:`expected_norm`), so the
     score carries no Monte Carlo noise. ``scale`` is ``s``.
     """
-    errors, cov = _check_errors_cov(errors, cov)
-    return _CovEigen(cov).energy_scores(errors, (scale,))[0]
+    errors, cov = check_errors_cov(errors, cov)
+    return CovEigen(cov).energy_scores(errors, (scale,))[0]
 
 
 @dataclass(frozen=True)
@@ -277,19 +277,19 @@ def probes(
     where the bar is the mean over epochs and the argument the covariance scale.
     Pass centred errors to obtain the probes of F̃_k in Section III-C.
     """
-    errors, cov = _check_errors_cov(errors, cov)
+    errors, cov = check_errors_cov(errors, cov)
     if not c > 1:
         raise CredcliError(f"the probe factor c must be > 1; got {c}")
     chol = np.linalg.cholesky(cov)
-    return _probes(errors, _CovEigen(cov), chol, c, srd_absolute)
+    return probes_eigen(errors, CovEigen(cov), chol, c, srd_absolute)
 
 
-def _probes(errors, eigen: _CovEigen, chol, c: float, srd_absolute: bool) -> Probes:
-    eps = _nees(errors, chol)
-    logdet = _logdet(chol)
+def probes_eigen(errors, eigen: CovEigen, chol, c: float, srd_absolute: bool) -> Probes:
+    eps = nees_factored(errors, chol)
+    logdet = log_det(chol)
     d = errors.shape[1]
     scales = (1.0 / c, 1.0, c)
-    nll = [float(np.mean(_nll(eps, logdet, d, s))) for s in scales]
+    nll = [float(np.mean(nll_from_nees(eps, logdet, d, s))) for s in scales]
     es = [float(np.mean(v)) for v in eigen.energy_scores(errors, scales)]
     dn_minus, dn_plus = nll[0] - nll[1], nll[2] - nll[1]
     de_minus, de_plus = es[0] - es[1], es[2] - es[1]
@@ -316,11 +316,11 @@ def score_curves(errors: np.ndarray, cov: np.ndarray, scales) -> tuple[np.ndarra
     One Cholesky factor and one eigen-decomposition serve every scale: the NEES is divided
     by s, and E‖Y − Y′‖ grows with √s.
     """
-    errors, cov = _check_errors_cov(errors, cov)
+    errors, cov = check_errors_cov(errors, cov)
     scales = tuple(float(x) for x in scales)
     chol = np.linalg.cholesky(cov)
-    eps = _nees(errors, chol)
-    logdet, d = _logdet(chol), errors.shape[1]
-    nll = np.array([_nll(eps, logdet, d, x).mean() for x in scales])
-    es = np.array([v.mean() for v in _CovEigen(cov).energy_scores(errors, scales)])
+    eps = nees_factored(errors, chol)
+    logdet, d = log_det(chol), errors.shape[1]
+    nll = np.array([nll_from_nees(eps, logdet, d, x).mean() for x in scales])
+    es = np.array([v.mean() for v in CovEigen(cov).energy_scores(errors, scales)])
     return nll, es

@@ -62,11 +62,11 @@ def load_log(
     an asymmetric or non-positive-definite covariance, mismatched dimensions.
     """
     path = Path(path)
-    frame = _read_table(path)
+    frame = read_table(path)
     return log_from_frame(frame, schema or LogSchema(), str(path), drop_invalid)
 
 
-def _read_table(path: Path):
+def read_table(path: Path):
     import pandas as pd
 
     if not path.exists():
@@ -255,7 +255,7 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
         raise CredcliError(
             f"{source}: missing column(s) {', '.join(missing)}; columns found: {_list(columns)}"
         )
-    values = _numeric(frame, numeric_cols, source)
+    values = numeric_columns(frame, numeric_cols, source)
     rows = np.arange(1, len(frame) + 1)
     bad = ~np.isfinite(values).all(axis=1)
     dropped = 0
@@ -302,7 +302,7 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
     return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped)
 
 
-def _numeric(frame, cols: list[str], source: str) -> np.ndarray:
+def numeric_columns(frame, cols: list[str], source: str) -> np.ndarray:
     import pandas as pd
 
     out = np.empty((len(frame), len(cols)))

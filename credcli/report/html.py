@@ -10,7 +10,7 @@ import base64
 import html
 import json
 
-from credcli.report.render import Report, _cell
+from credcli.report.render import Report, format_cell
 
 _STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
@@ -36,7 +36,7 @@ def _table_html(table) -> str:
         cells = []
         for c in table.columns:
             value = row.get(c.key)
-            text = html.escape(_cell(value, c.digits))
+            text = html.escape(format_cell(value, c.digits))
             cls = "text" if not c.digits else "num"
             if c.key in ("label", "nees_label", "nci_label") and isinstance(value, str):
                 cls += " credible" if value == "credible" else " bad"

@@ -121,11 +121,11 @@ def advice(rec: dict) -> str | None:
     return f"{rec['segment']}: " + "; ".join(parts)
 
 
-def _cell(value, digits: int) -> str:
+def format_cell(value, digits: int) -> str:
     if value is None:
         return "—"
     if isinstance(value, list):
-        return "(" + ", ".join(_cell(v, digits) for v in value) + ")"
+        return "(" + ", ".join(format_cell(v, digits) for v in value) + ")"
     if value is None:
         return "—"
     if isinstance(value, bool):
@@ -186,7 +186,9 @@ def rich_table(table: Table, width: int | None = None):
     from rich.markup import escape
     from rich.table import Table as RichTable
 
-    texts = [[_cell(col.value(row), col.digits) for col in table.columns] for row in table.rows]
+    texts = [
+        [format_cell(col.value(row), col.digits) for col in table.columns] for row in table.rows
+    ]
     shown = _fitting_columns(table, texts, width)
     caption = table.caption
     if len(shown) < len(table.columns):
@@ -277,7 +279,7 @@ def _markdown(report: Report) -> str:
         lines.append("| " + " | ".join(c.header for c in table.columns) + " |")
         lines.append("|" + "|".join("---" if not c.digits else "---:" for c in table.columns) + "|")
         for row in table.rows:
-            cells = [_cell(c.value(row), c.digits).replace("|", "\\|") for c in table.columns]
+            cells = [format_cell(c.value(row), c.digits).replace("|", "\\|") for c in table.columns]
             lines.append("| " + " | ".join(cells) + " |")
         if table.caption:
             lines.extend(["", table.caption])

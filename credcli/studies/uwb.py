@@ -47,10 +47,10 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     Without ``range_calib`` (setup s5) the raw ``range`` column is used, with a note.
     Without ``std`` a fixed ``settings.std`` is required.
     """
-    from credcli.io.logs import _numeric, _read_table
+    from credcli.io.logs import numeric_columns, read_table
 
     path = Path(path)
-    frame = _read_table(path)
+    frame = read_table(path)
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
     source = str(path)
@@ -80,7 +80,7 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     numeric = list(_REQUIRED) + [range_column]
     numeric += [] if settings.std is not None else ["std"]
     numeric += rig_cols or []
-    values = _numeric(frame, numeric, source)
+    values = numeric_columns(frame, numeric, source)
     bad = ~np.isfinite(values).all(axis=1)
     if bad.any():
         rows = np.flatnonzero(bad)[:10] + 1
@@ -131,10 +131,10 @@ class Anchor:
 
 def read_markers(path: str | Path) -> dict[int, np.ndarray]:
     """Anchor positions from a STAR-loc markers file (first column the id, then x, y, z)."""
-    from credcli.io.logs import _read_table
+    from credcli.io.logs import read_table
 
     path = Path(path)
-    frame = _read_table(path)
+    frame = read_table(path)
     cols = [str(c) for c in frame.columns]
     if not all(c in cols for c in ("x", "y", "z")):
         raise CredcliError(

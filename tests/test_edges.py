@@ -639,3 +639,31 @@ def test_ks_and_nees_alpha_flags_reach_the_settings():
     code, out, _ = run("diagnose", LOG, "-f", "json", "--ks-alpha", "0.2", "--nees-alpha", "0.1")
     params = json.loads(out)["parameters"]
     assert code == 0 and params["ks_alpha"] == 0.2 and params["nees_alpha"] == 0.1
+
+
+def test_numpy_warnings_are_notes_not_raw(tmp_path, frame):
+    frame.loc[0, ["est_0", "est_1"]] = frame.loc[0, ["truth_0", "truth_1"]].to_numpy()  # e = 0
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False)
+    code, _, err = run("diagnose", path, "-f", "json")
+    assert code == 0 and "Traceback" not in err
+    assert all(line.startswith("credcli: note: ") for line in err.splitlines() if line)
+
+
+def test_stdout_on_a_pipe():
+    import subprocess
+    import sys
+
+    proc = subprocess.run(
+        [sys.executable, "-m", "credcli", "diagnose", str(LOG), "-f", "csv", "-o", "/dev/stdout"],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0 and proc.stdout.startswith("log,segment,")
+    head = subprocess.run(
+        f"{sys.executable} -m credcli diagnose {LOG} -f csv | head -1",
+        shell=True,
+        capture_output=True,
+        text=True,
+    )
+    assert head.stdout.startswith("log,segment,") and "Traceback" not in head.stderr

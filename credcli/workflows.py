@@ -9,7 +9,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from credcli import segments as seg
-from credcli.engine.diagnosis import DiagnosisConfig, MetricsLevel, diagnose_log
+from credcli.engine.diagnosis import (
+    DiagnosisConfig,
+    MetricsLevel,
+    SegmentDiagnosis,
+    diagnose_log,
+    diagnose_segment,
+)
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog, LogSchema, load_log
 from credcli.report.render import Report, config_parameters, diagnose_report
@@ -43,6 +49,63 @@ def schema_parameters(schema: LogSchema) -> dict:
     return out
 
 
+PARALLEL_MIN_EPOCHS = 50_000
+"""Below this many epochs in all, segments are diagnosed in this process: starting worker
+processes (about 0.5 s each, to import numpy and scipy) would cost more than it saves."""
+
+
+def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
+    """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
+    source, items, config, seed = task
+    return [
+        SegmentDiagnosis(source, name, t0, t1, diagnose_segment(e, c, config, seed, name, source))
+        for name, t0, t1, e, c in items
+    ]
+
+
+def diagnose_plans(plans, config: DiagnosisConfig, seed: int, jobs: int = 1, progress=None):
+    """Every segment of every (log, segments) plan, in order; ``jobs`` processes share the
+    work in chunks of about equal epochs when there are at least PARALLEL_MIN_EPOCHS.
+    Each segment's sign flips depend on (seed, segment name) only, so the results are the
+    same for any ``jobs`` and any order of completion."""
+    from credcli.parallel import ordered_map
+
+    total_segments = sum(len(s) for _, s in plans)
+    total_epochs = sum(log.n for log, _ in plans)
+    if jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1:
+        target = max(1, total_epochs // (8 * jobs))
+        tasks, items, size, source = [], [], 0, None
+        for log, segments in plans:
+            errors = log.errors
+            for seg in segments:
+                if items and (size >= target or source != log.source):
+                    tasks.append((source, items, config, seed))
+                    items, size = [], 0
+                source = log.source
+                part = errors[seg.index]
+                items.append((seg.name, seg.t_start, seg.t_end, part, log.cov[seg.index]))
+                size += len(part)
+        tasks.append((source, items, config, seed))
+        results = []
+        outputs = ordered_map(_diagnose_chunk, tasks, jobs)
+        try:
+            for out in outputs:
+                results.extend(out)
+                if progress is not None:
+                    progress(len(results), total_segments)
+        finally:
+            outputs.close()
+        return results
+    results = []
+    for log, segments in plans:
+        offset = len(results)
+        tick = (
+            None if progress is None else (lambda k, _n, o=offset: progress(o + k, total_segments))
+        )
+        results.extend(diagnose_log(log, segments, config, seed, tick))
+    return results
+
+
 @dataclass(frozen=True)
 class Run:
     """What a command produced: the report, and the plots when they were asked for."""
@@ -62,16 +125,13 @@ def run_diagnose(
     drop_invalid: bool = False,
     progress=None,
     plots: bool = False,
+    jobs: int = 1,
 ) -> Run:
-    """Load, segment and diagnose every log; return the `diagnose` report (and plots)."""
+    """Load, segment and diagnose every log; return the `diagnose` report (and plots).
+    ``jobs`` processes share the segments; the output is the same for any value."""
     loaded = [load_log(p, schema, drop_invalid) for p in paths]
     plans = [(log, split(log, window, whole)) for log in loaded]
-    total = sum(len(s) for _, s in plans)
-    results = []
-    for log, segments in plans:
-        offset = len(results)
-        tick = None if progress is None else (lambda k, _n, o=offset: progress(o + k, total))
-        results.extend(diagnose_log(log, segments, config, seed, tick))
+    results = diagnose_plans(plans, config, seed, jobs, progress)
     parameters = config_parameters(config) | {
         "seed": seed,
         "segmentation": segmentation_name(window, whole),
@@ -248,7 +308,13 @@ def run_baseline(path: Path, **setup) -> Report:
 
 
 def run_gate(
-    path: Path, baseline_path: Path, thresholds, requested: dict, progress=None, plots=False
+    path: Path,
+    baseline_path: Path,
+    thresholds,
+    requested: dict,
+    progress=None,
+    plots=False,
+    jobs: int = 1,
 ):
     """Diagnose ``path`` with the baseline's parameters and compare segment by segment;
     returns (report, comparisons, passed, verdict, figures)."""
@@ -309,7 +375,7 @@ def run_gate(
         raise CredcliError(
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
-    run = run_diagnose([path], schema, config, progress=progress, plots=plots, **setup)
+    run = run_diagnose([path], schema, config, progress=progress, plots=plots, jobs=jobs, **setup)
     comparisons = compare(
         [Snapshot.from_record(r) for r in baseline["segments"]],
         [Snapshot.from_result(r) for r in run.results],

@@ -117,6 +117,23 @@ MetricsOpt = Annotated[
         f"[default: {_D.metrics.value}].",
     ),
 ]
+JobsOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--jobs",
+        "-j",
+        help="Worker processes for the segments (same output for any value; used from "
+        "50,000 epochs on) [default: the number of cores].",
+    ),
+]
+ExactOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--exact-pvalue",
+        help="Evaluate all B sign flips (default: stop once the ELT cannot reject; the label "
+        "is the same, the p-value then sequential).",
+    ),
+]
 KsAlphaOpt = Annotated[
     float | None,
     typer.Option(
@@ -168,11 +185,13 @@ def _diagnosis_cli(
     max_elt,
     ks_alpha=None,
     nees_alpha=None,
+    exact=None,
 ):
     block = _block_length(block)
     return {
         "ks_alpha": ks_alpha,
         "nees_alpha": nees_alpha,
+        "exact_pvalue": exact,
         "tau_nci": tau,
         "alpha": alpha,
         "c": c,
@@ -334,6 +353,17 @@ def _columns(time_column, segment_column, truth_columns, estimate_columns, cov_c
     }
 
 
+def _jobs(jobs: int | None) -> int:
+    """--jobs: given, or the number of cores."""
+    from credcli.parallel import default_jobs
+
+    if jobs is None:
+        return default_jobs()
+    if jobs < 1:
+        raise CredcliError(f"--jobs must be >= 1; got {jobs}")
+    return jobs
+
+
 def _write_html(path: Path, title: str, run, sources, inputs) -> None:
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html
@@ -408,6 +438,8 @@ def diagnose(
     max_elt_epochs: MaxEltOpt = None,
     ks_alpha: KsAlphaOpt = None,
     nees_alpha: NeesAlphaOpt = None,
+    exact_pvalue: ExactOpt = None,
+    jobs: JobsOpt = None,
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
@@ -456,6 +488,7 @@ def diagnose(
             max_elt_epochs,
             ks_alpha,
             nees_alpha,
+            exact_pvalue,
         ),
         seed,
         window,
@@ -464,7 +497,11 @@ def diagnose(
     )
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(
-            logs, progress=bar, plots=plots is not None or report_file is not None, **setup
+            logs,
+            progress=bar,
+            plots=plots is not None or report_file is not None,
+            jobs=_jobs(jobs),
+            **setup,
         )
     report = run.report
     _emit(report, fmt, output, inputs=inputs)
@@ -516,6 +553,8 @@ def baseline(
     max_elt_epochs: MaxEltOpt = None,
     ks_alpha: KsAlphaOpt = None,
     nees_alpha: NeesAlphaOpt = None,
+    exact_pvalue: ExactOpt = None,
+    jobs: JobsOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
@@ -541,6 +580,7 @@ def baseline(
             max_elt_epochs,
             ks_alpha,
             nees_alpha,
+            exact_pvalue,
         ),
         seed,
         window,
@@ -548,7 +588,7 @@ def baseline(
         drop_invalid,
     )
     with _Progress("diagnosing segments") as bar:
-        recorded = run_baseline(log, progress=bar, **setup)
+        recorded = run_baseline(log, progress=bar, jobs=_jobs(jobs), **setup)
     _emit(recorded, OutputFormat.JSON, output, inputs=inputs)
     return 0
 
@@ -599,6 +639,8 @@ def gate(
     max_elt_epochs: MaxEltOpt = None,
     ks_alpha: KsAlphaOpt = None,
     nees_alpha: NeesAlphaOpt = None,
+    exact_pvalue: ExactOpt = None,
+    jobs: JobsOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
@@ -626,13 +668,20 @@ def gate(
             max_elt_epochs,
             ks_alpha,
             nees_alpha,
+            exact_pvalue,
         ).items()
     }
     cli |= {"seed": seed, "window": window, "whole": whole}
     requested = gate_requests(load_config(config), cli)
     with _Progress("diagnosing segments") as bar:
         report, comparisons, passed, verdict, figures = run_gate(
-            log, baseline_file, thresholds, requested, bar, plots=plots is not None
+            log,
+            baseline_file,
+            thresholds,
+            requested,
+            bar,
+            plots=plots is not None,
+            jobs=_jobs(jobs),
         )
     _emit(report, fmt, output, inputs=inputs)
     _write_plots(figures, plots)
@@ -741,6 +790,7 @@ def simulate(
     srd_form: SrdOpt = None,
     ks_alpha: KsAlphaOpt = None,
     nees_alpha: NeesAlphaOpt = None,
+    exact_pvalue: ExactOpt = None,
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
@@ -785,6 +835,7 @@ def simulate(
             None,
             ks_alpha,
             nees_alpha,
+            exact_pvalue,
         ),
     )
     start = time.perf_counter()
@@ -857,6 +908,7 @@ def uwb(
     metrics: MetricsOpt = None,
     ks_alpha: KsAlphaOpt = None,
     nees_alpha: NeesAlphaOpt = None,
+    exact_pvalue: ExactOpt = None,
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
@@ -885,6 +937,7 @@ def uwb(
             None,
             ks_alpha,
             nees_alpha,
+            exact_pvalue,
         ),
         seed,
     )
@@ -953,6 +1006,8 @@ def report(
     max_elt_epochs: MaxEltOpt = None,
     ks_alpha: KsAlphaOpt = None,
     nees_alpha: NeesAlphaOpt = None,
+    exact_pvalue: ExactOpt = None,
+    jobs: JobsOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose logs and write one self-contained HTML report (table, parameters, figures)."""
@@ -979,6 +1034,7 @@ def report(
             max_elt_epochs,
             ks_alpha,
             nees_alpha,
+            exact_pvalue,
         ),
         seed,
         window,
@@ -986,7 +1042,7 @@ def report(
         drop_invalid,
     )
     with _Progress("diagnosing segments") as bar:
-        run = run_diagnose(logs, progress=bar, plots=True, **setup)
+        run = run_diagnose(logs, progress=bar, plots=True, jobs=_jobs(jobs), **setup)
     _write_html(output, "credcli report: " + ", ".join(p.name for p in logs), run, logs, inputs)
     return 0
 

@@ -118,6 +118,9 @@ class DiagnosisConfig:
     ``block_length``: epochs per ELT sign block, or ``"auto"`` (estimated from the data
     in the calibrated variant, 1 in ``paper`` and ``ks``). A fixed 1 in the calibrated
     variant declares the epochs independent: the scale test is then the exact χ²_{(N−1)d}.
+    ``exact_pvalue``: evaluate all B sign flips. By default flipping stops once the ELT can
+    no longer reject at its level (the decision is the exhaustive test's; the p-value is
+    then the sequential one, and ``elt_flips_used`` says how many flips were evaluated).
     ``min_epochs``: segments with fewer epochs (or fewer than ``d + 2``, or too few sign
     blocks) get ``insufficient-data``: with 5 independent signs the sign-flip null has
     16 distinct values, so p < 0.05 is impossible, and the MSE matrix needs N > d errors.
@@ -135,6 +138,7 @@ class DiagnosisConfig:
     min_epochs: int = 10
     max_elt_epochs: int = DEFAULT_MAX_EPOCHS
     metrics: MetricsLevel = MetricsLevel.NEEDED
+    exact_pvalue: bool = False
 
     def __post_init__(self) -> None:
         reals = ("tau_nci", "alpha", "c", "ks_alpha", "nees_alpha")

@@ -224,6 +224,9 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
     gls = gls_residuals(errors, chol)
     scales: dict = {}
     elts: dict = {}
+    # an ELT shared by several variants stops only when none of them can still reject
+    exact = any(c.exact_pvalue for c in configs)
+    stop_level = None if exact else max(c.location_level for c in configs)
     eigen = None
     out = []
     for config in configs:
@@ -265,7 +268,13 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
         elt_key = (block, separate, config.n_flips, config.max_elt_epochs)
         if elt_key not in elts:
             elts[elt_key] = whitened_location_test(
-                s, config.n_flips, gen, block, config.max_elt_epochs, separate_blocks=separate
+                s,
+                config.n_flips,
+                gen,
+                block,
+                config.max_elt_epochs,
+                separate_blocks=separate,
+                stop_level=stop_level,
             )
         elt = elts[elt_key]
         smm = elt.pvalue < config.location_level
@@ -385,19 +394,33 @@ def diagnose_log(
     errors = log.errors
     out = []
     for done, seg in enumerate(segments, start=1):
-        cov = log.cov[seg.index]
-        try:
-            diag = _diagnose(
-                errors[seg.index],
-                cov,
-                np.linalg.cholesky(cov),
-                config,
-                as_generator(segment_seed(seed, seg.name)),
-                None,
-            )
-        except CredcliError as exc:
-            raise CredcliError(f"{log.source}: segment '{seg.name}': {exc.message}") from exc
+        diag = diagnose_segment(
+            errors[seg.index], log.cov[seg.index], config, seed, seg.name, log.source
+        )
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
             progress(done, len(segments))
     return out
+
+
+def diagnose_segment(
+    errors: np.ndarray,
+    cov: np.ndarray,
+    config: DiagnosisConfig,
+    seed: int | None,
+    name: str,
+    source: str = "<memory>",
+) -> Diagnosis:
+    """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
+    the log and the segment."""
+    try:
+        return _diagnose(
+            errors,
+            cov,
+            np.linalg.cholesky(cov),
+            config,
+            as_generator(segment_seed(seed, name)),
+            None,
+        )
+    except CredcliError as exc:
+        raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc

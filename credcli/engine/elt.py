@@ -6,6 +6,7 @@ distance between {s_k} and {-s_k} (α = 1) and a sign-flip randomisation null.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +44,9 @@ class ELTResult:
     n_used: int
     subsampled: bool
     block_length: int
+    flips_used: int | None = None
+    """Sign flips evaluated: B, or fewer when the test stopped once it could no longer
+    reject (``stop_level``); then ``pvalue`` is the sequential p-value h/l."""
 
     def __iter__(self):
         """``statistic, pvalue = result``, as for scipy's test results."""
@@ -63,25 +67,44 @@ def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return np.einsum("nij,nj->ni", vecs, rotated)
 
 
+_PAIR_ROWS = 96  # rows per block: three 96×N float64 blocks stay in cache for N ~ 1000
+
+
 def pair_matrix(s: np.ndarray) -> np.ndarray:
     r"""A_ij = ‖s_i + s_j‖ − ‖s_i − s_j‖ with a zero diagonal.
 
     Then Eq. (13) is :math:`T = \xi^\top A \xi / (N(N-1))` with ξ = 1, and every sign
     flip ξ gives the randomised statistic of Eq. (15) by the same quadratic form.
+    ‖s_i ± s_j‖² = ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j, computed a block of rows at a time so
+    that the intermediate arrays stay in cache, for j >= i only: A is symmetric, and the
+    lower triangle is a copy of the upper one.
     """
+    n = s.shape[0]
     sq = np.einsum("ni,ni->n", s, s)
-    two_gram = s @ s.T
-    two_gram *= 2.0
-    minus = sq[:, None] + sq[None, :]
-    plus = minus + two_gram  # ‖s_i + s_j‖²
-    minus -= two_gram  # ‖s_i − s_j‖²
-    del two_gram
-    for sq_norm in (plus, minus):  # in place: three N×N arrays at most
-        np.maximum(sq_norm, 0.0, out=sq_norm)
-        np.sqrt(sq_norm, out=sq_norm)
-    plus -= minus
-    np.fill_diagonal(plus, 0.0)
-    return plus
+    out = np.empty((n, n))
+    rows = min(n, _PAIR_ROWS)
+    minus = np.empty((rows, n))
+    two_gram = np.empty((rows, n))
+    for start in range(0, n, rows):
+        stop = min(n, start + rows)
+        k, width = stop - start, n - start
+        g, m = two_gram[:k, :width], minus[:k, :width]
+        plus = out[start:stop, start:]
+        np.matmul(s[start:stop], s[start:].T, out=g)
+        g *= 2.0
+        np.add(sq[start:stop, None], sq[None, start:], out=m)
+        np.add(m, g, out=plus)  # ‖s_i + s_j‖²
+        m -= g  # ‖s_i − s_j‖²
+        for sq_norm in (plus, m):
+            np.maximum(sq_norm, 0.0, out=sq_norm)
+            np.sqrt(sq_norm, out=sq_norm)
+        plus -= m
+        out[stop:, start:stop] = out[start:stop, stop:].T
+        diagonal = out[start:stop, start:stop]  # its lower triangle from its upper one
+        lower = np.tril_indices(k, -1)
+        diagonal[lower] = diagonal.T[lower]
+    np.fill_diagonal(out, 0.0)
+    return out
 
 
 def energy_statistic(s: np.ndarray) -> float:
@@ -141,6 +164,7 @@ def whitened_location_test(
     block_length: int = 1,
     max_epochs: int = DEFAULT_MAX_EPOCHS,
     separate_blocks: bool = False,
+    stop_level: float | None = None,
 ) -> ELTResult:
     """The ELT on whitened errors s (N, d); see :func:`location_test`.
 
@@ -148,6 +172,13 @@ def whitened_location_test(
     adjacent sign blocks. Pairs within a block do not change under block flips, and pairs
     across a block boundary carry the dependence that block flips cannot reproduce; with
     them left out, the randomisation null keeps its level on serially correlated errors.
+
+    ``stop_level``: stop flipping once the test can no longer reject at this level. All B
+    sign vectors are drawn first, exactly as without stopping, and evaluated in order; the
+    test rejects iff (1 + h)/(B + 1) < level, i.e. iff the exceedance count h stays below
+    h* = ⌈level(B + 1) − 1⌉, so once h* exceedances are seen the decision is the exhaustive
+    test's. The p-value is then Besag and Clifford's (1991, Biometrika 78(2)) sequential
+    p-value h*/l after l flips, which is >= the level; ``flips_used`` is l.
     """
     n = s.shape[0]
     blocks = np.arange(n) // block_length
@@ -161,12 +192,13 @@ def whitened_location_test(
     else:
         chosen = np.arange(blocks[-1] + 1)
     return _sign_flip_test(
-        s, blocks, chosen, n_flips, gen, block_length, subsampled, separate_blocks
+        s, blocks, chosen, n_flips, gen, block_length, subsampled, separate_blocks, stop_level
     )
 
 
-def _flipped_statistics(a: np.ndarray, signs: np.ndarray, observed: float) -> np.ndarray:
-    """ξ_bᵀ A ξ_b for every row ξ_b of ``signs`` (±1), exact where it matters.
+class _FlippedStatistics:
+    """ξ_bᵀ A ξ_b for rows ξ_b of ±1 signs, exact where it matters; A is prepared once for
+    every batch of flips.
 
     ``observed`` is 1ᵀA1, the unnormalised observed statistic.
 
@@ -177,22 +209,30 @@ def _flipped_statistics(a: np.ndarray, signs: np.ndarray, observed: float) -> np
     within that bound of the observed value is recomputed in float64, so each comparison
     T_b >= T_obs is decided exactly as in float64.
     """
-    n = a.shape[0]
-    if n < 64:  # small problems: float64 throughout
-        xi = signs.astype(np.float64)
-        return np.einsum("bi,bi->b", xi @ a, xi)
-    u = 2.0**-24
-    gamma = n * u / (1 - n * u)
-    bound = (u + gamma * (1 + u)) * float(np.abs(a).sum()) * 1.01
-    xi32 = signs.astype(np.float32)
-    product = xi32 @ a.astype(np.float32)
-    product *= xi32  # exact: a sign change
-    values = product.sum(axis=1, dtype=np.float64)
-    close = np.flatnonzero(np.abs(values - observed) <= bound)
-    if close.size:
-        xi = signs[close].astype(np.float64)
-        values[close] = np.einsum("bi,bi->b", xi @ a, xi)
-    return values
+
+    def __init__(self, a: np.ndarray, observed: float) -> None:
+        n = a.shape[0]
+        self.a, self.observed = a, observed
+        self.small = n < 64  # small problems: float64 throughout
+        if not self.small:
+            u = 2.0**-24
+            gamma = n * u / (1 - n * u)
+            self.bound = (u + gamma * (1 + u)) * float(np.abs(a).sum()) * 1.01
+            self.a32 = a.astype(np.float32)
+
+    def __call__(self, signs: np.ndarray) -> np.ndarray:
+        if self.small:
+            xi = signs.astype(np.float64)
+            return np.einsum("bi,bi->b", xi @ self.a, xi)
+        xi32 = signs.astype(np.float32)
+        product = xi32 @ self.a32
+        product *= xi32  # exact: a sign change
+        values = product.sum(axis=1, dtype=np.float64)
+        close = np.flatnonzero(np.abs(values - self.observed) <= self.bound)
+        if close.size:
+            xi = signs[close].astype(np.float64)
+            values[close] = np.einsum("bi,bi->b", xi @ self.a, xi)
+        return values
 
 
 def _power_of_two_scale(s: np.ndarray) -> float:
@@ -204,8 +244,26 @@ def _power_of_two_scale(s: np.ndarray) -> float:
     return float(2.0 ** np.round(np.log2(peak)))
 
 
+_FIRST_BATCH = 64  # flips evaluated before the first stopping check; batches then double
+
+
+def _stop_count(level: float | None, n_flips: int) -> int | None:
+    """h*: the smallest exceedance count at which (1 + h)/(B + 1) >= level."""
+    if level is None:
+        return None
+    return max(0, math.ceil(level * (n_flips + 1) - 1 - 1e-12))
+
+
 def _sign_flip_test(
-    s, blocks, block_ids, n_flips, gen, block_length, subsampled, separate_blocks=False
+    s,
+    blocks,
+    block_ids,
+    n_flips,
+    gen,
+    block_length,
+    subsampled,
+    separate_blocks=False,
+    stop_level=None,
 ) -> ELTResult:
     """Flip B sign vectors of the blocks. With blocks of L > 1 epochs the N×N pair matrix
     is summed into an m×m block matrix first: ξᵀAξ = ηᵀA_bη for block signs η, so the
@@ -233,14 +291,30 @@ def _sign_flip_test(
     signs = gen.integers(0, 2, size=(n_flips, n_blocks), dtype=np.int8)
     signs *= 2
     signs -= 1  # Rademacher ±1
-    null = _flipped_statistics(a, signs, total) / (norm if norm > 0 else 1.0)
-    count = int(np.count_nonzero(null >= t_obs - _PVALUE_RTOL * abs(t_obs)))
-    null *= unit
+    scale = norm if norm > 0 else 1.0
+    threshold = t_obs - _PVALUE_RTOL * abs(t_obs)
+    stop = _stop_count(stop_level, n_flips)
+    parts, count, used, batch = [], 0, 0, _FIRST_BATCH if stop is not None else n_flips
+    flipped = _FlippedStatistics(a, total)
+    while used < n_flips:
+        chunk = flipped(signs[used : used + batch]) / scale
+        parts.append(chunk)
+        count += int(np.count_nonzero(chunk >= threshold))
+        used += chunk.size
+        batch *= 2
+        if stop is not None and count >= stop and used < n_flips:
+            break
+    null = np.concatenate(parts) * unit
+    if used < n_flips:
+        pvalue = count / used  # Besag & Clifford's sequential p-value h/l
+    else:
+        pvalue = (1 + count) / (n_flips + 1)
     return ELTResult(
         statistic=t_obs * unit,
-        pvalue=(1 + count) / (n_flips + 1),
+        pvalue=pvalue,
         null_distribution=null,
         n_used=n,
         subsampled=subsampled,
         block_length=block_length,
+        flips_used=used,
     )

@@ -49,6 +49,7 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "elt_pvalue": diag.elt_pvalue,
         "elt_n_used": None if elt is None else elt.n_used,
         "elt_subsampled": None if elt is None else elt.subsampled,
+        "elt_flips_used": None if elt is None else elt.flips_used,
         "smm_detected": diag.smm_detected,
         "nci": diag.nci,
         "nci_centered": diag.nci_centered,

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import enum
 import math
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -27,6 +25,7 @@ from credcli.engine.diagnosis import (
     parse_label,
 )
 from credcli.errors import CredcliError
+from credcli.parallel import ordered_map
 from credcli.studies.settings import (  # noqa: F401 (re-exported)
     ErrorModel,
     Noise,
@@ -132,29 +131,6 @@ def _run_chunk(args) -> list[TrialResult]:
     return out
 
 
-_BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-def _start_pool(tasks, jobs: int):
-    """Worker processes with single-threaded BLAS (each trial's products are small; several
-    BLAS threads per process would only fight over the cores). Workers are spawned with
-    the variables set, since BLAS reads them when it loads."""
-    import multiprocessing as mp
-
-    saved = {k: os.environ.get(k) for k in _BLAS_THREAD_VARIABLES}
-    os.environ.update({k: "1" for k in _BLAS_THREAD_VARIABLES})
-    try:
-        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
-        outputs = pool.map(_run_chunk, tasks)  # submits every task: workers start now
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-    return pool, outputs
-
-
 def _stream_key(spec: ScenarioSpec) -> int:
     """A stable number for a group's random streams, from its parameters."""
     import zlib
@@ -172,11 +148,7 @@ def run_groups(
     total = len(specs) * config.trials
     done = 0
     per_group: list[list[TrialResult]] = [[] for _ in specs]
-    if jobs <= 1:
-        outputs = map(_run_chunk, tasks)
-        pool = None
-    else:
-        pool, outputs = _start_pool(tasks, jobs)
+    outputs = ordered_map(_run_chunk, tasks, jobs)
     try:
         for k, out in enumerate(outputs):  # in task order: group k // len(starts)
             per_group[k // len(starts)].extend(out)
@@ -184,8 +156,7 @@ def run_groups(
             if progress is not None:
                 progress(done, total)
     finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
+        outputs.close()
     return per_group
 
 

@@ -60,11 +60,20 @@ class ELTResult:
         )
 
 
+CHUNK = 262_144
+"""Epochs per chunk of per-epoch linear algebra: temporaries stay bounded on long segments."""
+
+
 def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k` with the symmetric inverse square root."""
-    lam, vecs = np.linalg.eigh(cov)
-    rotated = np.einsum("nji,nj->ni", vecs, errors) / np.sqrt(lam)
-    return np.einsum("nij,nj->ni", vecs, rotated)
+    r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k` with the symmetric inverse square
+    root, computed in chunks of epochs."""
+    out = np.empty(errors.shape)
+    for start in range(0, errors.shape[0], CHUNK):
+        sl = slice(start, start + CHUNK)
+        lam, vecs = np.linalg.eigh(cov[sl])
+        rotated = np.einsum("nji,nj->ni", vecs, errors[sl]) / np.sqrt(lam)
+        out[sl] = np.einsum("nij,nj->ni", vecs, rotated)
+    return out
 
 
 _PAIR_ROWS = 96  # rows per block: three 96×N float64 blocks stay in cache for N ~ 1000

@@ -31,6 +31,7 @@ _QUAD_W = _QUAD_H * np.exp(-_QUAD_U / 2) / (2.0 * np.sqrt(np.pi))
 _GEOMETRIC = np.exp(-_QUAD_H / 2) / (1.0 - np.exp(-_QUAD_H / 2))
 _QUAD_TAILS = _QUAD_W[-1] * _GEOMETRIC + _QUAD_W[0] * _QUAD_T[0] * _GEOMETRIC
 _QUAD_CHUNK_ELEMENTS = 2_000_000
+_EPOCH_CHUNK = 262_144
 
 
 def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -72,9 +73,13 @@ def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
     """e_kᵀ (L Lᵀ)⁻¹ e_k for a factor per epoch (N, d, d) or one shared factor (d, d)."""
     if chol.ndim == 2:
         z = np.linalg.solve(chol, errors.T).T
-    else:
-        z = np.linalg.solve(chol, errors[..., None])[..., 0]
-    return np.einsum("ni,ni->n", z, z)
+        return np.einsum("ni,ni->n", z, z)
+    out = np.empty(errors.shape[0])
+    for start in range(0, errors.shape[0], _EPOCH_CHUNK):  # bounded temporaries
+        sl = slice(start, start + _EPOCH_CHUNK)
+        z = np.linalg.solve(chol[sl], errors[sl, :, None])[..., 0]
+        out[sl] = np.einsum("ni,ni->n", z, z)
+    return out
 
 
 def anees(errors: np.ndarray, cov: np.ndarray) -> float:

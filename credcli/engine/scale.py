@@ -106,12 +106,22 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         weighted = inv.T @ z.sum(axis=0)
         mean = np.linalg.solve(precision_sum, weighted)
         return GlsResiduals(mean, z - inv @ mean, precision_sum)
-    inv = np.linalg.inv(chol)  # batched L_k⁻¹ (N, d, d)
-    z = np.einsum("nij,nj->ni", inv, errors)
-    precision_sum = np.einsum("nki,nkj->ij", inv, inv)
-    weighted = np.einsum("nki,nk->i", inv, z)
+    from credcli.engine.elt import CHUNK
+
+    z = np.empty((n, d))
+    precision_sum = np.zeros((d, d))
+    weighted = np.zeros(d)
+    for start in range(0, n, CHUNK):  # chunks of epochs: bounded temporaries
+        sl = slice(start, start + CHUNK)
+        inv = np.linalg.inv(chol[sl])  # batched L_k⁻¹
+        z[sl] = np.einsum("nij,nj->ni", inv, errors[sl])
+        precision_sum += np.einsum("nki,nkj->ij", inv, inv)
+        weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
-    return GlsResiduals(mean, z - np.einsum("nij,j->ni", inv, mean), precision_sum)
+    for start in range(0, n, CHUNK):
+        sl = slice(start, start + CHUNK)
+        z[sl] -= np.einsum("nij,j->ni", np.linalg.inv(chol[sl]), mean)
+    return GlsResiduals(mean, z, precision_sum)
 
 
 _TAIL_PROBS = (0.025, 0.25, 0.75, 0.975)

@@ -273,10 +273,8 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
         values, rows = values[~bad], rows[~bad]
         if values.shape[0] == 0:
             raise CredcliError(f"{source}: every row has a NaN/Inf value; nothing left to diagnose")
-    truth = values[:, :d]
-    estimate = values[:, d : 2 * d]
     cov = _validated_cov(
-        _build_cov(values[:, 2 * d : 2 * d + len(cov_cols)], kind, d), rows, source
+        _build_cov(values[:, 2 * d : 2 * d + len(cov_cols)], kind, d), rows, source, kind
     )
     if kind is CovKind.STD:
         negative = (values[:, 2 * d : 2 * d + len(cov_cols)] < 0).any(axis=1)
@@ -298,7 +296,11 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
             )
         seg_values = frame[seg_col].astype(str).to_numpy()
         segment = seg_values[rows - 1]
-    time = values[:, -1] if time_col else None
+    # copies, so that the table of every column can be freed
+    truth = np.ascontiguousarray(values[:, :d])
+    estimate = np.ascontiguousarray(values[:, d : 2 * d])
+    time = values[:, -1].copy() if time_col else None
+    del values
     return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped)
 
 
@@ -343,19 +345,31 @@ def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
     return cov
 
 
-def _validated_cov(cov: np.ndarray, rows: np.ndarray, source: str) -> np.ndarray:
-    """The covariances, exactly symmetrised, after checking that each is symmetric to
-    SYMMETRY_RTOL and positive definite (naming the first bad row)."""
-    scale = np.abs(cov).max(axis=(1, 2))
-    asym = np.abs(cov - np.swapaxes(cov, 1, 2)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
-    if asym.any():
-        i = int(np.argmax(asym))
-        raise CredcliError(
-            f"{source}: row {rows[i]}: covariance is not symmetric (relative asymmetry above "
-            f"{SYMMETRY_RTOL:g}); check the cov_i_j columns"
-        )
-    sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
-    min_eig = np.linalg.eigvalsh(sym)[:, 0]
+def _validated_cov(
+    cov: np.ndarray, rows: np.ndarray, source: str, kind: CovKind = CovKind.FULL
+) -> np.ndarray:
+    """The covariances, exactly symmetric, after checking that each is symmetric to
+    SYMMETRY_RTOL and positive definite (naming the first bad row). Only a full matrix can
+    be asymmetric; the other layouts are symmetric as built, and are checked in place."""
+    diag = np.diagonal(cov, axis1=1, axis2=2)
+    if kind is CovKind.FULL:
+        scale = np.abs(cov).max(axis=(1, 2))
+        asym = np.abs(cov - np.swapaxes(cov, 1, 2)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
+        if asym.any():
+            i = int(np.argmax(asym))
+            raise CredcliError(
+                f"{source}: row {rows[i]}: covariance is not symmetric (relative asymmetry "
+                f"above {SYMMETRY_RTOL:g}); check the cov_i_j columns"
+            )
+        cov = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+    else:
+        scale = np.abs(diag).max(axis=1)  # the largest entry of a PD matrix is diagonal
+    if kind in (CovKind.VAR, CovKind.STD):
+        min_eig = diag.min(axis=1)
+    else:
+        min_eig = np.empty(cov.shape[0])
+        for start in range(0, cov.shape[0], _CHUNK):  # bounded temporaries
+            min_eig[start : start + _CHUNK] = np.linalg.eigvalsh(cov[start : start + _CHUNK])[:, 0]
     not_pd = ~(min_eig > 1e-12 * np.maximum(scale, np.finfo(float).tiny))
     if not_pd.any():
         i = int(np.argmax(not_pd))
@@ -363,4 +377,9 @@ def _validated_cov(cov: np.ndarray, rows: np.ndarray, source: str) -> np.ndarray
             f"{source}: row {rows[i]}: covariance is not positive definite (smallest eigenvalue "
             f"{min_eig[i]:.3g}); a claimed covariance must be positive definite"
         )
-    return sym
+    return cov
+
+
+_CHUNK = 262_144
+"""Epochs per chunk where a per-epoch computation would otherwise allocate whole-log
+temporaries."""

@@ -9,10 +9,19 @@ first, so the output is the same for any number of processes.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Iterable, Iterator
 
 _BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def single_threaded_blas() -> None:
+    """Ask BLAS for one thread, unless the user set a number: every product credcli runs is
+    per segment or per trial, and the cores are shared by processes (``--jobs``), not by
+    BLAS threads. Effective only before numpy is imported (the command line sets it first)."""
+    for key in _BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(key, "1")
 
 
 def default_jobs() -> int:
@@ -32,6 +41,19 @@ def _one_blas_thread() -> None:
         pass
 
 
+@contextlib.contextmanager
+def one_blas_thread():
+    """BLAS limited to one thread in this process, for work made of many small products
+    (one segment, one trial), where extra BLAS threads only contend for the cores."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        yield
+        return
+    with threadpool_limits(1, user_api="blas"):
+        yield
+
+
 def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
     """``map(func, tasks)`` in ``jobs`` worker processes (in this process for jobs <= 1).
 
@@ -41,7 +63,8 @@ def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
     """
     tasks = list(tasks)
     if jobs <= 1 or len(tasks) <= 1:
-        yield from map(func, tasks)
+        with one_blas_thread():
+            yield from map(func, tasks)
         return
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor

@@ -96,13 +96,18 @@ def diagnose_plans(plans, config: DiagnosisConfig, seed: int, jobs: int = 1, pro
         finally:
             outputs.close()
         return results
+    from credcli.parallel import one_blas_thread
+
     results = []
-    for log, segments in plans:
-        offset = len(results)
-        tick = (
-            None if progress is None else (lambda k, _n, o=offset: progress(o + k, total_segments))
-        )
-        results.extend(diagnose_log(log, segments, config, seed, tick))
+    with one_blas_thread():
+        for log, segments in plans:
+            offset = len(results)
+            tick = (
+                None
+                if progress is None
+                else (lambda k, _n, o=offset: progress(o + k, total_segments))
+            )
+            results.extend(diagnose_log(log, segments, config, seed, tick))
     return results
 
 

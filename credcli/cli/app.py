@@ -1075,6 +1075,9 @@ def main(argv: list[str] | None = None) -> int:
     """
     import warnings
 
+    from credcli.parallel import single_threaded_blas
+
+    single_threaded_blas()  # before numpy loads; a user's own setting wins
     args = list(sys.argv[1:] if argv is None else argv)
     debug = (
         "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]

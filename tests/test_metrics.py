@@ -223,3 +223,24 @@ def test_shape_errors_are_reported():
 
     with pytest.raises(CredcliError, match="cov must have shape"):
         metrics.nees(np.zeros((3, 2)), np.zeros((3, 3, 3)))
+
+
+def test_expected_norm_against_the_30_digit_reference():
+    """Issue 12: the energy score's quadrature stays within 1e-9 relative of a 30-digit
+    mpmath reference (tests/data/make_expected_norm_reference.py), eigenvalue ratios to
+    1e14, zero and large means, d = 1, 2, 3, 6."""
+    import json
+    from pathlib import Path
+
+    cases = json.loads(
+        (Path(__file__).parent / "data" / "expected_norm_reference.json").read_text()
+    )
+    worst = 0.0
+    for case in cases:
+        lam, nu2 = np.array([case["lam"]]), np.array([case["nu2"]])
+        ref = float(case["expected_norm"])
+        got = metrics.expected_norm_core(lam, nu2)[0]
+        worst = max(worst, abs(got - ref) / ref)
+        if not np.any(nu2):
+            worst = max(worst, abs(metrics.centred_norm(lam)[0] - ref) / ref)
+    assert worst <= 1e-9, worst

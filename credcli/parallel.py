@@ -54,6 +54,48 @@ def one_blas_thread():
         yield
 
 
+def _warm_up(module: str) -> None:
+    """Worker: import a module now, so that it is loaded when the first task arrives."""
+    import importlib
+
+    importlib.import_module(module)
+
+
+class WorkerPool:
+    """Spawned worker processes with one BLAS thread each, started (and warmed up by
+    importing ``warm``) before the work is known, e.g. while the main process reads logs."""
+
+    def __init__(self, jobs: int, warm: str | None = None) -> None:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        saved = {k: os.environ.get(k) for k in _BLAS_THREAD_VARIABLES}
+        os.environ.update({k: "1" for k in _BLAS_THREAD_VARIABLES})
+        try:
+            self.executor = ProcessPoolExecutor(
+                max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_one_blas_thread
+            )
+            self.warming = (
+                [self.executor.submit(_warm_up, warm) for _ in range(jobs)] if warm else []
+            )
+        finally:
+            for key, value in saved.items():
+                if value is None:
+                    os.environ.pop(key, None)
+                else:
+                    os.environ[key] = value
+
+    def map(self, func: Callable, tasks: list) -> Iterator:
+        """Results in task order; the workers are shut down at the end or on an error."""
+        try:
+            yield from self.executor.map(func, tasks)
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        self.executor.shutdown(cancel_futures=True)
+
+
 def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
     """``map(func, tasks)`` in ``jobs`` worker processes (in this process for jobs <= 1).
 
@@ -66,25 +108,4 @@ def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
         with one_blas_thread():
             yield from map(func, tasks)
         return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
-    saved = {k: os.environ.get(k) for k in _BLAS_THREAD_VARIABLES}
-    os.environ.update({k: "1" for k in _BLAS_THREAD_VARIABLES})
-    try:
-        pool = ProcessPoolExecutor(
-            max_workers=min(jobs, len(tasks)),
-            mp_context=mp.get_context("spawn"),
-            initializer=_one_blas_thread,
-        )
-        outputs = pool.map(func, tasks)  # submits every task: workers start now
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-    try:
-        yield from outputs
-    finally:
-        pool.shutdown(cancel_futures=True)
+    yield from WorkerPool(min(jobs, len(tasks))).map(func, tasks)

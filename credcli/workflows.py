@@ -54,6 +54,17 @@ PARALLEL_MIN_EPOCHS = 50_000
 processes (about 0.5 s each, to import numpy and scipy) would cost more than it saves."""
 
 
+PARALLEL_MIN_BYTES = 2_000_000
+"""Logs this large (in all) start the worker processes before they are read."""
+
+
+def _size(path) -> int:
+    try:
+        return Path(path).stat().st_size
+    except OSError:
+        return 0
+
+
 def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
     source, items, config, seed = task
@@ -63,7 +74,9 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     ]
 
 
-def diagnose_plans(plans, config: DiagnosisConfig, seed: int, jobs: int = 1, progress=None):
+def diagnose_plans(
+    plans, config: DiagnosisConfig, seed: int, jobs: int = 1, progress=None, pool=None
+):
     """Every segment of every (log, segments) plan, in order; ``jobs`` processes share the
     work in chunks of about equal epochs when there are at least PARALLEL_MIN_EPOCHS.
     Each segment's sign flips depend on (seed, segment name) only, so the results are the
@@ -72,7 +85,10 @@ def diagnose_plans(plans, config: DiagnosisConfig, seed: int, jobs: int = 1, pro
 
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
-    if jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1:
+    parallel = jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1
+    if pool is not None and not parallel:
+        pool.close()
+    if parallel:
         target = max(1, total_epochs // (8 * jobs))
         tasks, items, size, source = [], [], 0, None
         for log, segments in plans:
@@ -87,7 +103,9 @@ def diagnose_plans(plans, config: DiagnosisConfig, seed: int, jobs: int = 1, pro
                 size += len(part)
         tasks.append((source, items, config, seed))
         results = []
-        outputs = ordered_map(_diagnose_chunk, tasks, jobs)
+        outputs = (
+            pool.map(_diagnose_chunk, tasks) if pool else ordered_map(_diagnose_chunk, tasks, jobs)
+        )
         try:
             for out in outputs:
                 results.extend(out)
@@ -134,9 +152,19 @@ def run_diagnose(
 ) -> Run:
     """Load, segment and diagnose every log; return the `diagnose` report (and plots).
     ``jobs`` processes share the segments; the output is the same for any value."""
-    loaded = [load_log(p, schema, drop_invalid) for p in paths]
-    plans = [(log, split(log, window, whole)) for log in loaded]
-    results = diagnose_plans(plans, config, seed, jobs, progress)
+    pool = None
+    if jobs > 1 and sum(_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
+        from credcli.parallel import WorkerPool
+
+        pool = WorkerPool(jobs, warm=__name__)  # workers import while the logs are read
+    try:
+        loaded = [load_log(p, schema, drop_invalid) for p in paths]
+        plans = [(log, split(log, window, whole)) for log in loaded]
+    except BaseException:
+        if pool is not None:
+            pool.close()
+        raise
+    results = diagnose_plans(plans, config, seed, jobs, progress, pool)
     parameters = config_parameters(config) | {
         "seed": seed,
         "segmentation": segmentation_name(window, whole),

@@ -505,16 +505,18 @@ def curves_report(by_rho, by_gamma, parameters: dict) -> Report:
 
 
 UWB_COLUMNS = (
-    Column("segment", "period", 0, limit=NAME_LIMIT),
-    Column("t_start", "t start [s]", 4),
-    Column("t_end", "t end [s]", 4),
-    Column("n", "fixes", 0, keep=True),
-    Column("label", "label", 0, keep=True),
-    Column("nees_label", "NEES", 0),
-    Column("nci_label", "NCI", 0),
-    Column("elt_pvalue", "ELT p", 3, pvalue=True),
-    Column("nci", "NCI [dB]", 3),
-    Column("anees", "ANEES", 4),
+    Column("segment", "period", 0, limit=NAME_LIMIT, rank=0),
+    Column("t_start", "t start [s]", 4, rank=3),
+    Column("t_end", "t end [s]", 4, rank=3),
+    Column("n", "fixes", 0, keep=True, rank=0),
+    Column("label", "label", 0, keep=True, rank=0),
+    Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r), rank=1),
+    Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
+    Column("bias_mahalanobis", "|bias| [σ]", 3, rank=3),
+    Column("nees_label", "NEES", 0, rank=5),
+    Column("nci_label", "NCI", 0, rank=5),
+    Column("nci", "NCI [dB]", 3, rank=6),
+    Column("anees", "ANEES", 4, rank=6),
 )
 
 
@@ -565,7 +567,7 @@ def uwb_report(run, results, parameters: dict) -> Report:
         Column("rms_mm", "gt_range RMS [mm]", 3),
         Column("rows", "ranges", 0),
     )
-    notes = list(run.ranges.notes)
+    notes = list(run.ranges.notes) + _advice_lines(segments)
     notes.append(
         f"{run.packets} packets of >= {parameters['min_anchors']} anchors within "
         f"{parameters['packet_window']:g} s; {run.fixes.time.size} fixes "

@@ -10,13 +10,13 @@ at the scales of the problem. Run: python tests/data/make_expected_norm_referenc
 import json
 from pathlib import Path
 
-import mpmath as mp
 import numpy as np
-
-mp.mp.dps = 30
 
 
 def reference(lam, nu2) -> str:
+    import mpmath as mp  # only to regenerate the reference, not a test dependency
+
+    mp.mp.dps = 30
     lam = [mp.mpf(float(x)) for x in lam]
     nu2 = [mp.mpf(float(x)) for x in nu2]
 

@@ -277,3 +277,18 @@ def test_heavy_tails_widen_the_scale_reference():
     r = scale_test(gls_residuals(u, np.eye(2)), ALPHA_S, np.ones(2))
     assert r.satterthwaite > 2.5 and r.dof < 2 * 1999 / 2.5
     assert r.scale_factor_low < 1.0 < r.scale_factor_high
+
+
+def test_the_block_count_checked_is_the_block_count_tested():
+    """Subsampled segments: the insufficient-data check counts the blocks the ELT keeps,
+    max_epochs // L, not ⌈max_epochs / L⌉ (with L = 571 and a 4000-epoch budget: 7, not 8)."""
+    from credcli.engine.elt import tested_blocks, whitened_location_test
+
+    assert tested_blocks(10_000, 571, 4000) == 7 and tested_blocks(3000, 571, 4000) == 6
+    assert tested_blocks(100, 1, 4000) == 100 and tested_blocks(9000, 1, 4000) == 4000
+    s = np.random.default_rng(0).standard_normal((10_000, 2))
+    res = whitened_location_test(s, 99, np.random.default_rng(0), block_length=571, max_epochs=4000)
+    assert res.subsampled and res.n_used == 7 * 571
+    config = DiagnosisConfig(block_length=571, max_elt_epochs=4000)
+    d = diagnose_errors(s, np.broadcast_to(np.eye(2), (10_000, 2, 2)), config, rng=0)
+    assert d.label is Label.INSUFFICIENT and "leaves 7 of the 8" in d.reason

@@ -244,3 +244,11 @@ def test_expected_norm_against_the_30_digit_reference():
         if not np.any(nu2):
             worst = max(worst, abs(metrics.centred_norm(lam)[0] - ref) / ref)
     assert worst <= 1e-9, worst
+
+
+def test_centred_norm_with_a_zero_eigenvalue_is_the_one_dimensional_norm():
+    """A degenerate 2-D Gaussian N(0, diag(0, σ²)) has E‖W‖ = σ√(2/π), whichever axis."""
+    lam = np.array([[0.0, 4.0], [4.0, 0.0], [0.0, 0.0]])
+    np.testing.assert_allclose(
+        metrics.centred_norm(lam), [2 * np.sqrt(2 / np.pi), 2 * np.sqrt(2 / np.pi), 0.0]
+    )

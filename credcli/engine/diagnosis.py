@@ -25,7 +25,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
     Variant,
     parse_label,
 )
-from credcli.engine.elt import ELTResult, whiten, whitened_location_test
+from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.scale import ScaleTest, gls_residuals, scale_test
 from credcli.errors import CredcliError
 
@@ -254,7 +254,7 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
             "autocorrelation": autocorr,
             "config": config,
         }
-        n_blocks = math.ceil(min(n, config.max_elt_epochs) / block)
+        n_blocks = tested_blocks(n, block, config.max_elt_epochs)
         if n_blocks < config.min_blocks:
             reason = (
                 f"too few independent blocks: serial dependence (variance ratio "

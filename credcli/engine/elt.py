@@ -166,6 +166,15 @@ def location_test(
     return whitened_location_test(s, n_flips, as_generator(rng), block_length, max_epochs)
 
 
+def tested_blocks(n: int, block_length: int, max_epochs: int) -> int:
+    """Sign blocks the ELT flips for a segment of ``n`` epochs: ⌈n/L⌉, or the
+    ``max(2, max_epochs // L)`` whole blocks of the subsample when n exceeds the budget."""
+    n_blocks = math.ceil(n / block_length)
+    if n > max_epochs:
+        return min(n_blocks, max(2, max_epochs // block_length))
+    return n_blocks
+
+
 def whitened_location_test(
     s: np.ndarray,
     n_flips: int,
@@ -187,15 +196,15 @@ def whitened_location_test(
     test rejects iff (1 + h)/(B + 1) < level, i.e. iff the exceedance count h stays below
     h* = ⌈level(B + 1) − 1⌉, so once h* exceedances are seen the decision is the exhaustive
     test's. The p-value is then Besag and Clifford's (1991, Biometrika 78(2)) sequential
-    p-value h*/l after l flips, which is >= the level; ``flips_used`` is l.
+    p-value h/l, with h >= h* the count after the l flips evaluated (the stop is checked
+    after each batch), which is >= the level; ``flips_used`` is l.
     """
     n = s.shape[0]
     blocks = np.arange(n) // block_length
     subsampled = n > max_epochs
     if subsampled:
-        n_blocks = blocks[-1] + 1
-        keep_blocks = max(2, max_epochs // block_length)
-        chosen = np.sort(gen.choice(n_blocks, size=min(keep_blocks, n_blocks), replace=False))
+        keep = tested_blocks(n, block_length, max_epochs)
+        chosen = np.sort(gen.choice(blocks[-1] + 1, size=keep, replace=False))
         mask = np.isin(blocks, chosen)
         s, blocks = s[mask], np.searchsorted(chosen, blocks[mask])
     else:
@@ -296,11 +305,11 @@ def _sign_flip_test(
     else:
         norm = float(n * (n - 1))
     total = float(a.sum())
-    t_obs = total / norm if norm > 0 else 0.0
+    scale = norm if norm > 0 else 1.0  # no pairs left: a is zero and so is the statistic
+    t_obs = total / scale
     signs = gen.integers(0, 2, size=(n_flips, n_blocks), dtype=np.int8)
     signs *= 2
     signs -= 1  # Rademacher ±1
-    scale = norm if norm > 0 else 1.0
     threshold = t_obs - _PVALUE_RTOL * abs(t_obs)
     stop = _stop_count(stop_level, n_flips)
     parts, count, used, batch = [], 0, 0, _FIRST_BATCH if stop is not None else n_flips

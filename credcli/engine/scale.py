@@ -142,10 +142,10 @@ def tail_factor(u: np.ndarray, gate: float = TAIL_GATE) -> float:
 
     The ratio R = (Q.975 − Q.025)/(Q.75 − Q.25) of the pooled components is 2.906 for the
     normal and larger for heavier tails; it does not collapse in a sample that happens to
-    miss its rare large errors, as the sample variance of q_k does. R, less ``shrink``
-    standard errors, is read as a Student-t with ν degrees of freedom (excess kurtosis
-    k = 6/(ν − 4)); for an elliptical law Var(q) = 2d(1 + (d + 2)k/6), so the factor is
-    1 + (d + 2)k/6. ν is floored at 4.05.
+    miss its rare large errors, as the sample variance of q_k does. When R exceeds 2.906 by
+    more than ``gate`` standard errors it is read as a Student-t with ν degrees of freedom
+    (excess kurtosis k = 6/(ν − 4)); for an elliptical law Var(q) = 2d(1 + (d + 2)k/6), so
+    the factor is 1 + (d + 2)k/6. ν is floored at 4.05; otherwise the factor is 1.
     """
     n, d = u.shape
     m = u.size

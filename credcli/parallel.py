@@ -103,8 +103,9 @@ def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
     once; the iterator yields results in task order and shuts the workers down at the end,
     or when it is closed early (an error, Ctrl-C).
     """
-    tasks = list(tasks)
-    if jobs <= 1 or len(tasks) <= 1:
+    if jobs > 1:
+        tasks = list(tasks)
+    if jobs <= 1 or len(tasks) <= 1:  # in this process, taking the tasks as they come
         with one_blas_thread():
             yield from map(func, tasks)
         return

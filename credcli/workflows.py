@@ -74,13 +74,32 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     ]
 
 
+def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int):
+    """Tasks of consecutive segments of one log, each closing once it holds ``target``
+    epochs (one segment per task for target 0); made as they are consumed."""
+    items, size, source = [], 0, None
+    for log, segments in plans:
+        errors = log.errors
+        for segment in segments:
+            if items and (size >= target or source != log.source):
+                yield (source, items, config, seed)
+                items, size = [], 0
+            source = log.source
+            part = errors[segment.index]
+            cov = log.cov[segment.index]
+            items.append((segment.name, segment.t_start, segment.t_end, part, cov))
+            size += len(part)
+    if items:
+        yield (source, items, config, seed)
+
+
 def diagnose_plans(
     plans, config: DiagnosisConfig, seed: int, jobs: int = 1, progress=None, pool=None
 ):
-    """Every segment of every (log, segments) plan, in order; ``jobs`` processes share the
-    work in chunks of about equal epochs when there are at least PARALLEL_MIN_EPOCHS.
-    Each segment's sign flips depend on (seed, segment name) only, so the results are the
-    same for any ``jobs`` and any order of completion."""
+    """Every segment of every (log, segments) plan, in order. From PARALLEL_MIN_EPOCHS on,
+    ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
+    otherwise segments are diagnosed one by one in this process. Each segment's sign flips
+    depend on (seed, segment name) only, so the results are the same for any ``jobs``."""
     from credcli.parallel import ordered_map
 
     total_segments = sum(len(s) for _, s in plans)
@@ -88,44 +107,21 @@ def diagnose_plans(
     parallel = jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1
     if pool is not None and not parallel:
         pool.close()
-    if parallel:
-        target = max(1, total_epochs // (8 * jobs))
-        tasks, items, size, source = [], [], 0, None
-        for log, segments in plans:
-            errors = log.errors
-            for seg in segments:
-                if items and (size >= target or source != log.source):
-                    tasks.append((source, items, config, seed))
-                    items, size = [], 0
-                source = log.source
-                part = errors[seg.index]
-                items.append((seg.name, seg.t_start, seg.t_end, part, log.cov[seg.index]))
-                size += len(part)
-        tasks.append((source, items, config, seed))
-        results = []
-        outputs = (
-            pool.map(_diagnose_chunk, tasks) if pool else ordered_map(_diagnose_chunk, tasks, jobs)
-        )
-        try:
-            for out in outputs:
-                results.extend(out)
-                if progress is not None:
-                    progress(len(results), total_segments)
-        finally:
-            outputs.close()
-        return results
-    from credcli.parallel import one_blas_thread
-
+        pool = None
+    target = max(1, total_epochs // (8 * jobs)) if parallel else 0
+    tasks = _chunk_tasks(plans, config, seed, target)
+    if pool is not None:
+        outputs = pool.map(_diagnose_chunk, list(tasks))
+    else:
+        outputs = ordered_map(_diagnose_chunk, tasks, jobs if parallel else 1)
     results = []
-    with one_blas_thread():
-        for log, segments in plans:
-            offset = len(results)
-            tick = (
-                None
-                if progress is None
-                else (lambda k, _n, o=offset: progress(o + k, total_segments))
-            )
-            results.extend(diagnose_log(log, segments, config, seed, tick))
+    try:
+        for out in outputs:
+            results.extend(out)
+            if progress is not None:
+                progress(len(results), total_segments)
+    finally:
+        outputs.close()
     return results
 
 
@@ -362,7 +358,7 @@ def run_gate(
         compare,
         verdict_line,
     )
-    from credcli.io.checks import check_types
+    from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
     from credcli.report.render import gate_report
 
     try:
@@ -382,12 +378,7 @@ def run_gate(
     params = baseline["parameters"]
     fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
     try:
-        hints = typing.get_type_hints(DiagnosisConfig) | {
-            "seed": int,
-            "window": str | None,
-            "whole": bool,
-            "drop_invalid": bool,
-        }
+        hints = diagnosis_hints() | SEGMENT_HINTS | {"window": str | None, "drop_invalid": bool}
         check_types(params, hints, "baseline parameters")
         if not isinstance(params.get("columns"), dict):
             raise CredcliError("baseline parameters: 'columns' must be an object")

@@ -45,11 +45,14 @@ def test_insufficient_data_is_never_a_guess(rng):
     assert (
         dg.diagnose_errors(*gaussian_segment(rng, n=25, d=2), config, 0).label is Label.INSUFFICIENT
     )
-    # calibrated: α_L = 1 − √0.95 = 0.0253 needs 2^(1−m) <= α_L/2, i.e. m >= 8 blocks
+    # calibrated: α_L = 1 − √0.95 = 0.0253 needs 2^(1−m) <= α_L/2, i.e. m >= 8 blocks;
+    # 36 epochs make ⌈36/5⌉ = 8 blocks of 5, 35 make 7
     config = DiagnosisConfig(block_length=5)
-    assert config.min_blocks == 8 and config.min_n(2) == 40
-    short = dg.diagnose_errors(*gaussian_segment(rng, n=39, d=2), config, 0)
-    assert short.label is Label.INSUFFICIENT and "40 are needed" in short.reason
+    assert config.min_blocks == 8 and config.min_n(2) == 36
+    short = dg.diagnose_errors(*gaussian_segment(rng, n=35, d=2), config, 0)
+    assert short.label is Label.INSUFFICIENT and "36 are needed" in short.reason
+    enough = dg.diagnose_errors(*gaussian_segment(rng, n=36, d=2), config, 0)
+    assert enough.label is not Label.INSUFFICIENT and enough.elt.n_used == 36
 
 
 def probes_eigen(**kw):
@@ -172,10 +175,11 @@ def test_config_validation(field, value):
         DiagnosisConfig(**{field: value})
 
 
-def test_diagnose_truth_estimate_api(rng):
-    errors, cov = gaussian_segment(rng, n=100, d=2)
-    truth = rng.normal(size=(100, 2))
-    a = dg.diagnose(truth, truth - errors, cov, rng=4)
+def test_shared_covariance_api_equals_per_epoch_covariances(rng):
+    import credcli
+
+    errors, cov = gaussian_segment(rng, n=100, d=2)  # one Σ̂ for every epoch
+    a = credcli.diagnose(errors, cov[0], rng=4)
     b = dg.diagnose_errors(errors, cov, rng=4)
     assert a.label is b.label
     assert a.nci == pytest.approx(b.nci, rel=1e-12)

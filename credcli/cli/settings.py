@@ -8,7 +8,7 @@ from pathlib import Path
 
 from credcli.engine.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError
-from credcli.io.checks import check_types
+from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.files import read_toml
 from credcli.io.logs import LogSchema
 
@@ -73,25 +73,26 @@ def segment_settings(
     config: dict, window: str | None, whole: bool | None
 ) -> tuple[str | None, bool]:
     """``--window`` and ``--whole`` from the command line, else from [segments]."""
-    values = merged(
-        config.get("segments", {}),
-        {"window": window, "whole": whole},
-        ("window", "whole"),
-        "config [segments]",
-        {"window": str, "whole": bool},
-    )
+    values = _segments(config, {"window": window, "whole": whole})
     return values.get("window"), bool(values.get("whole", False))
+
+
+def _segments(config: dict, cli: dict) -> dict:
+    return merged(
+        config.get("segments", {}), cli, SEGMENT_HINTS, "config [segments]", SEGMENT_HINTS
+    )
+
+
+def _diagnosis(config: dict, cli: dict) -> dict:
+    hints = diagnosis_hints()
+    return merged(config.get("diagnosis", {}), cli, hints, "config [diagnosis]", hints)
 
 
 def build_diagnosis_config(
     config: dict, cli: dict, seed: int | None = None
 ) -> tuple[DiagnosisConfig, int]:
     """The DiagnosisConfig and the seed (default 0) from [diagnosis] and the CLI."""
-    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)} | {"seed"}
-    hints = typing.get_type_hints(DiagnosisConfig) | {"seed": int}
-    values = merged(
-        config.get("diagnosis", {}), cli | {"seed": seed}, fields, "config [diagnosis]", hints
-    )
+    values = _diagnosis(config, cli | {"seed": seed})
     seed_value = values.pop("seed", 0)
     if not isinstance(seed_value, int) or seed_value < 0:
         raise CredcliError(f"the seed must be a non-negative integer; got {seed_value!r}")
@@ -153,15 +154,6 @@ def split_list(text: str | None) -> tuple[str, ...] | None:
 def gate_requests(config: dict, cli: dict) -> dict:
     """What `gate` was asked for: [diagnosis] and [segments] of its config, overridden by
     the command line; each must equal the baseline's parameter of the same name."""
-    hints = typing.get_type_hints(DiagnosisConfig) | {"seed": int}
-    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)} | {"seed"}
-    out = merged(config.get("diagnosis", {}), {}, fields, "config [diagnosis]", hints)
-    out |= merged(
-        config.get("segments", {}),
-        {},
-        ("window", "whole"),
-        "config [segments]",
-        {"window": str, "whole": bool},
-    )
+    out = _diagnosis(config, {}) | _segments(config, {})
     out.update({k: v for k, v in cli.items() if v is not None})
     return out

@@ -20,6 +20,16 @@ def sidak(alpha: float) -> float:
     return alpha / (1.0 + math.sqrt(1.0 - alpha))
 
 
+EPOCH_CHUNK = 262_144
+"""Epochs per chunk of per-epoch linear algebra: temporaries stay bounded on long segments."""
+
+
+def epoch_chunks(n: int):
+    """Slices of at most EPOCH_CHUNK epochs covering range(n)."""
+    for start in range(0, n, EPOCH_CHUNK):
+        yield slice(start, start + EPOCH_CHUNK)
+
+
 DEFAULT_MAX_EPOCHS = 4000
 """Largest N whose N×N ELT matrix is formed (4000² float64 = 128 MB); larger segments are
 tested on a seeded random subsample of this many epochs."""
@@ -35,6 +45,11 @@ class Label(str, enum.Enum):
     OPTIMISM_SMM = "optimism+smm"
     PESSIMISM_SMM = "pessimism+smm"
     INSUFFICIENT = "insufficient-data"
+
+    @classmethod
+    def compose(cls, noise: str | None, smm: bool) -> Label:
+        """The label of a noise condition ("optimism", "pessimism" or None) and SMM."""
+        return cls("+".join(p for p in (noise, "smm" if smm else None) if p) or "credible")
 
     @property
     def conditions(self) -> frozenset[str]:
@@ -151,13 +166,19 @@ class DiagnosisConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Integral):
                 raise CredcliError(f"invalid setting: {name} must be an integer; got {value!r}")
+        if not isinstance(self.exact_pvalue, bool):
+            raise CredcliError(
+                f"invalid setting: exact_pvalue must be true or false; got {self.exact_pvalue!r}"
+            )
         try:
-            variant = Variant(self.variant)
+            object.__setattr__(self, "variant", Variant(self.variant))
         except ValueError:
             names = ", ".join(v.value for v in Variant)
             raise CredcliError(
                 f"invalid setting: variant must be one of {names}; got {self.variant!r}"
             ) from None
+        object.__setattr__(self, "srd_form", SrdForm(self.srd_form))
+        object.__setattr__(self, "metrics", MetricsLevel(self.metrics))
         checks = [
             (0 < self.tau_nci < math.inf, "tau_nci must be finite and > 0 (dB)"),
             (0 < self.alpha < 1, "alpha must be in (0, 1)"),
@@ -189,7 +210,7 @@ class DiagnosisConfig:
         for ok, message in checks:
             if not ok:
                 raise CredcliError(f"invalid setting: {message}")
-        level = sidak(self.alpha) if variant is Variant.CALIBRATED else self.alpha
+        level = self.location_level
         smallest = math.ceil(1.0 / level - 1e-9) - 1
         if smallest > MAX_FLIPS:
             raise CredcliError(
@@ -202,9 +223,6 @@ class DiagnosisConfig:
                 f"(1 + count)/(B + 1) can only fall below its level {level:.3g} with "
                 f"B >= {smallest}"
             )
-        object.__setattr__(self, "variant", Variant(self.variant))
-        object.__setattr__(self, "srd_form", SrdForm(self.srd_form))
-        object.__setattr__(self, "metrics", MetricsLevel(self.metrics))
 
     @property
     def calibrated(self) -> bool:
@@ -236,8 +254,7 @@ class DiagnosisConfig:
         return max(6, math.ceil(math.log2(4.0 / self.location_level) - 1e-12))
 
     def min_n(self, dim: int) -> int:
-        """Smallest segment size that is diagnosed (with the fixed block length, or 1)."""
-        blocks = self.min_blocks * (self.fixed_block_length or 1)
-        if not self.calibrated:
-            blocks = 5 * (self.fixed_block_length or 1) + 1
-        return max(self.min_epochs, dim + 2, blocks)
+        """Smallest segment size that is diagnosed: min_epochs, d + 2, and the fewest epochs
+        that make min_blocks sign blocks of the fixed block length (or 1), (m − 1)L + 1."""
+        length = self.fixed_block_length or 1
+        return max(self.min_epochs, dim + 2, (self.min_blocks - 1) * length + 1)

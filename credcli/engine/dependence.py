@@ -33,13 +33,16 @@ BLOCK_VARIANCE_LOSS = 0.1
 """ε: the largest fraction of the statistic's variance a block sign flip may lose."""
 
 
+def _ratio(num: np.ndarray, den: np.ndarray, otherwise: float) -> np.ndarray:
+    """num/den where den > 0, else ``otherwise`` (a column that does not vary)."""
+    positive = den > 0
+    return np.where(positive, num / np.where(positive, den, 1.0), otherwise)
+
+
 def _lag1(x: np.ndarray) -> np.ndarray:
     """Least-squares AR(1) coefficient of each column of a centred (T, p) array."""
     num = np.einsum("tp,tp->p", x[1:], x[:-1])
-    den = np.einsum("tp,tp->p", x[:-1], x[:-1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-    return rho
+    return _ratio(num, np.einsum("tp,tp->p", x[:-1], x[:-1]), 0.0)
 
 
 def autocorrelation(x: np.ndarray) -> np.ndarray:
@@ -49,10 +52,8 @@ def autocorrelation(x: np.ndarray) -> np.ndarray:
     x = x - x.mean(axis=0)
     if x.shape[0] < 2:
         return np.zeros(x.shape[1])
-    g0 = np.einsum("tp,tp->p", x, x)
     g1 = np.einsum("tp,tp->p", x[1:], x[:-1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(g0 > 0, g1 / np.where(g0 > 0, g0, 1.0), 0.0)
+    return _ratio(g1, np.einsum("tp,tp->p", x, x), 0.0)
 
 
 def andrews_bandwidth(rho: np.ndarray, n: int) -> np.ndarray:
@@ -111,32 +112,29 @@ def variance_ratio(x: np.ndarray) -> np.ndarray:
     """τ = Ω / γ(0) per column: 1 for independent epochs, (1 + φ)/(1 − φ) for an AR(1)."""
     x = np.asarray(x, dtype=float)
     x = x.reshape(x.shape[0], -1)
-    var = x.var(axis=0)
-    omega = long_run_variance(x)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(var > 0, omega / np.where(var > 0, var, 1.0), 1.0)
+    return _ratio(long_run_variance(x), x.var(axis=0), 1.0)
 
 
 DEPENDENCE_LEVEL = 0.01
 """Level of the test for serial dependence that decides whether τ̂ is used at all."""
 
 
-def serially_dependent(x: np.ndarray, level: float = DEPENDENCE_LEVEL) -> bool:
-    """Whether some column of x (T, p) has a significant lag-1 autocorrelation.
+def serially_dependent(r1: np.ndarray, n: int, level: float = DEPENDENCE_LEVEL) -> bool:
+    """Whether some of the lag-1 autocorrelations ``r1`` (:func:`autocorrelation`) of ``n``
+    epochs is significant.
 
-    Under independence √T·r̂₁ is asymptotically N(0, 1) (Bartlett 1946); the columns are
+    Under independence √n·r̂₁ is asymptotically N(0, 1) (Bartlett 1946); the columns are
     tested two-sided at ``level`` with a Bonferroni split. On independent data τ̂ is
-    noisy (at T = 25 its lag-1 coefficient has a standard error of 0.2), and using it
+    noisy (at n = 25 its lag-1 coefficient has a standard error of 0.2), and using it
     would ask for sign blocks that are not needed; this gate keeps L = 1 there.
     """
     from scipy import special
 
-    x = np.asarray(x, dtype=float)
-    x = x.reshape(x.shape[0], -1)
-    if x.shape[0] < 3:
+    r1 = np.atleast_1d(np.asarray(r1, dtype=float))
+    if n < 3:
         return False
-    z = float(special.ndtri(1.0 - level / (2 * x.shape[1])))
-    return bool(np.any(np.abs(autocorrelation(x)) * np.sqrt(x.shape[0]) > z))
+    z = float(special.ndtri(1.0 - level / (2 * r1.size)))
+    return bool(np.any(np.abs(r1) * np.sqrt(n) > z))
 
 
 def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> int:

@@ -121,43 +121,6 @@ def segment_seed(seed: int | None, name: str) -> np.random.SeedSequence:
     return np.random.SeedSequence(entropy=seed, spawn_key=(zlib.crc32(name.encode()),))
 
 
-def diagnose(
-    truth: np.ndarray,
-    estimate: np.ndarray,
-    cov: np.ndarray,
-    config: DiagnosisConfig | None = None,
-    rng: RngLike = None,
-    mse: np.ndarray | None = None,
-) -> Diagnosis:
-    """Diagnose one segment with Algorithm 1.
-
-    Parameters
-    ----------
-    truth, estimate : array (N, d)
-    cov : array (N, d, d)
-        Claimed covariances Σ̂_k.
-    config : DiagnosisConfig
-    rng : Generator, SeedSequence, int or None
-        Source of the ELT's sign flips.
-    mse : array (d, d) or (N, d, d), optional
-        Known MSE matrix for the NCI; estimated from the errors when not given.
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> x = rng.normal(size=(200, 2)); xh = x + rng.normal(size=(200, 2))
-    >>> diagnose(x, xh, np.broadcast_to(np.eye(2), (200, 2, 2)), rng=1).label.value
-    'credible'
-    """
-    truth = np.asarray(truth, dtype=float)
-    estimate = np.asarray(estimate, dtype=float)
-    if truth.shape != estimate.shape:
-        raise CredcliError(
-            f"truth and estimate must have the same shape; got {truth.shape} and {estimate.shape}"
-        )
-    return diagnose_errors(truth - estimate, cov, config, rng, mse)
-
-
 def diagnose_errors(
     errors: np.ndarray,
     cov: np.ndarray,
@@ -165,18 +128,28 @@ def diagnose_errors(
     rng: RngLike = None,
     mse: np.ndarray | None = None,
 ) -> Diagnosis:
-    """Algorithm 1 on errors e_k = x_k − x̂_k (N, d) and claimed covariances (N, d, d)."""
-    errors, cov = metrics.check_errors_cov(errors, cov)
+    """One segment of errors e_k = x_k − x̂_k (N, d) with claimed covariances (N, d, d),
+    by ``config``'s rule (the calibrated variant by default).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> e = rng.normal(size=(200, 2))
+    >>> diagnose_errors(e, np.broadcast_to(np.eye(2), (200, 2, 2)), rng=1).label.value
+    'credible'
+    """
+    errors, cov, chol = _factored(errors, cov)
     config = config or DiagnosisConfig()
+    return _diagnose_variants(errors, cov, chol, [config], as_generator(rng), mse)[0]
+
+
+def _factored(errors, cov) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Checked (N, d) errors and (N, d, d) covariances, and the covariances' Cholesky factors."""
+    errors, cov = metrics.check_errors_cov(errors, cov)
     try:
-        chol = np.linalg.cholesky(cov)
+        return errors, cov, np.linalg.cholesky(cov)
     except np.linalg.LinAlgError as exc:
         raise CredcliError("a claimed covariance is not positive definite") from exc
-    return _diagnose(errors, cov, chol, config, as_generator(rng), mse)
-
-
-def _diagnose(errors, cov, chol, config: DiagnosisConfig, gen, mse) -> Diagnosis:
-    return _diagnose_variants(errors, cov, chol, [config], gen, mse)[0]
 
 
 def diagnose_variants(
@@ -192,13 +165,9 @@ def diagnose_variants(
     the same block length and pair set are run once, in the order the variants are listed,
     so a variant listed first draws its sign flips exactly as :func:`diagnose_errors` does.
     """
-    errors, cov = metrics.check_errors_cov(errors, cov)
+    errors, cov, chol = _factored(errors, cov)
     config = config or DiagnosisConfig()
     configs = [replace(config, variant=Variant(v)) for v in variants]
-    try:
-        chol = np.linalg.cholesky(cov)
-    except np.linalg.LinAlgError as exc:
-        raise CredcliError("a claimed covariance is not positive definite") from exc
     results = _diagnose_variants(errors, cov, chol, configs, as_generator(rng), None)
     return {c.variant: r for c, r in zip(configs, results)}
 
@@ -216,10 +185,11 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
     nci_centred = metrics.nci_factored(centred, chol, _mse_cholesky(metrics.mse_matrix(centred)))
     ks_p = ks_chi2_pvalue(eps, d)
     s = whiten(errors, cov)
+    r1 = dependence.autocorrelation(s)
     tau = dependence.variance_ratio(s)
-    if not dependence.serially_dependent(s):
+    if not dependence.serially_dependent(r1, n):
         tau = np.ones_like(tau)
-    autocorr = float(np.max(dependence.autocorrelation(s)))
+    autocorr = float(np.max(r1))
     effective_n = float(n / max(1.0, float(np.max(tau))))
     gls = gls_residuals(errors, chol)
     scales: dict = {}
@@ -321,12 +291,12 @@ def _calibrated_label(scale: ScaleTest, smm: bool, config: DiagnosisConfig) -> L
     """Scale part (χ² test, two-sided at α_S, with the relevance floor τ) plus SMM."""
     half = config.scale_level / 2
     db = 10.0 * math.log10(scale.scale_factor) if scale.scale_factor > 0 else -math.inf
-    noise = ""
+    noise = None
     if scale.pvalue_upper < half and db > config.tau_nci:
         noise = "optimism"
     elif scale.pvalue_lower < half and db < -config.tau_nci:
         noise = "pessimism"
-    return Label("+".join(p for p in (noise, "smm" if smm else "") if p) or "credible")
+    return Label.compose(noise, smm)
 
 
 def _mse_cholesky(mse: np.ndarray) -> np.ndarray:
@@ -414,13 +384,6 @@ def diagnose_segment(
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
     the log and the segment."""
     try:
-        return _diagnose(
-            errors,
-            cov,
-            np.linalg.cholesky(cov),
-            config,
-            as_generator(segment_seed(seed, name)),
-            None,
-        )
+        return diagnose_errors(errors, cov, config, segment_seed(seed, name))
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc

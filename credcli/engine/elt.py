@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from credcli.engine._rng import RngLike, as_generator
-from credcli.engine.config import DEFAULT_MAX_EPOCHS
+from credcli.engine.config import DEFAULT_MAX_EPOCHS, epoch_chunks
 from credcli.errors import CredcliError
 
 _PVALUE_RTOL = 100 * np.finfo(float).eps
@@ -60,16 +60,11 @@ class ELTResult:
         )
 
 
-CHUNK = 262_144
-"""Epochs per chunk of per-epoch linear algebra: temporaries stay bounded on long segments."""
-
-
 def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k` with the symmetric inverse square
     root, computed in chunks of epochs."""
     out = np.empty(errors.shape)
-    for start in range(0, errors.shape[0], CHUNK):
-        sl = slice(start, start + CHUNK)
+    for sl in epoch_chunks(errors.shape[0]):
         lam, vecs = np.linalg.eigh(cov[sl])
         rotated = np.einsum("nji,nj->ni", vecs, errors[sl]) / np.sqrt(lam)
         out[sl] = np.einsum("nij,nj->ni", vecs, rotated)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from credcli.engine.config import epoch_chunks
 from credcli.errors import CredcliError
 
 _LOG10 = np.log(10.0)
@@ -34,7 +35,6 @@ _QUAD_W = _QUAD_H * np.exp(-_QUAD_U / 2) / (2.0 * np.sqrt(np.pi))
 _GEOMETRIC = np.exp(-_QUAD_H / 2) / (1.0 - np.exp(-_QUAD_H / 2))
 _QUAD_TAILS = _QUAD_W[-1] * _GEOMETRIC + _QUAD_W[0] * _QUAD_T[0] * _GEOMETRIC
 _QUAD_CHUNK_ELEMENTS = 2_000_000
-_EPOCH_CHUNK = 262_144
 
 
 def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -78,8 +78,7 @@ def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
         z = np.linalg.solve(chol, errors.T).T
         return np.einsum("ni,ni->n", z, z)
     out = np.empty(errors.shape[0])
-    for start in range(0, errors.shape[0], _EPOCH_CHUNK):  # bounded temporaries
-        sl = slice(start, start + _EPOCH_CHUNK)
+    for sl in epoch_chunks(errors.shape[0]):  # bounded temporaries
         z = np.linalg.solve(chol[sl], errors[sl, :, None])[..., 0]
         out[sl] = np.einsum("ni,ni->n", z, z)
     return out

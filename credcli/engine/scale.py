@@ -27,6 +27,7 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import dependence
+from credcli.engine.config import epoch_chunks
 
 
 @dataclass(frozen=True)
@@ -106,20 +107,16 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         weighted = inv.T @ z.sum(axis=0)
         mean = np.linalg.solve(precision_sum, weighted)
         return GlsResiduals(mean, z - inv @ mean, precision_sum)
-    from credcli.engine.elt import CHUNK
-
     z = np.empty((n, d))
     precision_sum = np.zeros((d, d))
     weighted = np.zeros(d)
-    for start in range(0, n, CHUNK):  # chunks of epochs: bounded temporaries
-        sl = slice(start, start + CHUNK)
+    for sl in epoch_chunks(n):  # chunks of epochs: bounded temporaries
         inv = np.linalg.inv(chol[sl])  # batched L_k⁻¹
         z[sl] = np.einsum("nij,nj->ni", inv, errors[sl])
         precision_sum += np.einsum("nki,nkj->ij", inv, inv)
         weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
-    for start in range(0, n, CHUNK):
-        sl = slice(start, start + CHUNK)
+    for sl in epoch_chunks(n):
         z[sl] -= np.einsum("nij,j->ni", np.linalg.inv(chol[sl]), mean)
     return GlsResiduals(mean, z, precision_sum)
 

@@ -7,7 +7,16 @@ import enum
 import types
 import typing
 
+from credcli.engine.config import DiagnosisConfig
 from credcli.errors import CredcliError
+
+SEGMENT_HINTS = {"window": str, "whole": bool}
+"""The keys of [segments] and of a run's segmentation parameters, with their types."""
+
+
+def diagnosis_hints() -> dict:
+    """The keys of [diagnosis] (every DiagnosisConfig field, and the seed) with their types."""
+    return typing.get_type_hints(DiagnosisConfig) | {"seed": int}
 
 
 def _describe(hint) -> str:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from credcli.engine.config import epoch_chunks
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema  # noqa: F401 (re-exported)
 
@@ -368,8 +369,8 @@ def _validated_cov(
         min_eig = diag.min(axis=1)
     else:
         min_eig = np.empty(cov.shape[0])
-        for start in range(0, cov.shape[0], _CHUNK):  # bounded temporaries
-            min_eig[start : start + _CHUNK] = np.linalg.eigvalsh(cov[start : start + _CHUNK])[:, 0]
+        for sl in epoch_chunks(cov.shape[0]):  # bounded temporaries
+            min_eig[sl] = np.linalg.eigvalsh(cov[sl])[:, 0]
     not_pd = ~(min_eig > 1e-12 * np.maximum(scale, np.finfo(float).tiny))
     if not_pd.any():
         i = int(np.argmax(not_pd))
@@ -378,8 +379,3 @@ def _validated_cov(
             f"{min_eig[i]:.3g}); a claimed covariance must be positive definite"
         )
     return cov
-
-
-_CHUNK = 262_144
-"""Epochs per chunk where a per-epoch computation would otherwise allocate whole-log
-temporaries."""

@@ -82,12 +82,11 @@ class ScenarioSpec:
         lo, hi = self.rho
         if lo < 1 < hi or (lo < 1 and hi == 1) or (lo == 1 and hi > 1):
             raise CredcliError(f"a ρ range must not straddle 1; got [{lo:g}, {hi:g}]")
-        noise = "optimism" if hi < 1 else "pessimism" if lo > 1 else ""
+        noise = "optimism" if hi < 1 else "pessimism" if lo > 1 else None
         smm = self.bias[1] > 0
         if smm and self.bias[0] <= 0:
             raise CredcliError(f"a bias range must be all zero or all positive; got {self.bias}")
-        name = "+".join(p for p in (noise, "smm" if smm else "") if p) or "credible"
-        return Label(name)
+        return Label.compose(noise, smm)
 
 
 @dataclass(frozen=True)

@@ -180,7 +180,7 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
         return [_too_short(n, d, c) for c in configs]
     eps = metrics.nees_factored(errors, chol)
     mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
-    nci_raw = metrics.nci_factored(errors, chol, _mse_cholesky(mse))
+    nci_raw = metrics.nci_factored(errors, chol, _mse_cholesky(mse), eps)
     centred = errors - errors.mean(axis=0)
     nci_centred = metrics.nci_factored(centred, chol, _mse_cholesky(metrics.mse_matrix(centred)))
     ks_p = ks_chi2_pvalue(eps, d)

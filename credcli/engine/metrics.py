@@ -126,8 +126,11 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
     return nci_factored(errors, np.linalg.cholesky(cov), np.linalg.cholesky(mse))
 
 
-def nci_factored(errors: np.ndarray, chol: np.ndarray, chol_mse: np.ndarray) -> float:
-    eps = nees_factored(errors, chol)
+def nci_factored(
+    errors: np.ndarray, chol: np.ndarray, chol_mse: np.ndarray, eps: np.ndarray | None = None
+) -> float:
+    """NCI from Cholesky factors; ``eps``, the NEES with ``chol``, when already computed."""
+    eps = nees_factored(errors, chol) if eps is None else eps
     eps_star = nees_factored(errors, chol_mse)
     return float(10.0 * np.mean(np.log(eps) - np.log(eps_star)) / _LOG10)
 

@@ -27,7 +27,7 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import dependence
-from credcli.engine.config import epoch_chunks
+from credcli.engine.config import EPOCH_CHUNK, epoch_chunks
 
 
 @dataclass(frozen=True)
@@ -110,6 +110,7 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
     z = np.empty((n, d))
     precision_sum = np.zeros((d, d))
     weighted = np.zeros(d)
+    single = n <= EPOCH_CHUNK  # then the one chunk's L_k⁻¹ is kept for the second pass
     for sl in epoch_chunks(n):  # chunks of epochs: bounded temporaries
         inv = np.linalg.inv(chol[sl])  # batched L_k⁻¹
         z[sl] = np.einsum("nij,nj->ni", inv, errors[sl])
@@ -117,7 +118,8 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
     for sl in epoch_chunks(n):
-        z[sl] -= np.einsum("nij,j->ni", np.linalg.inv(chol[sl]), mean)
+        inv = inv if single else np.linalg.inv(chol[sl])
+        z[sl] -= np.einsum("nij,j->ni", inv, mean)
     return GlsResiduals(mean, z, precision_sum)
 
 

@@ -79,14 +79,11 @@ def diagnose_log(
     seed : int
         Each segment's sign flips come from (seed, segment name): the same as the CLI's.
     """
-    if segments is None:
-        plan = seg.by_column(log.segment, log.time) if log.segment is not None else None
-        plan = plan or seg.whole(log.n, log.time)
-    elif isinstance(segments, str):
-        if segments == "whole":
-            plan = seg.whole(log.n, log.time)
-        else:
-            plan = seg.by_window(log.n, seg.Window.parse(segments), log.time)
+    if segments is None or isinstance(segments, str):
+        from credcli.workflows import split  # the command line's segmentation
+
+        whole = segments == "whole"
+        plan = split(log, None if segments is None or whole else segments, whole)
     else:
         plan = list(segments)
     return Results(_diagnose_segments(log, plan, config, seed))

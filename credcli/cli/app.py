@@ -1070,8 +1070,8 @@ def main(argv: list[str] | None = None) -> int:
 
     0 ok; 1 a regression verdict (gate, --fail-on); 2 bad input or usage, one line on
     stderr; 3 an internal error, one line (the traceback with --debug); 130 interrupted.
-    Numerical warnings are never printed raw: the engine turns a numerical problem into a
-    message naming the segment, and any other warning becomes one note line on stderr.
+    Warnings (numpy's among them) are never printed raw: each distinct one becomes a
+    ``credcli: note:`` line on stderr at the end, with its source under --debug.
     """
     import warnings
 
@@ -1111,10 +1111,7 @@ def _run(command, args: list[str], debug: bool) -> int:
     try:
         result = command.main(args=args, prog_name="credcli", standalone_mode=False)
     except CredcliError as exc:
-        if debug:
-            import traceback
-
-            traceback.print_exc()
+        _traceback(debug)
         print(f"credcli: error: {flag_names(exc.message)}", file=sys.stderr)
         return exc.exit_code
     except _click_exception_types() as exc:
@@ -1144,10 +1141,7 @@ def _run(command, args: list[str], debug: bool) -> int:
         )
         return 2
     except Exception as exc:  # noqa: BLE001 (the outer edge: one line, or the traceback)
-        if debug:
-            import traceback
-
-            traceback.print_exc()
+        _traceback(debug)
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         print(
             f"credcli: internal error: {type(exc).__name__}{': ' + first if first else ''}; "
@@ -1200,6 +1194,13 @@ def flag_names(message: str) -> str:
     if m and m[2] in FLAG_NAMES:
         return message[: m.start(2)] + FLAG_NAMES[m[2]] + message[m.end(2) :]
     return message
+
+
+def _traceback(debug: bool) -> None:
+    if debug:
+        import traceback
+
+        traceback.print_exc()
 
 
 def _silence_stdout() -> None:

@@ -8,6 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from credcli import segments as seg
 from credcli.engine.diagnosis import (
     DiagnosisConfig,
@@ -17,17 +19,34 @@ from credcli.engine.diagnosis import (
     diagnose_segment,
 )
 from credcli.errors import CredcliError
-from credcli.io.logs import EstimatorLog, LogSchema, load_log
+from credcli.io.logs import EstimatorLog, LogSchema
+from credcli.io.schema import ReadOptions
 from credcli.report.render import Report, config_parameters, diagnose_report
 
 
-def split(log: EstimatorLog, window: str | None = None, whole: bool = False) -> list[seg.Segment]:
+def split(
+    log: EstimatorLog, window: str | None = None, whole: bool = False, min_epochs: int = 0
+) -> list[seg.Segment]:
     """Segments of a log: the whole log, fixed windows, or the segment column (in that
-    order of precedence); a log without a segment column is one segment."""
+    order of precedence); a log without a segment column is one segment.
+
+    Duration windows none of which holds ``min_epochs`` epochs are an error: that is
+    a unit mistake (nanosecond stamps read as seconds) or a window far too short."""
     if whole:
         return seg.whole(log.n, log.time)
     if window is not None:
-        return seg.by_window(log.n, seg.Window.parse(window), log.time)
+        parsed = seg.Window.parse(window)
+        out = seg.by_window(log.n, parsed, log.time)
+        largest = max(len(s.index) for s in out)
+        if parsed.seconds and largest < min_epochs and log.n >= min_epochs:
+            step = float(np.median(np.diff(log.time))) if log.n > 1 else float("nan")
+            raise CredcliError(
+                f"{log.source}: --window {parsed} gives {len(out)} windows of at most "
+                f"{largest} epoch(s), fewer than --min-epochs {min_epochs}; the median time "
+                f"step is {step:.6g} s: if the stamps are not seconds, give --time-unit "
+                "(ms, us or ns), else use a longer window"
+            )
+        return out
     if log.segment is not None:
         return seg.by_column(log.segment, log.time)
     return seg.whole(log.n, log.time)
@@ -145,17 +164,22 @@ def run_diagnose(
     progress=None,
     plots: bool = False,
     jobs: int = 1,
+    reading: ReadOptions | None = None,
 ) -> Run:
     """Load, segment and diagnose every log; return the `diagnose` report (and plots).
-    ``jobs`` processes share the segments; the output is the same for any value."""
+    ``jobs`` processes share the segments; the output is the same for any value.
+    ``reading`` says how the logs are read (formats, a separate truth, states)."""
+    from credcli.io.ingest import open_log
+
+    reading = reading or ReadOptions()
     pool = None
     if jobs > 1 and sum(_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
         from credcli.parallel import WorkerPool
 
         pool = WorkerPool(jobs, warm=__name__)  # workers import while the logs are read
     try:
-        loaded = [load_log(p, schema, drop_invalid) for p in paths]
-        plans = [(log, split(log, window, whole)) for log in loaded]
+        loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
+        plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
     except BaseException:
         if pool is not None:
             pool.close()
@@ -168,6 +192,7 @@ def run_diagnose(
         "whole": whole,
         "drop_invalid": drop_invalid,
         "columns": schema_parameters(schema),
+        "input": schema_parameters(reading),
     }
     logs = [
         {
@@ -175,7 +200,9 @@ def run_diagnose(
             "epochs": log.n,
             "dim": log.dim,
             "dropped_rows": log.dropped_rows,
+            "unpaired_epochs": log.unpaired,
             "segments": len(s),
+            "notes": list(log.notes),
         }
         for log, s in plans
     ]
@@ -344,9 +371,11 @@ def run_gate(
     progress=None,
     plots=False,
     jobs: int = 1,
+    truth: Path | None = None,
 ):
     """Diagnose ``path`` with the baseline's parameters and compare segment by segment;
-    returns (report, comparisons, passed, verdict, figures)."""
+    returns (report, comparisons, passed, verdict, figures). ``truth`` replaces the
+    baseline's separate ground truth file, if it had one."""
     import dataclasses
     import json
     import typing
@@ -387,6 +416,13 @@ def run_gate(
             raise CredcliError("baseline parameters: seed must be >= 0")
         config = DiagnosisConfig(**{k: v for k, v in params.items() if k in fields})
         schema = LogSchema().updated(**params["columns"])
+        recorded = params.get("input", {})  # baselines before 0.2 have none
+        if not isinstance(recorded, dict):
+            raise CredcliError("baseline parameters: 'input' must be an object")
+        check_types(recorded, typing.get_type_hints(ReadOptions), "baseline input")
+        reading = ReadOptions(**recorded)
+        if truth is not None:
+            reading = reading.updated(truth=str(truth))
         setup = {
             "window": params["window"],
             "whole": params["whole"],
@@ -399,7 +435,9 @@ def run_gate(
         raise CredcliError(
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
-    run = run_diagnose([path], schema, config, progress=progress, plots=plots, jobs=jobs, **setup)
+    run = run_diagnose(
+        [path], schema, config, progress=progress, plots=plots, jobs=jobs, reading=reading, **setup
+    )
     comparisons = compare(
         [Snapshot.from_record(r) for r in baseline["segments"]],
         [Snapshot.from_result(r) for r in run.results],

@@ -15,7 +15,7 @@ import typer
 from credcli.ci.thresholds import Thresholds
 from credcli.engine.config import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, Variant
 from credcli.errors import CredcliError
-from credcli.io.schema import CovKind, LogSchema
+from credcli.io.schema import CovKind, InputFormat, LogSchema, Perturbation, States, TimeUnit
 from credcli.report.formats import OutputFormat
 from credcli.studies.settings import SimulationConfig, UwbSettings
 
@@ -299,6 +299,64 @@ CovKindOpt = Annotated[
 DropOpt = Annotated[
     bool | None, typer.Option("--drop-invalid", help="Drop rows with NaN/Inf instead of failing.")
 ]
+TruthOpt = Annotated[
+    Path | None,
+    typer.Option("--truth", help="Ground truth in a separate file (or bag), paired by time."),
+]
+InputFormatOpt = Annotated[
+    InputFormat | None,
+    typer.Option("--input-format", help="Format of the logs [default: auto, from the file]."),
+]
+TruthFormatOpt = Annotated[
+    InputFormat | None,
+    typer.Option("--truth-format", help="Format of --truth [default: auto, from the file]."),
+]
+TopicOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--topic", help="Bag topic of the estimate (Odometry or PoseWithCovarianceStamped)."
+    ),
+]
+TruthTopicOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--truth-topic", help="Bag topic of the truth (PoseStamped, Odometry, TransformStamped)."
+    ),
+]
+TimeUnitOpt = Annotated[
+    TimeUnit | None,
+    typer.Option("--time-unit", help="Unit of the stamps [default: auto, said in a note]."),
+]
+MaxDtOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--max-dt",
+        help="Interpolate truth only across gaps up to this (s) [default: 2.5 × its median period].",
+    ),
+]
+TimeOffsetOpt = Annotated[
+    float | None,
+    typer.Option("--time-offset", help="Seconds added to the estimate stamps [default: 0]."),
+]
+StatesOpt = Annotated[
+    States | None,
+    typer.Option(
+        "--states",
+        help="Errors of pose logs: position, orientation, pose or planar [default: position].",
+    ),
+]
+PerturbationOpt = Annotated[
+    Perturbation | None,
+    typer.Option(
+        "--perturbation", help="Orientation error convention (README: Conventions) [default: left]."
+    ),
+]
+InnovationsOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--innovations", help="The logs hold innovations innov_i and innov_cov_i_j: NIS, no truth."
+    ),
+]
 JunitOpt = Annotated[
     Path | None, typer.Option("--junit", help="Write a JUnit XML report (one case per segment).")
 ]
@@ -315,10 +373,13 @@ SummaryOpt = Annotated[
 ]
 
 
-def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, drop_invalid) -> dict:
+def _diagnose_setup(
+    config, columns: dict, method: dict, seed, window, whole, drop_invalid, reading: dict
+) -> dict:
     """Settings of a diagnosis run: command line > config file > defaults."""
     from credcli.cli.settings import (
         build_diagnosis_config,
+        build_reading,
         build_schema,
         load_config,
         segment_settings,
@@ -338,6 +399,7 @@ def _diagnose_setup(config, columns: dict, method: dict, seed, window, whole, dr
         "window": window,
         "whole": whole,
         "drop_invalid": bool(drop_invalid),
+        "reading": build_reading(cfg, reading),
     }
 
 
@@ -351,6 +413,42 @@ def _columns(time_column, segment_column, truth_columns, estimate_columns, cov_c
         "cov_columns": cov_columns,
         "cov_kind": cov_kind,
     }
+
+
+def _reading(
+    truth,
+    input_format,
+    truth_format,
+    topic,
+    truth_topic,
+    time_unit,
+    max_dt,
+    time_offset,
+    states,
+    perturbation,
+    innovations,
+) -> dict:
+    """The reading options of a command, by ReadOptions field name."""
+    return {
+        "truth": None if truth is None else str(truth),
+        "input_format": input_format,
+        "truth_format": truth_format,
+        "topic": topic,
+        "truth_topic": truth_topic,
+        "time_unit": time_unit,
+        "max_dt": max_dt,
+        "time_offset": time_offset,
+        "states": states,
+        "perturbation": perturbation,
+        "innovations": innovations,
+    }
+
+
+def _print_notes(report) -> None:
+    """The decisions taken while reading the logs, one ``credcli: note:`` line each."""
+    for log in report.document.get("logs", []):
+        for note in log.get("notes", []):
+            print(f"credcli: note: {note}", file=sys.stderr)
 
 
 def _jobs(jobs: int | None) -> int:
@@ -426,6 +524,17 @@ def diagnose(
     cov_columns: CovColsOpt = None,
     cov_kind: CovKindOpt = None,
     drop_invalid: DropOpt = None,
+    truth: TruthOpt = None,
+    input_format: InputFormatOpt = None,
+    truth_format: TruthFormatOpt = None,
+    topic: TopicOpt = None,
+    truth_topic: TruthTopicOpt = None,
+    time_unit: TimeUnitOpt = None,
+    max_dt: MaxDtOpt = None,
+    time_offset: TimeOffsetOpt = None,
+    states: StatesOpt = None,
+    perturbation: PerturbationOpt = None,
+    innovations: InnovationsOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
     probe_factor: COpt = None,
@@ -466,7 +575,7 @@ def diagnose(
         raise CredcliError(
             "--junit and --summary report a verdict: give --fail-on too (e.g. --fail-on noncredible)"
         )
-    inputs = [*logs, config]
+    inputs = [*logs, config, truth]
     outputs = {"--output": output, "--junit": junit, "--summary": summary, "--report": report_file}
     _guard(outputs, inputs, plots)
     _check_plotting(plots, report_file)
@@ -494,6 +603,19 @@ def diagnose(
         window,
         whole,
         drop_invalid,
+        _reading(
+            truth,
+            input_format,
+            truth_format,
+            topic,
+            truth_topic,
+            time_unit,
+            max_dt,
+            time_offset,
+            states,
+            perturbation,
+            innovations,
+        ),
     )
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(
@@ -504,6 +626,7 @@ def diagnose(
             **setup,
         )
     report = run.report
+    _print_notes(report)
     _emit(report, fmt, output, inputs=inputs)
     _write_plots(run, plots)
     if report_file is not None:
@@ -541,6 +664,17 @@ def baseline(
     cov_columns: CovColsOpt = None,
     cov_kind: CovKindOpt = None,
     drop_invalid: DropOpt = None,
+    truth: TruthOpt = None,
+    input_format: InputFormatOpt = None,
+    truth_format: TruthFormatOpt = None,
+    topic: TopicOpt = None,
+    truth_topic: TruthTopicOpt = None,
+    time_unit: TimeUnitOpt = None,
+    max_dt: MaxDtOpt = None,
+    time_offset: TimeOffsetOpt = None,
+    states: StatesOpt = None,
+    perturbation: PerturbationOpt = None,
+    innovations: InnovationsOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
     probe_factor: COpt = None,
@@ -560,7 +694,7 @@ def baseline(
     """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
     from credcli.workflows import run_baseline
 
-    inputs = [log, config]
+    inputs = [log, config, truth]
     _guard({"--output": output}, inputs)
     setup = _diagnose_setup(
         config,
@@ -586,9 +720,23 @@ def baseline(
         window,
         whole,
         drop_invalid,
+        _reading(
+            truth,
+            input_format,
+            truth_format,
+            topic,
+            truth_topic,
+            time_unit,
+            max_dt,
+            time_offset,
+            states,
+            perturbation,
+            innovations,
+        ),
     )
     with _Progress("diagnosing segments") as bar:
         recorded = run_baseline(log, progress=bar, jobs=_jobs(jobs), **setup)
+    _print_notes(recorded)
     _emit(recorded, OutputFormat.JSON, output, inputs=inputs)
     return 0
 
@@ -625,6 +773,10 @@ def gate(
     output: OutputOpt = None,
     config: ConfigOpt = None,
     plots: PlotsOpt = None,
+    truth: Annotated[
+        Path | None,
+        typer.Option("--truth", help="Ground truth of LOG [default: the baseline's --truth]."),
+    ] = None,
     window: WindowOpt = None,
     whole: WholeOpt = None,
     tau: TauOpt = None,
@@ -650,7 +802,7 @@ def gate(
     from credcli.workflows import run_gate
 
     thresholds = Thresholds(max_nci_increase, max_anees_ratio, allow_new_segments)
-    inputs = [log, baseline_file, config]
+    inputs = [log, baseline_file, config, truth]
     _guard({"--output": output, "--junit": junit, "--summary": summary}, inputs, plots)
     _check_plotting(plots)
     cli = {
@@ -682,6 +834,7 @@ def gate(
             bar,
             plots=plots is not None,
             jobs=_jobs(jobs),
+            truth=truth,
         )
     _emit(report, fmt, output, inputs=inputs)
     _write_plots(figures, plots)
@@ -994,6 +1147,17 @@ def report(
     cov_columns: CovColsOpt = None,
     cov_kind: CovKindOpt = None,
     drop_invalid: DropOpt = None,
+    truth: TruthOpt = None,
+    input_format: InputFormatOpt = None,
+    truth_format: TruthFormatOpt = None,
+    topic: TopicOpt = None,
+    truth_topic: TruthTopicOpt = None,
+    time_unit: TimeUnitOpt = None,
+    max_dt: MaxDtOpt = None,
+    time_offset: TimeOffsetOpt = None,
+    states: StatesOpt = None,
+    perturbation: PerturbationOpt = None,
+    innovations: InnovationsOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
     probe_factor: COpt = None,
@@ -1014,7 +1178,7 @@ def report(
     from credcli.workflows import run_diagnose
 
     _check_plotting(output)
-    inputs = [*logs, config]
+    inputs = [*logs, config, truth]
     _guard({"--output": output}, inputs)
     setup = _diagnose_setup(
         config,
@@ -1040,9 +1204,23 @@ def report(
         window,
         whole,
         drop_invalid,
+        _reading(
+            truth,
+            input_format,
+            truth_format,
+            topic,
+            truth_topic,
+            time_unit,
+            max_dt,
+            time_offset,
+            states,
+            perturbation,
+            innovations,
+        ),
     )
     with _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=True, jobs=_jobs(jobs), **setup)
+    _print_notes(run.report)
     _write_html(output, "credcli report: " + ", ".join(p.name for p in logs), run, logs, inputs)
     return 0
 

@@ -11,8 +11,9 @@ from credcli.errors import CredcliError
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.files import read_toml
 from credcli.io.logs import LogSchema
+from credcli.io.schema import ReadOptions
 
-CONFIG_SECTIONS = ("columns", "diagnosis", "segments", "simulate")
+CONFIG_SECTIONS = ("columns", "input", "diagnosis", "segments", "simulate")
 """The tables a config file may hold; any other table is an error, never silently ignored."""
 
 
@@ -65,6 +66,23 @@ def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> Lo
     )
     try:
         return LogSchema().updated(**values)
+    except ValueError as exc:
+        raise CredcliError(f"{where}: {exc}") from exc
+
+
+def build_reading(config: dict, cli: dict, where: str = "config [input]") -> ReadOptions:
+    """How logs are read: [input] of the config, overridden by the command line."""
+    values = merged(
+        config.get("input", {}),
+        cli,
+        ReadOptions.__dataclass_fields__,
+        where,
+        typing.get_type_hints(ReadOptions),
+    )
+    if values.get("truth") is not None:
+        values["truth"] = str(values["truth"])
+    try:
+        return ReadOptions(**values)
     except ValueError as exc:
         raise CredcliError(f"{where}: {exc}") from exc
 

@@ -258,3 +258,20 @@ class DiagnosisConfig:
         that make min_blocks sign blocks of the fixed block length (or 1), (m − 1)L + 1."""
         length = self.fixed_block_length or 1
         return max(self.min_epochs, dim + 2, (self.min_blocks - 1) * length + 1)
+
+
+class States(str, enum.Enum):
+    """Which error of a pose log is diagnosed (and which block of its 6×6 covariance)."""
+
+    POSITION = "position"  # x, y, z (d = 3)
+    ORIENTATION = "orientation"  # SO(3) logarithm (d = 3)
+    POSE = "pose"  # both (d = 6)
+    PLANAR = "planar"  # x, y, yaw (d = 3)
+
+
+class Perturbation(str, enum.Enum):
+    """Where the orientation error acts: R_true = Exp(δ) R_est (left, world frame, ROS's
+    fixed axes) or R_true = R_est Exp(δ) (right, body frame)."""
+
+    LEFT = "left"
+    RIGHT = "right"

@@ -16,7 +16,7 @@ import numpy as np
 
 from credcli.engine.config import epoch_chunks
 from credcli.errors import CredcliError
-from credcli.io.schema import CovKind, LogSchema  # noqa: F401 (re-exported)
+from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 
 SYMMETRY_RTOL = 1e-6
 
@@ -24,47 +24,75 @@ SYMMETRY_RTOL = 1e-6
 @dataclass(frozen=True)
 class EstimatorLog:
     """One log: truth and estimate (N, d), claimed covariance (N, d, d), optional time and
-    segment (N,), and the file row number of each epoch (1-based data rows)."""
+    segment (N,), and the file row number of each epoch (1-based data rows).
 
-    truth: np.ndarray
-    estimate: np.ndarray
+    Logs whose errors are not a difference of vectors (orientations on SO(3), a filter's
+    innovations) carry them in ``state_errors`` and have no truth or estimate. ``notes``
+    are the decisions taken while reading (unit, format, pairing, convention);
+    ``unpaired`` counts the estimate epochs dropped for want of truth.
+    """
+
+    truth: np.ndarray | None
+    estimate: np.ndarray | None
     cov: np.ndarray
     time: np.ndarray | None = None
     segment: np.ndarray | None = None
     rows: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
     source: str = "<memory>"
     dropped_rows: int = 0
+    state_errors: np.ndarray | None = field(default=None, repr=False)
+    notes: tuple[str, ...] = ()
+    unpaired: int = 0
 
     def __post_init__(self) -> None:
         if self.rows is None:
-            object.__setattr__(self, "rows", np.arange(1, self.truth.shape[0] + 1))
+            object.__setattr__(self, "rows", np.arange(1, self.cov.shape[0] + 1))
 
     @property
     def errors(self) -> np.ndarray:
-        """e_k = x_k − x̂_k."""
+        """e_k = x_k − x̂_k (or the state errors given)."""
+        if self.state_errors is not None:
+            return self.state_errors
         return self.truth - self.estimate
 
     @property
     def n(self) -> int:
-        return self.truth.shape[0]
+        return self.cov.shape[0]
 
     @property
     def dim(self) -> int:
-        return self.truth.shape[1]
+        return self.cov.shape[1]
 
 
 def load_log(
-    path: str | Path, schema: LogSchema | None = None, drop_invalid: bool = False
+    path: str | Path,
+    schema: LogSchema | None = None,
+    drop_invalid: bool = False,
+    time_unit: TimeUnit = TimeUnit.AUTO,
+    innovations: bool = False,
 ) -> EstimatorLog:
-    """Read and validate an estimator log from CSV or Parquet.
+    """Read and validate an estimator log from CSV, whitespace-separated text or Parquet.
 
     Raises CredcliError naming the file, row and column of the first problem: a missing or
     empty file, missing columns, a non-numeric cell, NaN/Inf (unless ``drop_invalid``),
     an asymmetric or non-positive-definite covariance, mismatched dimensions.
+    ``innovations``: the log holds a filter's innovations ``innov_i`` and their covariance
+    ``innov_cov_i_j`` (or ``innov_var_i``, ``innov_std_i``) instead of truth and estimate.
     """
     path = Path(path)
     frame = read_table(path)
-    return log_from_frame(frame, schema or LogSchema(), str(path), drop_invalid)
+    return log_from_frame(
+        frame, schema or LogSchema(), str(path), drop_invalid, time_unit, innovations
+    )
+
+
+INNOVATION_SCHEMA = {
+    "truth_prefix": "innov_",
+    "cov_prefix": "innov_cov_",
+    "var_prefix": "innov_var_",
+    "std_prefix": "innov_std_",
+}
+"""The column prefixes of an innovations log (--innovations)."""
 
 
 def read_table(path: Path):
@@ -79,8 +107,12 @@ def read_table(path: Path):
     try:
         if path.suffix.lower() in (".parquet", ".pq"):
             frame = pd.read_parquet(path)
-        else:
+        elif _plain_csv(path):
             frame = pd.read_csv(path, skipinitialspace=True)
+        else:
+            from credcli.io.formats import read_text_table
+
+            frame = read_text_table(path)
     except pd.errors.EmptyDataError as exc:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
     except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
@@ -89,6 +121,30 @@ def read_table(path: Path):
     if len(frame) == 0:
         raise CredcliError(f"{path}: header has no rows below it; expected one row per epoch")
     return frame
+
+
+def _plain_csv(path: Path) -> bool:
+    """Whether the file starts with a comma-separated header line (not a # line)."""
+    with open(path, "rb") as fh:
+        first = fh.readline(65536).decode("utf-8", errors="replace")
+    return "," in first and not first.lstrip().startswith("#")
+
+
+_ORIENTATION_NAME = re.compile(
+    r"(^|[^a-z0-9])(q_?[wxyz]|quat\w*|orientation\w*|rotation\w*)$", re.I
+)
+
+
+def check_not_orientation(columns, source: str) -> None:
+    """Quaternion components are not a vector: refuse them by name (qw, q_x, quat_z,
+    orientation.w, …) rather than diagnose them as one."""
+    named = [c for c in columns if _ORIENTATION_NAME.search(str(c))]
+    if named:
+        raise CredcliError(
+            f"{source}: column(s) {', '.join(named)} look like orientation (quaternion) "
+            "components, which are not a vector; read the file as a pose (--input-format "
+            "tum/euroc/ros-csv with --truth) and choose --states orientation or pose"
+        )
 
 
 _INDEXED = re.compile(r"^(\d+)$")
@@ -204,8 +260,17 @@ def _cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKin
     )
 
 
-def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_invalid=False):
+def log_from_frame(
+    frame,
+    schema: LogSchema,
+    source: str = "<frame>",
+    drop_invalid=False,
+    time_unit: TimeUnit = TimeUnit.AUTO,
+    innovations: bool = False,
+):
     """Validate a pandas DataFrame into an EstimatorLog (see :func:`load_log`)."""
+    from dataclasses import replace
+
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
     repeated = sorted({c for c in columns if columns.count(c) > 1} | _mangled(columns))
@@ -214,13 +279,21 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
             f"{source}: column(s) {', '.join(repeated)} appear more than once in the header; "
             "each column name must be unique"
         )
-    truth_cols = _vector_columns(
-        columns, schema.truth_prefix, schema.truth_columns, "truth", source
-    )
-    est_cols = _vector_columns(
-        columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
-    )
-    if len(truth_cols) != len(est_cols):
+    if innovations:
+        schema = replace(schema, **INNOVATION_SCHEMA)
+        truth_cols = _vector_columns(
+            columns, schema.truth_prefix, schema.truth_columns, "innovation", source
+        )
+        est_cols = []
+    else:
+        truth_cols = _vector_columns(
+            columns, schema.truth_prefix, schema.truth_columns, "truth", source
+        )
+        est_cols = _vector_columns(
+            columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
+        )
+    check_not_orientation(truth_cols + est_cols, source)
+    if len(truth_cols) != len(est_cols) and not innovations:
         if not (schema.truth_columns or schema.estimate_columns):
             short, prefix, what = (
                 (est_cols, schema.estimate_prefix, "estimate")
@@ -251,6 +324,7 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
             f"{source}: segment column '{schema.segment}' not found; columns found: {_list(columns)}"
         )
     numeric_cols = truth_cols + est_cols + cov_cols + ([time_col] if time_col else [])
+    width = len(truth_cols) + len(est_cols)
     missing = [c for c in numeric_cols if c not in columns]
     if missing:
         raise CredcliError(
@@ -275,10 +349,10 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
         if values.shape[0] == 0:
             raise CredcliError(f"{source}: every row has a NaN/Inf value; nothing left to diagnose")
     cov = _validated_cov(
-        _build_cov(values[:, 2 * d : 2 * d + len(cov_cols)], kind, d), rows, source, kind
+        _build_cov(values[:, width : width + len(cov_cols)], kind, d), rows, source, kind
     )
     if kind is CovKind.STD:
-        negative = (values[:, 2 * d : 2 * d + len(cov_cols)] < 0).any(axis=1)
+        negative = (values[:, width : width + len(cov_cols)] < 0).any(axis=1)
         if negative.any():
             i = int(np.argmax(negative))
             raise CredcliError(
@@ -299,10 +373,20 @@ def log_from_frame(frame, schema: LogSchema, source: str = "<frame>", drop_inval
         segment = seg_values[rows - 1]
     # copies, so that the table of every column can be freed
     truth = np.ascontiguousarray(values[:, :d])
-    estimate = np.ascontiguousarray(values[:, d : 2 * d])
-    time = values[:, -1].copy() if time_col else None
+    estimate = None if innovations else np.ascontiguousarray(values[:, d : 2 * d])
+    notes = ()
+    time = None
+    if time_col:
+        from credcli.io.formats import seconds
+
+        time, note = seconds(values[:, -1].copy(), time_unit, None, f"{source} ({time_col})")
+        notes = (note,) if note else ()
     del values
-    return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped)
+    if innovations:
+        return EstimatorLog(
+            None, None, cov, time, segment, rows, source, dropped, state_errors=truth, notes=notes
+        )
+    return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped, notes=notes)
 
 
 def numeric_columns(frame, cols: list[str], source: str) -> np.ndarray:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, replace
 
+from credcli.engine.config import Perturbation, States
+
 
 class CovKind(str, enum.Enum):
     """How the claimed covariance is stored."""
@@ -45,3 +47,73 @@ class LogSchema:
         if "cov_kind" in changes:
             changes["cov_kind"] = CovKind(changes["cov_kind"])
         return replace(self, **changes)
+
+
+class InputFormat(str, enum.Enum):
+    """File layouts a log (or its ground truth) may come in."""
+
+    AUTO = "auto"  # from the extension and the header, said in a note
+    CREDCLI = "credcli"  # the column convention above; CSV, whitespace text or Parquet
+    TUM = "tum"  # timestamp tx ty tz qx qy qz qw [+ OpenVINS's 12 covariance columns]
+    EUROC = "euroc"  # #timestamp, p_RS_R_x [m], …, q_RS_w [], … (ns)
+    ROS_CSV = "ros-csv"  # rostopic echo -p / bag-to-CSV exports (field.pose.pose.position.x, …)
+    ROSBAG = "rosbag"  # ROS1 .bag file or ROS2 bag directory (needs credcli[ros])
+
+
+class TimeUnit(str, enum.Enum):
+    """Unit of a time column; ``auto`` decides from the format and the magnitude."""
+
+    AUTO = "auto"
+    S = "s"
+    MS = "ms"
+    US = "us"
+    NS = "ns"
+
+    @property
+    def seconds(self) -> float:
+        return {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[self.value]
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How logs are read and paired with a separate ground truth (CLI > [input] > these).
+
+    ``max_dt`` None: 2.5 × the median truth period. ``time_offset`` (s) is added to the
+    estimate stamps. ``states`` None: ``position`` for pose data, the vector itself for a
+    credcli log.
+    """
+
+    truth: str | None = None
+    input_format: InputFormat = InputFormat.AUTO
+    truth_format: InputFormat = InputFormat.AUTO
+    topic: str | None = None
+    truth_topic: str | None = None
+    time_unit: TimeUnit = TimeUnit.AUTO
+    max_dt: float | None = None
+    time_offset: float = 0.0
+    states: States | None = None
+    perturbation: Perturbation = Perturbation.LEFT
+    innovations: bool = False
+
+    def __post_init__(self) -> None:
+        for name, kind in (
+            ("input_format", InputFormat),
+            ("truth_format", InputFormat),
+            ("time_unit", TimeUnit),
+            ("perturbation", Perturbation),
+        ):
+            object.__setattr__(self, name, kind(getattr(self, name)))
+        if self.states is not None:
+            object.__setattr__(self, "states", States(self.states))
+        if self.max_dt is not None and not self.max_dt > 0:
+            raise ValueError(f"max_dt must be > 0 seconds; got {self.max_dt}")
+        if not isinstance(self.time_offset, (int, float)) or self.time_offset != self.time_offset:
+            raise ValueError(f"time_offset must be a number of seconds; got {self.time_offset}")
+
+    @property
+    def paired(self) -> bool:
+        """Whether the truth comes from elsewhere than the estimate's rows."""
+        return self.truth is not None or self.truth_topic is not None
+
+    def updated(self, **changes) -> ReadOptions:
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})

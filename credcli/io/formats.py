@@ -1,0 +1,465 @@
+"""Pose and vector trajectories from the file layouts navigation people have.
+
+Each reader returns a :class:`Trajectory`: stamps in seconds, positions (or the vector of
+a credcli log), unit quaternions (x, y, z, w) where the format has them, and the claimed
+covariance where it has one (ROS order x, y, z, rotations about x, y, z for pose formats).
+Every decision taken for the user (the format, the time unit) is a note that the command
+prints and records.
+
+Layouts: TUM RGB-D (``timestamp tx ty tz qx qy qz qw``, seconds; 20 columns are OpenVINS
+ov_eval's, with the upper triangles of the rotation then the position covariance), EuRoC
+MAV ground truth (``#timestamp, p_RS_R_x [m], …, q_RS_w [], …``, nanoseconds), ROS CSV
+exports of nav_msgs/Odometry, geometry_msgs/PoseWithCovarianceStamped, PoseStamped and
+TransformStamped (``rostopic echo -p``: ``field.header.stamp`` in ns,
+``field.pose.pose.position.x``, ``field.pose.covariance0`` … ``35``), and credcli's own.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from credcli.errors import CredcliError
+from credcli.io.schema import InputFormat, LogSchema, TimeUnit
+
+_SNIFF_BYTES = 65536
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Stamped states read from one file (or bag topic), sorted by time.
+
+    ``position`` is (N, 3) for pose formats and the (N, d) vector of a credcli log;
+    ``quaternion`` (N, 4) is x, y, z, w, or None; ``cov`` is (N, 6, 6) in ROS order for
+    pose formats, (N, d, d) for a credcli log, or None; ``rows`` are the 1-based data rows
+    (message numbers for a bag) of the epochs.
+    """
+
+    time: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray | None
+    cov: np.ndarray | None
+    rows: np.ndarray
+    source: str
+    format: InputFormat
+    pose: bool = True
+    notes: tuple[str, ...] = field(default=())
+
+
+# ---------------------------------------------------------------------------- sniffing
+
+
+def sniff_format(path: Path) -> InputFormat:
+    """The format of ``path`` from its extension and its first lines."""
+    if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
+        return InputFormat.ROSBAG
+    if path.suffix.lower() in (".parquet", ".pq"):
+        return InputFormat.CREDCLI
+    lines = _head_lines(path)
+    text = "\n".join(lines)
+    if "p_RS_R_x" in text:
+        return InputFormat.EUROC
+    if re.search(
+        r"(^|[,\s])(field\.)?(header\.stamp|pose\.pose\.position\.x|"
+        r"pose\.position\.x|transform\.translation\.x)",
+        text,
+    ):
+        return InputFormat.ROS_CSV
+    if re.search(r"(^|[,\s#])(truth_|est_|innov_)\d", text):
+        return InputFormat.CREDCLI
+    data = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
+    if data and len(data[0].replace(",", " ").split()) in (8, 20) and _numeric(data[0]):
+        return InputFormat.TUM
+    return InputFormat.CREDCLI
+
+
+def _head_lines(path: Path) -> list[str]:
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(_SNIFF_BYTES)
+    except OSError as exc:
+        raise CredcliError(f"{path}: cannot be read ({exc.strerror})") from exc
+    text = head.decode("utf-8", errors="replace")
+    lines = text.splitlines()
+    return lines[:-1] if len(head) == _SNIFF_BYTES and len(lines) > 1 else lines
+
+
+def _numeric(line: str) -> bool:
+    try:
+        [float(x) for x in line.replace(",", " ").split()]
+    except ValueError:
+        return False
+    return True
+
+
+# ---------------------------------------------------------------------- text tables
+
+
+def read_text_table(path: Path):
+    """A text table as a DataFrame: comma- or whitespace-separated, with the header on
+    the first line or on the last ``#`` line above the data (``# time truth_0 …``);
+    other ``#`` lines are comments. A table without a header gets columns 0, 1, …"""
+    import pandas as pd
+
+    lines = _head_lines(path)
+    first = next((i for i, ln in enumerate(lines) if ln.strip() and not _comment(ln)), None)
+    if first is None:
+        raise CredcliError(f"{path}: no data rows (only blank or # comment lines)")
+    names = None
+    skip = first
+    if not _numeric(lines[first]):  # a header line
+        names, skip = _fields(lines[first]), first + 1
+    else:
+        above = [ln for ln in lines[:first] if _comment(ln) and ln.strip("# \t")]
+        if above and not _numeric(above[-1].lstrip("#")):
+            names = _fields(above[-1].lstrip("#"))
+    probe = lines[skip] if skip < len(lines) else lines[first]
+    sep = "," if "," in probe else r"\s+"
+    try:
+        frame = pd.read_csv(
+            path,
+            sep=sep,
+            skiprows=skip,
+            header=None,
+            comment="#",
+            skipinitialspace=True,
+            skip_blank_lines=True,
+            engine="c",
+        )
+    except pd.errors.EmptyDataError as exc:
+        raise CredcliError(
+            f"{path}: header has no rows below it; expected one row per epoch"
+        ) from exc
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CredcliError(f"{path}: cannot be read as a text table: {first_line}") from exc
+    if names is not None:
+        if len(names) != frame.shape[1]:
+            raise CredcliError(
+                f"{path}: the header names {len(names)} columns but the rows have "
+                f"{frame.shape[1]}; check the separator (comma or whitespace) and the header"
+            )
+        frame.columns = names
+    if len(frame) == 0:
+        raise CredcliError(f"{path}: header has no rows below it; expected one row per epoch")
+    return frame
+
+
+def _comment(line: str) -> bool:
+    return line.lstrip().startswith("#")
+
+
+def _fields(line: str) -> list[str]:
+    parts = line.split(",") if "," in line else line.split()
+    return [p.strip() for p in parts]
+
+
+# ------------------------------------------------------------------------- time units
+
+
+_INTEGER_UNITS = ((1e17, TimeUnit.NS), (1e14, TimeUnit.US), (1e11, TimeUnit.MS))
+"""Integer stamps at least this large are epoch times in this unit (1e11 s would be the
+year 5138; epoch ns are about 1.7e18, µs 1.7e15, ms 1.7e12)."""
+
+
+def decide_unit(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: str):
+    """(seconds per stamp unit, note) for stamps ``raw``: the given unit, the format's own
+    (``native``), or by magnitude for integer stamps."""
+    unit = TimeUnit(unit)
+    if unit is not TimeUnit.AUTO:
+        return unit.seconds, None
+    if native is not None:
+        return native.seconds, f"{what}: stamps read as {native.value} (the format's unit)"
+    finite = raw[np.isfinite(raw)]
+    if finite.size and np.all(finite == np.round(finite)):
+        peak = float(np.max(np.abs(finite)))
+        for bound, candidate in _INTEGER_UNITS:
+            if peak >= bound:
+                return candidate.seconds, (
+                    f"{what}: integer stamps near {peak:.3g} read as epoch {candidate.value} "
+                    f"(--time-unit auto; give --time-unit to override)"
+                )
+    return 1.0, None
+
+
+def seconds(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: str):
+    """Stamps in seconds and the note on the unit decided."""
+    scale, note = decide_unit(raw, unit, native, what)
+    return raw * scale if scale != 1.0 else raw, note
+
+
+# ----------------------------------------------------------------------------- readers
+
+
+def read_trajectory(
+    path: Path,
+    fmt: InputFormat,
+    role: str,
+    time_unit: TimeUnit = TimeUnit.AUTO,
+    schema: LogSchema | None = None,
+    topic: str | None = None,
+) -> Trajectory:
+    """One trajectory: the estimate (``role`` "estimate", with its covariance) or the
+    truth (``role`` "truth") of a log in format ``fmt`` (``auto``: sniffed, and said)."""
+    path = Path(path)
+    if not path.exists():
+        raise CredcliError(f"{path}: file not found")
+    notes = []
+    fmt = InputFormat(fmt)
+    if fmt is InputFormat.AUTO:
+        fmt = sniff_format(path)
+        notes.append(f"{path}: read as {fmt.value} (--{_flag(role)}-format auto)")
+    if fmt is InputFormat.ROSBAG:
+        from credcli.io.rosbag import read_bag
+
+        traj = read_bag(path, topic, role, time_unit)
+    elif path.is_dir():
+        raise CredcliError(
+            f"{path}: is a directory; only a ROS2 bag may be (use --{_flag(role)}-format rosbag)"
+        )
+    elif path.stat().st_size == 0:
+        raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows")
+    elif fmt is InputFormat.CREDCLI:
+        traj = _credcli(path, role, time_unit, schema or LogSchema())
+    else:
+        frame = read_text_table(path)
+        reader = {InputFormat.TUM: _tum, InputFormat.EUROC: _euroc, InputFormat.ROS_CSV: _ros_csv}
+        traj = reader[fmt](frame, path, time_unit)
+    traj = _checked(traj, role)
+    return _with(traj, notes=tuple(notes) + traj.notes)
+
+
+def _flag(role: str) -> str:
+    return "truth" if role == "truth" else "input"
+
+
+def _with(traj: Trajectory, **changes) -> Trajectory:
+    from dataclasses import replace
+
+    return replace(traj, **changes)
+
+
+def _column_values(frame, cols, source: str) -> np.ndarray:
+    from credcli.io.logs import numeric_columns
+
+    return numeric_columns(frame, list(cols), source)
+
+
+def _tum(frame, path: Path, unit: TimeUnit) -> Trajectory:
+    width = frame.shape[1]
+    if width not in (8, 20):
+        raise CredcliError(
+            f"{path}: a TUM file has 8 columns (timestamp tx ty tz qx qy qz qw), or 20 with "
+            f"OpenVINS's covariance columns; found {width}"
+        )
+    values = _column_values(frame, list(frame.columns), str(path))
+    time, note = seconds(values[:, 0], unit, None, str(path))
+    cov = None
+    if width == 20:  # Pr11 Pr12 Pr13 Pr22 Pr23 Pr33 Pt11 … Pt33 (ov_eval's layout)
+        iu = np.triu_indices(3)
+        cov = np.zeros((len(values), 6, 6))
+        for offset, block in ((8, slice(3, 6)), (14, slice(0, 3))):
+            sub = np.zeros((len(values), 3, 3))
+            sub[:, iu[0], iu[1]] = values[:, offset : offset + 6]
+            sub[:, iu[1], iu[0]] = values[:, offset : offset + 6]
+            cov[:, block, block] = sub
+    return _pose(time, values[:, 1:4], values[:, 4:8], cov, path, InputFormat.TUM, note)
+
+
+def _euroc(frame, path: Path, unit: TimeUnit) -> Trajectory:
+    by_name = {re.sub(r"[#\s]|\[.*?\]", "", str(c)).lower(): c for c in frame.columns}
+    wanted = [
+        "timestamp",
+        "p_rs_r_x",
+        "p_rs_r_y",
+        "p_rs_r_z",
+        "q_rs_x",
+        "q_rs_y",
+        "q_rs_z",
+        "q_rs_w",
+    ]
+    missing = [w for w in wanted if w not in by_name]
+    if missing:
+        raise CredcliError(
+            f"{path}: EuRoC ground truth needs the columns #timestamp, p_RS_R_x/y/z and "
+            f"q_RS_w/x/y/z; missing {', '.join(missing)}"
+        )
+    values = _column_values(frame, [by_name[w] for w in wanted], str(path))
+    time, note = seconds(values[:, 0], unit, TimeUnit.NS, str(path))
+    return _pose(time, values[:, 1:4], values[:, 4:8], None, path, InputFormat.EUROC, note)
+
+
+_ROS_POSITION = ("pose.pose.position.", "pose.position.", "transform.translation.")
+_ROS_ORIENTATION = ("pose.pose.orientation.", "pose.orientation.", "transform.rotation.")
+_ROS_COV = re.compile(r"^pose\.covariance[._]?(\d+)$")
+
+
+def _ros_csv(frame, path: Path, unit: TimeUnit) -> Trajectory:
+    names = {re.sub(r"^field\.", "", str(c)): c for c in frame.columns}
+    source = str(path)
+    time, note = _ros_stamps(frame, names, path, unit)
+    position = quaternion = None
+    for prefix in _ROS_POSITION:
+        cols = [prefix + a for a in "xyz"]
+        if all(c in names for c in cols):
+            position = _column_values(frame, [names[c] for c in cols], source)
+            break
+    for prefix in _ROS_ORIENTATION:
+        cols = [prefix + a for a in "xyzw"]
+        if all(c in names for c in cols):
+            quaternion = _column_values(frame, [names[c] for c in cols], source)
+            break
+    if position is None:
+        raise CredcliError(
+            f"{path}: no position columns (field.pose.pose.position.x/y/z, "
+            "field.pose.position.x/y/z or field.transform.translation.x/y/z)"
+        )
+    cov = None
+    found = {int(m.group(1)): c for n, c in names.items() if (m := _ROS_COV.match(n))}
+    if found:
+        if sorted(found) != list(range(36)):
+            raise CredcliError(
+                f"{path}: a ROS pose covariance has the 36 columns field.pose.covariance0 … 35; "
+                f"found {len(found)}"
+            )
+        cov = _column_values(frame, [found[i] for i in range(36)], source).reshape(-1, 6, 6)
+    return _pose(time, position, quaternion, cov, path, InputFormat.ROS_CSV, note)
+
+
+def _ros_stamps(frame, names: dict, path: Path, unit: TimeUnit):
+    source = str(path)
+    for sec, nsec in (
+        ("header.stamp.secs", "header.stamp.nsecs"),
+        ("header.stamp.sec", "header.stamp.nanosec"),
+    ):
+        if sec in names and nsec in names:
+            parts = _column_values(frame, [names[sec], names[nsec]], source)
+            return parts[:, 0] + 1e-9 * parts[:, 1], None
+    for col in ("header.stamp", "%time", "time"):
+        if col in names:
+            raw = _column_values(frame, [names[col]], source)[:, 0]
+            return seconds(raw, unit, TimeUnit.NS, f"{path} ({names[col]})")
+    raise CredcliError(
+        f"{path}: no stamp column (field.header.stamp, header.stamp.sec + nanosec, or %time)"
+    )
+
+
+def _pose(time, position, quaternion, cov, path, fmt, note) -> Trajectory:
+    return Trajectory(
+        time=np.asarray(time, dtype=float),
+        position=np.ascontiguousarray(position, dtype=float),
+        quaternion=None if quaternion is None else np.ascontiguousarray(quaternion, float),
+        cov=cov,
+        rows=np.arange(1, len(time) + 1),
+        source=str(path),
+        format=fmt,
+        notes=(note,) if note else (),
+    )
+
+
+def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajectory:
+    """The estimate (est_i and the covariance) or the truth (truth_i) of a credcli log."""
+    from credcli.io import logs
+
+    frame = logs.read_table(path)
+    columns = [str(c) for c in frame.columns]
+    frame.columns = columns
+    source = str(path)
+    if schema.time not in columns:
+        raise CredcliError(
+            f"{path}: no time column '{schema.time}'; pairing with a separate truth needs "
+            "stamps (name the column with --time-column)"
+        )
+    if role == "truth":
+        cols = logs._vector_columns(
+            columns, schema.truth_prefix, schema.truth_columns, "truth", source
+        )
+    else:
+        cols = logs._vector_columns(
+            columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
+        )
+    logs.check_not_orientation(cols, source)
+    d = len(cols)
+    cov = cov_cols = None
+    if role != "truth":
+        kind, cov_cols = logs._cov_layout(columns, schema, d, source)
+    values = _column_values(frame, [schema.time, *cols, *(cov_cols or [])], source)
+    rows = np.arange(1, len(values) + 1)
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise CredcliError(f"{path}: row {rows[i]}: NaN, Inf or empty value; fix or remove the row")
+    if cov_cols:
+        cov = logs._validated_cov(logs._build_cov(values[:, 1 + d :], kind, d), rows, source, kind)
+    time, note = seconds(values[:, 0], unit, None, source)
+    return Trajectory(
+        time=time,
+        position=np.ascontiguousarray(values[:, 1 : 1 + d]),
+        quaternion=None,
+        cov=cov,
+        rows=rows,
+        source=source,
+        format=InputFormat.CREDCLI,
+        pose=False,
+        notes=(note,) if note else (),
+    )
+
+
+# ------------------------------------------------------------------------- validation
+
+
+def _checked(traj: Trajectory, role: str) -> Trajectory:
+    """Finite values, non-zero quaternions (normalised), a covariance for an estimate, and
+    epochs sorted by time (a note says when they were not)."""
+    src = traj.source
+    parts = [traj.time[:, None], traj.position]
+    if traj.quaternion is not None:
+        parts.append(traj.quaternion)
+    finite = np.isfinite(np.concatenate(parts, axis=1)).all(axis=1)
+    if traj.cov is not None:
+        finite &= np.isfinite(traj.cov).all(axis=(1, 2))
+    if not finite.all():
+        i = int(np.argmax(~finite))
+        raise CredcliError(
+            f"{src}: row {traj.rows[i]}: NaN, Inf or empty value in the {role}; fix or remove the row"
+        )
+    quaternion = traj.quaternion
+    if quaternion is not None:
+        norm = np.linalg.norm(quaternion, axis=1)
+        zero = ~(norm > 1e-9)
+        if zero.any():
+            i = int(np.argmax(zero))
+            raise CredcliError(
+                f"{src}: row {traj.rows[i]}: zero-norm quaternion; an orientation needs a unit "
+                "quaternion (x, y, z, w)"
+            )
+        quaternion = quaternion / norm[:, None]
+    notes = list(traj.notes)
+    order = None
+    if np.any(np.diff(traj.time) < 0):
+        order = np.argsort(traj.time, kind="stable")
+        notes.append(f"{src}: {role} epochs were not in time order; sorted by stamp")
+    if role == "truth":
+        t = traj.time if order is None else traj.time[order]
+        repeated = np.flatnonzero(np.diff(t) == 0)
+        if repeated.size:
+            rows = traj.rows if order is None else traj.rows[order]
+            raise CredcliError(
+                f"{src}: rows {rows[repeated[0]]} and {rows[repeated[0] + 1]} have the same stamp "
+                f"{t[repeated[0]]:.9g} s; truth stamps must be distinct to interpolate"
+            )
+    if order is None:
+        return _with(traj, quaternion=quaternion, notes=tuple(notes))
+    return _with(
+        traj,
+        time=traj.time[order],
+        position=traj.position[order],
+        quaternion=None if quaternion is None else quaternion[order],
+        cov=None if traj.cov is None else traj.cov[order],
+        rows=traj.rows[order],
+        notes=tuple(notes),
+    )

@@ -1,0 +1,163 @@
+"""From the files a user has to one EstimatorLog: a credcli log as it is, or an estimate
+paired by time with a separate ground truth, with the chosen states' errors.
+
+Every decision taken for the user (format, time unit, pairing, dropped epochs, states and
+convention) is kept in the log's ``notes``; the commands print them and record them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from credcli.engine.config import Perturbation, States
+from credcli.errors import CredcliError
+from credcli.io.formats import Trajectory, read_trajectory
+from credcli.io.logs import CovKind, EstimatorLog, LogSchema, _validated_cov, load_log
+from credcli.io.schema import InputFormat, ReadOptions
+
+COVARIANCE_FORMATS = (
+    "credcli, ros-csv with field.pose.covariance0..35, a rosbag Odometry or "
+    "PoseWithCovarianceStamped topic, or TUM with OpenVINS's 20 columns"
+)
+
+
+def open_log(
+    path: str | Path,
+    schema: LogSchema | None = None,
+    reading: ReadOptions | None = None,
+    drop_invalid: bool = False,
+) -> EstimatorLog:
+    """The log at ``path`` read as ``reading`` says (a credcli log with truth and estimate
+    in each row when no truth is named)."""
+    path = Path(path)
+    schema = schema or LogSchema()
+    reading = reading or ReadOptions()
+    if reading.innovations:
+        if reading.paired:
+            raise CredcliError("--innovations needs no ground truth: drop --truth/--truth-topic")
+        _only_credcli(path, reading.input_format, "--innovations")
+        return load_log(path, schema, drop_invalid, reading.time_unit, innovations=True)
+    if not reading.paired:
+        fmt = reading.input_format
+        if fmt is InputFormat.AUTO:
+            from credcli.io.formats import sniff_format
+
+            fmt = sniff_format(path) if path.exists() else InputFormat.CREDCLI
+        if fmt is not InputFormat.CREDCLI:
+            raise CredcliError(
+                f"{path}: a {fmt.value} file has no ground truth beside the estimate; name it "
+                "with --truth FILE (or --truth-topic for a bag)"
+            )
+        if reading.states not in (None, States.POSITION):
+            raise CredcliError(
+                f"{path}: --states {reading.states.value} needs orientations, which a credcli "
+                "log does not have; read a pose log (tum, euroc, ros-csv, rosbag) with --truth"
+            )
+        return load_log(path, schema, drop_invalid, reading.time_unit)
+    return paired_log(path, schema, reading)
+
+
+def _only_credcli(path: Path, fmt: InputFormat, what: str) -> None:
+    if fmt not in (InputFormat.AUTO, InputFormat.CREDCLI):
+        raise CredcliError(
+            f"{path}: {what} reads credcli logs only; got --input-format {fmt.value}"
+        )
+
+
+def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> EstimatorLog:
+    """An estimate file (or bag topic) paired with its truth by time."""
+    estimate = read_trajectory(
+        path, reading.input_format, "estimate", reading.time_unit, schema, reading.topic
+    )
+    if estimate.cov is None:
+        raise CredcliError(
+            f"{estimate.source}: has no covariance; the estimate needs one ({COVARIANCE_FORMATS})"
+        )
+    truth_path = Path(reading.truth) if reading.truth is not None else path
+    truth = read_trajectory(
+        truth_path, reading.truth_format, "truth", reading.time_unit, schema, reading.truth_topic
+    )
+    from credcli.io.pairing import pair
+
+    pairing = pair(estimate, truth, reading.max_dt, reading.time_offset)
+    keep = pairing.keep
+    rows = estimate.rows[keep]
+    states, errors, cov, convention = _state_errors(estimate, truth, pairing, reading)
+    cov = _validated_cov(cov, rows, estimate.source, CovKind.FULL)
+    notes = (*estimate.notes, *truth.notes, pairing.note, convention)
+    return EstimatorLog(
+        None,
+        None,
+        cov,
+        time=estimate.time[keep],
+        rows=rows,
+        source=str(path),
+        state_errors=errors,
+        notes=notes,
+        unpaired=pairing.dropped,
+    )
+
+
+def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: ReadOptions):
+    """(states, errors, covariance, note on the convention) of the paired epochs."""
+    from credcli.engine import lie
+
+    keep = pairing.keep
+    if not (estimate.pose and truth.pose):
+        if reading.states not in (None, States.POSITION):
+            who = estimate if not estimate.pose else truth
+            raise CredcliError(
+                f"{who.source}: --states {reading.states.value} needs orientations, which a "
+                "credcli log does not have"
+            )
+        p_est = estimate.position[keep]
+        if p_est.shape[1] != pairing.position.shape[1]:
+            raise CredcliError(
+                f"{estimate.source}: the estimate has {p_est.shape[1]} components but the truth "
+                f"{truth.source} has {pairing.position.shape[1]}: dimensions do not match"
+            )
+        cov = estimate.cov[keep]
+        if cov.shape[1] == 6 and p_est.shape[1] == 3:
+            cov = lie.cov_block(cov, States.POSITION)
+        return (
+            States.POSITION,
+            np.ascontiguousarray(pairing.position - p_est),
+            cov,
+            "errors: truth − estimate of the position vector (world frame)",
+        )
+    states = reading.states or States.POSITION
+    right = reading.perturbation is Perturbation.RIGHT
+    needs_rotation = states in lie.NEEDS_ORIENTATION or right
+    r_est = r_true = None
+    if needs_rotation:
+        for traj in (estimate, truth):
+            if traj.quaternion is None:
+                raise CredcliError(
+                    f"{traj.source}: has no orientation, which --states {states.value}"
+                    f"{' with --perturbation right' if right else ''} needs"
+                )
+        from scipy.spatial.transform import Rotation
+
+        r_est = Rotation.from_quat(estimate.quaternion[keep])
+        r_true = pairing.rotation
+    errors = lie.state_errors(
+        states, reading.perturbation, pairing.position, estimate.position[keep], r_true, r_est
+    )
+    cov = lie.cov_block(estimate.cov[keep], states)
+    return states, errors, cov, _convention(states, reading.perturbation)
+
+
+def _convention(states: States, perturbation: Perturbation) -> str:
+    right = perturbation is Perturbation.RIGHT
+    position = "R_estᵀ(p_true − p_est) (body frame)" if right else "p_true − p_est (world frame)"
+    rotation = "Log(R_estᵀ R_true)" if right else "Log(R_true R_estᵀ)"
+    parts = {
+        States.POSITION: f"position {position}; covariance rows x, y, z",
+        States.ORIENTATION: f"orientation {rotation}; covariance rows rx, ry, rz",
+        States.POSE: f"position {position} and orientation {rotation}; the whole 6×6 covariance",
+        States.PLANAR: f"planar x, y of {position} and yaw ψ_true − ψ_est wrapped to (−π, π]; "
+        "covariance rows x, y, rz",
+    }[states]
+    return f"errors (--states {states.value}, --perturbation {perturbation.value}): {parts}"

@@ -1,0 +1,92 @@
+"""Pairing an estimate with a separately recorded ground truth by time.
+
+The truth is interpolated to each estimate stamp t (after adding ``time_offset``) from the
+truth samples just before and just after t (``pandas.merge_asof``, backward and forward):
+linearly for positions and by SLERP (scipy's ``Slerp``) for orientations, and only when
+those two samples are at most ``max_dt`` apart (default 2.5 × the median truth period).
+An estimate stamp equal to a truth stamp takes that sample. Estimate epochs outside the
+truth's span or across a longer gap are dropped, and counted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from credcli.errors import CredcliError
+from credcli.io.formats import Trajectory
+
+MAX_DT_FACTOR = 2.5
+
+
+@dataclass(frozen=True)
+class Pairing:
+    """Which estimate epochs have truth, and the truth interpolated to them."""
+
+    keep: np.ndarray  # (N_est,) bool
+    position: np.ndarray  # (n, k) truth at the kept estimate stamps
+    rotation: object | None  # scipy Rotation (n) or None
+    max_dt: float
+    dropped: int
+    note: str
+
+
+def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_offset: float):
+    """Interpolate ``truth`` to the (offset) estimate stamps; see the module docstring."""
+    import pandas as pd
+
+    t_est = estimate.time + float(time_offset)
+    t_true = truth.time
+    if t_true.size < 2:
+        raise CredcliError(f"{truth.source}: the truth has {t_true.size} epoch(s); need at least 2")
+    period = float(np.median(np.diff(t_true)))
+    if max_dt is None:
+        max_dt = MAX_DT_FACTOR * period
+        chosen = f"--max-dt {max_dt:.6g} s (2.5 × the median truth period {period:.6g} s)"
+    else:
+        chosen = f"--max-dt {max_dt:.6g} s"
+    lo, hi = float(t_true[0]), float(t_true[-1])
+    if t_est[-1] < lo or t_est[0] > hi:
+        raise CredcliError(
+            f"{estimate.source}: its stamps ({_span(t_est)}) do not overlap the truth's "
+            f"({_span(t_true)} in {truth.source}); check --time-offset and --time-unit"
+        )
+    left = pd.DataFrame({"t": t_est, "k": np.arange(t_est.size)})
+    right = pd.DataFrame({"t": t_true, "i": np.arange(t_true.size, dtype=float)})
+    before = pd.merge_asof(left, right, on="t", direction="backward")["i"].to_numpy()
+    after = pd.merge_asof(left, right, on="t", direction="forward")["i"].to_numpy()
+    have = np.isfinite(before) & np.isfinite(after)
+    i0 = np.where(have, before, 0).astype(np.int64)
+    i1 = np.where(have, after, 0).astype(np.int64)
+    exact = have & (i0 == i1)
+    gap = t_true[i1] - t_true[i0]
+    keep = exact | (have & (gap <= max_dt))
+    dropped = int(t_est.size - keep.sum())
+    if not keep.any():
+        raise CredcliError(
+            f"{estimate.source}: no estimate epoch has truth samples within --max-dt "
+            f"{max_dt:.6g} s on both sides (the truth period is {period:.6g} s); "
+            "raise --max-dt, or check --time-offset and --time-unit"
+        )
+    i0, i1 = i0[keep], i1[keep]
+    span = t_true[i1] - t_true[i0]
+    w = np.divide(t_est[keep] - t_true[i0], span, out=np.zeros(i0.size), where=span > 0)
+    position = truth.position[i0] + w[:, None] * (truth.position[i1] - truth.position[i0])
+    rotation = None
+    if truth.quaternion is not None:
+        from scipy.spatial.transform import Rotation, Slerp
+
+        slerp = Slerp(t_true, Rotation.from_quat(truth.quaternion))
+        rotation = slerp(np.clip(t_est[keep], lo, hi))
+    note = (
+        f"paired {int(keep.sum())} of {t_est.size} estimate epochs with truth from "
+        f"{truth.source} (linear/SLERP interpolation, {chosen}"
+        + (f", --time-offset {time_offset:g} s" if time_offset else "")
+        + f"); {dropped} without truth dropped"
+    )
+    return Pairing(keep, position, rotation, float(max_dt), dropped, note)
+
+
+def _span(t: np.ndarray) -> str:
+    return f"{t[0]:.6f} … {t[-1]:.6f} s"

@@ -1,0 +1,188 @@
+"""Pose topics of ROS1 ``.bag`` files and ROS2 bag directories, read with ``rosbags``
+(pure Python, no ROS install; the ``credcli[ros]`` extra).
+
+Estimates come from nav_msgs/Odometry or geometry_msgs/PoseWithCovarianceStamped (with
+their 6×6 covariance); truth also from geometry_msgs/PoseStamped or TransformStamped.
+Stamps are the messages' ``header.stamp``.
+
+Messages of one topic usually have one serialized length. Per length, the byte offsets of
+the stamp, the pose and the covariance are found in one deserialized message and the rest
+are decoded with numpy; two more messages of each length are deserialized and must agree,
+or that length is decoded message by message.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from credcli.errors import CredcliError
+from credcli.io.formats import Trajectory
+from credcli.io.schema import InputFormat, TimeUnit
+
+ESTIMATE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseWithCovarianceStamped")
+TRUTH_TYPES = ESTIMATE_TYPES + (
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/TransformStamped",
+)
+
+
+def _require_rosbags():
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError as exc:
+        raise CredcliError(
+            "reading ROS bags needs the rosbags package: pip install 'credcli[ros]'"
+        ) from exc
+    return AnyReader, Stores, get_typestore
+
+
+def _fields(msg):
+    """(sec, nanosec, position (3), quaternion (4), covariance (36) or None) of a message."""
+    stamp = msg.header.stamp
+    if hasattr(msg, "transform"):
+        p, q, cov = msg.transform.translation, msg.transform.rotation, None
+    else:
+        pose = msg.pose
+        if hasattr(pose, "covariance"):  # PoseWithCovariance
+            cov = np.asarray(pose.covariance, dtype=float)
+            pose = pose.pose
+        else:
+            cov = None
+        p, q = pose.position, pose.orientation
+    return (
+        int(stamp.sec),
+        int(stamp.nanosec),
+        np.array([p.x, p.y, p.z], float),
+        np.array([q.x, q.y, q.z, q.w], float),
+        cov,
+    )
+
+
+def read_bag(path: Path, topic: str | None, role: str, time_unit: TimeUnit) -> Trajectory:
+    """The poses (and covariances) of ``topic`` in the bag at ``path``."""
+    AnyReader, Stores, get_typestore = _require_rosbags()
+    from rosbags.highlevel import AnyReaderError
+
+    wanted = ESTIMATE_TYPES if role == "estimate" else TRUTH_TYPES
+    flag = "--topic" if role == "estimate" else "--truth-topic"
+    notes = []
+    try:
+        reader = AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
+        raise CredcliError(f"{path}: cannot be read as a ROS bag: {exc}") from exc
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        if topic is None:
+            usable = sorted(t for t, m in topics.items() if m in wanted)
+            if len(usable) != 1:
+                raise CredcliError(
+                    f"{path}: name the {role} topic with {flag}; "
+                    f"{'topics' if usable else 'no topic of type ' + ' or '.join(wanted)}"
+                    f"{': ' + ', '.join(usable) if usable else ''} in the bag"
+                )
+            topic = usable[0]
+            notes.append(f"{path}: {role} from topic {topic} (the only one of its type)")
+        if topic not in topics:
+            listed = ", ".join(f"{t} ({m})" for t, m in sorted(topics.items())) or "none"
+            raise CredcliError(f"{path}: no topic {topic} in the bag; its topics: {listed}")
+        if topics[topic] not in wanted:
+            raise CredcliError(
+                f"{path}: topic {topic} has type {topics[topic]}; the {role} needs "
+                f"{' or '.join(wanted)}"
+            )
+        connections = [c for c in reader.connections if c.topic == topic]
+        raws = [bytes(raw) for _, _, raw in reader.messages(connections=connections)]
+        if not raws:
+            raise CredcliError(f"{path}: topic {topic} has no messages")
+        msgtype = connections[0].msgtype
+        sec, nsec, position, quaternion, cov = _decode(reader, raws, msgtype)
+    except CredcliError:
+        raise
+    except Exception as exc:  # a corrupt bag: rosbags raises its own error types
+        raise CredcliError(f"{path}: cannot read topic {topic}: {exc}") from exc
+    finally:
+        reader.close()
+    if TimeUnit(time_unit) not in (TimeUnit.AUTO, TimeUnit.NS, TimeUnit.S):
+        notes.append(f"{path}: --time-unit does not apply to bag stamps (sec, nanosec)")
+    time = sec.astype(float) + 1e-9 * nsec.astype(float)
+    return Trajectory(
+        time=time,
+        position=position,
+        quaternion=quaternion,
+        cov=None if cov is None else cov.reshape(-1, 6, 6),
+        rows=np.arange(1, len(time) + 1),
+        source=f"{path}:{topic}",
+        format=InputFormat.ROSBAG,
+        notes=tuple(notes),
+    )
+
+
+def _decode(reader, raws: list[bytes], msgtype: str):
+    """Stamps, positions, quaternions and covariances of every message, in bag order."""
+    n = len(raws)
+    sec, nsec = np.empty(n, np.int64), np.empty(n, np.int64)
+    position, quaternion = np.empty((n, 3)), np.empty((n, 4))
+    cov = None
+    lengths = np.fromiter((len(r) for r in raws), np.int64, n)
+    for length in np.unique(lengths):
+        idx = np.flatnonzero(lengths == length)
+        decoded = _fast(reader, [raws[i] for i in idx], msgtype)
+        if decoded is None:
+            decoded = _slow(reader, [raws[i] for i in idx], msgtype)
+        s, ns, p, q, c = decoded
+        sec[idx], nsec[idx], position[idx], quaternion[idx] = s, ns, p, q
+        if c is not None:
+            if cov is None:
+                cov = np.empty((n, 36))
+            cov[idx] = c
+    return sec, nsec, position, quaternion, cov
+
+
+def _slow(reader, raws, msgtype):
+    parts = [_fields(reader.deserialize(r, msgtype)) for r in raws]
+    cov = None if parts[0][4] is None else np.array([p[4] for p in parts])
+    return (
+        np.array([p[0] for p in parts]),
+        np.array([p[1] for p in parts]),
+        np.array([p[2] for p in parts]),
+        np.array([p[3] for p in parts]),
+        cov,
+    )
+
+
+def _fast(reader, raws, msgtype):
+    """numpy decoding at the offsets found in the first message, or None when they cannot
+    be found unambiguously or a check message disagrees."""
+    first = _fields(reader.deserialize(raws[0], msgtype))
+    sec, nsec, p, q, c = first
+    head = raws[0]
+    pose_bytes = np.r_[p, q].astype("<f8").tobytes()
+    stamp_bytes = np.array([sec, nsec], "<u4").tobytes()
+    offsets = [head.find(stamp_bytes), head.find(pose_bytes)]
+    if c is not None:
+        offsets.append(head.find(c.astype("<f8").tobytes(), offsets[1] + 56))
+    if min(offsets) < 0:
+        return None
+    table = np.frombuffer(b"".join(raws), np.uint8).reshape(len(raws), len(head))
+
+    def column(offset, count, dtype):
+        width = np.dtype(dtype).itemsize * count
+        return table[:, offset : offset + width].copy().view(dtype).reshape(len(raws), count)
+
+    stamp = column(offsets[0], 2, "<u4").astype(np.int64)
+    pose = column(offsets[1], 7, "<f8")
+    cov = column(offsets[2], 36, "<f8") if c is not None else None
+    out = (stamp[:, 0], stamp[:, 1], pose[:, :3], pose[:, 3:], cov)
+    for k in {len(raws) // 2, len(raws) - 1}:  # two checks against the deserializer
+        s, ns, pk, qk, ck = _fields(reader.deserialize(raws[k], msgtype))
+        same = s == out[0][k] and ns == out[1][k]
+        same = same and np.array_equal(pk, out[2][k]) and np.array_equal(qk, out[3][k])
+        if ck is not None:
+            same = same and np.array_equal(ck, out[4][k])
+        if not same:
+            return None
+    return out

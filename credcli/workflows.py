@@ -17,6 +17,7 @@ from credcli.engine.diagnosis import (
     SegmentDiagnosis,
     diagnose_log,
     diagnose_segment,
+    innovation_whiteness,
 )
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog, LogSchema
@@ -86,14 +87,16 @@ def _size(path) -> int:
 
 def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
-    source, items, config, seed = task
-    return [
-        SegmentDiagnosis(source, name, t0, t1, diagnose_segment(e, c, config, seed, name, source))
-        for name, t0, t1, e, c in items
-    ]
+    source, items, config, seed, innovations, runs = task
+    out = []
+    for name, t0, t1, e, c in items:
+        diag = diagnose_segment(e, c, config, seed, name, source, runs)
+        white = innovation_whiteness(e, c) if innovations else None
+        out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
+    return out
 
 
-def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int):
+def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1):
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
     epochs (one segment per task for target 0); made as they are consumed."""
     items, size, source = [], 0, None
@@ -101,7 +104,7 @@ def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int):
         errors = log.errors
         for segment in segments:
             if items and (size >= target or source != log.source):
-                yield (source, items, config, seed)
+                yield (source, items, config, seed, innovations, runs)
                 items, size = [], 0
             source = log.source
             part = errors[segment.index]
@@ -109,11 +112,18 @@ def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int):
             items.append((segment.name, segment.t_start, segment.t_end, part, cov))
             size += len(part)
     if items:
-        yield (source, items, config, seed)
+        yield (source, items, config, seed, innovations, runs)
 
 
 def diagnose_plans(
-    plans, config: DiagnosisConfig, seed: int, jobs: int = 1, progress=None, pool=None
+    plans,
+    config: DiagnosisConfig,
+    seed: int,
+    jobs: int = 1,
+    progress=None,
+    pool=None,
+    innovations: bool = False,
+    runs: int = 1,
 ):
     """Every segment of every (log, segments) plan, in order. From PARALLEL_MIN_EPOCHS on,
     ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
@@ -128,7 +138,7 @@ def diagnose_plans(
         pool.close()
         pool = None
     target = max(1, total_epochs // (8 * jobs)) if parallel else 0
-    tasks = _chunk_tasks(plans, config, seed, target)
+    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs)
     if pool is not None:
         outputs = pool.map(_diagnose_chunk, list(tasks))
     else:
@@ -165,10 +175,14 @@ def run_diagnose(
     plots: bool = False,
     jobs: int = 1,
     reading: ReadOptions | None = None,
+    monte_carlo: bool = False,
 ) -> Run:
     """Load, segment and diagnose every log; return the `diagnose` report (and plots).
     ``jobs`` processes share the segments; the output is the same for any value.
-    ``reading`` says how the logs are read (formats, a separate truth, states)."""
+    ``reading`` says how the logs are read (formats, a separate truth, states).
+    ``monte_carlo``: the logs are independent runs of one scenario on one time base; their
+    segments are pooled (see :func:`monte_carlo_plan`) and the report adds Bar-Shalom's
+    per-epoch ANEES test."""
     from credcli.io.ingest import open_log
 
     reading = reading or ReadOptions()
@@ -184,7 +198,11 @@ def run_diagnose(
         if pool is not None:
             pool.close()
         raise
-    results = diagnose_plans(plans, config, seed, jobs, progress, pool)
+    runs, mc = 1, None
+    if monte_carlo:
+        plans, mc = monte_carlo_plan(loaded, plans, config.alpha)
+        runs = len(loaded)
+    results = diagnose_plans(plans, config, seed, jobs, progress, pool, reading.innovations, runs)
     parameters = config_parameters(config) | {
         "seed": seed,
         "segmentation": segmentation_name(window, whole),
@@ -206,9 +224,17 @@ def run_diagnose(
         }
         for log, s in plans
     ]
-    report = diagnose_report(results, parameters, logs, config.metrics is MetricsLevel.ALL)
+    if mc is not None:
+        parameters["monte_carlo"] = True
+    report = diagnose_report(
+        results, parameters, logs, config.metrics is MetricsLevel.ALL, mc and mc.record()
+    )
     figures = []
-    if plots:
+    if plots and mc is not None:
+        from credcli.report.plots import anees_plot
+
+        figures.append(anees_plot("monte_carlo_anees", mc))
+    elif plots:
         from credcli.report.plots import segment_plots
 
         k = 0
@@ -218,6 +244,82 @@ def run_diagnose(
             prefix = f"{Path(log.source).stem}_" if len(plans) > 1 else ""
             figures.extend(segment_plots(log, mine, segments, prefix))
     return Run(report, figures, results)
+
+
+@dataclass(frozen=True)
+class MonteCarlo:
+    """Bar-Shalom's per-epoch ANEES test over M runs (Bar-Shalom, Li and Kirubarajan,
+    *Estimation with Applications to Tracking and Navigation*, 2001, Sec. 5.4.2): the
+    average NEES over runs ε̄_k, with M ε̄_k ~ χ²_{Md} for a consistent filter, inside
+    [χ²_{Md}(α/2), χ²_{Md}(1 − α/2)] / M at a fraction 1 − α of the epochs."""
+
+    runs: int
+    dim: int
+    level: float
+    time: np.ndarray | None
+    anees: np.ndarray
+    lower: float
+    upper: float
+    segments: dict
+
+    @property
+    def inside(self) -> np.ndarray:
+        return (self.anees >= self.lower) & (self.anees <= self.upper)
+
+    def record(self) -> dict:
+        return {
+            "runs": self.runs,
+            "dof": self.runs * self.dim,
+            "confidence": 1.0 - self.level,
+            "lower": self.lower,
+            "upper": self.upper,
+            "fraction_inside": float(self.inside.mean()),
+            "mean_anees": float(self.anees.mean()),
+            "segments": self.segments,
+        }
+
+
+def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
+    """Pool M runs of one scenario: one plan whose segment k holds the epochs of segment k
+    of every run, run after run (so that the ELT flips each run in its own blocks), and
+    the per-epoch ANEES test."""
+    from scipy import special
+
+    from credcli.engine.metrics import nees_factored
+
+    if len(loaded) < 2:
+        raise CredcliError("--monte-carlo needs at least two runs (logs) of the scenario")
+    base = loaded[0]
+    for log in loaded[1:]:
+        same_time = (log.time is None) == (base.time is None) and (
+            log.time is None
+            or (log.n == base.n and np.allclose(log.time, base.time, rtol=0, atol=1e-6))
+        )
+        if log.n != base.n or log.dim != base.dim or not same_time:
+            raise CredcliError(
+                f"{log.source}: --monte-carlo runs need one time base: {log.n} epochs of "
+                f"d = {log.dim} against {base.n} of d = {base.dim} in {base.source}"
+                + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
+            )
+    m, n, d = len(loaded), base.n, base.dim
+    nees = np.stack([nees_factored(log.errors, np.linalg.cholesky(log.cov)) for log in loaded])
+    anees = nees.mean(axis=0)
+    lower = float(special.chdtri(m * d, 1 - alpha / 2) / m)
+    upper = float(special.chdtri(m * d, alpha / 2) / m)
+    segments = plans[0][1]
+    order = np.concatenate([run * n + seg.index for seg in segments for run in range(m)])
+    errors = np.concatenate([log.errors for log in loaded])[order]
+    cov = np.concatenate([log.cov for log in loaded])[order]
+    pooled = EstimatorLog(None, None, cov, source=f"monte-carlo ({m} runs)", state_errors=errors)
+    starts = np.cumsum([0] + [m * len(s.index) for s in segments])
+    pooled_segments = [
+        seg.Segment(s.name, np.arange(a, b), s.t_start, s.t_end)
+        for s, a, b in zip(segments, starts[:-1], starts[1:])
+    ]
+    inside = (anees >= lower) & (anees <= upper)
+    fractions = {s.name: float(inside[s.index].mean()) for s in segments}
+    mc = MonteCarlo(m, d, alpha, base.time, anees, lower, upper, fractions)
+    return [(pooled, pooled_segments)], mc
 
 
 def run_simulate(

@@ -565,6 +565,13 @@ def diagnose(
     report_file: Annotated[
         Path | None, typer.Option("--report", help="Also write a self-contained HTML report.")
     ] = None,
+    monte_carlo: Annotated[
+        bool,
+        typer.Option(
+            "--monte-carlo",
+            help="The logs are independent runs of one scenario: pool them, and test the per-epoch ANEES.",
+        ),
+    ] = False,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (calibrated rule by default)."""
     from credcli.ci.gate import fail_on_verdict, parse_fail_on
@@ -623,6 +630,7 @@ def diagnose(
             progress=bar,
             plots=plots is not None or report_file is not None,
             jobs=_jobs(jobs),
+            monte_carlo=monte_carlo,
             **setup,
         )
     report = run.report

@@ -27,6 +27,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
 )
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.scale import ScaleTest, gls_residuals, scale_test
+from credcli.engine.whiteness import Whiteness, portmanteau
 from credcli.errors import CredcliError
 
 
@@ -127,9 +128,12 @@ def diagnose_errors(
     config: DiagnosisConfig | None = None,
     rng: RngLike = None,
     mse: np.ndarray | None = None,
+    runs: int = 1,
 ) -> Diagnosis:
     """One segment of errors e_k = x_k − x̂_k (N, d) with claimed covariances (N, d, d),
-    by ``config``'s rule (the calibrated variant by default).
+    by ``config``'s rule (the calibrated variant by default). ``runs``: the segment pools
+    that many independent Monte Carlo runs of N/runs epochs, one after the other; the ELT
+    flips each run's errors in their own blocks.
 
     Examples
     --------
@@ -140,7 +144,7 @@ def diagnose_errors(
     """
     errors, cov, chol = _factored(errors, cov)
     config = config or DiagnosisConfig()
-    return _diagnose_variants(errors, cov, chol, [config], as_generator(rng), mse)[0]
+    return _diagnose_variants(errors, cov, chol, [config], as_generator(rng), mse, runs)[0]
 
 
 def _factored(errors, cov) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -172,7 +176,7 @@ def diagnose_variants(
     return {c.variant: r for c, r in zip(configs, results)}
 
 
-def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
+def _diagnose_variants(errors, cov, chol, configs, gen, mse, runs=1) -> list[Diagnosis]:
     """Evidence once (metrics, dependence, scale tests, ELTs by block length), then each
     configuration's rule."""
     n, d = errors.shape
@@ -224,7 +228,7 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
             "autocorrelation": autocorr,
             "config": config,
         }
-        n_blocks = tested_blocks(n, block, config.max_elt_epochs)
+        n_blocks = tested_blocks(n, block, config.max_elt_epochs, runs)
         if n_blocks < config.min_blocks:
             reason = (
                 f"too few independent blocks: serial dependence (variance ratio "
@@ -245,6 +249,7 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse) -> list[Diagnosis]:
                 config.max_elt_epochs,
                 separate_blocks=separate,
                 stop_level=stop_level,
+                runs=runs,
             )
         elt = elts[elt_key]
         smm = elt.pvalue < config.location_level
@@ -345,6 +350,7 @@ class SegmentDiagnosis:
     t_start: float | None
     t_end: float | None
     diagnosis: Diagnosis
+    whiteness: Whiteness | None = None  # of innovations (--innovations)
 
 
 def diagnose_log(
@@ -373,6 +379,14 @@ def diagnose_log(
     return out
 
 
+def innovation_whiteness(errors: np.ndarray, cov: np.ndarray) -> Whiteness | None:
+    """The portmanteau test of innovations whitened by their claimed covariance, or None
+    for a segment too short for one lag."""
+    if errors.shape[0] < 5 + errors.shape[1]:
+        return None
+    return portmanteau(whiten(errors, cov))
+
+
 def diagnose_segment(
     errors: np.ndarray,
     cov: np.ndarray,
@@ -380,10 +394,11 @@ def diagnose_segment(
     seed: int | None,
     name: str,
     source: str = "<memory>",
+    runs: int = 1,
 ) -> Diagnosis:
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
-    the log and the segment."""
+    the log and the segment. ``runs``: see :func:`diagnose_errors`."""
     try:
-        return diagnose_errors(errors, cov, config, segment_seed(seed, name))
+        return diagnose_errors(errors, cov, config, segment_seed(seed, name), runs=runs)
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc

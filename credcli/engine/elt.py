@@ -161,13 +161,27 @@ def location_test(
     return whitened_location_test(s, n_flips, as_generator(rng), block_length, max_epochs)
 
 
-def tested_blocks(n: int, block_length: int, max_epochs: int) -> int:
-    """Sign blocks the ELT flips for a segment of ``n`` epochs: ⌈n/L⌉, or the
+def tested_blocks(n: int, block_length: int, max_epochs: int, runs: int = 1) -> int:
+    """Sign blocks the ELT flips for a segment of ``n`` epochs: ⌈n/L⌉ (per run, when the
+    segment pools ``runs`` independent runs of n/runs epochs), or the
     ``max(2, max_epochs // L)`` whole blocks of the subsample when n exceeds the budget."""
-    n_blocks = math.ceil(n / block_length)
+    n_blocks = runs * math.ceil(n // runs / block_length)
     if n > max_epochs:
         return min(n_blocks, max(2, max_epochs // block_length))
     return n_blocks
+
+
+def sign_blocks(n: int, block_length: int, runs: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(block of each epoch, adjacency key of each block). Blocks are L consecutive epochs
+    of one run (the epochs of a run are consecutive, n/runs of them); blocks of different
+    runs never share a sign and are never adjacent: their keys differ by at least 2."""
+    per_run = n // runs
+    local = np.arange(n) % per_run // block_length
+    run = np.arange(n) // per_run
+    width = math.ceil(per_run / block_length)
+    blocks = run * width + local
+    keys = np.arange(runs * width) + np.arange(runs * width) // width
+    return blocks, keys
 
 
 def whitened_location_test(
@@ -178,6 +192,7 @@ def whitened_location_test(
     max_epochs: int = DEFAULT_MAX_EPOCHS,
     separate_blocks: bool = False,
     stop_level: float | None = None,
+    runs: int = 1,
 ) -> ELTResult:
     """The ELT on whitened errors s (N, d); see :func:`location_test`.
 
@@ -193,19 +208,24 @@ def whitened_location_test(
     test's. The p-value is then Besag and Clifford's (1991, Biometrika 78(2)) sequential
     p-value h/l, with h >= h* the count after the l flips evaluated (the stop is checked
     after each batch), which is >= the level; ``flips_used`` is l.
+
+    ``runs``: s holds that many independent Monte Carlo runs of N/runs epochs one after
+    the other; each run's errors are flipped in their own blocks (:func:`sign_blocks`).
     """
     n = s.shape[0]
-    blocks = np.arange(n) // block_length
+    if runs < 1 or n % runs:
+        raise CredcliError(f"{n} epochs cannot be {runs} runs of equal length")
+    blocks, keys = sign_blocks(n, block_length, runs)
     subsampled = n > max_epochs
     if subsampled:
-        keep = tested_blocks(n, block_length, max_epochs)
+        keep = tested_blocks(n, block_length, max_epochs, runs)
         chosen = np.sort(gen.choice(blocks[-1] + 1, size=keep, replace=False))
         mask = np.isin(blocks, chosen)
         s, blocks = s[mask], np.searchsorted(chosen, blocks[mask])
     else:
         chosen = np.arange(blocks[-1] + 1)
     return _sign_flip_test(
-        s, blocks, chosen, n_flips, gen, block_length, subsampled, separate_blocks, stop_level
+        s, blocks, keys[chosen], n_flips, gen, block_length, subsampled, separate_blocks, stop_level
     )
 
 

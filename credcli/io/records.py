@@ -78,10 +78,19 @@ def diagnosis_record(diag: Diagnosis) -> dict:
 
 
 def segment_record(result: SegmentDiagnosis) -> dict:
-    """The record of a segment: where it is, then :func:`diagnosis_record`."""
-    return {
+    """The record of a segment: where it is, then :func:`diagnosis_record`, then the
+    innovations' whiteness test when there is one."""
+    rec = {
         "log": result.log,
         "segment": result.segment,
         "t_start": result.t_start,
         "t_end": result.t_end,
     } | diagnosis_record(result.diagnosis)
+    white = result.whiteness
+    if white is not None:
+        rec |= {
+            "whiteness_statistic": white.statistic,
+            "whiteness_pvalue": white.pvalue,
+            "whiteness_lags": white.lags,
+        }
+    return rec

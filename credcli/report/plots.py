@@ -132,6 +132,24 @@ def nees_plot(name: str, time, nees: np.ndarray, dim: int, title: str) -> Plot:
     return _finish(fig, name, title, data)
 
 
+def anees_plot(name: str, mc) -> Plot:
+    """Per-epoch ANEES over Monte Carlo runs with its two-sided χ²_{Md}/M bounds."""
+    plt = _pyplot()
+    x = np.arange(mc.anees.size) if mc.time is None else np.asarray(mc.time)
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    ax.plot(x, mc.anees, ".", ms=3, color="tab:blue", label=f"average NEES over {mc.runs} runs")
+    for bound in (mc.lower, mc.upper):
+        ax.axhline(bound, color="tab:red", ls="--", lw=1)
+    ax.plot([], [], color="tab:red", ls="--", lw=1, label=f"{100 * (1 - mc.level):g}% bounds")
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]" if mc.time is not None else "epoch")
+    ax.set_ylabel("ANEES")
+    ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    data = {"x": x, "anees": mc.anees, "lower": mc.lower, "upper": mc.upper}
+    title = f"ANEES over {mc.runs} runs: {100 * float(mc.inside.mean()):.1f}% inside the bounds"
+    return _finish(fig, name, title, data)
+
+
 def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) -> Plot:
     """The ELT's picture: whitened errors s_k and their mirror image −s_k (Eq. (12))."""
     plt = _pyplot()

@@ -90,6 +90,10 @@ SEGMENT_COLUMNS_ALL = SEGMENT_COLUMNS + (
 )
 
 
+WHITENESS_COLUMN = Column("whiteness_pvalue", "white p", 3, pvalue=True, rank=2)
+"""The innovations' portmanteau p-value (--innovations), after the ELT's."""
+
+
 def _number(x: float) -> str:
     """A short number for sentences: 3 significant digits, no float noise."""
     return f"{x:.3g}"
@@ -296,14 +300,21 @@ def config_parameters(config) -> dict:
 
 
 def diagnose_report(
-    results: list[SegmentDiagnosis], parameters: dict, logs: list[dict], show_all: bool
+    results: list[SegmentDiagnosis],
+    parameters: dict,
+    logs: list[dict],
+    show_all: bool,
+    monte_carlo: dict | None = None,
 ) -> Report:
-    """The `credcli diagnose` report: one row per segment, and the JSON document."""
+    """The `credcli diagnose` report: one row per segment, and the JSON document (with
+    the per-epoch ANEES test of Monte Carlo runs, when given)."""
     from credcli import __version__
 
     records = [segment_record(r) for r in results]
     multi = len({r["log"] for r in records}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
+    if any("whiteness_pvalue" in r for r in records):
+        columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     if multi:
         columns = (Column("log", "log", 0, limit=NAME_LIMIT),) + columns
     notes = []
@@ -317,6 +328,16 @@ def diagnose_report(
         if info["dropped_rows"]:
             notes.append(f"{info['path']}: dropped {info['dropped_rows']} row(s) with NaN/Inf.")
     notes.extend(_advice_lines(records))
+    notes.extend(_whiteness_lines(records, parameters["alpha"]))
+    if monte_carlo is not None:
+        mc = monte_carlo
+        notes.append(
+            f"Monte Carlo: {mc['runs']} runs; the per-epoch ANEES is inside its "
+            f"{100 * mc['confidence']:g}% χ²_{mc['dof']} bounds [{_number(mc['lower'])}, "
+            f"{_number(mc['upper'])}] at {100 * mc['fraction_inside']:.1f}% of the epochs "
+            f"(expected {100 * mc['confidence']:g}%); per segment: "
+            + ", ".join(f"{k} {100 * v:.1f}%" for k, v in mc["segments"].items())
+        )
     table = Table("credcli diagnose", columns, records, caption=_level_caption(parameters))
     document = {
         "version": __version__,
@@ -325,6 +346,8 @@ def diagnose_report(
         "logs": logs,
         "segments": records,
     }
+    if monte_carlo is not None:
+        document["monte_carlo"] = monte_carlo
     return Report([table], document, notes)
 
 
@@ -332,6 +355,24 @@ def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
     lines = [a for a in (advice(r) for r in records) if a]
     if len(lines) > limit:
         lines = lines[:limit] + [f"... and {len(lines) - limit} more segment(s); see --format json"]
+    return lines
+
+
+def _whiteness_lines(records: list[dict], alpha: float, limit: int = 10) -> list[str]:
+    """Segments whose innovations are not white at level α."""
+    bad = [
+        r
+        for r in records
+        if r.get("whiteness_pvalue") is not None and r["whiteness_pvalue"] < alpha
+    ]
+    lines = [
+        f"{r['segment']}: innovations correlated in time (portmanteau p = "
+        f"{format_cell(r['whiteness_pvalue'], 3)}, {r['whiteness_lags']} lags): the filter's "
+        "model or noise is inconsistent even if the NIS level is right"
+        for r in bad[:limit]
+    ]
+    if len(bad) > limit:
+        lines.append(f"... and {len(bad) - limit} more segment(s) with correlated innovations")
     return lines
 
 

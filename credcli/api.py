@@ -22,7 +22,8 @@ from credcli import segments as seg
 from credcli.engine._rng import RngLike
 from credcli.engine.diagnosis import Diagnosis, DiagnosisConfig, SegmentDiagnosis, diagnose_errors
 from credcli.engine.diagnosis import diagnose_log as _diagnose_segments
-from credcli.io.logs import EstimatorLog, LogSchema, load_log
+from credcli.errors import CredcliError
+from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
 
 
@@ -56,10 +57,33 @@ class Results(Sequence):
 
 
 def read_log(
-    path: str | Path, columns: LogSchema | None = None, drop_invalid: bool = False
+    path: str | Path,
+    columns: LogSchema | None = None,
+    drop_invalid: bool = False,
+    **reading,
 ) -> EstimatorLog:
-    """Read and validate an estimator log (CSV or Parquet); see the README's log format."""
-    return load_log(path, columns, drop_invalid)
+    """Read and validate an estimator log; see the README's log format and formats.
+
+    ``reading`` takes the fields of :class:`credcli.io.schema.ReadOptions` (the command
+    line's reading options): ``truth``, ``input_format``, ``truth_format``, ``topic``,
+    ``truth_topic``, ``time_unit``, ``max_dt``, ``time_offset``, ``states``,
+    ``perturbation``, ``innovations``. The decisions taken are in the log's ``notes``.
+
+    >>> log = read_log("sample_data/formats/odom_ros.csv", perturbation="right",
+    ...                truth="sample_data/formats/euroc_groundtruth.csv")
+    >>> log.n, log.dim, log.unpaired
+    (2380, 3, 0)
+    """
+    from credcli.io.ingest import open_log
+    from credcli.io.schema import ReadOptions
+
+    if reading.get("truth") is not None:
+        reading["truth"] = str(reading["truth"])
+    try:
+        options = ReadOptions(**reading)
+    except (TypeError, ValueError) as exc:
+        raise CredcliError(f"read_log: {exc}") from exc
+    return open_log(path, columns, options, drop_invalid)
 
 
 def diagnose_log(

@@ -524,3 +524,75 @@ def test_monte_carlo_blocks_stay_within_runs():
     assert elt.tested_blocks(30, 4, 10_000, runs=3) == 9
     same, _ = elt.sign_blocks(30, 4)
     np.testing.assert_array_equal(same, np.arange(30) // 4)
+
+
+# --- config, baseline and gate, API ------------------------------------------------------
+
+
+def test_input_table_of_a_config_equals_the_flags(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text(
+        f'[input]\ntruth = "{FORMATS / "euroc_groundtruth.csv"}"\nperturbation = "right"\n'
+        'states = "orientation"\n'
+    )
+    flags = labels(
+        FORMATS / "odom_ros.csv",
+        "--truth",
+        FORMATS / "euroc_groundtruth.csv",
+        "--perturbation",
+        "right",
+        "--states",
+        "orientation",
+    )
+    assert labels(FORMATS / "odom_ros.csv", "--config", config) == flags
+    config.write_text('[input]\nstates = "sideways"\n')
+    line = error_line(*run("diagnose", FORMATS / "odom_ros.csv", "--config", config)[::2])
+    assert "states" in line
+
+
+def test_gate_reads_like_its_baseline(tmp_path):
+    base = tmp_path / "b.json"
+    args = ("--truth", FORMATS / "euroc_groundtruth.csv", "--perturbation", "right")
+    code, _, err = run("baseline", FORMATS / "odom_ros.csv", *args, "--window", "60s", "-o", base)
+    assert code == 0, err
+    recorded = json.loads(base.read_text())["parameters"]["input"]
+    assert recorded["perturbation"] == "right" and recorded["truth"].endswith(
+        "euroc_groundtruth.csv"
+    )
+    code, out, err = run("gate", FORMATS / "odom_ros.csv", "--baseline", base, "-f", "json")
+    assert code == 0, err
+    assert {c["status"] for c in json.loads(out)["segments"]} == {"unchanged"}
+    # the same estimate against a truth 0.5 m off in x (10 σ): --truth replaces the
+    # baseline's truth, and the gate fails
+    truth = pd.read_csv(FORMATS / "euroc_groundtruth.csv")
+    truth["p_RS_R_x [m]"] += 0.5
+    moved = tmp_path / "moved.csv"
+    truth.to_csv(moved, index=False)
+    code, _, err = run("gate", FORMATS / "odom_ros.csv", "--baseline", base, "--truth", moved)
+    assert code == 1 and "FAIL: 2 of 2 segment(s) regressed" in err
+
+
+def test_innovations_take_no_truth():
+    line = error_line(
+        *run(
+            "diagnose",
+            FORMATS / "innovations.csv",
+            "--innovations",
+            "--truth",
+            FORMATS / "mc_run_1.csv",
+        )[::2]
+    )
+    assert "--innovations needs no ground truth" in line
+
+
+def test_api_read_log_takes_the_reading_options():
+    import credcli
+
+    log = credcli.read_log(
+        FORMATS / "odom.bag", topic="/odom", truth_topic="/ground_truth", states="planar"
+    )
+    assert log.dim == 3 and log.n == 1180 and any("planar" in n for n in log.notes)
+    results = credcli.diagnose_log(log, "60s")
+    assert [r.diagnosis.label.value for r in results] == ["pessimism"]
+    with pytest.raises(credcli.CredcliError):
+        credcli.read_log(FORMATS / "odom.bag", states="sideways")

@@ -77,8 +77,14 @@ def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_off
     if truth.quaternion is not None:
         from scipy.spatial.transform import Rotation, Slerp
 
-        slerp = Slerp(t_true, Rotation.from_quat(truth.quaternion))
-        rotation = slerp(np.clip(t_est[keep], lo, hi))
+        # only the truth samples that bracket a kept stamp: consecutive in the truth, they
+        # stay consecutive in this subset, so the interpolation is the same
+        used = np.union1d(i0, i1)
+        if used.size == 1:  # every stamp on the same truth sample
+            rotation = Rotation.from_quat(truth.quaternion[i0])
+        else:
+            slerp = Slerp(t_true[used], Rotation.from_quat(truth.quaternion[used]))
+            rotation = slerp(np.clip(t_est[keep], t_true[used[0]], t_true[used[-1]]))
     note = (
         f"paired {int(keep.sum())} of {t_est.size} estimate epochs with truth from "
         f"{truth.source} (linear/SLERP interpolation, {chosen}"

@@ -596,3 +596,35 @@ def test_api_read_log_takes_the_reading_options():
     assert [r.diagnosis.label.value for r in results] == ["pessimism"]
     with pytest.raises(credcli.CredcliError):
         credcli.read_log(FORMATS / "odom.bag", states="sideways")
+
+
+@pytest.mark.parametrize(
+    "args, expected",
+    [
+        (["--max-dt", "0.1"], "--max-dt applies to a separate ground truth"),
+        (
+            ["--time-offset", "0.5", "--perturbation", "right"],
+            "--time-offset, --perturbation apply",
+        ),
+        (["--topic", "/odom"], "--topic applies to a separate ground truth"),
+        (["--time-unit", "days"], "--time-unit"),
+        (["--states", "sideways"], "--states"),
+    ],
+)
+def test_options_that_would_be_ignored_are_errors(tmp_path, args, expected):
+    line = error_line(*run("diagnose", FORMATS / "mc_run_1.csv", *args)[::2])
+    assert expected in line
+
+
+def test_truth_topic_on_a_text_truth_is_an_error():
+    line = error_line(
+        *run(
+            "diagnose",
+            FORMATS / "odom_ros.csv",
+            "--truth",
+            FORMATS / "euroc_groundtruth.csv",
+            "--truth-topic",
+            "/gt",
+        )[::2]
+    )
+    assert "--truth-topic applies to bags" in line

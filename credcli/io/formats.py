@@ -213,6 +213,9 @@ def read_trajectory(
     if fmt is InputFormat.AUTO:
         fmt = sniff_format(path)
         notes.append(f"{path}: read as {fmt.value} (--{_flag(role)}-format auto)")
+    if topic is not None and fmt is not InputFormat.ROSBAG:
+        flag = "--topic" if role == "estimate" else "--truth-topic"
+        raise CredcliError(f"{path}: {flag} applies to bags, and this is a {fmt.value} file")
     if fmt is InputFormat.ROSBAG:
         from credcli.io.rosbag import read_bag
 

@@ -34,6 +34,7 @@ def open_log(
     path = Path(path)
     schema = schema or LogSchema()
     reading = reading or ReadOptions()
+    _check_options(reading)
     if reading.innovations:
         if reading.paired:
             raise CredcliError("--innovations needs no ground truth: drop --truth/--truth-topic")
@@ -57,6 +58,27 @@ def open_log(
             )
         return load_log(path, schema, drop_invalid, reading.time_unit)
     return paired_log(path, schema, reading)
+
+
+def _check_options(reading: ReadOptions) -> None:
+    """Options that would be silently ignored are errors."""
+    if not reading.paired:
+        unused = [
+            flag
+            for flag, given in (
+                ("--max-dt", reading.max_dt is not None),
+                ("--time-offset", reading.time_offset != 0),
+                ("--truth-format", reading.truth_format is not InputFormat.AUTO),
+                ("--perturbation", reading.perturbation is not Perturbation.LEFT),
+                ("--topic", reading.topic is not None),
+            )
+            if given
+        ]
+        if unused:
+            raise CredcliError(
+                f"{', '.join(unused)} appl{'ies' if len(unused) == 1 else 'y'} to a separate "
+                "ground truth: give --truth FILE (or --truth-topic for a bag)"
+            )
 
 
 def _only_credcli(path: Path, fmt: InputFormat, what: str) -> None:

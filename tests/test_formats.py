@@ -628,3 +628,20 @@ def test_truth_topic_on_a_text_truth_is_an_error():
         )[::2]
     )
     assert "--truth-topic applies to bags" in line
+
+
+def test_bag_without_header_stamps_uses_receive_times(monkeypatch):
+    from credcli.io import rosbag
+
+    real = rosbag._decode
+    stamped = read_trajectory(FORMATS / "odom.bag", InputFormat.ROSBAG, "estimate", topic="/odom")
+
+    def unstamped(reader, raws, msgtype):
+        sec, nsec, p, q, c = real(reader, raws, msgtype)
+        return sec * 0, nsec * 0, p, q, c
+
+    monkeypatch.setattr(rosbag, "_decode", unstamped)
+    traj = rosbag.read_bag(FORMATS / "odom.bag", "/odom", "estimate", "auto")
+    late = traj.time - stamped.time  # the sample bag records /odom 1 ms after its stamp
+    np.testing.assert_allclose(late, 1e-3, rtol=0, atol=1e-6)
+    assert "no header stamps" in traj.notes[0]

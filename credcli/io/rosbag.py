@@ -3,7 +3,8 @@
 
 Estimates come from nav_msgs/Odometry or geometry_msgs/PoseWithCovarianceStamped (with
 their 6×6 covariance); truth also from geometry_msgs/PoseStamped or TransformStamped.
-Stamps are the messages' ``header.stamp``.
+Stamps are the messages' ``header.stamp`` (the bag's receive times, said in a note, when
+every header stamp is zero).
 
 Messages of one topic usually have one serialized length. Per length, the byte offsets of
 the stamp, the pose and the covariance are found in one deserialized message and the rest
@@ -95,11 +96,19 @@ def read_bag(path: Path, topic: str | None, role: str, time_unit: TimeUnit) -> T
                 f"{' or '.join(wanted)}"
             )
         connections = [c for c in reader.connections if c.topic == topic]
-        raws = [bytes(raw) for _, _, raw in reader.messages(connections=connections)]
-        if not raws:
+        records = [(ts, bytes(raw)) for _, ts, raw in reader.messages(connections=connections)]
+        if not records:
             raise CredcliError(f"{path}: topic {topic} has no messages")
+        raws = [raw for _, raw in records]
         msgtype = connections[0].msgtype
         sec, nsec, position, quaternion, cov = _decode(reader, raws, msgtype)
+        if not (sec.any() or nsec.any()):  # drivers that leave header.stamp unset
+            received = np.array([ts for ts, _ in records], dtype=np.int64)
+            sec, nsec = received // 10**9, received % 10**9
+            notes.append(
+                f"{path}: {topic} has no header stamps (all zero); using the bag's "
+                "receive times instead"
+            )
     except CredcliError:
         raise
     except Exception as exc:  # a corrupt bag: rosbags raises its own error types

@@ -96,6 +96,13 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     return out
 
 
+def _as_slice(index: np.ndarray):
+    """``index`` as a slice when it is a contiguous increasing range, else as it is."""
+    if index.size and index[-1] - index[0] + 1 == index.size and np.all(np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
+    return index
+
+
 def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1):
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
     epochs (one segment per task for target 0); made as they are consumed."""
@@ -107,8 +114,9 @@ def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovat
                 yield (source, items, config, seed, innovations, runs)
                 items, size = [], 0
             source = log.source
-            part = errors[segment.index]
-            cov = log.cov[segment.index]
+            index = _as_slice(segment.index)  # a view of a contiguous segment, not a copy
+            part = errors[index]
+            cov = log.cov[index]
             items.append((segment.name, segment.t_start, segment.t_end, part, cov))
             size += len(part)
     if items:

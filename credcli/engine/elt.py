@@ -250,7 +250,7 @@ class _FlippedStatistics:
         if not self.small:
             u = 2.0**-24
             gamma = n * u / (1 - n * u)
-            self.bound = (u + gamma * (1 + u)) * float(np.abs(a).sum()) * 1.01
+            self.bound = (u + gamma * (1 + u)) * _abs_sum(a) * 1.01
             self.a32 = a.astype(np.float32)
 
     def __call__(self, signs: np.ndarray) -> np.ndarray:
@@ -266,6 +266,11 @@ class _FlippedStatistics:
             xi = signs[close].astype(np.float64)
             values[close] = np.einsum("bi,bi->b", xi @ self.a, xi)
         return values
+
+
+def _abs_sum(a: np.ndarray, rows: int = 256) -> float:
+    """Σ|a_ij|, a block of rows at a time (no N×N temporary)."""
+    return float(sum(np.abs(a[i : i + rows]).sum() for i in range(0, a.shape[0], rows)))
 
 
 def _power_of_two_scale(s: np.ndarray) -> float:

@@ -368,7 +368,7 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
     """The estimate (est_i and the covariance) or the truth (truth_i) of a credcli log."""
     from credcli.io import logs
 
-    frame = logs.read_table(path)
+    frame = logs.read_table(path, columnwise=True)
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
     source = str(path)

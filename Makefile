@@ -4,12 +4,12 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: install demo test lint format bench sample-data clean
+.PHONY: install demo test lint format bench bench-dask sample-data clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[plots,ros,dev]'
+	$(BIN)/python -m pip install --quiet -e '.[plots,ros,dask,dev]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -34,6 +34,10 @@ format: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/calibrated_rule.py
+
+## bench-dask: only the Dask rows of make bench (issue 13)
+bench-dask: $(STAMP)
+	$(BIN)/python benchmarks/bench.py dask
 
 ## sample-data: regenerate sample_data/ from the generators in credcli/studies/samples.py
 sample-data: $(STAMP)

@@ -135,6 +135,62 @@ def _bag_rate(path: str) -> str:
     return f"{size / 1e6:.0f} {size / 1e6 / best:.1f}"
 
 
+def _dask_overhead(tasks: int = 2000) -> str:
+    """Seconds per trivial task on local:1 and local:2 (the cluster's own cost per task)."""
+    from credcli.cluster import DaskRunner
+
+    out = []
+    for workers in (1, 2):
+        with DaskRunner(f"local:{workers}") as runner:
+            runner.map(abs, list(range(50)))  # warm up
+            out.append(_timed(lambda r=runner: r.map(abs, list(range(tasks)))) / tasks)
+    return " ".join(f"{x:.6f}" for x in out)
+
+
+def _dask_rows(tmp: Path) -> None:
+    """Issue 13: 8 logs of 1,000,000 epochs on local:2, --jobs 2 and --jobs 1; a sweep of
+    20 points; the cost per task."""
+    import shutil
+
+    first = Path(_in_child(f"_parquet_log({str(tmp / 'fleet0.parquet')!r}, 1000, 1000)"))
+    fleet = [first] + [tmp / f"fleet{k}.parquet" for k in range(1, 8)]
+    for path in fleet[1:]:
+        shutil.copyfile(first, path)
+    logs = [str(p) for p in fleet]
+    outputs = {}
+    for name, extra in (
+        ("--scheduler local:2", ["--scheduler", "local:2"]),
+        ("--scheduler local:1", ["--scheduler", "local:1"]),
+        ("--jobs 2", ["--jobs", "2"]),
+        ("--jobs 1", ["--jobs", "1"]),
+    ):
+        out = tmp / f"fleet_{len(outputs)}.json"
+        times, peak = _run(["diagnose", *logs, "-f", "json", "-o", str(out), *extra], 1)
+        outputs[name] = out.read_bytes()
+        _report(f"diagnose 8 logs x 1,000,000 epochs, {name}", times, peak)
+    same = len(set(outputs.values())) == 1
+    print(f"  outputs of the four runs byte-identical: {'yes' if same else 'NO'}")
+    values = ",".join(f"{v:.2f}" for v in np.linspace(0.0, 0.95, 20))
+    sweep = ["simulate", "--scenario", "credible", "--trials", "500", "--sweep", f"ar={values}"]
+    for name, extra in (
+        ("--scheduler local:2", ["--scheduler", "local:2"]),
+        ("--jobs 2", ["--jobs", "2"]),
+        ("--jobs 1", ["--jobs", "1"]),
+    ):
+        times, peak = _run([*sweep, "-f", "json", *extra], 1)
+        _report(f"simulate: sweep of 20 points x 500 trials, {name}", times, peak)
+    one, two = (float(x) for x in _in_child("_dask_overhead()").split())
+    ROWS.append(
+        (
+            "Dask cost per trivial task, local:1 / local:2",
+            f"{1e3 * one:.2f} / {1e3 * two:.2f} ms",
+            "—",
+            "",
+        )
+    )
+    print(f"{ROWS[-1][0]:<62} {ROWS[-1][1]:<22}", flush=True)
+
+
 def _in_child(call: str) -> str:
     """Run ``bench.<call>`` in a fresh Python and return what it prints: this process must
     stay small, since a child's peak RSS on Linux includes its parent's at the exec."""
@@ -189,6 +245,10 @@ def _under_load(args: list[str], repeat: int, env: dict | None = None) -> list[f
 
 
 def main() -> int:
+    if sys.argv[1:] == ["dask"]:  # make bench-dask: the issue 13 rows only
+        with tempfile.TemporaryDirectory() as tmp:
+            _dask_rows(Path(tmp))
+        return 0
     print(
         f"credcli bench on {os.cpu_count()} CPU(s), Python {sys.version.split()[0]}, "
         f"numpy {np.__version__}"
@@ -296,6 +356,8 @@ def main() -> int:
     for jobs in (1, 2):
         times, peak = _run(["simulate", "--trials", "500", "-f", "json", "--jobs", str(jobs)], 2)
         _report(f"simulate --trials 500 (3,000 trials) --jobs {jobs}", times, peak)
+    with tempfile.TemporaryDirectory() as tmp:
+        _dask_rows(Path(tmp))
     print("\n| workload | wall | peak RSS | target |\n|---|---|---|---|")
     for row in ROWS:
         print("| " + " | ".join(row) + " |")

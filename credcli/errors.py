@@ -14,3 +14,7 @@ class CredcliError(Exception):
         super().__init__(message)
         self.message = message
         self.exit_code = exit_code
+
+    def __reduce__(self):
+        """Pickled whole (message and exit code), as worker processes send it back."""
+        return (type(self), (self.message, self.exit_code))

@@ -184,33 +184,43 @@ def run_diagnose(
     jobs: int = 1,
     reading: ReadOptions | None = None,
     monte_carlo: bool = False,
+    runner=None,
 ) -> Run:
     """Load, segment and diagnose every log; return the `diagnose` report (and plots).
     ``jobs`` processes share the segments; the output is the same for any value.
     ``reading`` says how the logs are read (formats, a separate truth, states).
     ``monte_carlo``: the logs are independent runs of one scenario on one time base; their
     segments are pooled (see :func:`monte_carlo_plan`) and the report adds Bar-Shalom's
-    per-epoch ANEES test."""
+    per-epoch ANEES test. ``runner`` (a credcli.cluster.DaskRunner): the segments are
+    diagnosed on a Dask cluster whose workers read the logs themselves."""
     from credcli.io.ingest import open_log
 
     reading = reading or ReadOptions()
-    pool = None
-    if jobs > 1 and sum(_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
-        from credcli.parallel import WorkerPool
-
-        pool = WorkerPool(jobs, warm=__name__)  # workers import while the logs are read
-    try:
-        loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
-        plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
-    except BaseException:
-        if pool is not None:
-            pool.close()
-        raise
-    runs, mc = 1, None
-    if monte_carlo:
-        plans, mc = monte_carlo_plan(loaded, plans, config.alpha)
-        runs = len(loaded)
-    results = diagnose_plans(plans, config, seed, jobs, progress, pool, reading.innovations, runs)
+    if runner is not None:
+        if monte_carlo:
+            raise CredcliError("--monte-carlo runs on this machine: drop --scheduler")
+        sources = [
+            (str(p), schema, reading, drop_invalid, window, whole, config.min_epochs) for p in paths
+        ]
+        results, logs = diagnose_on_cluster(
+            runner, sources, config, seed, reading.innovations, progress
+        )
+        plans = None
+        mc = None
+    else:
+        results, logs, plans, mc = _diagnose_here(
+            paths,
+            schema,
+            config,
+            window,
+            whole,
+            seed,
+            drop_invalid,
+            progress,
+            jobs,
+            reading,
+            monte_carlo,
+        )
     parameters = config_parameters(config) | {
         "seed": seed,
         "segmentation": segmentation_name(window, whole),
@@ -220,24 +230,15 @@ def run_diagnose(
         "columns": schema_parameters(schema),
         "input": schema_parameters(reading),
     }
-    logs = [
-        {
-            "path": log.source,
-            "epochs": log.n,
-            "dim": log.dim,
-            "dropped_rows": log.dropped_rows,
-            "unpaired_epochs": log.unpaired,
-            "segments": len(s),
-            "notes": list(log.notes),
-        }
-        for log, s in plans
-    ]
     if mc is not None:
         parameters["monte_carlo"] = True
     report = diagnose_report(
         results, parameters, logs, config.metrics is MetricsLevel.ALL, mc and mc.record()
     )
     figures = []
+    if plots and plans is None:  # the cluster read the logs; the figures need them here
+        loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
+        plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
     if plots and mc is not None:
         from credcli.report.plots import anees_plot
 
@@ -252,6 +253,115 @@ def run_diagnose(
             prefix = f"{Path(log.source).stem}_" if len(plans) > 1 else ""
             figures.extend(segment_plots(log, mine, segments, prefix))
     return Run(report, figures, results)
+
+
+def log_info(log: EstimatorLog, segments) -> dict:
+    """The report's entry for one log."""
+    return {
+        "path": log.source,
+        "epochs": log.n,
+        "dim": log.dim,
+        "dropped_rows": log.dropped_rows,
+        "unpaired_epochs": log.unpaired,
+        "segments": len(segments),
+        "notes": list(log.notes),
+    }
+
+
+def _diagnose_here(
+    paths, schema, config, window, whole, seed, drop_invalid, progress, jobs, reading, monte_carlo
+):
+    """Read and diagnose the logs in this process and ``jobs`` local worker processes;
+    returns (results, log entries, plans, Monte Carlo test or None)."""
+    from credcli.io.ingest import open_log
+
+    pool = None
+    if jobs > 1 and sum(_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
+        from credcli.parallel import WorkerPool
+
+        pool = WorkerPool(jobs, warm=__name__)  # workers import while the logs are read
+    try:
+        loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
+        plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
+    except BaseException:
+        if pool is not None:
+            pool.close()
+        raise
+    logs = [log_info(log, segments) for log, segments in plans]
+    runs, mc, diagnosed = 1, None, plans
+    if monte_carlo:
+        diagnosed, mc = monte_carlo_plan(loaded, plans, config.alpha)
+        runs = len(loaded)
+    results = diagnose_plans(
+        diagnosed, config, seed, jobs, progress, pool, reading.innovations, runs
+    )
+    return results, logs, plans, mc
+
+
+# --- on a Dask cluster: the workers read the logs ----------------------------------------
+
+CLUSTER_TASK_EPOCHS = 5_000
+"""Epochs of consecutive segments per cluster task: about 50 ms of diagnosis (d = 2) on
+this machine, so that Dask's per-task cost (about 1 ms) stays small beside it."""
+
+_WORKER_LOGS: dict = {}
+_WORKER_LOGS_KEPT = 2
+
+
+def _worker_log(source):
+    """(log, segments, errors) of ``source`` in this worker, read once for the tasks that share it
+    (the last few are kept, keyed by the file's size and modification time too)."""
+    from credcli.io.ingest import open_log
+    from credcli.parallel import prepare_worker
+
+    prepare_worker()
+    path, schema, reading, drop_invalid, window, whole, min_epochs = source
+    try:
+        stat = Path(path).stat()
+        key = (source, stat.st_size, stat.st_mtime_ns)
+    except OSError:
+        key = (source, None, None)
+    if key not in _WORKER_LOGS:
+        log = open_log(path, schema, reading, drop_invalid)
+        while len(_WORKER_LOGS) >= _WORKER_LOGS_KEPT:
+            _WORKER_LOGS.pop(next(iter(_WORKER_LOGS)))
+        _WORKER_LOGS[key] = (log, split(log, window, whole, min_epochs), log.errors)
+    return _WORKER_LOGS[key]
+
+
+def _plan_task(source) -> tuple[dict, list[int]]:
+    """Worker: the report entry of a log and the epochs of each of its segments."""
+    log, segments, _ = _worker_log(source)
+    return log_info(log, segments), [len(s.index) for s in segments]
+
+
+def _segments_task(task) -> list[SegmentDiagnosis]:
+    """Worker: diagnose segments [first, stop) of a log."""
+    source, first, stop, config, seed, innovations = task
+    log, segments, errors = _worker_log(source)
+    items = []
+    for segment in segments[first:stop]:
+        index = _as_slice(segment.index)
+        items.append((segment.name, segment.t_start, segment.t_end, errors[index], log.cov[index]))
+    return _diagnose_chunk((log.source, items, config, seed, innovations, 1))
+
+
+def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=None):
+    """Every segment of every log, diagnosed by the cluster's workers: one task per log
+    to plan its segments, then one task per run of consecutive segments of about
+    CLUSTER_TASK_EPOCHS epochs. Returns (results in log and segment order, log entries)."""
+    planned = runner.map(_plan_task, sources)
+    tasks = []
+    for source, (_, sizes) in zip(sources, planned):
+        first, held = 0, 0
+        for k, size in enumerate(sizes):
+            held += size
+            if held >= CLUSTER_TASK_EPOCHS or k == len(sizes) - 1:
+                tasks.append((source, first, k + 1, config, seed, innovations))
+                first, held = k + 1, 0
+    counts = [task[2] - task[1] for task in tasks]  # segments per task
+    outputs = runner.map(_segments_task, tasks, progress, counts)
+    return [r for out in outputs for r in out], [info for info, _ in planned]
 
 
 @dataclass(frozen=True)
@@ -339,8 +449,10 @@ def run_simulate(
     jobs: int = 1,
     progress=None,
     plots: bool = False,
+    runner=None,
 ) -> tuple[Run, str]:
-    """The `simulate` report (and plots) and a one-line summary."""
+    """The `simulate` report (and plots) and a one-line summary; ``runner``: trials on a
+    Dask cluster (credcli.cluster.DaskRunner)."""
     import dataclasses
 
     import numpy as np
@@ -379,7 +491,7 @@ def run_simulate(
         )
     if sweep is not None:
         spec = sim.Sweep.parse(sweep)
-        points = sim.run_sweep(spec, config, scenarios, jobs, progress)
+        points = sim.run_sweep(spec, config, scenarios, jobs, progress, runner)
         parameters |= {"sweep": sweep}
         n_trials = sum(p.trials for p in points)
         if plots:
@@ -387,7 +499,7 @@ def run_simulate(
         return Run(sweep_report(spec, points, parameters), figures), (
             f"sweep of {spec.parameter.value} over {len(spec.values)} values: {n_trials} trials"
         )
-    study = sim.run_study(config, scenarios, jobs, progress)
+    study = sim.run_study(config, scenarios, jobs, progress, runner)
     if plots:
         figures.insert(0, figs.confusion_plot(study))
     paper_protocol = (
@@ -482,6 +594,7 @@ def run_gate(
     plots=False,
     jobs: int = 1,
     truth: Path | None = None,
+    runner=None,
 ):
     """Diagnose ``path`` with the baseline's parameters and compare segment by segment;
     returns (report, comparisons, passed, verdict, figures). ``truth`` replaces the
@@ -546,7 +659,15 @@ def run_gate(
             f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
     run = run_diagnose(
-        [path], schema, config, progress=progress, plots=plots, jobs=jobs, reading=reading, **setup
+        [path],
+        schema,
+        config,
+        progress=progress,
+        plots=plots,
+        jobs=jobs,
+        reading=reading,
+        runner=runner,
+        **setup,
     )
     comparisons = compare(
         [Snapshot.from_record(r) for r in baseline["segments"]],

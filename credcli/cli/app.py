@@ -117,6 +117,15 @@ MetricsOpt = Annotated[
         f"[default: {_D.metrics.value}].",
     ),
 ]
+SchedulerOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        envvar="CREDCLI_SCHEDULER",
+        help="Run on a Dask cluster: its scheduler's address (tcp://host:8786), or local:N "
+        "for N local workers (needs credcli[dask]; docs/scale.md).",
+    ),
+]
 JobsOpt = Annotated[
     int | None,
     typer.Option(
@@ -451,6 +460,22 @@ def _print_notes(report) -> None:
             print(f"credcli: note: {note}", file=sys.stderr)
 
 
+def _cluster(scheduler: str | None):
+    """A DaskRunner for --scheduler (closed on exit), or a context of None."""
+    import contextlib
+
+    if not scheduler:
+        return contextlib.nullcontext(None)
+    from credcli.cluster import DaskRunner
+
+    console = _stderr()
+
+    def announce(text: str) -> None:  # on a terminal, as the progress bar; quiet in CI
+        console.print(f"credcli: {text}", highlight=False, markup=False)
+
+    return DaskRunner(scheduler, announce if console.is_terminal else None)
+
+
 def _jobs(jobs: int | None) -> int:
     """--jobs: given, or the number of cores."""
     from credcli.parallel import default_jobs
@@ -549,6 +574,7 @@ def diagnose(
     nees_alpha: NeesAlphaOpt = None,
     exact_pvalue: ExactOpt = None,
     jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
@@ -624,13 +650,14 @@ def diagnose(
             innovations,
         ),
     )
-    with _Progress("diagnosing segments") as bar:
+    with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
         run = run_diagnose(
             logs,
             progress=bar,
             plots=plots is not None or report_file is not None,
             jobs=_jobs(jobs),
             monte_carlo=monte_carlo,
+            runner=runner,
             **setup,
         )
     report = run.report
@@ -697,6 +724,7 @@ def baseline(
     nees_alpha: NeesAlphaOpt = None,
     exact_pvalue: ExactOpt = None,
     jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
@@ -742,8 +770,8 @@ def baseline(
             innovations,
         ),
     )
-    with _Progress("diagnosing segments") as bar:
-        recorded = run_baseline(log, progress=bar, jobs=_jobs(jobs), **setup)
+    with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
+        recorded = run_baseline(log, progress=bar, jobs=_jobs(jobs), runner=runner, **setup)
     _print_notes(recorded)
     _emit(recorded, OutputFormat.JSON, output, inputs=inputs)
     return 0
@@ -801,6 +829,7 @@ def gate(
     nees_alpha: NeesAlphaOpt = None,
     exact_pvalue: ExactOpt = None,
     jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
@@ -833,7 +862,7 @@ def gate(
     }
     cli |= {"seed": seed, "window": window, "whole": whole}
     requested = gate_requests(load_config(config), cli)
-    with _Progress("diagnosing segments") as bar:
+    with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
         report, comparisons, passed, verdict, figures = run_gate(
             log,
             baseline_file,
@@ -843,6 +872,7 @@ def gate(
             plots=plots is not None,
             jobs=_jobs(jobs),
             truth=truth,
+            runner=runner,
         )
     _emit(report, fmt, output, inputs=inputs)
     _write_plots(figures, plots)
@@ -940,6 +970,7 @@ def simulate(
     jobs: Annotated[
         int, typer.Option("--jobs", "-j", help="Worker processes (same output for any value).")
     ] = 1,
+    scheduler: SchedulerOpt = None,
     plots: PlotsOpt = None,
     config: ConfigOpt = None,
     tau: TauOpt = None,
@@ -1000,7 +1031,7 @@ def simulate(
         ),
     )
     start = time.perf_counter()
-    with _Progress("simulating trials", min_total=1) as bar:
+    with _cluster(scheduler) as runner, _Progress("simulating trials", min_total=1) as bar:
         run, summary = run_simulate(
             sim,
             scenario,
@@ -1008,6 +1039,7 @@ def simulate(
             curves=curves,
             curve_runs=curve_runs,
             jobs=jobs,
+            runner=runner,
             progress=bar,
             plots=plots is not None,
         )
@@ -1180,6 +1212,7 @@ def report(
     nees_alpha: NeesAlphaOpt = None,
     exact_pvalue: ExactOpt = None,
     jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose logs and write one self-contained HTML report (table, parameters, figures)."""
@@ -1226,8 +1259,8 @@ def report(
             innovations,
         ),
     )
-    with _Progress("diagnosing segments") as bar:
-        run = run_diagnose(logs, progress=bar, plots=True, jobs=_jobs(jobs), **setup)
+    with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
+        run = run_diagnose(logs, progress=bar, plots=True, jobs=_jobs(jobs), runner=runner, **setup)
     _print_notes(run.report)
     _write_html(output, "credcli report: " + ", ".join(p.name for p in logs), run, logs, inputs)
     return 0

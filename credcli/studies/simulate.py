@@ -25,7 +25,7 @@ from credcli.engine.diagnosis import (
     parse_label,
 )
 from credcli.errors import CredcliError
-from credcli.parallel import ordered_map
+from credcli.parallel import ordered_map, prepare_worker
 from credcli.studies.settings import (  # noqa: F401 (re-exported)
     ErrorModel,
     Noise,
@@ -131,6 +131,12 @@ def _run_chunk(args) -> list[TrialResult]:
     return out
 
 
+def _run_chunk_on_worker(args) -> list[TrialResult]:
+    """Cluster worker: :func:`_run_chunk`, after the worker's one-time set-up."""
+    prepare_worker()
+    return _run_chunk(args)
+
+
 def _stream_key(spec: ScenarioSpec) -> int:
     """A stable number for a group's random streams, from its parameters."""
     import zlib
@@ -139,25 +145,55 @@ def _stream_key(spec: ScenarioSpec) -> int:
 
 
 def run_groups(
-    specs: list[ScenarioSpec], config: SimulationConfig, jobs: int = 1, progress=None
+    specs: list[ScenarioSpec], config: SimulationConfig, jobs: int = 1, progress=None, runner=None
 ) -> list[list[TrialResult]]:
-    """Run ``config.trials`` trials of each spec; ``jobs`` processes share the work."""
-    chunk = max(1, min(25, math.ceil(config.trials / max(1, 2 * jobs))))
-    starts = range(0, config.trials, chunk)
-    tasks = [(spec, a, min(a + chunk, config.trials), config) for spec in specs for a in starts]
-    total = len(specs) * config.trials
+    """Run ``config.trials`` trials of each spec; ``jobs`` processes (or the Dask
+    ``runner``) share the work."""
+    return run_group_sets([(specs, config)], jobs, progress, runner)[0]
+
+
+def _chunk_size(trials: int, jobs: int) -> int:
+    """Trials per task: about two tasks per process, at most 25 (about 40 ms of work)."""
+    return max(1, min(25, math.ceil(trials / max(1, 2 * jobs))))
+
+
+def run_group_sets(
+    plans: list[tuple[list[ScenarioSpec], SimulationConfig]],
+    jobs: int = 1,
+    progress=None,
+    runner=None,
+) -> list[list[list[TrialResult]]]:
+    """The trials of every (specs, config) plan (e.g. every point of a sweep) as one set of
+    tasks, so that processes or cluster workers share all of them; per plan, per spec, the
+    trial results in trial order. Each trial's random stream comes from (seed, group,
+    trial), so the results do not depend on how the trials are split into tasks."""
+    tasks, owners = [], []
+    for p, (specs, config) in enumerate(plans):
+        chunk = _chunk_size(config.trials, jobs)
+        for g, spec in enumerate(specs):
+            for a in range(0, config.trials, chunk):
+                tasks.append((spec, a, min(a + chunk, config.trials), config))
+                owners.append((p, g))
+    total = sum(len(specs) * config.trials for specs, config in plans)
+    out: list[list[list[TrialResult]]] = [[[] for _ in specs] for specs, _ in plans]
+    if runner is not None:
+        sizes = [t[2] - t[1] for t in tasks]  # trials per task
+        outputs = iter(runner.map(_run_chunk_on_worker, tasks, progress, sizes))
+        progress = None
+    else:
+        outputs = ordered_map(_run_chunk, tasks, jobs)
     done = 0
-    per_group: list[list[TrialResult]] = [[] for _ in specs]
-    outputs = ordered_map(_run_chunk, tasks, jobs)
     try:
-        for k, out in enumerate(outputs):  # in task order: group k // len(starts)
-            per_group[k // len(starts)].extend(out)
-            done += len(out)
+        for (p, g), result in zip(owners, outputs):  # in task order
+            out[p][g].extend(result)
+            done += len(result)
             if progress is not None:
                 progress(done, total)
     finally:
-        outputs.close()
-    return per_group
+        close = getattr(outputs, "close", None)
+        if close is not None:
+            close()
+    return out
 
 
 CONFUSION_LABELS = DIAGNOSIS_LABELS + (Label.INSUFFICIENT,)
@@ -194,11 +230,11 @@ def summarise(
 
 
 def run_study(
-    config: SimulationConfig, scenarios: list[Label], jobs: int = 1, progress=None
+    config: SimulationConfig, scenarios: list[Label], jobs: int = 1, progress=None, runner=None
 ) -> StudyResult:
     """Tables II and III: every listed scenario, ``config.trials`` trials each."""
     specs = [config.spec(s) for s in scenarios]
-    groups = run_groups(specs, config, jobs, progress)
+    groups = run_groups(specs, config, jobs, progress, runner)
     return summarise(scenarios, groups, config.diagnosis.variant)
 
 
@@ -299,18 +335,21 @@ def sweep_specs(sweep: Sweep, value: float, config: SimulationConfig, scenarios:
 
 
 def run_sweep(
-    sweep: Sweep, config: SimulationConfig, scenarios: list[Label], jobs: int = 1, progress=None
+    sweep: Sweep,
+    config: SimulationConfig,
+    scenarios: list[Label],
+    jobs: int = 1,
+    progress=None,
+    runner=None,
 ) -> list[SweepPoint]:
-    """Accuracy of every method per sweep value and true label."""
+    """Accuracy of every method per sweep value and true label (every point's trials are
+    one set of tasks)."""
     plans = [(v, *sweep_specs(sweep, v, config, scenarios)) for v in sweep.values]
-    total = sum(len(specs) for _, specs, _ in plans) * config.trials
+    groups = run_group_sets([(specs, cfg) for _, specs, cfg in plans], jobs, progress, runner)
     points: list[SweepPoint] = []
-    done = 0
-    for value, specs, cfg in plans:
-        tick = None if progress is None else (lambda k, _t, o=done: progress(o + k, total))
+    for (value, specs, _), per_spec in zip(plans, groups):
         truths = [spec.truth for spec in specs]
-        study = summarise(truths, run_groups(specs, cfg, jobs, tick), config.diagnosis.variant)
-        done += len(specs) * config.trials
+        study = summarise(truths, per_spec, config.diagnosis.variant)
         points.extend(
             SweepPoint(value, t, {m: study.accuracy[m][t] for m in Method}, study.trials)
             for t in truths

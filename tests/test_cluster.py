@@ -1,0 +1,141 @@
+"""Dask distributed (issue 13): the real engine on a LocalCluster of worker processes on
+the loopback interface. Outputs must equal the local run byte for byte."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import time
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from credcli.cluster import DaskRunner  # noqa: E402
+from credcli.engine.config import DiagnosisConfig  # noqa: E402
+from credcli.io.schema import LogSchema  # noqa: E402
+from credcli.studies.samples import GOOD_SEGMENTS, estimator_log  # noqa: E402
+from credcli.workflows import run_diagnose, run_simulate  # noqa: E402
+from tests.test_edges import ROOT, error_line, run  # noqa: E402
+
+
+def _logs(tmp_path, count: int, per_segment: int = 300):
+    paths = []
+    for k in range(count):
+        path = tmp_path / f"log{k}.csv"
+        estimator_log(GOOD_SEGMENTS * 2, epochs_per_segment=per_segment, seed=k).to_csv(
+            path, index=False
+        )
+        paths.append(path)
+    return paths
+
+
+def _document(run) -> str:
+    return json.dumps(run.report.document, sort_keys=True)
+
+
+@pytest.fixture(scope="module")
+def runner():
+    with DaskRunner("local:2") as r:
+        yield r
+
+
+def test_diagnose_on_the_cluster_equals_the_local_run(tmp_path, runner):
+    paths = _logs(tmp_path, 3)
+    local = run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s")
+    remote = run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s", runner=runner)
+    assert _document(remote) == _document(local)
+    assert len(remote.results) == 3 * 36  # 12 segments of 30 s in 10 s windows
+
+
+def test_a_sweep_on_the_cluster_equals_the_local_run(runner):
+    from credcli.studies.settings import SimulationConfig
+
+    config = SimulationConfig(trials=12)
+    local, _ = run_simulate(config, sweep="ar=0,0.5")
+    remote, _ = run_simulate(config, sweep="ar=0,0.5", runner=runner)
+    assert _document(remote) == _document(local)
+
+
+def test_the_command_line_with_local_workers(tmp_path):
+    log = ROOT / "sample_data" / "estimator_log.csv"
+    here = run("diagnose", log, "-f", "json")
+    there = run("diagnose", log, "-f", "json", "--scheduler", "local:1")
+    assert there[0] == 0 and there[1] == here[1]
+
+
+def test_bad_input_on_the_cluster_is_the_local_error(tmp_path, runner):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,truth_0,est_0,var_0\n0,1,x,1\n")
+    local = error_line(*run("diagnose", bad)[::2])
+    remote = error_line(*run("diagnose", bad, "--scheduler", "local:1")[::2])
+    assert remote == local
+
+
+def test_unreachable_scheduler_and_bad_address(monkeypatch):
+    import credcli.cluster
+
+    monkeypatch.setattr(credcli.cluster, "CONNECT_TIMEOUT", "0.5s")
+    line = error_line(
+        *run(
+            "diagnose",
+            ROOT / "sample_data" / "estimator_log.csv",
+            "--scheduler",
+            "tcp://127.0.0.1:9",
+        )[::2]
+    )
+    assert "cannot connect" in line and "dask scheduler" in line
+    line = error_line(*run("simulate", "--scheduler", "localhost:two")[::2])
+    assert "local:N" in line or "cannot connect" in line
+
+
+def test_a_worker_killed_mid_run_leaves_the_result_complete_and_identical(tmp_path):
+    paths = _logs(tmp_path, 6, per_segment=600)
+    local = run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s")
+    with DaskRunner("local:2") as r:
+        pids = r.client.run(os.getpid)
+        out = {}
+        worker = threading.Thread(
+            target=lambda: out.setdefault(
+                "run", run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s", runner=r)
+            )
+        )
+        worker.start()
+        deadline = time.time() + 20
+        while time.time() < deadline and not any(r.client.processing().values()):
+            time.sleep(0.01)
+        busy = [w for w, tasks in r.client.processing().items() if tasks]
+        assert busy, "no task was running: nothing to kill"
+        os.kill(pids[busy[0]], signal.SIGKILL)
+        worker.join(60)
+    assert _document(out["run"]) == _document(local)
+
+
+def test_without_a_scheduler_nothing_of_dask_is_imported():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from credcli.cli import main; "
+        f"main(['diagnose', {str(ROOT / 'sample_data' / 'estimator_log.csv')!r}, '-f', 'json', '-o', '/dev/null']); "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().endswith("[]")
+
+
+def test_missing_dask_is_a_clear_error(monkeypatch):
+    import builtins
+
+    real = builtins.__import__
+
+    def no_dask(name, *a, **k):
+        if name.split(".")[0] in ("dask", "distributed"):
+            raise ImportError(name)
+        return real(name, *a, **k)
+
+    monkeypatch.setattr(builtins, "__import__", no_dask)
+    line = error_line(*run("simulate", "--scheduler", "local:1")[::2])
+    assert "credcli[dask]" in line

@@ -139,3 +139,24 @@ def test_missing_dask_is_a_clear_error(monkeypatch):
     monkeypatch.setattr(builtins, "__import__", no_dask)
     line = error_line(*run("simulate", "--scheduler", "local:1")[::2])
     assert "credcli[dask]" in line
+
+
+def test_workers_read_fsspec_urls(tmp_path, runner):
+    from credcli.io.logs import as_url
+
+    assert as_url("s3:/bucket/a.parquet") == "s3://bucket/a.parquet"  # after pathlib
+    assert as_url("file:/tmp/a.csv") == "file:///tmp/a.csv"
+    assert as_url("/tmp/a.csv") is None and as_url("C:/logs/a.csv") is None
+    path = _logs(tmp_path, 1)[0]
+    url = f"memory://credcli-test/{path.name}"
+    import fsspec
+
+    with fsspec.open(url, "wb") as fh:  # the client's memory filesystem: local run only
+        fh.write(path.read_bytes())
+    local = run_diagnose([url], LogSchema(), DiagnosisConfig())
+    assert local.results[0].log == url
+    file_url = f"file://{path}"
+    here = run_diagnose([file_url], LogSchema(), DiagnosisConfig())
+    there = run_diagnose([file_url], LogSchema(), DiagnosisConfig(), runner=runner)
+    assert _document(there) == _document(here)
+    assert _document(here).replace(file_url, url) == _document(local)

@@ -79,10 +79,11 @@ def load_log(
     ``innovations``: the log holds a filter's innovations ``innov_i`` and their covariance
     ``innov_cov_i_j`` (or ``innov_var_i``, ``innov_std_i``) instead of truth and estimate.
     """
+    url = as_url(path)
     path = Path(path)
     frame = read_table(path, columnwise=True)
     return log_from_frame(
-        frame, schema or LogSchema(), str(path), drop_invalid, time_unit, innovations
+        frame, schema or LogSchema(), url or str(path), drop_invalid, time_unit, innovations
     )
 
 
@@ -119,10 +120,55 @@ class ParquetColumns:
             raise CredcliError(f"{self.path}: column '{column}' cannot be read: {first}") from exc
 
 
-def read_table(path: Path, columnwise: bool = False):
-    """The table of a CSV, text or Parquet file; with ``columnwise``, a Parquet file is a
-    :class:`ParquetColumns` (columns read on use) instead of a DataFrame."""
+_URL = re.compile(r"^([a-z][a-z0-9+.-]+):/+(.*)$")
+
+
+def as_url(path) -> str | None:
+    """``path`` as an fsspec URL (``s3://bucket/log.parquet``, ``file:///data/log.csv``),
+    or None for a local path. A URL that went through pathlib lost a slash; it is put back."""
+    m = _URL.match(str(path))
+    if not m or len(m.group(1)) < 2:  # C:/ on Windows is a drive, not a scheme
+        return None
+    rest = m.group(2)
+    return f"{m.group(1)}://{'/' if m.group(1) == 'file' else ''}{rest}"
+
+
+def _read_url(url: str):
+    """A CSV or Parquet log at an fsspec URL (the filesystem's package must be installed,
+    e.g. s3fs for s3://)."""
     import pandas as pd
+
+    try:
+        if url.lower().endswith((".parquet", ".pq")):
+            frame = pd.read_parquet(url)
+        else:
+            frame = pd.read_csv(url, skipinitialspace=True)
+    except ImportError as exc:
+        raise CredcliError(f"{url}: reading this URL needs its fsspec filesystem: {exc}") from exc
+    except FileNotFoundError as exc:
+        raise CredcliError(f"{url}: file not found") from exc
+    except (
+        pd.errors.ParserError,
+        pd.errors.EmptyDataError,
+        UnicodeDecodeError,
+        OSError,
+        ValueError,
+    ) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CredcliError(f"{url}: cannot be read as CSV/Parquet: {first}") from exc
+    if len(frame) == 0:
+        raise CredcliError(f"{url}: header has no rows below it; expected one row per epoch")
+    return frame
+
+
+def read_table(path: Path, columnwise: bool = False):
+    """The table of a CSV, text or Parquet file (or fsspec URL); with ``columnwise``, a
+    local Parquet file is a :class:`ParquetColumns` (columns read on use)."""
+    import pandas as pd
+
+    url = as_url(path)
+    if url is not None:
+        return _read_url(url)
 
     if not path.exists():
         raise CredcliError(f"{path}: file not found")

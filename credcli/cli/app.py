@@ -5,6 +5,7 @@ Errors raised as CredcliError (and usage errors) become one line on stderr and e
 
 from __future__ import annotations
 
+import enum
 import re
 import sys
 from pathlib import Path
@@ -17,7 +18,7 @@ from credcli.engine.config import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, 
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, InputFormat, LogSchema, Perturbation, States, TimeUnit
 from credcli.report.formats import OutputFormat
-from credcli.studies.settings import SimulationConfig, UwbSettings
+from credcli.studies.settings import RobustLoss, SimulationConfig, UwbSettings
 
 app = typer.Typer(
     name="credcli",
@@ -474,6 +475,51 @@ def _cluster(scheduler: str | None):
         console.print(f"credcli: {text}", highlight=False, markup=False)
 
     return DaskRunner(scheduler, announce if console.is_terminal else None)
+
+
+class ScreenMode(str, enum.Enum):
+    ALL = "all"
+    NONE = "none"
+
+
+def _id_pairs(text: str | None, flag: str, kind) -> tuple:
+    """'4=1,5=2' -> ((4, 1), (5, 2)) with values of ``kind``."""
+    if not text:
+        return ()
+    out = []
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError(item)
+            out.append((int(key), kind(value)))
+        except ValueError as exc:
+            raise CredcliError(
+                f"{flag}: expected ID=VALUE pairs separated by commas (e.g. 4=1,5=2); got '{item}'"
+            ) from exc
+    return tuple(out)
+
+
+def _std_settings(text: str | None) -> dict:
+    """--std: a value, ID=VALUE pairs (with an optional plain default among them), or
+    'estimate'."""
+    from credcli.studies.settings import STD_ESTIMATE
+
+    if text is None:
+        return {}
+    if text.strip().lower() == STD_ESTIMATE:
+        return {"std_estimate": True}
+    default = [t for t in text.split(",") if "=" not in t]
+    pairs = ",".join(t for t in text.split(",") if "=" in t)
+    try:
+        value = float(default[0]) if default else None
+    except ValueError as exc:
+        raise CredcliError(
+            f"--std: expected metres (0.1), ID=VALUE pairs (4=0.1,9=0.12) or 'estimate'; got '{text}'"
+        ) from exc
+    if len(default) > 1:
+        raise CredcliError(f"--std: at most one default value; got '{text}'")
+    return {"std": value, "std_by_anchor": _id_pairs(pairs, "--std", float)}
 
 
 def _jobs(jobs: int | None) -> int:
@@ -1068,8 +1114,36 @@ def uwb(
         str, typer.Option("--range-column", help="range_calib (calibrated) or range (raw).")
     ] = _U.range_column,
     std: Annotated[
-        float | None,
-        typer.Option("--std", help="Range std in m for files without a std column (s5)."),
+        str | None,
+        typer.Option(
+            "--std",
+            help="Range std in m: one value (files without a std column, s5), per anchor "
+            "(4=0.1,9=0.12, over the column), or 'estimate' (from the data; the verdict is then "
+            "about the estimated model).",
+        ),
+    ] = None,
+    screen: Annotated[
+        ScreenMode,
+        typer.Option(
+            "--screen",
+            help="Drop stale packets and packets failing the residual test (all), or nothing (none).",
+        ),
+    ] = ScreenMode.ALL,
+    residual_level: Annotated[
+        float,
+        typer.Option("--residual-level", help="Level of the per-packet residual test."),
+    ] = _U.residual_level,
+    robust: Annotated[
+        RobustLoss,
+        typer.Option(
+            "--robust", help="Position solve: none (WLS) or huber (downweights outliers)."
+        ),
+    ] = _U.robust,
+    anchor_map: Annotated[
+        str | None,
+        typer.Option(
+            "--anchor-map", help="Map the log's anchor ids to the markers' ids: LOG_ID=MARKER_ID,…"
+        ),
     ] = None,
     max_speed: Annotated[
         float, typer.Option("--max-speed", help="Static: speed below this (m/s).")
@@ -1136,11 +1210,15 @@ def uwb(
     )
     settings = UwbSettings(
         range_column=range_column,
-        std=std,
         packet_window=packet_window,
         min_anchors=min_anchors,
         max_speed=max_speed,
         min_static=min_static,
+        screen=screen is ScreenMode.ALL,
+        residual_level=residual_level,
+        robust=robust,
+        anchor_map=_id_pairs(anchor_map, "--anchor-map", int),
+        **_std_settings(std),
     )
     with _Progress("diagnosing periods") as bar:
         result, run = run_uwb(
@@ -1154,6 +1232,8 @@ def uwb(
             bar,
             plots=plots is not None or report_file is not None,
         )
+    for warning in run.notes:  # anchors that disagree with the log's ground truth
+        print(f"credcli: warning: {warning}", file=sys.stderr)
     if export_log is not None:
         write_atomic(export_log, export_log_text(run.log), inputs)
         _stderr().print(f"wrote {export_log} ({run.log.n} fixes)", highlight=False)

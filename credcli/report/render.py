@@ -554,6 +554,8 @@ UWB_COLUMNS = (
     Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r), rank=1),
     Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
     Column("bias_mahalanobis", "|bias| [σ]", 3, rank=3),
+    Column("range_label", "range evidence", 0, rank=1),
+    Column("range_agrees", "agrees", 0, rank=1),
     Column("nees_label", "NEES", 0, rank=5),
     Column("nci_label", "NCI", 0, rank=5),
     Column("nci", "NCI [dB]", 3, rank=6),
@@ -562,22 +564,42 @@ UWB_COLUMNS = (
 
 
 def uwb_report(run, results, parameters: dict) -> Report:
-    """Table IV per period, the range-level table (Figs. 4 and 5) and the anchors."""
+    """Table IV per period with the range-level verdict beside it, the range-level table
+    per period and anchor (Figs. 4 and 5), and the anchors."""
     from credcli import __version__
+    from credcli.studies.uwb import range_verdict, screening_note
 
     segments = [segment_record(r) for r in results]
+    agreement = []
+    for rec in segments:
+        mine = [s for s in run.range_stats if s.segment == rec["segment"]]
+        label, why = range_verdict(mine, parameters["tau_nci"]) if mine else (None, "")
+        verdict = rec["label"] != "insufficient-data"
+        rec["range_label"] = label
+        rec["range_agrees"] = (label == rec["label"]) if verdict and label else None
+        if label and verdict:
+            word = "agrees with" if rec["range_agrees"] else "DISAGREES with"
+            agreement.append(
+                f"{rec['segment']}: the position-level label {rec['label']} {word} the "
+                f"range-level evidence, {label} ({why})"
+            )
     ranges = [
         {
             "segment": s.segment,
             "anchor": s.anchor,
             "n": s.n,
             "mean_error": s.mean_error,
+            "bias_stderr": json_value(s.bias_stderr),
             "std_error": json_value(s.std_error),
+            "robust_std": s.robust_std,
             "median_std": s.median_std,
             "std_ratio": json_value(s.std_ratio),
+            "robust_ratio": json_value(s.robust_ratio),
+            "beyond_3sigma": s.beyond_3sigma,
         }
         for s in run.range_stats
     ]
+    warn = parameters["anchor_rms_warn"]
     anchors = [
         {
             "id": a.id,
@@ -587,6 +609,7 @@ def uwb_report(run, results, parameters: dict) -> Report:
             "source": a.source,
             "rms_mm": 1000 * a.rms,
             "rows": a.n,
+            "check": "ok" if a.source != "markers" or a.rms <= warn else "MISMATCH",
         }
         for a in run.anchors
     ]
@@ -594,10 +617,13 @@ def uwb_report(run, results, parameters: dict) -> Report:
         Column("segment", "period", 0),
         Column("anchor", "anchor", 0),
         Column("n", "ranges", 0),
-        Column("mean_error", "mean error [m]", 3),
-        Column("std_error", "empirical std [m]", 3),
-        Column("median_std", "median reported std [m]", 3),
-        Column("std_ratio", "empirical / reported", 3),
+        Column("mean_error", "bias [m]", 3),
+        Column("bias_stderr", "± s.e. [m]", 2),
+        Column("std_error", "std [m]", 3),
+        Column("robust_std", "robust std [m]", 3),
+        Column("median_std", "reported std [m]", 3),
+        Column("robust_ratio", "robust / reported", 3),
+        Column("beyond_3sigma", "beyond 3σ", 2),
     )
     anchor_cols = (
         Column("id", "anchor", 0),
@@ -606,22 +632,21 @@ def uwb_report(run, results, parameters: dict) -> Report:
         Column("z", "z [m]", 4),
         Column("source", "source", 0),
         Column("rms_mm", "gt_range RMS [mm]", 3),
+        Column("check", "check", 0),
         Column("rows", "ranges", 0),
     )
-    notes = list(run.ranges.notes) + _advice_lines(segments)
-    notes.append(
-        f"{run.packets} packets of >= {parameters['min_anchors']} anchors within "
-        f"{parameters['packet_window']:g} s; {run.fixes.time.size} fixes "
-        f"({run.fixes.dropped} dropped: degenerate geometry or no convergence); "
-        f"{run.log.n} fixes in {len(results)} period(s)."
-    )
+    notes = list(run.ranges.notes) + list(run.notes) + _advice_lines(segments) + agreement
+    notes.append(screening_note(run, run.settings))
     tables = [
-        Table("Anchors", anchor_cols, anchors),
+        Table(
+            "Anchors", anchor_cols, anchors, caption=f"check: gt_range RMS <= {1000 * warn:g} mm"
+        ),
         Table(
             "Range errors per period and anchor (Figs. 4 and 5)",
             range_cols,
             ranges,
-            caption=f"range column: {run.ranges.range_column}; error = range − gt_range",
+            caption=f"range column: {run.ranges.range_column}; error = range − gt_range, "
+            "after screening; robust std = 1.4826 MAD; beyond 3σ: |error − bias| > 3 reported std",
         ),
         Table("Table IV: diagnosis per period", UWB_COLUMNS, segments),
     ]
@@ -632,6 +657,14 @@ def uwb_report(run, results, parameters: dict) -> Report:
         "segments": segments,
         "anchors": anchors,
         "ranges": ranges,
+        "screening": {
+            "packets": run.packets,
+            "fixes": int(run.fixes.time.size),
+            "dropped": run.fixes.dropped,
+            "moved_to_global_minimum": run.fixes.moved,
+            "residual_scale": run.fixes.residual_scale,
+        },
+        "notes": notes,
     }
     return Report(tables, document, notes)
 

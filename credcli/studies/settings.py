@@ -152,9 +152,29 @@ class SimulationConfig:
         return ScenarioSpec(rho, self.bias if "smm" in conditions else (0.0, 0.0))
 
 
+class RobustLoss(str, enum.Enum):
+    """Loss of the per-packet position solve."""
+
+    NONE = "none"  # weighted least squares
+    HUBER = "huber"  # iteratively reweighted, Huber's ψ at k = 1.345 (95 % Gaussian efficiency)
+
+
+STD_ESTIMATE = "estimate"
+"""--std value that estimates each anchor's range std from the data (MAD of range − gt_range)."""
+
+
 @dataclass(frozen=True)
 class UwbSettings:
-    """Settings of the UWB pipeline (defaults are the paper's Section V-A)."""
+    """Settings of the UWB pipeline (defaults are the paper's Section V-A, plus screening).
+
+    ``std``: a fixed range std (m) for files without a ``std`` column; ``std_by_anchor``
+    gives one per anchor id (over ``std`` and the column); ``std_estimate`` estimates each
+    anchor's from the data. ``screen``: drop stale packets and packets that fail the
+    residual test at ``residual_level`` (1e-6: a gross outlier against the run's own
+    residual spread; real radios have heavy tails, which are evidence, not noise to remove). ``anchor_map``: (log id, marker id) pairs for a
+    markers file. ``anchor_rms_warn``: warn when given anchors disagree with the log's
+    gt_range by more than this RMS (m).
+    """
 
     range_column: str = "range_calib"
     std: float | None = None  # fixed range std (m) for files without a `std` column
@@ -163,10 +183,22 @@ class UwbSettings:
     max_speed: float = 0.1  # m/s: static if the rig's 3-D speed stays below ...
     min_static: float = 4.0  # s: ... for at least this long
     wls_iterations: int = 20
+    std_by_anchor: tuple[tuple[int, float], ...] = ()
+    std_estimate: bool = False
+    screen: bool = True
+    residual_level: float = 1e-6
+    robust: RobustLoss = RobustLoss.NONE
+    anchor_map: tuple[tuple[int, int], ...] = ()
+    anchor_rms_warn: float = 0.02
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "robust", RobustLoss(self.robust))
         checks = [
             (self.std is None or self.std > 0, f"std must be > 0; got {self.std}"),
+            (
+                all(v > 0 for _, v in self.std_by_anchor),
+                f"std of every anchor must be > 0; got {dict(self.std_by_anchor)}",
+            ),
             (self.packet_window > 0, f"packet_window must be > 0; got {self.packet_window}"),
             (
                 self.min_anchors >= 3,
@@ -174,6 +206,10 @@ class UwbSettings:
             ),
             (self.max_speed > 0, f"max_speed must be > 0; got {self.max_speed}"),
             (self.min_static > 0, f"min_static must be > 0; got {self.min_static}"),
+            (
+                0 < self.residual_level < 1,
+                f"residual_level must be in (0, 1); got {self.residual_level}",
+            ),
         ]
         for ok, message in checks:
             if not ok:

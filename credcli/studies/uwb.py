@@ -7,7 +7,7 @@ ranges -> 2-D WLS fixes with claimed covariance (HᵀWH)⁻¹ -> EstimatorLog ->
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -71,14 +71,16 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
                 f"{source}: range column '{range_column}' not found; columns found: "
                 f"{', '.join(columns[:30])}"
             )
-    if settings.std is None and "std" not in columns:
+    std_given = settings.std is not None or settings.std_by_anchor or settings.std_estimate
+    if not std_given and "std" not in columns:
         raise CredcliError(
             f"{source}: no 'std' column (setup s5 runs do not report one); give the range "
-            "standard deviation in metres with --std VALUE, e.g. --std 0.1"
+            "standard deviation in metres with --std VALUE (e.g. --std 0.1), per anchor "
+            "(--std 4=0.1,9=0.12) or --std estimate"
         )
     rig_cols = ["x", "y", "z"] if all(c in columns for c in ("x", "y", "z")) else None
     numeric = list(_REQUIRED) + [range_column]
-    numeric += [] if settings.std is not None else ["std"]
+    numeric += ["std"] if "std" in columns and settings.std is None else []
     numeric += rig_cols or []
     values = numeric_columns(frame, numeric, source)
     bad = ~np.isfinite(values).all(axis=1)
@@ -89,7 +91,8 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
             f"{' and more' if bad.sum() > 10 else ''}"
         )
     col = {name: values[:, i] for i, name in enumerate(numeric)}
-    std = np.full(len(frame), settings.std) if settings.std is not None else col["std"]
+    std, std_notes = _range_std(col, settings, source, range_column)
+    notes.extend(std_notes)
     if np.any(std <= 0):
         row = int(np.argmax(std <= 0)) + 1
         raise CredcliError(f"{source}: row {row}, column 'std': a reported std must be > 0")
@@ -116,6 +119,43 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
         range_column=range_column,
         notes=tuple(notes),
     )
+
+
+def _range_std(col: dict, settings: UwbSettings, source: str, range_column: str):
+    """The claimed std of every range row: the ``std`` column or ``--std``, overridden per
+    anchor by ``std_by_anchor``, or estimated per anchor (``std_estimate``: 1.4826 × the
+    median absolute deviation of range − gt_range, robust to stale packets and outliers)."""
+    n = col["to_id"].size
+    anchor = col["to_id"].astype(np.int64)
+    notes = []
+    if settings.std_estimate:
+        err = col[range_column] - col["gt_range"]
+        std = np.empty(n)
+        parts = []
+        for a in np.unique(anchor):
+            rows = anchor == a
+            e = err[rows]
+            std[rows] = max(1.4826 * float(np.median(np.abs(e - np.median(e)))), 1e-4)
+            parts.append(f"{a}: {std[rows][0]:.3g}")
+        notes.append(
+            f"{source}: range std estimated per anchor from the data (1.4826 MAD of range − "
+            f"gt_range, m): {', '.join(parts)}; the verdict is about this estimated noise "
+            "model, not a reported one"
+        )
+        return std, notes
+    std = np.full(n, settings.std) if settings.std is not None else col.get("std")
+    given = dict(settings.std_by_anchor)
+    if given:
+        missing = sorted(set(np.unique(anchor).tolist()) - set(given))
+        if missing and std is None:
+            raise CredcliError(
+                f"{source}: --std gives no std for anchor(s) {', '.join(map(str, missing))} "
+                "and the file has no std column; give one for every anchor, or a default"
+            )
+        std = np.full(n, np.nan) if std is None else std.copy()
+        for a, value in given.items():
+            std[anchor == a] = value
+    return std, notes
 
 
 @dataclass(frozen=True)
@@ -207,23 +247,41 @@ def calibrate_anchors(ranges: RangeLog) -> list[Anchor]:
 
 
 def anchors_from_markers(
-    ranges: RangeLog, markers: dict[int, np.ndarray], path: str
+    ranges: RangeLog,
+    markers: dict[int, np.ndarray],
+    path: str,
+    anchor_map: tuple[tuple[int, int], ...] = (),
 ) -> list[Anchor]:
+    """Anchors from a markers file; ``anchor_map`` maps the log's anchor ids to marker ids
+    (ids not in it are looked up as they are)."""
+    mapping = dict(anchor_map)
     used = np.unique(ranges.anchor)
-    missing = [int(a) for a in used if int(a) not in markers]
+    missing = [int(a) for a in used if mapping.get(int(a), int(a)) not in markers]
     if missing:
         raise CredcliError(
             f"{path}: no marker for anchor id(s) {', '.join(map(str, missing))} of {ranges.source} "
-            f"(markers have {', '.join(map(str, sorted(markers)))}); s1/s2 runs use other ids: "
-            "drop --anchors to self-calibrate the anchors from the file"
+            f"(markers have {', '.join(map(str, sorted(markers)))}); map the log's ids with "
+            "--anchor-map LOG_ID=MARKER_ID,… or drop --anchors to self-calibrate the anchors"
         )
     out = []
     for anchor_id in used:
         rows = ranges.anchor == anchor_id
-        a = markers[int(anchor_id)]
+        a = markers[mapping.get(int(anchor_id), int(anchor_id))]
         rms = _residual_rms(ranges.tag_pos[rows], ranges.gt_range[rows], a)
         out.append(Anchor(int(anchor_id), np.asarray(a, float), "markers", rms, int(rows.sum())))
     return out
+
+
+def anchor_warnings(anchors: list[Anchor], limit: float) -> list[str]:
+    """Given anchors whose distances to the ground-truth tag positions disagree with the
+    log's gt_range by more than ``limit`` (m) RMS: wrong markers or a wrong id map."""
+    bad = [a for a in anchors if a.source == "markers" and a.rms > limit]
+    return [
+        f"anchor {a.id}: the markers disagree with the log's gt_range by {1000 * a.rms:.0f} mm "
+        f"RMS (more than {1000 * limit:.0f} mm): a wrong markers file or id map? Check "
+        "--anchor-map, or drop --anchors to self-calibrate from the log"
+        for a in bad
+    ]
 
 
 @dataclass(frozen=True)
@@ -263,26 +321,159 @@ def make_packets(ranges: RangeLog, window: float = 0.03, min_anchors: int = 3) -
 
 @dataclass(frozen=True)
 class Fixes:
-    """WLS solutions, one per packet (sorted by time)."""
+    """Position fixes, one per packet kept (sorted by time), and why the others were not.
+
+    ``dropped`` counts packets by reason: ``stale`` (a range vector repeated from an
+    earlier packet), ``residual`` (the residual test), ``ambiguous`` (two minima the data
+    cannot tell apart), ``ill-conditioned`` (HᵀWH with condition number above
+    MAX_CONDITION) and ``no convergence``; each packet under its first reason in that order.
+    ``moved`` counts fixes where the Gauss–Newton solution was not the global minimum and
+    the global one was kept. ``screened_rows`` marks the range rows of packets dropped as
+    stale or by the residual test (left out of the range-level evidence too).
+    """
 
     time: np.ndarray
     tag: np.ndarray
     estimate: np.ndarray  # (M, 2)
     truth: np.ndarray  # (M, 2)
     cov: np.ndarray  # (M, 2, 2) = (HᵀWH)⁻¹
-    dropped: int  # packets without a usable solution (degenerate geometry, no convergence)
+    dropped: dict = field(default_factory=dict)
+    moved: int = 0
+    screened_rows: np.ndarray | None = None
+    residual_scale: float | None = None
+
+    @property
+    def dropped_total(self) -> int:
+        return int(sum(self.dropped.values()))
+
+
+MAX_CONDITION = 1e4
+"""Fixes whose HᵀWH has a larger condition number are dropped: the geometry leaves one
+direction nearly unobserved (anchors almost on a line through the tag)."""
+
+AMBIGUITY_DISTANCE = 0.1
+"""Two local minima farther apart than this (m) ..."""
+
+AMBIGUITY_COST = 3.841458820694124
+"""... whose weighted costs differ by less than this (χ²₁'s 95 % quantile) make a fix
+ambiguous: the ranges cannot tell the two positions apart."""
+
+HUBER_K = 1.345
+"""Huber's tuning constant, in standard deviations (95 % efficiency at the Gaussian)."""
+
+STARTS = 5
+"""Starts of the global-minimum check: the anchors' centroid and four points around it."""
+
+
+def repeated_packets(ranges: RangeLog, packets: Packets) -> np.ndarray:
+    """Packets whose range vector (anchor ids and ranges, exactly, at the log's resolution:
+    the centimetre for STAR-loc s5 files) repeats an earlier packet of the same tag."""
+    rows = packets.rows
+    valid = rows >= 0
+    safe = np.where(valid, rows, 0)
+    anchor = np.where(valid, ranges.anchor[safe], -1)
+    quantum = _resolution(ranges.range)
+    steps = np.where(valid, np.round(ranges.range[safe] / quantum), 0).astype(np.int64)
+    order = np.argsort(anchor, axis=1, kind="stable")  # the same anchors in any order
+    keys = np.c_[
+        packets.tag,
+        np.take_along_axis(anchor, order, axis=1),
+        np.take_along_axis(steps, order, axis=1),
+    ]
+    time = np.where(valid, ranges.time[safe], np.inf).min(axis=1)
+    by_time = np.argsort(time, kind="stable")
+    _, first = np.unique(keys[by_time], axis=0, return_index=True)
+    repeated = np.ones(len(keys), dtype=bool)
+    repeated[by_time[first]] = False
+    return repeated
+
+
+def _resolution(values: np.ndarray) -> float:
+    """The coarsest of 1 cm, 1 mm, …, 1 µm that every value is a multiple of (1 µm if none)."""
+    for quantum in (1e-2, 1e-3, 1e-4, 1e-5):
+        if np.all(np.abs(values / quantum - np.round(values / quantum)) < 1e-6):
+            return quantum
+    return 1e-6
+
+
+STALE_JUMP = 3.0
+"""A repeated packet is stale when its fix is more than this many standard deviations
+(of its claimed covariance, largest axis) from the median of its neighbours' fixes."""
+
+NEIGHBOURS = 3
+"""Fixes of the same tag on each side that a repeated packet is compared with."""
+
+
+def _jump(pos: np.ndarray, tag: np.ndarray, time: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Distance of each fix from the median of its NEIGHBOURS fixes of the same tag on each
+    side (itself left out), in units of ``scale``."""
+    out = np.zeros(len(pos))
+    for t in np.unique(tag):
+        idx = np.flatnonzero(tag == t)
+        idx = idx[np.argsort(time[idx], kind="stable")]
+        p = pos[idx]
+        k = idx.size
+        offsets = [o for o in range(-NEIGHBOURS, NEIGHBOURS + 1) if o]
+        near = np.clip(np.arange(k)[:, None] + np.array(offsets), 0, k - 1)  # (k, 2N)
+        median = np.median(p[near], axis=1)
+        out[idx] = np.linalg.norm(p - median, axis=1) / scale[idx]
+    return out
+
+
+def _gauss_newton(pos, anchor_xy, dz2, weight, meas, iterations, robust):
+    """Gauss–Newton (iteratively reweighted with Huber's weights when ``robust``) from
+    ``pos`` for every packet at once; returns the positions and whether each converged."""
+    from credcli.studies.settings import RobustLoss
+
+    step = np.full_like(pos, np.inf)
+    w = weight
+    for _ in range(max(1, iterations)):
+        if robust is RobustLoss.HUBER:
+            dist = np.sqrt(np.sum((pos[:, None, :] - anchor_xy) ** 2, axis=2) + dz2)
+            z = np.abs(meas - dist) * np.sqrt(weight)
+            w = weight * np.minimum(1.0, HUBER_K / np.maximum(z, 1e-12))
+        normal, grad, good = _normal_equations(pos, anchor_xy, dz2, w, meas, 1e-12)
+        step = np.zeros_like(pos)
+        step[good] = np.linalg.solve(normal[good], grad[good][..., None])[..., 0]
+        pos = pos + step
+        if np.max(np.abs(step)) < 1e-9:
+            break
+    converged = np.isfinite(pos).all(axis=1) & (np.max(np.abs(step), axis=1) < 1e-6)
+    return pos, converged
+
+
+def _cost(pos, anchor_xy, dz2, weight, meas):
+    dist = np.sqrt(np.sum((pos[:, None, :] - anchor_xy) ** 2, axis=2) + dz2)
+    return np.sum(weight * (meas - dist) ** 2, axis=1)
 
 
 def solve_packets(
-    ranges: RangeLog, packets: Packets, anchors: list[Anchor], iterations: int = 20
+    ranges: RangeLog,
+    packets: Packets,
+    anchors: list[Anchor],
+    iterations: int = 20,
+    settings: UwbSettings | None = None,
 ) -> Fixes:
-    """Iterative WLS for the 2-D tag position of every packet at once.
+    """The 2-D tag position of every packet, checked and screened.
 
-    The tag height is the ground-truth height (mean over the packet's rows); weights are
-    1/std²; the start is the linearised least-squares solution; Gauss–Newton iterations
-    follow. The claimed covariance is (HᵀWH)⁻¹ at the solution, with H the Jacobian of the
-    ranges with respect to (x, y).
+    Weighted least squares with weights 1/std² and the tag height fixed at the ground-truth
+    height (mean over the packet's rows): Gauss–Newton from the linearised solution, and,
+    as a check of the global minimum, from STARTS more points; the lowest cost wins
+    (``moved`` counts the fixes it changed). A fix is dropped when another minimum is as
+    good (AMBIGUITY_*), when HᵀWH is ill-conditioned (MAX_CONDITION), or when no start
+    converged. With ``settings.screen``, stale packets are dropped: a range vector repeated
+    from an earlier packet (:func:`repeated_packets`) whose fix jumps more than STALE_JUMP
+    standard deviations away from its neighbours' (a re-sent old measurement; a static tag
+    that measures the same ranges again does not jump),
+    and so are packets whose residual sum of squares fails the χ²_{m−2} test at
+    ``settings.residual_level``, after scaling by the run's robust residual scale (the
+    median of RSS over its χ² median), so that a wrong claimed std does not decide which
+    packets go. The claimed covariance is (HᵀWH)⁻¹ at the solution, with the claimed
+    weights (also under ``--robust huber``, which only downweights outliers in the solve).
     """
+    from scipy import special
+
+    settings = settings or UwbSettings(wls_iterations=iterations)
     rows = packets.rows
     valid = rows >= 0
     safe = np.where(valid, rows, 0)
@@ -296,20 +487,82 @@ def solve_packets(
     tag_pos = np.where(valid[..., None], ranges.tag_pos[safe], 0.0).sum(axis=1) / count[:, None]
     time = np.where(valid, ranges.time[safe], 0.0).sum(axis=1) / count
     height = tag_pos[:, 2]
-    dz2 = (height[:, None] - anchor_pos[..., 2]) ** 2
-    pos = _linear_start(anchor_pos[..., :2], meas**2 - dz2, weight)
-    ok = np.isfinite(pos).all(axis=1)
-    pos = np.where(ok[:, None], pos, anchor_pos[:, 0, :2])
-    step = np.full_like(pos, np.inf)
-    for _ in range(max(1, iterations)):
-        normal, grad, good = _normal_equations(pos, anchor_pos[..., :2], dz2, weight, meas, 1e-12)
-        step = np.zeros_like(pos)
-        step[good] = np.linalg.solve(normal[good], grad[good][..., None])[..., 0]
-        pos = pos + step
-        if np.max(np.abs(step)) < 1e-9:
-            break
-    normal, _, well_posed = _normal_equations(pos, anchor_pos[..., :2], dz2, weight, meas, 1e-9)
-    keep = well_posed & np.isfinite(pos).all(axis=1) & (np.max(np.abs(step), axis=1) < 1e-6)
+    axy = anchor_pos[..., :2]
+    dz2 = np.where(valid, (height[:, None] - anchor_pos[..., 2]) ** 2, 0.0)
+    centroid = np.where(valid[..., None], axy, 0.0).sum(axis=1) / count[:, None]
+    linear = _linear_start(axy, meas**2 - dz2, weight)
+    start = np.where(np.isfinite(linear).all(axis=1)[:, None], linear, centroid)
+    spread = np.sqrt(
+        np.where(valid, np.sum((axy - centroid[:, None, :]) ** 2, axis=2), 0.0).sum(axis=1) / count
+    )
+    offsets = [np.zeros(2), *(np.array(v) for v in ((1, 0), (-1, 0), (0, 1), (0, -1)))]
+    starts = [start] + [centroid + 0.5 * spread[:, None] * o for o in offsets[:STARTS]]
+    m = len(rows)
+    tile = len(starts)
+    solved, converged = _gauss_newton(
+        np.concatenate(starts),
+        np.tile(axy, (tile, 1, 1)),
+        np.tile(dz2, (tile, 1)),
+        np.tile(weight, (tile, 1)),
+        np.tile(meas, (tile, 1)),
+        settings.wls_iterations,
+        settings.robust,
+    )
+    solved = solved.reshape(tile, m, 2)
+    converged = converged.reshape(tile, m)
+    cost = np.stack([_cost(solved[k], axy, dz2, weight, meas) for k in range(tile)])
+    cost = np.where(converged, cost, np.inf)
+    best = np.argmin(cost, axis=0)
+    pos = solved[best, np.arange(m)]
+    best_cost = cost[best, np.arange(m)]
+    any_converged = np.isfinite(best_cost)
+    primary = np.where(converged[0], cost[0], 0.0)  # inf where the first start failed
+    moved = (
+        any_converged
+        & converged[0]
+        & (np.linalg.norm(pos - solved[0], axis=1) > 1e-3)
+        & (best_cost < primary - 1e-9 * (1 + primary))
+    )
+    far = np.linalg.norm(solved - pos[None], axis=2) > AMBIGUITY_DISTANCE
+    with np.errstate(invalid="ignore"):  # inf − inf for packets where nothing converged
+        close = cost - best_cost[None] < AMBIGUITY_COST
+    ambiguous = np.any(far & close, axis=0)
+    normal, _, well_posed = _normal_equations(
+        np.where(any_converged[:, None], pos, centroid), axy, dz2, weight, meas, 1e-9
+    )
+    eig = np.linalg.eigvalsh(normal)
+    condition = eig[:, 1] / np.maximum(eig[:, 0], 1e-300)
+    ill = ~well_posed | (condition > MAX_CONDITION)
+    stale = np.zeros(m, bool)
+    if settings.screen:
+        sigma = np.sqrt(1.0 / np.maximum(eig[:, 0], 1e-300))  # largest std of the fix
+        jump = _jump(np.where(any_converged[:, None], pos, centroid), packets.tag, time, sigma)
+        stale = repeated_packets(ranges, packets) & (jump > STALE_JUMP)
+    residual = np.zeros(m, bool)
+    scale = None
+    dof = count - 2
+    if settings.screen:
+        usable = any_converged & ~stale & (dof >= 1)
+        if usable.any():
+            medians = special.chdtri(dof[usable], 0.5)
+            scale = float(np.median(best_cost[usable] / medians))
+            pvalue = special.chdtrc(np.maximum(dof, 1), best_cost / max(scale, 1e-300))
+            residual = usable & (pvalue < settings.residual_level)
+    reasons = {
+        "stale": stale,
+        "residual": residual,
+        "ambiguous": ambiguous,
+        "ill-conditioned": ill,
+        "no convergence": ~any_converged,
+    }
+    dropped, taken = {}, np.zeros(m, bool)
+    for name, mask in reasons.items():
+        dropped[name] = int((mask & ~taken).sum())
+        taken |= mask
+    keep = ~taken
+    screened = np.zeros(ranges.time.size, bool)
+    bad_rows = rows[stale | residual]
+    screened[bad_rows[bad_rows >= 0]] = True
     cov = np.linalg.inv(normal[keep])
     order = np.argsort(time[keep], kind="stable")
     return Fixes(
@@ -318,7 +571,10 @@ def solve_packets(
         estimate=pos[keep][order],
         truth=tag_pos[keep][order, :2],
         cov=cov[order],
-        dropped=int((~keep).sum()),
+        dropped=dropped,
+        moved=int((moved & keep).sum()),
+        screened_rows=screened,
+        residual_scale=scale,
     )
 
 
@@ -357,40 +613,79 @@ def _linear_start(anchor_xy: np.ndarray, horiz2: np.ndarray, weight: np.ndarray)
 
 @dataclass(frozen=True)
 class RangeStats:
-    """Range-level evidence of one period and anchor (Figs. 4 and 5 as numbers)."""
+    """Range-level evidence of one period and anchor (Figs. 4 and 5 as numbers), on the
+    ranges left after screening: error e = range − gt_range."""
 
     segment: str
     anchor: int
     n: int
-    mean_error: float  # mean of range − gt_range (m)
-    std_error: float  # empirical std of the range errors (m)
+    mean_error: float  # the range bias: mean of e (m)
+    std_error: float  # classical empirical std of e (m)
     median_std: float  # median reported std (m)
+    bias_stderr: float = float("nan")  # standard error of the mean (m)
+    robust_std: float = float("nan")  # 1.4826 × median absolute deviation of e (m)
+    beyond_3sigma: float = float("nan")  # fraction of |e − mean| above 3 reported std
 
     @property
     def std_ratio(self) -> float:
         """Empirical over reported std: > 1 means the reported noise is optimistic."""
         return self.std_error / self.median_std
 
+    @property
+    def robust_ratio(self) -> float:
+        """Robust empirical over reported std."""
+        return self.robust_std / self.median_std
 
-def range_stats(ranges: RangeLog, spans: list[tuple[str, float, float]]) -> list[RangeStats]:
+
+def range_stats(
+    ranges: RangeLog, spans: list[tuple[str, float, float]], screened: np.ndarray | None = None
+) -> list[RangeStats]:
     out = []
     err = ranges.range_error
+    kept = np.ones(err.size, bool) if screened is None else ~screened
     for name, t0, t1 in spans:
-        in_span = (ranges.time >= t0) & (ranges.time <= t1)
+        in_span = (ranges.time >= t0) & (ranges.time <= t1) & kept
         for anchor_id in np.unique(ranges.anchor[in_span]):
             rows = in_span & (ranges.anchor == anchor_id)
             e = err[rows]
+            sd = float(e.std(ddof=1)) if e.size > 1 else float("nan")
+            reported = float(np.median(ranges.std[rows]))
             out.append(
                 RangeStats(
                     name,
                     int(anchor_id),
                     int(rows.sum()),
                     float(e.mean()),
-                    float(e.std(ddof=1)) if e.size > 1 else float("nan"),
-                    float(np.median(ranges.std[rows])),
+                    sd,
+                    reported,
+                    bias_stderr=sd / np.sqrt(e.size) if e.size > 1 else float("nan"),
+                    robust_std=1.4826 * float(np.median(np.abs(e - np.median(e)))),
+                    beyond_3sigma=float(np.mean(np.abs(e - e.mean()) > 3 * ranges.std[rows])),
                 )
             )
     return out
+
+
+RANGE_BIAS_Z = 3.0
+"""A range bias counts as evidence of SMM when |mean| > 3 standard errors."""
+
+
+def range_verdict(stats: list[RangeStats], tau_db: float) -> tuple[str, str]:
+    """The label the range-level evidence of one period points to, and why: noise from the
+    robust spread against the reported std (pooled over anchors, the same relevance floor
+    τ dB on the variance as the position-level rule), SMM from any anchor's range bias
+    beyond RANGE_BIAS_Z standard errors."""
+    from credcli.engine.config import Label
+
+    n = np.array([s.n for s in stats], float)
+    ratio = float(np.exp(np.sum(n * np.log([max(s.robust_ratio, 1e-12) for s in stats])) / n.sum()))
+    db = 20.0 * np.log10(ratio)  # of the variance
+    noise = "optimism" if db > tau_db else "pessimism" if db < -tau_db else None
+    biased = [s for s in stats if abs(s.mean_error) > RANGE_BIAS_Z * s.bias_stderr]
+    label = Label.compose(noise, bool(biased)).value
+    worst = max(stats, key=lambda s: abs(s.mean_error))
+    why = f"range spread {ratio:.2g}× the reported std, bias up to {worst.mean_error:+.3f} m"
+    return label, why
 
 
 @dataclass(frozen=True)
@@ -404,6 +699,27 @@ class UwbRun:
     segments: list  # credcli.segments.Segment over `log`
     range_stats: list[RangeStats]
     packets: int
+    notes: tuple[str, ...] = ()
+    settings: UwbSettings = field(default_factory=UwbSettings)
+
+
+def merge_short_tail(segments: list, window: str) -> list:
+    """Windows with the last one merged into the one before when it is shorter than half a
+    window (in time, or in epochs for a count): a 1-fix tail is not a period."""
+    from credcli import segments as seg
+
+    if len(segments) < 2:
+        return segments
+    w = seg.Window.parse(window)
+    last, before = segments[-1], segments[-2]
+    if w.seconds:
+        short = (last.t_end - last.t_start) < w.length / 2
+    else:
+        short = len(last.index) < w.length / 2
+    if not short:
+        return segments
+    merged = seg.Segment(before.name, np.r_[before.index, last.index], before.t_start, last.t_end)
+    return [*segments[:-2], merged]
 
 
 def position_log(
@@ -418,7 +734,7 @@ def position_log(
         segments = (
             seg.whole(n, fixes.time)
             if whole
-            else seg.by_window(n, seg.Window.parse(window), fixes.time)
+            else merge_short_tail(seg.by_window(n, seg.Window.parse(window), fixes.time), window)
         )
         names = np.empty(n, dtype=object)
         for s in segments:  # one assignment per segment
@@ -471,11 +787,17 @@ def run_pipeline(
     window: str | None = None,
     whole: bool = False,
 ) -> UwbRun:
-    """Read, calibrate or read anchors, packetise, solve and segment (no diagnosis)."""
+    """Read, calibrate or read anchors, packetise, solve, screen and segment (no diagnosis)."""
     ranges = read_starloc(path, settings)
+    notes = []
     if anchors_path is not None:
-        anchors = anchors_from_markers(ranges, read_markers(anchors_path), str(anchors_path))
+        anchors = anchors_from_markers(
+            ranges, read_markers(anchors_path), str(anchors_path), settings.anchor_map
+        )
+        notes.extend(anchor_warnings(anchors, settings.anchor_rms_warn))
     else:
+        if settings.anchor_map:
+            raise CredcliError("--anchor-map maps ids to a markers file: give --anchors FILE")
         anchors = calibrate_anchors(ranges)
     packets = make_packets(ranges, settings.packet_window, settings.min_anchors)
     if packets.rows.shape[0] == 0:
@@ -483,7 +805,40 @@ def run_pipeline(
             f"{ranges.source}: no packet has {settings.min_anchors} distinct anchors within "
             f"{settings.packet_window:g} s; try a longer --packet-window"
         )
-    fixes = solve_packets(ranges, packets, anchors, settings.wls_iterations)
+    fixes = solve_packets(ranges, packets, anchors, settings.wls_iterations, settings)
+    if fixes.time.size == 0:
+        raise CredcliError(
+            f"{ranges.source}: every packet was dropped ({_dropped_text(fixes)}); try "
+            "--screen none or a longer --packet-window"
+        )
     log, segments, spans = position_log(ranges, fixes, window, whole, settings)
-    stats = range_stats(ranges, spans)
-    return UwbRun(ranges, anchors, fixes, log, segments, stats, packets.rows.shape[0])
+    stats = range_stats(ranges, spans, fixes.screened_rows)
+    return UwbRun(
+        ranges, anchors, fixes, log, segments, stats, packets.rows.shape[0], tuple(notes), settings
+    )
+
+
+def _dropped_text(fixes: Fixes) -> str:
+    return ", ".join(f"{v} {k}" for k, v in fixes.dropped.items() if v) or "none"
+
+
+def screening_note(run: UwbRun, settings: UwbSettings) -> str:
+    """One line: packets, fixes, and every packet dropped with its reason."""
+    f = run.fixes
+    scale = (
+        f", residual scale {f.residual_scale:.3g} of the claimed variance"
+        if f.residual_scale is not None
+        else ""
+    )
+    screen = (
+        f"screening on (stale packets; residual test at {settings.residual_level:g}{scale})"
+        if settings.screen
+        else "screening off (--screen none)"
+    )
+    moved = f"; {f.moved} fix(es) moved to the global minimum" if f.moved else ""
+    return (
+        f"{run.packets} packets of >= {settings.min_anchors} anchors within "
+        f"{settings.packet_window:g} s; {f.time.size} fixes; dropped: {_dropped_text(f)}"
+        f"{moved}; {screen}; solve: {settings.robust.value}; {run.log.n} fixes in "
+        f"{len(run.segments)} period(s)."
+    )

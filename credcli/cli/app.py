@@ -383,10 +383,10 @@ SummaryOpt = Annotated[
 ]
 
 
-def _diagnose_setup(
-    config, columns: dict, method: dict, seed, window, whole, drop_invalid, reading: dict
-) -> dict:
-    """Settings of a diagnosis run: command line > config file > defaults."""
+def _diagnose_setup(params: dict) -> dict:
+    """Settings of a diagnosis run from a command's parameters (its ``locals()``): command
+    line > config file > defaults. diagnose, baseline and report declare the same options
+    (Typer needs each declared); this reads them in one place."""
     from credcli.cli.settings import (
         build_diagnosis_config,
         build_reading,
@@ -396,21 +396,63 @@ def _diagnose_setup(
         split_list,
     )
 
-    cfg = load_config(config)
+    cfg = load_config(params["config"])
+    columns = _columns(*(params[k] for k in _COLUMN_PARAMS))
     for key in ("truth_columns", "estimate_columns", "cov_columns"):
         columns[key] = split_list(columns[key])
     schema = build_schema(cfg, columns)
-    dconf, seed = build_diagnosis_config(cfg, method, seed)
-    window, whole = segment_settings(cfg, window, whole)
+    method = _diagnosis_cli(*(params[k] for k in _METHOD_PARAMS))
+    dconf, seed = build_diagnosis_config(cfg, method, params["seed"])
+    window, whole = segment_settings(cfg, params["window"], params["whole"])
     return {
         "schema": schema,
         "config": dconf,
         "seed": seed,
         "window": window,
         "whole": whole,
-        "drop_invalid": bool(drop_invalid),
-        "reading": build_reading(cfg, reading),
+        "drop_invalid": bool(params["drop_invalid"]),
+        "reading": build_reading(cfg, _reading(*(params[k] for k in _READING_PARAMS))),
     }
+
+
+_COLUMN_PARAMS = (
+    "time_column",
+    "segment_column",
+    "truth_columns",
+    "estimate_columns",
+    "cov_columns",
+    "cov_kind",
+)
+_METHOD_PARAMS = (
+    "tau",
+    "alpha",
+    "probe_factor",
+    "flips",
+    "block_length",
+    "variant",
+    "srd_form",
+    "metrics",
+    "min_epochs",
+    "max_elt_epochs",
+    "ks_alpha",
+    "nees_alpha",
+    "exact_pvalue",
+)
+_READING_PARAMS = (
+    "truth",
+    "input_format",
+    "truth_format",
+    "topic",
+    "truth_topic",
+    "time_unit",
+    "max_dt",
+    "time_offset",
+    "states",
+    "perturbation",
+    "innovations",
+)
+"""The parameter names of a command's column, method and reading options, in the order
+_columns, _diagnosis_cli and _reading take them."""
 
 
 def _columns(time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind):
@@ -658,44 +700,7 @@ def diagnose(
     outputs = {"--output": output, "--junit": junit, "--summary": summary, "--report": report_file}
     _guard(outputs, inputs, plots)
     _check_plotting(plots, report_file)
-    setup = _diagnose_setup(
-        config,
-        _columns(
-            time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind
-        ),
-        _diagnosis_cli(
-            tau,
-            alpha,
-            probe_factor,
-            flips,
-            block_length,
-            variant,
-            srd_form,
-            metrics,
-            min_epochs,
-            max_elt_epochs,
-            ks_alpha,
-            nees_alpha,
-            exact_pvalue,
-        ),
-        seed,
-        window,
-        whole,
-        drop_invalid,
-        _reading(
-            truth,
-            input_format,
-            truth_format,
-            topic,
-            truth_topic,
-            time_unit,
-            max_dt,
-            time_offset,
-            states,
-            perturbation,
-            innovations,
-        ),
-    )
+    setup = _diagnose_setup(locals())
     with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
         run = run_diagnose(
             logs,
@@ -778,44 +783,7 @@ def baseline(
 
     inputs = [log, config, truth]
     _guard({"--output": output}, inputs)
-    setup = _diagnose_setup(
-        config,
-        _columns(
-            time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind
-        ),
-        _diagnosis_cli(
-            tau,
-            alpha,
-            probe_factor,
-            flips,
-            block_length,
-            variant,
-            srd_form,
-            metrics,
-            min_epochs,
-            max_elt_epochs,
-            ks_alpha,
-            nees_alpha,
-            exact_pvalue,
-        ),
-        seed,
-        window,
-        whole,
-        drop_invalid,
-        _reading(
-            truth,
-            input_format,
-            truth_format,
-            topic,
-            truth_topic,
-            time_unit,
-            max_dt,
-            time_offset,
-            states,
-            perturbation,
-            innovations,
-        ),
-    )
+    setup = _diagnose_setup(locals())
     with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
         recorded = run_baseline(log, progress=bar, jobs=_jobs(jobs), runner=runner, **setup)
     _print_notes(recorded)
@@ -1301,44 +1269,7 @@ def report(
     _check_plotting(output)
     inputs = [*logs, config, truth]
     _guard({"--output": output}, inputs)
-    setup = _diagnose_setup(
-        config,
-        _columns(
-            time_column, segment_column, truth_columns, estimate_columns, cov_columns, cov_kind
-        ),
-        _diagnosis_cli(
-            tau,
-            alpha,
-            probe_factor,
-            flips,
-            block_length,
-            variant,
-            srd_form,
-            metrics,
-            min_epochs,
-            max_elt_epochs,
-            ks_alpha,
-            nees_alpha,
-            exact_pvalue,
-        ),
-        seed,
-        window,
-        whole,
-        drop_invalid,
-        _reading(
-            truth,
-            input_format,
-            truth_format,
-            topic,
-            truth_topic,
-            time_unit,
-            max_dt,
-            time_offset,
-            states,
-            perturbation,
-            innovations,
-        ),
-    )
+    setup = _diagnose_setup(locals())
     with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
         run = run_diagnose(logs, progress=bar, plots=True, jobs=_jobs(jobs), runner=runner, **setup)
     _print_notes(run.report)

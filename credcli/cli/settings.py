@@ -56,14 +56,20 @@ def merged(section: dict, cli: dict, allowed, where: str, hints: dict | None = N
     return out
 
 
-def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> LogSchema:
-    values = merged(
-        config.get("columns", {}),
+def _table(config: dict, section: str, cls, cli: dict, where: str) -> dict:
+    """The fields of dataclass ``cls`` from the config's ``[section]`` (type-checked),
+    overridden by the command line."""
+    return merged(
+        config.get(section, {}),
         cli,
-        LogSchema.__dataclass_fields__,
+        cls.__dataclass_fields__,
         where,
-        typing.get_type_hints(LogSchema),
+        typing.get_type_hints(cls),
     )
+
+
+def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> LogSchema:
+    values = _table(config, "columns", LogSchema, cli, where)
     try:
         return LogSchema().updated(**values)
     except ValueError as exc:
@@ -72,13 +78,7 @@ def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> Lo
 
 def build_reading(config: dict, cli: dict, where: str = "config [input]") -> ReadOptions:
     """How logs are read: [input] of the config, overridden by the command line."""
-    values = merged(
-        config.get("input", {}),
-        cli,
-        ReadOptions.__dataclass_fields__,
-        where,
-        typing.get_type_hints(ReadOptions),
-    )
+    values = _table(config, "input", ReadOptions, cli, where)
     if values.get("truth") is not None:
         values["truth"] = str(values["truth"])
     try:

@@ -645,3 +645,37 @@ def test_bag_without_header_stamps_uses_receive_times(monkeypatch):
     late = traj.time - stamped.time  # the sample bag records /odom 1 ms after its stamp
     np.testing.assert_allclose(late, 1e-3, rtol=0, atol=1e-6)
     assert "no header stamps" in traj.notes[0]
+
+
+def test_ros_csv_with_the_covariance_as_one_list_column(tmp_path):
+    frame = pd.read_csv(FORMATS / "odom_ros.csv")
+    cov_cols = [f"field.pose.covariance{k}" for k in range(36)]
+    frame["field.pose.covariance"] = [
+        "[" + ", ".join(repr(float(v)) for v in row) + "]" for row in frame[cov_cols].to_numpy()
+    ]
+    path = _csv(tmp_path, frame.drop(columns=cov_cols))
+    args = (
+        "--truth",
+        FORMATS / "euroc_groundtruth.csv",
+        "--perturbation",
+        "right",
+        "--window",
+        "60s",
+    )
+    a = run("diagnose", path, *args, "-f", "json")
+    b = run("diagnose", FORMATS / "odom_ros.csv", *args, "-f", "json")
+    assert a[0] == 0
+    strip = [{k: v for k, v in s.items() if k != "log"} for s in json.loads(a[1])["segments"]]
+    assert strip == [
+        {k: v for k, v in s.items() if k != "log"} for s in json.loads(b[1])["segments"]
+    ]
+
+
+def test_a_planar_robots_zero_z_variance_suggests_planar(tmp_path):
+    frame = pd.read_csv(FORMATS / "odom_ros.csv")
+    for k in (14, 21, 28):  # z, roll and pitch variances of a planar robot: 0
+        frame[f"field.pose.covariance{k}"] = 0.0
+    path = _csv(tmp_path, frame)
+    line = error_line(*run("diagnose", path, "--truth", FORMATS / "euroc_groundtruth.csv")[::2])
+    assert "--states planar" in line
+    assert labels(path, "--truth", FORMATS / "euroc_groundtruth.csv", "--states", "planar")

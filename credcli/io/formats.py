@@ -323,6 +323,8 @@ def _ros_csv(frame, path: Path, unit: TimeUnit) -> Trajectory:
         )
     cov = None
     found = {int(m.group(1)): c for n, c in names.items() if (m := _ROS_COV.match(n))}
+    if not found and "pose.covariance" in names:  # one column of "[c0, c1, …, c35]" lists
+        cov = _list_column(frame[names["pose.covariance"]], 36, path).reshape(-1, 6, 6)
     if found:
         if sorted(found) != list(range(36)):
             raise CredcliError(
@@ -331,6 +333,21 @@ def _ros_csv(frame, path: Path, unit: TimeUnit) -> Trajectory:
             )
         cov = _column_values(frame, [found[i] for i in range(36)], source).reshape(-1, 6, 6)
     return _pose(time, position, quaternion, cov, path, InputFormat.ROS_CSV, note)
+
+
+def _list_column(series, width: int, path: Path) -> np.ndarray:
+    """A column whose cells are lists written as text ("[0.1, 0.0, …]" or "(…)")."""
+    text = series.astype(str).str.strip("[]() ").str.replace(",", " ")
+    try:
+        values = np.array([np.array(t.split(), dtype=float) for t in text], dtype=object)
+        out = np.stack(values).astype(float)
+    except ValueError as exc:
+        raise CredcliError(
+            f"{path}: column '{series.name}' must hold {width} numbers per row: {exc}"
+        ) from exc
+    if out.ndim != 2 or out.shape[1] != width:
+        raise CredcliError(f"{path}: column '{series.name}' must hold {width} numbers per row")
+    return out
 
 
 def _ros_stamps(frame, names: dict, path: Path, unit: TimeUnit):

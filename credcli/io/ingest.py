@@ -107,7 +107,15 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
     keep = pairing.keep
     rows = estimate.rows[keep]
     states, errors, cov, convention = _state_errors(estimate, truth, pairing, reading)
-    cov = _validated_cov(cov, rows, estimate.source, CovKind.FULL)
+    try:
+        cov = _validated_cov(cov, rows, estimate.source, CovKind.FULL)
+    except CredcliError as exc:
+        if states is States.PLANAR or not estimate.pose:
+            raise
+        raise CredcliError(
+            f"{exc.message} (the {states.value} block of the 6×6 pose covariance; a planar "
+            "robot that leaves z, roll and pitch at 0 needs --states planar)"
+        ) from exc
     notes = (*estimate.notes, *truth.notes, pairing.note, convention)
     return EstimatorLog(
         None,

@@ -263,3 +263,31 @@ def test_api_raises_credcli_error(tmp_path):
     with pytest.raises(CredcliError, match="file not found"):
         load_log(tmp_path / "x.csv")
     assert LogSchema().updated(time=None).time == "time"
+
+
+def test_two_by_two_positive_definiteness_matches_eigvalsh():
+    """The closed-form smallest eigenvalue of 2×2 covariances decides as eigvalsh does,
+    from 1e-250 to 1e250 and at the 1e-12 relative threshold."""
+    import numpy as np
+
+    from credcli.errors import CredcliError
+    from credcli.io.logs import CovKind, _validated_cov
+
+    rng = np.random.default_rng(0)
+    for exponent in (-250, 0, 250):
+        a = rng.standard_normal((2000, 2, 2))
+        cov = a @ np.swapaxes(a, 1, 2)
+        lam, vec = np.linalg.eigh(cov)
+        lam[:, 0] = lam[:, 1] * rng.choice([1e-14, 1e-10, 0.3], size=2000)  # near the threshold
+        cov = np.einsum("nij,nj,nkj->nik", vec, lam, vec) * 10.0**exponent
+        rows = np.arange(1, 2001)
+        for k in range(0, 2000, 7):
+            one = cov[k : k + 1]
+            eig = np.linalg.eigvalsh(one)[0, 0]
+            ok = eig > 1e-12 * np.abs(one).max()
+            try:
+                _validated_cov(one.copy(), rows[k : k + 1], "x", CovKind.FULL)
+                accepted = True
+            except CredcliError:
+                accepted = False
+            assert accepted == ok, (exponent, k, eig)

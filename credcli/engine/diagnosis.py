@@ -182,12 +182,21 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse, runs=1) -> list[Dia
     n, d = errors.shape
     if n < min(c.min_n(d) for c in configs):
         return [_too_short(n, d, c) for c in configs]
+    # Whole-length intermediates are freed as soon as they are used (a 2,000,000-epoch
+    # segment peaks ~250 MiB lower); the probes need ``centred`` and ``chol`` to the end.
+    probes_possible = any(not c.calibrated or c.metrics is MetricsLevel.ALL for c in configs)
     eps = metrics.nees_factored(errors, chol)
     mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
     nci_raw = metrics.nci_factored(errors, chol, _mse_cholesky(mse), eps)
+    ks_p = ks_chi2_pvalue(eps, d)
+    nees_labels = {c.nees_alpha: nees_baseline(eps, d, c.nees_alpha) for c in configs}
+    anees = float(np.mean(eps) / d)
+    del eps
     centred = errors - errors.mean(axis=0)
     nci_centred = metrics.nci_factored(centred, chol, _mse_cholesky(metrics.mse_matrix(centred)))
-    ks_p = ks_chi2_pvalue(eps, d)
+    gls = gls_residuals(errors, chol)
+    if not probes_possible:
+        del centred, chol
     s = whiten(errors, cov)
     r1 = dependence.autocorrelation(s)
     tau = dependence.variance_ratio(s)
@@ -195,20 +204,12 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse, runs=1) -> list[Dia
         tau = np.ones_like(tau)
     autocorr = float(np.max(r1))
     effective_n = float(n / max(1.0, float(np.max(tau))))
-    gls = gls_residuals(errors, chol)
     scales: dict = {}
     for config in configs:  # every scale test now, so the GLS residuals can be freed
         key = (config.block_length == 1, config.scale_level)
         if key not in scales:
             scales[key] = scale_test(gls, config.scale_level, None if key[0] else tau)
-    nees_labels = {c.nees_alpha: nees_baseline(eps, d, c.nees_alpha) for c in configs}
-    anees = float(np.mean(eps) / d)
-    # whole-length intermediates not needed by the location test are freed before it (a
-    # 2,000,000-epoch segment holds ~100 MB less); the probes need ``centred`` and ``chol``
-    probes_possible = any(not c.calibrated or c.metrics is MetricsLevel.ALL for c in configs)
-    del gls, eps
-    if not probes_possible:
-        del centred, chol
+    del gls
     elts: dict = {}
     # an ELT shared by several variants stops only when none of them can still reject
     exact = any(c.exact_pvalue for c in configs)

@@ -54,7 +54,7 @@ class DaskRunner:
                     silence_logs=logging.CRITICAL,  # task errors are reported here, once
                 )
                 self.client = Client(self.cluster)
-            elif address.strip().startswith("local"):
+            elif address.strip().startswith("local:"):  # not localhost:8786, an address
                 raise CredcliError(f"--scheduler {address}: expected local:N, e.g. local:2")
             else:
                 self.client = Client(address, timeout=CONNECT_TIMEOUT)

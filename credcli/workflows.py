@@ -103,6 +103,13 @@ def _as_slice(index: np.ndarray):
     return index
 
 
+def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray) -> tuple:
+    """A segment as a task item: (name, t_start, t_end, errors, covariances), the arrays as
+    views when the segment is contiguous."""
+    index = _as_slice(segment.index)
+    return (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
+
+
 def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1):
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
     epochs (one segment per task for target 0); made as they are consumed."""
@@ -114,11 +121,8 @@ def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovat
                 yield (source, items, config, seed, innovations, runs)
                 items, size = [], 0
             source = log.source
-            index = _as_slice(segment.index)  # a view of a contiguous segment, not a copy
-            part = errors[index]
-            cov = log.cov[index]
-            items.append((segment.name, segment.t_start, segment.t_end, part, cov))
-            size += len(part)
+            items.append(_item(segment, errors, log.cov))
+            size += len(segment.index)
     if items:
         yield (source, items, config, seed, innovations, runs)
 
@@ -339,10 +343,7 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose segments [first, stop) of a log."""
     source, first, stop, config, seed, innovations = task
     log, segments, errors = _worker_log(source)
-    items = []
-    for segment in segments[first:stop]:
-        index = _as_slice(segment.index)
-        items.append((segment.name, segment.t_start, segment.t_end, errors[index], log.cov[index]))
+    items = [_item(segment, errors, log.cov) for segment in segments[first:stop]]
     return _diagnose_chunk((log.source, items, config, seed, innovations, 1))
 
 

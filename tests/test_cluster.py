@@ -87,8 +87,11 @@ def test_unreachable_scheduler_and_bad_address(monkeypatch):
         )[::2]
     )
     assert "cannot connect" in line and "dask scheduler" in line
-    line = error_line(*run("simulate", "--scheduler", "localhost:two")[::2])
-    assert "local:N" in line or "cannot connect" in line
+    line = error_line(*run("simulate", "--scheduler", "local:two")[::2])
+    assert "expected local:N" in line
+    # localhost:PORT is an address to connect to, not a malformed local:N
+    line = error_line(*run("simulate", "--scheduler", "localhost:9")[::2])
+    assert "cannot connect" in line
 
 
 def test_a_worker_killed_mid_run_leaves_the_result_complete_and_identical(tmp_path):

@@ -473,6 +473,16 @@ def test_quaternion_columns_are_not_a_vector(tmp_path):
     assert "quaternion" in line
 
 
+def test_only_quaternion_component_names_are_refused():
+    from credcli.errors import CredcliError
+    from credcli.io.logs import check_not_orientation
+
+    for name in ("truth_qw", "q_x", "quat_z", "orientation.w", "rotation_x", "qx"):
+        with pytest.raises(CredcliError, match="quaternion"):
+            check_not_orientation([name], "log")
+    check_not_orientation(["rotation_rate", "orientation_yaw", "est_0", "x"], "log")
+
+
 def test_pose_format_without_truth(tmp_path):
     line = error_line(*run("diagnose", FORMATS / "odom_ros.csv")[::2])
     assert "--truth" in line

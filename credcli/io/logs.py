@@ -203,13 +203,14 @@ def _plain_csv(path: Path) -> bool:
 
 
 _ORIENTATION_NAME = re.compile(
-    r"(^|[^a-z0-9])(q_?[wxyz]|quat\w*|orientation\w*|rotation\w*)$", re.I
+    r"(^|[^a-z0-9])(q_?[wxyz]|(quat|quaternion|orientation|rotation)[._]?[wxyz])$", re.I
 )
 
 
 def check_not_orientation(columns, source: str) -> None:
     """Quaternion components are not a vector: refuse them by name (qw, q_x, quat_z,
-    orientation.w, …) rather than diagnose them as one."""
+    orientation.w, rotation_x, …) rather than diagnose them as one. Other names with
+    "rotation" or "orientation" in them (rotation_rate) are left alone."""
     named = [c for c in columns if _ORIENTATION_NAME.search(str(c))]
     if named:
         raise CredcliError(

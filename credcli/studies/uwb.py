@@ -451,7 +451,6 @@ def solve_packets(
     ranges: RangeLog,
     packets: Packets,
     anchors: list[Anchor],
-    iterations: int = 20,
     settings: UwbSettings | None = None,
 ) -> Fixes:
     """The 2-D tag position of every packet, checked and screened.
@@ -473,7 +472,7 @@ def solve_packets(
     """
     from scipy import special
 
-    settings = settings or UwbSettings(wls_iterations=iterations)
+    settings = settings or UwbSettings()
     rows = packets.rows
     valid = rows >= 0
     safe = np.where(valid, rows, 0)
@@ -805,7 +804,7 @@ def run_pipeline(
             f"{ranges.source}: no packet has {settings.min_anchors} distinct anchors within "
             f"{settings.packet_window:g} s; try a longer --packet-window"
         )
-    fixes = solve_packets(ranges, packets, anchors, settings.wls_iterations, settings)
+    fixes = solve_packets(ranges, packets, anchors, settings)
     if fixes.time.size == 0:
         raise CredcliError(
             f"{ranges.source}: every packet was dropped ({_dropped_text(fixes)}); try "

@@ -24,10 +24,10 @@ EPOCH_CHUNK = 262_144
 """Epochs per chunk of per-epoch linear algebra: temporaries stay bounded on long segments."""
 
 
-def epoch_chunks(n: int):
-    """Slices of at most EPOCH_CHUNK epochs covering range(n)."""
-    for start in range(0, n, EPOCH_CHUNK):
-        yield slice(start, start + EPOCH_CHUNK)
+def epoch_chunks(n: int, size: int = EPOCH_CHUNK):
+    """Slices of at most ``size`` epochs covering range(n)."""
+    for start in range(0, n, size):
+        yield slice(start, start + size)
 
 
 DEFAULT_MAX_EPOCHS = 4000

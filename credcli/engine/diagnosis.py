@@ -214,7 +214,7 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse, runs=1) -> list[Dia
     # an ELT shared by several variants stops only when none of them can still reject
     exact = any(c.exact_pvalue for c in configs)
     stop_level = None if exact else max(c.location_level for c in configs)
-    eigen = None
+    scorer = None
     out = []
     for config in configs:
         if n < config.min_n(d):
@@ -264,16 +264,16 @@ def _diagnose_variants(errors, cov, chol, configs, gen, mse, runs=1) -> list[Dia
         smm = elt.pvalue < config.location_level
         everything = config.metrics is MetricsLevel.ALL
         needs_probes = not config.calibrated and smm and nci_centred > config.tau_nci
-        if (needs_probes or everything) and eigen is None:
-            eigen = metrics.CovEigen(cov)
+        if (needs_probes or everything) and scorer is None:
+            scorer = metrics.EnergyScorer(cov)
         absolute = config.srd_form is SrdForm.ABSOLUTE
         probes = (
-            metrics.probes_eigen(centred, eigen, chol, config.c, absolute)
+            metrics.probes_scored(centred, scorer, chol, config.c, absolute)
             if needs_probes or everything
             else None
         )
         scores = (
-            metrics.probes_eigen(errors, eigen, chol, config.c, absolute) if everything else None
+            metrics.probes_scored(errors, scorer, chol, config.c, absolute) if everything else None
         )
         if config.calibrated:
             label = _calibrated_label(scale, smm, config)

@@ -614,8 +614,11 @@ def run_gate(
     from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
     from credcli.report.render import gate_report
 
+    def non_finite(word: str):
+        raise ValueError(f"'{word}' is not a number JSON allows")
+
     try:
-        baseline = json.loads(Path(baseline_path).read_text())
+        baseline = json.loads(Path(baseline_path).read_text(), parse_constant=non_finite)
     except FileNotFoundError as exc:
         raise CredcliError(f"{baseline_path}: baseline file not found") from exc
     except IsADirectoryError as exc:
@@ -624,7 +627,7 @@ def run_gate(
         ) from exc
     except OSError as exc:
         raise CredcliError(f"{baseline_path}: cannot be read ({exc.strerror})") from exc
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
         raise CredcliError(f"{baseline_path}: not valid JSON ({exc})") from exc
     check_baseline(baseline, str(baseline_path))
     check_same_parameters(baseline, requested, str(baseline_path))

@@ -309,6 +309,9 @@ def test_config_keys_are_the_flag_names(tmp_path):
         (lambda d: d["segments"][0].update(label="great"), "label 'great'"),
         (lambda d: d["segments"][0].update(nci="0.5"), "'nci' must be a number or null"),
         (lambda d: d["segments"][1].update(anees="x"), "'anees' must be a number or null"),
+        # json writes inf as Infinity, which json reads back; found by Hypothesis
+        (lambda d: d["segments"][0].update(nci=float("inf")), "'Infinity' is not a number JSON"),
+        (lambda d: d["segments"][0].update(n_flips=float("nan")), "'NaN' is not a number JSON"),
         (lambda d: d["parameters"].update(n_flips=10**9), "n_flips 1000000000 would need"),
         (lambda d: d.update(segments=5), "'segments' a list"),
     ],

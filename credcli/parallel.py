@@ -65,6 +65,23 @@ def _keep_heap_memory() -> None:
         pass
 
 
+def release_free_memory() -> None:
+    """Give back to the system what reading a log freed: Arrow's allocator keeps freed
+    buffers for reuse, and glibc keeps freed heap chunks below its adaptive trim threshold,
+    where the diagnosis's large arrays (mapped afresh) cannot reuse them. One 2,000,000-epoch
+    Parquet log: the later peak falls by about 100 MiB (README "Measured performance")."""
+    import ctypes
+    import ctypes.util
+    import sys
+
+    if "pyarrow" in sys.modules:
+        sys.modules["pyarrow"].default_memory_pool().release_unused()
+    try:
+        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
+
+
 def prepare_worker() -> None:
     """On a worker's first task: one BLAS thread, and glibc's adaptive heap back."""
     if not _LIMITED:

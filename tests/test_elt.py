@@ -168,3 +168,36 @@ def test_fast_product_decides_every_flip_as_float64():
         np.testing.assert_allclose(
             r.null_distribution, exact, rtol=0, atol=1e-6 * np.abs(exact).max()
         )
+
+
+def test_large_segments_hold_the_pair_matrix_in_float32_only(monkeypatch):
+    """Above STREAM_EPOCHS the ELT keeps A in float32 only (issue 12: memory of long
+    segments): the float32 matrix is A's rounding exactly, 1ᵀA1 and the float64 recheck
+    (rows rebuilt a block at a time) agree with the float64 matrix to 1e-13, and the
+    p-value, flips used and labels equal those of the float64-matrix path, with and
+    without early stopping, near and far from rejection."""
+    gen = np.random.default_rng(41)
+    n = elt.STREAM_EPOCHS + 150
+    s = gen.standard_normal((n, 2))
+    a = elt.pair_matrix(s)
+    a32, total, absolute = elt.pair_matrix_float32(s)
+    np.testing.assert_array_equal(a32, a.astype(np.float32))
+    assert total == pytest.approx(a.sum(), rel=1e-13)
+    assert absolute == pytest.approx(np.abs(a).sum(), rel=1e-13)
+    xi = gen.choice([-1.0, 1.0], size=(7, n))
+    np.testing.assert_allclose(
+        elt._exact_quadratic(s, xi), np.einsum("bi,bi->b", xi @ a, xi), rtol=1e-13
+    )
+    for bias, stop in itertools.product((0.0, 0.05, 0.2), (None, 0.05)):  # p 0.94, 0.047, 0.005
+        shifted = s + [bias, 0.0]
+        streamed = elt.whitened_location_test(
+            shifted, 199, np.random.default_rng(3), stop_level=stop
+        )
+        with monkeypatch.context() as m:
+            m.setattr(elt, "STREAM_EPOCHS", 10**9)
+            whole = elt.whitened_location_test(
+                shifted, 199, np.random.default_rng(3), stop_level=stop
+            )
+        assert (streamed.pvalue, streamed.flips_used) == (whole.pvalue, whole.flips_used)
+        assert streamed.statistic == pytest.approx(whole.statistic, rel=1e-13)
+        np.testing.assert_allclose(streamed.null_distribution, whole.null_distribution, rtol=1e-12)

@@ -143,15 +143,14 @@ def diagnose_errors(
     'credible'
     """
     config = config or DiagnosisConfig()
-    # no local names for the factors: _diagnose_variants frees what it no longer needs
-    return _diagnose_variants(*_factored(errors, cov), [config], as_generator(rng), mse, runs)[0]
-
-
-def _factored(errors, cov) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Checked (N, d) errors and (N, d, d) covariances, and the covariances' Cholesky factors."""
     errors, cov = metrics.check_errors_cov(errors, cov)
+    return _diagnose_variants(errors, cov, [config], as_generator(rng), mse, runs)[0]
+
+
+def _cholesky(cov: np.ndarray) -> np.ndarray:
+    """The covariances' Cholesky factors, or the error that one is not positive definite."""
     try:
-        return errors, cov, np.linalg.cholesky(cov)
+        return np.linalg.cholesky(cov)
     except np.linalg.LinAlgError as exc:
         raise CredcliError("a claimed covariance is not positive definite") from exc
 
@@ -169,17 +168,19 @@ def diagnose_variants(
     the same block length and pair set are run once, in the order the variants are listed,
     so a variant listed first draws its sign flips exactly as :func:`diagnose_errors` does.
     """
-    errors, cov, chol = _factored(errors, cov)
+    errors, cov = metrics.check_errors_cov(errors, cov)
     config = config or DiagnosisConfig()
     configs = [replace(config, variant=Variant(v)) for v in variants]
-    results = _diagnose_variants(errors, cov, chol, configs, as_generator(rng), None)
+    results = _diagnose_variants(errors, cov, configs, as_generator(rng), None)
     return {c.variant: r for c, r in zip(configs, results)}
 
 
-def _diagnose_variants(errors, cov, chol, configs, gen, mse, runs=1) -> list[Diagnosis]:
+def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis]:
     """Evidence once (metrics, dependence, scale tests, ELTs by block length), then each
-    configuration's rule."""
+    configuration's rule. The Cholesky factors are made here, so that nothing else holds
+    them once they are freed."""
     n, d = errors.shape
+    chol = _cholesky(cov)
     if n < min(c.min_n(d) for c in configs):
         return [_too_short(n, d, c) for c in configs]
     # Whole-length intermediates are freed as soon as they are used (a 2,000,000-epoch

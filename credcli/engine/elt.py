@@ -72,6 +72,9 @@ def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 
 _PAIR_ROWS = 96  # rows per block: three 96×N float64 blocks stay in cache for N ~ 1000
+STREAM_EPOCHS = 2048
+"""Above this many flipped epochs the pair matrix is held in float32 only (4000 epochs:
+64 MB instead of 192 MB for float64 and its float32 copy)."""
 
 
 def pair_matrix(s: np.ndarray) -> np.ndarray:
@@ -84,16 +87,31 @@ def pair_matrix(s: np.ndarray) -> np.ndarray:
     lower triangle is a copy of the upper one.
     """
     n = s.shape[0]
-    sq = np.einsum("ni,ni->n", s, s)
     out = np.empty((n, n))
+    for start, stop, _ in _pair_rows(s, out):
+        out[stop:, start:stop] = out[start:stop, stop:].T
+        diagonal = out[start:stop, start:stop]  # its lower triangle from its upper one
+        lower = np.tril_indices(stop - start, -1)
+        diagonal[lower] = diagonal.T[lower]
+    np.fill_diagonal(out, 0.0)
+    return out
+
+
+def _pair_rows(s: np.ndarray, out: np.ndarray | None = None):
+    """Blocks of rows of A's upper triangle: (start, stop, A[start:stop, start:]) in float64,
+    written into ``out`` when given (the block is then a view of it). Entries on and below
+    the diagonal of the leading k×k square are not A's (the caller overwrites them)."""
+    n = s.shape[0]
+    sq = np.einsum("ni,ni->n", s, s)
     rows = min(n, _PAIR_ROWS)
     minus = np.empty((rows, n))
     two_gram = np.empty((rows, n))
+    spare = np.empty((rows, n)) if out is None else None
     for start in range(0, n, rows):
         stop = min(n, start + rows)
         k, width = stop - start, n - start
         g, m = two_gram[:k, :width], minus[:k, :width]
-        plus = out[start:stop, start:]
+        plus = spare[:k, :width] if out is None else out[start:stop, start:]
         np.matmul(s[start:stop], s[start:].T, out=g)
         g *= 2.0
         np.add(sq[start:stop, None], sq[None, start:], out=m)
@@ -103,12 +121,33 @@ def pair_matrix(s: np.ndarray) -> np.ndarray:
             np.maximum(sq_norm, 0.0, out=sq_norm)
             np.sqrt(sq_norm, out=sq_norm)
         plus -= m
-        out[stop:, start:stop] = out[start:stop, stop:].T
-        diagonal = out[start:stop, start:stop]  # its lower triangle from its upper one
-        lower = np.tril_indices(k, -1)
-        diagonal[lower] = diagonal.T[lower]
-    np.fill_diagonal(out, 0.0)
-    return out
+        yield start, stop, plus
+
+
+def pair_matrix_float32(s: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """A (:func:`pair_matrix`) rounded to float32, with 1ᵀA1 and Σ|A_ij| summed in float64
+    from its float64 rows, which are never held all at once."""
+    n = s.shape[0]
+    out = np.empty((n, n), dtype=np.float32)
+    total = absolute = 0.0
+    for start, stop, plus in _pair_rows(s):
+        plus[np.tril_indices(stop - start)] = 0.0  # strictly upper: each pair once
+        total += 2.0 * float(plus.sum())
+        absolute += 2.0 * float(np.abs(plus).sum())
+        out[start:stop, start:] = plus
+        out[stop:, start:stop] = plus[:, stop - start :].T
+        square = plus[:, : stop - start]
+        out[start:stop, start:stop] = square + square.T
+    return out, total, absolute
+
+
+def _exact_quadratic(s: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1), A's rows rebuilt a block at a time."""
+    values = np.zeros(xi.shape[0])
+    for start, stop, plus in _pair_rows(s):
+        plus[np.tril_indices(stop - start)] = 0.0
+        values += 2.0 * np.einsum("bi,bi->b", xi[:, start:stop], xi[:, start:] @ plus.T)
+    return values
 
 
 def energy_statistic(s: np.ndarray) -> float:
@@ -241,31 +280,51 @@ class _FlippedStatistics:
     runs in float64 and the products with ±1 are exact); every flip
     within that bound of the observed value is recomputed in float64, so each comparison
     T_b >= T_obs is decided exactly as in float64.
+
+    Built with :meth:`streamed` (large N), A is held in float32 only and the float64
+    recheck rebuilds A's rows a block at a time from the whitened errors.
     """
 
     def __init__(self, a: np.ndarray, observed: float) -> None:
         n = a.shape[0]
-        self.a, self.observed = a, observed
+        self.a, self.s, self.observed = a, None, observed
         self.small = n < 64  # small problems: float64 throughout
         if not self.small:
-            u = 2.0**-24
-            gamma = n * u / (1 - n * u)
-            self.bound = (u + gamma * (1 + u)) * _abs_sum(a) * 1.01
             self.a32 = a.astype(np.float32)
+            self.bound = _float32_bound(n, _abs_sum(a))
+
+    @classmethod
+    def streamed(cls, s: np.ndarray) -> _FlippedStatistics:
+        """From whitened errors s (N, d), with A in float32 only (:func:`pair_matrix_float32`)."""
+        self = cls.__new__(cls)
+        self.a32, self.observed, abs_sum = pair_matrix_float32(s)
+        self.a, self.s, self.small = None, s, False
+        self.bound = _float32_bound(s.shape[0], abs_sum)
+        return self
+
+    def exact(self, xi: np.ndarray) -> np.ndarray:
+        """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1)."""
+        if self.a is None:
+            return _exact_quadratic(self.s, xi)
+        return np.einsum("bi,bi->b", xi @ self.a, xi)
 
     def __call__(self, signs: np.ndarray) -> np.ndarray:
         if self.small:
-            xi = signs.astype(np.float64)
-            return np.einsum("bi,bi->b", xi @ self.a, xi)
+            return self.exact(signs.astype(np.float64))
         xi32 = signs.astype(np.float32)
         product = xi32 @ self.a32
         product *= xi32  # exact: a sign change
         values = product.sum(axis=1, dtype=np.float64)
         close = np.flatnonzero(np.abs(values - self.observed) <= self.bound)
         if close.size:
-            xi = signs[close].astype(np.float64)
-            values[close] = np.einsum("bi,bi->b", xi @ self.a, xi)
+            values[close] = self.exact(signs[close].astype(np.float64))
         return values
+
+
+def _float32_bound(n: int, abs_sum: float) -> float:
+    u = 2.0**-24
+    gamma = n * u / (1 - n * u)
+    return (u + gamma * (1 + u)) * abs_sum * 1.01
 
 
 def _abs_sum(a: np.ndarray, rows: int = 256) -> float:
@@ -309,8 +368,13 @@ def _sign_flip_test(
     computed on s/2^k and multiplied back, exactly."""
     n = s.shape[0]
     unit = _power_of_two_scale(s)
-    a = pair_matrix(s / unit)
     n_blocks = int(blocks[-1]) + 1
+    flips = dict(n_flips=n_flips, gen=gen, unit=unit, stop_level=stop_level)
+    result = dict(n_used=n, subsampled=subsampled, block_length=block_length)
+    if n_blocks == n > STREAM_EPOCHS and not separate_blocks:  # a large matrix: float32 only
+        flipped = _FlippedStatistics.streamed(s / unit)
+        return _flip(flipped, float(n * (n - 1)), n, **flips, **result)
+    a = pair_matrix(s / unit)
     if n_blocks < n:
         starts = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]])
         a = np.add.reduceat(np.add.reduceat(a, starts, axis=0), starts, axis=1)
@@ -324,7 +388,24 @@ def _sign_flip_test(
         norm = float(sizes @ np.where(near, 0.0, 1.0) @ sizes)
     else:
         norm = float(n * (n - 1))
-    total = float(a.sum())
+    return _flip(_FlippedStatistics(a, float(a.sum())), norm, n_blocks, **flips, **result)
+
+
+def _flip(
+    flipped: _FlippedStatistics,
+    norm: float,
+    n_blocks: int,
+    *,
+    n_flips: int,
+    gen: np.random.Generator,
+    unit: float,
+    stop_level: float | None,
+    **result,
+) -> ELTResult:
+    """T_obs = 1ᵀA1/norm and B sign flips of it, stopped once the decision at
+    ``stop_level`` is certain (see :func:`whitened_location_test`); ``result``: the
+    ELTResult fields that describe the setting."""
+    total = flipped.observed
     scale = norm if norm > 0 else 1.0  # no pairs left: a is zero and so is the statistic
     t_obs = total / scale
     signs = gen.integers(0, 2, size=(n_flips, n_blocks), dtype=np.int8)
@@ -333,7 +414,6 @@ def _sign_flip_test(
     threshold = t_obs - _PVALUE_RTOL * abs(t_obs)
     stop = _stop_count(stop_level, n_flips)
     parts, count, used, batch = [], 0, 0, _FIRST_BATCH if stop is not None else n_flips
-    flipped = _FlippedStatistics(a, total)
     while used < n_flips:
         chunk = flipped(signs[used : used + batch]) / scale
         parts.append(chunk)
@@ -348,11 +428,5 @@ def _sign_flip_test(
     else:
         pvalue = (1 + count) / (n_flips + 1)
     return ELTResult(
-        statistic=t_obs * unit,
-        pvalue=pvalue,
-        null_distribution=null,
-        n_used=n,
-        subsampled=subsampled,
-        block_length=block_length,
-        flips_used=used,
+        statistic=t_obs * unit, pvalue=pvalue, null_distribution=null, flips_used=used, **result
     )

@@ -30,7 +30,15 @@ def open_log(
     drop_invalid: bool = False,
 ) -> EstimatorLog:
     """The log at ``path`` read as ``reading`` says (a credcli log with truth and estimate
-    in each row when no truth is named)."""
+    in each row when no truth is named). What reading it freed goes back to the system."""
+    from credcli.parallel import release_free_memory
+
+    log = _read_log(Path(path), schema, reading, drop_invalid)
+    release_free_memory()
+    return log
+
+
+def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
     path = Path(path)
     schema = schema or LogSchema()
     reading = reading or ReadOptions()

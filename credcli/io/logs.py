@@ -8,6 +8,7 @@ other layouts onto it.
 
 from __future__ import annotations
 
+import itertools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -113,6 +114,9 @@ class ParquetColumns:
         return self._rows
 
     def __getitem__(self, column: str):
+        import pyarrow as pa
+
+        pa.default_memory_pool().release_unused()  # the columns read before, now copied
         try:
             return self._file.read(columns=[column]).column(0).to_pandas()
         except (OSError, ValueError) as exc:  # pyarrow's errors derive from these
@@ -397,41 +401,49 @@ def log_from_frame(
             f"{source}: segment column '{schema.segment}' not found; columns found: {_list(columns)}"
         )
     numeric_cols = truth_cols + est_cols + cov_cols + ([time_col] if time_col else [])
-    width = len(truth_cols) + len(est_cols)
     missing = [c for c in numeric_cols if c not in columns]
     if missing:
         raise CredcliError(
             f"{source}: missing column(s) {', '.join(missing)}; columns found: {_list(columns)}"
         )
-    values = numeric_columns(frame, numeric_cols, source)
-    rows = np.arange(1, len(frame) + 1)
-    bad = ~np.isfinite(values).all(axis=1)
+    # each group of columns straight into its own array: no whole-table copy beside them
+    n = len(frame)
+    blocks = [np.empty((n, len(cols))) for cols in (truth_cols, est_cols, cov_cols)]
+    if time_col:
+        blocks.append(np.empty((n, 1)))
+    for block, cols in zip(blocks, (truth_cols, est_cols, cov_cols, [time_col])):
+        numeric_columns(frame, cols, source, out=block)
+    rows = np.arange(1, n + 1)
+    bad = np.zeros(n, dtype=bool)
+    for block in blocks:
+        bad |= ~np.isfinite(block).all(axis=1)
     dropped = 0
     if bad.any():
         if not drop_invalid:
             bad_rows = rows[bad]
             shown = ", ".join(str(r) for r in bad_rows[:10])
             more = f" and {bad_rows.size - 10} more" if bad_rows.size > 10 else ""
-            first_col = numeric_cols[int(np.argmax(~np.isfinite(values[bad][0])))]
+            first_row = np.concatenate([block[bad_rows[0] - 1] for block in blocks])
+            first_col = numeric_cols[int(np.argmax(~np.isfinite(first_row)))]
             raise CredcliError(
                 f"{source}: NaN, Inf or empty value in row(s) {shown}{more} (first in column "
                 f"'{first_col}'); fix them or pass --drop-invalid to drop those rows"
             )
         dropped = int(bad.sum())
-        values, rows = values[~bad], rows[~bad]
-        if values.shape[0] == 0:
+        blocks, rows = [block[~bad] for block in blocks], rows[~bad]
+        if rows.size == 0:
             raise CredcliError(f"{source}: every row has a NaN/Inf value; nothing left to diagnose")
-    cov = _validated_cov(
-        _build_cov(values[:, width : width + len(cov_cols)], kind, d), rows, source, kind
-    )
+    truth, estimate, cov_values = blocks[:3]
+    cov = _validated_cov(_build_cov(cov_values, kind, d), rows, source, kind)
     if kind is CovKind.STD:
-        negative = (values[:, width : width + len(cov_cols)] < 0).any(axis=1)
+        negative = (cov_values < 0).any(axis=1)
         if negative.any():
             i = int(np.argmax(negative))
             raise CredcliError(
                 f"{source}: row {rows[i]}: a standard deviation (std_i column) is negative; "
                 "standard deviations must be >= 0"
             )
+    del cov_values
     segment = None
     if seg_col is not None:
         missing_seg = frame[seg_col].isna().to_numpy()
@@ -444,17 +456,15 @@ def log_from_frame(
             )
         seg_values = frame[seg_col].astype(str).to_numpy()
         segment = seg_values[rows - 1]
-    # copies, so that the table of every column can be freed
-    truth = np.ascontiguousarray(values[:, :d])
-    estimate = None if innovations else np.ascontiguousarray(values[:, d : 2 * d])
+    estimate = None if innovations else estimate
     notes = ()
     time = None
     if time_col:
         from credcli.io.formats import seconds
 
-        time, note = seconds(values[:, -1].copy(), time_unit, None, f"{source} ({time_col})")
+        time, note = seconds(blocks[3][:, 0], time_unit, None, f"{source} ({time_col})")
         notes = (note,) if note else ()
-    del values
+    del blocks
     if innovations:
         return EstimatorLog(
             None, None, cov, time, segment, rows, source, dropped, state_errors=truth, notes=notes
@@ -462,10 +472,13 @@ def log_from_frame(
     return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped, notes=notes)
 
 
-def numeric_columns(frame, cols: list[str], source: str) -> np.ndarray:
+def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None = None):
+    """The columns ``cols`` of ``frame`` as float64 (N, len(cols)), into ``out`` when given,
+    one column at a time; a cell that is not a number is an error naming its row."""
     import pandas as pd
 
-    out = np.empty((len(frame), len(cols)))
+    if out is None:
+        out = np.empty((len(frame), len(cols)))
     for j, col in enumerate(cols):
         series = frame[col]
         if series.dtype == object or pd.api.types.is_string_dtype(series.dtype):
@@ -488,11 +501,13 @@ def numeric_columns(frame, cols: list[str], source: str) -> np.ndarray:
 
 
 def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
+    """(N, d, d) covariances from their columns; for the full layout a view of ``values``
+    when it is contiguous (no copy of a large log's covariances)."""
     n = values.shape[0]
-    cov = np.zeros((n, d, d))
     if kind is CovKind.FULL:
-        cov[:] = values.reshape(n, d, d)
-    elif kind is CovKind.UPPER:
+        return values.reshape(n, d, d)
+    cov = np.zeros((n, d, d))
+    if kind is CovKind.UPPER:
         iu = np.triu_indices(d)
         cov[:, iu[0], iu[1]] = values
         cov[:, iu[1], iu[0]] = values
@@ -508,28 +523,40 @@ def _validated_cov(
 ) -> np.ndarray:
     """The covariances, exactly symmetric, after checking that each is symmetric to
     SYMMETRY_RTOL and positive definite (naming the first bad row). Only a full matrix can
-    be asymmetric; the other layouts are symmetric as built, and are checked in place."""
+    be asymmetric: it is checked and made symmetric in place, an entry pair at a time (no
+    N×d×d temporaries); the other layouts are symmetric as built."""
     diag = np.diagonal(cov, axis1=1, axis2=2)
     if kind is CovKind.FULL:
-        scale = np.abs(cov).max(axis=(1, 2))
-        asym = np.abs(cov - np.swapaxes(cov, 1, 2)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
+        d = cov.shape[1]
+        scale = np.abs(cov[:, 0, 0])
+        for i, j in itertools.product(range(d), repeat=2):
+            np.maximum(scale, np.abs(cov[:, i, j]), out=scale)
+        upper = [(i, j) for i in range(d) for j in range(i + 1, d)]
+        asym = np.zeros(cov.shape[0], dtype=bool)
+        for i, j in upper:
+            asym |= np.abs(cov[:, i, j] - cov[:, j, i]) > SYMMETRY_RTOL * scale
         if asym.any():
             i = int(np.argmax(asym))
             raise CredcliError(
                 f"{source}: row {rows[i]}: covariance is not symmetric (relative asymmetry "
                 f"above {SYMMETRY_RTOL:g}); check the cov_i_j columns"
             )
-        cov = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+        for i, j in upper:
+            mean = 0.5 * (cov[:, i, j] + cov[:, j, i])
+            cov[:, i, j] = mean
+            cov[:, j, i] = mean
     else:
         scale = np.abs(diag).max(axis=1)  # the largest entry of a PD matrix is diagonal
     if kind in (CovKind.VAR, CovKind.STD):
         min_eig = diag.min(axis=1)
     elif cov.shape[1] == 2:  # closed form: λ_min = det / λ_max, with no cancellation,
-        unit = np.where(scale > 0, scale, 1.0)  # on the matrix scaled to O(1) (no underflow)
-        a, b, c = cov[:, 0, 0] / unit, cov[:, 0, 1] / unit, cov[:, 1, 1] / unit
-        biggest = 0.5 * (a + c) + np.hypot(0.5 * (a - c), b)
-        det = a * c - b * b
-        min_eig = unit * np.divide(det, biggest, out=np.zeros_like(det), where=biggest > 0)
+        min_eig = np.empty(cov.shape[0])  # on the matrix scaled to O(1) (no underflow)
+        for sl in epoch_chunks(cov.shape[0]):  # bounded temporaries
+            unit = np.where(scale[sl] > 0, scale[sl], 1.0)
+            a, b, c = cov[sl, 0, 0] / unit, cov[sl, 0, 1] / unit, cov[sl, 1, 1] / unit
+            biggest = 0.5 * (a + c) + np.hypot(0.5 * (a - c), b)
+            det = a * c - b * b
+            min_eig[sl] = unit * np.divide(det, biggest, out=np.zeros_like(det), where=biggest > 0)
     else:
         min_eig = np.empty(cov.shape[0])
         for sl in epoch_chunks(cov.shape[0]):  # bounded temporaries

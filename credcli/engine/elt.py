@@ -6,12 +6,13 @@ distance between {s_k} and {-s_k} (α = 1) and a sign-flip randomisation null.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from credcli.engine._rng import RngLike, as_generator
+from credcli.engine._rng import RngLike, as_generator, rademacher
 from credcli.engine.config import DEFAULT_MAX_EPOCHS, epoch_chunks
 from credcli.errors import CredcliError
 
@@ -82,19 +83,34 @@ def pair_matrix(s: np.ndarray) -> np.ndarray:
 
     Then Eq. (13) is :math:`T = \xi^\top A \xi / (N(N-1))` with ξ = 1, and every sign
     flip ξ gives the randomised statistic of Eq. (15) by the same quadratic form.
-    ‖s_i ± s_j‖² = ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j, computed a block of rows at a time so
-    that the intermediate arrays stay in cache, for j >= i only: A is symmetric, and the
-    lower triangle is a copy of the upper one.
+    A = U + Uᵀ with U its strictly upper triangle (:func:`pair_upper`).
     """
+    upper = pair_upper(s)
+    return upper + upper.T
+
+
+def pair_upper(s: np.ndarray) -> np.ndarray:
+    """The strictly upper triangle U of the pair matrix A (zeros elsewhere; A = U + Uᵀ).
+
+    ‖s_i ± s_j‖² = ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j, computed a block of rows at a time so
+    that the intermediate arrays stay in cache, for j > i only."""
     n = s.shape[0]
-    out = np.empty((n, n))
-    for start, stop, _ in _pair_rows(s, out):
-        out[stop:, start:stop] = out[start:stop, stop:].T
-        diagonal = out[start:stop, start:stop]  # its lower triangle from its upper one
-        lower = np.tril_indices(stop - start, -1)
-        diagonal[lower] = diagonal.T[lower]
-    np.fill_diagonal(out, 0.0)
+    out = np.zeros((n, n))
+    for _, _, plus in _pair_rows(s, out):
+        _zero_lower(plus)
     return out
+
+
+def _zero_lower(rows: np.ndarray) -> None:
+    """Zero the lower triangle and the diagonal of the leading square of a block of rows
+    that starts on the diagonal."""
+    k = rows.shape[0]
+    rows[:, :k][_lower_mask(k)] = 0.0
+
+
+@functools.lru_cache(maxsize=8)
+def _lower_mask(k: int) -> np.ndarray:
+    return np.tri(k, dtype=bool)
 
 
 def _pair_rows(s: np.ndarray, out: np.ndarray | None = None):
@@ -125,19 +141,17 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None):
 
 
 def pair_matrix_float32(s: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """A (:func:`pair_matrix`) rounded to float32, with 1ᵀA1 and Σ|A_ij| summed in float64
-    from its float64 rows, which are never held all at once."""
+    """The strictly upper triangle of A (:func:`pair_matrix`) rounded to float32 (zeros
+    elsewhere), with 1ᵀA1 and Σ|A_ij| summed in float64 from its float64 rows, which are
+    never held all at once."""
     n = s.shape[0]
-    out = np.empty((n, n), dtype=np.float32)
+    out = np.zeros((n, n), dtype=np.float32)
     total = absolute = 0.0
     for start, stop, plus in _pair_rows(s):
-        plus[np.tril_indices(stop - start)] = 0.0  # strictly upper: each pair once
+        _zero_lower(plus)  # strictly upper: each pair once
         total += 2.0 * float(plus.sum())
         absolute += 2.0 * float(np.abs(plus).sum())
         out[start:stop, start:] = plus
-        out[stop:, start:stop] = plus[:, stop - start :].T
-        square = plus[:, : stop - start]
-        out[start:stop, start:stop] = square + square.T
     return out, total, absolute
 
 
@@ -145,7 +159,7 @@ def _exact_quadratic(s: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1), A's rows rebuilt a block at a time."""
     values = np.zeros(xi.shape[0])
     for start, stop, plus in _pair_rows(s):
-        plus[np.tril_indices(stop - start)] = 0.0
+        _zero_lower(plus)
         values += 2.0 * np.einsum("bi,bi->b", xi[:, start:stop], xi[:, start:] @ plus.T)
     return values
 
@@ -274,31 +288,35 @@ class _FlippedStatistics:
 
     ``observed`` is 1ᵀA1, the unnormalised observed statistic.
 
-    The B×N×N product runs in float32 (three times faster here). Rounding of A to float32
-    and the float32 product change each ξᵀAξ by at most (u + γ_N(1 + u))·Σ|A_ij| with
-    u = 2⁻²⁴ and γ_N = Nu/(1 − Nu) (standard bounds for inner products; the final sum
-    runs in float64 and the products with ±1 are exact); every flip
-    within that bound of the observed value is recomputed in float64, so each comparison
-    T_b >= T_obs is decided exactly as in float64.
+    The flips run in float32 on the strictly upper triangle U of A (A = U + Uᵀ, so
+    ξᵀAξ = 2ξᵀUξ; the diagonal is 0) with BLAS's triangular product, which reads only
+    that triangle and does half the multiply-adds of a full product:
+    B·N²/2, about 3.5 times faster here than the float64 B×N×N product. Rounding of U to
+    float32 and the float32 inner products change each ξᵀAξ by at most
+    (u + γ_N(1 + u))·Σ|A_ij| with u = 2⁻²⁴ and γ_N = Nu/(1 − Nu) (standard bounds for
+    inner products in any order; the final sum runs in float64 and the products with ±1
+    are exact); every flip within that bound of the observed value is recomputed in
+    float64, so each comparison T_b >= T_obs is decided exactly as in float64.
 
     Built with :meth:`streamed` (large N), A is held in float32 only and the float64
     recheck rebuilds A's rows a block at a time from the whitened errors.
     """
 
-    def __init__(self, a: np.ndarray, observed: float) -> None:
+    def __init__(self, a: np.ndarray, observed: float, upper: bool = False) -> None:
+        """``a``: A, or with ``upper`` its strictly upper triangle U (then 1ᵀA1 = 2·1ᵀU1)."""
         n = a.shape[0]
-        self.a, self.s, self.observed = a, None, observed
+        self.a, self.upper, self.s, self.observed = a, upper, None, observed
         self.small = n < 64  # small problems: float64 throughout
         if not self.small:
-            self.a32 = a.astype(np.float32)
-            self.bound = _float32_bound(n, _abs_sum(a))
+            self.upper32 = a.astype(np.float32)  # the product reads its upper triangle
+            self.bound = _float32_bound(n, _abs_sum(a) * (2.0 if upper else 1.0))
 
     @classmethod
     def streamed(cls, s: np.ndarray) -> _FlippedStatistics:
         """From whitened errors s (N, d), with A in float32 only (:func:`pair_matrix_float32`)."""
         self = cls.__new__(cls)
-        self.a32, self.observed, abs_sum = pair_matrix_float32(s)
-        self.a, self.s, self.small = None, s, False
+        self.upper32, self.observed, abs_sum = pair_matrix_float32(s)
+        self.a, self.upper, self.s, self.small = None, True, s, False
         self.bound = _float32_bound(s.shape[0], abs_sum)
         return self
 
@@ -306,19 +324,39 @@ class _FlippedStatistics:
         """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1)."""
         if self.a is None:
             return _exact_quadratic(self.s, xi)
-        return np.einsum("bi,bi->b", xi @ self.a, xi)
+        values = np.einsum("bi,bi->b", xi @ self.a, xi)
+        return 2.0 * values if self.upper else values
 
     def __call__(self, signs: np.ndarray) -> np.ndarray:
         if self.small:
             return self.exact(signs.astype(np.float64))
-        xi32 = signs.astype(np.float32)
-        product = xi32 @ self.a32
-        product *= xi32  # exact: a sign change
-        values = product.sum(axis=1, dtype=np.float64)
+        from scipy.linalg import blas
+
+        xi = signs.T.astype(np.float32, order="F")  # (N, b), a column per flip
+        # U's C-ordered buffer read in Fortran order is Uᵀ, lower triangular: Uᵀξ per column
+        product = blas.strmm(1.0, self.upper32.T, xi, side=0, lower=1)
+        product *= xi  # exact: a sign change
+        values = product.sum(axis=0, dtype=np.float64)
+        values *= 2.0
         close = np.flatnonzero(np.abs(values - self.observed) <= self.bound)
         if close.size:
             values[close] = self.exact(signs[close].astype(np.float64))
         return values
+
+
+def _block_sums(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Sums of the rows of ``a`` over the blocks beginning at ``starts``: a reshape-sum
+    over the longest stretch of equal blocks (2.5 times faster than ``np.add.reduceat``
+    here), ``reduceat`` for the blocks after it (shorter ones: a run's or the subsample's
+    last block)."""
+    sizes = np.diff(np.r_[starts, a.shape[0]])
+    equal = int(np.argmax(sizes != sizes[0])) if np.any(sizes != sizes[0]) else sizes.size
+    width = int(sizes[0])
+    head = a[: equal * width].reshape(equal, width, *a.shape[1:]).sum(axis=1)
+    if equal == sizes.size:
+        return head
+    tail = np.add.reduceat(a[equal * width :], starts[equal:] - equal * width, axis=0)
+    return np.concatenate([head, tail])
 
 
 def _float32_bound(n: int, abs_sum: float) -> float:
@@ -374,13 +412,18 @@ def _sign_flip_test(
     if n_blocks == n > STREAM_EPOCHS and not separate_blocks:  # a large matrix: float32 only
         flipped = _FlippedStatistics.streamed(s / unit)
         return _flip(flipped, float(n * (n - 1)), n, **flips, **result)
-    a = pair_matrix(s / unit)
-    if n_blocks < n:
+    upper = pair_upper(s / unit)
+    if n_blocks == n and not separate_blocks:  # flips on U itself (A = U + Uᵀ)
+        flipped = _FlippedStatistics(upper, 2.0 * float(upper.sum()), upper=True)
+        return _flip(flipped, float(n * (n - 1)), n, **flips, **result)
+    if n_blocks < n:  # A_b = M + Mᵀ with M the block sums of U
         starts = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]])
-        a = np.add.reduceat(np.add.reduceat(a, starts, axis=0), starts, axis=1)
+        upper = _block_sums(_block_sums(upper, starts).T, starts).T
         sizes = np.diff(np.r_[starts, n]).astype(float)
     else:
         sizes = np.ones(n)
+    a = upper + upper.T
+    del upper
     if separate_blocks:
         ids = np.asarray(block_ids)
         near = np.abs(ids[:, None] - ids[None, :]) <= 1
@@ -408,9 +451,7 @@ def _flip(
     total = flipped.observed
     scale = norm if norm > 0 else 1.0  # no pairs left: a is zero and so is the statistic
     t_obs = total / scale
-    signs = gen.integers(0, 2, size=(n_flips, n_blocks), dtype=np.int8)
-    signs *= 2
-    signs -= 1  # Rademacher ±1
+    signs = rademacher(gen, (n_flips, n_blocks))
     threshold = t_obs - _PVALUE_RTOL * abs(t_obs)
     stop = _stop_count(stop_level, n_flips)
     parts, count, used, batch = [], 0, 0, _FIRST_BATCH if stop is not None else n_flips

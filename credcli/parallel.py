@@ -10,6 +10,7 @@ first, so the output is the same for any number of processes.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 from collections.abc import Callable, Iterable, Iterator
 
@@ -52,13 +53,10 @@ def _keep_heap_memory() -> None:
     stops adapting its mmap threshold, so every temporary array above 128 KiB is mapped and
     unmapped again, and the diagnosis ran 1.6-1.7 times slower in Dask workers (measured:
     5.0 s instead of 3.2 s for 200 segments of 1,000 epochs)."""
-    import ctypes
-    import ctypes.util
-
     if "MALLOC_TRIM_THRESHOLD_" not in os.environ:
         return
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        libc = _libc()
         libc.mallopt(-3, MMAP_THRESHOLD)  # M_MMAP_THRESHOLD
         libc.mallopt(-1, 2 * MMAP_THRESHOLD)  # M_TRIM_THRESHOLD
     except (OSError, AttributeError):  # not glibc: nothing to undo
@@ -70,16 +68,23 @@ def release_free_memory() -> None:
     buffers for reuse, and glibc keeps freed heap chunks below its adaptive trim threshold,
     where the diagnosis's large arrays (mapped afresh) cannot reuse them. One 2,000,000-epoch
     Parquet log: the later peak falls by about 100 MiB (README "Measured performance")."""
-    import ctypes
-    import ctypes.util
     import sys
 
     if "pyarrow" in sys.modules:
         sys.modules["pyarrow"].default_memory_pool().release_unused()
     try:
-        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
+        _libc().malloc_trim(0)
     except (OSError, AttributeError):  # not glibc
         pass
+
+
+@functools.lru_cache(maxsize=1)
+def _libc():
+    """The C library (found once: ``find_library`` runs ``ldconfig``)."""
+    import ctypes
+    import ctypes.util
+
+    return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
 
 
 def prepare_worker() -> None:

@@ -240,3 +240,24 @@ def test_fast_rademacher_signs_are_numpys_draws_bit_for_bit():
     assert np.array_equal(
         _rng.rademacher(philox, (5, 7)), twin.integers(0, 2, size=(5, 7), dtype=np.int8) * 2 - 1
     )
+
+
+@pytest.mark.parametrize("separate", [False, True])
+def test_block_flips_null_equals_the_direct_quadratic_forms(separate):
+    """With blocks of L = 3 (m = 100 blocks) the flipped statistics are ηᵀA_bη/norm of the
+    block-summed matrix, whose diagonal (within-block pairs) is not zero unless pairs in
+    the same and adjacent blocks are left out: every null value and the p-value equal a
+    direct float64 evaluation with the same signs."""
+    s = np.random.default_rng(17).standard_normal((300, 2)) + [0.05, 0.0]
+    blocks, keys = elt.sign_blocks(300, 3)
+    result = elt._sign_flip_test(s, blocks, keys, 199, np.random.default_rng(2), 3, False, separate)
+    a = elt.pair_matrix(s)
+    keep = np.abs(blocks[:, None] - blocks[None, :]) > 1 if separate else ~np.eye(300, dtype=bool)
+    signs = np.random.default_rng(2).integers(0, 2, size=(199, 100), dtype=np.int8) * 2 - 1
+    xi = signs[:, blocks].astype(float)  # each epoch carries its block's sign
+    norm = float(keep.sum())
+    direct = np.einsum("bi,bi->b", xi @ (a * keep), xi) / norm
+    np.testing.assert_allclose(result.null_distribution, direct, atol=1e-6 * np.abs(direct).max())
+    t_obs = (a * keep).sum() / norm
+    tie = t_obs - 100 * np.finfo(float).eps * abs(t_obs)
+    assert result.pvalue == (1 + np.count_nonzero(direct >= tie)) / 200

@@ -330,7 +330,8 @@ def _window_sum(alpha: np.ndarray, beta: np.ndarray, mean2: np.ndarray, end: int
 def _window_ends(alpha: np.ndarray, beta: np.ndarray, mean2: np.ndarray) -> np.ndarray:
     """Per epoch, the first node c from _WINDOW_ENDS on with E[exp(−t_c Q')]·(weight from c
     on) below _TAIL_TOLERANCE (the whole grid if none): nodes from c on then count as 1.
-    The bound falls with c, so a bisection over the candidates finds c (six evaluations)."""
+    The bound falls with c, so a bisection over the 19 candidates finds c (five
+    evaluations of the pivot recurrence)."""
     low = np.zeros(alpha.shape[1], dtype=np.intp)
     high = np.full(alpha.shape[1], _WINDOW_ENDS.size)
     while np.any(low < high):

@@ -304,3 +304,18 @@ def test_centred_norm_with_a_zero_eigenvalue_is_the_one_dimensional_norm():
     np.testing.assert_allclose(
         metrics.centred_norm(rank_one), [2 * np.sqrt(2 / np.pi), 0.0], rtol=1e-9, atol=1e-300
     )
+
+
+@pytest.mark.parametrize("d", [1, 2, 3, 6])
+def test_energy_score_is_scale_free_at_extreme_scales(d):
+    """ES(c·e, c²Σ) = c·ES(e, Σ) for c = 1e±120 (covariances near 1e±240): the closed
+    2×2 eigenvalues are taken on each matrix scaled to O(1) (before, a product of two
+    entries underflowed to 0 and the 2-D spread term took the smaller eigenvalue as 0),
+    and the Householder reduction works in units of the trace."""
+    rng = np.random.default_rng(d)
+    a = rng.standard_normal((50, d, d))
+    cov = a @ np.swapaxes(a, 1, 2) + 0.3 * np.eye(d)
+    e = rng.standard_normal((50, d))
+    base = metrics.energy_score(e, cov)
+    for c in (1e-120, 1e120):
+        np.testing.assert_allclose(metrics.energy_score(c * e, c * c * cov), c * base, rtol=1e-12)

@@ -184,10 +184,11 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
     takes m to ‖m‖e₁; then det(I + 2tT) is the product of the pivots of its LDLᵀ
     factorisation from the bottom, and mᵀ(I + 2tS)⁻¹m = ‖m‖²/g₁ with g₁ the last pivot
     (a continued fraction). The factorisation of an SPD tridiagonal matrix is
-    componentwise stable, so this is as accurate as an eigen-decomposition at a fifth
-    of its cost. The integral is a trapezoidal rule in log t with analytic tails, its
-    window ended per epoch where the rest is provably below 1e-13 (worst relative error
-    below 1e-9 against a 30-digit reference; see the constants above). d = 1 is closed.
+    componentwise stable, so this is as accurate as an eigen-decomposition, and cheaper
+    (6×6: 0.35–0.5 µs per matrix against 3.1–3.7 µs for numpy's ``eigh``, measured). The
+    integral is a trapezoidal rule in log t with analytic tails, its window ended per
+    epoch where the rest is provably below 1e-12 (worst relative error below 1e-9 against
+    a 30-digit reference; see the constants above). d = 1 is closed.
     """
     mean, cov = check_errors_cov(mean, cov)
     return _expected_norms(mean, cov, (1.0,))[0]
@@ -198,13 +199,11 @@ def _expected_norms(
 ) -> list[np.ndarray]:
     """E‖W‖ for W ~ N(m_k, sS_k), for each scale s: one reduction serves every scale.
 
-    When ``centred`` is given it is filled with E‖N(0, S_k)‖ from the same reduction
-    (det(I + 2tS) does not depend on the basis)."""
+    When ``centred`` is given (d >= 2) it is filled with E‖N(0, S_k)‖ from the same
+    reduction (det(I + 2tS) does not depend on the basis)."""
     n, d = mean.shape
     if d == 1:
         sd = np.sqrt(cov[:, 0, 0])
-        if centred is not None:
-            centred[:] = np.sqrt(2.0 / np.pi) * sd
         return [_norm_1d(mean[:, 0], np.sqrt(s) * sd) for s in scales]
     outs = [np.empty(n) for _ in scales]
     for sl in epoch_chunks(n):
@@ -369,25 +368,31 @@ def centred_norm(cov: np.ndarray) -> np.ndarray:
     if d == 2:
         from scipy import special
 
-        big, small = _eigenvalues_2x2(cov)
+        big, small = eigenvalues_2x2(cov)
         positive = big > 0
         big = np.where(positive, big, 1.0)
+        small = np.clip(small, 0.0, big)  # a PSD matrix's rounding can make it -0
         return np.sqrt(2.0 / np.pi * big) * special.ellipe(1.0 - small / big) * positive
-    out = np.empty(n)
-    for sl in epoch_chunks(n):
-        diag, off2, unit = _tridiagonal(cov[sl], None)
-        out[sl] = _norm_tridiagonal(diag, off2, np.zeros(diag.shape[1])) * np.sqrt(unit)
-    return out
+    return _expected_norms(np.zeros((n, d)), cov, (1.0,))[0]
 
 
-def _eigenvalues_2x2(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The larger and smaller eigenvalue of symmetric 2×2 PSD matrices: the larger as
-    mean + hypot(half difference, off-diagonal), the smaller as det / larger (no
-    cancellation between the two roots), clipped at 0."""
-    p, q, r = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
-    big = 0.5 * (p + r) + np.hypot(0.5 * (p - r), q)
-    safe = np.where(big > 0, big, 1.0)
-    small = np.clip((p * r - q * q) / safe, 0.0, big)
+def eigenvalues_2x2(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The larger and the smaller eigenvalue of symmetric 2×2 matrices (N, 2, 2), in
+    closed form on each matrix scaled to O(1) by its largest entry (no underflow or
+    overflow at any scale): the larger as mean + hypot(half difference, off-diagonal),
+    the smaller as det / larger (no cancellation between the two roots; <= 0 when the
+    matrix is not positive definite)."""
+    n = cov.shape[0]
+    big, small = np.empty(n), np.empty(n)
+    for sl in epoch_chunks(n):  # bounded temporaries
+        p, q, r = cov[sl, 0, 0], cov[sl, 0, 1], cov[sl, 1, 1]
+        unit = np.maximum(np.maximum(np.abs(p), np.abs(q)), np.abs(r))
+        unit = np.where(unit > 0, unit, 1.0)
+        p, q, r = p / unit, q / unit, r / unit
+        larger = 0.5 * (p + r) + np.hypot(0.5 * (p - r), q)
+        det = p * r - q * q
+        big[sl] = unit * larger
+        small[sl] = unit * np.divide(det, larger, out=np.zeros_like(det), where=larger > 0)
     return big, small
 
 

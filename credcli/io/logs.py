@@ -549,14 +549,10 @@ def _validated_cov(
         scale = np.abs(diag).max(axis=1)  # the largest entry of a PD matrix is diagonal
     if kind in (CovKind.VAR, CovKind.STD):
         min_eig = diag.min(axis=1)
-    elif cov.shape[1] == 2:  # closed form: λ_min = det / λ_max, with no cancellation,
-        min_eig = np.empty(cov.shape[0])  # on the matrix scaled to O(1) (no underflow)
-        for sl in epoch_chunks(cov.shape[0]):  # bounded temporaries
-            unit = np.where(scale[sl] > 0, scale[sl], 1.0)
-            a, b, c = cov[sl, 0, 0] / unit, cov[sl, 0, 1] / unit, cov[sl, 1, 1] / unit
-            biggest = 0.5 * (a + c) + np.hypot(0.5 * (a - c), b)
-            det = a * c - b * b
-            min_eig[sl] = unit * np.divide(det, biggest, out=np.zeros_like(det), where=biggest > 0)
+    elif cov.shape[1] == 2:  # closed form, scale-free, no cancellation
+        from credcli.engine.metrics import eigenvalues_2x2
+
+        min_eig = eigenvalues_2x2(cov)[1]
     else:
         min_eig = np.empty(cov.shape[0])
         for sl in epoch_chunks(cov.shape[0]):  # bounded temporaries

@@ -1,9 +1,10 @@
 """Work spread over local processes, with results in task order.
 
-Each worker is a spawned process with one BLAS thread (``threadpoolctl``; the thread
-variables are also set before the spawn, since OpenBLAS reads them when it loads): the
-products of one segment or one trial are small, and several BLAS threads per process would
-only fight over the cores. Results come back in the order of the tasks, whatever finishes
+Each worker is a process with one BLAS thread (``threadpoolctl``; the thread variables are
+also set before a spawn, since OpenBLAS reads them when it loads): the products of one
+segment or one trial are small, and several BLAS threads per process would only fight over
+the cores. Workers are forked where that is safe (:func:`start_method`), so that they start
+with this process's modules loaded instead of importing them again. Results come back in the order of the tasks, whatever finishes
 first, so the output is the same for any number of processes.
 """
 
@@ -39,6 +40,14 @@ def _one_blas_thread() -> None:
 
         threadpool_limits(1, user_api="blas")
     except ImportError:  # the environment variables set before the spawn still hold
+        pass
+
+
+def _one_blas_thread_imports() -> None:
+    """Load threadpoolctl here, so that forked workers do not each import it."""
+    try:
+        import threadpoolctl  # noqa: F401
+    except ImportError:
         pass
 
 
@@ -108,6 +117,27 @@ def one_blas_thread():
         yield
 
 
+def start_method() -> str:
+    """``fork`` on Linux while this process runs one thread and has not loaded pyarrow
+    (whose C++ thread pools are invisible to ``threading``), else ``spawn``.
+
+    A forked worker starts at once with every module of this process loaded; a spawned one
+    first imports numpy, scipy and the engine again: about 0.45 s of CPU per worker here,
+    which on two cores is taken from the work itself (``simulate``'s default protocol:
+    0.6 s of trials). Forking a process with other threads could copy a lock one of them
+    holds, so then the workers are spawned. Buffered output is flushed first, so that no
+    worker writes it a second time when it exits."""
+    import sys
+    import threading
+
+    if sys.platform != "linux" or threading.active_count() != 1 or "pyarrow" in sys.modules:
+        return "spawn"
+    for stream in (sys.stdout, sys.stderr):
+        if stream is not None:
+            stream.flush()
+    return "fork"
+
+
 def _warm_up(module: str) -> None:
     """Worker: import a module now, so that it is loaded when the first task arrives."""
     import importlib
@@ -116,21 +146,26 @@ def _warm_up(module: str) -> None:
 
 
 class WorkerPool:
-    """Spawned worker processes with one BLAS thread each, started (and warmed up by
+    """Worker processes with one BLAS thread each, started (and, when spawned, warmed up by
     importing ``warm``) before the work is known, e.g. while the main process reads logs."""
 
     def __init__(self, jobs: int, warm: str | None = None) -> None:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
+        method = start_method()
+        if method == "fork":
+            _one_blas_thread_imports()
         saved = {k: os.environ.get(k) for k in _BLAS_THREAD_VARIABLES}
         os.environ.update({k: "1" for k in _BLAS_THREAD_VARIABLES})
         try:
             self.executor = ProcessPoolExecutor(
-                max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_one_blas_thread
+                max_workers=jobs, mp_context=mp.get_context(method), initializer=_one_blas_thread
             )
             self.warming = (
-                [self.executor.submit(_warm_up, warm) for _ in range(jobs)] if warm else []
+                [self.executor.submit(_warm_up, warm) for _ in range(jobs)]
+                if warm and method == "spawn"
+                else []
             )
         finally:
             for key, value in saved.items():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -98,16 +99,43 @@ def test_mean_over_seeds_is_close_to_table_ii():
     assert np.mean(cal) > np.mean(ks) + 0.03
 
 
-def test_jobs_do_not_change_output(tmp_path, capsys):
+def test_jobs_do_not_change_output(tmp_path, capsys, monkeypatch):
+    from credcli import parallel
+
     outs = []
-    for jobs in (1, 2):
-        path = tmp_path / f"j{jobs}.json"
+    for jobs, method in ((1, None), (2, "fork"), (2, "spawn")):
+        if method is not None:  # forked and spawned workers alike
+            monkeypatch.setattr(parallel, "start_method", lambda m=method: m)
+        path = tmp_path / f"j{jobs}{method}.json"
         code, _, err = _run(
             capsys, "simulate", "--trials", "12", "--jobs", jobs, "-f", "json", "-o", path
         )
         assert code == 0, err
         outs.append(path.read_bytes())
-    assert outs[0] == outs[1]
+    assert outs[0] == outs[1] == outs[2]
+
+
+def test_workers_are_forked_only_from_a_single_thread_without_pyarrow(monkeypatch):
+    import threading
+
+    from credcli import parallel
+
+    if sys.platform != "linux":
+        assert parallel.start_method() == "spawn"
+        return
+    import pyarrow  # noqa: F401
+
+    assert parallel.start_method() == "spawn"  # Arrow's thread pools may be running
+    monkeypatch.delitem(sys.modules, "pyarrow")
+    assert parallel.start_method() == "fork"
+    stop = threading.Event()
+    helper = threading.Thread(target=stop.wait)
+    helper.start()
+    try:
+        assert parallel.start_method() == "spawn"
+    finally:
+        stop.set()
+        helper.join()
 
 
 def test_json_structure_and_seed(capsys):

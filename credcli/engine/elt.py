@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import blas  # here, not in the flips: forked workers find it loaded
 
 from credcli.engine._rng import RngLike, as_generator, rademacher
 from credcli.engine.config import DEFAULT_MAX_EPOCHS, epoch_chunks
@@ -334,8 +335,6 @@ class _FlippedStatistics:
     def __call__(self, signs: np.ndarray) -> np.ndarray:
         if self.small:
             return self.exact(signs.astype(np.float64))
-        from scipy.linalg import blas
-
         xi = signs.T.astype(np.float32, order="F")  # (N, b), a column per flip
         # U's C-ordered buffer read in Fortran order is Uᵀ, lower triangular: Uᵀξ per column
         product = blas.strmm(1.0, self.upper32.T, xi, side=0, lower=1)

@@ -78,6 +78,81 @@ def test_parquet_equals_csv(tmp_path):
     np.testing.assert_array_equal(a.time, b.time)
 
 
+def _loaded_both_ways(path, drop_invalid):
+    """load_log (Arrow's buffers) and the same file through pandas.read_parquet: the log's
+    arrays, or the error message."""
+    from credcli.io.logs import log_from_frame
+
+    out = []
+    for read in (
+        lambda: load_log(path, drop_invalid=drop_invalid),
+        lambda: log_from_frame(pd.read_parquet(path), LogSchema(), str(path), drop_invalid),
+    ):
+        try:
+            log = read()
+        except CredcliError as exc:
+            out.append(exc.message)
+            continue
+        out.append([log.truth, log.estimate, log.cov, log.time, log.segment, log.rows])
+    return out
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "float",
+        "int",
+        "float32",
+        "null_float",
+        "null_int",
+        "null_segment",
+        "int_segment",
+        "bool",
+        "text",
+    ],
+)
+@pytest.mark.parametrize("drop_invalid", [False, True])
+def test_parquet_columns_read_from_arrow_equal_pandas(tmp_path, case, drop_invalid):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    frame, cov = _frame(n=40)
+    frame = _with_cov(frame, cov, "upper")
+    frame["segment"] = np.repeat(["a", "b", "a", "c"], 10)
+    if case == "int":
+        frame["truth_0"] = np.arange(40) * 3 - 7
+    elif case == "float32":
+        frame["est_1"] = frame["est_1"].astype(np.float32)
+    elif case == "null_float":
+        frame.loc[[3, 17], "cov_0_0"] = np.nan
+    elif case == "null_int":
+        frame["truth_1"] = pd.array(np.arange(40), dtype="Int64")
+        frame.loc[5, "truth_1"] = pd.NA
+    elif case == "null_segment":
+        frame["segment"] = frame["segment"].astype(object)
+        frame.loc[12, "segment"] = None
+    elif case == "int_segment":
+        frame["segment"] = np.repeat([4, 2, 4, 9], 10)
+    elif case == "bool":
+        frame["est_0"] = frame.index % 2 == 0
+    elif case == "text":
+        frame["est_0"] = frame["est_0"].astype(str)
+        frame.loc[21, "est_0"] = "n/a"
+    path = tmp_path / "log.parquet"
+    # row groups of 7 rows: each column is read as several chunks
+    pq.write_table(pa.Table.from_pandas(frame, preserve_index=False), path, row_group_size=7)
+    fast, slow = _loaded_both_ways(path, drop_invalid)
+    if isinstance(slow, str):
+        assert fast == slow
+        return
+    for a, b in zip(fast, slow):
+        if a is None:
+            assert b is None
+        else:
+            assert a.dtype == b.dtype or a.dtype.kind == b.dtype.kind == "O"
+            np.testing.assert_array_equal(a, b)
+
+
 def test_custom_layout_from_config_and_cli_precedence(tmp_path):
     frame, cov = _frame()
     renamed = pd.DataFrame(

@@ -98,9 +98,14 @@ INNOVATION_SCHEMA = {
 
 
 class ParquetColumns:
-    """A Parquet file read one column at a time, as pandas Series: the loader never holds
-    the file's whole table and its numeric copy at once (a 2,000,000-epoch log: 756 MiB
-    peak with pandas.read_parquet, see README "Measured performance")."""
+    """A Parquet file read one column at a time: the loader never holds the file's whole
+    table and its numeric copy at once (a 2,000,000-epoch log: 756 MiB peak with
+    pandas.read_parquet, see README "Measured performance").
+
+    Numeric and string columns are read through Arrow's buffers (:meth:`floats`,
+    :meth:`labels`), without pandas: importing it, which Arrow's ``to_numpy`` does, costs
+    about 0.5 s of a command's start. Columns of other types are pandas Series (item
+    access), whose cells the loader checks one by one."""
 
     def __init__(self, path: Path) -> None:
         import pyarrow.parquet as pq
@@ -114,14 +119,75 @@ class ParquetColumns:
         return self._rows
 
     def __getitem__(self, column: str):
+        return self._read(column).to_pandas()
+
+    def _read(self, column: str):
+        """The column as an Arrow ChunkedArray."""
         import pyarrow as pa
 
         pa.default_memory_pool().release_unused()  # the columns read before, now copied
         try:
-            return self._file.read(columns=[column]).column(0).to_pandas()
+            return self._file.read(columns=[column]).column(0)
         except (OSError, ValueError) as exc:  # pyarrow's errors derive from these
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             raise CredcliError(f"{self.path}: column '{column}' cannot be read: {first}") from exc
+
+    def floats(self, column: str, out: np.ndarray) -> bool:
+        """Write an integer or floating-point column into ``out`` (N,) as float64, nulls as
+        NaN (as pandas' ``to_numpy(float)`` does); False, with nothing written, for a column
+        of any other type."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        data = self._read(column)
+        if not (pa.types.is_integer(data.type) or pa.types.is_floating(data.type)):
+            return False
+        start = 0
+        for chunk in data.chunks:
+            if chunk.type != pa.float64():
+                chunk = pc.cast(chunk, pa.float64(), safe=False)  # integers beyond 2^53 round
+            size = len(chunk)
+            out[start : start + size] = _buffer_values(chunk, np.float64)
+            if chunk.null_count:
+                out[start : start + size][~_valid(chunk)] = np.nan
+            start += size
+        return True
+
+    def labels(self, column: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """A string column as (an object array of its values, the rows where it is null),
+        or None for a column of any other type. Each distinct value is converted to a
+        Python string once (Arrow's dictionary encoding), not once per row."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        data = self._read(column)
+        if not (pa.types.is_string(data.type) or pa.types.is_large_string(data.type)):
+            return None
+        encoded = data.combine_chunks().dictionary_encode()
+        names = np.array(encoded.dictionary.to_pylist() + [""], dtype=object)
+        indices = pc.cast(encoded.indices, pa.int64())
+        codes = _buffer_values(indices, np.int64).copy()
+        missing = ~_valid(indices) if indices.null_count else np.zeros(codes.size, dtype=bool)
+        codes[missing] = -1  # the "" after the names
+        return names[codes], missing
+
+
+def _valid(array) -> np.ndarray:
+    """Which entries of an Arrow array are not null, from its validity bitmap (Arrow's own
+    conversions import pandas, and ``pyarrow.compute.fill_null`` does too)."""
+    bits = np.frombuffer(array.buffers()[0], dtype=np.uint8)
+    return np.unpackbits(bits, bitorder="little")[array.offset : array.offset + len(array)] == 1
+
+
+def _buffer_values(array, dtype) -> np.ndarray:
+    """The values of an Arrow array of fixed-width numbers (whatever its nulls hold), as a
+    read-only view of its data buffer."""
+    return np.frombuffer(
+        array.buffers()[1],
+        dtype=dtype,
+        count=len(array),
+        offset=array.offset * np.dtype(dtype).itemsize,
+    )
 
 
 _URL = re.compile(r"^([a-z][a-z0-9+.-]+):/+(.*)$")
@@ -167,9 +233,7 @@ def _read_url(url: str):
 
 def read_table(path: Path, columnwise: bool = False):
     """The table of a CSV, text or Parquet file (or fsspec URL); with ``columnwise``, a
-    local Parquet file is a :class:`ParquetColumns` (columns read on use)."""
-    import pandas as pd
-
+    local Parquet file is a :class:`ParquetColumns` (columns read on use, without pandas)."""
     url = as_url(path)
     if url is not None:
         return _read_url(url)
@@ -180,23 +244,39 @@ def read_table(path: Path, columnwise: bool = False):
         raise CredcliError(f"{path}: is a directory, expected a CSV or Parquet file")
     if path.stat().st_size == 0:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows")
-    try:
-        if path.suffix.lower() in (".parquet", ".pq"):
-            frame = ParquetColumns(path) if columnwise else pd.read_parquet(path)
-        elif _plain_csv(path):
-            frame = pd.read_csv(path, skipinitialspace=True)
-        else:
-            from credcli.io.formats import read_text_table
-
-            frame = read_text_table(path)
-    except pd.errors.EmptyDataError as exc:
-        raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
-    except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise CredcliError(f"{path}: cannot be read as CSV/Parquet: {first}") from exc
+    if columnwise and path.suffix.lower() in (".parquet", ".pq"):
+        try:
+            frame = ParquetColumns(path)
+        except (OSError, ValueError) as exc:  # pyarrow's errors derive from these
+            raise _unreadable(path, exc) from exc
+    else:
+        frame = _read_frame(path)
     if len(frame) == 0:
         raise CredcliError(f"{path}: header has no rows below it; expected one row per epoch")
     return frame
+
+
+def _read_frame(path: Path):
+    """A local CSV, text or Parquet file as a pandas DataFrame."""
+    import pandas as pd
+
+    try:
+        if path.suffix.lower() in (".parquet", ".pq"):
+            return pd.read_parquet(path)
+        if _plain_csv(path):
+            return pd.read_csv(path, skipinitialspace=True)
+        from credcli.io.formats import read_text_table
+
+        return read_text_table(path)
+    except pd.errors.EmptyDataError as exc:
+        raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
+    except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
+        raise _unreadable(path, exc) from exc
+
+
+def _unreadable(path: Path, exc: Exception) -> CredcliError:
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return CredcliError(f"{path}: cannot be read as CSV/Parquet: {first}")
 
 
 def _plain_csv(path: Path) -> bool:
@@ -446,7 +526,7 @@ def log_from_frame(
     del cov_values
     segment = None
     if seg_col is not None:
-        missing_seg = frame[seg_col].isna().to_numpy()
+        seg_values, missing_seg = _labels(frame, seg_col)
         if missing_seg.any():
             first = int(np.argmax(missing_seg)) + 1
             raise CredcliError(
@@ -454,7 +534,6 @@ def log_from_frame(
                 f"row(s), first in row {first}; fill in the segment names, or name another "
                 "column with --segment-column"
             )
-        seg_values = frame[seg_col].astype(str).to_numpy()
         segment = seg_values[rows - 1]
     estimate = None if innovations else estimate
     notes = ()
@@ -472,14 +551,25 @@ def log_from_frame(
     return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped, notes=notes)
 
 
+def _labels(frame, column: str) -> tuple[np.ndarray, np.ndarray]:
+    """A column's values as strings (an object array), and which are missing."""
+    fast = frame.labels(column) if isinstance(frame, ParquetColumns) else None
+    if fast is not None:
+        return fast
+    series = frame[column]
+    return series.astype(str).to_numpy(), series.isna().to_numpy()
+
+
 def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None = None):
     """The columns ``cols`` of ``frame`` as float64 (N, len(cols)), into ``out`` when given,
     one column at a time; a cell that is not a number is an error naming its row."""
-    import pandas as pd
-
     if out is None:
         out = np.empty((len(frame), len(cols)))
     for j, col in enumerate(cols):
+        if isinstance(frame, ParquetColumns) and frame.floats(col, out[:, j]):
+            continue
+        import pandas as pd
+
         series = frame[col]
         if series.dtype == object or pd.api.types.is_string_dtype(series.dtype):
             # the parser found a cell that is not a number: name the first one

@@ -670,3 +670,23 @@ def test_stdout_on_a_pipe():
         text=True,
     )
     assert head.stdout.startswith("log,segment,") and "Traceback" not in head.stderr
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    labels=st.lists(st.sampled_from(["a", "b", "c", "d10", ""]), min_size=1, max_size=60),
+    run=st.integers(1, 4),
+    as_object=st.booleans(),
+)
+def test_segments_by_column_equal_a_direct_grouping(labels, run, as_object):
+    from credcli.segments import by_column
+
+    values = np.repeat(np.array(labels, dtype=object if as_object else str), run)
+    time = np.arange(values.size) * 0.5
+    got = by_column(values, time)
+    names = list(dict.fromkeys(values.tolist()))  # first appearance
+    assert [s.name for s in got] == names
+    for segment, name in zip(got, names):
+        expected = np.flatnonzero(values == name)
+        np.testing.assert_array_equal(segment.index, expected)
+        assert (segment.t_start, segment.t_end) == (time[expected[0]], time[expected[-1]])

@@ -261,3 +261,33 @@ def test_block_flips_null_equals_the_direct_quadratic_forms(separate):
     t_obs = (a * keep).sum() / norm
     tie = t_obs - 100 * np.finfo(float).eps * abs(t_obs)
     assert result.pvalue == (1 + np.count_nonzero(direct >= tie)) / 200
+
+
+def test_squared_norms_that_round_below_zero_count_as_zero(monkeypatch):
+    """Repeated and opposite errors: ‖s_i ∓ s_j‖² = ‖s_i‖² + ‖s_j‖² ∓ 2 s_i·s_j rounds
+    below zero for some of their pairs; those blocks are computed again with the squares
+    clamped, and A equals the pairwise formula. (The Gram form leaves ‖s_i − s_j‖ of a
+    repeat at most √(ε(‖s_i‖² + ‖s_j‖²)) ≈ 1e-7 instead of 0.)"""
+    rng = np.random.default_rng(5)
+    base = rng.normal(size=(100, 3))
+    s = np.concatenate([base, base, -base])  # repeats 100 and 200 rows apart
+    clamped = []
+    pair_block = elt._pair_block
+
+    def spy(*args, clamp):
+        clamped.append(clamp)
+        pair_block(*args, clamp=clamp)
+
+    monkeypatch.setattr(elt, "_pair_block", spy)
+    a = elt.pair_matrix(s)
+    assert True in clamped  # the check found a rounded-negative square in some block
+    norms = np.linalg.norm(s, axis=1)
+    direct = np.linalg.norm(s[:, None] + s[None], axis=2) - np.linalg.norm(
+        s[:, None] - s[None], axis=2
+    )
+    np.fill_diagonal(direct, 0.0)
+    assert np.all(np.isfinite(a))
+    np.testing.assert_allclose(a, direct, rtol=1e-12, atol=2e-7)
+    i = np.arange(100)
+    np.testing.assert_allclose(a[i, i + 100], 2 * norms[i], rtol=0, atol=2e-7)  # ‖2s‖ − 0
+    np.testing.assert_allclose(a[i, i + 200], -2 * norms[i], rtol=0, atol=2e-7)  # 0 − ‖2s‖

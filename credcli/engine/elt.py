@@ -97,8 +97,8 @@ def pair_upper(s: np.ndarray) -> np.ndarray:
     that the intermediate arrays stay in cache, for j > i only."""
     n = s.shape[0]
     out = np.zeros((n, n))
-    for _, _, plus in _pair_rows(s, out):
-        _zero_lower(plus)
+    for _ in _pair_rows(s, out):
+        pass
     return out
 
 
@@ -115,11 +115,17 @@ def _lower_mask(k: int) -> np.ndarray:
 
 
 def _pair_rows(s: np.ndarray, out: np.ndarray | None = None):
-    """Blocks of rows of A's upper triangle: (start, stop, A[start:stop, start:]) in float64,
-    written into ``out`` when given (the block is then a view of it). Entries on and below
-    the diagonal of the leading k×k square are not A's (the caller overwrites them)."""
+    """Blocks of rows of A's strictly upper triangle: (start, stop, A[start:stop, start:])
+    in float64 with zeros on and below the diagonal of its leading k×k square, written into
+    ``out`` when given (the block is then a view of it).
+
+    A squared norm ‖s_i ± s_j‖² computed as ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j can round below
+    zero when s_j ≈ ∓s_i; its square root is then NaN, which the block's sum shows, and
+    that block is computed again with the squares clamped at zero (as the whole
+    computation was before: the same numbers, two passes fewer per block)."""
     n = s.shape[0]
     sq = np.einsum("ni,ni->n", s, s)
+    twice = 2.0 * s  # exact: 2 s_i·s_j is then one product, bit for bit
     rows = min(n, _PAIR_ROWS)
     minus = np.empty((rows, n))
     two_gram = np.empty((rows, n))
@@ -129,16 +135,26 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None):
         k, width = stop - start, n - start
         g, m = two_gram[:k, :width], minus[:k, :width]
         plus = spare[:k, :width] if out is None else out[start:stop, start:]
-        np.matmul(s[start:stop], s[start:].T, out=g)
-        g *= 2.0
-        np.add(sq[start:stop, None], sq[None, start:], out=m)
-        np.add(m, g, out=plus)  # ‖s_i + s_j‖²
-        m -= g  # ‖s_i − s_j‖²
-        for sq_norm in (plus, m):
-            np.maximum(sq_norm, 0.0, out=sq_norm)
-            np.sqrt(sq_norm, out=sq_norm)
-        plus -= m
+        np.matmul(twice[start:stop], s[start:].T, out=g)
+        _pair_block(sq[start:stop], sq[start:], g, m, plus, clamp=False)
+        if np.isnan(plus.sum()):
+            _pair_block(sq[start:stop], sq[start:], g, m, plus, clamp=True)
         yield start, stop, plus
+
+
+def _pair_block(sq_rows, sq_cols, two_gram, minus, plus, clamp: bool) -> None:
+    """plus := ‖s_i + s_j‖ − ‖s_i − s_j‖ from the squared norms and 2 s_i·s_j, strictly
+    upper; ``clamp``: squared norms that rounded below zero count as zero."""
+    np.add(sq_rows[:, None], sq_cols[None, :], out=minus)
+    np.add(minus, two_gram, out=plus)  # ‖s_i + s_j‖²
+    minus -= two_gram  # ‖s_i − s_j‖²
+    for sq_norm in (plus, minus):
+        if clamp:
+            np.maximum(sq_norm, 0.0, out=sq_norm)
+        with np.errstate(invalid="ignore"):
+            np.sqrt(sq_norm, out=sq_norm)
+    plus -= minus
+    _zero_lower(plus)
 
 
 def pair_matrix_float32(s: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -148,8 +164,7 @@ def pair_matrix_float32(s: np.ndarray) -> tuple[np.ndarray, float, float]:
     n = s.shape[0]
     out = np.zeros((n, n), dtype=np.float32)
     total = absolute = 0.0
-    for start, stop, plus in _pair_rows(s):
-        _zero_lower(plus)  # strictly upper: each pair once
+    for start, stop, plus in _pair_rows(s):  # strictly upper: each pair once
         total += 2.0 * float(plus.sum())
         absolute += 2.0 * float(np.abs(plus).sum())
         out[start:stop, start:] = plus
@@ -160,7 +175,6 @@ def _exact_quadratic(s: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1), A's rows rebuilt a block at a time."""
     values = np.zeros(xi.shape[0])
     for start, stop, plus in _pair_rows(s):
-        _zero_lower(plus)
         values += 2.0 * np.einsum("bi,bi->b", xi[:, start:stop], xi[:, start:] @ plus.T)
     return values
 

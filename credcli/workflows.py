@@ -74,6 +74,9 @@ PARALLEL_MIN_EPOCHS = 50_000
 processes (about 0.5 s each, to import numpy and scipy) would cost more than it saves."""
 
 
+TASKS_PER_JOB = 32
+"""Tasks per worker process: a task holds about total epochs / (TASKS_PER_JOB · jobs)."""
+
 PARALLEL_MIN_BYTES = 2_000_000
 """Logs this large (in all) start the worker processes before they are read."""
 
@@ -149,7 +152,7 @@ def diagnose_plans(
     if pool is not None and not parallel:
         pool.close()
         pool = None
-    target = max(1, total_epochs // (8 * jobs)) if parallel else 0
+    target = max(1, total_epochs // (TASKS_PER_JOB * jobs)) if parallel else 0
     tasks = _chunk_tasks(plans, config, seed, target, innovations, runs)
     if pool is not None:
         outputs = pool.map(_diagnose_chunk, list(tasks))

@@ -291,3 +291,22 @@ def test_squared_norms_that_round_below_zero_count_as_zero(monkeypatch):
     i = np.arange(100)
     np.testing.assert_allclose(a[i, i + 100], 2 * norms[i], rtol=0, atol=2e-7)  # ‖2s‖ − 0
     np.testing.assert_allclose(a[i, i + 200], -2 * norms[i], rtol=0, atol=2e-7)  # 0 − ‖2s‖
+
+
+@pytest.mark.parametrize(
+    "sizes",
+    [[3] * 70, [2] * 150 + [1], [4] * 60 + [2] * 3 + [4] * 20, [5] * 50, [97, 3, 120], [1] * 130],
+)
+def test_block_sums_made_by_bands_equal_those_of_the_whole_pair_matrix(sizes):
+    """Where every 96-row band of pair_upper ends on a block boundary, the block sums are
+    bit for bit the same; elsewhere (blocks of 5, a block longer than a band) they agree to
+    rounding."""
+    s = np.random.default_rng(len(sizes)).normal(size=(sum(sizes), 2))
+    starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    whole = elt._block_sums(elt._block_sums(elt.pair_upper(s), starts).T, starts).T
+    banded = elt.pair_block_upper(s, starts)
+    n = sum(sizes)
+    if set(range(96, n, 96)) <= set(starts.tolist()):
+        np.testing.assert_array_equal(banded, whole)
+    np.testing.assert_allclose(banded, whole, rtol=1e-12, atol=1e-11)
+    assert not np.any(np.tril(banded, -1))

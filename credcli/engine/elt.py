@@ -114,10 +114,32 @@ def _lower_mask(k: int) -> np.ndarray:
     return np.tri(k, dtype=bool)
 
 
-def _pair_rows(s: np.ndarray, out: np.ndarray | None = None):
+def pair_block_upper(s: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """M, the sums of the strictly upper triangle U of the pair matrix over the blocks of
+    consecutive epochs beginning at ``starts`` (M_bc = Σ U_ij over i in block b, j in block
+    c; A_b = M + Mᵀ is the block-summed pair matrix), made from bands of whole blocks of
+    rows: the N×N matrix is never held. Bands are _PAIR_ROWS rows where the blocks divide
+    it, so U's entries are the ones :func:`pair_upper` gives, summed in the same order."""
+    n = s.shape[0]
+    bounds = np.r_[starts, n]
+    out = np.zeros((starts.size, starts.size))
+    bands, first = [], 0  # whole blocks, at most _PAIR_ROWS rows unless one block is longer
+    for b in range(1, starts.size + 1):
+        if b == starts.size or bounds[b + 1] - bounds[first] > _PAIR_ROWS:
+            bands.append((first, b))
+            first = b
+    row_bands = [(int(bounds[b0]), int(bounds[b1])) for b0, b1 in bands]
+    for (b0, b1), (start, _, plus) in zip(bands, _pair_rows(s, bands=row_bands)):
+        by_row = _block_sums(plus, starts[b0:b1] - start)
+        out[b0:b1, b0:] = _block_sums(by_row.T, starts[b0:] - start).T
+    return out
+
+
+def _pair_rows(s: np.ndarray, out: np.ndarray | None = None, bands=None):
     """Blocks of rows of A's strictly upper triangle: (start, stop, A[start:stop, start:])
     in float64 with zeros on and below the diagonal of its leading k×k square, written into
-    ``out`` when given (the block is then a view of it).
+    ``out`` when given (the block is then a view of it). ``bands``: the (start, stop) of
+    the blocks, _PAIR_ROWS rows each by default.
 
     A squared norm ‖s_i ± s_j‖² computed as ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j can round below
     zero when s_j ≈ ∓s_i; its square root is then NaN, which the block's sum shows, and
@@ -126,12 +148,13 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None):
     n = s.shape[0]
     sq = np.einsum("ni,ni->n", s, s)
     twice = 2.0 * s  # exact: 2 s_i·s_j is then one product, bit for bit
-    rows = min(n, _PAIR_ROWS)
+    if bands is None:
+        bands = [(a, min(n, a + _PAIR_ROWS)) for a in range(0, n, _PAIR_ROWS)]
+    rows = max(stop - start for start, stop in bands)
     minus = np.empty((rows, n))
     two_gram = np.empty((rows, n))
     spare = np.empty((rows, n)) if out is None else None
-    for start in range(0, n, rows):
-        stop = min(n, start + rows)
+    for start, stop in bands:
         k, width = stop - start, n - start
         g, m = two_gram[:k, :width], minus[:k, :width]
         plus = spare[:k, :width] if out is None else out[start:stop, start:]
@@ -430,15 +453,16 @@ def _sign_flip_test(
     if n_blocks == n > STREAM_EPOCHS and not separate_blocks:  # a large matrix: float32 only
         flipped = _FlippedStatistics.streamed(s / unit)
         return _flip(flipped, float(n * (n - 1)), n, **flips, **result)
-    upper = pair_upper(s / unit)
     if n_blocks == n and not separate_blocks:  # flips on U itself (A = U + Uᵀ)
+        upper = pair_upper(s / unit)
         flipped = _FlippedStatistics(upper, 2.0 * float(upper.sum()), upper=True)
         return _flip(flipped, float(n * (n - 1)), n, **flips, **result)
     if n_blocks < n:  # A_b = M + Mᵀ with M the block sums of U
         starts = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]])
-        upper = _block_sums(_block_sums(upper, starts).T, starts).T
+        upper = pair_block_upper(s / unit, starts)
         sizes = np.diff(np.r_[starts, n]).astype(float)
     else:
+        upper = pair_upper(s / unit)
         sizes = np.ones(n)
     a = upper + upper.T
     del upper

@@ -71,7 +71,9 @@ def schema_parameters(schema: LogSchema) -> dict:
 
 PARALLEL_MIN_EPOCHS = 50_000
 """Below this many epochs in all, segments are diagnosed in this process: starting worker
-processes (about 0.5 s each, to import numpy and scipy) would cost more than it saves."""
+processes would cost more than it saves (a spawned worker imports numpy and scipy again,
+about 0.5 s; a forked one, see parallel.start_method, starts at once but still costs its
+set-up and the transfer of the segments)."""
 
 
 TASKS_PER_JOB = 32

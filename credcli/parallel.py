@@ -4,8 +4,9 @@ Each worker is a process with one BLAS thread (``threadpoolctl``; the thread var
 also set before a spawn, since OpenBLAS reads them when it loads): the products of one
 segment or one trial are small, and several BLAS threads per process would only fight over
 the cores. Workers are forked where that is safe (:func:`start_method`), so that they start
-with this process's modules loaded instead of importing them again. Results come back in the order of the tasks, whatever finishes
-first, so the output is the same for any number of processes.
+with this process's modules loaded instead of importing them again. Results come back in
+the order of the tasks, whatever finishes first, so the output is the same for any number
+of processes.
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ MMAP_THRESHOLD = 64 << 20
 
 
 def keep_freed_memory() -> None:
-    """Keep the memory of freed arrays below 64 MiB in glibc's heap, for the next ones.
+    """Keep the memory of freed arrays below 64 MiB in glibc's heap, for the next ones: in
+    the processes credcli owns (the command line's and the workers'), not a library caller's.
 
     By default glibc maps a fresh block for each array above a threshold it adapts, and
     gives the top of its heap back to the system once more than twice that is free: the
@@ -119,7 +121,6 @@ def prepare_worker() -> None:
 def one_blas_thread():
     """BLAS limited to one thread in this process, for work made of many small products
     (one segment, one trial), where extra BLAS threads only contend for the cores."""
-    keep_freed_memory()
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:

@@ -1305,10 +1305,12 @@ def main(argv: list[str] | None = None) -> int:
     """
     import warnings
 
-    from credcli.parallel import single_threaded_blas
+    from credcli.parallel import keep_freed_memory, single_threaded_blas
 
     single_threaded_blas()  # before numpy loads; a user's own setting wins
     args = list(sys.argv[1:] if argv is None else argv)
+    if "--help" not in args and any(a in app_commands() for a in args):
+        keep_freed_memory()  # this process is credcli's own: it may tune its allocator
     debug = (
         "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]
     )

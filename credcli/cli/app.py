@@ -982,8 +982,13 @@ def simulate(
         ),
     ] = None,
     jobs: Annotated[
-        int, typer.Option("--jobs", "-j", help="Worker processes (same output for any value).")
-    ] = 1,
+        int | None,
+        typer.Option(
+            "--jobs",
+            "-j",
+            help="Worker processes (same output for any value) [default: the number of cores].",
+        ),
+    ] = None,
     scheduler: SchedulerOpt = None,
     plots: PlotsOpt = None,
     config: ConfigOpt = None,
@@ -1007,8 +1012,7 @@ def simulate(
     from credcli.cli.settings import build_simulation_config, load_config
     from credcli.workflows import run_simulate
 
-    if jobs < 1:
-        raise CredcliError(f"--jobs must be >= 1; got {jobs}")
+    jobs = _jobs(jobs)
     _guard({"--output": output}, [config], plots)
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")

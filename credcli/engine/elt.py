@@ -148,6 +148,10 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None, bands=None):
     n = s.shape[0]
     sq = np.einsum("ni,ni->n", s, s)
     twice = 2.0 * s  # exact: 2 s_i·s_j is then one product, bit for bit
+    # ‖s_i‖² + ‖s_j‖² as the product [‖s_i‖², 1]·[1, ‖s_j‖²]: the same sum, twice as fast as
+    # numpy's broadcast addition (products with 1 are exact; one rounding either way)
+    sq_ones = np.stack([sq, np.ones(n)], axis=1)
+    ones_sq = np.stack([np.ones(n), sq])
     if bands is None:
         bands = [(a, min(n, a + _PAIR_ROWS)) for a in range(0, n, _PAIR_ROWS)]
     rows = max(stop - start for start, stop in bands)
@@ -159,16 +163,18 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None, bands=None):
         g, m = two_gram[:k, :width], minus[:k, :width]
         plus = spare[:k, :width] if out is None else out[start:stop, start:]
         np.matmul(twice[start:stop], s[start:].T, out=g)
-        _pair_block(sq[start:stop], sq[start:], g, m, plus, clamp=False)
+        sums = (sq_ones[start:stop], ones_sq[:, start:])
+        _pair_block(*sums, g, m, plus, clamp=False)
         if np.isnan(plus.sum()):
-            _pair_block(sq[start:stop], sq[start:], g, m, plus, clamp=True)
+            _pair_block(*sums, g, m, plus, clamp=True)
         yield start, stop, plus
 
 
-def _pair_block(sq_rows, sq_cols, two_gram, minus, plus, clamp: bool) -> None:
-    """plus := ‖s_i + s_j‖ − ‖s_i − s_j‖ from the squared norms and 2 s_i·s_j, strictly
-    upper; ``clamp``: squared norms that rounded below zero count as zero."""
-    np.add(sq_rows[:, None], sq_cols[None, :], out=minus)
+def _pair_block(sq_ones, ones_sq, two_gram, minus, plus, clamp: bool) -> None:
+    """plus := ‖s_i + s_j‖ − ‖s_i − s_j‖ from the squared norms (as the factors
+    [‖s_i‖², 1] and [1, ‖s_j‖²]) and 2 s_i·s_j, strictly upper; ``clamp``: squared norms
+    that rounded below zero count as zero."""
+    np.matmul(sq_ones, ones_sq, out=minus)  # ‖s_i‖² + ‖s_j‖²
     np.add(minus, two_gram, out=plus)  # ‖s_i + s_j‖²
     minus -= two_gram  # ‖s_i − s_j‖²
     for sq_norm in (plus, minus):

@@ -1313,7 +1313,7 @@ def main(argv: list[str] | None = None) -> int:
 
     single_threaded_blas()  # before numpy loads; a user's own setting wins
     args = list(sys.argv[1:] if argv is None else argv)
-    if "--help" not in args and any(a in app_commands() for a in args):
+    if "--help" not in args and not app_commands().isdisjoint(args):
         keep_freed_memory()  # this process is credcli's own: it may tune its allocator
     debug = (
         "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]

@@ -143,8 +143,8 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None, bands=None):
 
     A squared norm ‖s_i ± s_j‖² computed as ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j can round below
     zero when s_j ≈ ∓s_i; its square root is then NaN, which the block's sum shows, and
-    that block is computed again with the squares clamped at zero (as the whole
-    computation was before: the same numbers, two passes fewer per block)."""
+    that block is computed again with the squares clamped at zero. The result is that of
+    clamping every square, with two passes fewer per block."""
     n = s.shape[0]
     sq = np.einsum("ni,ni->n", s, s)
     twice = 2.0 * s  # exact: 2 s_i·s_j is then one product, bit for bit

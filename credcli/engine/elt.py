@@ -200,6 +200,12 @@ def pair_matrix_float32(s: np.ndarray) -> tuple[np.ndarray, float, float]:
     return out, total, absolute
 
 
+def _exact_dense(a: np.ndarray, factor: float, xi: np.ndarray) -> np.ndarray:
+    """factor · ξ_bᵀaξ_b in float64 for rows ξ_b (float ±1): ξᵀAξ from A (factor 1) or from
+    its strictly upper triangle (factor 2)."""
+    return factor * np.einsum("bi,bi->b", xi @ a, xi)
+
+
 def _exact_quadratic(s: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1), A's rows rebuilt a block at a time."""
     values = np.zeros(xi.shape[0])
@@ -214,7 +220,7 @@ def energy_statistic(s: np.ndarray) -> float:
     .. math:: T = \frac{2}{N(N-1)}\sum_{i<j}\big(\|s_i+s_j\| - \|s_i-s_j\|\big)
     """
     n = s.shape[0]
-    return float(pair_matrix(s).sum() / (n * (n - 1)))
+    return float(2.0 * pair_upper(s).sum() / (n * (n - 1)))
 
 
 def location_test(
@@ -347,36 +353,34 @@ class _FlippedStatistics:
     recheck rebuilds A's rows a block at a time from the whitened errors.
     """
 
-    def __init__(self, a: np.ndarray, observed: float, upper: bool = False) -> None:
-        """``a``: A, or with ``upper`` its strictly upper triangle U (then 1ᵀA1 = 2·1ᵀU1)."""
-        n = a.shape[0]
-        self.a, self.upper, self.s, self.observed = a, upper, None, observed
-        self.small = n < 64  # small problems: float64 throughout
-        if not self.small:
-            self.upper32 = a.astype(np.float32)  # the product reads its upper triangle
-            # ... and its diagonal, which block sums fill: ξᵀAξ = tr A + 2ξᵀUξ
-            self.trace = 0.0 if upper else float(np.trace(a))
-            np.fill_diagonal(self.upper32, 0.0)
-            self.bound = _float32_bound(n, _abs_sum(a) * (2.0 if upper else 1.0))
+    def __init__(self, observed: float, exact, upper32=None, trace=0.0, abs_sum=0.0) -> None:
+        """``exact``: ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1); ``upper32``: U in float32
+        (None: float64 throughout, for small problems); ``trace``: tr A; ``abs_sum``:
+        Σ|A_ij|, for the rounding bound."""
+        self.observed, self.exact, self.upper32, self.trace = observed, exact, upper32, trace
+        if upper32 is not None:
+            self.bound = _float32_bound(upper32.shape[0], abs_sum)
+
+    @classmethod
+    def of_matrix(cls, a: np.ndarray, observed: float, upper: bool = False) -> _FlippedStatistics:
+        """From A, or with ``upper`` its strictly upper triangle U (then 1ᵀA1 = 2·1ᵀU1)."""
+        exact = functools.partial(_exact_dense, a, 2.0 if upper else 1.0)
+        if a.shape[0] < 64:  # small problems: float64 throughout
+            return cls(observed, exact)
+        upper32 = a.astype(np.float32)  # the product reads its upper triangle
+        np.fill_diagonal(upper32, 0.0)  # ... and its diagonal: ξᵀAξ = tr A + 2ξᵀUξ
+        trace = 0.0 if upper else float(np.trace(a))
+        return cls(observed, exact, upper32, trace, _abs_sum(a) * (2.0 if upper else 1.0))
 
     @classmethod
     def streamed(cls, s: np.ndarray) -> _FlippedStatistics:
-        """From whitened errors s (N, d), with A in float32 only (:func:`pair_matrix_float32`)."""
-        self = cls.__new__(cls)
-        self.upper32, self.observed, abs_sum = pair_matrix_float32(s)
-        self.a, self.upper, self.s, self.small, self.trace = None, True, s, False, 0.0
-        self.bound = _float32_bound(s.shape[0], abs_sum)
-        return self
-
-    def exact(self, xi: np.ndarray) -> np.ndarray:
-        """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1)."""
-        if self.a is None:
-            return _exact_quadratic(self.s, xi)
-        values = np.einsum("bi,bi->b", xi @ self.a, xi)
-        return 2.0 * values if self.upper else values
+        """From whitened errors s (N, d), with A in float32 only (:func:`pair_matrix_float32`);
+        the float64 recheck rebuilds A's rows."""
+        upper32, observed, abs_sum = pair_matrix_float32(s)
+        return cls(observed, functools.partial(_exact_quadratic, s), upper32, 0.0, abs_sum)
 
     def __call__(self, signs: np.ndarray) -> np.ndarray:
-        if self.small:
+        if self.upper32 is None:
             return self.exact(signs.astype(np.float64))
         xi = signs.T.astype(np.float32, order="F")  # (N, b), a column per flip
         # U's C-ordered buffer read in Fortran order is Uᵀ, lower triangular: Uᵀξ per column
@@ -461,7 +465,7 @@ def _sign_flip_test(
         return _flip(flipped, float(n * (n - 1)), n, **flips, **result)
     if n_blocks == n and not separate_blocks:  # flips on U itself (A = U + Uᵀ)
         upper = pair_upper(s / unit)
-        flipped = _FlippedStatistics(upper, 2.0 * float(upper.sum()), upper=True)
+        flipped = _FlippedStatistics.of_matrix(upper, 2.0 * float(upper.sum()), upper=True)
         return _flip(flipped, float(n * (n - 1)), n, **flips, **result)
     if n_blocks < n:  # A_b = M + Mᵀ with M the block sums of U
         starts = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]])
@@ -479,7 +483,8 @@ def _sign_flip_test(
         norm = float(sizes @ np.where(near, 0.0, 1.0) @ sizes)
     else:
         norm = float(n * (n - 1))
-    return _flip(_FlippedStatistics(a, float(a.sum())), norm, n_blocks, **flips, **result)
+    flipped = _FlippedStatistics.of_matrix(a, float(a.sum()))
+    return _flip(flipped, norm, n_blocks, **flips, **result)
 
 
 def _flip(

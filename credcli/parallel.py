@@ -35,7 +35,7 @@ def default_jobs() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _one_blas_thread() -> None:
+def _set_up_worker() -> None:
     """A worker's set-up: one BLAS thread, freed memory kept for reuse."""
     keep_freed_memory()
     try:
@@ -46,7 +46,7 @@ def _one_blas_thread() -> None:
         pass
 
 
-def _one_blas_thread_imports() -> None:
+def _import_threadpoolctl() -> None:
     """Load threadpoolctl here, so that forked workers do not each import it."""
     try:
         import threadpoolctl  # noqa: F401
@@ -113,7 +113,7 @@ def _libc():
 def prepare_worker() -> None:
     """On a worker's first task: one BLAS thread, and glibc's adaptive heap back."""
     if not _LIMITED:
-        _one_blas_thread()
+        _set_up_worker()
         _LIMITED.append(True)
 
 
@@ -168,18 +168,16 @@ class WorkerPool:
 
         method = start_method()
         if method == "fork":
-            _one_blas_thread_imports()
+            _import_threadpoolctl()
         saved = {k: os.environ.get(k) for k in _BLAS_THREAD_VARIABLES}
         os.environ.update({k: "1" for k in _BLAS_THREAD_VARIABLES})
         try:
             self.executor = ProcessPoolExecutor(
-                max_workers=jobs, mp_context=mp.get_context(method), initializer=_one_blas_thread
+                max_workers=jobs, mp_context=mp.get_context(method), initializer=_set_up_worker
             )
-            self.warming = (
-                [self.executor.submit(_warm_up, warm) for _ in range(jobs)]
-                if warm and method == "spawn"
-                else []
-            )
+            if warm and method == "spawn":  # a forked worker has this process's modules
+                for _ in range(jobs):
+                    self.executor.submit(_warm_up, warm)
         finally:
             for key, value in saved.items():
                 if value is None:

@@ -65,7 +65,6 @@ def by_column(values: np.ndarray, time: np.ndarray | None = None) -> list[Segmen
     starts = np.flatnonzero(np.r_[True, values[1:] != values[:-1]])
     stops = np.r_[starts[1:], n]
     _, first_run, run_group = np.unique(values[starts], return_index=True, return_inverse=True)
-    run_group = run_group.reshape(-1)
     first = starts[first_run]
     order = np.argsort(first, kind="stable")
     if first_run.size == starts.size:  # each value one run: the segments are ranges

@@ -39,7 +39,6 @@ def open_log(
 
 
 def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
-    path = Path(path)
     schema = schema or LogSchema()
     reading = reading or ReadOptions()
     _check_options(reading)

@@ -187,3 +187,20 @@ def test_multiple_logs_have_a_log_column(tmp_path, capsys):
     doc = json.loads(out)
     assert len(doc["segments"]) == 12 and len(doc["logs"]) == 2
     assert np.unique([s["log"] for s in doc["segments"]]).size == 2
+
+
+def test_only_the_command_line_tunes_its_allocator(monkeypatch, tmp_path, capsys):
+    """keep_freed_memory changes a process-wide malloc setting: the command line does it
+    for a command it runs, not for --help, and the library never does."""
+    import credcli
+    from credcli import parallel
+
+    calls = []
+    monkeypatch.setattr(parallel, "keep_freed_memory", lambda: calls.append(True))
+    assert main(["--help"]) == 0
+    assert main(["diagnose", "--help"]) == 0
+    assert calls == []
+    credcli.diagnose_log(load_log(LOG))
+    assert calls == []
+    assert main(["diagnose", str(LOG), "-f", "json", "-o", str(tmp_path / "d.json")]) == 0
+    assert calls == [True]

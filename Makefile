@@ -10,6 +10,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[plots,ros,dask,dev]'
+	$(BIN)/python -m compileall -q credcli  # as pip does for an installed package; see bench.py
 	touch $(STAMP)
 
 install: $(STAMP)

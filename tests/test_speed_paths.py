@@ -98,3 +98,92 @@ def test_jobs_do_not_change_the_output(tmp_path):
         outs.append(out.read_bytes())
     assert outs[0] == outs[1]
     assert len(json.loads(outs[0])["segments"]) == 180
+
+
+def _integer_matrix(n: int, rank: int, noise: int, upper: bool, seed: int):
+    """A = VVᵀ + W with small integer V and symmetric integer W (zero diagonal when only
+    the strictly upper triangle is given), so every ξᵀAξ is an exact integer."""
+    rng = np.random.default_rng(seed)
+    v = rng.integers(-3, 4, size=(n, rank))
+    w = np.triu(rng.integers(-noise, noise + 1, size=(n, n)), 1 if upper else 0)
+    a = v @ v.T + w + np.triu(w, 1).T
+    if upper:
+        a = np.triu(a, 1)  # A = U + Uᵀ: its diagonal is zero
+    return a, v, w
+
+
+def _exact_forms(a: np.ndarray, upper: bool, signs: np.ndarray) -> np.ndarray:
+    """ξᵀAξ in integer arithmetic (int64 holds these: |ξᵀAξ| < 2⁶³)."""
+    full = a + a.T if upper else a
+    xi = signs.astype(np.int64)
+    return np.einsum("bi,ij,bj->b", xi, full.astype(np.int64), xi)
+
+
+@pytest.mark.parametrize("upper", [True, False])
+@pytest.mark.parametrize(
+    ("rank", "noise", "exponent"), [(1, 0, 0), (2, 0, -40), (8, 0, 30), (3, 2, 0), (20, 1, -3)]
+)
+def test_low_rank_bound_is_above_every_exact_form(upper, rank, noise, exponent):
+    """The bound against integer-exact forms; with A of rank <= k the remainder is only
+    the rounding allowance, so the bound is also tight there (given whole: given as U,
+    A = VVᵀ − diag(VVᵀ) is not of low rank)."""
+    n = 300
+    a, _, _ = _integer_matrix(n, rank, noise, upper, seed=rank + 10 * noise)
+    scaled = a.astype(np.float64) * 2.0**exponent  # exact: a power of two
+    upper32 = (np.triu(scaled, 1) if not upper else scaled).astype(np.float32)
+    flat = scaled.reshape(-1)
+    squares = (2.0 if upper else 1.0) * float(flat @ flat)
+    bound = elt._LowRankBound.of_matrix(scaled, upper, upper32, squares)
+    signs = elt.rademacher(np.random.default_rng(rank), (3000, n))
+    exact = _exact_forms(a, upper, signs).astype(np.float64) * 2.0**exponent
+    signs[0] = 1  # ξ = 1 too, where 1ᵀA1 is largest for a low-rank A
+    exact[0] = float(_exact_forms(a, upper, signs[:1])[0]) * 2.0**exponent
+    bounds = bound(signs.T.astype(np.float32, order="F"))
+    assert np.all(bounds >= exact)
+    if noise == 0 and rank <= elt._BOUND_RANK and not upper:  # R = 0 up to rounding
+        assert np.max(bounds - exact) <= 1e-4 * n * np.sqrt(squares)
+
+
+@pytest.mark.parametrize(
+    ("bias", "block_length", "separate"),
+    [
+        (0.45, 1, False),
+        (0.6, 1, False),
+        (1.0, 1, False),
+        (2.0, 1, False),
+        (0.8, 2, True),
+        (1.5, 3, False),
+    ],
+)
+def test_bounded_flips_decide_as_the_exhaustive_test(bias, block_length, separate):
+    """With the bound, each flip counts as in the exhaustive test: same p-value and flips,
+    the bounded flips' exhaustive values below T_obs, the others' values unchanged."""
+    for seed in range(3):
+        rng = np.random.default_rng([31, seed])
+        s = rng.standard_normal((900, 2)) + [bias, 0.0]
+        kw = dict(block_length=block_length, separate_blocks=separate)
+        fast = whitened_location_test(s, 1000, np.random.default_rng(seed), stop_level=0.05, **kw)
+        full = whitened_location_test(s, 1000, np.random.default_rng(seed), **kw)
+        assert (fast.pvalue, fast.flips_used) == (full.pvalue, 1000)
+        bounded = np.isnan(fast.null_distribution)
+        assert fast.flips_bounded == np.count_nonzero(bounded)
+        assert np.all(full.null_distribution[bounded] < full.statistic)
+        spread = float(np.abs(full.null_distribution).max())
+        np.testing.assert_allclose(
+            fast.null_distribution[~bounded], full.null_distribution[~bounded], atol=1e-5 * spread
+        )
+        if bias >= 1.0:  # strong bias: all flips after the first batch are bounded
+            assert fast.flips_bounded == 1000 - elt._FIRST_BATCH
+
+
+def test_weak_bias_does_not_build_the_bound(monkeypatch):
+    """Under the gate the bound is not built (it would certify nothing): the cost stays."""
+    built = []
+    original = elt._LowRankBound.of_matrix
+    monkeypatch.setattr(elt._LowRankBound, "of_matrix", lambda *a: built.append(1) or original(*a))
+    s = np.random.default_rng(3).standard_normal((900, 2)) + [0.25, 0.0]
+    res = whitened_location_test(s, 1000, np.random.default_rng(0), stop_level=0.05)
+    assert res.pvalue < 0.05 and res.flips_bounded == 0 and not built
+    s = s + [1.0, 0.0]
+    res = whitened_location_test(s, 1000, np.random.default_rng(0), stop_level=0.05)
+    assert res.flips_bounded > 0 and built == [1]

@@ -31,7 +31,9 @@ class ELTResult:
     pvalue : float
         Randomised p-value of Eq. (16).
     null_distribution : numpy.ndarray
-        The B sign-flipped statistics T^(b) of Eq. (15).
+        The sign-flipped statistics T^(b) of Eq. (15), one per flip used, in the order the
+        flips were drawn; NaN for a flip that a bound alone showed to be below T_obs
+        (``flips_bounded``).
     n_used : int
         Number of epochs in the test (smaller than the segment when subsampled).
     subsampled : bool
@@ -49,6 +51,10 @@ class ELTResult:
     flips_used: int | None = None
     """Sign flips evaluated: B, or fewer when the test stopped once it could no longer
     reject (``stop_level``); then ``pvalue`` is the sequential p-value h/l."""
+    flips_bounded: int = 0
+    """Of the flips used, those whose statistic an upper bound alone placed below T_obs
+    (:class:`_LowRankBound`; only with ``stop_level``): they count as in the exhaustive
+    test, not exceeding T_obs, and have no value in ``null_distribution``."""
 
     def __iter__(self):
         """``statistic, pvalue = result``, as for scipy's test results."""
@@ -353,11 +359,16 @@ class _FlippedStatistics:
     recheck rebuilds A's rows a block at a time from the whitened errors.
     """
 
-    def __init__(self, observed: float, exact, upper32=None, trace=0.0, abs_sum=0.0) -> None:
+    def __init__(
+        self, observed: float, exact, upper32=None, trace=0.0, abs_sum=0.0, dense=None
+    ) -> None:
         """``exact``: ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1); ``upper32``: U in float32
         (None: float64 throughout, for small problems); ``trace``: tr A; ``abs_sum``:
-        Σ|A_ij|, for the rounding bound."""
+        Σ|A_ij|, for the rounding bound; ``dense``: (a, upper), A in float64 as for
+        :meth:`of_matrix`, from which a :class:`_LowRankBound` can be built."""
         self.observed, self.exact, self.upper32, self.trace = observed, exact, upper32, trace
+        self.dense = dense
+        self.low_rank: _LowRankBound | bool | None = None  # built at first need; False: never
         if upper32 is not None:
             self.bound = _float32_bound(upper32.shape[0], abs_sum)
 
@@ -370,7 +381,8 @@ class _FlippedStatistics:
         upper32 = a.astype(np.float32)  # the product reads its upper triangle
         np.fill_diagonal(upper32, 0.0)  # ... and its diagonal: ξᵀAξ = tr A + 2ξᵀUξ
         trace = 0.0 if upper else float(np.trace(a))
-        return cls(observed, exact, upper32, trace, _abs_sum(a) * (2.0 if upper else 1.0))
+        abs_sum = _abs_sum(a) * (2.0 if upper else 1.0)
+        return cls(observed, exact, upper32, trace, abs_sum, dense=(a, upper))
 
     @classmethod
     def streamed(cls, s: np.ndarray) -> _FlippedStatistics:
@@ -379,10 +391,44 @@ class _FlippedStatistics:
         upper32, observed, abs_sum = pair_matrix_float32(s)
         return cls(observed, functools.partial(_exact_quadratic, s), upper32, 0.0, abs_sum)
 
-    def __call__(self, signs: np.ndarray) -> np.ndarray:
+    def __call__(self, signs: np.ndarray, below: float | None = None) -> np.ndarray:
+        """ξ_bᵀAξ_b for the rows of ``signs``. ``below``: where a :class:`_LowRankBound`
+        shows a flip's value to be < ``below`` in either evaluation (float32, or the
+        float64 recheck; both within ``self.bound`` of the exact form), it is NaN instead."""
         if self.upper32 is None:
             return self.exact(signs.astype(np.float64))
         xi = signs.T.astype(np.float32, order="F")  # (N, b), a column per flip
+        low_rank = self._low_rank(below) if below is not None else None
+        if low_rank is None:
+            return self._products(signs, xi)
+        open_ = np.flatnonzero(low_rank(xi) >= below - self.bound)
+        if open_.size == signs.shape[0]:  # the bound decides nothing here: drop it
+            self.low_rank = False
+            return self._products(signs, xi)
+        values = np.full(signs.shape[0], np.nan)
+        if open_.size:
+            values[open_] = self._products(signs[open_], np.asfortranarray(xi[:, open_]))
+        return values
+
+    def _low_rank(self, below: float) -> _LowRankBound | None:
+        """The bound, built at the first call that can use it: only for a float64 A of at
+        least _BOUND_MIN_SIZE rows and ``below`` > _BOUND_GATE·N·‖A‖_F. The bound's
+        remainder N·‖R‖_F was 0.08–0.15·N·‖A‖_F on whitened Gaussian errors of any bias
+        (rank 8, N = 1000), so below that gate it would certify little and cost about a
+        third of the flips it replaces."""
+        if self.low_rank is None:
+            self.low_rank = False
+            if self.dense is not None and self.dense[0].shape[0] >= _BOUND_MIN_SIZE:
+                a, upper = self.dense
+                flat = a.reshape(-1)
+                squares = (2.0 if upper else 1.0) * float(np.dot(flat, flat))  # ‖A‖_F²
+                if below > _BOUND_GATE * a.shape[0] * math.sqrt(squares):
+                    self.low_rank = _LowRankBound.of_matrix(a, upper, self.upper32, squares)
+        return self.low_rank or None
+
+    def _products(self, signs: np.ndarray, xi: np.ndarray) -> np.ndarray:
+        """The float32 forms 2ξᵀUξ + tr A of the columns of xi (the rows of signs), with the
+        float64 recheck of those within the rounding bound of the observed value."""
         # U's C-ordered buffer read in Fortran order is Uᵀ, lower triangular: Uᵀξ per column
         product = blas.strmm(1.0, self.upper32.T, xi, side=0, lower=1)
         product *= xi  # exact: a sign change
@@ -410,10 +456,101 @@ def _block_sums(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return np.concatenate([head, tail])
 
 
+def _gamma(n: int, u: float) -> float:
+    """γ_n = nu/(1 − nu): the relative error bound of n roundings in sequence with unit
+    roundoff u (Higham, Accuracy and Stability of Numerical Algorithms, Lemma 3.1)."""
+    return n * u / (1 - n * u)
+
+
+_F32_UNIT, _F64_UNIT = 2.0**-24, 2.0**-53
+
+
 def _float32_bound(n: int, abs_sum: float) -> float:
-    u = 2.0**-24
-    gamma = n * u / (1 - n * u)
-    return (u + gamma * (1 + u)) * abs_sum * 1.01
+    u = _F32_UNIT
+    return (u + _gamma(n, u) * (1 + u)) * abs_sum * 1.01
+
+
+_BOUND_RANK = 8  # columns of Q: rank 16 halved the remainder at twice the build cost
+_BOUND_MIN_SIZE = 256  # below, the flips cost less than building the bound
+_BOUND_GATE = 0.2
+
+
+class _LowRankBound:
+    r"""Upper bounds on ξᵀAξ for batches of sign vectors ξ ∈ {±1}ᴺ, at a cost of N·k per
+    flip instead of the N²/2 of the form itself.
+
+    For any N×k matrix Q and symmetric k×k matrix C, with M = QCQᵀ and R = A − M,
+
+    .. math:: \xi^\top A\xi = c^\top C c + \xi^\top R\,\xi
+              \le c^\top C c + N\,\lambda_{\max}(R) \le c^\top C c + N\,\|R\|_F,
+              \qquad c = Q^\top\xi,
+
+    since ‖ξ‖² = N. This holds whatever Q and C are; they only decide how tight it is.
+    Q spans a sketch AΩ of A's range (Ω a fixed Gaussian N×k, in float32: Halko,
+    Martinsson & Tropp 2011, SIAM Review 53(2), Alg. 4.1) and C = QᵀAQ, so M holds A's
+    few large eigenvalues. ‖R‖_F² = ‖A‖_F² − 2⟨A, M⟩ + ‖M‖_F², with ⟨A, M⟩ = Σ(QᵀAQ)∘C
+    and ‖M‖_F² = tr(GCGC), G = QᵀQ: one float64 product AQ, no N×N temporary.
+
+    Rounding is bounded, never assumed away (γ_n of :func:`_gamma`):
+
+    - ‖R‖_F²: each term is a sum of products with at most n = N² + 2N + k² + 4k + 2
+      roundings in sequence, so its error is at most
+      γ_n(‖A‖_F² + 2‖Q‖_F²‖A‖_F‖C‖_F + ‖Q‖_F⁴‖C‖_F²), doubled for adding the terms;
+    - c in float32 from Q rounded to float32: |ĉ − c| ≤ δ = (u₃₂ + γ_N(u₃₂)(1 + u₃₂))·|Q|ᵀ1,
+      so |cᵀCc − ĉᵀCĉ| ≤ (2|ĉ| + δ)ᵀ|C|δ, plus γ_2k·|ĉ|ᵀ|C||ĉ| for forming ĉᵀCĉ.
+
+    Norms in these bounds are inflated by 1 %, the sum by 1e-12 relative.
+
+    The ELT's pair matrix of whitened errors has two eigenvalues far above the rest; with
+    k = 8, N·‖R‖_F was 0.08–0.15·N·‖A‖_F (N = 1000, any bias). A strongly rejecting
+    segment's 1ᵀA1 is several times that, so every flip is certified below it.
+    """
+
+    def __init__(self, q32, c, delta, remainder) -> None:
+        self.q32, self.c, self.abs_c, self.remainder = q32, c, np.abs(c), remainder
+        self.delta, self.abs_c_delta = delta, np.abs(c) @ delta
+
+    @classmethod
+    def of_matrix(cls, a: np.ndarray, upper: bool, upper32: np.ndarray, squares: float):
+        """From A in float64 (its strictly upper triangle U when ``upper``), U in float32
+        and ‖A‖_F² (one dot product of A's entries)."""
+        n, k = a.shape[0], _BOUND_RANK
+        sketch = np.random.default_rng(0).standard_normal((n, k)).astype(np.float32)
+        y = _symmetric_apply(blas.strmm, upper32, sketch)  # roughly A's range
+        if not upper:  # A = D + U + Uᵀ
+            y += np.diagonal(a).astype(np.float32)[:, None] * sketch
+        q = np.linalg.qr(y.astype(np.float64))[0]
+        aq = _symmetric_apply(blas.dtrmm, a, q) if upper else a @ q
+        p = q.T @ aq  # QᵀAQ
+        c = 0.5 * (p + p.T)
+        g = q.T @ q
+        remainder2 = squares - 2.0 * float(np.vdot(p, c)) + float(np.trace(g @ c @ g @ c))
+        q2, c_norm = 1.01 * float(np.trace(g)), 1.01 * float(np.linalg.norm(c))
+        a_norm = 1.01 * math.sqrt(squares)
+        rounding = 2.0 * _gamma(n * n + 2 * n + k * k + 4 * k + 2, _F64_UNIT)
+        rounding *= a_norm**2 + 2.0 * q2 * a_norm * c_norm + (q2 * c_norm) ** 2
+        remainder = n * math.sqrt(max(remainder2 + rounding, 0.0)) * (1 + 1e-12)
+        u = _F32_UNIT
+        delta = 1.01 * (u + _gamma(n, u) * (1 + u)) * np.abs(q).sum(axis=0)
+        return cls(q.astype(np.float32), c, delta, remainder)
+
+    def __call__(self, xi32: np.ndarray) -> np.ndarray:
+        """Upper bounds on ξᵀAξ for the columns of xi32 (N, b), float32 ±1."""
+        c = (xi32.T @ self.q32).astype(np.float64)  # (b, k)
+        quadratic = ((c @ self.c) * c).sum(axis=1)
+        size = np.abs(c)
+        error = (2.0 * size + self.delta) @ self.abs_c_delta
+        error += _gamma(2 * self.c.shape[0], _F64_UNIT) * ((size @ self.abs_c) * size).sum(1)
+        slack = 1.01 * error + self.remainder
+        return quadratic + slack + 1e-12 * (np.abs(quadratic) + slack)
+
+
+def _symmetric_apply(trmm, upper: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(U + Uᵀ)x for U strictly upper triangular in C order, with two triangular products
+    (``blas.strmm`` or ``blas.dtrmm``, as the dtype) that read only U."""
+    lower = upper.T  # U's buffer in Fortran order: Uᵀ, lower triangular
+    x = np.asfortranarray(x)
+    return trmm(1.0, lower, x, side=0, lower=1) + trmm(1.0, lower, x, side=0, lower=1, trans_a=1)
 
 
 def _abs_sum(a: np.ndarray, rows: int = 256) -> float:
@@ -508,19 +645,31 @@ def _flip(
     threshold = t_obs - _PVALUE_RTOL * abs(t_obs)
     stop = _stop_count(stop_level, n_flips)
     parts, count, used, batch = [], 0, 0, _FIRST_BATCH if stop is not None else n_flips
+    below = None
     while used < n_flips:
-        chunk = flipped(signs[used : used + batch]) / scale
+        chunk = flipped(signs[used : used + batch], below) / scale
         parts.append(chunk)
         count += int(np.count_nonzero(chunk >= threshold))
         used += chunk.size
         batch *= 2
         if stop is not None and count >= stop and used < n_flips:
             break
+        if stop is not None and threshold > 0 and count * n_flips < stop * used:
+            # on course to reject, so every flip is needed; one that a bound places below
+            # threshold·scale·(1 − 4u) gives v/scale < threshold after rounding too
+            below = threshold * scale * (1.0 - 4.0 * _F64_UNIT)
+        else:
+            below = None
     null = np.concatenate(parts) * unit
     if used < n_flips:
         pvalue = count / used  # Besag & Clifford's sequential p-value h/l
     else:
         pvalue = (1 + count) / (n_flips + 1)
     return ELTResult(
-        statistic=t_obs * unit, pvalue=pvalue, null_distribution=null, flips_used=used, **result
+        statistic=t_obs * unit,
+        pvalue=pvalue,
+        null_distribution=null,
+        flips_used=used,
+        flips_bounded=int(np.count_nonzero(np.isnan(null))),
+        **result,
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import zlib
 from dataclasses import dataclass, field, replace
@@ -169,10 +170,15 @@ def diagnose_variants(
     so a variant listed first draws its sign flips exactly as :func:`diagnose_errors` does.
     """
     errors, cov = metrics.check_errors_cov(errors, cov)
-    config = config or DiagnosisConfig()
-    configs = [replace(config, variant=Variant(v)) for v in variants]
+    configs = _variant_configs(config or DiagnosisConfig(), tuple(Variant(v) for v in variants))
     results = _diagnose_variants(errors, cov, configs, as_generator(rng), None)
     return {c.variant: r for c, r in zip(configs, results)}
+
+
+@functools.lru_cache(maxsize=16)
+def _variant_configs(config: DiagnosisConfig, variants: tuple[Variant, ...]):
+    """``config`` with each variant (made and validated once, not per trial of a study)."""
+    return [replace(config, variant=v) for v in variants]
 
 
 def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis]:
@@ -200,9 +206,10 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
         del centred, chol
     s = whiten(errors, cov)
     r1 = dependence.autocorrelation(s)
-    tau = dependence.variance_ratio(s)
-    if not dependence.serially_dependent(r1, n):
-        tau = np.ones_like(tau)
+    if dependence.serially_dependent(r1, n):
+        tau = dependence.variance_ratio(s)
+    else:  # τ̂ is not used on independent epochs (see serially_dependent)
+        tau = np.ones(d)
     autocorr = float(np.max(r1))
     effective_n = float(n / max(1.0, float(np.max(tau))))
     scales: dict = {}

@@ -107,6 +107,7 @@ def _loaded_both_ways(path, drop_invalid):
         "null_int",
         "null_segment",
         "int_segment",
+        "category_segment",
         "bool",
         "text",
     ],
@@ -133,6 +134,8 @@ def test_parquet_columns_read_from_arrow_equal_pandas(tmp_path, case, drop_inval
         frame.loc[12, "segment"] = None
     elif case == "int_segment":
         frame["segment"] = np.repeat([4, 2, 4, 9], 10)
+    elif case == "category_segment":  # stored as an Arrow dictionary column
+        frame["segment"] = frame["segment"].astype("category")
     elif case == "bool":
         frame["est_0"] = frame.index % 2 == 0
     elif case == "text":

@@ -316,7 +316,11 @@ def whitened_location_test(
     h* = ⌈level(B + 1) − 1⌉, so once h* exceedances are seen the decision is the exhaustive
     test's. The p-value is then Besag and Clifford's (1991, Biometrika 78(2)) sequential
     p-value h/l, with h >= h* the count after the l flips evaluated (the stop is checked
-    after each batch), which is >= the level; ``flips_used`` is l.
+    after each batch), which is >= the level; ``flips_used`` is l. A test on course to
+    reject (fewer than h*·l/B exceedances after l flips) needs every flip; there, flips that
+    a proven upper bound places below T_obs (:class:`_LowRankBound`) are counted without
+    their quadratic forms, so h, and the p-value, are the exhaustive test's
+    (``flips_bounded``).
 
     ``runs``: s holds that many independent Monte Carlo runs of N/runs epochs one after
     the other; each run's errors are flipped in their own blocks (:func:`sign_blocks`).
@@ -636,8 +640,9 @@ def _flip(
     **result,
 ) -> ELTResult:
     """T_obs = 1ᵀA1/norm and B sign flips of it, stopped once the decision at
-    ``stop_level`` is certain (see :func:`whitened_location_test`); ``result``: the
-    ELTResult fields that describe the setting."""
+    ``stop_level`` is certain, the flips of a test on course to reject bounded where the
+    bound decides them (see :func:`whitened_location_test`); ``result``: the ELTResult
+    fields that describe the setting."""
     total = flipped.observed
     scale = norm if norm > 0 else 1.0  # no pairs left: a is zero and so is the statistic
     t_obs = total / scale

@@ -121,27 +121,36 @@ def _exact_forms(a: np.ndarray, upper: bool, signs: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("upper", [True, False])
 @pytest.mark.parametrize(
-    ("rank", "noise", "exponent"), [(1, 0, 0), (2, 0, -40), (8, 0, 30), (3, 2, 0), (20, 1, -3)]
+    ("rank", "noise", "exponent", "basis"),
+    [
+        (1, 0, 0, "range"),
+        (2, 0, -40, "range"),
+        (8, 0, 30, "range"),
+        (3, 2, 0, "range"),
+        (20, 1, -3, "range"),
+        (4, 0, 0, "random"),
+        (20, 3, 0, "random"),
+    ],
 )
-def test_low_rank_bound_is_above_every_exact_form(upper, rank, noise, exponent):
-    """The bound against integer-exact forms; with A of rank <= k the remainder is only
-    the rounding allowance, so the bound is also tight there (given whole: given as U,
-    A = VVᵀ − diag(VVᵀ) is not of low rank)."""
+def test_low_rank_bound_is_above_every_exact_form(upper, rank, noise, exponent, basis):
+    """The bound against integer-exact forms, with Q spanning A's range (V) or random
+    columns; with A = VVᵀ given whole and Q its range the remainder is only the rounding
+    allowance, so the bound is also tight there (given as U, A = VVᵀ − diag(VVᵀ) is not
+    of low rank)."""
     n = 300
-    a, _, _ = _integer_matrix(n, rank, noise, upper, seed=rank + 10 * noise)
+    a, v, _ = _integer_matrix(n, rank, noise, upper, seed=rank + 10 * noise)
     scaled = a.astype(np.float64) * 2.0**exponent  # exact: a power of two
-    upper32 = (np.triu(scaled, 1) if not upper else scaled).astype(np.float32)
+    columns = v.astype(float) if basis == "range" else np.random.default_rng(0).random((n, 6))
     flat = scaled.reshape(-1)
     squares = (2.0 if upper else 1.0) * float(flat @ flat)
-    bound = elt._LowRankBound.of_matrix(scaled, upper, upper32, squares)
+    bound = elt._LowRankBound.of_matrix(scaled, upper, columns, squares)
     signs = elt.rademacher(np.random.default_rng(rank), (3000, n))
-    exact = _exact_forms(a, upper, signs).astype(np.float64) * 2.0**exponent
     signs[0] = 1  # ξ = 1 too, where 1ᵀA1 is largest for a low-rank A
-    exact[0] = float(_exact_forms(a, upper, signs[:1])[0]) * 2.0**exponent
+    exact = _exact_forms(a, upper, signs).astype(np.float64) * 2.0**exponent
     bounds = bound(signs.T.astype(np.float32, order="F"))
     assert np.all(bounds >= exact)
-    if noise == 0 and rank <= elt._BOUND_RANK and not upper:  # R = 0 up to rounding
-        assert np.max(bounds - exact) <= 1e-4 * n * np.sqrt(squares)
+    if noise == 0 and basis == "range" and not upper:  # R = 0 up to rounding
+        assert np.max(bounds - exact) <= 1e-4 * n * np.sqrt(squares)  # the allowance
 
 
 @pytest.mark.parametrize(

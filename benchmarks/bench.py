@@ -119,19 +119,13 @@ def _big_bag(path, megabytes: float = 100.0) -> str:
 
 
 def _bag_rate(path: str) -> str:
-    """MB/s of reading both topics of the bag (file size over wall time), best of 3."""
-    from credcli.io.rosbag import read_bag
+    """MB/s of reading both topics of the bag in one pass, as `diagnose --topic
+    --truth-topic` does (file size over wall time), best of 3."""
+    from credcli.io.rosbag import read_bag_topics
 
     size = Path(path).stat().st_size
-    best = min(
-        _timed(
-            lambda: (
-                read_bag(Path(path), "/odom", "estimate", "auto"),
-                read_bag(Path(path), "/ground_truth", "truth", "auto"),
-            )
-        )
-        for _ in range(3)
-    )
+    requests = [("/odom", "estimate"), ("/ground_truth", "truth")]
+    best = min(_timed(lambda: read_bag_topics(Path(path), requests, "auto")) for _ in range(3))
     return f"{size / 1e6:.0f} {size / 1e6 / best:.1f}"
 
 

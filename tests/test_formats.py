@@ -15,7 +15,7 @@ from credcli.engine.config import Perturbation, States
 from credcli.engine.whiteness import portmanteau
 from credcli.io.formats import Trajectory, read_trajectory, sniff_format
 from credcli.io.pairing import pair
-from credcli.io.schema import InputFormat
+from credcli.io.schema import InputFormat, TimeUnit
 from tests.test_edges import ROOT, error_line, run
 
 FORMATS = ROOT / "sample_data" / "formats"
@@ -689,3 +689,31 @@ def test_a_planar_robots_zero_z_variance_suggests_planar(tmp_path):
     line = error_line(*run("diagnose", path, "--truth", FORMATS / "euroc_groundtruth.csv")[::2])
     assert "--states planar" in line
     assert labels(path, "--truth", FORMATS / "euroc_groundtruth.csv", "--states", "planar")
+
+
+@pytest.mark.parametrize("bag", ["odom.bag", "odom_ros2"])
+def test_two_topics_of_one_bag_are_read_in_one_pass(bag, monkeypatch):
+    """--topic and --truth-topic of one bag: the bag is opened once, and both trajectories
+    equal those read one at a time (notes included)."""
+    from rosbags.highlevel import AnyReader
+
+    from credcli.io.formats import read_bag_pair
+
+    opened = []
+    original = AnyReader.open
+    monkeypatch.setattr(AnyReader, "open", lambda self: opened.append(1) or original(self))
+    path, auto = FORMATS / bag, InputFormat.AUTO
+    pair = read_bag_pair(path, auto, auto, TimeUnit.AUTO, "/odom", "/ground_truth")
+    assert opened == [1]
+    alone = (
+        read_trajectory(path, auto, "estimate", topic="/odom"),
+        read_trajectory(path, auto, "truth", topic="/ground_truth"),
+    )
+    for a, b in zip(pair, alone):
+        assert a.source == b.source and a.notes == b.notes
+        for field in ("time", "position", "quaternion", "cov", "rows"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+    assert read_bag_pair(FORMATS / "odom_ros.csv", auto, auto, TimeUnit.AUTO, None, None) is None
+    opened.clear()  # and diagnose reads such a bag in one pass too
+    assert labels(path, "--topic", "/odom", "--truth-topic", "/ground_truth") == ["pessimism"]
+    assert opened == [1]

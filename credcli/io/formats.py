@@ -206,16 +206,7 @@ def read_trajectory(
     """One trajectory: the estimate (``role`` "estimate", with its covariance) or the
     truth (``role`` "truth") of a log in format ``fmt`` (``auto``: sniffed, and said)."""
     path = Path(path)
-    if not path.exists():
-        raise CredcliError(f"{path}: file not found")
-    notes = []
-    fmt = InputFormat(fmt)
-    if fmt is InputFormat.AUTO:
-        fmt = sniff_format(path)
-        notes.append(f"{path}: read as {fmt.value} (--{_flag(role)}-format auto)")
-    if topic is not None and fmt is not InputFormat.ROSBAG:
-        flag = "--topic" if role == "estimate" else "--truth-topic"
-        raise CredcliError(f"{path}: {flag} applies to bags, and this is a {fmt.value} file")
+    fmt, notes = _format_of(path, fmt, role, topic)
     if fmt is InputFormat.ROSBAG:
         from credcli.io.rosbag import read_bag
 
@@ -232,6 +223,43 @@ def read_trajectory(
         frame = read_text_table(path)
         reader = {InputFormat.TUM: _tum, InputFormat.EUROC: _euroc, InputFormat.ROS_CSV: _ros_csv}
         traj = reader[fmt](frame, path, time_unit)
+    return _finished(traj, role, notes)
+
+
+def read_bag_pair(
+    path: Path, fmt: InputFormat, truth_fmt: InputFormat, time_unit, topic, truth_topic
+) -> tuple[Trajectory, Trajectory] | None:
+    """The estimate and the truth as two topics of the one bag at ``path``, read in one
+    pass (:func:`credcli.io.rosbag.read_bag_topics`); None when ``path`` is not read as
+    a bag for both."""
+    path = Path(path)
+    fmt, notes = _format_of(path, fmt, "estimate", topic)
+    truth_fmt, truth_notes = _format_of(path, truth_fmt, "truth", truth_topic)
+    if fmt is not InputFormat.ROSBAG or truth_fmt is not InputFormat.ROSBAG:
+        return None
+    from credcli.io.rosbag import read_bag_topics
+
+    requests = [(topic, "estimate"), (truth_topic, "truth")]
+    estimate, truth = read_bag_topics(path, requests, time_unit)
+    return _finished(estimate, "estimate", notes), _finished(truth, "truth", truth_notes)
+
+
+def _format_of(path: Path, fmt: InputFormat, role: str, topic: str | None):
+    """The format of a file that exists (``auto``: sniffed, with the note that says so)."""
+    if not path.exists():
+        raise CredcliError(f"{path}: file not found")
+    notes = []
+    fmt = InputFormat(fmt)
+    if fmt is InputFormat.AUTO:
+        fmt = sniff_format(path)
+        notes.append(f"{path}: read as {fmt.value} (--{_flag(role)}-format auto)")
+    if topic is not None and fmt is not InputFormat.ROSBAG:
+        flag = "--topic" if role == "estimate" else "--truth-topic"
+        raise CredcliError(f"{path}: {flag} applies to bags, and this is a {fmt.value} file")
+    return fmt, notes
+
+
+def _finished(traj: Trajectory, role: str, notes: list[str]) -> Trajectory:
     traj = _checked(traj, role)
     return _with(traj, notes=tuple(notes) + traj.notes)
 

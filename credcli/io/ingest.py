@@ -13,7 +13,7 @@ import numpy as np
 
 from credcli.engine.config import Perturbation, States
 from credcli.errors import CredcliError
-from credcli.io.formats import Trajectory, read_trajectory
+from credcli.io.formats import Trajectory, read_bag_pair, read_trajectory
 from credcli.io.logs import CovKind, EstimatorLog, LogSchema, _validated_cov, load_log
 from credcli.io.schema import InputFormat, ReadOptions
 
@@ -97,17 +97,36 @@ def _only_credcli(path: Path, fmt: InputFormat, what: str) -> None:
 
 def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> EstimatorLog:
     """An estimate file (or bag topic) paired with its truth by time."""
-    estimate = read_trajectory(
-        path, reading.input_format, "estimate", reading.time_unit, schema, reading.topic
-    )
+    truth_path = Path(reading.truth) if reading.truth is not None else path
+    both = None
+    if truth_path == Path(path):  # perhaps two topics of one bag: read in one pass
+        both = read_bag_pair(
+            path,
+            reading.input_format,
+            reading.truth_format,
+            reading.time_unit,
+            reading.topic,
+            reading.truth_topic,
+        )
+    if both is None:
+        estimate = read_trajectory(
+            path, reading.input_format, "estimate", reading.time_unit, schema, reading.topic
+        )
+    else:
+        estimate, truth = both
     if estimate.cov is None:
         raise CredcliError(
             f"{estimate.source}: has no covariance; the estimate needs one ({COVARIANCE_FORMATS})"
         )
-    truth_path = Path(reading.truth) if reading.truth is not None else path
-    truth = read_trajectory(
-        truth_path, reading.truth_format, "truth", reading.time_unit, schema, reading.truth_topic
-    )
+    if both is None:
+        truth = read_trajectory(
+            truth_path,
+            reading.truth_format,
+            "truth",
+            reading.time_unit,
+            schema,
+            reading.truth_topic,
+        )
     from credcli.io.pairing import pair
 
     pairing = pair(estimate, truth, reading.max_dt, reading.time_offset)

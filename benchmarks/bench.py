@@ -104,7 +104,9 @@ def _pose_hour(directory) -> str:
     iu = np.triu_indices(3)
     blocks = [claimed[:, 3:, 3:][:, iu[0], iu[1]], claimed[:, :3, :3][:, iu[0], iu[1]]]
     est = directory / "estimate_1h.txt"
-    np.savetxt(est, np.c_[ps.EPOCH + t_est, p_est, r_est.as_quat(), *blocks], fmt="%.9f")
+    np.savetxt(
+        est, np.column_stack([ps.EPOCH + t_est, p_est, r_est.as_quat(), *blocks]), fmt="%.9f"
+    )
     return f"{est} {truth}"
 
 
@@ -218,20 +220,23 @@ def _timed(func) -> float:
     return time.perf_counter() - start
 
 
-def _under_load(args: list[str], repeat: int, env: dict | None = None) -> list[float]:
-    """Wall times of `credcli args` while two busy processes hold both cores."""
+def _under_load(args: list[str], repeat: int, envs: list[dict | None]) -> list[list[float]]:
+    """Wall times of `credcli args` under each environment of ``envs`` (None: this one),
+    while two busy processes hold both cores; the environments take turns, so that both
+    lists see the same moments of a machine whose speed drifts."""
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
     try:
-        times = []
+        times: list[list[float]] = [[] for _ in envs]
         for _ in range(repeat):
-            start = time.perf_counter()
-            subprocess.run(
-                [sys.executable, "-m", "credcli", *args],
-                check=True,
-                capture_output=True,
-                env=None if env is None else os.environ | env,
-            )
-            times.append(time.perf_counter() - start)
+            for k, env in enumerate(envs):
+                start = time.perf_counter()
+                subprocess.run(
+                    [sys.executable, "-m", "credcli", *args],
+                    check=True,
+                    capture_output=True,
+                    env=None if env is None else os.environ | env,
+                )
+                times[k].append(time.perf_counter() - start)
         return times
     finally:
         for hog in hogs:
@@ -354,9 +359,10 @@ def main() -> int:
     _report("uwb: sample grid (12,320 ranges, 6 static periods)", times, peak)
     times, peak = _run(["simulate", "-f", "json"], 5)
     _report("simulate: paper protocol (authors' code: about 100 s)", times, peak, "<= 1.0 s")
-    loaded = _under_load(["simulate", "-f", "json"], 3)
+    loaded, pinned = _under_load(
+        ["simulate", "-f", "json"], 5, [None, {"OPENBLAS_NUM_THREADS": "1"}]
+    )
     _report("  same, both cores busy", loaded, 0.0, "no slower than the next line")
-    pinned = _under_load(["simulate", "-f", "json"], 3, {"OPENBLAS_NUM_THREADS": "1"})
     _report("  same, both cores busy, OPENBLAS_NUM_THREADS=1", pinned, 0.0)
     for jobs in (1, 2):
         times, peak = _run(["simulate", "--trials", "500", "-f", "json", "--jobs", str(jobs)], 2)

@@ -222,13 +222,15 @@ def _timed(func) -> float:
 
 def _under_load(args: list[str], repeat: int, envs: list[dict | None]) -> list[list[float]]:
     """Wall times of `credcli args` under each environment of ``envs`` (None: this one),
-    while two busy processes hold both cores; the environments take turns, so that both
-    lists see the same moments of a machine whose speed drifts."""
+    while two busy processes hold both cores; the environments take turns, in an order
+    reversed every other round (ABBA), so that both lists see the same moments of a
+    machine whose speed drifts and neither always runs first."""
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
     try:
         times: list[list[float]] = [[] for _ in envs]
-        for _ in range(repeat):
-            for k, env in enumerate(envs):
+        for round_ in range(repeat):
+            order = list(enumerate(envs))
+            for k, env in order if round_ % 2 == 0 else order[::-1]:
                 start = time.perf_counter()
                 subprocess.run(
                     [sys.executable, "-m", "credcli", *args],

@@ -177,8 +177,9 @@ def diagnose_variants(
 
 @functools.lru_cache(maxsize=16)
 def _variant_configs(config: DiagnosisConfig, variants: tuple[Variant, ...]):
-    """``config`` with each variant (made and validated once, not per trial of a study)."""
-    return [replace(config, variant=v) for v in variants]
+    """``config`` with each variant (made and validated once, not per trial of a study;
+    a tuple, since every caller shares it)."""
+    return tuple(replace(config, variant=v) for v in variants)
 
 
 def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis]:

@@ -421,7 +421,7 @@ class _FlippedStatistics:
     def _low_rank(self, below: float) -> _LowRankBound | None:
         """The bound, built at the first call that can use it: only for a float64 A of at
         least _BOUND_MIN_SIZE rows and ``below`` > _BOUND_GATE·N·‖A‖_F. The bound's
-        remainder N·‖R‖_F was 0.075–0.10·N·‖A‖_F on whitened Gaussian errors of any bias
+        remainder N·‖R‖_F was 0.08–0.12·N·‖A‖_F on whitened Gaussian errors of any bias
         (d = 1, 2, 6; N = 1000) and its low-rank part about ±1.4‖A‖_F, so below the gate it
         certifies little; above, it certified every flip in those measurements, for a
         build of about a tenth of the flips' cost."""
@@ -509,7 +509,7 @@ class _LowRankBound:
 
     Norms in these bounds are inflated by 1 %, the sum by 1e-12 relative.
 
-    On the ELT's pair matrix of whitened errors N·‖R‖_F was 0.075–0.10·N·‖A‖_F (d = 1,
+    On the ELT's pair matrix of whitened errors N·‖R‖_F was 0.08–0.12·N·‖A‖_F (d = 1,
     2, 6; N = 1000; any bias). A strongly rejecting segment's 1ᵀA1 is several times that,
     so every flip is certified below it.
     """
@@ -556,9 +556,11 @@ def _bound_basis(s: np.ndarray, starts: np.ndarray | None = None) -> np.ndarray:
     matrix A_ij = ‖s_i + s_j‖ − ‖s_i − s_j‖ (of its block sums BᵀAB with block sums BᵀF).
 
     A_ij is odd in s_i and in s_j, so its eigenvectors are odd functions of s; near
-    ‖s_j‖ ≪ ‖s_i‖ it is 2s_i·s_j/‖s_i‖. Measured against a Gaussian sketch of the same
-    rank's range (Halko, Martinsson & Tropp 2011): ‖R‖_F/‖A‖_F 0.075–0.10 against
-    0.08–0.15 for d = 2 and 0.11–0.14 for d = 6; even columns (1, ‖s_i‖) added nothing."""
+    ‖s_j‖ ≪ ‖s_i‖ it is 2s_i·s_j/‖s_i‖. Measured on N = 1000 Gaussian errors with biases
+    0–2: ‖R‖_F/‖A‖_F 0.08–0.12 (d = 1, 2, 6), against 0.08–0.15 (d = 2, 8 columns) and
+    0.11–0.14 (d = 6, 20 columns) for the range of a Gaussian sketch (Halko, Martinsson &
+    Tropp 2011, SIAM Review 53(2), Alg. 4.1), which also costs a product with A; the even
+    columns 1 and ‖s_i‖ added nothing."""
     norms = np.sqrt(np.einsum("ni,ni->n", s, s))[:, None]
     unit = np.divide(s, norms, out=np.zeros_like(s), where=norms > 0)
     columns = np.hstack([s, unit, s * norms])

@@ -516,7 +516,7 @@ class _LowRankBound:
 
     def __init__(self, q32, c, delta, remainder) -> None:
         self.q32, self.c, self.abs_c, self.remainder = q32, c, np.abs(c), remainder
-        self.delta, self.abs_c_delta = delta, np.abs(c) @ delta
+        self.delta, self.abs_c_delta = delta, self.abs_c @ delta
 
     @classmethod
     def of_matrix(cls, a: np.ndarray, upper: bool, basis: np.ndarray, squares: float):

@@ -111,7 +111,8 @@ def _libc():
 
 
 def prepare_worker() -> None:
-    """On a worker's first task: one BLAS thread, and glibc's adaptive heap back."""
+    """On a worker's first task (Dask's workers have no initializer): one BLAS thread, and
+    freed memory kept for reuse (:func:`keep_freed_memory`)."""
     if not _LIMITED:
         _set_up_worker()
         _LIMITED.append(True)

@@ -227,7 +227,12 @@ def read_trajectory(
 
 
 def read_bag_pair(
-    path: Path, fmt: InputFormat, truth_fmt: InputFormat, time_unit, topic, truth_topic
+    path: Path,
+    fmt: InputFormat,
+    truth_fmt: InputFormat,
+    time_unit: TimeUnit,
+    topic: str | None,
+    truth_topic: str | None,
 ) -> tuple[Trajectory, Trajectory] | None:
     """The estimate and the truth as two topics of the one bag at ``path``, read in one
     pass (:func:`credcli.io.rosbag.read_bag_topics`); None when ``path`` is not read as

@@ -98,8 +98,8 @@ def _only_credcli(path: Path, fmt: InputFormat, what: str) -> None:
 def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> EstimatorLog:
     """An estimate file (or bag topic) paired with its truth by time."""
     truth_path = Path(reading.truth) if reading.truth is not None else path
-    both = None
-    if truth_path == Path(path):  # perhaps two topics of one bag: read in one pass
+    both = None  # two topics of one bag are read in one pass
+    if truth_path == Path(path):
         both = read_bag_pair(
             path,
             reading.input_format,
@@ -108,25 +108,18 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
             reading.topic,
             reading.truth_topic,
         )
-    if both is None:
-        estimate = read_trajectory(
-            path, reading.input_format, "estimate", reading.time_unit, schema, reading.topic
-        )
-    else:
-        estimate, truth = both
+
+    def read(role: str, at: Path, fmt: InputFormat, topic: str | None) -> Trajectory:
+        return read_trajectory(at, fmt, role, reading.time_unit, schema, topic)
+
+    estimate = both[0] if both else read("estimate", path, reading.input_format, reading.topic)
     if estimate.cov is None:
         raise CredcliError(
             f"{estimate.source}: has no covariance; the estimate needs one ({COVARIANCE_FORMATS})"
         )
-    if both is None:
-        truth = read_trajectory(
-            truth_path,
-            reading.truth_format,
-            "truth",
-            reading.time_unit,
-            schema,
-            reading.truth_topic,
-        )
+    truth = (
+        both[1] if both else read("truth", truth_path, reading.truth_format, reading.truth_topic)
+    )
     from credcli.io.pairing import pair
 
     pairing = pair(estimate, truth, reading.max_dt, reading.time_offset)

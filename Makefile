@@ -3,17 +3,39 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
+EXTRAS := .[plots,ros,dask,dev]
+# the tested versions (requirements/constraints.txt); `make lock` refreshes them
+LOCK   := requirements/constraints.txt
 
-.PHONY: install demo test lint format bench bench-dask sample-data clean
+.PHONY: install demo test test-oldest lock lint format bench bench-dask sample-data clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[plots,ros,dask,dev]'
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '$(EXTRAS)'
 	$(BIN)/python -m compileall -q credcli  # as pip does for an installed package; see bench.py
 	touch $(STAMP)
 
 install: $(STAMP)
+
+## lock: the newest release of every dependency, tested, written to requirements/constraints.txt
+lock:
+	rm -rf .venv-lock
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet --upgrade pip
+	.venv-lock/bin/python -m pip install --quiet -e '$(EXTRAS)'
+	.venv-lock/bin/python -m pytest -p no:cacheprovider
+	{ sed -n '1,2p' $(LOCK); .venv-lock/bin/python -m pip freeze --exclude-editable \
+	  | grep -v '^credcli'; } > $(LOCK).new && mv $(LOCK).new $(LOCK)
+	rm -rf .venv-lock
+
+## test-oldest: the test suite with the oldest versions pyproject.toml admits
+test-oldest:
+	rm -rf .venv-oldest
+	$(PYTHON) -m venv .venv-oldest
+	.venv-oldest/bin/python -m pip install --quiet --upgrade pip
+	.venv-oldest/bin/python -m pip install --quiet -c requirements/oldest.txt -e '$(EXTRAS)'
+	.venv-oldest/bin/python -m pytest -p no:cacheprovider
 
 ## demo: install, then diagnose the bundled sample log
 demo: $(STAMP)
@@ -45,4 +67,4 @@ sample-data: $(STAMP)
 	$(BIN)/python -m credcli.studies.samples sample_data
 
 clean:
-	rm -rf $(VENV) .pytest_cache .ruff_cache *.egg-info
+	rm -rf $(VENV) .venv-lock .venv-oldest .pytest_cache .ruff_cache *.egg-info

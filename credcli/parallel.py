@@ -36,7 +36,9 @@ def default_jobs() -> int:
 
 
 def _set_up_worker() -> None:
-    """A worker's set-up: one BLAS thread, freed memory kept for reuse."""
+    """A worker's set-up: one BLAS thread, freed memory kept for reuse, and the signals of
+    a process its parent owns (:func:`follow_parent`)."""
+    follow_parent()
     keep_freed_memory()
     try:
         from threadpoolctl import threadpool_limits
@@ -44,6 +46,27 @@ def _set_up_worker() -> None:
         threadpool_limits(1, user_api="blas")
     except ImportError:  # the environment variables set before the spawn still hold
         pass
+
+
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def follow_parent() -> None:
+    """A worker's signals: it ends with its parent, even one killed by SIGKILL (Linux's
+    ``PR_SET_PDEATHSIG``), dies at once on SIGTERM (a forked worker would otherwise inherit
+    the command line's handler), and ignores Ctrl-C, which the terminal sends to the whole
+    process group: the parent stops the work and reports it once, instead of every worker
+    printing its own traceback."""
+    import signal
+    import sys
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform == "linux":
+        try:
+            _libc().prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
 
 
 def _import_threadpoolctl() -> None:
@@ -187,14 +210,25 @@ class WorkerPool:
                     os.environ[key] = value
 
     def map(self, func: Callable, tasks: list) -> Iterator:
-        """Results in task order; the workers are shut down at the end or on an error."""
+        """Results in task order; the workers are shut down at the end, and stopped at once
+        when the map ends early (an error, Ctrl-C, SIGTERM)."""
         try:
             yield from self.executor.map(func, tasks)
+        except BaseException:
+            self.stop()
+            raise
         finally:
             self.close()
 
     def close(self) -> None:
         self.executor.shutdown(cancel_futures=True)
+
+    def stop(self) -> None:
+        """End the workers now, without waiting for their current tasks."""
+        for process in list(getattr(self.executor, "_processes", {}).values()):
+            if process.is_alive():
+                process.kill()
+        self.executor.shutdown(wait=True, cancel_futures=True)
 
 
 def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:

@@ -47,6 +47,13 @@ def split(
                 f"step is {step:.6g} s: if the stamps are not seconds, give --time-unit "
                 "(ms, us or ns), else use a longer window"
             )
+        if not parsed.seconds and largest < min_epochs and log.n >= min_epochs:
+            raise CredcliError(
+                f"{log.source}: --window {parsed} was read as {parsed} epochs per window "
+                f"(a number without a unit counts epochs), fewer than --min-epochs "
+                f"{min_epochs}; write a duration such as {parsed}s, or at least {min_epochs} "
+                "epochs"
+            )
         return out
     if log.segment is not None:
         return seg.by_column(log.segment, log.time)
@@ -294,7 +301,7 @@ def _diagnose_here(
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
     except BaseException:
         if pool is not None:
-            pool.close()
+            pool.stop()
         raise
     logs = [log_info(log, segments) for log, segments in plans]
     runs, mc, diagnosed = 1, None, plans

@@ -62,15 +62,33 @@ def _root(
     """Can you trust the covariance your estimator reports, and if not, why not?"""
 
 
+def _file_name(text: str) -> Path:
+    """A path typed on the command line; never empty (``Path("")`` would read ``.``)."""
+    if not text:
+        raise typer.BadParameter("an empty file name; give a path")
+    return Path(text)
+
+
+def _output_name(text: str) -> Path:
+    """A file to write: not empty, and not a name ending in '/' (a directory)."""
+    if text.endswith("/"):
+        raise typer.BadParameter(f"{text!r} ends with '/', a directory; give a file name")
+    return _file_name(text)
+
+
 # Options shared by the commands that diagnose (declared once, reused).
 ConfigOpt = Annotated[
-    Path | None, typer.Option("--config", help="TOML config file (see configs/).")
+    Path | None,
+    typer.Option("--config", parser=_file_name, help="TOML config file (see configs/)."),
 ]
 FormatOpt = Annotated[
     OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
 ]
 OutputOpt = Annotated[
-    Path | None, typer.Option("--output", "-o", help="Write the output to FILE (atomically).")
+    Path | None,
+    typer.Option(
+        "--output", "-o", parser=_output_name, help="Write the output to FILE (atomically)."
+    ),
 ]
 SeedOpt = Annotated[
     int | None, typer.Option("--seed", help=f"Seed of the ELT sign flips [default: {_S.seed}].")
@@ -274,7 +292,8 @@ class _Progress:
 
 
 LogsArg = Annotated[
-    list[Path], typer.Argument(help="Estimator logs (CSV or Parquet).", show_default=False)
+    list[Path],
+    typer.Argument(parser=_file_name, help="Estimator logs (CSV or Parquet).", show_default=False),
 ]
 WindowOpt = Annotated[
     str | None,
@@ -311,7 +330,11 @@ DropOpt = Annotated[
 ]
 TruthOpt = Annotated[
     Path | None,
-    typer.Option("--truth", help="Ground truth in a separate file (or bag), paired by time."),
+    typer.Option(
+        "--truth",
+        parser=_file_name,
+        help="Ground truth in a separate file (or bag), paired by time.",
+    ),
 ]
 InputFormatOpt = Annotated[
     InputFormat | None,
@@ -368,16 +391,24 @@ InnovationsOpt = Annotated[
     ),
 ]
 JunitOpt = Annotated[
-    Path | None, typer.Option("--junit", help="Write a JUnit XML report (one case per segment).")
+    Path | None,
+    typer.Option(
+        "--junit", parser=_output_name, help="Write a JUnit XML report (one case per segment)."
+    ),
 ]
 PlotsOpt = Annotated[
     Path | None,
-    typer.Option("--plots", help="Write PNG figures into this directory (needs credcli[plots])."),
+    typer.Option(
+        "--plots",
+        parser=_file_name,
+        help="Write PNG figures into this directory (needs credcli[plots]).",
+    ),
 ]
 SummaryOpt = Annotated[
     Path | None,
     typer.Option(
         "--summary",
+        parser=_output_name,
         help="Write a Markdown summary (also appended to $GITHUB_STEP_SUMMARY when set).",
     ),
 ]
@@ -677,7 +708,10 @@ def diagnose(
     summary: SummaryOpt = None,
     plots: PlotsOpt = None,
     report_file: Annotated[
-        Path | None, typer.Option("--report", help="Also write a self-contained HTML report.")
+        Path | None,
+        typer.Option(
+            "--report", parser=_output_name, help="Also write a self-contained HTML report."
+        ),
     ] = None,
     monte_carlo: Annotated[
         bool,
@@ -738,7 +772,10 @@ def diagnose(
 
 @app.command()
 def baseline(
-    log: Annotated[Path, typer.Argument(help="The estimator log to record.", show_default=False)],
+    log: Annotated[
+        Path,
+        typer.Argument(parser=_file_name, help="The estimator log to record.", show_default=False),
+    ],
     output: OutputOpt = None,
     config: ConfigOpt = None,
     window: WindowOpt = None,
@@ -793,11 +830,18 @@ def baseline(
 
 @app.command()
 def gate(
-    log: Annotated[Path, typer.Argument(help="The estimator log to check.", show_default=False)],
+    log: Annotated[
+        Path,
+        typer.Argument(parser=_file_name, help="The estimator log to check.", show_default=False),
+    ],
     baseline_file: Annotated[
         Path,
         typer.Option(
-            "--baseline", "-b", help="Baseline JSON from `credcli baseline`.", show_default=False
+            "--baseline",
+            "-b",
+            parser=_file_name,
+            help="Baseline JSON from `credcli baseline`.",
+            show_default=False,
         ),
     ],
     max_nci_increase: Annotated[
@@ -825,7 +869,11 @@ def gate(
     plots: PlotsOpt = None,
     truth: Annotated[
         Path | None,
-        typer.Option("--truth", help="Ground truth of LOG [default: the baseline's --truth]."),
+        typer.Option(
+            "--truth",
+            parser=_file_name,
+            help="Ground truth of LOG [default: the baseline's --truth].",
+        ),
     ] = None,
     window: WindowOpt = None,
     whole: WholeOpt = None,
@@ -1069,7 +1117,9 @@ def simulate(
 
 @app.command()
 def uwb(
-    file: Annotated[Path, typer.Argument(help="A STAR-loc uwb.csv.", show_default=False)],
+    file: Annotated[
+        Path, typer.Argument(parser=_file_name, help="A STAR-loc uwb.csv.", show_default=False)
+    ],
     anchors: Annotated[
         Path | None,
         typer.Option(
@@ -1130,11 +1180,15 @@ def uwb(
         int, typer.Option("--min-anchors", help="Anchors per 2-D fix.")
     ] = _U.min_anchors,
     export_log: Annotated[
-        Path | None, typer.Option("--export-log", help="Write the fixes as a diagnose log (CSV).")
+        Path | None,
+        typer.Option(
+            "--export-log", parser=_output_name, help="Write the fixes as a diagnose log (CSV)."
+        ),
     ] = None,
     plots: PlotsOpt = None,
     report_file: Annotated[
-        Path | None, typer.Option("--report", help="Write a self-contained HTML report.")
+        Path | None,
+        typer.Option("--report", parser=_output_name, help="Write a self-contained HTML report."),
     ] = None,
     config: ConfigOpt = None,
     tau: TauOpt = None,
@@ -1227,7 +1281,14 @@ def uwb(
 def report(
     logs: LogsArg,
     output: Annotated[
-        Path, typer.Option("--output", "-o", help="The HTML file to write.", show_default=False)
+        Path,
+        typer.Option(
+            "--output",
+            "-o",
+            parser=_output_name,
+            help="The HTML file to write.",
+            show_default=False,
+        ),
     ],
     config: ConfigOpt = None,
     window: WindowOpt = None,
@@ -1312,6 +1373,7 @@ def main(argv: list[str] | None = None) -> int:
     from credcli.parallel import keep_freed_memory, single_threaded_blas
 
     single_threaded_blas()  # before numpy loads; a user's own setting wins
+    _terminate_on_signals()
     args = list(sys.argv[1:] if argv is None else argv)
     if "--help" not in args and not app_commands().isdisjoint(args):
         keep_freed_memory()  # this process is credcli's own: it may tune its allocator
@@ -1328,19 +1390,53 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived: unwinds like Ctrl-C (temporary files removed, workers
+    stopped), but is not a KeyboardInterrupt, which Click would report as an abort."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _terminate_on_signals() -> None:
+    """SIGTERM and SIGHUP end a run as Ctrl-C does, with exit 128 + the signal's number."""
+    import signal
+
+    def handler(signum, frame):
+        raise Terminated(signum)
+
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), handler)
+
+
 def app_commands() -> set[str]:
     return {c.name or c.callback.__name__ for c in app.registered_commands}
 
 
 def _note_warnings(caught, debug: bool) -> None:
-    seen = set()
+    """Each distinct warning once, as a ``credcli: note:`` line. numpy's floating-point
+    warnings ("overflow encountered in matmul") are one line in the user's terms, with
+    numpy's words in brackets; where they came from only under --debug."""
+    seen: dict[str, None] = {}
+    floating: dict[str, None] = {}
     for w in caught:
-        text = f"{w.category.__name__}: {str(w.message).splitlines()[0] if str(w.message) else ''}"
-        if text in seen:
-            continue
-        seen.add(text)
+        message = str(w.message).splitlines()[0] if str(w.message) else ""
         where = f" ({w.filename}:{w.lineno})" if debug else ""
-        print(f"credcli: note: {text}{where}", file=sys.stderr)
+        if issubclass(w.category, RuntimeWarning) and " encountered in " in message:
+            floating[message + where] = None
+        else:
+            seen[f"{w.category.__name__}: {message}{where}"] = None
+    if floating:
+        print(
+            "credcli: note: some numbers overflowed or were undefined while computing "
+            f"({'; '.join(floating)}); the log's values may be far outside the range of its "
+            "claimed covariances, so read the affected figures with care",
+            file=sys.stderr,
+        )
+    for text in seen:
+        print(f"credcli: note: {text}", file=sys.stderr)
 
 
 def _run(command, args: list[str], debug: bool) -> int:
@@ -1348,7 +1444,7 @@ def _run(command, args: list[str], debug: bool) -> int:
         result = command.main(args=args, prog_name="credcli", standalone_mode=False)
     except CredcliError as exc:
         _traceback(debug)
-        print(f"credcli: error: {flag_names(exc.message)}", file=sys.stderr)
+        print(f"credcli: error: {one_line(flag_names(exc.message))}", file=sys.stderr)
         return exc.exit_code
     except _click_exception_types() as exc:
         ctx = getattr(exc, "ctx", None)
@@ -1358,7 +1454,19 @@ def _run(command, args: list[str], debug: bool) -> int:
         hint = f" (see 'credcli {ctx.info_name} --help')" if ctx is not None and ctx.parent else ""
         print(f"credcli: error: {exc.format_message()}{hint}", file=sys.stderr)
         return 2 if getattr(exc, "exit_code", 2) in (1, 2) else exc.exit_code
-    except (typer.Abort, KeyboardInterrupt):
+    except Terminated as exc:
+        import signal
+
+        print(f"credcli: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        return 128 + exc.signum
+    except (typer.Abort, KeyboardInterrupt) as exc:
+        if isinstance(exc.__context__, EOFError):  # Click turns an EOFError into an Abort
+            _traceback(debug)
+            print(
+                "credcli: error: an input ended early (a truncated compressed file?)",
+                file=sys.stderr,
+            )
+            return 2
         print("credcli: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
@@ -1369,6 +1477,16 @@ def _run(command, args: list[str], debug: bool) -> int:
             _silence_stdout()
             return 0
         return int(exc.code or 0)
+    except OSError as exc:
+        from credcli.io.files import USER_ERRNOS, describe_os_error
+
+        if exc.errno not in USER_ERRNOS:
+            return _internal_error(exc, debug)
+        _traceback(debug)
+        if exc.filename is None and exc.errno == __import__("errno").ENOSPC:
+            _silence_stdout()  # so that Python's own flush at exit does not fail again
+        print(f"credcli: error: {describe_os_error(exc)}", file=sys.stderr)
+        return 2
     except MemoryError:
         print(
             "credcli: error: not enough memory for this run; use fewer --flips, a smaller "
@@ -1377,20 +1495,28 @@ def _run(command, args: list[str], debug: bool) -> int:
         )
         return 2
     except Exception as exc:  # noqa: BLE001 (the outer edge: one line, or the traceback)
-        _traceback(debug)
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        print(
-            f"credcli: internal error: {type(exc).__name__}{': ' + first if first else ''}; "
-            "run with --debug for the traceback",
-            file=sys.stderr,
-        )
-        return 3
+        return _internal_error(exc, debug)
     if result == 130:  # Typer turns KeyboardInterrupt into a silent Exit(130)
         print("credcli: interrupted", file=sys.stderr)
     return int(result or 0)
 
 
+def _internal_error(exc: BaseException, debug: bool) -> int:
+    from credcli.io.files import shown
+
+    _traceback(debug)
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    print(
+        f"credcli: internal error: {type(exc).__name__}{': ' + shown(first, 300) if first else ''}"
+        "; run with --debug for the traceback",
+        file=sys.stderr,
+    )
+    return 3
+
+
 FLAG_NAMES = {
+    "max_dt": "--max-dt",
+    "time_offset": "--time-offset",
     "n_flips": "--flips",
     "tau_nci": "--tau",
     "alpha": "--alpha",
@@ -1430,6 +1556,11 @@ def flag_names(message: str) -> str:
     if m and m[2] in FLAG_NAMES:
         return message[: m.start(2)] + FLAG_NAMES[m[2]] + message[m.end(2) :]
     return message
+
+
+def one_line(message: str) -> str:
+    """A message as one line: a newline in it (a file name's, a library's) is escaped."""
+    return message.replace("\r", "\\r").replace("\n", "\\n")
 
 
 def _traceback(debug: bool) -> None:

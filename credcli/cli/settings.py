@@ -84,6 +84,9 @@ def build_reading(config: dict, cli: dict, where: str = "config [input]") -> Rea
     try:
         return ReadOptions(**values)
     except ValueError as exc:
+        name = str(exc).split(" ", 1)[0]
+        if cli.get(name) is not None or name not in config.get("input", {}):
+            raise CredcliError(str(exc)) from exc  # the command line's value: its flag
         raise CredcliError(f"{where}: {exc}") from exc
 
 

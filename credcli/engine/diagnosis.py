@@ -193,7 +193,10 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
     # Whole-length intermediates are freed as soon as they are used (a 2,000,000-epoch
     # segment peaks ~250 MiB lower); the probes need ``centred`` and ``chol`` to the end.
     probes_possible = any(not c.calibrated or c.metrics is MetricsLevel.ALL for c in configs)
-    eps = metrics.nees_factored(errors, chol)
+    with np.errstate(over="ignore", invalid="ignore"):
+        eps = metrics.nees_factored(errors, chol)
+    if not np.all(np.isfinite(eps)):
+        raise CredcliError(_overflow_message(errors, chol, eps))
     mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
     nci_raw = metrics.nci_factored(errors, chol, _mse_cholesky(mse), eps)
     ks_p = ks_chi2_pvalue(eps, d)
@@ -296,6 +299,20 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
             )
         )
     return out
+
+
+def _overflow_message(errors: np.ndarray, chol: np.ndarray, eps: np.ndarray) -> str:
+    """Why a NEES is not finite: an error so many claimed standard deviations away that its
+    square overflows float64 (the whitened error itself is finite, or it is reported so)."""
+    k = int(np.flatnonzero(~np.isfinite(eps))[0])
+    factor = chol if chol.ndim == 2 else chol[k]
+    with np.errstate(over="ignore", invalid="ignore"):
+        size = float(np.max(np.abs(np.linalg.solve(factor, errors[k]))))
+    return (
+        f"epoch {k + 1} of the segment: the error is {size:.3g} claimed standard deviations, "
+        "whose square overflows double precision; are the covariance and the errors in the "
+        "same units (variance, not standard deviation; m, not mm), or did the estimate diverge?"
+    )
 
 
 def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:

@@ -85,37 +85,155 @@ def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
 
 
 def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
-    """Write ``text`` to ``path``: atomically for a regular file (temporary file, then
-    rename), directly for a device, FIFO or /dev/stdout; refuse to overwrite ``inputs``."""
+    """Write ``text`` to ``path``: atomically for a regular file, directly for a device,
+    FIFO or /dev/stdout; refuse to overwrite ``inputs``.
+
+    A regular file is written unnamed first (Linux's ``O_TMPFILE``), given a name only when
+    it is complete and at once renamed over the target, so that even SIGKILL leaves no
+    temporary file behind; elsewhere it is a named temporary file beside the target, removed
+    on any error or signal that Python sees."""
     path = Path(path)
+    if str(path).endswith(os.sep):
+        raise CredcliError(f"{path}: ends with '{os.sep}', a directory; give a file name")
     check_outputs({"output": path}, inputs)
     data = text.encode() if isinstance(text, str) else text
-    if _is_stream(path):
-        try:
-            with open(path, "wb") as fh:
-                fh.write(data)
-        except OSError as exc:
-            raise CredcliError(f"{path}: cannot be written ({exc.strerror})") from exc
-        return
-    target = path.resolve()
-    if not target.parent.is_dir():
-        raise CredcliError(f"{path}: directory {target.parent} does not exist")
+    try:
+        if _is_stream(path):
+            _write_stream(path, data)
+            return
+        target = path.resolve()
+        if not target.parent.is_dir():
+            raise CredcliError(f"{path}: directory {target.parent} does not exist")
+        if not _write_unnamed(target, data):
+            _write_named(target, data)
+    except OSError as exc:
+        raise CredcliError(f"{path}: cannot be written ({os_reason(exc)})") from exc
+
+
+def shown(name: object, limit: int = 120) -> str:
+    """A file name as a message shows it: on one line (a newline in it is escaped) and,
+    past ``limit`` characters, shortened in the middle."""
+    text = str(name).encode("unicode_escape", "backslashreplace").decode("ascii", "replace")
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit - 40]}…{text[-39:]} ({len(text):,} characters)"
+
+
+USER_ERRNOS = frozenset(
+    getattr(__import__("errno"), name)
+    for name in (
+        "ENOSPC",
+        "EDQUOT",
+        "ENAMETOOLONG",
+        "EROFS",
+        "EACCES",
+        "EPERM",
+        "ENXIO",
+        "ENOENT",
+        "ENOTDIR",
+        "EISDIR",
+        "ELOOP",
+        "EFBIG",
+        "EMFILE",
+        "ENFILE",
+        "EIO",
+        "ESTALE",
+    )
+    if hasattr(__import__("errno"), name)
+)
+"""Errors of the user's files and devices (exit 2), not of credcli (exit 3)."""
+
+
+def describe_os_error(exc: OSError) -> str:
+    """One line for an OSError about the user's files: which file, what happened."""
+    where = shown(exc.filename) if exc.filename is not None else "standard output"
+    return f"{where}: {os_reason(exc)}"
+
+
+def os_reason(exc: OSError) -> str:
+    import errno
+
+    if exc.errno == errno.ENAMETOOLONG:
+        return "the file name or path is too long for this system; choose a shorter one"
+    if exc.errno == errno.ENOSPC:
+        return "no space left on the device; free some or write elsewhere"
+    if exc.errno == errno.ENXIO:
+        return "a FIFO that no process is reading; start the reader first"
+    return exc.strerror or type(exc).__name__
+
+
+def _write_stream(path: Path, data: bytes) -> None:
+    """A device, FIFO or terminal. A FIFO with no reader is refused at once (opening it
+    for writing would wait for one forever)."""
+    fd = os.open(path, os.O_WRONLY | getattr(os, "O_NONBLOCK", 0))
+    try:
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "wb", closefd=False) as fh:
+            fh.write(data)
+    finally:
+        os.close(fd)
+
+
+def _mode() -> int:
+    return 0o666 & ~_umask()  # the mode open() would give a new file
+
+
+def _write_unnamed(target: Path, data: bytes) -> bool:
+    """Write through an unnamed ``O_TMPFILE`` in the target's directory, linked to a
+    temporary name and renamed over the target once complete. False where the platform
+    or file system has no such files (the caller then uses a named temporary file)."""
+    flag = getattr(os, "O_TMPFILE", None)
+    if flag is None or not os.path.isdir("/proc/self/fd"):
+        return False
+    try:
+        fd = os.open(target.parent, flag | os.O_WRONLY, _mode())
+    except OSError as exc:
+        import errno
+
+        if exc.errno in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL, errno.ENOENT):
+            return False
+        raise
+    try:
+        with os.fdopen(fd, "wb", closefd=False) as fh:
+            fh.write(data)
+        name = _temporary_name(target)
+        directory = os.open(target.parent, os.O_RDONLY)
+        try:  # a dir_fd makes CPython call linkat(), which follows the /proc link
+            os.link(f"/proc/self/fd/{fd}", name.name, dst_dir_fd=directory)
+        except OSError:  # a file system without linkat of such files: dropped on close
+            return False
+        finally:
+            os.close(directory)
+    finally:
+        os.close(fd)
+    try:
+        os.replace(name, target)
+    except BaseException:
+        Path(name).unlink(missing_ok=True)
+        raise
+    return True
+
+
+def _temporary_name(target: Path) -> Path:
+    import secrets
+
+    return target.parent / f".{target.name[:200]}.{secrets.token_hex(4)}.tmp"
+
+
+def _write_named(target: Path, data: bytes) -> None:
     try:
         fd, tmp = tempfile.mkstemp(
             dir=target.parent, prefix=f".{target.name[:200]}.", suffix=".tmp"
         )
     except OSError as exc:
         raise CredcliError(
-            f"{path}: cannot write in {target.parent} ({exc.strerror}); choose another place"
+            f"{target}: cannot write in {target.parent} ({os_reason(exc)}); choose another place"
         ) from exc
     try:
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
+        os.fchmod(fd, _mode())  # mkstemp makes 0600
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         os.replace(tmp, target)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise CredcliError(f"{path}: cannot be written ({exc.strerror})") from exc
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -369,18 +369,30 @@ def _ros_csv(frame, path: Path, unit: TimeUnit) -> Trajectory:
 
 
 def _list_column(series, width: int, path: Path) -> np.ndarray:
-    """A column whose cells are lists written as text ("[0.1, 0.0, …]" or "(…)")."""
-    text = series.astype(str).str.strip("[]() ").str.replace(",", " ")
-    try:
-        values = np.array([np.array(t.split(), dtype=float) for t in text], dtype=object)
-        out = np.stack(values).astype(float)
-    except ValueError as exc:
+    """A column whose cells are lists written as text ("[0.1, 0.0, …]" or "(…)"); a cell
+    of another length or with a word in it is named by its data row."""
+    text = series.astype(str).str.strip("[]() ").str.replace(",", " ").str.split()
+    lengths = text.str.len().to_numpy()
+    wrong = np.flatnonzero(lengths != width)
+    if wrong.size:
+        k = int(wrong[0])
         raise CredcliError(
-            f"{path}: column '{series.name}' must hold {width} numbers per row: {exc}"
-        ) from exc
-    if out.ndim != 2 or out.shape[1] != width:
-        raise CredcliError(f"{path}: column '{series.name}' must hold {width} numbers per row")
-    return out
+            f"{path}: column '{series.name}' must hold {width} numbers per row; data row "
+            f"{k + 1} holds {int(lengths[k])}"
+            + (f" ({wrong.size} rows in all)" if wrong.size > 1 else "")
+        )
+    try:
+        return np.array(text.tolist(), dtype=float)
+    except ValueError as exc:
+        for k, cells in enumerate(text):
+            try:
+                np.array(cells, dtype=float)
+            except ValueError:
+                raise CredcliError(
+                    f"{path}: column '{series.name}', data row {k + 1}: not a list of numbers "
+                    f"({exc})"
+                ) from exc
+        raise
 
 
 def _ros_stamps(frame, names: dict, path: Path, unit: TimeUnit):

@@ -7,6 +7,8 @@ convention) is kept in the log's ``notes``; the commands print them and record t
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +18,7 @@ from credcli.errors import CredcliError
 from credcli.io.formats import Trajectory, read_bag_pair, read_trajectory
 from credcli.io.logs import CovKind, EstimatorLog, LogSchema, _validated_cov, load_log
 from credcli.io.schema import InputFormat, ReadOptions
+from credcli.io.streams import display_name, is_stream, readable
 
 COVARIANCE_FORMATS = (
     "credcli, ros-csv with field.pose.covariance0..35, a rosbag Odometry or "
@@ -30,10 +33,22 @@ def open_log(
     drop_invalid: bool = False,
 ) -> EstimatorLog:
     """The log at ``path`` read as ``reading`` says (a credcli log with truth and estimate
-    in each row when no truth is named). What reading it freed goes back to the system."""
+    in each row when no truth is named). ``path`` (or the truth) may be a stream: ``-`` for
+    standard input, a pipe or a FIFO (:mod:`credcli.io.streams`). What reading it freed
+    goes back to the system."""
     from credcli.parallel import release_free_memory
 
-    log = _read_log(Path(path), schema, reading, drop_invalid)
+    reading = reading or ReadOptions()
+    with contextlib.ExitStack() as stack:
+        local = stack.enter_context(readable(path))
+        if reading.truth is not None and is_stream(reading.truth):
+            truth = stack.enter_context(readable(reading.truth))
+            reading = dataclasses.replace(reading, truth=str(truth))
+        log = _read_log(local, schema, reading, drop_invalid)
+        if local != Path(path):
+            name = display_name(path)
+            notes = tuple(note.replace(str(local), name) for note in log.notes)
+            log = dataclasses.replace(log, source=name, notes=notes)
     release_free_memory()
     return log
 
@@ -53,6 +68,10 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
             from credcli.io.formats import sniff_format
 
             fmt = sniff_format(path) if path.exists() else InputFormat.CREDCLI
+        if fmt is InputFormat.ROSBAG:
+            from credcli.io.rosbag import check_bag_path
+
+            check_bag_path(path)
         if fmt is not InputFormat.CREDCLI:
             raise CredcliError(
                 f"{path}: a {fmt.value} file has no ground truth beside the estimate; name it "

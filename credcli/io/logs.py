@@ -8,6 +8,7 @@ other layouts onto it.
 
 from __future__ import annotations
 
+import collections
 import itertools
 import re
 from dataclasses import dataclass, field
@@ -261,6 +262,8 @@ def read_table(path: Path, columnwise: bool = False):
         raise CredcliError(f"{path}: is a directory, expected a CSV or Parquet file")
     if path.stat().st_size == 0:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows")
+    if path.suffix.lower() not in (".parquet", ".pq"):
+        _check_text(path)
     if columnwise and path.suffix.lower() in (".parquet", ".pq"):
         try:
             frame = ParquetColumns(path)
@@ -271,6 +274,26 @@ def read_table(path: Path, columnwise: bool = False):
     if len(frame) == 0:
         raise CredcliError(f"{path}: header has no rows below it; expected one row per epoch")
     return frame
+
+
+def _check_text(path: Path) -> None:
+    """A text log has no NUL bytes: they mean UTF-16/32 (without a byte-order mark, which
+    pandas would have read) or a binary file given as a text one."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    if head[:2] in (b"\xff\xfe", b"\xfe\xff") or head[:2] == b"\x1f\x8b":
+        return  # UTF-16 with its byte-order mark, or gzip: pandas reads them
+    if b"\x00" in head:
+        zeros = head.count(b"\x00") / len(head)
+        if 0.3 < zeros < 0.7:
+            raise CredcliError(
+                f"{path}: looks like UTF-16 text without a byte-order mark (every other byte "
+                "is 0); save it as UTF-8"
+            )
+        raise CredcliError(
+            f"{path}: holds binary data (NUL bytes), not CSV or text; give a CSV, text, "
+            "Parquet file or a ROS bag"
+        )
 
 
 def _read_frame(path: Path):
@@ -287,6 +310,10 @@ def _read_frame(path: Path):
         return read_text_table(path)
     except pd.errors.EmptyDataError as exc:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
+    except EOFError as exc:  # gzip, bz2, xz: the compressed stream stops before its end
+        raise CredcliError(
+            f"{path}: the compressed file ends early (truncated?); check how it was written"
+        ) from exc
     except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
         raise _unreadable(path, exc) from exc
 
@@ -353,6 +380,11 @@ def _vector_columns(columns, prefix: str, explicit, what: str, source: str) -> l
     if explicit:
         return list(explicit)
     found = _indexed(columns, prefix)
+    if not found and _indexed(columns, "innov_") and prefix != "innov_":
+        raise CredcliError(
+            f"{source}: no {what} columns, but innovations (innov_0, …): a filter's "
+            "innovations log is read with --innovations (NIS, no ground truth)"
+        )
     if not found:
         raise CredcliError(
             f"{source}: no {what} columns ({prefix}0, {prefix}1, …) found; columns found: "
@@ -447,7 +479,8 @@ def log_from_frame(
 
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
-    repeated = sorted({c for c in columns if columns.count(c) > 1} | _mangled(columns))
+    counts = collections.Counter(columns)  # linear: a header may have 10⁶ columns
+    repeated = sorted({c for c, k in counts.items() if k > 1} | _mangled(columns))
     if repeated:
         raise CredcliError(
             f"{source}: column(s) {', '.join(repeated)} appear more than once in the header; "
@@ -619,7 +652,8 @@ def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
         cov[:, iu[0], iu[1]] = values
         cov[:, iu[1], iu[0]] = values
     else:
-        diag = values**2 if kind is CovKind.STD else values
+        with np.errstate(over="ignore"):  # an overflow is reported by _validated_cov
+            diag = values**2 if kind is CovKind.STD else values
         idx = np.arange(d)
         cov[:, idx, idx] = diag
     return cov
@@ -633,6 +667,14 @@ def _validated_cov(
     be asymmetric: it is checked and made symmetric in place, an entry pair at a time (no
     N×d×d temporaries); the other layouts are symmetric as built."""
     diag = np.diagonal(cov, axis1=1, axis2=2)
+    infinite = ~np.isfinite(diag).all(axis=1)
+    if infinite.any():
+        i = int(np.argmax(infinite))
+        what = "the square of a std column" if kind is CovKind.STD else "a variance"
+        raise CredcliError(
+            f"{source}: row {rows[i]}: {what} overflows double precision (above 1.8e308); "
+            "are the covariance columns in the log's units?"
+        )
     if kind is CovKind.FULL:
         d = cov.shape[1]
         scale = np.abs(cov[:, 0, 0])

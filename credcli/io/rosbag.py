@@ -62,6 +62,14 @@ def _fields(msg):
     )
 
 
+def check_bag_path(path: Path) -> None:
+    """A directory is a ROS2 bag only with a metadata.yaml in it."""
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise CredcliError(
+            f"{path}: not a ROS2 bag directory (no metadata.yaml); name a log file or a bag"
+        )
+
+
 def read_bag(path: Path, topic: str | None, role: str, time_unit: TimeUnit) -> Trajectory:
     """The poses (and covariances) of ``topic`` in the bag at ``path``."""
     return read_bag_topics(path, [(topic, role)], time_unit)[0]
@@ -76,11 +84,15 @@ def read_bag_topics(
     AnyReader, Stores, get_typestore = _require_rosbags()
     from rosbags.highlevel import AnyReaderError
 
+    check_bag_path(Path(path))
     try:
         reader = AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         reader.open()
     except (AnyReaderError, OSError, ValueError, KeyError) as exc:
-        raise CredcliError(f"{path}: cannot be read as a ROS bag: {exc}") from exc
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if "YAML" in first:
+            first = "its metadata.yaml is not valid YAML"
+        raise CredcliError(f"{path}: cannot be read as a ROS bag: {first}") from exc
     names: set[str] = set()
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -227,10 +228,23 @@ def rich_table(table: Table, width: int | None = None):
     return out
 
 
+def json_safe(value):
+    """``value`` with every non-finite float (nested in dicts, lists, tuples) as None, as
+    the records write them: JSON has no Inf or NaN, and every format takes the same
+    report."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    return value
+
+
 def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
     """The whole report as text in ``fmt`` (a plain table without colour for TABLE)."""
     if fmt is OutputFormat.JSON:
-        return json.dumps(report.document, indent=2, allow_nan=False) + "\n"
+        return json.dumps(json_safe(report.document), indent=2, allow_nan=False) + "\n"
     if fmt is OutputFormat.CSV:
         return _csv(report)
     if fmt is OutputFormat.MARKDOWN:

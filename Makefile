@@ -7,7 +7,7 @@ EXTRAS := .[plots,ros,dask,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 
-.PHONY: install demo test test-oldest lock lint format bench bench-dask sample-data clean
+.PHONY: install demo test test-oldest lock lint format bench bench-dask sample-data config clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -65,6 +65,10 @@ bench-dask: $(STAMP)
 ## sample-data: regenerate sample_data/ from the generators in credcli/studies/samples.py
 sample-data: $(STAMP)
 	$(BIN)/python -m credcli.studies.samples sample_data
+
+## config: regenerate configs/default.toml from the settings classes
+config: $(STAMP)
+	$(BIN)/python -m credcli.cli.settings > configs/default.toml
 
 clean:
 	rm -rf $(VENV) .venv-lock .venv-oldest .pytest_cache .ruff_cache *.egg-info

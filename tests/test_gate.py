@@ -42,8 +42,23 @@ def baseline(tmp_path_factory):
 
 
 def test_fail_on_parsing_and_matching():
-    assert gate.parse_fail_on("optimism,smm") == {"optimism", "smm"}
-    assert gate.parse_fail_on("pessimism+smm") == {"pessimism", "smm"}
+    any_of = gate.parse_fail_on("optimism,smm")
+    assert any_of == gate.FailOn(conditions=frozenset({"optimism", "smm"}))
+    assert [lab for lab in Label if gate.fails(lab, any_of)] == [
+        Label.OPTIMISM,
+        Label.SMM,
+        Label.OPTIMISM_SMM,
+        Label.PESSIMISM_SMM,
+    ]
+    combined = gate.parse_fail_on("pessimism+smm")  # that label only
+    assert [lab for lab in Label if gate.fails(lab, combined)] == [Label.PESSIMISM_SMM]
+    assert str(combined) == "pessimism+smm" and str(any_of) == "optimism,smm"
+    both = gate.parse_fail_on("opt+smm, pessimism")
+    assert [lab for lab in Label if gate.fails(lab, both)] == [
+        Label.PESSIMISM,
+        Label.OPTIMISM_SMM,
+        Label.PESSIMISM_SMM,
+    ]
     nc = gate.parse_fail_on("noncredible")
     assert all(gate.fails(lab, nc) for lab in Label if lab is not Label.CREDIBLE)
     assert not gate.fails(Label.CREDIBLE, nc)

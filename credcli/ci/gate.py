@@ -9,6 +9,7 @@ from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
 from credcli.engine.diagnosis import LABEL_ALIASES, Label, SegmentDiagnosis, parse_label
 from credcli.errors import CredcliError
 from credcli.io.records import segment_record
+from credcli.report.formats import format_pvalue
 
 BASELINE_SCHEMA_VERSION = 1
 BASELINE_KIND = "credcli-baseline"
@@ -17,17 +18,46 @@ _CONDITIONS = ("optimism", "pessimism", "smm")
 NONCREDIBLE = "noncredible"
 
 
-def parse_fail_on(text: str) -> frozenset[str]:
-    """Conditions from ``optimism,smm``, ``noncredible`` or label names (``optimism+smm``).
+@dataclass(frozen=True)
+class FailOn:
+    """What `--fail-on` fails on: any of its comma-separated items.
 
-    ``noncredible`` is every label except ``credible`` (``insufficient-data`` included).
+    - a condition (``optimism``, ``pessimism``, ``smm``): every label that contains it
+      (``smm`` fails ``smm``, ``optimism+smm`` and ``pessimism+smm``);
+    - a combined label (``optimism+smm``): that label only;
+    - ``insufficient-data``: segments without a verdict;
+    - ``noncredible``: every label except ``credible``.
     """
-    out: set[str] = set()
+
+    conditions: frozenset[str] = frozenset()
+    labels: frozenset[Label] = frozenset()
+    noncredible: bool = False
+
+    def __str__(self) -> str:
+        items = sorted(self.conditions) + sorted(lab.value for lab in self.labels)
+        return ",".join(([NONCREDIBLE] if self.noncredible else []) + items)
+
+    def fails(self, label: Label) -> bool:
+        """Whether a segment with ``label`` fails."""
+        if self.noncredible:
+            return label is not Label.CREDIBLE
+        return label in self.labels or bool(label.conditions & self.conditions)
+
+
+def parse_fail_on(text: str) -> FailOn:
+    """``optimism,smm`` (any of), ``optimism+smm`` (that label), ``noncredible``,
+    ``insufficient-data`` or label aliases (``pess+smm``); see :class:`FailOn`."""
+    conditions: set[str] = set()
+    labels: set[Label] = set()
+    noncredible = False
     for item in (t.strip().lower() for t in text.split(",")):
         if not item:
             continue
-        if item in (NONCREDIBLE, Label.INSUFFICIENT.value) or item in _CONDITIONS:
-            out.add(item)
+        if item == NONCREDIBLE:
+            noncredible = True
+            continue
+        if item in _CONDITIONS:
+            conditions.add(item)
             continue
         label = parse_label(item)
         if label is None or label is Label.CREDIBLE:
@@ -36,19 +66,18 @@ def parse_fail_on(text: str) -> frozenset[str]:
                 f"{Label.INSUFFICIENT.value}, {NONCREDIBLE}, a label such as optimism+smm, or "
                 f"an alias ({', '.join(a for a in LABEL_ALIASES if a != 'cred')})"
             )
-        out |= label.conditions
-    if not out:
+        if len(label.conditions) == 1:
+            conditions |= label.conditions
+        else:
+            labels.add(label)
+    if not (conditions or labels or noncredible):
         raise CredcliError("fail_on: give at least one condition, e.g. noncredible")
-    return frozenset(out)
+    return FailOn(frozenset(conditions), frozenset(labels), noncredible)
 
 
-def fails(label: Label, fail_on: frozenset[str]) -> bool:
-    """Whether a segment's label contains one of the listed conditions."""
-    if NONCREDIBLE in fail_on:
-        return label is not Label.CREDIBLE
-    if label is Label.INSUFFICIENT:
-        return Label.INSUFFICIENT.value in fail_on
-    return bool(label.conditions & fail_on)
+def fails(label: Label, fail_on: FailOn) -> bool:
+    """Whether a segment's label fails ``fail_on`` (:meth:`FailOn.fails`)."""
+    return fail_on.fails(label)
 
 
 class Status(str, enum.Enum):
@@ -151,10 +180,14 @@ def compare_segment(
     if old.elt_pvalue is not None and new.elt_pvalue is not None:
         if old.elt_pvalue >= alpha > new.elt_pvalue:
             reasons.append(
-                f"ELT newly rejects (p {old.elt_pvalue:.3g} -> {new.elt_pvalue:.3g} < {alpha:.3g})"
+                f"ELT newly rejects (p {format_pvalue(old.elt_pvalue)} -> "
+                f"{format_pvalue(new.elt_pvalue)} < {alpha:.3g})"
             )
         elif new.elt_pvalue >= alpha > old.elt_pvalue:
-            better.append(f"ELT no longer rejects (p {old.elt_pvalue:.3g} -> {new.elt_pvalue:.3g})")
+            better.append(
+                f"ELT no longer rejects (p {format_pvalue(old.elt_pvalue)} -> "
+                f"{format_pvalue(new.elt_pvalue)})"
+            )
     status = Status.REGRESSED if reasons else Status.IMPROVED if better else Status.UNCHANGED
     return SegmentComparison(name, status, old, new, tuple(reasons), tuple(better))
 
@@ -251,10 +284,10 @@ def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[
     return True, f"PASS: no regression in {len(comparisons)} segment(s) ({tally})"
 
 
-def fail_on_verdict(records: list[dict], fail_on: frozenset[str]) -> tuple[bool, str, list[dict]]:
+def fail_on_verdict(records: list[dict], fail_on: FailOn) -> tuple[bool, str, list[dict]]:
     """(passed, one-line verdict, failing records) of `diagnose --fail-on`."""
     bad = [r for r in records if fails(Label(r["label"]), fail_on)]
-    listed = ",".join(sorted(fail_on))
+    listed = str(fail_on)
     if bad:
         shown = ", ".join(f"{r['segment']} ({r['label']})" for r in bad[:5])
         more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""

@@ -76,7 +76,7 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
 
 def fail_on_cases(records: list[dict], failing: list[dict], fail_on) -> list[Case]:
     bad = {id(r) for r in failing}
-    listed = ",".join(sorted(fail_on))
+    listed = str(fail_on)
     return [
         Case(
             r["segment"],
@@ -97,10 +97,10 @@ def _classname(path: str) -> str:
 def summary_markdown(heading: str, verdict: str, report, context: str = "") -> str:
     """The Markdown summary of a CI run: a heading, the verdict, then the report's own
     tables (the same ones the other output formats show)."""
-    from credcli.report.render import OutputFormat, to_text
+    from credcli.report.render import OutputFormat, markdown_text, to_text
 
-    parts = [f"## {heading}", "", f"**{verdict}**", ""]
+    parts = [f"## {markdown_text(heading)}", "", f"**{markdown_text(verdict)}**", ""]
     if context:
-        parts += [context, ""]
+        parts += [markdown_text(context), ""]
     parts.append(to_text(report, OutputFormat.MARKDOWN))
     return "\n".join(parts)

@@ -246,20 +246,41 @@ def _emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
         from rich.console import Console
 
         console = Console()
-        if not console.is_terminal:
-            console = Console(width=200)
+        fit: int | None = console.width  # a terminal: hide columns that do not fit
+        if not console.is_terminal:  # a log or a pipe: $COLUMNS if given, else every column
+            fit = _given_width()
+            console = Console(width=fit or UNLIMITED_WIDTH, soft_wrap=fit is None)
         for table in report.tables:
-            console.print(rich_table(table, console.width))
+            console.print(rich_table(table, fit))
         for note in report.notes:
             console.print(note, markup=False, highlight=False)
         return
     sys.stdout.write(to_text(report, fmt))
 
 
+UNLIMITED_WIDTH = 10_000
+"""Width of text output that is not a terminal and was given no $COLUMNS: tables keep every
+column (a CI log scrolls sideways, it does not lose the "why")."""
+
+
+def _given_width() -> int | None:
+    import os
+
+    try:
+        width = int(os.environ.get("COLUMNS", ""))
+    except ValueError:
+        return None
+    return width if width > 0 else None
+
+
 def _stderr():
+    """Messages on stderr, never wrapped off a terminal (a CI log keeps each on one line)."""
     from rich.console import Console
 
-    return Console(stderr=True)
+    console = Console(stderr=True)
+    if not console.is_terminal:
+        console = Console(stderr=True, soft_wrap=True, width=_given_width() or UNLIMITED_WIDTH)
+    return console
 
 
 class _Progress:
@@ -701,7 +722,9 @@ def diagnose(
         str | None,
         typer.Option(
             "--fail-on",
-            help="Exit 1 if a segment's label contains one of these: optimism, pessimism, smm, insufficient-data, or noncredible.",
+            help="Exit 1 if a segment fails any of these (comma-separated): a condition "
+            "(optimism, pessimism, smm: every label containing it), a combined label "
+            "(optimism+smm: that label only), insufficient-data, or noncredible.",
         ),
     ] = None,
     junit: JunitOpt = None,

@@ -178,3 +178,86 @@ def gate_requests(config: dict, cli: dict) -> dict:
     out = _diagnosis(config, {}) | _segments(config, {})
     out.update({k: v for k, v in cli.items() if v is not None})
     return out
+
+
+def _toml_value(value) -> str | None:
+    """A default as TOML, or None for a setting that is unset by default."""
+    import enum
+    import json
+
+    if isinstance(value, enum.Enum):
+        value = value.value
+    if value is None:
+        return None
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_toml_value(v) or '""' for v in value) + "]"
+    raise TypeError(f"no TOML form for {value!r}")
+
+
+def _section(name: str, values: dict[str, object], unset_examples: dict[str, str]) -> list[str]:
+    lines = [f"[{name}]"]
+    for key, value in values.items():
+        text = _toml_value(value)
+        if text is None or text == "[]":
+            lines.append(f"# {key} = {unset_examples.get(key, '...')}  # unset by default")
+        else:
+            lines.append(f"{key} = {text}")
+    return lines + [""]
+
+
+def default_config_text() -> str:
+    """configs/default.toml: every setting a config file takes, at its default, made from
+    the settings dataclasses themselves (``make config`` writes it; a test checks it)."""
+    from credcli.studies.simulate import SimulationConfig
+
+    def defaults(cls, skip=()) -> dict:
+        instance = cls()
+        return {
+            f.name: getattr(instance, f.name) for f in dataclasses.fields(cls) if f.name not in skip
+        }
+
+    simulate = defaults(SimulationConfig, skip=("diagnosis",))
+    simulate.pop("seed")  # the seed is [diagnosis] seed, shared by the commands
+    examples = {
+        "truth_columns": '["x", "y"]',
+        "estimate_columns": '["xh", "yh"]',
+        "cov_columns": '["pxx", "pxy", "pyy"]',
+        "cov_kind": '"upper"',
+        "truth": '"groundtruth.csv"',
+        "topic": '"/odom"',
+        "truth_topic": '"/ground_truth"',
+        "max_dt": "0.05",
+        "states": '"pose"',
+        "window": '"5s"',
+    }
+    lines = [
+        "# Every setting credcli reads from a config file, at its default value.",
+        "#   credcli diagnose log.csv --config configs/default.toml",
+        "# Precedence: command-line options > this file > built-in defaults.",
+        "# Generated from the settings classes by `make config`; do not edit by hand.",
+        "",
+    ]
+    lines += _section("columns", defaults(LogSchema), examples)
+    lines += _section("input", defaults(ReadOptions), examples)
+    lines += _section("diagnosis", defaults(DiagnosisConfig) | {"seed": 0}, examples)
+    lines += _section("segments", {"window": None, "whole": False}, examples)
+    lines += _section("simulate", simulate, examples)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def main() -> int:
+    """``python -m credcli.cli.settings``: print configs/default.toml."""
+    import sys
+
+    sys.stdout.write(default_config_text())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

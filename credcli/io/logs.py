@@ -277,19 +277,20 @@ def read_table(path: Path, columnwise: bool = False):
 
 
 def _check_text(path: Path) -> None:
-    """A text log has no NUL bytes: they mean UTF-16/32 (without a byte-order mark, which
-    pandas would have read) or a binary file given as a text one."""
+    """A text log is UTF-8 (or ASCII) without NUL bytes: UTF-16, with or without its
+    byte-order mark, and binary data are named, not misread as columns."""
     with open(path, "rb") as fh:
         head = fh.read(4096)
-    if head[:2] in (b"\xff\xfe", b"\xfe\xff") or head[:2] == b"\x1f\x8b":
-        return  # UTF-16 with its byte-order mark, or gzip: pandas reads them
-    if b"\x00" in head:
-        zeros = head.count(b"\x00") / len(head)
-        if 0.3 < zeros < 0.7:
-            raise CredcliError(
-                f"{path}: looks like UTF-16 text without a byte-order mark (every other byte "
-                "is 0); save it as UTF-8"
-            )
+    if head[:2] == b"\x1f\x8b" or not head:
+        return  # gzip: pandas unpacks it
+    zeros = head.count(b"\x00") / len(head)
+    marked = head[:2] in (b"\xff\xfe", b"\xfe\xff")
+    if marked or 0.3 < zeros < 0.7:
+        how = "" if marked else " without a byte-order mark"
+        raise CredcliError(
+            f"{path}: is UTF-16 text{how}; save it as UTF-8 (e.g. iconv -f UTF-16 -t UTF-8)"
+        )
+    if zeros:
         raise CredcliError(
             f"{path}: holds binary data (NUL bytes), not CSV or text; give a CSV, text, "
             "Parquet file or a ROS bag"

@@ -36,7 +36,7 @@ def _table_html(table) -> str:
         cells = []
         for c in table.columns:
             value = row.get(c.key)
-            text = html.escape(format_cell(value, c.digits))
+            text = html.escape(format_cell(c.value(row), c.digits))  # as the terminal shows it
             cls = "text" if not c.digits else "num"
             if c.key in ("label", "nees_label", "nci_label") and isinstance(value, str):
                 cls += " credible" if value == "credible" else " bad"

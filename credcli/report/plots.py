@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
+from credcli.report.formats import format_pvalue
 
 INSTALL_HINT = "pip install 'credcli[plots]' (or pip install matplotlib)"
 
@@ -155,7 +156,7 @@ def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) ->
     plt = _pyplot()
     d = s.shape[1]
     fig, ax = plt.subplots(figsize=(5, 5))
-    ptxt = "—" if pvalue is None else f"{pvalue:.3g}"
+    ptxt = format_pvalue(pvalue)
     if d == 1:
         bins = np.linspace(-max(np.abs(s).max(), 1e-9), max(np.abs(s).max(), 1e-9), 31)
         ax.hist(s[:, 0], bins=bins, alpha=0.6, label="s_k")

@@ -10,12 +10,17 @@ import csv
 import io
 import json
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.io.records import json_value, segment_record
-from credcli.report.formats import OutputFormat  # noqa: F401 (re-exported)
+from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR re-exported)
+    PVALUE_FLOOR,
+    OutputFormat,
+    format_pvalue,
+)
 
 
 @dataclass(frozen=True)
@@ -35,7 +40,7 @@ class Column:
         if self.limit and isinstance(value, str) and len(value) > self.limit:
             return value[: self.limit - 1] + "…"
         if self.pvalue and isinstance(value, float) and value < PVALUE_FLOOR:
-            return f"<{PVALUE_FLOOR:g}"
+            return format_pvalue(value)
         return value
 
 
@@ -55,9 +60,6 @@ class Report:
     document: dict
     notes: list[str] = field(default_factory=list)
 
-
-PVALUE_FLOOR = 0.001
-"""Tables print smaller p-values as "<0.001" (JSON and CSV keep the number)."""
 
 NAME_LIMIT = 60
 """Longest segment or log name shown in a table cell (JSON and CSV keep the whole name)."""
@@ -175,7 +177,9 @@ def _fitting_columns(table: Table, texts, width: int | None) -> list[int]:
         return shown
 
     def need(k: int) -> int:
-        return max([len(table.columns[k].header)] + [len(t[k]) for t in texts]) + 3
+        col = table.columns[k]
+        widest = max([len(col.header)] + [len(t[k]) for t in texts])
+        return (min(widest, max(col.wrap, len(col.header))) if col.wrap else widest) + 3
 
     while sum(need(k) for k in shown) + 1 > width:
         droppable = [k for k in shown if table.columns[k].rank > 0]
@@ -289,20 +293,30 @@ def _csv_keys(table: Table) -> list[str]:
     return keys or [c.key for c in table.columns]
 
 
+_MARKDOWN_SPECIAL = re.compile(r"([\\`*_\[\]<>|#~])")
+
+
+def markdown_text(text: str) -> str:
+    """Text as Markdown shows it literally, on one line: ``|`` would end a table cell,
+    ``*``, ``_``, ``[``, ``<`` and the rest would start markup (a segment named
+    ``run_1_*``)."""
+    return _MARKDOWN_SPECIAL.sub(r"\\\1", " ".join(str(text).splitlines()))
+
+
 def _markdown(report: Report) -> str:
     lines: list[str] = []
     for table in report.tables:
-        lines.append(f"### {table.title}")
+        lines.append(f"### {markdown_text(table.title)}")
         lines.append("")
-        lines.append("| " + " | ".join(c.header for c in table.columns) + " |")
+        lines.append("| " + " | ".join(markdown_text(c.header) for c in table.columns) + " |")
         lines.append("|" + "|".join("---" if not c.digits else "---:" for c in table.columns) + "|")
         for row in table.rows:
-            cells = [format_cell(c.value(row), c.digits).replace("|", "\\|") for c in table.columns]
+            cells = [markdown_text(format_cell(c.value(row), c.digits)) for c in table.columns]
             lines.append("| " + " | ".join(cells) + " |")
         if table.caption:
-            lines.extend(["", table.caption])
+            lines.extend(["", markdown_text(table.caption)])
         lines.append("")
-    lines.extend(f"{note}  " for note in report.notes)
+    lines.extend(f"{markdown_text(note)}  " for note in report.notes)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -697,6 +711,8 @@ GATE_COLUMNS = (
 def _pair(old, new, key):
     def f(snap):
         v = None if snap is None else getattr(snap, key)
+        if key.endswith("pvalue"):
+            return format_pvalue(v)
         return "—" if v is None else f"{v:.3g}"
 
     return f"{f(old)} → {f(new)}"

@@ -1,0 +1,495 @@
+"""The edge under signals, streams, odd files and extreme numbers (issue 21): every run ends
+with the promised exit code and one specific line, and leaves no file or process behind."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_edges import LOG, error_line, run
+
+ROOT = Path(__file__).resolve().parents[1]
+FORMATS = ROOT / "sample_data" / "formats"
+CREDCLI = [sys.executable, "-m", "credcli"]
+
+
+@pytest.fixture(scope="module")
+def long_log(tmp_path_factory) -> Path:
+    """400,000 credible epochs in 400 segments: long enough for worker processes."""
+    rng = np.random.default_rng(0)
+    n = 400_000
+    errors = rng.standard_normal((n, 2))
+    frame = pd.DataFrame(
+        {
+            "time": np.arange(n) * 0.1,
+            "segment": np.repeat(np.arange(400), 1000).astype(str),
+            "truth_0": errors[:, 0],
+            "truth_1": errors[:, 1],
+            "est_0": 0.0,
+            "est_1": 0.0,
+            "cov_0_0": 1.0,
+            "cov_0_1": 0.0,
+            "cov_1_1": 1.0,
+        }
+    )
+    path = tmp_path_factory.mktemp("long") / "long.parquet"
+    frame.to_parquet(path)
+    return path
+
+
+def _children(pid: int) -> set[int]:
+    found = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            found |= {int(c) for c in (task / "children").read_text().split()}
+        except OSError:
+            pass
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_stops_workers_and_leaves_nothing(tmp_path, long_log, signum):
+    out = tmp_path / "out.json"
+    proc = subprocess.Popen(
+        [*CREDCLI, "diagnose", long_log, "-f", "json", "-o", out, "--jobs", "2"],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    workers: set[int] = set()
+    deadline = time.monotonic() + 60
+    while len(workers) < 2 and time.monotonic() < deadline and proc.poll() is None:
+        workers |= _children(proc.pid)
+        time.sleep(0.05)
+    assert len(workers) >= 2, "the workers never started"
+    time.sleep(0.5)
+    os.killpg(proc.pid, signum) if signum == signal.SIGINT else proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    expected = 143 if signum == signal.SIGTERM else 130
+    assert proc.returncode == expected, err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert ("terminated" if signum == signal.SIGTERM else "interrupted") in lines[0]
+    time.sleep(0.5)
+    assert not [pid for pid in workers if _alive(pid)], "worker processes outlived the run"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not hasattr(os, "O_TMPFILE"), reason="Linux's O_TMPFILE")
+def test_an_output_has_no_name_until_it_is_complete(tmp_path, monkeypatch):
+    """Written unnamed: a SIGKILL while writing cannot leave a temporary file behind."""
+    import credcli.io.files as files
+
+    seen = []
+    real = files.os.link
+
+    def link(src, dst, **kw):
+        seen.append(sorted(p.name for p in tmp_path.iterdir()))  # just before the name
+        return real(src, dst, **kw)
+
+    monkeypatch.setattr(files.os, "link", link)
+    files.write_atomic(tmp_path / "out.json", "{}\n")
+    assert seen == [[]]
+    assert [p.name for p in tmp_path.iterdir()] == ["out.json"]
+    assert (tmp_path / "out.json").read_text() == "{}\n"
+
+
+def test_an_existing_output_is_replaced_whole(tmp_path):
+    from credcli.io.files import write_atomic
+
+    target = tmp_path / "out.txt"
+    target.write_text("old")
+    write_atomic(target, "new")
+    assert target.read_text() == "new" and [p.name for p in tmp_path.iterdir()] == ["out.txt"]
+    assert target.stat().st_mode & 0o777 == 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# --- streams as inputs -----------------------------------------------------------------------
+
+
+def _json_labels(text: str) -> list:
+    return [(s["segment"], s["label"]) for s in json.loads(text)["segments"]]
+
+
+def test_stdin_is_dash():
+    expected = _json_labels(run("diagnose", LOG, "-f", "json")[1])
+    proc = subprocess.run(
+        [*CREDCLI, "diagnose", "-", "-f", "json"],
+        input=LOG.read_bytes(),
+        capture_output=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert _json_labels(proc.stdout.decode()) == expected
+    assert json.loads(proc.stdout)["logs"][0]["path"] == "<stdin>"
+
+
+def test_gzip_stdin_and_parquet_stdin():
+    expected = _json_labels(run("diagnose", LOG, "-f", "json")[1])
+    for data in (gzip.compress(LOG.read_bytes()), LOG.with_suffix(".parquet").read_bytes()):
+        proc = subprocess.run(
+            [*CREDCLI, "diagnose", "-", "-f", "json"], input=data, capture_output=True
+        )
+        assert proc.returncode == 0, proc.stderr
+        assert _json_labels(proc.stdout.decode()) == expected
+
+
+def test_a_fifo_is_read_like_a_file(tmp_path):
+    """As `credcli diagnose <(zcat log.csv.gz)` gives it: a pipe read once."""
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    writer = threading.Thread(target=lambda: fifo.write_bytes(LOG.read_bytes()))
+    writer.start()
+    code, out, err = run("diagnose", fifo, "-f", "json")
+    writer.join(10)
+    assert code == 0, err
+    assert _json_labels(out) == _json_labels(run("diagnose", LOG, "-f", "json")[1])
+
+
+def test_empty_stdin_is_a_message_not_file_is_empty():
+    proc = subprocess.run(
+        [*CREDCLI, "diagnose", "-"], input=b"", capture_output=True, text=False, timeout=60
+    )
+    line = error_line(proc.returncode, proc.stderr.decode())
+    assert "<stdin>" in line and "no data" in line
+
+
+def test_truncated_gzip_is_exit_2_not_interrupted(tmp_path):
+    path = tmp_path / "log.csv.gz"
+    path.write_bytes(gzip.compress(LOG.read_bytes())[:4000])
+    assert "ends early" in error_line(*run("diagnose", path)[::2])
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    writer = threading.Thread(target=lambda: fifo.write_bytes(path.read_bytes()))
+    writer.start()
+    line = error_line(*run("diagnose", fifo)[::2])
+    writer.join(10)
+    assert "ends early" in line and str(fifo) in line
+
+
+# --- outputs and names -----------------------------------------------------------------------
+
+
+def test_a_fifo_output_without_reader_is_refused_at_once(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    start = time.monotonic()
+    line = error_line(*run("diagnose", LOG, "-o", fifo)[::2])
+    assert "no process is reading" in line and time.monotonic() - start < 30
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["-o", "nowhere/"], "ends with '/'"),
+        (["-o", ""], "empty file name"),
+        (["-o", "a" * 300], "too long"),
+        (["-o", "a/" * 3000 + "x"], "too long"),
+    ],
+)
+def test_bad_output_names_are_one_line(tmp_path, monkeypatch, args, words):
+    monkeypatch.chdir(tmp_path)
+    line = error_line(*run("diagnose", LOG, *args)[::2])
+    assert words in line and len(line) < 600
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name, words", [("", "empty file name"), ("x" * 100_000, "too long")])
+def test_bad_input_names_are_one_line(name, words):
+    line = error_line(*run("diagnose", name)[::2])
+    assert words in line and len(line) < 600
+
+
+def test_stdout_on_a_full_device_is_exit_2():
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run(
+            [*CREDCLI, "diagnose", LOG, "-f", "json"], stdout=full, stderr=subprocess.PIPE
+        )
+    line = error_line(proc.returncode, proc.stderr.decode())
+    assert "standard output" in line and "no space left" in line
+
+
+def test_a_newline_in_a_file_name_stays_on_one_line(tmp_path):
+    line = error_line(*run("diagnose", tmp_path / "new\nline.csv")[::2])
+    assert "new\\nline.csv" in line
+
+
+# --- numbers ---------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def overflowing(tmp_path) -> Path:
+    frame = pd.read_csv(LOG)
+    frame.loc[frame.segment == "cruise", "truth_0"] *= 1e300
+    path = tmp_path / "huge.csv"
+    frame.to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.parametrize("fmt", ["table", "json", "csv", "markdown"])
+def test_errors_whose_squares_overflow_are_exit_2_in_every_format(overflowing, fmt):
+    line = error_line(*run("diagnose", overflowing, "-f", fmt)[::2])
+    assert "segment 'cruise'" in line and "overflows" in line
+
+
+def test_baseline_of_overflowing_errors_is_exit_2(overflowing, tmp_path):
+    line = error_line(*run("baseline", overflowing, "-o", tmp_path / "b.json")[::2])
+    assert "overflows" in line and not (tmp_path / "b.json").exists()
+
+
+def test_errors_and_covariances_at_the_edge_of_the_range_scale_out(tmp_path):
+    """Errors of 1e150 with covariances of 1e300: whitened, they are ordinary numbers."""
+    frame = pd.read_csv(LOG)
+    frame[["truth_0", "truth_1", "est_0", "est_1"]] *= 1e150
+    frame[["cov_0_0", "cov_0_1", "cov_1_1"]] *= 1e300
+    path = tmp_path / "scaled.csv"
+    frame.to_csv(path, index=False)
+    code, out, err = run("diagnose", path, "-f", "json")
+    assert code == 0, err
+    assert _json_labels(out) == _json_labels(run("diagnose", LOG, "-f", "json")[1])
+
+
+def test_a_std_whose_square_overflows_is_named(tmp_path):
+    frame = pd.read_csv(LOG).drop(columns=["cov_0_1"])
+    frame = frame.rename(columns={"cov_0_0": "std_0", "cov_1_1": "std_1"})
+    frame["std_0"] = 1e300
+    path = tmp_path / "std.csv"
+    frame.to_csv(path, index=False)
+    line = error_line(*run("diagnose", path)[::2])
+    assert "row 1" in line and "overflows" in line and "positive definite" not in line
+
+
+def test_json_output_takes_non_finite_numbers():
+    from credcli.report.render import json_safe
+
+    assert json_safe({"a": [1.0, float("inf")], "b": (float("nan"),)}) == {
+        "a": [1.0, None],
+        "b": [None],
+    }
+
+
+def test_numpy_warnings_are_one_note_without_source_paths(capsys):
+    from credcli.cli.app import _note_warnings
+
+    class W:
+        def __init__(self, message, category=RuntimeWarning):
+            self.message, self.category = message, category
+            self.filename, self.lineno = "/x/credcli/engine/metrics.py", 117
+
+    _note_warnings(
+        [W("overflow encountered in matmul")] * 3 + [W("invalid value encountered in divide")],
+        False,
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "credcli/engine" not in err[0]
+    assert "overflow encountered in matmul; invalid value encountered in divide" in err[0]
+
+
+# --- messages --------------------------------------------------------------------------------
+
+
+def test_utf16_without_bom_is_named(tmp_path):
+    path = tmp_path / "u16.csv"
+    path.write_bytes(LOG.read_text().encode("utf-16-le"))
+    assert "UTF-16" in error_line(*run("diagnose", path)[::2])
+
+
+def test_utf16_with_bom_is_named_too(tmp_path):
+    path = tmp_path / "u16.csv"
+    path.write_bytes(LOG.read_text().encode("utf-16"))
+    line = error_line(*run("diagnose", path)[::2])
+    assert "UTF-16" in line and "without" not in line
+
+
+def test_a_covariance_list_of_the_wrong_length_names_its_row(tmp_path):
+    frame = pd.read_csv(FORMATS / "odom_ros.csv")
+    cols = [f"field.pose.covariance{k}" for k in range(36)]
+    frame["field.pose.covariance"] = [str(list(r)) for r in frame[cols].to_numpy()]
+    frame = frame.drop(columns=cols)
+    frame.loc[5, "field.pose.covariance"] = "[1, 2, 3]"
+    path = tmp_path / "odom.csv"
+    frame.to_csv(path, index=False)
+    line = error_line(*run("diagnose", path, "--truth", FORMATS / "euroc_groundtruth.csv")[::2])
+    assert "data row 6 holds 3" in line
+
+
+@pytest.mark.parametrize(
+    "flag, value, words",
+    [("--max-dt", "-1", "--max-dt must be > 0"), ("--time-offset", "nan", "--time-offset must")],
+)
+def test_reading_flags_are_named_as_flags(flag, value, words):
+    args = [FORMATS / "odom_ros.csv", "--truth", FORMATS / "euroc_groundtruth.csv", flag, value]
+    line = error_line(*run("diagnose", *args)[::2])
+    assert words in line and "config" not in line
+
+
+def test_the_config_key_is_named_when_the_config_set_it(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text("[input]\nmax_dt = -1\n")
+    args = [FORMATS / "odom_ros.csv", "--truth", FORMATS / "euroc_groundtruth.csv"]
+    line = error_line(*run("diagnose", *args, "--config", config)[::2])
+    assert "config [input]: max_dt" in line
+
+
+def test_bad_ros2_metadata_is_one_line(tmp_path):
+    import shutil
+
+    bag = tmp_path / "bag"
+    shutil.copytree(FORMATS / "odom_ros2", bag)
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {version: [\n")
+    line = error_line(
+        *run("diagnose", bag, "--topic", "/odom", "--truth-topic", "/ground_truth")[::2]
+    )
+    assert "metadata.yaml is not valid YAML" in line
+
+
+@pytest.mark.parametrize("extra", [[], ["--truth-topic", "/gt"]])
+def test_a_directory_that_is_not_a_bag(tmp_path, extra):
+    line = error_line(*run("diagnose", tmp_path, *extra)[::2])
+    assert "not a ROS2 bag directory (no metadata.yaml)" in line
+
+
+def test_an_innovations_log_without_the_flag_gets_a_hint():
+    assert "--innovations" in error_line(*run("diagnose", FORMATS / "innovations.csv")[::2])
+
+
+def test_a_window_without_unit_says_what_was_read():
+    line = error_line(*run("diagnose", LOG, "--window", "2")[::2])
+    assert "read as 2 epochs" in line and "2s" in line
+    code, _, err = run("diagnose", LOG, "--window", "100")
+    assert code == 0, err
+
+
+def test_duplicate_columns_in_a_wide_header(tmp_path):
+    frame = pd.read_csv(LOG).iloc[:20]
+    extra = pd.DataFrame(np.zeros((20, 20_000)), columns=[f"x{k}" for k in range(20_000)])
+    wide = pd.concat([frame, extra], axis=1)
+    path = tmp_path / "wide.csv"
+    wide.to_csv(path, index=False)
+    text = path.read_text().replace("x19999", "x7", 1)
+    path.write_text(text)
+    assert "x7 appear more than once" in error_line(*run("diagnose", path)[::2])
+
+
+# --- output formats --------------------------------------------------------------------------
+
+
+def _markdown_tables(text: str) -> list[list[list[str]]]:
+    """Every table of a Markdown text as rows of cell texts, read by a real parser."""
+    from markdown_it import MarkdownIt
+
+    tokens = MarkdownIt("commonmark").enable("table").parse(text)
+    tables, row = [], None
+    for tok in tokens:
+        if tok.type == "table_open":
+            tables.append([])
+        elif tok.type == "tr_open":
+            row = []
+        elif tok.type == "inline" and row is not None:
+            row.append(tok.content)
+        elif tok.type == "tr_close":
+            tables[-1].append(row)
+            row = None
+    return tables
+
+
+def _unescape(cell: str) -> str:
+    import re
+
+    return re.sub(r"\\(.)", r"\1", cell)
+
+
+def test_markdown_output_is_a_table_a_parser_reads(tmp_path):
+    frame = pd.read_csv(LOG)
+    frame["segment"] = frame["segment"].str.replace("cruise", "run_1|*x*")
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False)
+    code, out, err = run("diagnose", path, "-f", "markdown")
+    assert code == 0, err
+    (table,) = _markdown_tables(out)
+    header, rows = table[0], table[1:]
+    records = json.loads(run("diagnose", path, "-f", "json")[1])["segments"]
+    assert len(rows) == len(records) == 6
+    assert "|bias| [σ]" in [_unescape(h) for h in header]
+    assert all(len(r) == len(header) for r in rows)
+    segment, label = header.index("segment"), header.index("label")
+    assert [(_unescape(r[segment]), r[label]) for r in rows] == [
+        (rec["segment"], rec["label"]) for rec in records
+    ]
+
+
+def test_the_step_summary_is_markdown_with_the_same_table(tmp_path):
+    summary = tmp_path / "summary.md"
+    code, _, _ = run("diagnose", LOG, "--fail-on", "optimism+smm", "--summary", summary)
+    assert code == 1
+    (table,) = _markdown_tables(summary.read_text())
+    assert len(table) == 7 and "|bias| [σ]" in [_unescape(h) for h in table[0]]
+
+
+# --- what a newcomer meets -------------------------------------------------------------------
+
+
+def test_default_config_is_generated_and_current():
+    from credcli.cli.settings import default_config_text
+
+    assert (ROOT / "configs" / "default.toml").read_text() == default_config_text(), (
+        "run `make config`"
+    )
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["diagnose", LOG, "-f", "json"],
+        ["simulate", "--trials", "5", "-f", "json"],
+        ["baseline", LOG],
+    ],
+)
+def test_loading_the_default_config_changes_nothing(args):
+    config = ROOT / "configs" / "default.toml"
+    plain = run(*args)
+    configured = run(*args, "--config", config)
+    assert plain[0] == configured[0] == 0, configured[2]
+    strip = (lambda text: text.replace(str(config), "")) if args[0] != "baseline" else str
+    assert strip(configured[1]) == plain[1]
+
+
+def test_the_default_config_sets_every_setting():
+    """Each field of the settings classes appears in the file, set or commented out."""
+    import dataclasses
+
+    from credcli.engine.config import DiagnosisConfig
+    from credcli.io.schema import LogSchema, ReadOptions
+    from credcli.studies.settings import SimulationConfig
+
+    text = (ROOT / "configs" / "default.toml").read_text()
+    for cls in (LogSchema, ReadOptions, DiagnosisConfig, SimulationConfig):
+        for f in dataclasses.fields(cls):
+            if f.name not in ("diagnosis", "seed"):
+                assert f"\n{f.name} = " in text or f"\n# {f.name} = " in text, f.name

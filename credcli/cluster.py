@@ -30,12 +30,95 @@ CONNECT_TIMEOUT = "10s"
 _LOCAL = re.compile(r"^local:(\d+)$")
 
 
+CONNECT_SECONDS = 10.0
+_TCP = re.compile(r"^(?:tcp://)?\[?([^\]/]+?)\]?(?::(\d+))?/?$")
+
+
+def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
+    """Refuse an address where no Dask scheduler answers, within ``seconds``.
+
+    A scheduler writes its handshake as soon as a connection opens (distributed's
+    ``Listener.on_connection``), and a client waits for it without a time limit: an HTTP
+    server there never writes first (the client hung), or it answers the client's own
+    handshake with "HTTP/1.1 400" (which Dask read as a frame length and failed on with a
+    MemoryError). So the first bytes are read here, with a deadline. Only plain TCP
+    addresses are probed (tls://, ucx:// and others go to Dask as they are)."""
+    import socket
+
+    m = _TCP.match(address.strip())
+    if address.strip().count("://") and not address.strip().startswith("tcp://"):
+        return
+    if not m:
+        raise CredcliError(f"--scheduler {address}: expected tcp://host:port or local:N")
+    host, port = m.group(1), int(m.group(2) or 8786)
+    try:
+        with socket.create_connection((host, port), timeout=seconds) as sock:
+            sock.settimeout(seconds)
+            first = sock.recv(8)
+    except TimeoutError:
+        raise CredcliError(
+            f"--scheduler {address}: no answer from a Dask scheduler within {seconds:g} s "
+            "(something else listens there, or a firewall holds the connection)"
+        ) from None
+    except OSError as exc:
+        raise CredcliError(
+            f"--scheduler {address}: cannot connect ({exc.strerror or exc}); start one with "
+            "`dask scheduler` and `dask worker ADDRESS`, or use local:N"
+        ) from exc
+    if first.startswith(b"HTTP") or first[:1] in (b"<", b"{"):
+        raise CredcliError(
+            f"--scheduler {address}: an HTTP server answers there, not a Dask scheduler "
+            "(the dashboard's port? the scheduler's is 8786 by default)"
+        )
+    if not first:
+        raise CredcliError(
+            f"--scheduler {address}: the connection was closed at once; not a Dask scheduler"
+        )
+
+
+def _local_cluster(workers: int):
+    """A LocalCluster whose processes leave Ctrl-C to this one (the terminal sends it to the
+    whole process group: each worker printed its own traceback), keep their scratch files
+    in a directory removed on close, and whose semaphores the resource tracker does not
+    warn about when a signal ends the run."""
+    import signal
+    import sys
+    import tempfile
+
+    import dask
+    from distributed import LocalCluster
+
+    quiet = "ignore::UserWarning:multiprocessing.resource_tracker"
+    if quiet not in sys.warnoptions:  # the tracker process takes this process's -W options
+        sys.warnoptions.append(quiet)
+    scratch = tempfile.TemporaryDirectory(prefix="credcli-dask-")
+    dask.config.set({"temporary-directory": scratch.name})  # the scheduler's scratch too
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited by the nannies
+    try:
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address="127.0.0.1:0",
+            local_directory=scratch.name,
+            silence_logs=logging.CRITICAL,  # task errors are reported here, once
+        )
+    except BaseException:
+        scratch.cleanup()
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    cluster._credcli_scratch = scratch  # removed with the cluster (DaskRunner.close)
+    return cluster
+
+
 class DaskRunner:
     """A connection to a cluster that maps a top-level function over tasks, in order."""
 
     def __init__(self, address: str, announce: Callable[[str], None] | None = None) -> None:
         try:
-            from distributed import Client, LocalCluster
+            from distributed import Client
         except ImportError as exc:
             raise CredcliError(f"--scheduler needs Dask: {INSTALL_HINT}") from exc
         self.cluster = None
@@ -45,18 +128,12 @@ class DaskRunner:
                 workers = int(local.group(1))
                 if workers < 1:
                     raise CredcliError(f"--scheduler local:N needs N >= 1; got {address}")
-                self.cluster = LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,
-                    processes=True,
-                    host="127.0.0.1",
-                    dashboard_address="127.0.0.1:0",
-                    silence_logs=logging.CRITICAL,  # task errors are reported here, once
-                )
+                self.cluster = _local_cluster(workers)
                 self.client = Client(self.cluster)
             elif address.strip().startswith("local:"):  # not localhost:8786, an address
                 raise CredcliError(f"--scheduler {address}: expected local:N, e.g. local:2")
             else:
+                probe_scheduler(address)
                 self.client = Client(address, timeout=CONNECT_TIMEOUT)
         except CredcliError:
             self.close()
@@ -103,7 +180,10 @@ class DaskRunner:
         if client is not None:
             client.close()
         if self.cluster is not None:
-            self.cluster.close()
+            try:
+                self.cluster.close()
+            finally:
+                self.cluster._credcli_scratch.cleanup()
 
     def __enter__(self) -> DaskRunner:
         return self

@@ -36,9 +36,7 @@ def default_jobs() -> int:
 
 
 def _set_up_worker() -> None:
-    """A worker's set-up: one BLAS thread, freed memory kept for reuse, and the signals of
-    a process its parent owns (:func:`follow_parent`)."""
-    follow_parent()
+    """A worker's set-up: one BLAS thread, freed memory kept for reuse."""
     keep_freed_memory()
     try:
         from threadpoolctl import threadpool_limits
@@ -49,6 +47,13 @@ def _set_up_worker() -> None:
 
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _set_up_pool_worker() -> None:
+    """The set-up of a worker process this process started (not a Dask worker, whose
+    signals are its nanny's): :func:`follow_parent`, then :func:`_set_up_worker`."""
+    follow_parent()
+    _set_up_worker()
 
 
 def follow_parent() -> None:
@@ -197,7 +202,7 @@ class WorkerPool:
         os.environ.update({k: "1" for k in _BLAS_THREAD_VARIABLES})
         try:
             self.executor = ProcessPoolExecutor(
-                max_workers=jobs, mp_context=mp.get_context(method), initializer=_set_up_worker
+                max_workers=jobs, mp_context=mp.get_context(method), initializer=_set_up_pool_worker
             )
             if warm and method == "spawn":  # a forked worker has this process's modules
                 for _ in range(jobs):

@@ -493,3 +493,59 @@ def test_the_default_config_sets_every_setting():
         for f in dataclasses.fields(cls):
             if f.name not in ("diagnosis", "seed"):
                 assert f"\n{f.name} = " in text or f"\n# {f.name} = " in text, f.name
+
+
+def test_memory_error_is_blamed_on_settings_only_when_ours(monkeypatch):
+    import credcli.engine.diagnosis as diagnosis
+
+    def ours(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(diagnosis, "ks_chi2_pvalue", ours)
+    assert "--flips" in error_line(*run("diagnose", LOG)[::2])
+
+    def foreign(*args, **kwargs):
+        return np.empty(2**62)  # raised inside numpy
+
+    monkeypatch.setattr(diagnosis, "ks_chi2_pvalue", foreign)
+    line = error_line(*run("diagnose", LOG)[::2], expected_code=3)
+    assert "internal error: MemoryError" in line
+
+
+def test_a_port_where_no_scheduler_answers_fails_within_the_timeout():
+    import socket
+
+    from credcli.cluster import probe_scheduler
+    from credcli.errors import CredcliError
+
+    with socket.socket() as server:  # accepts, never writes: an HTTP server, say
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        port = server.getsockname()[1]
+        start = time.monotonic()
+        with pytest.raises(CredcliError, match=f"127.0.0.1:{port}: no answer"):
+            probe_scheduler(f"tcp://127.0.0.1:{port}", seconds=1.0)
+        assert time.monotonic() - start < 10
+
+
+def test_an_http_answer_is_not_a_scheduler():
+    import socket
+
+    from credcli.cluster import probe_scheduler
+    from credcli.errors import CredcliError
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        port = server.getsockname()[1]
+
+        def answer():
+            conn, _ = server.accept()
+            conn.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n")
+            conn.close()
+
+        thread = threading.Thread(target=answer)
+        thread.start()
+        with pytest.raises(CredcliError, match="an HTTP server answers there"):
+            probe_scheduler(f"127.0.0.1:{port}", seconds=5.0)
+        thread.join(5)

@@ -357,7 +357,7 @@ def _tum(tmp_path, rows, name="t.txt"):
     [
         (["--truth", "{tmp}/late.txt"], "do not overlap"),
         (["--truth", FORMATS / "tum_groundtruth.txt", "--max-dt", "0.001"], "raise --max-dt"),
-        (["--truth", FORMATS / "tum_groundtruth.txt", "--max-dt", "-1"], "max_dt must be > 0"),
+        (["--truth", FORMATS / "tum_groundtruth.txt", "--max-dt", "-1"], "--max-dt must be > 0"),
         (
             [
                 "--truth",

@@ -284,6 +284,20 @@ def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[
     return True, f"PASS: no regression in {len(comparisons)} segment(s) ({tally})"
 
 
+def gate_fail_on(
+    comparisons: list[SegmentComparison], fail_on: FailOn, passed: bool, verdict: str
+) -> tuple[bool, str]:
+    """`gate --fail-on`: the gate's verdict, failed also by a segment whose label now
+    fails ``fail_on`` (whatever the baseline said)."""
+    bad = [c for c in comparisons if c.new is not None and fail_on.fails(c.new.label)]
+    if not bad:
+        return passed, verdict
+    shown = ", ".join(f"{c.segment} ({c.new.label.value})" for c in bad[:5])
+    more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+    line = f"{len(bad)} segment(s) match --fail-on {fail_on}: {shown}{more}"
+    return False, (f"{verdict}; {line}" if not passed else f"FAIL: {line}")
+
+
 def fail_on_verdict(records: list[dict], fail_on: FailOn) -> tuple[bool, str, list[dict]]:
     """(passed, one-line verdict, failing records) of `diagnose --fail-on`."""
     bad = [r for r in records if fails(Label(r["label"]), fail_on)]

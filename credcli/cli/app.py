@@ -62,6 +62,12 @@ def _root(
     """Can you trust the covariance your estimator reports, and if not, why not?"""
 
 
+LOG_FORMATS = (
+    "credcli CSV/Parquet (also .gz), TUM, OpenVINS, EuRoC, ros-csv, ROS1 bag, ROS2 bag "
+    "(with --truth for a separate ground truth), or innovations (--innovations)"
+)
+
+
 def _file_name(text: str) -> Path:
     """A path typed on the command line; never empty (``Path("")`` would read ``.``)."""
     if not text:
@@ -79,7 +85,9 @@ def _output_name(text: str) -> Path:
 # Options shared by the commands that diagnose (declared once, reused).
 ConfigOpt = Annotated[
     Path | None,
-    typer.Option("--config", parser=_file_name, help="TOML config file (see configs/)."),
+    typer.Option(
+        "--config", parser=_file_name, metavar="FILE", help="TOML config file (see configs/)."
+    ),
 ]
 FormatOpt = Annotated[
     OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
@@ -87,17 +95,33 @@ FormatOpt = Annotated[
 OutputOpt = Annotated[
     Path | None,
     typer.Option(
-        "--output", "-o", parser=_output_name, help="Write the output to FILE (atomically)."
+        "--output",
+        "-o",
+        parser=_output_name,
+        metavar="FILE",
+        help="Write the output to FILE (atomically).",
     ),
 ]
 SeedOpt = Annotated[
     int | None, typer.Option("--seed", help=f"Seed of the ELT sign flips [default: {_S.seed}].")
 ]
 TauOpt = Annotated[
-    float | None, typer.Option("--tau", help=f"NCI threshold τ in dB [default: {_D.tau_nci}].")
+    float | None,
+    typer.Option(
+        "--tau",
+        help="calibrated (default): the smallest covariance misfit worth a label, "
+        "|10 log10 κ̂| > τ dB; paper and ks: the NCI threshold of Algorithm 1 "
+        f"[default: {_D.tau_nci}].",
+    ),
 ]
 AlphaOpt = Annotated[
-    float | None, typer.Option("--alpha", help=f"ELT significance level [default: {_D.alpha}].")
+    float | None,
+    typer.Option(
+        "--alpha",
+        help="calibrated (default): the false-alarm level per segment, split by Šidák "
+        "between the location and the scale test; paper and ks: the ELT's level "
+        f"[default: {_D.alpha}].",
+    ),
 ]
 COpt = Annotated[
     float | None, typer.Option("--probe-factor", "-c", help=f"Probe scale c > 1 [default: {_D.c}].")
@@ -312,9 +336,31 @@ class _Progress:
             self._bar.stop()
 
 
+FailOnOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--fail-on",
+        help="Exit 1 if a segment fails any of these (comma-separated): a condition "
+        "(optimism, pessimism, smm: every label containing it), a combined label "
+        "(optimism+smm: that label only), insufficient-data, or noncredible.",
+    ),
+]
+MonteCarloOpt = Annotated[
+    bool,
+    typer.Option(
+        "--monte-carlo",
+        help="The logs are independent runs of one scenario: pool them, and test the "
+        "per-epoch ANEES.",
+    ),
+]
 LogsArg = Annotated[
     list[Path],
-    typer.Argument(parser=_file_name, help="Estimator logs (CSV or Parquet).", show_default=False),
+    typer.Argument(
+        parser=_file_name,
+        metavar="LOG...",
+        help=f"Estimator logs: {LOG_FORMATS}; '-' reads standard input.",
+        show_default=False,
+    ),
 ]
 WindowOpt = Annotated[
     str | None,
@@ -354,6 +400,7 @@ TruthOpt = Annotated[
     typer.Option(
         "--truth",
         parser=_file_name,
+        metavar="FILE",
         help="Ground truth in a separate file (or bag), paired by time.",
     ),
 ]
@@ -414,7 +461,10 @@ InnovationsOpt = Annotated[
 JunitOpt = Annotated[
     Path | None,
     typer.Option(
-        "--junit", parser=_output_name, help="Write a JUnit XML report (one case per segment)."
+        "--junit",
+        parser=_output_name,
+        metavar="FILE",
+        help="Write a JUnit XML report (one case per segment).",
     ),
 ]
 PlotsOpt = Annotated[
@@ -422,6 +472,7 @@ PlotsOpt = Annotated[
     typer.Option(
         "--plots",
         parser=_file_name,
+        metavar="FILE",
         help="Write PNG figures into this directory (needs credcli[plots]).",
     ),
 ]
@@ -430,6 +481,7 @@ SummaryOpt = Annotated[
     typer.Option(
         "--summary",
         parser=_output_name,
+        metavar="FILE",
         help="Write a Markdown summary (also appended to $GITHUB_STEP_SUMMARY when set).",
     ),
 ]
@@ -718,31 +770,20 @@ def diagnose(
     seed: SeedOpt = None,
     fmt: FormatOpt = OutputFormat.TABLE,
     output: OutputOpt = None,
-    fail_on: Annotated[
-        str | None,
-        typer.Option(
-            "--fail-on",
-            help="Exit 1 if a segment fails any of these (comma-separated): a condition "
-            "(optimism, pessimism, smm: every label containing it), a combined label "
-            "(optimism+smm: that label only), insufficient-data, or noncredible.",
-        ),
-    ] = None,
+    fail_on: FailOnOpt = None,
     junit: JunitOpt = None,
     summary: SummaryOpt = None,
     plots: PlotsOpt = None,
     report_file: Annotated[
         Path | None,
         typer.Option(
-            "--report", parser=_output_name, help="Also write a self-contained HTML report."
+            "--report",
+            parser=_output_name,
+            metavar="FILE",
+            help="Also write a self-contained HTML report.",
         ),
     ] = None,
-    monte_carlo: Annotated[
-        bool,
-        typer.Option(
-            "--monte-carlo",
-            help="The logs are independent runs of one scenario: pool them, and test the per-epoch ANEES.",
-        ),
-    ] = False,
+    monte_carlo: MonteCarloOpt = False,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (calibrated rule by default)."""
     from credcli.ci.gate import fail_on_verdict, parse_fail_on
@@ -797,7 +838,12 @@ def diagnose(
 def baseline(
     log: Annotated[
         Path,
-        typer.Argument(parser=_file_name, help="The estimator log to record.", show_default=False),
+        typer.Argument(
+            parser=_file_name,
+            metavar="LOG",
+            help=f"The estimator log to record ({LOG_FORMATS}).",
+            show_default=False,
+        ),
     ],
     output: OutputOpt = None,
     config: ConfigOpt = None,
@@ -855,7 +901,12 @@ def baseline(
 def gate(
     log: Annotated[
         Path,
-        typer.Argument(parser=_file_name, help="The estimator log to check.", show_default=False),
+        typer.Argument(
+            parser=_file_name,
+            metavar="LOG",
+            help=f"The estimator log to check ({LOG_FORMATS}).",
+            show_default=False,
+        ),
     ],
     baseline_file: Annotated[
         Path,
@@ -863,6 +914,7 @@ def gate(
             "--baseline",
             "-b",
             parser=_file_name,
+            metavar="FILE",
             help="Baseline JSON from `credcli baseline`.",
             show_default=False,
         ),
@@ -895,6 +947,7 @@ def gate(
         typer.Option(
             "--truth",
             parser=_file_name,
+            metavar="FILE",
             help="Ground truth of LOG [default: the baseline's --truth].",
         ),
     ] = None,
@@ -916,9 +969,10 @@ def gate(
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     seed: SeedOpt = None,
+    fail_on: FailOnOpt = None,
 ) -> int:
     """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
-    from credcli.ci.gate import Thresholds
+    from credcli.ci.gate import Thresholds, gate_fail_on, parse_fail_on
     from credcli.ci.reports import gate_cases, summary_markdown
     from credcli.cli.settings import gate_requests, load_config
     from credcli.workflows import run_gate
@@ -959,6 +1013,8 @@ def gate(
             truth=truth,
             runner=runner,
         )
+    if fail_on is not None:
+        passed, verdict = gate_fail_on(comparisons, parse_fail_on(fail_on), passed, verdict)
     _emit(report, fmt, output, inputs=inputs)
     _write_plots(figures, plots)
     _write_ci_reports(
@@ -1141,7 +1197,10 @@ def simulate(
 @app.command()
 def uwb(
     file: Annotated[
-        Path, typer.Argument(parser=_file_name, help="A STAR-loc uwb.csv.", show_default=False)
+        Path,
+        typer.Argument(
+            parser=_file_name, metavar="UWB_CSV", help="A STAR-loc uwb.csv.", show_default=False
+        ),
     ],
     anchors: Annotated[
         Path | None,
@@ -1205,13 +1264,21 @@ def uwb(
     export_log: Annotated[
         Path | None,
         typer.Option(
-            "--export-log", parser=_output_name, help="Write the fixes as a diagnose log (CSV)."
+            "--export-log",
+            parser=_output_name,
+            metavar="FILE",
+            help="Write the fixes as a diagnose log (CSV).",
         ),
     ] = None,
     plots: PlotsOpt = None,
     report_file: Annotated[
         Path | None,
-        typer.Option("--report", parser=_output_name, help="Write a self-contained HTML report."),
+        typer.Option(
+            "--report",
+            parser=_output_name,
+            metavar="FILE",
+            help="Write a self-contained HTML report.",
+        ),
     ] = None,
     config: ConfigOpt = None,
     tau: TauOpt = None,
@@ -1309,6 +1376,7 @@ def report(
             "--output",
             "-o",
             parser=_output_name,
+            metavar="FILE",
             help="The HTML file to write.",
             show_default=False,
         ),
@@ -1350,6 +1418,7 @@ def report(
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     seed: SeedOpt = None,
+    monte_carlo: MonteCarloOpt = False,
 ) -> int:
     """Diagnose logs and write one self-contained HTML report (table, parameters, figures)."""
     from credcli.workflows import run_diagnose
@@ -1359,7 +1428,15 @@ def report(
     _guard({"--output": output}, inputs)
     setup = _diagnose_setup(locals())
     with _cluster(scheduler) as runner, _Progress("diagnosing segments") as bar:
-        run = run_diagnose(logs, progress=bar, plots=True, jobs=_jobs(jobs), runner=runner, **setup)
+        run = run_diagnose(
+            logs,
+            progress=bar,
+            plots=True,
+            jobs=_jobs(jobs),
+            monte_carlo=monte_carlo,
+            runner=runner,
+            **setup,
+        )
     _print_notes(run.report)
     _write_html(output, "credcli report: " + ", ".join(p.name for p in logs), run, logs, inputs)
     return 0
@@ -1510,7 +1587,10 @@ def _run(command, args: list[str], debug: bool) -> int:
             _silence_stdout()  # so that Python's own flush at exit does not fail again
         print(f"credcli: error: {describe_os_error(exc)}", file=sys.stderr)
         return 2
-    except MemoryError:
+    except MemoryError as exc:
+        if not _raised_by_credcli(exc):  # a library's (Dask reading a bad frame, say)
+            return _internal_error(exc, debug)
+        _traceback(debug)
         print(
             "credcli: error: not enough memory for this run; use fewer --flips, a smaller "
             "--max-elt-epochs or shorter segments",
@@ -1522,6 +1602,18 @@ def _run(command, args: list[str], debug: bool) -> int:
     if result == 130:  # Typer turns KeyboardInterrupt into a silent Exit(130)
         print("credcli: interrupted", file=sys.stderr)
     return int(result or 0)
+
+
+def _raised_by_credcli(exc: BaseException) -> bool:
+    """Whether the innermost frame of the traceback is credcli's own code (an allocation
+    of ours, sized by the user's settings)."""
+    import os
+
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return tb is not None and os.path.abspath(tb.tb_frame.f_code.co_filename).startswith(package)
 
 
 def _internal_error(exc: BaseException, debug: bool) -> int:

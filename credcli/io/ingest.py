@@ -214,7 +214,49 @@ def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: Rea
         states, reading.perturbation, pairing.position, estimate.position[keep], r_true, r_est
     )
     cov = lie.cov_block(estimate.cov[keep], states)
-    return states, errors, cov, _convention(states, reading.perturbation)
+    note = _convention(states, reading.perturbation)
+    if states is not States.POSITION:
+        other = Perturbation.LEFT if right else Perturbation.RIGHT
+        swapped = lie.state_errors(
+            states, other, pairing.position, estimate.position[keep], r_true, r_est
+        )
+        note += _convention_hint(errors, swapped, cov, reading.perturbation, other)
+    return states, errors, cov, note
+
+
+CONVENTION_RATIO = 1.25
+"""How much closer to 1 the other convention's covariance factor κ̂ must be (as a factor,
+on a log scale) before the convention note warns: noise moves ln κ̂ by about
+√(2/((N − 1)d)), 0.01 on a 2,000-epoch pose log, so 1.25 (0.22) is far beyond it."""
+
+
+def _centred_scale(errors: np.ndarray, cov: np.ndarray) -> float:
+    """κ̂ of the scale test (the NEES of GLS-centred errors over (N − 1)d): how far the
+    claimed covariance is from the errors once a constant mean is removed."""
+    from credcli.engine.scale import gls_residuals
+
+    residuals = gls_residuals(errors, np.linalg.cholesky(cov))
+    n, d = errors.shape
+    return float(residuals.q.sum() / max(1, (n - 1) * d))
+
+
+def _convention_hint(errors, swapped, cov, used: Perturbation, other: Perturbation) -> str:
+    """A warning, in the convention note, when the errors under the other perturbation fit
+    the claimed covariance far better than under the one used. A body-frame (right) error
+    read in the world frame (left) turns with the attitude: a constant bias no longer
+    looks constant, and the label is confidently wrong (optimism instead of smm)."""
+    try:
+        fit_used, fit_other = _centred_scale(errors, cov), _centred_scale(swapped, cov)
+    except (np.linalg.LinAlgError, ValueError):
+        return ""  # the covariance is checked, with its message, later
+    misfit = abs(np.log(fit_used)) - abs(np.log(fit_other))
+    if not np.isfinite(misfit) or misfit < np.log(CONVENTION_RATIO):
+        return ""
+    return (
+        f"; WARNING: --perturbation {other.value} fits the claimed covariance far better "
+        f"(covariance factor {fit_other:.3g} against {fit_used:.3g} with {used.value}): "
+        "check which convention the estimator's covariance uses"
+    )
 
 
 def _convention(states: States, perturbation: Perturbation) -> str:

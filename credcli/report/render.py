@@ -125,7 +125,28 @@ def advice(rec: dict) -> str | None:
     if "smm" in label:
         bias = ", ".join(_number(b) for b in rec["bias"])
         parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
-    return f"{rec['segment']}: " + "; ".join(parts)
+        parts.append(_smm_hint(rec))
+    return f"{rec['segment']}: " + "; ".join(p for p in parts if p)
+
+
+def _smm_hint(rec: dict) -> str:
+    """What an SMM finding means for the estimator, and the axis to look at first: the
+    component whose mean is the most standard errors from zero."""
+    bias, stderr = rec.get("bias") or [], rec.get("bias_stderr") or []
+    ratios = [
+        abs(b) / s if s else 0.0 for b, s in zip(bias, stderr) if b is not None and s is not None
+    ]
+    if not ratios or max(ratios) == 0:
+        return ""
+    k = max(range(len(ratios)), key=ratios.__getitem__)
+    return f"look first at component {k} ({_number(ratios[k])} standard errors from 0)"
+
+
+SMM_MEANING = (
+    "smm: the errors have a mean that no covariance allows for, so retuning the noise will "
+    "not fix it; look for a model mismatch: an unmodelled sensor bias, lever arm, time "
+    "offset, frame or motion model"
+)
 
 
 def format_cell(value, digits: int) -> str:
@@ -383,6 +404,8 @@ def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
     lines = [a for a in (advice(r) for r in records) if a]
     if len(lines) > limit:
         lines = lines[:limit] + [f"... and {len(lines) - limit} more segment(s); see --format json"]
+    if any("smm" in str(r.get("label", "")).split("+") for r in records):
+        lines.append(SMM_MEANING)
     return lines
 
 

@@ -215,6 +215,15 @@ def run_diagnose(
     if runner is not None:
         if monte_carlo:
             raise CredcliError("--monte-carlo runs on this machine: drop --scheduler")
+        from credcli.io.streams import display_name, is_stream
+
+        streamed = [p for p in [*paths, reading.truth] if p is not None and is_stream(p)]
+        if streamed:
+            raise CredcliError(
+                f"{display_name(streamed[0])}: a stream (stdin, pipe or FIFO) cannot be read by "
+                "--scheduler's workers, which read each log themselves; save it to a file or "
+                "drop --scheduler"
+            )
         sources = [
             (str(p), schema, reading, drop_invalid, window, whole, config.min_epochs) for p in paths
         ]

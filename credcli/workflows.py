@@ -698,7 +698,7 @@ def run_gate(
         [Snapshot.from_record(r) for r in baseline["segments"]],
         [Snapshot.from_result(r) for r in run.results],
         thresholds,
-        config.location_level,
+        config.elt_level,
     )
     passed, verdict = verdict_line(comparisons, thresholds)
     parameters = run.report.document["parameters"]

@@ -181,8 +181,10 @@ def test_too_few_blocks_is_insufficient_data_with_a_reason():
     e = _ar1(rng, 300, 2, 0.98)
     d = diagnose_errors(e, np.broadcast_to(np.eye(2), (300, 2, 2)), rng=0)
     assert d.label is Label.INSUFFICIENT and d.elt is None
-    assert "too few independent blocks" in d.reason and d.effective_n < 300 / 10
-    assert d.scale is not None  # the numbers are still reported
+    assert "scale untested" in d.reason and "location untested" in d.reason
+    assert "ELT not run" in d.reason and d.effective_n < 300 / 10
+    assert d.scale is not None and d.scale.scale_factor > 0  # the numbers are still reported
+    assert np.isnan(d.scale.scale_factor_low) and np.isnan(d.scale.pvalue)
 
 
 @pytest.mark.parametrize(
@@ -295,4 +297,8 @@ def test_the_block_count_checked_is_the_block_count_tested():
     assert res.subsampled and res.n_used == 7 * 571
     config = DiagnosisConfig(block_length=571, max_elt_epochs=4000)
     d = diagnose_errors(s, np.broadcast_to(np.eye(2), (10_000, 2, 2)), config, rng=0)
-    assert d.label is Label.INSUFFICIENT and "leaves 7 of the 8" in d.reason
+    # the ELT is not run (7 of its 9 blocks, and the reason names the budget); the GLS mean
+    # test uses every epoch, in 12 batches of at least 571, and answers the location question
+    assert d.elt is None and "ELT not run: its budget of 4000 epochs" in d.reason
+    assert "leaves 7 of the 9" in d.reason and d.mean_test.batches == 12
+    assert d.label is not Label.INSUFFICIENT and not d.untested

@@ -45,14 +45,15 @@ def test_insufficient_data_is_never_a_guess(rng):
     assert (
         dg.diagnose_errors(*gaussian_segment(rng, n=25, d=2), config, 0).label is Label.INSUFFICIENT
     )
-    # calibrated: α_L = 1 − √0.95 = 0.0253 needs 2^(1−m) <= α_L/2, i.e. m >= 8 blocks;
-    # 36 epochs make ⌈36/5⌉ = 8 blocks of 5, 35 make 7
+    # calibrated: the ELT's share α_E = α_L/2 = 0.0127 needs 2^(1−m) <= α_E/2, m >= 9 blocks;
+    # with fewer, the GLS mean test (batch means of 5+ epochs) answers the location alone
     config = DiagnosisConfig(block_length=5)
-    assert config.min_blocks == 8 and config.min_n(2) == 36
-    short = dg.diagnose_errors(*gaussian_segment(rng, n=35, d=2), config, 0)
-    assert short.label is Label.INSUFFICIENT and "36 are needed" in short.reason
-    enough = dg.diagnose_errors(*gaussian_segment(rng, n=36, d=2), config, 0)
-    assert enough.label is not Label.INSUFFICIENT and enough.elt.n_used == 36
+    assert config.min_blocks == 9 and config.min_n(2) == 10
+    short = dg.diagnose_errors(*gaussian_segment(rng, n=40, d=2), config, 0)
+    assert short.elt is None and "leaves 8 of the 9 sign blocks" in short.reason
+    assert short.mean_test.batches == 8 and short.label is not Label.INSUFFICIENT
+    enough = dg.diagnose_errors(*gaussian_segment(rng, n=41, d=2), config, 0)
+    assert enough.label is not Label.INSUFFICIENT and enough.elt.n_used == 41
 
 
 def probes_eigen(**kw):

@@ -334,7 +334,7 @@ def test_baseline_that_is_a_directory(tmp_path):
     "args, words",
     [
         (("--flips", "1000000000"), "would need 7.45 GiB"),
-        (("-B", "38"), "B >= 39"),  # α_L = 0.0253: 1/(B + 1) < α_L needs B >= 39
+        (("-B", "77"), "B >= 78"),  # α_E = α_L/2 = 0.0127: 1/(B + 1) < α_E needs B >= 78
         (("-B", "18", "--variant", "ks"), "B >= 19"),
         (("--max-elt-epochs", "99"), "--max-elt-epochs must be >= 100"),
         (("--tau", "inf"), "--tau must be finite"),
@@ -347,7 +347,9 @@ def test_parameters_that_make_a_test_powerless_are_refused(args, words):
 
 
 def test_smallest_b_is_accepted():
-    assert run("diagnose", LOG, "-B", "39")[0] == 0
+    code, out, err = run("diagnose", LOG, "-B", "78", "-f", "json")
+    assert code == 0, err
+    assert json.loads(out)["parameters"]["n_flips"] == 78
 
 
 @pytest.mark.parametrize(

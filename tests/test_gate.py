@@ -177,7 +177,8 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
     assert "| cruise | regressed | credible → optimism | 0.141 → 4.12 |" in md
     assert "| turn | unchanged | optimism → optimism |" in md
     literal = re.sub(r"\\(.)", r"\1", md)  # Markdown's escapes undone
-    assert "ELT newly rejects (p 0.953 -> <0.001 < 0.0253)" in literal  # 0.953: sequential
+    # 0.953: the sequential p-value; 0.0127: the ELT's share of α_L (the mean test has the rest)
+    assert "ELT newly rejects (p 0.953 -> <0.001 < 0.0127)" in literal
     # the step summary got both runs appended
     step_text = step.read_text()
     assert step_text.count("## credcli gate:") == 2 and "PASS" in step_text and "FAIL" in step_text

@@ -16,6 +16,7 @@ BASELINE_KIND = "credcli-baseline"
 
 _CONDITIONS = ("optimism", "pessimism", "smm")
 NONCREDIBLE = "noncredible"
+UNTESTED = "untested"
 
 
 @dataclass(frozen=True)
@@ -26,21 +27,28 @@ class FailOn:
       (``smm`` fails ``smm``, ``optimism+smm`` and ``pessimism+smm``);
     - a combined label (``optimism+smm``): that label only;
     - ``insufficient-data``: segments without a verdict;
-    - ``noncredible``: every label except ``credible``.
+    - ``untested``: partial verdicts, whose label answers one question and leaves the other
+      (scale or location) untested;
+    - ``noncredible``: every segment but a complete ``credible`` one (a partial
+      ``credible`` has a question open, so it fails too).
     """
 
     conditions: frozenset[str] = frozenset()
     labels: frozenset[Label] = frozenset()
     noncredible: bool = False
+    untested: bool = False
 
     def __str__(self) -> str:
         items = sorted(self.conditions) + sorted(lab.value for lab in self.labels)
-        return ",".join(([NONCREDIBLE] if self.noncredible else []) + items)
+        flags = [NONCREDIBLE] * self.noncredible + [UNTESTED] * self.untested
+        return ",".join(flags + items)
 
-    def fails(self, label: Label) -> bool:
-        """Whether a segment with ``label`` fails."""
+    def fails(self, label: Label, untested=()) -> bool:
+        """Whether a segment with ``label`` (and ``untested`` questions) fails."""
         if self.noncredible:
-            return label is not Label.CREDIBLE
+            return label is not Label.CREDIBLE or bool(untested)
+        if self.untested and untested and label is not Label.INSUFFICIENT:
+            return True
         return label in self.labels or bool(label.conditions & self.conditions)
 
 
@@ -49,12 +57,15 @@ def parse_fail_on(text: str) -> FailOn:
     ``insufficient-data`` or label aliases (``pess+smm``); see :class:`FailOn`."""
     conditions: set[str] = set()
     labels: set[Label] = set()
-    noncredible = False
+    noncredible = untested = False
     for item in (t.strip().lower() for t in text.split(",")):
         if not item:
             continue
         if item == NONCREDIBLE:
             noncredible = True
+            continue
+        if item == UNTESTED:
+            untested = True
             continue
         if item in _CONDITIONS:
             conditions.add(item)
@@ -63,21 +74,22 @@ def parse_fail_on(text: str) -> FailOn:
         if label is None or label is Label.CREDIBLE:
             raise CredcliError(
                 f"fail_on: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
-                f"{Label.INSUFFICIENT.value}, {NONCREDIBLE}, a label such as optimism+smm, or "
+                f"{Label.INSUFFICIENT.value}, {UNTESTED}, {NONCREDIBLE}, a label such as "
+                "optimism+smm, or "
                 f"an alias ({', '.join(a for a in LABEL_ALIASES if a != 'cred')})"
             )
         if len(label.conditions) == 1:
             conditions |= label.conditions
         else:
             labels.add(label)
-    if not (conditions or labels or noncredible):
+    if not (conditions or labels or noncredible or untested):
         raise CredcliError("fail_on: give at least one condition, e.g. noncredible")
-    return FailOn(frozenset(conditions), frozenset(labels), noncredible)
+    return FailOn(frozenset(conditions), frozenset(labels), noncredible, untested)
 
 
-def fails(label: Label, fail_on: FailOn) -> bool:
+def fails(label: Label, fail_on: FailOn, untested=()) -> bool:
     """Whether a segment's label fails ``fail_on`` (:meth:`FailOn.fails`)."""
-    return fail_on.fails(label)
+    return fail_on.fails(label, untested)
 
 
 class Status(str, enum.Enum):
@@ -99,10 +111,12 @@ class Snapshot:
     anees: float | None
     elt_pvalue: float | None
     record: dict = field(repr=False, compare=False, default_factory=dict)
+    untested: tuple[str, ...] = ()
 
     @classmethod
     def from_record(cls, rec: dict) -> Snapshot:
-        """From a baseline's segment record (checked by :func:`check_baseline`)."""
+        """From a baseline's segment record (checked by :func:`check_baseline`; a baseline
+        written before partial verdicts has no ``untested``: nothing was)."""
         return cls(
             rec["segment"],
             Label(rec["label"]),
@@ -110,12 +124,16 @@ class Snapshot:
             rec.get("anees"),
             rec.get("elt_pvalue"),
             rec,
+            tuple(rec.get("untested") or ()),
         )
 
     @classmethod
     def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
         d = result.diagnosis
-        return cls(result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result))
+        untested = tuple(q.value for q in d.untested)
+        return cls(
+            result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result), untested
+        )
 
 
 @dataclass(frozen=True)
@@ -157,6 +175,13 @@ def compare_segment(
             reasons.append(
                 f"label {old_label.value} -> {new_label.value} (gained {'+'.join(gained)})"
             )
+    if new_label is not Label.INSUFFICIENT:
+        opened = sorted(set(new.untested) - set(old.untested))
+        if opened:
+            reasons.append(f"{' and '.join(opened)} no longer tested")
+        closed = sorted(set(old.untested) - set(new.untested))
+        if closed and old_label is not Label.INSUFFICIENT:
+            better.append(f"{' and '.join(closed)} tested again")
     if new_label is not old_label and not reasons:
         lost = sorted(old_label.conditions - new_label.conditions)
         if lost or new_label is Label.CREDIBLE:
@@ -289,7 +314,9 @@ def gate_fail_on(
 ) -> tuple[bool, str]:
     """`gate --fail-on`: the gate's verdict, failed also by a segment whose label now
     fails ``fail_on`` (whatever the baseline said)."""
-    bad = [c for c in comparisons if c.new is not None and fail_on.fails(c.new.label)]
+    bad = [
+        c for c in comparisons if c.new is not None and fail_on.fails(c.new.label, c.new.untested)
+    ]
     if not bad:
         return passed, verdict
     shown = ", ".join(f"{c.segment} ({c.new.label.value})" for c in bad[:5])
@@ -300,7 +327,7 @@ def gate_fail_on(
 
 def fail_on_verdict(records: list[dict], fail_on: FailOn) -> tuple[bool, str, list[dict]]:
     """(passed, one-line verdict, failing records) of `diagnose --fail-on`."""
-    bad = [r for r in records if fails(Label(r["label"]), fail_on)]
+    bad = [r for r in records if fails(Label(r["label"]), fail_on, r.get("untested") or ())]
     listed = str(fail_on)
     if bad:
         shown = ", ".join(f"{r['segment']} ({r['label']})" for r in bad[:5])

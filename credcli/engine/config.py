@@ -108,6 +108,19 @@ MIN_ELT_EPOCHS = 100
 """Smallest ELT memory budget (max_elt_epochs)."""
 
 
+MEAN_SHARE = 0.5
+"""The calibrated rule's split of the location level α_L between the GLS mean test (a
+constant bias, in the claimed covariance's metric, from every epoch) and the ELT (any
+asymmetry of the whitened errors): half each. Either one's rejection is SMM."""
+
+
+class Question(str, enum.Enum):
+    """The two questions of the calibrated rule; a segment may answer one and not the other."""
+
+    SCALE = "scale"  # is the claimed covariance too small or too large?
+    LOCATION = "location"  # do the errors have a mean (SMM)?
+
+
 class SrdForm(str, enum.Enum):
     """Form of the SRD of Eq. (19): as printed, or the absolute value of the whole ratio."""
 
@@ -210,7 +223,7 @@ class DiagnosisConfig:
         for ok, message in checks:
             if not ok:
                 raise CredcliError(f"invalid setting: {message}")
-        level = self.location_level
+        level = self.elt_level
         smallest = math.ceil(1.0 / level - 1e-9) - 1
         if smallest > MAX_FLIPS:
             raise CredcliError(
@@ -234,6 +247,21 @@ class DiagnosisConfig:
         return sidak(self.alpha) if self.calibrated else self.alpha
 
     @property
+    def mean_level(self) -> float:
+        """The GLS mean test's share of α_L when the ELT runs beside it (calibrated):
+        α_L·MEAN_SHARE, and the ELT's the rest (Bonferroni: their union has level at most
+        α_L). A test that cannot run leaves its share to the other."""
+        return self.location_level * MEAN_SHARE
+
+    @property
+    def elt_level(self) -> float:
+        """The ELT's level beside the GLS mean test: α_L·(1 − MEAN_SHARE) (calibrated);
+        α in ``paper`` and ``ks``, where the ELT alone answers the location question."""
+        if not self.calibrated:
+            return self.location_level
+        return self.location_level * (1.0 - MEAN_SHARE)
+
+    @property
     def scale_level(self) -> float:
         """The scale test's two-sided level α_S = 1 − √(1 − α) (Šidák)."""
         return sidak(self.alpha)
@@ -248,14 +276,19 @@ class DiagnosisConfig:
     @property
     def min_blocks(self) -> int:
         """Fewest sign blocks the ELT needs: 6 in ``paper``/``ks``; in the calibrated
-        variant the fewest m whose smallest exact p-value, 2^{1−m}, is at most α_L/2."""
+        variant the fewest m whose smallest exact p-value, 2^{1−m}, is at most half the
+        ELT's level (its share of α_L, :attr:`elt_level`)."""
         if not self.calibrated:
             return 6
-        return max(6, math.ceil(math.log2(4.0 / self.location_level) - 1e-12))
+        return max(6, math.ceil(math.log2(4.0 / self.elt_level) - 1e-12))
 
     def min_n(self, dim: int) -> int:
-        """Smallest segment size that is diagnosed: min_epochs, d + 2, and the fewest epochs
-        that make min_blocks sign blocks of the fixed block length (or 1), (m − 1)L + 1."""
+        """Smallest segment size that is diagnosed: min_epochs and d + 2; in ``paper`` and
+        ``ks`` also the fewest epochs that make min_blocks sign blocks of the fixed block
+        length (or 1), (m − 1)L + 1, since the ELT alone answers their location question.
+        (The calibrated rule answers it with the GLS mean test when the ELT cannot run.)"""
+        if self.calibrated:
+            return max(self.min_epochs, dim + 2)
         length = self.fixed_block_length or 1
         return max(self.min_epochs, dim + 2, (self.min_blocks - 1) * length + 1)
 

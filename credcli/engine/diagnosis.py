@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import special
 
-from credcli.engine import dependence, metrics
+from credcli.engine import batches, dependence, metrics
 from credcli.engine._rng import RngLike, as_generator
 from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-exported)
     AUTO,
@@ -22,12 +22,19 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
     DiagnosisConfig,
     Label,
     MetricsLevel,
+    Question,
     SrdForm,
     Variant,
     parse_label,
 )
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
-from credcli.engine.scale import ScaleTest, gls_residuals, scale_test
+from credcli.engine.scale import (
+    ScaleTest,
+    batch_scale_test,
+    gls_residuals,
+    scale_test,
+    untested_scale,
+)
 from credcli.engine.whiteness import Whiteness, portmanteau
 from credcli.errors import CredcliError
 
@@ -60,6 +67,13 @@ class Diagnosis:
     autocorrelation: float | None = None
     reason: str | None = None
     config: DiagnosisConfig = field(default_factory=DiagnosisConfig, repr=False)
+    mean_test: batches.MeanTest | None = None
+    untested: tuple[Question, ...] = ()
+
+    @property
+    def partial(self) -> bool:
+        """Whether one of the two questions was answered and the other was not."""
+        return bool(self.untested) and self.label is not Label.INSUFFICIENT
 
     def __repr__(self) -> str:
         kappa = "" if self.scale is None else f", scale_factor={self.scale.scale_factor:.4g}"
@@ -210,30 +224,40 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
         del centred, chol
     s = whiten(errors, cov)
     r1 = dependence.autocorrelation(s)
-    if dependence.serially_dependent(r1, n):
+    dependent = dependence.serially_dependent(r1, n)
+    if dependent:
         tau = dependence.variance_ratio(s)
     else:  # τ̂ is not used on independent epochs (see serially_dependent)
         tau = np.ones(d)
     autocorr = float(np.max(r1))
     effective_n = float(n / max(1.0, float(np.max(tau))))
+    # every scale and mean test now, so the GLS residuals can be freed
     scales: dict = {}
-    for config in configs:  # every scale test now, so the GLS residuals can be freed
-        key = (config.block_length == 1, config.scale_level)
+    means: dict = {}
+    tau_q = float(dependence.variance_ratio(gls.q)[0]) if dependent else 1.0
+    for config in configs:
+        batched = _batched(config, dependent)
+        key = _scale_key(config, batched)
         if key not in scales:
-            scales[key] = scale_test(gls, config.scale_level, None if key[0] else tau)
+            scales[key] = _scale_evidence(gls, config, tau, tau_q, batched)
+        mean_key = (batched, config.fixed_block_length)
+        if config.calibrated and mean_key not in means:
+            means[mean_key] = _mean_evidence(gls, config, tau, batched)
     del gls
     elts: dict = {}
+    plans = [_location_plan(config, n, tau, means, dependent, runs) for config in configs]
     # an ELT shared by several variants stops only when none of them can still reject
     exact = any(c.exact_pvalue for c in configs)
-    stop_level = None if exact else max(c.location_level for c in configs)
+    used = [plan.elt_level for plan in plans if plan.elt_level is not None]
+    stop_level = None if exact or not used else max(used)
     scorer = None
     out = []
-    for config in configs:
+    for config, plan in zip(configs, plans):
         if n < config.min_n(d):
             out.append(_too_short(n, d, config))
             continue
-        scale = scales[(config.block_length == 1, config.scale_level)]
-        block = config.fixed_block_length or dependence.block_length(tau)
+        scale, scale_reason = scales[_scale_key(config, _batched(config, dependent))]
+        block = plan.block
         common = {
             "n": n,
             "dim": d,
@@ -248,32 +272,40 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
             "effective_n": effective_n,
             "autocorrelation": autocorr,
             "config": config,
+            "mean_test": plan.mean_test,
         }
-        n_blocks = tested_blocks(n, block, config.max_elt_epochs, runs)
-        if n_blocks < config.min_blocks:
-            reason = (
-                f"too few independent blocks: serial dependence (variance ratio "
-                f"{float(np.max(tau)):.3g}, lag-1 autocorrelation {autocorr:.2f}) needs sign "
-                f"blocks of {block} epochs, which leaves {n_blocks} of the {config.min_blocks} "
-                f"the location test needs; effective sample N/τ = {effective_n:.3g}"
+        untested = tuple(
+            q
+            for q, missing in (
+                (Question.SCALE, scale_reason is not None),
+                (Question.LOCATION, plan.mean_test is None and plan.elt_level is None),
             )
+            if missing
+        )
+        reason = "; ".join(r for r in (scale_reason, plan.reason) if r) or None
+        if len(untested) == 2 or (not config.calibrated and plan.elt_level is None):
             out.append(Diagnosis(label=Label.INSUFFICIENT, reason=reason, **common))
             continue
-        separate = config.calibrated and block > 1
-        elt_key = (block, separate, config.n_flips, config.max_elt_epochs)
-        if elt_key not in elts:
-            elts[elt_key] = whitened_location_test(
-                s,
-                config.n_flips,
-                gen,
-                block,
-                config.max_elt_epochs,
-                separate_blocks=separate,
-                stop_level=stop_level,
-                runs=runs,
-            )
-        elt = elts[elt_key]
-        smm = elt.pvalue < config.location_level
+        elt = None
+        if plan.elt_level is not None:
+            separate = config.calibrated and block > 1
+            elt_key = (block, separate, config.n_flips, config.max_elt_epochs)
+            if elt_key not in elts:
+                elts[elt_key] = whitened_location_test(
+                    s,
+                    config.n_flips,
+                    gen,
+                    block,
+                    config.max_elt_epochs,
+                    separate_blocks=separate,
+                    stop_level=stop_level,
+                    runs=runs,
+                )
+            elt = elts[elt_key]
+        smm = bool(
+            (elt is not None and elt.pvalue < plan.elt_level)
+            or (plan.mean_test is not None and plan.mean_test.pvalue < plan.mean_level)
+        )
         everything = config.metrics is MetricsLevel.ALL
         needs_probes = not config.calibrated and smm and nci_centred > config.tau_nci
         if (needs_probes or everything) and scorer is None:
@@ -288,14 +320,21 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
             metrics.probes_scored(errors, scorer, chol, config.c, absolute) if everything else None
         )
         if config.calibrated:
-            label = _calibrated_label(scale, smm, config)
+            label = _calibrated_label(None if scale_reason else scale, smm, config)
         elif smm:
             label = _label_with_smm(nci_centred, probes, config.tau_nci)
         else:
             label = _label_without_smm(nci_raw, ks_p, config)
         out.append(
             Diagnosis(
-                label=label, elt=elt, smm_detected=smm, scores=scores, probes=probes, **common
+                label=label,
+                elt=elt,
+                smm_detected=None if Question.LOCATION in untested else smm,
+                scores=scores,
+                probes=probes,
+                untested=untested,
+                reason=reason,
+                **common,
             )
         )
     return out
@@ -327,8 +366,115 @@ def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
     )
 
 
-def _calibrated_label(scale: ScaleTest, smm: bool, config: DiagnosisConfig) -> Label:
-    """Scale part (χ² test, two-sided at α_S, with the relevance floor τ) plus SMM."""
+def _batched(config: DiagnosisConfig, dependent: bool) -> bool:
+    """Whether the calibrated rule refers this segment's tests to batch means: serially
+    dependent epochs (estimated, or declared by a fixed block length above 1; a fixed 1
+    declares them independent)."""
+    fixed = config.fixed_block_length
+    return config.calibrated and (fixed > 1 if fixed is not None else dependent)
+
+
+def _scale_key(config: DiagnosisConfig, batched: bool) -> tuple:
+    """Configurations with equal keys share one scale test."""
+    return (config.block_length == 1, config.scale_level, batched and config.fixed_block_length)
+
+
+def _batch_length(config: DiagnosisConfig, tau: float) -> int:
+    """Batches are at least the fixed sign-block length, else estimated from ``tau``."""
+    return config.fixed_block_length or batches.batch_length(tau)
+
+
+def _scale_evidence(gls, config: DiagnosisConfig, tau, tau_q: float, batched: bool):
+    """(scale test or None, why it is untested): batch means on dependent epochs, else the
+    χ² (Satterthwaite-scaled) test of :func:`credcli.engine.scale.scale_test`."""
+    if not batched:
+        fixed = config.block_length == 1
+        return scale_test(gls, config.scale_level, None if fixed else tau), None
+    n = gls.whitened.shape[0]
+    length = _batch_length(config, tau_q)
+    k = batches.batch_count(n, length, batches.MIN_SCALE_BATCHES)
+    if not k:  # κ̂ and the bias are still reported; the interval and p-values are NaN
+        return untested_scale(gls), (
+            f"scale untested: the squared errors' serial dependence (variance ratio "
+            f"{tau_q:.3g}) needs batches of {length} epochs, and fewer than the "
+            f"{batches.MIN_SCALE_BATCHES} the scale test needs fit in {n}"
+        )
+    return batch_scale_test(gls, config.scale_level, k), None
+
+
+def _mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool):
+    """(the GLS mean test or None, why it is untested): Hotelling on batch score sums on
+    dependent epochs, else the exact F test of independent epochs."""
+    n, d = gls.whitened.shape
+    if not batched:
+        kappa = float(gls.q.sum()) / max(1, (n - 1) * d)
+        return batches.independent_mean_test(gls.mean, gls.precision_sum, kappa, n), None
+    worst = float(np.max(tau))
+    smallest = batches.min_location_batches(d)
+    length = _batch_length(config, worst)
+    k = batches.batch_count(n, length, smallest)
+    if not k:
+        return None, (
+            f"serial dependence (variance ratio {worst:.3g}) needs batches of {length} epochs "
+            f"for the mean test, and fewer than the {smallest} it needs fit in {n}"
+        )
+    sums = np.add.reduceat(gls.scores, batches.bounds(n, k), axis=0)
+    return batches.batch_mean_test(sums), None
+
+
+@dataclass(frozen=True)
+class _LocationPlan:
+    """How one configuration answers the location question on this segment: the mean test
+    at ``mean_level`` and/or the ELT at ``elt_level`` (None: not run), and why not."""
+
+    block: int
+    mean_test: batches.MeanTest | None
+    mean_level: float
+    elt_level: float | None
+    reason: str | None
+
+
+def _location_plan(config: DiagnosisConfig, n, tau, means, dependent, runs) -> _LocationPlan:
+    """The calibrated rule runs the GLS mean test at α_L·MEAN_SHARE and the ELT at the
+    rest; a test that cannot run leaves the whole α_L to the other. ``paper`` and ``ks``
+    run the ELT alone."""
+    block = config.fixed_block_length or dependence.block_length(tau)
+    n_blocks = tested_blocks(n, block, config.max_elt_epochs, runs)
+    elt_ok = n_blocks >= config.min_blocks
+    why_not_elt = None
+    if not elt_ok:
+        budget = tested_blocks(n, block, n, runs) >= config.min_blocks
+        cause = (
+            f"its budget of {config.max_elt_epochs} epochs (max_elt_epochs)"
+            if budget
+            else f"serial dependence (variance ratio {float(np.max(tau)):.3g}) needs sign "
+            f"blocks of {block} epochs, which"
+        )
+        why_not_elt = (
+            f"ELT not run: {cause} leaves {n_blocks} of the {config.min_blocks} sign blocks "
+            "it needs"
+        )
+    if not config.calibrated:
+        return _LocationPlan(
+            block, None, 0.0, config.location_level if elt_ok else None, why_not_elt
+        )
+    mean_test, why_not_mean = means[(_batched(config, dependent), config.fixed_block_length)]
+    if mean_test is not None and elt_ok:
+        return _LocationPlan(block, mean_test, config.mean_level, config.elt_level, None)
+    if mean_test is not None:  # the mean test takes the whole location level
+        return _LocationPlan(block, mean_test, config.location_level, None, why_not_elt)
+    if elt_ok:
+        reason = f"mean test not run: {why_not_mean}"
+        return _LocationPlan(block, None, 0.0, config.location_level, reason)
+    reason = f"location untested: {why_not_elt}; the mean test: {why_not_mean}"
+    return _LocationPlan(block, None, 0.0, None, reason)
+
+
+def _calibrated_label(scale: ScaleTest | None, smm: bool, config: DiagnosisConfig) -> Label:
+    """Scale part (two-sided at α_S, with the relevance floor τ) plus SMM; without a scale
+    test, the location half alone (smm, or credible as far as the location goes)."""
+    if scale is None:
+        return Label.compose(None, smm)
     half = config.scale_level / 2
     db = 10.0 * math.log10(scale.scale_factor) if scale.scale_factor > 0 else -math.inf
     noise = None

@@ -54,6 +54,9 @@ class ScaleTest:
         Its standard error per component (d,), dependence-adjusted.
     bias_mahalanobis : float
         ‖μ̂‖ in whitened units, √(μ̂ᵀ W̄ μ̂) with W̄ the mean of W_k.
+    batches : int
+        K when the reference is batch means (:mod:`credcli.engine.batches`: serially
+        dependent errors; ``dof`` is then K − 1 of Student's t); 0 for the χ² reference.
     """
 
     statistic: float
@@ -67,10 +70,13 @@ class ScaleTest:
     bias: np.ndarray
     bias_stderr: np.ndarray
     bias_mahalanobis: float
+    batches: int = 0
 
     @property
     def pvalue(self) -> float:
-        """Two-sided p-value, 2 min(upper, lower), at most 1."""
+        """Two-sided p-value, 2 min(upper, lower), at most 1 (NaN when untested)."""
+        if np.isnan(self.pvalue_upper) or np.isnan(self.pvalue_lower):
+            return float("nan")
         return min(1.0, 2.0 * min(self.pvalue_upper, self.pvalue_lower))
 
     def __repr__(self) -> str:
@@ -87,6 +93,7 @@ class GlsResiduals:
     mean: np.ndarray  # μ̂ (d,)
     whitened: np.ndarray  # u_k = L_k⁻¹(e_k − μ̂), (N, d)
     precision_sum: np.ndarray  # Σ W_k (d, d)
+    scores: np.ndarray  # g_k = W_k e_k (N, d): Σ g_k = (Σ W_k) μ̂
 
     @property
     def q(self) -> np.ndarray:
@@ -104,10 +111,12 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         inv = np.linalg.solve(chol, np.eye(d))  # L⁻¹
         z = errors @ inv.T
         precision_sum = n * (inv.T @ inv)
+        scores = z @ inv
         weighted = inv.T @ z.sum(axis=0)
         mean = np.linalg.solve(precision_sum, weighted)
-        return GlsResiduals(mean, z - inv @ mean, precision_sum)
+        return GlsResiduals(mean, z - inv @ mean, precision_sum, scores)
     z = np.empty((n, d))
+    scores = np.empty((n, d))
     precision_sum = np.zeros((d, d))
     weighted = np.zeros(d)
     single = n <= EPOCH_CHUNK  # then the one chunk's L_k⁻¹ is kept for the second pass
@@ -115,12 +124,13 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         inv = np.linalg.inv(chol[sl])  # batched L_k⁻¹
         z[sl] = np.einsum("nij,nj->ni", inv, errors[sl])
         precision_sum += np.einsum("nki,nkj->ij", inv, inv)
+        scores[sl] = np.einsum("nki,nk->ni", inv, z[sl])
         weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
     for sl in epoch_chunks(n):
         inv = inv if single else np.linalg.inv(chol[sl])
         z[sl] -= np.einsum("nij,j->ni", inv, mean)
-    return GlsResiduals(mean, z, precision_sum)
+    return GlsResiduals(mean, z, precision_sum, scores)
 
 
 _TAIL_PROBS = (0.025, 0.25, 0.75, 0.975)
@@ -226,4 +236,58 @@ def scale_test(
         bias=mean,
         bias_stderr=stderr,
         bias_mahalanobis=mahalanobis,
+    )
+
+
+def batch_scale_test(residuals: GlsResiduals, level: float, k: int) -> ScaleTest:
+    """The scale test on serially dependent errors: batch means with ``k`` batches
+    (:func:`credcli.engine.batches.batch_scale`), and the bias's standard error from the
+    batch sums of the GLS scores (their covariance times K is that of Σ W_k e_k)."""
+    from credcli.engine.batches import batch_scale, bounds
+
+    q = residuals.q
+    n, d = residuals.whitened.shape
+    result = batch_scale(q, d, k, level)
+    starts = bounds(n, k)
+    sums = np.add.reduceat(residuals.scores, starts, axis=0)
+    cov_mean = np.linalg.inv(residuals.precision_sum)
+    cov_sum = k * np.cov(sums, rowvar=False).reshape(d, d)
+    stderr = np.sqrt(np.clip(np.diag(cov_mean @ cov_sum @ cov_mean), 0.0, None))
+    mean = residuals.mean
+    mahalanobis = float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean)))
+    return ScaleTest(
+        statistic=float(q.sum()),
+        dof=float(k - 1),
+        satterthwaite=1.0,
+        scale_factor=result.scale_factor,
+        scale_factor_low=result.scale_factor_low,
+        scale_factor_high=result.scale_factor_high,
+        pvalue_upper=result.pvalue_upper,
+        pvalue_lower=result.pvalue_lower,
+        bias=mean,
+        bias_stderr=stderr,
+        bias_mahalanobis=mahalanobis,
+        batches=k,
+    )
+
+
+def untested_scale(residuals: GlsResiduals) -> ScaleTest:
+    """κ̂ = T/((N − 1)d) and the GLS bias, without an interval or p-values (NaN): the
+    numbers of a segment whose scale question cannot be tested."""
+    q = residuals.q
+    n, d = residuals.whitened.shape
+    mean = residuals.mean
+    nan = float("nan")
+    return ScaleTest(
+        statistic=float(q.sum()),
+        dof=nan,
+        satterthwaite=nan,
+        scale_factor=float(q.sum()) / max(1, (n - 1) * d),
+        scale_factor_low=nan,
+        scale_factor_high=nan,
+        pvalue_upper=nan,
+        pvalue_lower=nan,
+        bias=mean,
+        bias_stderr=np.full(d, nan),
+        bias_mahalanobis=float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean))),
     )

@@ -37,14 +37,22 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     claimed predictive); ``delta_*`` and ``srd_*`` from ``diag.probes`` (the centred one).
     The scale test's numbers (``scale_*``, ``bias*``) and the dependence estimates
     (``block_length``, ``effective_n``, ``autocorrelation``) follow; ``reason`` says why a
-    segment is ``insufficient-data``.
+    segment is ``insufficient-data``, or why a question is in ``untested`` ("scale",
+    "location": a partial verdict, whose label answers only the other question).
+    ``mean_*`` is the GLS mean test of the calibrated rule (``mean_batches`` K of its batch
+    means, 0 for the exact F test of independent epochs); ``scale_batches`` likewise.
     """
     elt = diag.elt
     sc = diag.scale
+    mean = diag.mean_test
     rec = {
         "n": diag.n,
         "dim": diag.dim,
         "label": diag.label,
+        "untested": [q.value for q in diag.untested],
+        "mean_statistic": None if mean is None else mean.statistic,
+        "mean_pvalue": None if mean is None else mean.pvalue,
+        "mean_batches": None if mean is None else mean.batches,
         "elt_statistic": diag.elt_statistic,
         "elt_pvalue": diag.elt_pvalue,
         "elt_n_used": None if elt is None else elt.n_used,
@@ -66,6 +74,7 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "scale_factor_low": None if sc is None else sc.scale_factor_low,
         "scale_factor_high": None if sc is None else sc.scale_factor_high,
         "scale_pvalue": None if sc is None else sc.pvalue,
+        "scale_batches": None if sc is None else sc.batches,
         "bias": None if sc is None else [float(v) for v in sc.bias],
         "bias_stderr": None if sc is None else [float(v) for v in sc.bias_stderr],
         "bias_mahalanobis": None if sc is None else sc.bias_mahalanobis,

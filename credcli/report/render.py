@@ -61,6 +61,16 @@ class Report:
     notes: list[str] = field(default_factory=list)
 
 
+def label_text(rec: dict) -> str:
+    """The label as tables show it: a partial verdict names the question it leaves open
+    ("pessimism (location untested)")."""
+    untested = rec.get("untested") or []
+    label = str(rec["label"])
+    if not untested or label == "insufficient-data":
+        return label
+    return f"{label} ({' and '.join(untested)} untested)"
+
+
 NAME_LIMIT = 60
 """Longest segment or log name shown in a table cell (JSON and CSV keep the whole name)."""
 
@@ -68,7 +78,7 @@ SEGMENT_COLUMNS = (
     Column("segment", "segment", 0, limit=NAME_LIMIT, rank=0),
     Column("n", "N", 0, keep=True, rank=0),
     Column("dim", "d", 0, keep=True, rank=0),
-    Column("label", "label", 0, keep=True, rank=0),
+    Column("label", "label", 0, keep=True, rank=0, show=label_text),
     Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r), rank=1),
     Column("scale_pvalue", "scale p", 3, pvalue=True, rank=3),
     Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
@@ -115,11 +125,14 @@ def scale_interval(rec: dict) -> str | None:
 def advice(rec: dict) -> str | None:
     """What a user acts on for a segment that is not credible, in one line."""
     label = rec["label"]
-    if label == "credible":
+    untested = rec.get("untested") or []
+    if label == "credible" and not untested:
         return None
     if label == "insufficient-data":
         return f"{rec['segment']}: no verdict: {rec['reason']}"
     parts = []
+    if untested:
+        parts.append(f"{' and '.join(untested)} untested: {rec['reason']}")
     if "optimism" in label or "pessimism" in label:
         parts.append(f"multiply the covariance by {scale_interval(rec)}")
     if "smm" in label:
@@ -601,7 +614,7 @@ UWB_COLUMNS = (
     Column("t_start", "t start [s]", 4, rank=3),
     Column("t_end", "t end [s]", 4, rank=3),
     Column("n", "fixes", 0, keep=True, rank=0),
-    Column("label", "label", 0, keep=True, rank=0),
+    Column("label", "label", 0, keep=True, rank=0, show=label_text),
     Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r), rank=1),
     Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
     Column("bias_mahalanobis", "|bias| [σ]", 3, rank=3),
@@ -612,6 +625,18 @@ UWB_COLUMNS = (
     Column("nci", "NCI [dB]", 3, rank=6),
     Column("anees", "ANEES", 4, rank=6),
 )
+
+
+def _answers_agree(label: str, other: str, untested) -> bool:
+    """Whether two labels agree on the questions the first one answered: its noise part
+    unless the scale is untested, its SMM part unless the location is."""
+    mine, theirs = set(label.split("+")) - {"credible"}, set(other.split("+")) - {"credible"}
+    asked = set()
+    if "scale" not in untested:
+        asked |= {"optimism", "pessimism"}
+    if "location" not in untested:
+        asked.add("smm")
+    return mine & asked == theirs & asked
 
 
 def uwb_report(run, results, parameters: dict) -> Report:
@@ -627,11 +652,15 @@ def uwb_report(run, results, parameters: dict) -> Report:
         label, why = range_verdict(mine, parameters["tau_nci"]) if mine else (None, "")
         verdict = rec["label"] != "insufficient-data"
         rec["range_label"] = label
-        rec["range_agrees"] = (label == rec["label"]) if verdict and label else None
+        rec["range_agrees"] = (
+            _answers_agree(rec["label"], label, rec.get("untested") or ())
+            if verdict and label
+            else None
+        )
         if label and verdict:
             word = "agrees with" if rec["range_agrees"] else "DISAGREES with"
             agreement.append(
-                f"{rec['segment']}: the position-level label {rec['label']} {word} the "
+                f"{rec['segment']}: the position-level label {label_text(rec)} {word} the "
                 f"range-level evidence, {label} ({why})"
             )
     ranges = [

@@ -257,6 +257,8 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
             out.append(_too_short(n, d, config))
             continue
         scale, scale_reason = scales[_scale_key(config, _batched(config, dependent))]
+        if config.calibrated and scale_reason is None:
+            scale_reason = _inconclusive_scale(scale, config)
         block = plan.block
         common = {
             "n": n,
@@ -470,19 +472,45 @@ def _location_plan(config: DiagnosisConfig, n, tau, means, dependent, runs) -> _
     return _LocationPlan(block, None, 0.0, None, reason)
 
 
+CREDIBLE_FACTOR = 2.0
+"""The calibrated rule calls a scale credible only when its 1 − α_S interval lies within
+[1/2, 2] (3 dB): then a misfit by a factor 2 or more is excluded at level α_S/2 on either
+side (two one-sided tests). A wider interval that contains 1 is inconclusive, and the scale
+question untested, not credible: never a guess behind a label. On the paper's protocol
+(N = 100, d = 2, independent) the interval is about [0.8, 1.27]: every segment is decided."""
+
+
+def _inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
+    """Why a scale test that finds no misfit still does not support "credible", or None."""
+    if _noise(scale, config) is not None:
+        return None
+    low, high = scale.scale_factor_low, scale.scale_factor_high
+    if low >= 1.0 / CREDIBLE_FACTOR and high <= CREDIBLE_FACTOR:
+        return None
+    return (
+        f"scale inconclusive: κ̂ {scale.scale_factor:.3g} with interval [{low:.3g}, {high:.3g}] "
+        f"finds no misfit but does not exclude one of a factor {CREDIBLE_FACTOR:g} "
+        "(too few independent batches for a tighter interval)"
+    )
+
+
+def _noise(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
+    """"optimism", "pessimism" or None: the scale test at α_S with the relevance floor τ."""
+    half = config.scale_level / 2
+    db = 10.0 * math.log10(scale.scale_factor) if scale.scale_factor > 0 else -math.inf
+    if scale.pvalue_upper < half and db > config.tau_nci:
+        return "optimism"
+    if scale.pvalue_lower < half and db < -config.tau_nci:
+        return "pessimism"
+    return None
+
+
 def _calibrated_label(scale: ScaleTest | None, smm: bool, config: DiagnosisConfig) -> Label:
     """Scale part (two-sided at α_S, with the relevance floor τ) plus SMM; without a scale
     test, the location half alone (smm, or credible as far as the location goes)."""
     if scale is None:
         return Label.compose(None, smm)
-    half = config.scale_level / 2
-    db = 10.0 * math.log10(scale.scale_factor) if scale.scale_factor > 0 else -math.inf
-    noise = None
-    if scale.pvalue_upper < half and db > config.tau_nci:
-        noise = "optimism"
-    elif scale.pvalue_lower < half and db < -config.tau_nci:
-        noise = "pessimism"
-    return Label.compose(noise, smm)
+    return Label.compose(_noise(scale, config), smm)
 
 
 def _mse_cholesky(mse: np.ndarray) -> np.ndarray:

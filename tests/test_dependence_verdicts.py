@@ -1,0 +1,252 @@
+"""Issue 22: verdicts on filter logs with long memory, rotating covariances and short
+windows. Batch-means references against closed forms and Monte Carlo (with standard errors),
+the GLS mean test beside the ELT, partial verdicts, and the same verdict at two export
+rates of one EKF run."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+from test_edges import error_line, run
+
+from credcli.engine import batches
+from credcli.engine.config import DiagnosisConfig, Label, Question
+from credcli.engine.diagnosis import diagnose_errors
+from credcli.studies.filters import TUNINGS, ekf_runs, rotating_bias_log
+
+
+def _ar1(rng, n, d, phi):
+    """AR(1) errors with unit marginal variance."""
+    out = np.empty((n, d))
+    out[0] = rng.standard_normal(d)
+    noise = rng.standard_normal((n, d)) * math.sqrt(1 - phi**2)
+    for k in range(1, n):
+        out[k] = phi * out[k - 1] + noise[k]
+    return out
+
+
+def _eye(n, d=2):
+    return np.broadcast_to(np.eye(d), (n, d, d))
+
+
+# --- the references, against closed forms ----------------------------------------------------
+
+
+def test_batch_scale_is_the_t_interval_of_the_batch_factors():
+    rng = np.random.default_rng(0)
+    q = rng.chisquare(2, 1200) * 1.7
+    r = batches.batch_scale(q, 2, 12, 0.05)
+    factors = q.reshape(12, 100).sum(axis=1) / 200
+    mean, se = factors.mean(), factors.std(ddof=1) / (factors.mean() * math.sqrt(12))
+    crit = stats.t.ppf(0.975, 11)
+    assert r.scale_factor == pytest.approx(mean, rel=1e-12)
+    assert r.scale_factor_low == pytest.approx(mean * math.exp(-crit * se), rel=1e-12)
+    assert r.scale_factor_high == pytest.approx(mean * math.exp(crit * se), rel=1e-12)
+    assert r.pvalue_upper == pytest.approx(stats.t.sf(math.log(mean) / se, 11), rel=1e-9)
+
+
+def test_batch_mean_test_is_hotelling():
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal((12, 3)) + 0.4
+    k, d = u.shape
+    mean = u.mean(axis=0)
+    t2 = k * mean @ np.linalg.solve(np.cov(u, rowvar=False), mean)
+    f = (k - d) * t2 / (d * (k - 1))
+    r = batches.batch_mean_test(u)
+    assert r.statistic == pytest.approx(f, rel=1e-12) and r.dof == (3.0, 9.0)
+    assert r.pvalue == pytest.approx(stats.f.sf(f, 3, 9), rel=1e-9)
+
+
+def test_independent_mean_test_is_exact_under_any_scale():
+    """F = μ̂ᵀAμ̂/(d κ̂) ~ F(d, (N−1)d) for independent Gaussian errors whatever the true
+    scale: size at 5 % over 2,000 segments of 20 epochs with the covariance 4× too small."""
+    rng = np.random.default_rng(2)
+    rejections = 0
+    trials, n = 2000, 20
+    for _ in range(trials):
+        e = 2.0 * rng.standard_normal((n, 2))  # Σ = 4 I, claimed I
+        mean = e.mean(axis=0)
+        kappa = ((e - mean) ** 2).sum() / ((n - 1) * 2)
+        r = batches.independent_mean_test(mean, n * np.eye(2), kappa, n)
+        rejections += r.pvalue < 0.05
+    rate, se = rejections / trials, math.sqrt(0.05 * 0.95 / trials)
+    assert abs(rate - 0.05) < 3 * se, rate
+
+
+def test_batch_count_and_bounds():
+    assert batches.batch_count(6000, 100, 6) == 12  # 60 fit: at most 12
+    assert batches.batch_count(600, 100, 6) == 6
+    assert batches.batch_count(500, 100, 6) == 0  # 5 < 6: untested
+    starts = batches.bounds(103, 12)
+    sizes = np.diff(np.r_[starts, 103])
+    assert starts[0] == 0 and sizes.sum() == 103 and sizes.max() - sizes.min() <= 1
+
+
+# --- levels and coverage under long memory (Monte Carlo, with standard errors) ---------------
+
+
+@pytest.fixture(scope="module")
+def long_memory():
+    """Diagnoses of 60 segments of AR(1) φ = 0.99 errors (correlation time 100 epochs),
+    N = 6000, with the correct covariance; and of the same at a tenth of the rate
+    (N = 600, φ = 0.99^10): one list per rate."""
+    rng = np.random.default_rng(3)
+    fast = [_ar1(rng, 6000, 2, 0.99) for _ in range(60)]
+    return [
+        [diagnose_errors(e[::every], _eye(len(e[::every])), rng=k) for k, e in enumerate(fast)]
+        for every in (1, 10)
+    ]
+
+
+@pytest.mark.parametrize("rate", [0, 1])
+def test_kappa_interval_covers_under_long_memory(long_memory, rate):
+    """Issue 22: the interval covers the true factor >= 90 % of the time (95 % nominal is
+    for each tail at α_S/2; the interval is 1 − α_S), at 100 Hz and at 10 Hz. 60 segments:
+    the standard error of a 95 % coverage is 2.8 %."""
+    diagnoses = long_memory[rate]
+    assert all(d.scale.batches > 0 for d in diagnoses)
+    covered = sum(d.scale.scale_factor_low <= 1.0 <= d.scale.scale_factor_high for d in diagnoses)
+    assert covered / len(diagnoses) >= 0.90, covered
+
+
+def test_false_alarms_under_long_memory_hold_the_level(long_memory):
+    """Credible AR(1) φ = 0.99 segments at both rates: false alarms (a non-credible label)
+    <= α + 1 % + 2 s.e. (120 segments: s.e. of a 5 % rate 2 %); and the verdicts are mostly
+    complete (a partial one is not a false alarm, but it is not a verdict either)."""
+    diagnoses = [d for rate in long_memory for d in rate]
+    bad = sum(d.label not in (Label.CREDIBLE, Label.INSUFFICIENT) for d in diagnoses)
+    assert bad / len(diagnoses) <= 0.06 + 2 * math.sqrt(0.05 * 0.95 / len(diagnoses)), bad
+    complete = sum(d.label is Label.CREDIBLE and not d.untested for d in diagnoses)
+    assert complete / len(diagnoses) >= 0.85, complete
+
+
+# --- the location question ---------------------------------------------------------------------
+
+
+def test_a_bias_that_turns_in_whitened_space_is_found():
+    """Claimed covariances that rotate and are 20× anisotropic, a constant 1σ bias: in
+    whitened space its mean is near zero, so the ELT misses it; the GLS mean test does not.
+    And no false alarm without the bias."""
+    found = []
+    for seed in range(20):
+        e, cov = rotating_bias_log(n=2000, bias_sigma=1.0, seed=seed)
+        d = diagnose_errors(e, cov, rng=seed)
+        found.append("smm" in d.label.value)
+        assert d.mean_test.pvalue < 1e-6
+    assert all(found)
+    clean = [
+        "smm" in diagnose_errors(*rotating_bias_log(n=2000, bias_sigma=0.0, seed=s), rng=s).label
+        for s in range(20)
+    ]
+    assert sum(clean) <= 2  # 20 × 2.5 % = 0.5 expected
+
+
+def test_the_elt_budget_no_longer_hides_a_bias():
+    """A 12,000-epoch segment: the ELT sees a 4,000-epoch subsample, the mean test all."""
+    rng = np.random.default_rng(4)
+    e = rng.standard_normal((12_000, 2)) + [0.05, 0.0]  # 0.05σ: 5.5 standard errors
+    d = diagnose_errors(e, _eye(12_000), rng=0)
+    assert d.elt.subsampled and d.mean_test.pvalue < 1e-4 and d.label is Label.SMM
+
+
+# --- partial verdicts --------------------------------------------------------------------------
+
+
+@pytest.fixture
+def scale_only(tmp_path):
+    """A short window of strongly dependent errors with a covariance 9× too large: the scale
+    is decided (pessimism), the location cannot be (too few batches or blocks)."""
+    rng = np.random.default_rng(5)
+    e = _ar1(rng, 120, 2, 0.95) / 3.0
+    d = diagnose_errors(e, _eye(120), rng=0)
+    return e, d
+
+
+def test_a_partial_verdict_says_what_was_not_tested(scale_only):
+    _, d = scale_only
+    assert d.label is Label.PESSIMISM and d.untested == (Question.LOCATION,)
+    assert d.partial and d.smm_detected is None and "location untested" in d.reason
+
+
+def _write(tmp_path, e):
+    import pandas as pd
+
+    frame = pd.DataFrame(
+        {"truth_0": e[:, 0], "truth_1": e[:, 1], "est_0": 0.0, "est_1": 0.0}
+        | {"cov_0_0": 1.0, "cov_0_1": 0.0, "cov_1_1": 1.0}
+    )
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False, float_format="%.17g")
+    return path
+
+
+def test_a_partial_verdict_in_json_table_and_fail_on(tmp_path, scale_only):
+    path = _write(tmp_path, scale_only[0])
+    code, out, err = run("diagnose", path, "-f", "json")
+    assert code == 0, err
+    (rec,) = json.loads(out)["segments"]
+    assert rec["label"] == "pessimism" and rec["untested"] == ["location"]
+    assert rec["smm_detected"] is None
+    code, out, _ = run("diagnose", path)
+    assert "pessimism (location untested)" in out
+    assert run("diagnose", path, "--fail-on", "untested")[0] == 1
+    assert run("diagnose", path, "--fail-on", "pessimism")[0] == 1
+    assert run("diagnose", path, "--fail-on", "smm")[0] == 0
+    assert run("diagnose", path, "--fail-on", "noncredible")[0] == 1
+
+
+def test_the_gate_sees_a_question_that_is_no_longer_tested(tmp_path, scale_only):
+    import pandas as pd
+
+    rng = np.random.default_rng(6)
+    long = _write(tmp_path, np.r_[scale_only[0], _ar1(rng, 2000, 2, 0.95) / 3.0])
+    baseline = tmp_path / "base.json"
+    assert run("baseline", long, "-o", baseline)[0] == 0
+    short = tmp_path / "short.csv"
+    pd.read_csv(long).iloc[:120].to_csv(short, index=False)
+    code, _, err = run("gate", short, "--baseline", baseline)
+    assert code == 1 and "location no longer tested" in err
+
+
+# --- real filter output: an EKF at two export rates ---------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def ekf():
+    return {name: ekf_runs(runs=6, tuning=t, seed=11) for name, t in TUNINGS.items()}
+
+
+@pytest.mark.parametrize(
+    "case, expected",
+    [("right", Label.CREDIBLE), ("too-small", Label.OPTIMISM), ("too-large", Label.PESSIMISM)],
+)
+def test_ekf_verdicts_are_the_same_at_100_and_10_hz(ekf, case, expected):
+    """A credible EKF stays credible, and a 4× mistuned one is decided, at both rates."""
+    for every in (1, 10):
+        runs = ekf[case].thinned(every)
+        labels = [diagnose_errors(runs.errors[m], runs.cov[m], rng=m).label for m in range(6)]
+        right = sum(lab is expected for lab in labels)
+        assert right >= (5 if case == "right" else 6), (every, labels)
+
+
+def test_ekf_long_memory_is_what_the_generator_promises(ekf):
+    d = diagnose_errors(ekf["right"].errors[0], ekf["right"].cov[0], rng=0)
+    assert d.autocorrelation > 0.95 and d.effective_n < 6000 / 20
+    cov = ekf["right"].cov[0]
+    angles = np.degrees(np.arctan2(2 * cov[:, 0, 1], cov[:, 0, 0] - cov[:, 1, 1]) / 2)
+    assert np.ptp(angles) > 30  # the claimed covariance turns
+
+
+def test_an_unmodelled_range_bias_is_smm_at_100_hz(ekf):
+    runs = ekf["bias"]
+    labels = [diagnose_errors(runs.errors[m], runs.cov[m], rng=m).label for m in range(6)]
+    assert all("smm" in lab.value for lab in labels), labels
+
+
+def test_untested_is_a_fail_on_item():
+    line = error_line(*run("diagnose", "x.csv", "--fail-on", "bogus")[::2])
+    assert "untested" in line

@@ -96,8 +96,12 @@ def long_memory():
     (N = 600, φ = 0.99^10): one list per rate."""
     rng = np.random.default_rng(3)
     fast = [_ar1(rng, 6000, 2, 0.99) for _ in range(60)]
+    config = DiagnosisConfig(max_elt_epochs=1000)  # the ELT on a subsample: a faster test
     return [
-        [diagnose_errors(e[::every], _eye(len(e[::every])), rng=k) for k, e in enumerate(fast)]
+        [
+            diagnose_errors(e[::every], _eye(len(e[::every])), config, rng=k)
+            for k, e in enumerate(fast)
+        ]
         for every in (1, 10)
     ]
 
@@ -132,14 +136,15 @@ def test_a_bias_that_turns_in_whitened_space_is_found():
     whitened space its mean is near zero, so the ELT misses it; the GLS mean test does not.
     And no false alarm without the bias."""
     found = []
+    config = DiagnosisConfig(max_elt_epochs=1000)
     for seed in range(20):
         e, cov = rotating_bias_log(n=2000, bias_sigma=1.0, seed=seed)
-        d = diagnose_errors(e, cov, rng=seed)
+        d = diagnose_errors(e, cov, config, rng=seed)
         found.append("smm" in d.label.value)
         assert d.mean_test.pvalue < 1e-6
     assert all(found)
     clean = [
-        "smm" in diagnose_errors(*rotating_bias_log(n=2000, bias_sigma=0.0, seed=s), rng=s).label
+        "smm" in diagnose_errors(*rotating_bias_log(2000, 0.0, seed=s), config, rng=s).label
         for s in range(20)
     ]
     assert sum(clean) <= 2  # 20 × 2.5 % = 0.5 expected

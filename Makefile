@@ -24,7 +24,7 @@ lock:
 	$(PYTHON) -m venv .venv-lock
 	.venv-lock/bin/python -m pip install --quiet --upgrade pip
 	.venv-lock/bin/python -m pip install --quiet -e '$(EXTRAS)'
-	.venv-lock/bin/python -m pytest -p no:cacheprovider
+	.venv-lock/bin/python -m pytest -p no:cacheprovider -n auto
 	{ sed -n '1,2p' $(LOCK); .venv-lock/bin/python -m pip freeze --exclude-editable \
 	  | grep -v '^credcli'; } > $(LOCK).new && mv $(LOCK).new $(LOCK)
 	rm -rf .venv-lock
@@ -35,15 +35,15 @@ test-oldest:
 	$(PYTHON) -m venv .venv-oldest
 	.venv-oldest/bin/python -m pip install --quiet --upgrade pip
 	.venv-oldest/bin/python -m pip install --quiet -c requirements/oldest.txt -e '$(EXTRAS)'
-	.venv-oldest/bin/python -m pytest -p no:cacheprovider
+	.venv-oldest/bin/python -m pytest -p no:cacheprovider -n auto
 
 ## demo: install, then diagnose the bundled sample log
 demo: $(STAMP)
 	$(BIN)/credcli diagnose sample_data/estimator_log.csv
 
-## test: install, then run the whole test suite
+## test: install, then run the whole test suite (on every core: pytest-xdist)
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
 
 lint: $(STAMP)
 	$(BIN)/ruff check credcli tests
@@ -57,6 +57,7 @@ format: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/calibrated_rule.py
+	$(BIN)/python benchmarks/filters.py
 
 ## bench-dask: only the Dask rows of make bench (issue 13)
 bench-dask: $(STAMP)

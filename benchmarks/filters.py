@@ -28,7 +28,9 @@ from credcli.studies.filters import TUNINGS, ekf_runs, rotating_bias_log
 
 
 def _shown(d) -> str:
-    return d.label.value + (f" ({'+'.join(q.value for q in d.untested)} untested)" if d.untested else "")
+    return d.label.value + (
+        f" ({'+'.join(q.value for q in d.untested)} untested)" if d.untested else ""
+    )
 
 
 def _ar1(rng, n, d, phi):
@@ -62,20 +64,29 @@ def long_memory_table(segments: int = 200) -> None:
     rng = np.random.default_rng(7)
     fast = [_ar1(rng, 6000, 2, 0.99) for _ in range(segments)]
     print(f"\nAR(1) φ = 0.99, correct covariance, {segments} segments of 60 s:")
-    print(f"{'rate':<8}{'N':>6}{'κ covers 1':>12}{'± s.e.':>8}{'not credible':>14}{'± s.e.':>8}{'partial':>9}{'none':>6}")
+    print(
+        f"{'rate':<8}{'N':>6}{'κ covers 1':>12}{'± s.e.':>8}{'not credible':>14}{'± s.e.':>8}{'partial':>9}{'none':>6}"
+    )
     for every, rate in ((1, "100 Hz"), (10, "10 Hz")):
-        diags = [diagnose_errors(e[::every], np.broadcast_to(np.eye(2), (len(e[::every]), 2, 2)), rng=k) for k, e in enumerate(fast)]
+        diags = [
+            diagnose_errors(e[::every], np.broadcast_to(np.eye(2), (len(e[::every]), 2, 2)), rng=k)
+            for k, e in enumerate(fast)
+        ]
         cover = np.mean([d.scale.scale_factor_low <= 1 <= d.scale.scale_factor_high for d in diags])
         bad = np.mean([d.label not in (Label.CREDIBLE, Label.INSUFFICIENT) for d in diags])
         partial = sum(d.partial for d in diags)
         none = sum(d.label is Label.INSUFFICIENT for d in diags)
-        print(f"{rate:<8}{6000 // every:>6}{100 * cover:>11.1f}%{_se(cover, segments):>8.1f}{100 * bad:>13.1f}%{_se(bad, segments):>8.1f}{partial:>9}{none:>6}")
+        print(
+            f"{rate:<8}{6000 // every:>6}{100 * cover:>11.1f}%{_se(cover, segments):>8.1f}{100 * bad:>13.1f}%{_se(bad, segments):>8.1f}{partial:>9}{none:>6}"
+        )
 
 
 def rotating_table(segments: int = 100) -> None:
     print(f"\nRotating 20× anisotropic covariance, N = 2000, {segments} segments:")
     for bias in (0.0, 1.0):
-        diags = [diagnose_errors(*rotating_bias_log(2000, bias, seed=s), rng=s) for s in range(segments)]
+        diags = [
+            diagnose_errors(*rotating_bias_log(2000, bias, seed=s), rng=s) for s in range(segments)
+        ]
         smm = sum("smm" in d.label.value for d in diags)
         mean = sum(d.mean_test.pvalue < d.config.mean_level for d in diags)
         elt = sum(d.elt is not None and d.elt.pvalue < d.config.elt_level for d in diags)
@@ -84,9 +95,16 @@ def rotating_table(segments: int = 100) -> None:
 
 def short_windows_table(segments: int = 200) -> None:
     rng = np.random.default_rng(8)
-    diags = [diagnose_errors(_ar1(rng, 120, 2, 0.95) / 3.0, np.broadcast_to(np.eye(2), (120, 2, 2)), rng=k) for k in range(segments)]
+    diags = [
+        diagnose_errors(
+            _ar1(rng, 120, 2, 0.95) / 3.0, np.broadcast_to(np.eye(2), (120, 2, 2)), rng=k
+        )
+        for k in range(segments)
+    ]
     labels = Counter(_shown(d) for d in diags)
-    print(f"\nShort windows: 120 epochs of AR(1) φ = 0.95, covariance 9× too large, {segments} windows:")
+    print(
+        f"\nShort windows: 120 epochs of AR(1) φ = 0.95, covariance 9× too large, {segments} windows:"
+    )
     print("  " + ", ".join(f"{k} {v}" for k, v in labels.most_common()))
 
 
@@ -94,7 +112,14 @@ def anisotropic_table(segments: int = 200) -> None:
     print(f"\nAnisotropic mismatch (whitened variances per axis), N = 300, {segments} segments:")
     rng = np.random.default_rng(9)
     for variances in ((1.0, 0.25), (4.0, 0.25), (0.25, 0.25)):
-        diags = [diagnose_errors(rng.standard_normal((300, 2)) * np.sqrt(variances), np.broadcast_to(np.eye(2), (300, 2, 2)), rng=k) for k in range(segments)]
+        diags = [
+            diagnose_errors(
+                rng.standard_normal((300, 2)) * np.sqrt(variances),
+                np.broadcast_to(np.eye(2), (300, 2, 2)),
+                rng=k,
+            )
+            for k in range(segments)
+        ]
         labels = Counter(_shown(d) for d in diags)
         print(f"  {variances}: " + ", ".join(f"{k} {v}" for k, v in labels.most_common()))
 

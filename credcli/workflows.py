@@ -110,7 +110,10 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
 
 def _as_slice(index: np.ndarray):
     """``index`` as a slice when it is a contiguous increasing range, else as it is."""
-    if index.size and index[-1] - index[0] + 1 == index.size and np.all(np.diff(index) == 1):
+    size = index.size
+    if size == 1:  # one epoch: no difference to take (a log of 10⁶ one-epoch segments)
+        return slice(int(index[0]), int(index[0]) + 1)
+    if size and index[-1] - index[0] + 1 == size and np.all(np.diff(index) == 1):
         return slice(int(index[0]), int(index[-1]) + 1)
     return index
 

@@ -1515,6 +1515,9 @@ def app_commands() -> set[str]:
     return {c.name or c.callback.__name__ for c in app.registered_commands}
 
 
+_LIBRARY_CHATTER = (DeprecationWarning, PendingDeprecationWarning, FutureWarning)
+
+
 def _note_warnings(caught, debug: bool) -> None:
     """Each distinct warning once, as a ``credcli: note:`` line. numpy's floating-point
     warnings ("overflow encountered in matmul") are one line in the user's terms, with
@@ -1522,6 +1525,8 @@ def _note_warnings(caught, debug: bool) -> None:
     seen: dict[str, None] = {}
     floating: dict[str, None] = {}
     for w in caught:
+        if issubclass(w.category, _LIBRARY_CHATTER) and not debug:
+            continue  # a library's notice to its own callers, not about the user's data
         message = str(w.message).splitlines()[0] if str(w.message) else ""
         where = f" ({w.filename}:{w.lineno})" if debug else ""
         if issubclass(w.category, RuntimeWarning) and " encountered in " in message:

@@ -358,12 +358,14 @@ def _overflow_message(errors: np.ndarray, chol: np.ndarray, eps: np.ndarray) -> 
 
 def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
     smallest = config.min_n(d)
+    needs = f"min_epochs {config.min_epochs} and d + 2"
+    if not config.calibrated:
+        needs = f"min_epochs {config.min_epochs}, d + 2, and {config.min_blocks} sign blocks"
     return Diagnosis(
         label=Label.INSUFFICIENT,
         n=n,
         dim=d,
-        reason=f"{n} epochs; at least {smallest} are needed (min_epochs {config.min_epochs}, "
-        f"d + 2, and {config.min_blocks} sign blocks)",
+        reason=f"{n} epochs; at least {smallest} are needed ({needs})",
         config=config,
     )
 
@@ -495,7 +497,7 @@ def _inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None
 
 
 def _noise(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
-    """"optimism", "pessimism" or None: the scale test at α_S with the relevance floor τ."""
+    """ "optimism", "pessimism" or None: the scale test at α_S with the relevance floor τ."""
     half = config.scale_level / 2
     db = 10.0 * math.log10(scale.scale_factor) if scale.scale_factor > 0 else -math.inf
     if scale.pvalue_upper < half and db > config.tau_nci:
@@ -608,6 +610,11 @@ def diagnose_segment(
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
     the log and the segment. ``runs``: see :func:`diagnose_errors`."""
     try:
+        errors, cov = metrics.check_errors_cov(errors, cov)
+        n, d = errors.shape
+        if n < config.min_n(d):  # checked as diagnose_errors checks, without a random stream
+            _cholesky(cov)
+            return _too_short(n, d, config)
         return diagnose_errors(errors, cov, config, segment_seed(seed, name), runs=runs)
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc

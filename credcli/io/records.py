@@ -12,6 +12,10 @@ from credcli.engine.diagnosis import Diagnosis, SegmentDiagnosis
 
 def json_value(x):
     """JSON-safe scalar: enums to their value, NaN/Inf to None."""
+    if x is None:
+        return None
+    if type(x) is float:  # the common case first: a record has dozens (10⁶ segments)
+        return x if math.isfinite(x) else None
     if isinstance(x, enum.Enum):
         return x.value
     if isinstance(x, float) and not math.isfinite(x):

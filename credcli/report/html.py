@@ -27,6 +27,7 @@ overflow-x: auto; font-size: 0.8em; } .note { color: #555; font-size: 0.9em; }
 
 
 def _table_html(table) -> str:
+    table = table.shown()
     head = "".join(
         f'<th class="{"text" if not c.digits else "num"}">{html.escape(c.header)}</th>'
         for c in table.columns

@@ -44,12 +44,28 @@ class Column:
         return value
 
 
+SHOWN_ROWS = 1000
+"""Most rows a table shows for people (terminal, text, Markdown, HTML): a log of 10⁶
+one-epoch segments is read in CSV or JSON, which keep every row."""
+
+
 @dataclass(frozen=True)
 class Table:
     title: str
     columns: tuple[Column, ...]
     rows: list[dict]
     caption: str = ""
+
+    def shown(self) -> Table:
+        """The table as people read it: at most SHOWN_ROWS rows, the caption saying so."""
+        if len(self.rows) <= SHOWN_ROWS:
+            return self
+        more = (
+            f"the first {SHOWN_ROWS:,} of {len(self.rows):,} rows; every row is in "
+            "--format csv or json"
+        )
+        caption = f"{self.caption}; {more}" if self.caption else more
+        return Table(self.title, self.columns, self.rows[:SHOWN_ROWS], caption)
 
 
 @dataclass(frozen=True)
@@ -229,6 +245,7 @@ def rich_table(table: Table, width: int | None = None):
     from rich.markup import escape
     from rich.table import Table as RichTable
 
+    table = table.shown()
     texts = [
         [format_cell(col.value(row), col.digits) for col in table.columns] for row in table.rows
     ]
@@ -339,7 +356,7 @@ def markdown_text(text: str) -> str:
 
 def _markdown(report: Report) -> str:
     lines: list[str] = []
-    for table in report.tables:
+    for table in (t.shown() for t in report.tables):
         lines.append(f"### {markdown_text(table.title)}")
         lines.append("")
         lines.append("| " + " | ".join(markdown_text(c.header) for c in table.columns) + " |")

@@ -77,6 +77,13 @@ def planted_estimate(t, cov, rho=1.0, mean=None, right=False, seed=0):
     return p_est, r_est, claimed
 
 
+def quaternions(rotation) -> np.ndarray:
+    """x, y, z, w with w >= 0: q and −q are one rotation, and scipy releases differ in the
+    sign they return, so the samples fix it (the files are the same with any scipy)."""
+    q = rotation.as_quat()
+    return q * np.where(q[:, 3:] < 0, -1.0, 1.0)
+
+
 def _stamps(duration: float, rate: float, start: float = 0.0) -> np.ndarray:
     return start + np.arange(int(round(duration * rate))) / rate
 
@@ -85,7 +92,7 @@ def write_tum_openvins(outdir: Path) -> list[Path]:
     t_true = _stamps(120.0, 100.0)
     t_est = _stamps(119.0, 20.0, 0.0123)
     p, r = trajectory(t_true)
-    q = r.as_quat()
+    q = quaternions(r)
     truth = outdir / "tum_groundtruth.txt"
     rows = np.c_[EPOCH + t_true, p, q]
     header = "# timestamp tx ty tz qx qy qz qw"
@@ -100,7 +107,7 @@ def write_tum_openvins(outdir: Path) -> list[Path]:
     est = outdir / "openvins_estimate.txt"
     np.savetxt(
         est,
-        np.c_[EPOCH + t_est, p_est, r_est.as_quat(), rot_block, pos_block],
+        np.c_[EPOCH + t_est, p_est, quaternions(r_est), rot_block, pos_block],
         fmt=["%.6f"] + ["%.9g"] * 19,
         header="timestamp(s) tx ty tz qx qy qz qw Pr11 Pr12 Pr13 Pr22 Pr23 Pr33 "
         "Pt11 Pt12 Pt13 Pt22 Pt23 Pt33",
@@ -115,7 +122,7 @@ def write_euroc_ros_csv(outdir: Path) -> list[Path]:
     t_true = _stamps(120.0, 100.0)
     t_est = _stamps(119.0, 20.0, 0.0071)
     p, r = trajectory(t_true)
-    q = r.as_quat()
+    q = quaternions(r)
     ns = (np.int64(EPOCH) * 10**9 + np.round(t_true * 1e9).astype(np.int64)).astype(np.int64)
     truth = outdir / "euroc_groundtruth.csv"
     cols = ["#timestamp", "p_RS_R_x [m]", "p_RS_R_y [m]", "p_RS_R_z [m]"]
@@ -134,7 +141,7 @@ def write_euroc_ros_csv(outdir: Path) -> list[Path]:
     for k, axis in enumerate("xyz"):
         out[f"field.pose.pose.position.{axis}"] = p_est[:, k]
     for k, axis in enumerate("xyzw"):
-        out[f"field.pose.pose.orientation.{axis}"] = r_est.as_quat()[:, k]
+        out[f"field.pose.pose.orientation.{axis}"] = quaternions(r_est)[:, k]
     for k in range(36):
         out[f"field.pose.covariance{k}"] = claimed.reshape(-1, 36)[:, k]
     est = outdir / "odom_ros.csv"
@@ -150,7 +157,7 @@ def bag_messages(duration=60.0, seed=33):
     cov = true_cov()
     p_est, r_est, claimed = planted_estimate(t_est, cov / 4.0, seed=seed)
     claimed *= 4.0  # the claim is 4× the truth: pessimism
-    return (t_true, p_true, r_true.as_quat()), (t_est, p_est, r_est.as_quat(), claimed)
+    return (t_true, p_true, quaternions(r_true)), (t_est, p_est, quaternions(r_est), claimed)
 
 
 def write_bag(path: Path, version: int, estimate, truth) -> Path:

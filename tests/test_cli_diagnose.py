@@ -166,6 +166,10 @@ def test_parquet_sample_gives_same_labels(capsys):
     _, b, _ = _run(capsys, "diagnose", SAMPLE / "estimator_log.parquet", "-f", "csv")
     left, right = (pd.read_csv(io.StringIO(t)).drop(columns="log") for t in (a, b))
     assert list(left["label"]) == list(right["label"]) and len(left) == 6
+    for key in ("bias", "bias_stderr"):  # lists: space-separated numbers
+        for frame in (left, right):
+            frame[key] = [np.array(v.split(), dtype=float) for v in frame[key]]
+        np.testing.assert_allclose(np.stack(left.pop(key)), np.stack(right.pop(key)), rtol=1e-9)
     pd.testing.assert_frame_equal(left, right, rtol=1e-9)
 
 

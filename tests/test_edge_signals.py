@@ -551,3 +551,73 @@ def test_an_http_answer_is_not_a_scheduler():
         with pytest.raises(CredcliError, match="an HTTP server answers there"):
             probe_scheduler(f"127.0.0.1:{port}", seconds=5.0)
         thread.join(5)
+
+
+def test_html_cells_are_formatted_as_the_terminal_shows_them(tmp_path):
+    report = tmp_path / "r.html"
+    code, _, err = run("diagnose", LOG, "--report", report)
+    assert code == 0, err
+    html = report.read_text()
+    assert "&lt;0.001" in html and "0.9 (0.783–1.05)" in html
+    assert "0.900263" not in html and "e-1" not in html.split("<h2>Parameters")[0]
+
+
+def test_gate_fail_on_and_report_monte_carlo(tmp_path):
+    baseline = tmp_path / "b.json"
+    assert run("baseline", LOG, "-o", baseline)[0] == 0
+    code, _, err = run("gate", LOG, "--baseline", baseline, "--fail-on", "pess+smm")
+    assert code == 1 and "1 segment(s) match --fail-on pessimism+smm: tunnel" in err
+    assert run("gate", LOG, "--baseline", baseline, "--fail-on", "insufficient-data")[0] == 0
+    runs = [FORMATS / f"mc_run_{k}.csv" for k in (1, 2, 3)]
+    plain = run("diagnose", *runs, "--monte-carlo", "-f", "json")
+    assert plain[0] == 0, plain[2]
+    report = tmp_path / "mc.html"
+    code, _, err = run("report", *runs, "--monte-carlo", "-o", report)
+    assert code == 0, err
+    assert "Monte Carlo: 3 runs" in report.read_text()
+
+
+def test_output_off_a_terminal_keeps_every_column(tmp_path, monkeypatch):
+    baseline = tmp_path / "b.json"
+    assert run("baseline", LOG, "-o", baseline)[0] == 0
+    regressed = ROOT / "sample_data" / "estimator_log_regressed.csv"
+    monkeypatch.setenv("COLUMNS", "250")
+    code, out, _ = run("gate", regressed, "--baseline", baseline)
+    assert code == 1 and "why" in out.splitlines()[2] and "not shown at this width" not in out
+    monkeypatch.delenv("COLUMNS")
+    code, out, _ = run("gate", regressed, "--baseline", baseline)
+    assert "label credible -> optimism" in out
+
+
+def test_the_other_perturbation_convention_is_named_when_it_fits_far_better():
+    args = [FORMATS / "odom_ros.csv", "--truth", FORMATS / "euroc_groundtruth.csv"]
+    code, _, err = run("diagnose", *args, "--states", "pose")
+    assert code == 0 and "--perturbation right fits the claimed covariance far better" in err
+    code, _, err = run("diagnose", *args, "--states", "pose", "--perturbation", "right")
+    assert code == 0 and "WARNING" not in err
+
+
+def test_smm_advice_says_what_it_means_and_where_to_look():
+    code, out, _ = run("diagnose", LOG)
+    assert "gps-multipath: bias (0.889, -1.24)" in out and "look first at component 1" in out
+    assert "smm: the errors have a mean that no covariance allows for" in out
+
+
+def test_help_names_the_formats_and_the_rules():
+    code, out, _ = run("diagnose", "--help")
+    text = " ".join(out.split())
+    assert code == 0 and "TUM, OpenVINS, EuRoC, ros-csv, ROS1 bag, ROS2 bag" in text
+    assert "the false-alarm level per segment" in text and "'-' reads standard input" in text
+
+
+def test_sighup_ends_a_run_like_sigterm(tmp_path, long_log):
+    proc = subprocess.Popen(
+        [*CREDCLI, "diagnose", long_log, "-f", "json", "-o", tmp_path / "o.json", "--jobs", "1"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGHUP)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 129 and err.strip() == "credcli: terminated (SIGHUP)"
+    assert list(tmp_path.iterdir()) == []

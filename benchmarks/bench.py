@@ -255,6 +255,18 @@ def _compile_bytecode() -> None:
     compileall.compile_dir(ROOT / "credcli", quiet=1)
 
 
+def _one_epoch_segments(path, n: int = 1_000_000) -> Path:
+    """A log of ``n`` one-epoch segments (issue 21: per-segment set-up is the cost)."""
+    import pandas as pd
+
+    path = Path(path)
+    e = np.random.default_rng(0).standard_normal((n, 2))
+    frame = pd.DataFrame({"time": np.arange(n) * 0.1, "segment": np.arange(n).astype(str)})
+    frame = frame.assign(truth_0=e[:, 0], truth_1=e[:, 1], est_0=0.0, est_1=0.0)
+    frame.assign(cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_parquet(path)
+    return path
+
+
 def main() -> int:
     _compile_bytecode()
     if sys.argv[1:] == ["dask"]:  # make bench-dask: the issue 13 rows only
@@ -284,6 +296,10 @@ def main() -> int:
             peak,
             "every label identical",
         )
+        tiny = Path(_in_child(f"_one_epoch_segments({str(tmp / 'tiny.parquet')!r})"))
+        times, peak = _run(["diagnose", str(tiny)], 1)
+        _report("diagnose: 1,000,000 one-epoch segments (table)", times, peak, "about 1 min")
+        tiny.unlink()
         one = Path(_in_child(f"_one_segment({str(tmp / 'one.parquet')!r})"))
         times, peak = _run(["diagnose", str(one), "-f", "json"], 1)
         _report("diagnose: one segment of 2,000,000 epochs", times, peak, "<= 600 MB")

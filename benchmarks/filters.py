@@ -24,22 +24,13 @@ from collections import Counter
 import numpy as np
 
 from credcli.engine.diagnosis import Label, diagnose_errors
-from credcli.studies.filters import TUNINGS, ekf_runs, rotating_bias_log
+from credcli.studies.filters import TUNINGS, ar1_errors, ekf_runs, rotating_bias_log
 
 
 def _shown(d) -> str:
     return d.label.value + (
         f" ({'+'.join(q.value for q in d.untested)} untested)" if d.untested else ""
     )
-
-
-def _ar1(rng, n, d, phi):
-    out = np.empty((n, d))
-    out[0] = rng.standard_normal(d)
-    noise = rng.standard_normal((n, d)) * math.sqrt(1 - phi**2)
-    for k in range(1, n):
-        out[k] = phi * out[k - 1] + noise[k]
-    return out
 
 
 def _se(p: float, n: int) -> float:
@@ -62,7 +53,7 @@ def ekf_table(runs: int = 20) -> None:
 
 def long_memory_table(segments: int = 200) -> None:
     rng = np.random.default_rng(7)
-    fast = [_ar1(rng, 6000, 2, 0.99) for _ in range(segments)]
+    fast = [ar1_errors(6000, 2, 0.99, rng) for _ in range(segments)]
     print(f"\nAR(1) φ = 0.99, correct covariance, {segments} segments of 60 s:")
     print(
         f"{'rate':<8}{'N':>6}{'κ covers 1':>12}{'± s.e.':>8}{'not credible':>14}{'± s.e.':>8}{'partial':>9}{'none':>6}"
@@ -97,7 +88,7 @@ def short_windows_table(segments: int = 200) -> None:
     rng = np.random.default_rng(8)
     diags = [
         diagnose_errors(
-            _ar1(rng, 120, 2, 0.95) / 3.0, np.broadcast_to(np.eye(2), (120, 2, 2)), rng=k
+            ar1_errors(120, 2, 0.95, rng) / 3.0, np.broadcast_to(np.eye(2), (120, 2, 2)), rng=k
         )
         for k in range(segments)
     ]

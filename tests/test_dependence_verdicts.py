@@ -16,17 +16,7 @@ from test_edges import error_line, run
 from credcli.engine import batches
 from credcli.engine.config import DiagnosisConfig, Label, Question
 from credcli.engine.diagnosis import diagnose_errors
-from credcli.studies.filters import TUNINGS, ekf_runs, rotating_bias_log
-
-
-def _ar1(rng, n, d, phi):
-    """AR(1) errors with unit marginal variance."""
-    out = np.empty((n, d))
-    out[0] = rng.standard_normal(d)
-    noise = rng.standard_normal((n, d)) * math.sqrt(1 - phi**2)
-    for k in range(1, n):
-        out[k] = phi * out[k - 1] + noise[k]
-    return out
+from credcli.studies.filters import TUNINGS, ar1_errors, ekf_runs, rotating_bias_log
 
 
 def _eye(n, d=2):
@@ -95,7 +85,7 @@ def long_memory():
     N = 6000, with the correct covariance; and of the same at a tenth of the rate
     (N = 600, φ = 0.99^10): one list per rate."""
     rng = np.random.default_rng(3)
-    fast = [_ar1(rng, 6000, 2, 0.99) for _ in range(60)]
+    fast = [ar1_errors(6000, 2, 0.99, rng) for _ in range(60)]
     config = DiagnosisConfig(max_elt_epochs=1000)  # the ELT on a subsample: a faster test
     return [
         [
@@ -166,7 +156,7 @@ def scale_only(tmp_path):
     """A short window of strongly dependent errors with a covariance 9× too large: the scale
     is decided (pessimism), the location cannot be (too few batches or blocks)."""
     rng = np.random.default_rng(5)
-    e = _ar1(rng, 120, 2, 0.95) / 3.0
+    e = ar1_errors(120, 2, 0.95, rng) / 3.0
     d = diagnose_errors(e, _eye(120), rng=0)
     return e, d
 
@@ -208,7 +198,7 @@ def test_the_gate_sees_a_question_that_is_no_longer_tested(tmp_path, scale_only)
     import pandas as pd
 
     rng = np.random.default_rng(6)
-    long = _write(tmp_path, np.r_[scale_only[0], _ar1(rng, 2000, 2, 0.95) / 3.0])
+    long = _write(tmp_path, np.r_[scale_only[0], ar1_errors(2000, 2, 0.95, rng) / 3.0])
     baseline = tmp_path / "base.json"
     assert run("baseline", long, "-o", baseline)[0] == 0
     short = tmp_path / "short.csv"

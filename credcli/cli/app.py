@@ -6,6 +6,7 @@ Errors raised as CredcliError (and usage errors) become one line on stderr and e
 from __future__ import annotations
 
 import enum
+import errno
 import re
 import sys
 from pathlib import Path
@@ -1588,7 +1589,7 @@ def _run(command, args: list[str], debug: bool) -> int:
         if exc.errno not in USER_ERRNOS:
             return _internal_error(exc, debug)
         _traceback(debug)
-        if exc.filename is None and exc.errno == __import__("errno").ENOSPC:
+        if exc.filename is None and exc.errno == errno.ENOSPC:
             _silence_stdout()  # so that Python's own flush at exit does not fail again
         print(f"credcli: error: {describe_os_error(exc)}", file=sys.stderr)
         return 2

@@ -1,13 +1,16 @@
 """Files: TOML configs in, outputs written safely.
 
 Outputs never clobber an input and never leave a half-written file: a regular file is
-written to a temporary file beside it and renamed over the target; anything else that
-already exists (a device such as /dev/null, a FIFO, /dev/stdout on a pipe or terminal) is
-written directly, since renaming over it would replace it with a regular file.
+written unnamed (O_TMPFILE) or to a temporary file beside it, and renamed over the target
+(:func:`write_atomic`); anything else that already exists (a device such as /dev/null, a
+FIFO, /dev/stdout on a pipe or terminal) is written directly, since renaming over it would
+replace it with a regular file. An OSError about the user's files is described in one line
+(:func:`describe_os_error`).
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 import tempfile
@@ -93,8 +96,6 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
     temporary file behind; elsewhere it is a named temporary file beside the target, removed
     on any error or signal that Python sees."""
     path = Path(path)
-    if str(path).endswith(os.sep):
-        raise CredcliError(f"{path}: ends with '{os.sep}', a directory; give a file name")
     check_outputs({"output": path}, inputs)
     data = text.encode() if isinstance(text, str) else text
     try:
@@ -120,7 +121,7 @@ def shown(name: object, limit: int = 120) -> str:
 
 
 USER_ERRNOS = frozenset(
-    getattr(__import__("errno"), name)
+    getattr(errno, name)
     for name in (
         "ENOSPC",
         "EDQUOT",
@@ -139,7 +140,7 @@ USER_ERRNOS = frozenset(
         "EIO",
         "ESTALE",
     )
-    if hasattr(__import__("errno"), name)
+    if hasattr(errno, name)
 )
 """Errors of the user's files and devices (exit 2), not of credcli (exit 3)."""
 
@@ -151,8 +152,6 @@ def describe_os_error(exc: OSError) -> str:
 
 
 def os_reason(exc: OSError) -> str:
-    import errno
-
     if exc.errno == errno.ENAMETOOLONG:
         return "the file name or path is too long for this system; choose a shorter one"
     if exc.errno == errno.ENOSPC:
@@ -188,8 +187,6 @@ def _write_unnamed(target: Path, data: bytes) -> bool:
     try:
         fd = os.open(target.parent, flag | os.O_WRONLY, _mode())
     except OSError as exc:
-        import errno
-
         if exc.errno in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL, errno.ENOENT):
             return False
         raise

@@ -142,3 +142,14 @@ def rotating_bias_log(
     chol = np.linalg.cholesky(cov)
     errors = np.einsum("nij,nj->ni", chol, rng.standard_normal((n, 2)))
     return errors + np.array([bias_sigma, 0.0]), cov
+
+
+def ar1_errors(n: int, d: int, phi: float, seed: RngLike = 0) -> np.ndarray:
+    """(n, d) stationary AR(1) errors with unit variance: e_k = φ e_{k−1} + √(1 − φ²) z_k,
+    started from the stationary law (e_0 = z_0), filtered in one pass (no loop over time).
+    Their correlation time is (1 + φ)/(1 − φ) epochs; with φ = 0.99, 199."""
+    from scipy.signal import lfilter
+
+    z = as_generator(seed).standard_normal((n, d))
+    c = float(np.sqrt(1.0 - phi**2))
+    return lfilter([c], [1.0, -phi], z, axis=0, zi=(1.0 - c) * z[:1])[0]

@@ -621,3 +621,39 @@ def test_sighup_ends_a_run_like_sigterm(tmp_path, long_log):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 129 and err.strip() == "credcli: terminated (SIGHUP)"
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+def test_ctrl_c_on_a_local_dask_cluster_is_one_line_and_leaves_nothing(tmp_path, long_log):
+    pytest.importorskip("distributed")
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {**os.environ, "TMPDIR": str(scratch)}
+    proc = subprocess.Popen(
+        [
+            *CREDCLI,
+            "diagnose",
+            long_log,
+            "--scheduler",
+            "local:2",
+            "-f",
+            "json",
+            "-o",
+            tmp_path / "out.json",
+        ],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env=env,
+    )
+    deadline = time.monotonic() + 60
+    while len(_children(proc.pid)) < 2 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(3.0)  # the workers run tasks
+    os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends it: to the whole group
+    _, err = proc.communicate(timeout=90)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert proc.returncode == 130 and lines == ["credcli: interrupted"], err
+    assert not (tmp_path / "out.json").exists()
+    assert list(scratch.iterdir()) == [], "Dask's scratch space was left behind"

@@ -343,7 +343,8 @@ FailOnOpt = Annotated[
         "--fail-on",
         help="Exit 1 if a segment fails any of these (comma-separated): a condition "
         "(optimism, pessimism, smm: every label containing it), a combined label "
-        "(optimism+smm: that label only), insufficient-data, or noncredible.",
+        "(optimism+smm: that label only), insufficient-data, untested (a partial verdict), "
+        "or noncredible (all but a complete credible).",
     ),
 ]
 MonteCarloOpt = Annotated[
@@ -473,7 +474,7 @@ PlotsOpt = Annotated[
     typer.Option(
         "--plots",
         parser=_file_name,
-        metavar="FILE",
+        metavar="DIR",
         help="Write PNG figures into this directory (needs credcli[plots]).",
     ),
 ]

@@ -29,8 +29,10 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
 )
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.scale import (
+    DirectionScales,
     ScaleTest,
     batch_scale_test,
+    direction_scales,
     gls_residuals,
     scale_test,
     untested_scale,
@@ -69,6 +71,8 @@ class Diagnosis:
     config: DiagnosisConfig = field(default_factory=DiagnosisConfig, repr=False)
     mean_test: batches.MeanTest | None = None
     untested: tuple[Question, ...] = ()
+    directions: DirectionScales | None = None  # per principal direction (calibrated, d > 1)
+    by_direction: bool = False  # the noise label comes from the directions (mixed, anisotropic)
 
     @property
     def partial(self) -> bool:
@@ -234,12 +238,16 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
     # every scale and mean test now, so the GLS residuals can be freed
     scales: dict = {}
     means: dict = {}
+    directional: dict = {}
     tau_q = float(dependence.variance_ratio(gls.q)[0]) if dependent else 1.0
     for config in configs:
         batched = _batched(config, dependent)
         key = _scale_key(config, batched)
         if key not in scales:
             scales[key] = _scale_evidence(gls, config, tau, tau_q, batched)
+            if config.calibrated and d > 1 and scales[key][1] is None:
+                k = scales[key][0].batches
+                directional[key] = direction_scales(gls, config.scale_level, k)
         mean_key = (batched, config.fixed_block_length)
         if config.calibrated and mean_key not in means:
             means[mean_key] = _mean_evidence(gls, config, tau, batched)
@@ -257,8 +265,10 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
             out.append(_too_short(n, d, config))
             continue
         scale, scale_reason = scales[_scale_key(config, _batched(config, dependent))]
+        directions = None
         if config.calibrated and scale_reason is None:
             scale_reason = _inconclusive_scale(scale, config)
+            directions = directional.get(_scale_key(config, _batched(config, dependent)))
         block = plan.block
         common = {
             "n": n,
@@ -276,6 +286,13 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
             "config": config,
             "mean_test": plan.mean_test,
         }
+        noise_override = None
+        if directions is not None and _mixed(directions, config):
+            noise_override = _direction_noise(directions, config)
+            if noise_override is not None:
+                scale_reason = None  # decided along a principal direction
+        common["directions"] = directions
+        common["by_direction"] = noise_override is not None
         untested = tuple(
             q
             for q, missing in (
@@ -321,7 +338,9 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
         scores = (
             metrics.probes_scored(errors, scorer, chol, config.c, absolute) if everything else None
         )
-        if config.calibrated:
+        if config.calibrated and noise_override is not None:
+            label = Label.compose(noise_override, smm)
+        elif config.calibrated:
             label = _calibrated_label(None if scale_reason else scale, smm, config)
         elif smm:
             label = _label_with_smm(nci_centred, probes, config.tau_nci)
@@ -494,6 +513,30 @@ def _inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None
         f"finds no misfit but does not exclude one of a factor {CREDIBLE_FACTOR:g} "
         "(too few independent batches for a tighter interval)"
     )
+
+
+def _mixed(directions: DirectionScales, config: DiagnosisConfig) -> bool:
+    """Whether the directions disagree in sign: one too large and another too small, each
+    beyond its interval and the relevance floor. One factor for the whole covariance is then
+    the wrong advice, and the label follows the directions (optimism)."""
+    db = 10.0 * np.log10(np.maximum(directions.factors, np.finfo(float).tiny))
+    too_small = np.any((directions.low > 1.0) & (db > config.tau_nci))
+    too_large = np.any((directions.high < 1.0) & (db < -config.tau_nci))
+    return bool(too_small and too_large)
+
+
+def _direction_noise(directions: DirectionScales, config: DiagnosisConfig) -> str | None:
+    """The noise label from the principal directions, where the overall scale test was
+    inconclusive: "optimism" when some direction's factor is above 1 (interval and relevance
+    floor τ), whatever the others do, since a covariance too small in one direction makes
+    the estimator overconfident there (mixed directions are optimism; the advice gives the
+    matrix correction); else "pessimism" when some direction's is below 1; else None."""
+    db = 10.0 * np.log10(np.maximum(directions.factors, np.finfo(float).tiny))
+    if np.any((directions.low > 1.0) & (db > config.tau_nci)):
+        return "optimism"
+    if np.any((directions.high < 1.0) & (db < -config.tau_nci)):
+        return "pessimism"
+    return None
 
 
 def _noise(scale: ScaleTest, config: DiagnosisConfig) -> str | None:

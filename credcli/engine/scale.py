@@ -170,6 +170,19 @@ def tail_factor(u: np.ndarray, gate: float = TAIL_GATE) -> float:
     return 1.0 + (d + 2) * kurtosis / 6.0
 
 
+def standardized(u: np.ndarray) -> np.ndarray:
+    """The whitened residuals in their principal directions, each divided by its own
+    spread: what the tail check pools. Unequal variances between directions are a misfit of
+    the covariance's shape, not heavy tails, and would otherwise read as tails (issue 22:
+    whitened variances (4, 0.25) gave 42 % `credible`)."""
+    n, d = u.shape
+    if d == 1:
+        return u
+    values, vectors = np.linalg.eigh(u.T @ u / max(n - 1, 1))
+    scale = np.sqrt(np.maximum(values, np.finfo(float).tiny))
+    return (u @ vectors) / scale
+
+
 def scale_test(
     residuals: GlsResiduals,
     level: float,
@@ -291,3 +304,62 @@ def untested_scale(residuals: GlsResiduals) -> ScaleTest:
         bias_stderr=np.full(d, nan),
         bias_mahalanobis=float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean))),
     )
+
+
+DIRECTION_POWER = 3
+"""Each direction's interval is at level/d³: Bonferroni over the d directions, and d² more
+because the directions are chosen from the data (the largest of d eigenvalues is biased
+up). Measured on credible i.i.d. segments, N = 25, d = 2, 1,000 trials: at level/d the
+false alarms rose from 4.1 % to 7.4 %, at level/d³ they are 4.3 %; anisotropic mismatch
+at N = 100 is decided as often either way (93-98 %)."""
+
+
+@dataclass(frozen=True)
+class DirectionScales:
+    """The covariance factor along each principal direction of the whitened residuals.
+
+    ``vectors`` (d, d) holds the directions as columns (whitened coordinates), ``factors``
+    the mean squared residual along each (the eigenvalues of Ŝ = Σ u_k u_kᵀ/(N − 1)), with
+    intervals each two-sided at level/d³ (:data:`DIRECTION_POWER`). In whitened
+    coordinates the corrected covariance is L_k Ŝ L_kᵀ: ``vectors`` and ``factors`` are
+    that matrix correction."""
+
+    vectors: np.ndarray
+    factors: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+
+def direction_scales(residuals: GlsResiduals, level: float, batches: int = 0) -> DirectionScales:
+    """Per-direction factors of the whitened GLS residuals u_k (N, d).
+
+    For independent epochs each direction's w_k² = (v_iᵀu_k)² is referred to χ² with
+    (N − 1)/f degrees of freedom, f the tail factor of the residuals standardized per
+    direction (:func:`standardized`): pooled components of unequal variances look like heavy
+    tails, standardized ones do not. With ``batches`` K > 0 (dependent epochs), Student's t on the
+    log of the batch means of w_k², as :func:`credcli.engine.batches.batch_scale`. The
+    directions are estimated from the same data, so the largest factor is biased up a
+    little; the rule uses these intervals only where the overall test is inconclusive.
+    """
+    u = residuals.whitened
+    n, d = u.shape
+    values, vectors = np.linalg.eigh(u.T @ u / max(n - 1, 1))
+    order = np.argsort(values)[::-1]
+    values, vectors = values[order], vectors[:, order]
+    w2 = (u @ vectors) ** 2
+    each = level / d**DIRECTION_POWER
+    low, high = np.empty(d), np.empty(d)
+    if batches:
+        from credcli.engine.batches import batch_scale
+
+        for i in range(d):
+            r = batch_scale(w2[:, i], 1, batches, each)
+            low[i], high[i] = r.scale_factor_low, r.scale_factor_high
+    else:
+        f = tail_factor(standardized(u))
+        for i in range(d):
+            dof = (n - 1) / f
+            x = values[i] * (n - 1) / f
+            low[i] = x / float(special.chdtri(dof, each / 2))
+            high[i] = x / float(special.chdtri(dof, 1 - each / 2))
+    return DirectionScales(vectors, values, low, high)

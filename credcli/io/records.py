@@ -48,6 +48,7 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     """
     elt = diag.elt
     sc = diag.scale
+    dirs = diag.directions
     mean = diag.mean_test
     rec = {
         "n": diag.n,
@@ -82,12 +83,21 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "bias": None if sc is None else [float(v) for v in sc.bias],
         "bias_stderr": None if sc is None else [float(v) for v in sc.bias_stderr],
         "bias_mahalanobis": None if sc is None else sc.bias_mahalanobis,
+        "direction_factors": _floats(None if dirs is None else dirs.factors),
+        "direction_factors_low": _floats(None if dirs is None else dirs.low),
+        "direction_factors_high": _floats(None if dirs is None else dirs.high),
+        "directions": None if dirs is None else [_floats(v) for v in dirs.vectors.T],
+        "scale_by_direction": diag.by_direction,
         "block_length": diag.block_length,
         "effective_n": diag.effective_n,
         "autocorrelation": diag.autocorrelation,
         "reason": diag.reason,
     }
     return {k: json_value(v) for k, v in rec.items()}
+
+
+def _floats(values) -> list | None:
+    return None if values is None else [json_value(float(v)) for v in values]
 
 
 def segment_record(result: SegmentDiagnosis) -> dict:

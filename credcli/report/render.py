@@ -149,13 +149,33 @@ def advice(rec: dict) -> str | None:
     parts = []
     if untested:
         parts.append(f"{' and '.join(untested)} untested: {rec['reason']}")
-    if "optimism" in label or "pessimism" in label:
+    if rec.get("scale_by_direction"):
+        parts.append(direction_advice(rec))
+    elif "optimism" in label or "pessimism" in label:
         parts.append(f"multiply the covariance by {scale_interval(rec)}")
     if "smm" in label:
         bias = ", ".join(_number(b) for b in rec["bias"])
         parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
         parts.append(_smm_hint(rec))
     return f"{rec['segment']}: " + "; ".join(p for p in parts if p)
+
+
+def direction_advice(rec: dict) -> str:
+    """The matrix correction of a scale decided along principal directions: the factor
+    (interval) along each direction of the whitened errors, Σ̂_k to become L_k Ŝ L_kᵀ."""
+    parts = [
+        f"{_number(f)} ({_number(lo)}–{_number(hi)}) along ({', '.join(_number(c) for c in v)})"
+        for f, lo, hi, v in zip(
+            rec["direction_factors"],
+            rec["direction_factors_low"],
+            rec["direction_factors_high"],
+            rec["directions"],
+        )
+    ]
+    return (
+        "the misfit differs between directions; multiply the covariance, in whitened "
+        "coordinates, by " + ", ".join(parts) + " (Σ̂_k → L_k Ŝ L_kᵀ)"
+    )
 
 
 def _smm_hint(rec: dict) -> str:

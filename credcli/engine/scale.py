@@ -328,6 +328,7 @@ class DirectionScales:
     factors: np.ndarray
     low: np.ndarray
     high: np.ndarray
+    sphericity_pvalue: float | None = None  # :func:`sphericity_pvalue`
 
 
 def direction_scales(residuals: GlsResiduals, level: float, batches: int = 0) -> DirectionScales:
@@ -362,4 +363,41 @@ def direction_scales(residuals: GlsResiduals, level: float, batches: int = 0) ->
             x = values[i] * (n - 1) / f
             low[i] = x / float(special.chdtri(dof, each / 2))
             high[i] = x / float(special.chdtri(dof, 1 - each / 2))
-    return DirectionScales(vectors, values, low, high)
+    return DirectionScales(vectors, values, low, high, sphericity_pvalue(residuals, batches))
+
+
+def sphericity_pvalue(residuals: GlsResiduals, batches: int = 0) -> float | None:
+    r"""p-value of "the misfit is the same in every direction" (Ŝ ∝ I), or None.
+
+    Independent epochs: Mauchly's test with Bartlett's correction (Mauchly 1940),
+    :math:`-(n - \frac{2d^2 + d + 2}{6d}) \ln W \sim \chi^2_{d(d+1)/2 - 1}`,
+    :math:`W = \det\hat S / (\operatorname{tr}\hat S / d)^d`, n = N − 1; it assumes Gaussian
+    errors (heavy tails make it reject more often). With ``batches`` K (dependent epochs):
+    Hotelling on the batch means of the m = d(d+1)/2 − 1 contrasts u_iu_j (i < j) and
+    u_i² − u_1², referred to F(m, K − m); None when K <= m + 2. Reported, not used by the
+    labels, which follow the per-direction intervals (:func:`direction_scales`)."""
+    u = residuals.whitened
+    n_epochs, d = u.shape
+    if d < 2:
+        return None
+    m = d * (d + 1) // 2 - 1
+    if batches:
+        if batches <= m + 2:
+            return None
+        from credcli.engine.batches import batch_mean_test, bounds
+
+        iu = np.triu_indices(d, 1)
+        contrasts = np.c_[(u[:, iu[0]] * u[:, iu[1]]), u[:, 1:] ** 2 - u[:, :1] ** 2]
+        starts = bounds(n_epochs, batches)
+        sizes = np.diff(np.r_[starts, n_epochs])[:, None]
+        means = np.add.reduceat(contrasts, starts, axis=0) / sizes
+        return batch_mean_test(means).pvalue
+    n = n_epochs - 1
+    s = u.T @ u / n
+    sign, logdet = np.linalg.slogdet(s)
+    trace = float(np.trace(s))
+    if sign <= 0 or not trace > 0:
+        return 0.0
+    log_w = logdet - d * np.log(trace / d)
+    statistic = -(n - (2 * d * d + d + 2) / (6 * d)) * log_w
+    return float(special.chdtrc(m, max(statistic, 0.0)))

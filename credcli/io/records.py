@@ -88,6 +88,7 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "direction_factors_high": _floats(None if dirs is None else dirs.high),
         "directions": None if dirs is None else [_floats(v) for v in dirs.vectors.T],
         "scale_by_direction": diag.by_direction,
+        "sphericity_pvalue": None if dirs is None else dirs.sphericity_pvalue,
         "block_length": diag.block_length,
         "effective_n": diag.effective_n,
         "autocorrelation": diag.autocorrelation,

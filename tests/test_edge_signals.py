@@ -286,7 +286,13 @@ def test_a_std_whose_square_overflows_is_named(tmp_path):
 
 
 def test_json_output_takes_non_finite_numbers():
-    from credcli.report.render import json_safe
+    from credcli.report.render import OutputFormat, Report, json_safe, to_text
+
+    doc = {"a": [1.0, float("inf")], "b": {"c": float("nan")}}
+    assert json.loads(to_text(Report([], doc), OutputFormat.JSON)) == {
+        "a": [1.0, None],
+        "b": {"c": None},
+    }
 
     assert json_safe({"a": [1.0, float("inf")], "b": (float("nan"),)}) == {
         "a": [1.0, None],

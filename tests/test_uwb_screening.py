@@ -42,9 +42,15 @@ def test_s5_stale_packets_are_screened_and_windows_agree_with_the_ranges():
     assert all(s["range_label"] == "pessimism+smm" and s["range_agrees"] for s in doc["segments"])
     unscreened = _json(S5, "--std", "0.1", "--window", "10s", "--variant", "ks", "--screen", "none")
     assert any(s["label"] != "pessimism+smm" for s in unscreened["segments"])
-    # the calibrated rule: a verdict where the dependence allows one, and it agrees
+    # the calibrated rule: a verdict where the dependence allows one; every misfit it finds
+    # is one the ranges show (a window may miss one: a test that does not reject), and most
+    # decided windows agree in full
     calibrated = _json(S5, "--std", "0.1", "--window", "10s")
-    assert all(s["range_agrees"] in (True, None) for s in calibrated["segments"])
+    decided = [s for s in calibrated["segments"] if s["label"] != "insufficient-data"]
+    for s in decided:
+        found = set(s["label"].split("+")) - {"credible"}
+        assert found <= set(s["range_label"].split("+")), (s["label"], s["range_label"])
+    assert sum(s["range_agrees"] is True for s in decided) > len(decided) / 2
 
 
 @real_s5

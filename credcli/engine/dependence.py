@@ -11,8 +11,14 @@ squared errors the same way. The calibrated rule needs two numbers from the data
 Long-run variance: Bartlett kernel after AR(1) prewhitening (Andrews & Monahan 1992,
 Econometrica 60(4), Eq. (2.4)), with the Andrews (1991, Econometrica 59(3), Eqs. (5.1)–(5.3),
 (6.4)) AR(1) plug-in bandwidth S = 1.1447 (α̂(1) T)^{1/3},
-α̂(1) = 4ρ̂²/((1 − ρ̂)²(1 + ρ̂)²). The prewhitening coefficient is capped at ±0.97, as
-Andrews & Monahan recommend, so that recolouring by 1/(1 − ρ̂)² stays bounded.
+α̂(1) = 4ρ̂²/((1 − ρ̂)²(1 + ρ̂)²). The prewhitening coefficient is capped at ±0.999, so
+that recolouring by 1/(1 − ρ̂)² stays bounded (τ̂ <= 1999). Andrews & Monahan cap it at
+0.97, for near-unit-root regressors in samples of a few hundred; a filter's errors at 100 Hz
+have lag-1 autocorrelations of 0.99 and more in samples of thousands, and with the 0.97 cap
+τ̂ of an AR(1) with φ = 0.99 (τ = 199) was 28 (median of 50 series of 6,000 epochs; 10–90 %:
+25–32): sign blocks and batches a seventh as long as needed, and the ELT rejected 4.5 % of
+correct covariances at 1.27 %. With the 0.999 cap: median 210 (178–252), and 175 (102–320)
+on 600 epochs.
 
 Block length: with τ = Ω/γ(0), a sign flip of blocks of length L loses the covariance
 across block boundaries, a fraction G/(L Ω) of the variance (G = 2 Σ_h h γ(h), the notation
@@ -28,7 +34,7 @@ import math
 import numpy as np
 
 _BARTLETT_CONSTANT = 1.1447  # Andrews (1991), Eq. (6.4), Bartlett kernel
-_MAX_PREWHITEN = 0.97  # Andrews & Monahan (1992): cap on the AR(1) prewhitening coefficient
+_MAX_PREWHITEN = 0.999  # cap on the AR(1) prewhitening coefficient (see above)
 BLOCK_VARIANCE_LOSS = 0.1
 """ε: the largest fraction of the statistic's variance a block sign flip may lose."""
 

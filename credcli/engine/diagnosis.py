@@ -422,7 +422,7 @@ def _scale_evidence(gls, config: DiagnosisConfig, tau, tau_q: float, batched: bo
             f"{tau_q:.3g}) needs batches of {length} epochs, and fewer than the "
             f"{batches.MIN_SCALE_BATCHES} the scale test needs fit in {n}"
         )
-    return batch_scale_test(gls, config.scale_level, k), None
+    return batch_scale_test(gls, config.scale_level, k, tau_q, tau), None
 
 
 def _mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool):
@@ -442,7 +442,7 @@ def _mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool):
             f"for the mean test, and fewer than the {smallest} it needs fit in {n}"
         )
     sums = np.add.reduceat(gls.scores, batches.bounds(n, k), axis=0)
-    return batches.batch_mean_test(sums), None
+    return batches.batch_mean_test(sums, batches.boundary_inflation(worst, n, k)), None
 
 
 @dataclass(frozen=True)

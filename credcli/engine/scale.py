@@ -252,19 +252,26 @@ def scale_test(
     )
 
 
-def batch_scale_test(residuals: GlsResiduals, level: float, k: int) -> ScaleTest:
+def batch_scale_test(
+    residuals: GlsResiduals, level: float, k: int, tau_q: float = 1.0, taus=None
+) -> ScaleTest:
     """The scale test on serially dependent errors: batch means with ``k`` batches
     (:func:`credcli.engine.batches.batch_scale`), and the bias's standard error from the
-    batch sums of the GLS scores (their covariance times K is that of Σ W_k e_k)."""
-    from credcli.engine.batches import batch_scale, bounds
+    batch sums of the GLS scores (their covariance times K is that of Σ W_k e_k). ``tau_q``
+    and ``tau`` (the variance ratios of q and of the whitened errors) correct both for the
+    correlation of neighbouring batches (:func:`credcli.engine.batches.boundary_inflation`)."""
+    from credcli.engine.batches import batch_scale, boundary_inflation, bounds
 
     q = residuals.q
     n, d = residuals.whitened.shape
-    result = batch_scale(q, d, k, level)
+    taus = np.ones(d) if taus is None else np.asarray(taus, dtype=float)
+    centring = float(np.sum(np.maximum(taus, 1.0)))
+    result = batch_scale(q, d, k, level, boundary_inflation(tau_q, n, k), centring)
     starts = bounds(n, k)
     sums = np.add.reduceat(residuals.scores, starts, axis=0)
     cov_mean = np.linalg.inv(residuals.precision_sum)
-    cov_sum = k * np.cov(sums, rowvar=False).reshape(d, d)
+    inflation = boundary_inflation(float(np.max(taus)), n, k)
+    cov_sum = k * inflation * np.cov(sums, rowvar=False).reshape(d, d)
     stderr = np.sqrt(np.clip(np.diag(cov_mean @ cov_sum @ cov_mean), 0.0, None))
     mean = residuals.mean
     mahalanobis = float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean)))

@@ -99,10 +99,10 @@ def _size(path) -> int:
 
 def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
-    source, items, config, seed, innovations, runs = task
+    source, items, config, seed, innovations, runs, blocks = task
     out = []
     for name, t0, t1, e, c in items:
-        diag = diagnose_segment(e, c, config, seed, name, source, runs)
+        diag = diagnose_segment(e, c, config, seed, name, source, runs, blocks)
         white = innovation_whiteness(e, c) if innovations else None
         out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
     return out
@@ -128,18 +128,18 @@ def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray) -> tuple:
 def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1):
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
     epochs (one segment per task for target 0); made as they are consumed."""
-    items, size, source = [], 0, None
+    items, size, source, blocks = [], 0, None, ()
     for log, segments in plans:
         errors = log.errors
         for segment in segments:
             if items and (size >= target or source != log.source):
-                yield (source, items, config, seed, innovations, runs)
+                yield (source, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
-            source = log.source
+            source, blocks = log.source, log.blocks
             items.append(_item(segment, errors, log.cov))
             size += len(segment.index)
     if items:
-        yield (source, items, config, seed, innovations, runs)
+        yield (source, items, config, seed, innovations, runs, blocks)
 
 
 def diagnose_plans(
@@ -368,7 +368,7 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
     source, first, stop, config, seed, innovations = task
     log, segments, errors = _worker_log(source)
     items = [_item(segment, errors, log.cov) for segment in segments[first:stop]]
-    return _diagnose_chunk((log.source, items, config, seed, innovations, 1))
+    return _diagnose_chunk((log.source, items, config, seed, innovations, 1, log.blocks))
 
 
 def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=None):

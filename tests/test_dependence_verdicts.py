@@ -395,3 +395,64 @@ def test_sphericity_test_holds_its_level_and_sees_a_shape():
     assert abs(batch - 0.05) < 3 * math.sqrt(0.05 * 0.95 / 200), batch
     shaped = rng.standard_normal((300, 2)) * [2.0, 0.5]
     assert sphericity_pvalue(gls_residuals(shaped, np.eye(2))) < 1e-10
+
+
+# --- shape: factors per block of the state (--states pose) ------------------------------------
+
+
+def test_block_factors_are_the_marginal_scale_factors():
+    """Each block's κ̂ is the calibrated κ̂ of its marginal errors against its block of Σ̂
+    (the same estimator), and its interval, at α_S/2, is wider than the marginal's at α_S."""
+    from credcli.engine.diagnosis import block_scales
+
+    rng = np.random.default_rng(21)
+    e = rng.standard_normal((800, 5)) * [1, 1, 1, 2, 2]
+    cov = _eye(800, 5)
+    blocks = (("position", (0, 1, 2)), ("orientation", (3, 4)))
+    found = block_scales(e, cov, blocks, DiagnosisConfig())
+    assert [b.name for b in found] == ["position", "orientation"]
+    for b in found:
+        idx = list(b.indices)
+        alone = diagnose_errors(e[:, idx], _eye(800, len(idx)), rng=0).scale
+        assert b.factor == pytest.approx(alone.scale_factor, rel=1e-12)
+        assert b.low < alone.scale_factor_low and b.high > alone.scale_factor_high
+    assert found[0].low < 1.0 < found[0].high and found[1].low < 4.0 < found[1].high
+
+
+def test_block_intervals_cover_jointly():
+    """Position right, orientation 4× optimistic, 6-d, 300 epochs: both block intervals
+    (each at α_S/2) cover their true factor together in >= 1 − α_S − 2 s.e. of 200 segments."""
+    from credcli.engine.diagnosis import block_scales
+
+    rng = np.random.default_rng(22)
+    blocks = (("position", (0, 1, 2)), ("orientation", (3, 4, 5)))
+    config = DiagnosisConfig()
+    covered = 0
+    trials = 200
+    for _ in range(trials):
+        e = rng.standard_normal((300, 6)) * [1, 1, 1, 2, 2, 2]
+        b = block_scales(e, _eye(300, 6), blocks, config)
+        covered += b[0].low <= 1.0 <= b[0].high and b[1].low <= 4.0 <= b[1].high
+    nominal = 1 - config.scale_level
+    assert covered / trials >= nominal - 2 * math.sqrt(nominal * (1 - nominal) / trials), covered
+
+
+def test_pose_log_reports_position_and_orientation_factors():
+    """The OpenVINS sample plants a right position covariance and an orientation
+    covariance 4× too small: the JSON and the advice line say so per block."""
+    from test_edges import ROOT
+
+    formats = ROOT / "sample_data" / "formats"
+    args = ("diagnose", formats / "openvins_estimate.txt", "--truth")
+    args += (formats / "tum_groundtruth.txt", "--states", "pose")
+    code, out, err = run(*args, "-f", "json")
+    assert code == 0, err
+    seg = json.loads(out)["segments"][0]
+    assert seg["block_names"] == ["position", "orientation"]
+    low, high = seg["block_factors_low"], seg["block_factors_high"]
+    assert low[0] < 1.0 < high[0] and low[1] < 4.0 < high[1] and low[1] > 2.0
+    code, out, err = run(*args)
+    assert code == 0 and "by block: position 0.9" in out and ", orientation 4" in out
+    # a position-only log has no blocks
+    code, out, err = run(*args[:-2], "-f", "json")
+    assert json.loads(out)["segments"][0]["block_names"] is None

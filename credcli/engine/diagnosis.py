@@ -42,6 +42,19 @@ from credcli.errors import CredcliError
 
 
 @dataclass(frozen=True)
+class BlockScale:
+    """The scale factor of one named block of the state (its marginal errors against its
+    block of the claimed covariance), with its interval at the scale level shared among
+    the blocks (Bonferroni); NaN bounds when the block's scale cannot be tested."""
+
+    name: str
+    indices: tuple[int, ...]
+    factor: float
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
 class Diagnosis:
     """Result of Algorithm 1 on one segment, with every intermediate number.
 
@@ -73,6 +86,7 @@ class Diagnosis:
     untested: tuple[Question, ...] = ()
     directions: DirectionScales | None = None  # per principal direction (calibrated, d > 1)
     by_direction: bool = False  # the noise label comes from the directions (mixed, anisotropic)
+    blocks: tuple[BlockScale, ...] = ()  # per named block of the state (pose: position, ...)
 
     @property
     def partial(self) -> bool:
@@ -407,12 +421,14 @@ def _batch_length(config: DiagnosisConfig, tau: float) -> int:
     return config.fixed_block_length or batches.batch_length(tau)
 
 
-def _scale_evidence(gls, config: DiagnosisConfig, tau, tau_q: float, batched: bool):
+def _scale_evidence(gls, config: DiagnosisConfig, tau, tau_q: float, batched: bool, level=None):
     """(scale test or None, why it is untested): batch means on dependent epochs, else the
-    χ² (Satterthwaite-scaled) test of :func:`credcli.engine.scale.scale_test`."""
+    χ² (Satterthwaite-scaled) test of :func:`credcli.engine.scale.scale_test`; at
+    ``level`` (default: the configuration's α_S)."""
+    level = config.scale_level if level is None else level
     if not batched:
         fixed = config.block_length == 1
-        return scale_test(gls, config.scale_level, None if fixed else tau), None
+        return scale_test(gls, level, None if fixed else tau), None
     n = gls.whitened.shape[0]
     length = _batch_length(config, tau_q)
     k = batches.batch_count(n, length, batches.MIN_SCALE_BATCHES)
@@ -422,7 +438,7 @@ def _scale_evidence(gls, config: DiagnosisConfig, tau, tau_q: float, batched: bo
             f"{tau_q:.3g}) needs batches of {length} epochs, and fewer than the "
             f"{batches.MIN_SCALE_BATCHES} the scale test needs fit in {n}"
         )
-    return batch_scale_test(gls, config.scale_level, k, tau_q, tau), None
+    return batch_scale_test(gls, level, k, tau_q, tau), None
 
 
 def _mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool):
@@ -625,7 +641,13 @@ def diagnose_log(
     out = []
     for done, seg in enumerate(segments, start=1):
         diag = diagnose_segment(
-            errors[seg.index], log.cov[seg.index], config, seed, seg.name, log.source
+            errors[seg.index],
+            log.cov[seg.index],
+            config,
+            seed,
+            seg.name,
+            log.source,
+            blocks=getattr(log, "blocks", ()),
         )
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
@@ -649,15 +671,67 @@ def diagnose_segment(
     name: str,
     source: str = "<memory>",
     runs: int = 1,
+    blocks: tuple = (),
 ) -> Diagnosis:
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
-    the log and the segment. ``runs``: see :func:`diagnose_errors`."""
+    the log and the segment. ``runs``: see :func:`diagnose_errors`; ``blocks``: named
+    blocks of the state (:data:`credcli.engine.lie.STATE_BLOCKS`) whose scale factors the
+    calibrated rule reports beside the overall one (:func:`block_scales`)."""
     try:
         errors, cov = metrics.check_errors_cov(errors, cov)
         n, d = errors.shape
         if n < config.min_n(d):  # checked as diagnose_errors checks, without a random stream
             _cholesky(cov)
             return _too_short(n, d, config)
-        return diagnose_errors(errors, cov, config, segment_seed(seed, name), runs=runs)
+        diag = diagnose_errors(errors, cov, config, segment_seed(seed, name), runs=runs)
+        if blocks and config.calibrated:
+            diag = replace(diag, blocks=block_scales(errors, cov, blocks, config))
+        return diag
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc
+
+
+def block_scales(
+    errors: np.ndarray, cov: np.ndarray, blocks: tuple, config: DiagnosisConfig
+) -> tuple[BlockScale, ...]:
+    """The scale factor of each named block of the state, as the calibrated rule finds the
+    overall one (batch means when the block's errors are serially dependent, the χ² test
+    otherwise), each interval at α_S divided by the number of blocks.
+
+    The marginal of a Gaussian error is Gaussian with the marginal block of the covariance,
+    so each block is a credibility question of its own (paper, Section II, for any d): a
+    pose filter can be right about its position and optimistic about its attitude, which
+    one factor for the 6×6 covariance averages away.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> e = rng.normal(size=(2000, 4)) * [1, 1, 2, 2]  # the second block's Σ̂ 4× too small
+    >>> cov = np.broadcast_to(np.eye(4), (2000, 4, 4))
+    >>> b = block_scales(e, cov, (("a", (0, 1)), ("b", (2, 3))), DiagnosisConfig())
+    >>> [(x.name, bool(x.low < k < x.high)) for x, k in zip(b, (1.0, 4.0))]
+    [('a', True), ('b', True)]
+    """
+    level = config.scale_level / len(blocks)
+    out = []
+    n = errors.shape[0]
+    for name, indices in blocks:
+        idx = np.asarray(indices)
+        e = errors[:, idx]
+        c = cov[:, idx[:, None], idx[None, :]]
+        gls = gls_residuals(e, _cholesky(c))
+        s = whiten(e, c)
+        dependent = dependence.serially_dependent(dependence.autocorrelation(s), n)
+        tau = dependence.variance_ratio(s) if dependent else np.ones(idx.size)
+        tau_q = float(dependence.variance_ratio(gls.q)[0]) if dependent else 1.0
+        test, _ = _scale_evidence(gls, config, tau, tau_q, _batched(config, dependent), level)
+        out.append(
+            BlockScale(
+                name,
+                tuple(int(i) for i in indices),
+                float(test.scale_factor),
+                float(test.scale_factor_low),
+                float(test.scale_factor_high),
+            )
+        )
+    return tuple(out)

@@ -30,6 +30,13 @@ COV_INDEX = {
 }
 """Rows/columns of the ROS 6×6 pose covariance that each choice of states keeps."""
 
+STATE_BLOCKS = {
+    States.POSE: (("position", (0, 1, 2)), ("orientation", (3, 4, 5))),
+    States.PLANAR: (("position", (0, 1)), ("heading", (2,))),
+}
+"""Named blocks of the error vector (indices into it) whose scale is reported separately:
+a filter may be right about its position and wrong about its attitude."""
+
 NEEDS_ORIENTATION = {States.ORIENTATION, States.POSE, States.PLANAR}
 """States that need orientations (planar: for the yaw, and the right perturbation)."""
 

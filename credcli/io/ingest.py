@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from credcli.engine import lie
 from credcli.engine.config import Perturbation, States
 from credcli.errors import CredcliError
 from credcli.io.formats import Trajectory, read_bag_pair, read_trajectory
@@ -165,13 +166,12 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
         state_errors=errors,
         notes=notes,
         unpaired=pairing.dropped,
+        blocks=lie.STATE_BLOCKS.get(states, ()),
     )
 
 
 def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: ReadOptions):
     """(states, errors, covariance, note on the convention) of the paired epochs."""
-    from credcli.engine import lie
-
     keep = pairing.keep
     if not (estimate.pose and truth.pose):
         if reading.states not in (None, States.POSITION):

@@ -31,7 +31,9 @@ class EstimatorLog:
     Logs whose errors are not a difference of vectors (orientations on SO(3), a filter's
     innovations) carry them in ``state_errors`` and have no truth or estimate. ``notes``
     are the decisions taken while reading (unit, format, pairing, convention);
-    ``unpaired`` counts the estimate epochs dropped for want of truth.
+    ``unpaired`` counts the estimate epochs dropped for want of truth. ``blocks`` names
+    parts of the state whose scale is reported on its own (position and orientation of a
+    pose, :data:`credcli.engine.lie.STATE_BLOCKS`).
     """
 
     truth: np.ndarray | None
@@ -45,6 +47,7 @@ class EstimatorLog:
     state_errors: np.ndarray | None = field(default=None, repr=False)
     notes: tuple[str, ...] = ()
     unpaired: int = 0
+    blocks: tuple[tuple[str, tuple[int, ...]], ...] = ()  # named blocks of the state
 
     def __post_init__(self) -> None:
         if self.rows is None:

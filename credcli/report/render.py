@@ -153,6 +153,8 @@ def advice(rec: dict) -> str | None:
         parts.append(direction_advice(rec))
     elif "optimism" in label or "pessimism" in label:
         parts.append(f"multiply the covariance by {scale_interval(rec)}")
+    if rec.get("block_names") and ("optimism" in label or "pessimism" in label):
+        parts.append(block_advice(rec))
     if "smm" in label:
         bias = ", ".join(_number(b) for b in rec["bias"])
         parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
@@ -176,6 +178,21 @@ def direction_advice(rec: dict) -> str:
         "the misfit differs between directions; multiply the covariance, in whitened "
         "coordinates, by " + ", ".join(parts) + " (Σ̂_k → L_k Ŝ L_kᵀ)"
     )
+
+
+def block_advice(rec: dict) -> str:
+    """The factor (interval) of each named block of the state, e.g. a pose's position and
+    orientation: the blocks of the covariance to correct, when they differ."""
+    parts = [
+        f"{name} {_number(f)} ({_number(lo)}–{_number(hi)})"
+        for name, f, lo, hi in zip(
+            rec["block_names"],
+            rec["block_factors"],
+            rec["block_factors_low"],
+            rec["block_factors_high"],
+        )
+    ]
+    return "by block: " + ", ".join(parts)
 
 
 def _smm_hint(rec: dict) -> str:

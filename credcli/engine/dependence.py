@@ -163,3 +163,47 @@ def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> 
         return 1
     need = (tau**2 - 1.0) / (2.0 * tau * loss)
     return max(1, math.ceil(float(np.max(need)) - 1e-9))
+
+
+def ar1_variance_ratio(x: np.ndarray) -> np.ndarray:
+    r"""τ per column of x (T, p) from its lag-1 autocorrelation, bias-corrected, as an AR(1).
+
+    The least-squares lag-1 coefficient of a short series with an estimated mean is biased
+    towards 0 by about (1 + 3ρ)/T (Kendall 1954; Marriott & Pope 1954, Biometrika 41), so
+    ρ̃ = ρ̂ + (1 + 3ρ̂)/T (capped as the prewhitening is) and τ = (1 + ρ̃)/(1 − ρ̃). Used
+    with :func:`variance_ratio` as the larger of the two, for lengths of batches and sign
+    blocks only: in a window of 50–120 epochs the kernel τ̂ is often far below the truth,
+    and the windows where it happens to be low were the ones decided, with false alarms of
+    10–24 % on AR(1) errors with φ = 0.5–0.95 (measured; the README has the table).
+
+    Examples
+    --------
+    >>> x = np.random.default_rng(0).standard_normal(100_000)
+    >>> round(float(ar1_variance_ratio(x)[0]), 2)
+    1.0
+    """
+    x = np.asarray(x, dtype=float)
+    x = x.reshape(x.shape[0], -1)
+    n = x.shape[0]
+    r1 = autocorrelation(x)
+    rho = np.clip(r1 + (1.0 + 3.0 * r1) / max(n, 1), 0.0, _MAX_PREWHITEN)
+    return (1.0 + rho) / (1.0 - rho)
+
+
+def squared_variance_ratio(tau: np.ndarray) -> float:
+    r"""τ of the squared series x² for a Gaussian AR(1) x with variance ratio τ, the largest
+    over the columns: the autocorrelation of x² is φ^{2|h|} (Isserlis), so
+    τ_{x²} = (1 + φ²)/(1 − φ²) with φ = (τ − 1)/(τ + 1).
+
+    The squared errors of a short window estimate their own τ worse than the errors do (the
+    sample mean of a skewed, slowly varying series absorbs most of its slow part); this is
+    the floor the scale test's batch length takes from the errors.
+
+    Examples
+    --------
+    >>> round(squared_variance_ratio(np.array([19.0])), 2)  # φ = 0.9
+    9.53
+    """
+    tau = np.maximum(np.asarray(tau, dtype=float), 1.0)
+    phi = (tau - 1.0) / (tau + 1.0)
+    return float(np.max((1.0 + phi**2) / (1.0 - phi**2)))

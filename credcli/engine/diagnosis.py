@@ -242,18 +242,13 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
         del centred, chol
     s = whiten(errors, cov)
     r1 = dependence.autocorrelation(s)
-    dependent = dependence.serially_dependent(r1, n)
-    if dependent:
-        tau = dependence.variance_ratio(s)
-    else:  # τ̂ is not used on independent epochs (see serially_dependent)
-        tau = np.ones(d)
+    dependent, tau_point, tau, tau_q = _serial_dependence(s, gls.q, r1)
     autocorr = float(np.max(r1))
-    effective_n = float(n / max(1.0, float(np.max(tau))))
+    effective_n = float(n / max(1.0, float(np.max(tau_point))))
     # every scale and mean test now, so the GLS residuals can be freed
     scales: dict = {}
     means: dict = {}
     directional: dict = {}
-    tau_q = float(dependence.variance_ratio(gls.q)[0]) if dependent else 1.0
     for config in configs:
         batched = _batched(config, dependent)
         key = _scale_key(config, batched)
@@ -401,6 +396,30 @@ def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
         reason=f"{n} epochs; at least {smallest} are needed ({needs})",
         config=config,
     )
+
+
+def _serial_dependence(s: np.ndarray, q: np.ndarray, r1: np.ndarray | None = None):
+    """(dependent, τ̂ per component, τ per component for lengths, τ of q for lengths).
+
+    Whether the whitened errors ``s`` are serially dependent
+    (:func:`credcli.engine.dependence.serially_dependent`); if so, the kernel τ̂ of each
+    component (the reported effective N) and, for the lengths of batches and sign blocks,
+    the neighbour correction and the centring of κ̄, the larger of τ̂ and the
+    bias-corrected AR(1) τ;
+    for the squared errors q also at least the τ that the errors' own τ implies for a
+    Gaussian AR(1). On independent epochs all are 1."""
+    r1 = dependence.autocorrelation(s) if r1 is None else r1
+    d = s.shape[1]
+    if not dependence.serially_dependent(r1, s.shape[0]):
+        return False, np.ones(d), np.ones(d), 1.0  # τ̂ is not used (see serially_dependent)
+    tau_point = dependence.variance_ratio(s)
+    tau = np.maximum(tau_point, dependence.ar1_variance_ratio(s))
+    tau_q = max(
+        float(dependence.variance_ratio(q)[0]),
+        float(dependence.ar1_variance_ratio(q)[0]),
+        dependence.squared_variance_ratio(tau),
+    )
+    return True, tau_point, tau, tau_q
 
 
 def _batched(config: DiagnosisConfig, dependent: bool) -> bool:
@@ -714,17 +733,15 @@ def block_scales(
     """
     level = config.scale_level / len(blocks)
     out = []
-    n = errors.shape[0]
     for name, indices in blocks:
         idx = np.asarray(indices)
         e = errors[:, idx]
         c = cov[:, idx[:, None], idx[None, :]]
         gls = gls_residuals(e, _cholesky(c))
         s = whiten(e, c)
-        dependent = dependence.serially_dependent(dependence.autocorrelation(s), n)
-        tau = dependence.variance_ratio(s) if dependent else np.ones(idx.size)
-        tau_q = float(dependence.variance_ratio(gls.q)[0]) if dependent else 1.0
-        test, _ = _scale_evidence(gls, config, tau, tau_q, _batched(config, dependent), level)
+        dependent, _, tau, tau_q = _serial_dependence(s, gls.q)
+        batched = _batched(config, dependent)
+        test, _ = _scale_evidence(gls, config, tau, tau_q, batched, level)
         out.append(
             BlockScale(
                 name,

@@ -253,7 +253,11 @@ def scale_test(
 
 
 def batch_scale_test(
-    residuals: GlsResiduals, level: float, k: int, tau_q: float = 1.0, taus=None
+    residuals: GlsResiduals,
+    level: float,
+    k: int,
+    tau_q: float = 1.0,
+    taus=None,
 ) -> ScaleTest:
     """The scale test on serially dependent errors: batch means with ``k`` batches
     (:func:`credcli.engine.batches.batch_scale`), and the bias's standard error from the

@@ -10,7 +10,11 @@ The Python API, in one path (see the README's "Python API")::
     log = credcli.read_log("log.csv")
     results = credcli.diagnose_log(log)          # or segments="5s", "whole", [...]
     results.to_frame(); results.to_dict()
-    credcli.diagnose(errors, cov)                # arrays
+    credcli.diagnose(errors, cov)                # arrays, one segment
+    log = credcli.log_from_arrays(cov, truth=..., estimate=..., time=..., segment=...)
+    log = credcli.log_from_frame(df)             # or errors=[...], cov=[...], time="t"
+    credcli.write_log(log, "log.parquet")        # for credcli diagnose / gate
+    credcli.diagnose_monte_carlo([run_1, run_2, ...])
 
 Names are imported on first use, so ``import credcli`` (and ``credcli --help``) stays fast.
 """
@@ -26,6 +30,11 @@ _EXPORTS = {
     "diagnose_log": "credcli.api",
     "diagnose": "credcli.api",
     "Results": "credcli.api",
+    "MonteCarloResults": "credcli.api",
+    "log_from_arrays": "credcli.api",
+    "log_from_frame": "credcli.api",
+    "write_log": "credcli.api",
+    "diagnose_monte_carlo": "credcli.api",
     "Diagnosis": "credcli.engine.diagnosis",
     "DiagnosisConfig": "credcli.engine.diagnosis",
     "Label": "credcli.engine.diagnosis",

@@ -1,4 +1,4 @@
-"""The Python API: one obvious path from a file (or arrays) to results.
+"""The Python API: one obvious path from a file, a DataFrame or arrays to results.
 
 >>> import credcli
 >>> log = credcli.read_log("sample_data/estimator_log.csv")
@@ -23,8 +23,21 @@ from credcli.engine._rng import RngLike
 from credcli.engine.diagnosis import Diagnosis, DiagnosisConfig, SegmentDiagnosis, diagnose_errors
 from credcli.engine.diagnosis import diagnose_log as _diagnose_segments
 from credcli.errors import CredcliError
+from credcli.io.arrays import log_from_arrays, write_log
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
+
+__all__ = [
+    "MonteCarloResults",
+    "Results",
+    "diagnose",
+    "diagnose_log",
+    "diagnose_monte_carlo",
+    "log_from_arrays",
+    "log_from_frame",
+    "read_log",
+    "write_log",
+]
 
 
 class Results(Sequence):
@@ -54,6 +67,31 @@ class Results(Sequence):
         import pandas as pd
 
         return pd.DataFrame(self.to_dict())
+
+    def _repr_html_(self) -> str:
+        """The diagnosis table in a notebook: the columns ``credcli diagnose`` shows."""
+        from credcli.report.html import records_table
+
+        return records_table(self.to_dict())
+
+
+class MonteCarloResults(Results):
+    """The diagnoses of M pooled Monte Carlo runs, segment by segment (each segment holds
+    that segment of every run), and ``anees``: the per-epoch ANEES test over the runs
+    (``credcli diagnose --monte-carlo``)."""
+
+    def __init__(self, items: list[SegmentDiagnosis], anees) -> None:
+        super().__init__(items)
+        self.anees = anees
+
+    def __repr__(self) -> str:
+        inside = float(self.anees.inside.mean())
+        return (
+            f"MonteCarloResults({self.anees.runs} runs; per-epoch ANEES inside its "
+            f"{1 - self.anees.level:.0%} interval at {inside:.1%} of epochs; "
+            + super().__repr__()
+            + ")"
+        )
 
 
 def read_log(
@@ -111,6 +149,74 @@ def diagnose_log(
     else:
         plan = list(segments)
     return Results(_diagnose_segments(log, plan, config, seed))
+
+
+def log_from_frame(
+    frame,
+    *,
+    truth: Sequence[str] | None = None,
+    estimate: Sequence[str] | None = None,
+    errors: Sequence[str] | None = None,
+    cov: Sequence[str] | None = None,
+    time: str | None = None,
+    segment: str | None = None,
+    source: str = "<frame>",
+) -> EstimatorLog:
+    """A log from a pandas DataFrame, validated as ``credcli diagnose`` validates a file.
+
+    By default the columns are found by their names as in a credcli log (``truth_i``,
+    ``est_i`` or ``err_i``; ``cov_i_j``, ``var_i`` or ``std_i``; ``time``; ``segment``).
+    Name them instead with ``truth`` and ``estimate`` (or ``errors``), ``cov`` (d² entries
+    row-major, d(d+1)/2 the upper triangle, or d variances), ``time`` (seconds, datetime64
+    or ISO-8601 strings) and ``segment``. A problem names the column and the row.
+
+    >>> import numpy as np, pandas as pd
+    >>> e = np.random.default_rng(0).standard_normal((200, 2))
+    >>> df = pd.DataFrame({"ex": e[:, 0], "ey": e[:, 1], "vx": 1.0, "vy": 1.0})
+    >>> log_from_frame(df, errors=["ex", "ey"], cov=["vx", "vy"]).dim
+    2
+    """
+    from credcli.io.logs import log_from_frame as _validate
+
+    changes = {"truth_columns": truth or errors, "estimate_columns": estimate, "cov_columns": cov}
+    schema = LogSchema().updated(**changes, time=time, segment=segment)
+    errors_only = True if errors is not None else None
+    if errors is not None and (truth is not None or estimate is not None):
+        raise CredcliError("give errors, or truth and estimate, not both")
+    return _validate(frame.copy(deep=False), schema, source, errors_only=errors_only)
+
+
+def diagnose_monte_carlo(
+    runs: Sequence[EstimatorLog],
+    segments: str | None = None,
+    config: DiagnosisConfig | None = None,
+    seed: int = 0,
+) -> MonteCarloResults:
+    """Diagnose M Monte Carlo runs of one scenario together, as ``credcli diagnose
+    --monte-carlo``: segment k of the result pools segment k of every run (the ELT flips
+    each run in its own blocks), and ``anees`` is the per-epoch ANEES test over the runs
+    (Bar-Shalom et al. 2001, Sec. 5.4.2). The runs must share one time base.
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> runs = [log_from_arrays(np.eye(2), errors=rng.standard_normal((100, 2)))
+    ...         for _ in range(10)]
+    >>> mc = diagnose_monte_carlo(runs)
+    >>> mc[0].diagnosis.n, mc.anees.runs
+    (1000, 10)
+    """
+    from credcli.workflows import diagnose_plans, monte_carlo_plan, split
+
+    config = config or DiagnosisConfig()
+    runs = list(runs)
+    whole = segments == "whole"
+    plans = [
+        (log, split(log, None if segments is None or whole else segments, whole))
+        for log in runs[:1]
+    ]
+    pooled, anees = monte_carlo_plan(runs, plans, config.alpha)
+    results = diagnose_plans(pooled, config, seed, runs=len(runs))
+    return MonteCarloResults(results, anees)
 
 
 def diagnose(

@@ -717,3 +717,15 @@ def test_two_topics_of_one_bag_are_read_in_one_pass(bag, monkeypatch):
     opened.clear()  # and diagnose reads such a bag in one pass too
     assert labels(path, "--topic", "/odom", "--truth-topic", "/ground_truth") == ["pessimism"]
     assert opened == [1]
+
+
+def test_the_note_says_which_covariance_blocks_were_read():
+    """OpenVINS's 20-column TUM holds the rotation and position 3×3 blocks only: the note
+    says the cross-covariance was not read; a ROS odometry CSV has the whole 6×6."""
+    ov = ("diagnose", FORMATS / "openvins_estimate.txt", "--truth", FORMATS / "tum_groundtruth.txt")
+    code, _, err = run(*ov, "--states", "pose")
+    assert code == 0 and "no position–orientation cross-covariance" in err
+    assert "whole 6×6" not in err
+    ros = ("diagnose", FORMATS / "odom_ros.csv", "--truth", FORMATS / "euroc_groundtruth.csv")
+    code, _, err = run(*ros, "--states", "pose", "--perturbation", "right")
+    assert code == 0 and "the whole 6×6 covariance" in err

@@ -350,7 +350,7 @@ def test_two_by_two_positive_definiteness_matches_eigvalsh():
     import numpy as np
 
     from credcli.errors import CredcliError
-    from credcli.io.logs import CovKind, _validated_cov
+    from credcli.io.logs import CovKind, validated_cov
 
     rng = np.random.default_rng(0)
     for exponent in (-250, 0, 250):
@@ -365,7 +365,7 @@ def test_two_by_two_positive_definiteness_matches_eigvalsh():
             eig = np.linalg.eigvalsh(one)[0, 0]
             ok = eig > 1e-12 * np.abs(one).max()
             try:
-                _validated_cov(one.copy(), rows[k : k + 1], "x", CovKind.FULL)
+                validated_cov(one.copy(), rows[k : k + 1], "x", CovKind.FULL)
                 accepted = True
             except CredcliError:
                 accepted = False

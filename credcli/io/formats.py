@@ -36,7 +36,8 @@ class Trajectory:
     ``position`` is (N, 3) for pose formats and the (N, d) vector of a credcli log;
     ``quaternion`` (N, 4) is x, y, z, w, or None; ``cov`` is (N, 6, 6) in ROS order for
     pose formats, (N, d, d) for a credcli log, or None; ``rows`` are the 1-based data rows
-    (message numbers for a bag) of the epochs.
+    (message numbers for a bag) of the epochs. ``cross_covariance`` is False for a pose
+    covariance read as two 3×3 blocks (OpenVINS): the cross terms are then 0, not read.
     """
 
     time: np.ndarray
@@ -48,6 +49,7 @@ class Trajectory:
     format: InputFormat
     pose: bool = True
     notes: tuple[str, ...] = field(default=())
+    cross_covariance: bool = True  # False: the file has no position-orientation block
 
 
 # ---------------------------------------------------------------------------- sniffing
@@ -57,7 +59,7 @@ def sniff_format(path: Path) -> InputFormat:
     """The format of ``path`` from its extension and its first lines."""
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
         return InputFormat.ROSBAG
-    if path.suffix.lower() in (".parquet", ".pq"):
+    if path.suffix.lower() in (".parquet", ".pq", ".npz"):
         return InputFormat.CREDCLI
     lines = _head_lines(path)
     text = "\n".join(lines)
@@ -69,7 +71,7 @@ def sniff_format(path: Path) -> InputFormat:
         text,
     ):
         return InputFormat.ROS_CSV
-    if re.search(r"(^|[,\s#])(truth_|est_|innov_)\d", text):
+    if re.search(r"(^|[,\s#])(truth_|est_|innov_|err_)\d", text):
         return InputFormat.CREDCLI
     data = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
     if data and len(data[0].replace(",", " ").split()) in (8, 20) and _numeric(data[0]):
@@ -303,7 +305,8 @@ def _tum(frame, path: Path, unit: TimeUnit) -> Trajectory:
             sub[:, iu[0], iu[1]] = values[:, offset : offset + 6]
             sub[:, iu[1], iu[0]] = values[:, offset : offset + 6]
             cov[:, block, block] = sub
-    return _pose(time, values[:, 1:4], values[:, 4:8], cov, path, InputFormat.TUM, note)
+    traj = _pose(time, values[:, 1:4], values[:, 4:8], cov, path, InputFormat.TUM, note)
+    return traj if cov is None else _with(traj, cross_covariance=False)
 
 
 def _euroc(frame, path: Path, unit: TimeUnit) -> Trajectory:
@@ -459,7 +462,7 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
         i = int(np.argmax(bad))
         raise CredcliError(f"{path}: row {rows[i]}: NaN, Inf or empty value; fix or remove the row")
     if cov_cols:
-        cov = logs._validated_cov(logs._build_cov(values[:, 1 + d :], kind, d), rows, source, kind)
+        cov = logs.validated_cov(logs._build_cov(values[:, 1 + d :], kind, d), rows, source, kind)
     time, note = seconds(values[:, 0], unit, None, source)
     return Trajectory(
         time=time,

@@ -17,7 +17,7 @@ from credcli.engine import lie
 from credcli.engine.config import Perturbation, States
 from credcli.errors import CredcliError
 from credcli.io.formats import Trajectory, read_bag_pair, read_trajectory
-from credcli.io.logs import CovKind, EstimatorLog, LogSchema, _validated_cov, load_log
+from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log, validated_cov
 from credcli.io.schema import InputFormat, ReadOptions
 from credcli.io.streams import display_name, is_stream, readable
 
@@ -147,7 +147,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
     rows = estimate.rows[keep]
     states, errors, cov, convention = _state_errors(estimate, truth, pairing, reading)
     try:
-        cov = _validated_cov(cov, rows, estimate.source, CovKind.FULL)
+        cov = validated_cov(cov, rows, estimate.source, CovKind.FULL)
     except CredcliError as exc:
         if states is States.PLANAR or not estimate.pose:
             raise
@@ -214,7 +214,7 @@ def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: Rea
         states, reading.perturbation, pairing.position, estimate.position[keep], r_true, r_est
     )
     cov = lie.cov_block(estimate.cov[keep], states)
-    note = _convention(states, reading.perturbation)
+    note = _convention(states, reading.perturbation, estimate.cross_covariance)
     if states is not States.POSITION:
         other = Perturbation.LEFT if right else Perturbation.RIGHT
         swapped = lie.state_errors(
@@ -259,14 +259,22 @@ def _convention_hint(errors, swapped, cov, used: Perturbation, other: Perturbati
     )
 
 
-def _convention(states: States, perturbation: Perturbation) -> str:
+def _convention(states: States, perturbation: Perturbation, cross: bool = True) -> str:
+    """The note of the errors taken, and of the covariance blocks read: ``cross`` False
+    when the file holds the position and orientation blocks only (OpenVINS's layout)."""
     right = perturbation is Perturbation.RIGHT
+    both = (
+        "the whole 6×6 covariance"
+        if cross
+        else "the position and orientation 3×3 blocks of the covariance (the file has no "
+        "position–orientation cross-covariance: taken as 0)"
+    )
     position = "R_estᵀ(p_true − p_est) (body frame)" if right else "p_true − p_est (world frame)"
     rotation = "Log(R_estᵀ R_true)" if right else "Log(R_true R_estᵀ)"
     parts = {
         States.POSITION: f"position {position}; covariance rows x, y, z",
         States.ORIENTATION: f"orientation {rotation}; covariance rows rx, ry, rz",
-        States.POSE: f"position {position} and orientation {rotation}; the whole 6×6 covariance",
+        States.POSE: f"position {position} and orientation {rotation}; {both}",
         States.PLANAR: f"planar x, y of {position} and yaw ψ_true − ψ_est wrapped to (−π, π]; "
         "covariance rows x, y, rz",
     }[states]

@@ -86,11 +86,18 @@ def load_log(
     """
     url = as_url(path)
     path = Path(path)
+    if url is None and path.suffix.lower() == ".npz":
+        from credcli.io.arrays import load_npz
+
+        return load_npz(path)
     frame = read_table(path, columnwise=True)
     return log_from_frame(
         frame, schema or LogSchema(), url or str(path), drop_invalid, time_unit, innovations
     )
 
+
+ERRORS_SCHEMA = {"truth_prefix": "err_"}
+"""The column prefix of an errors-only log: a library's own error vectors, e_k = err_k."""
 
 INNOVATION_SCHEMA = {
     "truth_prefix": "innov_",
@@ -477,8 +484,13 @@ def log_from_frame(
     drop_invalid=False,
     time_unit: TimeUnit = TimeUnit.AUTO,
     innovations: bool = False,
+    errors_only: bool | None = None,
 ):
-    """Validate a pandas DataFrame into an EstimatorLog (see :func:`load_log`)."""
+    """Validate a pandas DataFrame into an EstimatorLog (see :func:`load_log`).
+
+    ``errors_only``: the log holds errors ``err_i`` (or the columns ``schema.truth_columns``
+    names) and no truth or estimate; None: so when it has ``err_0`` and no ``truth_`` or
+    ``est_`` columns."""
     from dataclasses import replace
 
     columns = [str(c) for c in frame.columns]
@@ -490,10 +502,16 @@ def log_from_frame(
             f"{source}: column(s) {', '.join(repeated)} appear more than once in the header; "
             "each column name must be unique"
         )
-    if innovations:
-        schema = replace(schema, **INNOVATION_SCHEMA)
+    if errors_only is None:
+        errors_only = _errors_layout(columns, schema) and not innovations
+    if innovations or errors_only:
+        schema = replace(schema, **(INNOVATION_SCHEMA if innovations else ERRORS_SCHEMA))
         truth_cols = _vector_columns(
-            columns, schema.truth_prefix, schema.truth_columns, "innovation", source
+            columns,
+            schema.truth_prefix,
+            schema.truth_columns,
+            "innovation" if innovations else "error",
+            source,
         )
         est_cols = []
     else:
@@ -504,7 +522,7 @@ def log_from_frame(
             columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
         )
     check_not_orientation(truth_cols + est_cols, source)
-    if len(truth_cols) != len(est_cols) and not innovations:
+    if len(truth_cols) != len(est_cols) and not (innovations or errors_only):
         if not (schema.truth_columns or schema.estimate_columns):
             short, prefix, what = (
                 (est_cols, schema.estimate_prefix, "estimate")
@@ -535,6 +553,7 @@ def log_from_frame(
             f"{source}: segment column '{schema.segment}' not found; columns found: {_list(columns)}"
         )
     numeric_cols = truth_cols + est_cols + cov_cols + ([time_col] if time_col else [])
+    time_note = None
     missing = [c for c in numeric_cols if c not in columns]
     if missing:
         raise CredcliError(
@@ -545,8 +564,10 @@ def log_from_frame(
     blocks = [np.empty((n, len(cols))) for cols in (truth_cols, est_cols, cov_cols)]
     if time_col:
         blocks.append(np.empty((n, 1)))
-    for block, cols in zip(blocks, (truth_cols, est_cols, cov_cols, [time_col])):
+    for block, cols in zip(blocks, (truth_cols, est_cols, cov_cols)):
         numeric_columns(frame, cols, source, out=block)
+    if time_col:
+        time_note = _time_column(frame, time_col, source, blocks[3][:, 0])
     rows = np.arange(1, n + 1)
     bad = np.zeros(n, dtype=bool)
     for block in blocks:
@@ -568,7 +589,7 @@ def log_from_frame(
         if rows.size == 0:
             raise CredcliError(f"{source}: every row has a NaN/Inf value; nothing left to diagnose")
     truth, estimate, cov_values = blocks[:3]
-    cov = _validated_cov(_build_cov(cov_values, kind, d), rows, source, kind)
+    cov = validated_cov(_build_cov(cov_values, kind, d), rows, source, kind)
     if kind is CovKind.STD:
         negative = (cov_values < 0).any(axis=1)
         if negative.any():
@@ -595,10 +616,18 @@ def log_from_frame(
     if time_col:
         from credcli.io.formats import seconds
 
-        time, note = seconds(blocks[3][:, 0], time_unit, None, f"{source} ({time_col})")
-        notes = (note,) if note else ()
+        if time_note is None:
+            time, note = seconds(blocks[3][:, 0], time_unit, None, f"{source} ({time_col})")
+            notes = (note,) if note else ()
+        else:  # date-times: seconds since the Unix epoch already
+            time, notes = blocks[3][:, 0].copy(), (time_note,)
+    if errors_only:
+        notes = (
+            *notes,
+            f"{source}: errors-only log: {', '.join(_ends(truth_cols))} are the errors e_k",
+        )
     del blocks
-    if innovations:
+    if innovations or errors_only:
         return EstimatorLog(
             None, None, cov, time, segment, rows, source, dropped, state_errors=truth, notes=notes
         )
@@ -644,6 +673,33 @@ def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None 
     return out
 
 
+def _errors_layout(columns: list[str], schema: LogSchema) -> bool:
+    """Whether a table is an errors-only log: ``err_0`` and no truth or estimate columns."""
+    if schema.truth_columns or schema.estimate_columns:
+        return False
+    prefixes = (schema.truth_prefix, schema.estimate_prefix)
+    if any(_indexed(columns, p) for p in prefixes):
+        return False
+    return f"{ERRORS_SCHEMA['truth_prefix']}0" in columns
+
+
+def _ends(cols: list[str]) -> list[str]:
+    """The first and last of a list of columns (all when at most three)."""
+    return cols if len(cols) <= 3 else [cols[0], "…", cols[-1]]
+
+
+def _time_column(frame, col: str, source: str, out: np.ndarray) -> str | None:
+    """Read the time column into ``out``: numbers as they are (None), or date-times
+    (datetime64, ISO-8601 strings) as seconds since the Unix epoch (with the note)."""
+    if isinstance(frame, ParquetColumns) and frame.floats(col, out):
+        return None
+    from credcli.io.arrays import time_seconds
+
+    values, note = time_seconds(frame[col], f"{source} ({col})")
+    out[:] = values
+    return note
+
+
 def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
     """(N, d, d) covariances from their columns; for the full layout a view of ``values``
     when it is contiguous (no copy of a large log's covariances)."""
@@ -656,27 +712,36 @@ def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
         cov[:, iu[0], iu[1]] = values
         cov[:, iu[1], iu[0]] = values
     else:
-        with np.errstate(over="ignore"):  # an overflow is reported by _validated_cov
+        with np.errstate(over="ignore"):  # an overflow is reported by validated_cov
             diag = values**2 if kind is CovKind.STD else values
         idx = np.arange(d)
         cov[:, idx, idx] = diag
     return cov
 
 
-def _validated_cov(
-    cov: np.ndarray, rows: np.ndarray, source: str, kind: CovKind = CovKind.FULL
+def validated_cov(
+    cov: np.ndarray,
+    rows: np.ndarray,
+    source: str,
+    kind: CovKind = CovKind.FULL,
+    epoch=None,
 ) -> np.ndarray:
     """The covariances, exactly symmetric, after checking that each is symmetric to
     SYMMETRY_RTOL and positive definite (naming the first bad row). Only a full matrix can
     be asymmetric: it is checked and made symmetric in place, an entry pair at a time (no
-    N×d×d temporaries); the other layouts are symmetric as built."""
+    N×d×d temporaries); the other layouts are symmetric as built. ``epoch(i)``, if given,
+    names the i-th matrix in a message instead of "{source}: row …" (arrays: "cov[i]")."""
+
+    def where(i: int) -> str:
+        return epoch(i) if epoch is not None else f"{source}: row {rows[i]}"
+
     diag = np.diagonal(cov, axis1=1, axis2=2)
     infinite = ~np.isfinite(diag).all(axis=1)
     if infinite.any():
         i = int(np.argmax(infinite))
         what = "the square of a std column" if kind is CovKind.STD else "a variance"
         raise CredcliError(
-            f"{source}: row {rows[i]}: {what} overflows double precision (above 1.8e308); "
+            f"{where(i)}: {what} overflows double precision (above 1.8e308); "
             "are the covariance columns in the log's units?"
         )
     if kind is CovKind.FULL:
@@ -690,9 +755,10 @@ def _validated_cov(
             asym |= np.abs(cov[:, i, j] - cov[:, j, i]) > SYMMETRY_RTOL * scale
         if asym.any():
             i = int(np.argmax(asym))
+            hint = "" if epoch is not None else "; check the cov_i_j columns"
             raise CredcliError(
-                f"{source}: row {rows[i]}: covariance is not symmetric (relative asymmetry "
-                f"above {SYMMETRY_RTOL:g}); check the cov_i_j columns"
+                f"{where(i)}: covariance is not symmetric (relative asymmetry "
+                f"above {SYMMETRY_RTOL:g}){hint}"
             )
         for i, j in upper:
             mean = 0.5 * (cov[:, i, j] + cov[:, j, i])
@@ -714,7 +780,7 @@ def _validated_cov(
     if not_pd.any():
         i = int(np.argmax(not_pd))
         raise CredcliError(
-            f"{source}: row {rows[i]}: covariance is not positive definite (smallest eigenvalue "
+            f"{where(i)}: covariance is not positive definite (smallest eigenvalue "
             f"{min_eig[i]:.3g}); a claimed covariance must be positive definite"
         )
     return cov

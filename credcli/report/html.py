@@ -10,7 +10,7 @@ import base64
 import html
 import json
 
-from credcli.report.render import Report, format_cell
+from credcli.report.render import SEGMENT_COLUMNS, Report, Table, advice, format_cell
 
 _STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
@@ -48,6 +48,15 @@ def _table_html(table) -> str:
         f"<h2>{html.escape(table.title)}</h2>\n<table><thead><tr>{head}</tr></thead>"
         f"<tbody>{''.join(rows)}</tbody></table>{caption}"
     )
+
+
+def records_table(records: list[dict]) -> str:
+    """Segment records as an HTML table with the advice lines below it (a notebook's view
+    of :class:`credcli.api.Results`): the columns and cells ``credcli diagnose`` shows."""
+    body = _table_html(Table("credcli diagnose", SEGMENT_COLUMNS, records))
+    lines = [a for a in (advice(r) for r in records) if a]
+    notes = "".join(f'<p class="note">{html.escape(line)}</p>' for line in lines)
+    return f"<div>{body}{notes}</div>"
 
 
 def build_html(title: str, report: Report, plots, subtitle: str = "") -> str:

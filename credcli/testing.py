@@ -1,0 +1,133 @@
+"""Assertions for an estimator's test suite: the in-Python counterpart of ``credcli gate``.
+
+A filter's unit test runs the filter on a simulated scenario, then asks whether the
+covariance it reports can be trusted::
+
+    from credcli.testing import assert_credible, assert_label
+
+    def test_my_ekf_is_credible():
+        truth, estimate, cov = run_my_ekf(seed=1)
+        assert_credible(truth=truth, estimate=estimate, cov=cov)
+
+    def test_a_bias_is_seen_as_a_model_mismatch():
+        assert_label("smm", errors=biased_errors, cov=cov)
+
+Each call diagnoses with the calibrated rule at a stated level (``alpha``, 0.05 by default:
+a correctly tuned filter fails at most about 5 % of seeds per segment) and a fixed ``seed``
+for the sign flips, so a test is deterministic. On failure the ``AssertionError`` holds the
+diagnosis table and the advice lines that ``credcli diagnose`` prints.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from credcli.api import Results, diagnose_log, log_from_arrays
+from credcli.engine.diagnosis import DiagnosisConfig, Label
+from credcli.io.logs import EstimatorLog
+
+__all__ = ["assert_credible", "assert_label", "diagnosis_text"]
+
+
+def _results(log, segments, alpha: float, seed: int, arrays: dict) -> Results:
+    if log is None:
+        cov = arrays.pop("cov", None)
+        if cov is None:
+            raise TypeError("give a log, or arrays with cov=")
+        log = log_from_arrays(cov, **arrays)
+    elif arrays:
+        raise TypeError(f"give a log or arrays, not both (got {', '.join(sorted(arrays))})")
+    if not isinstance(log, EstimatorLog):
+        raise TypeError(f"log: expected an EstimatorLog; got {type(log).__name__}")
+    return diagnose_log(log, segments, DiagnosisConfig(alpha=alpha), seed)
+
+
+def diagnosis_text(results: Results, alpha: float) -> str:
+    """The diagnosis table and its advice lines, as ``credcli diagnose`` prints them."""
+    from credcli.report.formats import OutputFormat
+    from credcli.report.render import config_parameters, diagnose_report, to_text
+
+    parameters = config_parameters(DiagnosisConfig(alpha=alpha))
+    report = diagnose_report(list(results), parameters, [], show_all=False)
+    return to_text(report, OutputFormat.TABLE)
+
+
+def assert_credible(
+    log: EstimatorLog | None = None,
+    *,
+    segments: str | Sequence | None = None,
+    alpha: float = 0.05,
+    seed: int = 0,
+    allow_untested: bool = False,
+    **arrays,
+) -> Results:
+    """Assert that every segment is credible at level ``alpha``; return the results.
+
+    Give a log (:func:`credcli.read_log`, :func:`credcli.log_from_arrays`, an adapter's),
+    or the arrays of :func:`credcli.log_from_arrays` as keywords (``cov=`` with
+    ``truth=``/``estimate=`` or ``errors=``, and optionally ``time=``, ``segment=``).
+    ``segments`` as in :func:`credcli.diagnose_log` ("whole", "5s", …).
+
+    A segment passes when its label is credible with both questions answered. With
+    ``allow_untested``, a segment the data cannot decide (``insufficient-data``, or
+    credible with one question untested) passes too; by default it fails, because a test
+    that cannot see a misfit is not evidence of its absence.
+
+    Raises
+    ------
+    AssertionError
+        With the diagnosis table and advice lines, naming the failing segments.
+    """
+    results = _results(log, segments, alpha, seed, dict(arrays))
+    failing = []
+    for r in results:
+        d = r.diagnosis
+        undecided = d.label is Label.INSUFFICIENT or (d.label is Label.CREDIBLE and d.untested)
+        if undecided and allow_untested:
+            continue
+        if d.label is not Label.CREDIBLE or d.untested:
+            failing.append(f"{r.segment}: {_shown(d)}")
+    if failing:
+        raise AssertionError(
+            f"not credible at α = {alpha:g}: {'; '.join(failing)}\n"
+            + diagnosis_text(results, alpha)
+        )
+    return results
+
+
+def assert_label(
+    expected: str | Label,
+    log: EstimatorLog | None = None,
+    *,
+    segments: str | Sequence | None = None,
+    alpha: float = 0.05,
+    seed: int = 0,
+    **arrays,
+) -> Results:
+    """Assert that every segment gets the label ``expected`` ("optimism", "smm",
+    "pessimism+smm", …; a :class:`credcli.Label` too), e.g. that a planted fault is seen as
+    what it is. Arguments as for :func:`assert_credible`; return the results.
+
+    Raises
+    ------
+    AssertionError
+        With the diagnosis table and advice lines.
+    ValueError
+        If ``expected`` is not a label.
+    """
+    label = Label(expected)
+    results = _results(log, segments, alpha, seed, dict(arrays))
+    wrong = [
+        f"{r.segment}: {_shown(r.diagnosis)}" for r in results if r.diagnosis.label is not label
+    ]
+    if wrong:
+        raise AssertionError(
+            f"expected {label.value} at α = {alpha:g}: {'; '.join(wrong)}\n"
+            + diagnosis_text(results, alpha)
+        )
+    return results
+
+
+def _shown(diagnosis) -> str:
+    untested = " and ".join(q.value for q in diagnosis.untested)
+    return diagnosis.label.value + (f" ({untested} untested)" if untested else "")

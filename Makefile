@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
-EXTRAS := .[plots,ros,dask,dev]
+EXTRAS := .[plots,ros,dask,filterpy,stonesoup,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 
@@ -58,6 +58,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/calibrated_rule.py
 	$(BIN)/python benchmarks/filters.py
+	$(BIN)/python benchmarks/libraries.py
 
 ## bench-dask: only the Dask rows of make bench (issue 13)
 bench-dask: $(STAMP)

@@ -1,0 +1,201 @@
+"""Filters from public estimator libraries, run as their users run them, for the measured
+tables of issue 24 and the adapters' tests: filterpy's ``KalmanFilter`` and Stone Soup's
+Kalman predictor/updater (and its single-target tracker), on a 2-D constant-velocity
+target, in the four cases of :data:`credcli.studies.filters.TUNINGS`-like tunings.
+
+The truth follows the nearly-constant-velocity model (white-noise acceleration of spectral
+density q per axis; Bar-Shalom et al. 2001, Sec. 6.3.2) and is measured in position with
+noise R = r I. The filter's Q, R and P0 are the true ones times the tuning's factors; the
+"bias" case adds an unmodelled constant offset to the x measurements. The libraries are
+imported on use (extras ``filterpy`` and ``stonesoup``).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass
+
+import numpy as np
+
+from credcli.engine._rng import RngLike, as_generator
+from credcli.io.logs import EstimatorLog
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """The filter's model against the truth's: factors on Q, R and P0, and a measurement
+    offset on x (in units of √r) that the filter does not model."""
+
+    q_factor: float = 1.0
+    r_factor: float = 1.0
+    p0_factor: float = 1.0
+    bias_sigma: float = 0.0
+
+
+LIBRARY_TUNINGS = {
+    "right": Tuning(),
+    "too-small": Tuning(0.25, 0.25, 0.25),
+    "too-large": Tuning(4.0, 4.0, 4.0),
+    "bias": Tuning(bias_sigma=1.0),
+}
+"""The four cases of the per-library tables."""
+
+EXPECTED = {"right": "credible", "too-small": "optimism", "too-large": "pessimism", "bias": "smm"}
+"""What each case should be called (for "bias", any label with smm)."""
+
+Q_DENSITY = 0.05
+R_VARIANCE = 0.75
+DT = 1.0
+P0 = np.diag([R_VARIANCE, 1.0, R_VARIANCE, 1.0])
+"""The true initial uncertainty (P0 of a correctly tuned filter)."""
+
+
+def cv_matrices(dt: float = DT, q: float = Q_DENSITY) -> tuple[np.ndarray, np.ndarray]:
+    """F and Q of a 2-D nearly-constant-velocity state (x, vx, y, vy)."""
+    f1 = np.array([[1.0, dt], [0.0, 1.0]])
+    q1 = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    z = np.zeros((2, 2))
+    return np.block([[f1, z], [z, f1]]), np.block([[q1, z], [z, q1]])
+
+
+def cv_truth(steps: int, seed: RngLike = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(true states (steps, 4), position measurements (steps, 2) without bias, and the
+    filter's initial state: the first true state plus an error drawn from P0)."""
+    rng = as_generator(seed)
+    f, q = cv_matrices()
+    chol = np.linalg.cholesky(q)
+    x = np.empty((steps, 4))
+    x[0] = [0.0, 1.0, 0.0, 1.0]
+    kicks = rng.standard_normal((steps, 4)) @ chol.T
+    for k in range(1, steps):  # a study's generator, not a hot path
+        x[k] = f @ x[k - 1] + kicks[k]
+    z = x[:, [0, 2]] + np.sqrt(R_VARIANCE) * rng.standard_normal((steps, 2))
+    x0 = x[0] + np.sqrt(np.diag(P0)) * rng.standard_normal(4)
+    return x, z, x0
+
+
+def filterpy_run(tuning: Tuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
+    """filterpy's KalmanFilter with a Saver, as its documentation runs it."""
+    from filterpy.common import Saver
+    from filterpy.kalman import KalmanFilter
+
+    from credcli.adapters.filterpy import log_from_saver
+
+    truth, z, x0 = cv_truth(steps, seed)
+    z = z + [tuning.bias_sigma * np.sqrt(R_VARIANCE), 0.0]
+    f, q = cv_matrices()
+    kf = KalmanFilter(dim_x=4, dim_z=2)
+    kf.F, kf.Q = f, q * tuning.q_factor
+    kf.H = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])
+    kf.R = R_VARIANCE * tuning.r_factor * np.eye(2)
+    kf.x = x0[:, None].copy()
+    kf.P = P0 * tuning.p0_factor
+    saver = Saver(kf)
+    for k in range(steps):
+        if k:
+            kf.predict()
+        kf.update(z[k])
+        saver.save()
+    return log_from_saver(saver, truth, time=np.arange(steps) * DT, source="filterpy")
+
+
+def stonesoup_run(tuning: Tuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
+    """Stone Soup's KalmanPredictor and KalmanUpdater over its own models, the loop of its
+    Kalman filter tutorial; the truth and detections drawn as above."""
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import (
+        CombinedLinearGaussianTransitionModel,
+        ConstantVelocity,
+    )
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.groundtruth import GroundTruthPath, GroundTruthState
+    from stonesoup.types.hypothesis import SingleHypothesis
+    from stonesoup.types.state import GaussianState
+    from stonesoup.types.track import Track
+    from stonesoup.updater.kalman import KalmanUpdater
+
+    from credcli.adapters.stonesoup import log_from_track
+
+    truth_x, z, x0 = cv_truth(steps, seed)
+    z = z + [tuning.bias_sigma * np.sqrt(R_VARIANCE), 0.0]
+    start = _dt.datetime(2024, 5, 1)
+    times = [start + _dt.timedelta(seconds=k * DT) for k in range(steps)]
+    truth = GroundTruthPath([GroundTruthState(x, timestamp=t) for x, t in zip(truth_x, times)])
+    q = Q_DENSITY * tuning.q_factor
+    transition = CombinedLinearGaussianTransitionModel([ConstantVelocity(q), ConstantVelocity(q)])
+    measurement = LinearGaussian(4, (0, 2), R_VARIANCE * tuning.r_factor * np.eye(2))
+    predictor, updater = KalmanPredictor(transition), KalmanUpdater(measurement)
+    prior = GaussianState(x0[:, None], P0 * tuning.p0_factor, timestamp=times[0])
+    track = Track()
+    for k, t in enumerate(times):
+        detection = Detection(z[k][:, None], timestamp=t, measurement_model=measurement)
+        predicted = predictor.predict(prior, timestamp=t) if k else prior
+        prior = updater.update(SingleHypothesis(predicted, detection))
+        track.append(prior)
+    return log_from_track(track, truth, source="stonesoup")
+
+
+def stonesoup_tracker_run(seed: int = 0, steps: int = 300) -> EstimatorLog:
+    """Stone Soup's SingleTargetTracker (nearest-neighbour association, measurement
+    initiator, deleter) on its own single-target simulator, right tuning: the tracks and
+    ground-truth paths a tracker user has, paired by :func:`log_from_tracks`."""
+    import numpy as _np
+    from stonesoup.dataassociator.neighbour import NearestNeighbour
+    from stonesoup.deleter.time import UpdateTimeStepsDeleter
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.initiator.simple import SimpleMeasurementInitiator
+    from stonesoup.measures import Mahalanobis
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import (
+        CombinedLinearGaussianTransitionModel,
+        ConstantVelocity,
+    )
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.simulator.simple import (
+        SimpleDetectionSimulator,
+        SingleTargetGroundTruthSimulator,
+    )
+    from stonesoup.tracker.simple import SingleTargetTracker
+    from stonesoup.types.array import CovarianceMatrix, StateVector
+    from stonesoup.types.state import GaussianState
+    from stonesoup.updater.kalman import KalmanUpdater
+
+    from credcli.adapters.stonesoup import log_from_tracks
+
+    start = _dt.datetime(2024, 5, 1)
+    transition = CombinedLinearGaussianTransitionModel(
+        [ConstantVelocity(Q_DENSITY), ConstantVelocity(Q_DENSITY)], seed=seed
+    )
+    measurement = LinearGaussian(4, (0, 2), R_VARIANCE * _np.eye(2), seed=seed + 1)
+    initial = GaussianState(StateVector([0, 1, 0, 1]), CovarianceMatrix(_np.zeros((4, 4))), start)
+    truths = SingleTargetGroundTruthSimulator(
+        transition_model=transition,
+        initial_state=initial,
+        timestep=_dt.timedelta(seconds=DT),
+        number_steps=steps,
+    )
+    detector = SimpleDetectionSimulator(
+        groundtruth=truths,
+        measurement_model=measurement,
+        meas_range=_np.array([[-1e9, 1e9], [-1e9, 1e9]]),
+        detection_probability=1.0,
+        clutter_rate=0.0,
+        seed=seed + 2,
+    )
+    predictor, updater = KalmanPredictor(transition), KalmanUpdater(measurement)
+    hypothesiser = DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=5)
+    prior = GaussianState(
+        StateVector([0, 0, 0, 0]), CovarianceMatrix(_np.diag([0, 1, 0, 1])), start
+    )
+    tracker = SingleTargetTracker(
+        initiator=SimpleMeasurementInitiator(prior, measurement_model=measurement),
+        deleter=UpdateTimeStepsDeleter(time_steps_since_update=3),
+        detector=detector,
+        data_associator=NearestNeighbour(hypothesiser),
+        updater=updater,
+    )
+    tracks: set = set()
+    for _, current in tracker:
+        tracks.update(current)
+    return log_from_tracks(tracks, truths.groundtruth_paths, source="stonesoup tracker")

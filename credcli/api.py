@@ -140,7 +140,16 @@ def diagnose_log(
         The calibrated rule with its defaults when not given.
     seed : int
         Each segment's sign flips come from (seed, segment name): the same as the CLI's.
+
+    A log with Monte Carlo run ids is diagnosed as its runs pooled
+    (:func:`diagnose_monte_carlo`).
     """
+    if log.run is not None:
+        if not (segments is None or isinstance(segments, str)):
+            raise CredcliError(
+                "segments: a log of Monte Carlo runs takes None, 'whole' or a window"
+            )
+        return diagnose_monte_carlo(log, segments, config, seed)
     if segments is None or isinstance(segments, str):
         from credcli.workflows import split  # the command line's segmentation
 
@@ -160,6 +169,7 @@ def log_from_frame(
     cov: Sequence[str] | None = None,
     time: str | None = None,
     segment: str | None = None,
+    run: str | None = None,
     source: str = "<frame>",
 ) -> EstimatorLog:
     """A log from a pandas DataFrame, validated as ``credcli diagnose`` validates a file.
@@ -168,7 +178,8 @@ def log_from_frame(
     ``est_i`` or ``err_i``; ``cov_i_j``, ``var_i`` or ``std_i``; ``time``; ``segment``).
     Name them instead with ``truth`` and ``estimate`` (or ``errors``), ``cov`` (d² entries
     row-major, d(d+1)/2 the upper triangle, or d variances), ``time`` (seconds, datetime64
-    or ISO-8601 strings) and ``segment``. A problem names the column and the row.
+    or ISO-8601 strings), ``segment`` and ``run`` (Monte Carlo run ids). A problem names
+    the column and the row.
 
     >>> import numpy as np, pandas as pd
     >>> e = np.random.default_rng(0).standard_normal((200, 2))
@@ -179,7 +190,7 @@ def log_from_frame(
     from credcli.io.logs import log_from_frame as _validate
 
     changes = {"truth_columns": truth or errors, "estimate_columns": estimate, "cov_columns": cov}
-    schema = LogSchema().updated(**changes, time=time, segment=segment)
+    schema = LogSchema().updated(**changes, time=time, segment=segment, run=run)
     errors_only = True if errors is not None else None
     if errors is not None and (truth is not None or estimate is not None):
         raise CredcliError("give errors, or truth and estimate, not both")
@@ -187,7 +198,7 @@ def log_from_frame(
 
 
 def diagnose_monte_carlo(
-    runs: Sequence[EstimatorLog],
+    runs: Sequence[EstimatorLog] | EstimatorLog,
     segments: str | None = None,
     config: DiagnosisConfig | None = None,
     seed: int = 0,
@@ -195,7 +206,9 @@ def diagnose_monte_carlo(
     """Diagnose M Monte Carlo runs of one scenario together, as ``credcli diagnose
     --monte-carlo``: segment k of the result pools segment k of every run (the ELT flips
     each run in its own blocks), and ``anees`` is the per-epoch ANEES test over the runs
-    (Bar-Shalom et al. 2001, Sec. 5.4.2). The runs must share one time base.
+    (Bar-Shalom et al. 2001, Sec. 5.4.2). The runs must share one time base. ``runs`` is a
+    list of logs, one per run, or one log with run ids (``run=`` of
+    :func:`log_from_arrays`, a ``run`` column).
 
     >>> import numpy as np
     >>> rng = np.random.default_rng(0)
@@ -205,10 +218,11 @@ def diagnose_monte_carlo(
     >>> mc[0].diagnosis.n, mc.anees.runs
     (1000, 10)
     """
+    from credcli.io.arrays import split_runs
     from credcli.workflows import diagnose_plans, monte_carlo_plan, split
 
     config = config or DiagnosisConfig()
-    runs = list(runs)
+    runs = split_runs(runs) if isinstance(runs, EstimatorLog) else list(runs)
     whole = segments == "whole"
     plans = [
         (log, split(log, None if segments is None or whole else segments, whole))

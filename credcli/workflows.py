@@ -20,6 +20,7 @@ from credcli.engine.diagnosis import (
     innovation_whiteness,
 )
 from credcli.errors import CredcliError
+from credcli.io.arrays import split_runs
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.schema import ReadOptions
 from credcli.report.render import Report, config_parameters, diagnose_report
@@ -32,7 +33,14 @@ def split(
     order of precedence); a log without a segment column is one segment.
 
     Duration windows none of which holds ``min_epochs`` epochs are an error: that is
-    a unit mistake (nanosecond stamps read as seconds) or a window far too short."""
+    a unit mistake (nanosecond stamps read as seconds) or a window far too short. A log of
+    several Monte Carlo runs (a run column) is refused: its runs are pooled, not
+    concatenated (:func:`monte_carlo_plan`)."""
+    if log.run is not None and len(set(log.run)) > 1:
+        raise CredcliError(
+            f"{log.source}: holds {len(set(log.run))} Monte Carlo runs (a run column); "
+            "diagnose them pooled with --monte-carlo (credcli.diagnose_monte_carlo in Python)"
+        )
     if whole:
         return seg.whole(log.n, log.time)
     if window is not None:
@@ -266,6 +274,8 @@ def run_diagnose(
     figures = []
     if plots and plans is None:  # the cluster read the logs; the figures need them here
         loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
+        if monte_carlo:  # a log with a run column holds several runs
+            loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
     if plots and mc is not None:
         from credcli.report.plots import anees_plot
@@ -310,6 +320,8 @@ def _diagnose_here(
         pool = WorkerPool(jobs, warm=__name__)  # workers import while the logs are read
     try:
         loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
+        if monte_carlo:  # a log with a run column holds several runs
+            loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
     except BaseException:
         if pool is not None:

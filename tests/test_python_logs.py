@@ -276,3 +276,37 @@ def test_assert_credible_fails_a_right_filter_at_about_alpha():
             too_small += 1
     assert fails / 300 <= 0.06 + 2 * math.sqrt(0.05 * 0.95 / 300), fails
     assert too_small / 300 >= 0.9, too_small
+
+
+def test_run_ids_pool_monte_carlo_runs_in_python_and_on_the_command_line(tmp_path):
+    """M runs stacked in one array with run ids: diagnose_log pools them as
+    diagnose_monte_carlo does with M separate logs; the written file, with its run column,
+    is refused without --monte-carlo and pooled with it, to the same records."""
+    rng = np.random.default_rng(44)
+    m, n = 6, 150
+    errors = rng.standard_normal((m * n, 2)) * 1.5  # covariance 2.25× too small
+    time = np.tile(np.arange(n) * 0.1, m)
+    run_ids = np.repeat([f"r{k}" for k in range(m)], n)
+    stacked = credcli.log_from_arrays(np.eye(2), errors=errors, time=time, run=run_ids)
+    separate = [
+        credcli.log_from_arrays(np.eye(2), errors=errors[k * n : (k + 1) * n], time=time[:n])
+        for k in range(m)
+    ]
+    pooled, reference = credcli.diagnose_log(stacked), credcli.diagnose_monte_carlo(separate)
+    assert isinstance(pooled, credcli.MonteCarloResults) and pooled.anees.runs == m
+    assert [r.diagnosis.label for r in pooled] == [r.diagnosis.label for r in reference]
+    assert pooled[0].diagnosis.n == m * n and pooled[0].diagnosis.label.value == "optimism"
+    path = credcli.write_log(stacked, tmp_path / "runs.csv")
+    line = error_line(*run("diagnose", path)[::2])
+    assert "holds 6 Monte Carlo runs" in line and "--monte-carlo" in line
+    code, out, err = run("diagnose", path, "--monte-carlo", "-f", "json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["monte_carlo"]["runs"] == m
+    assert doc["segments"][0]["scale_factor"] == pytest.approx(
+        pooled[0].diagnosis.scale.scale_factor, rel=1e-12
+    )
+    frame = pd.read_csv(path).rename(columns={"run": "trial"})
+    assert credcli.log_from_frame(frame, run="trial").run[0] == "r0"
+    with pytest.raises(CredcliError, match="run column 'replica' not found"):
+        credcli.log_from_frame(frame, run="replica")

@@ -126,10 +126,13 @@ def log_from_arrays(
     errors=None,
     time=None,
     segment=None,
+    run=None,
     source: str = "<arrays>",
 ) -> EstimatorLog:
     """An estimator log from arrays: ``truth`` and ``estimate`` (N, d), or ``errors``
     (N, d) alone, with claimed covariances ``cov`` (N, d, d) or one (d, d) for every epoch.
+    ``run`` (N,) gives the Monte Carlo run of each epoch when the arrays hold several runs
+    one after the other (:func:`credcli.diagnose_monte_carlo` pools them).
 
     ``errors`` is what a library's own error map gives (a Lie group's ⊖, a tracker's
     innovation): credcli uses it as it is. ``time`` (N,) is seconds, datetime64 or ISO-8601
@@ -173,11 +176,8 @@ def log_from_arrays(
             k = int(np.argmax(~np.isfinite(seconds)))
             raise CredcliError(f"time[{k}] is missing or not finite")
         notes = (note,) if note else ()
-    labels = None
-    if segment is not None:
-        labels = np.asarray(segment).astype(str).astype(object)
-        if labels.shape != (n,):
-            raise CredcliError(f"segment: expected shape ({n},); got {labels.shape}")
+    labels = _labels("segment", segment, n)
+    runs = _labels("run", run, n)
     return EstimatorLog(
         truth_arr,
         estimate_arr,
@@ -187,19 +187,60 @@ def log_from_arrays(
         source=source,
         state_errors=state_errors,
         notes=notes,
+        run=runs,
     )
+
+
+def _labels(name: str, values, n: int) -> np.ndarray | None:
+    """(N,) labels as strings, or None."""
+    if values is None:
+        return None
+    labels = np.asarray(values).astype(str).astype(object)
+    if labels.shape != (n,):
+        raise CredcliError(f"{name}: expected shape ({n},); got {labels.shape}")
+    return labels
+
+
+def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
+    """The Monte Carlo runs of a log with run ids, in the order they first appear; each
+    keeps its epochs in order (time, segments, rows, notes). A log without run ids is one
+    run."""
+    if log.run is None:
+        return [log]
+    names, first = np.unique(log.run, return_index=True)
+    out = []
+    for name in names[np.argsort(first)]:
+        index = np.flatnonzero(log.run == name)
+        out.append(
+            EstimatorLog(
+                None if log.truth is None else log.truth[index],
+                None if log.estimate is None else log.estimate[index],
+                log.cov[index],
+                time=None if log.time is None else log.time[index],
+                segment=None if log.segment is None else log.segment[index],
+                rows=log.rows[index],
+                source=f"{log.source} (run {name})",
+                state_errors=None if log.state_errors is None else log.state_errors[index],
+                notes=log.notes,
+                blocks=log.blocks,
+            )
+        )
+    return out
 
 
 def log_table(log: EstimatorLog):
     """A log as the canonical table ``credcli diagnose`` reads: ``time`` and ``segment``
     when the log has them, ``truth_i``/``est_i`` (or ``err_i`` for an errors-only log) and
-    the upper triangle ``cov_i_j``, i <= j. Values are written to full precision."""
+    the upper triangle ``cov_i_j``, i <= j; ``run`` for a log of Monte Carlo runs. Values
+    are written to full precision."""
     import pandas as pd
 
     d = log.dim
     columns: dict = {"time": log.time} if log.time is not None else {}
     if log.segment is not None:
         columns["segment"] = log.segment
+    if log.run is not None:
+        columns["run"] = log.run
     if log.truth is not None and log.estimate is not None:
         columns |= {f"truth_{i}": log.truth[:, i] for i in range(d)}
         columns |= {f"est_{i}": log.estimate[:, i] for i in range(d)}
@@ -235,6 +276,7 @@ NPZ_NAMES = {
     "cov": ("cov",),
     "time": ("time", "t"),
     "segment": ("segment",),
+    "run": ("run",),
 }
 """The arrays of a credcli ``.npz`` log, by argument of :func:`log_from_arrays`, with the
 names each may have in the file."""

@@ -33,7 +33,8 @@ class EstimatorLog:
     are the decisions taken while reading (unit, format, pairing, convention);
     ``unpaired`` counts the estimate epochs dropped for want of truth. ``blocks`` names
     parts of the state whose scale is reported on its own (position and orientation of a
-    pose, :data:`credcli.engine.lie.STATE_BLOCKS`).
+    pose, :data:`credcli.engine.lie.STATE_BLOCKS`). ``run`` holds the Monte Carlo run of
+    each epoch when the log pools several (:func:`credcli.io.arrays.split_runs`).
     """
 
     truth: np.ndarray | None
@@ -48,6 +49,7 @@ class EstimatorLog:
     notes: tuple[str, ...] = ()
     unpaired: int = 0
     blocks: tuple[tuple[str, tuple[int, ...]], ...] = ()  # named blocks of the state
+    run: np.ndarray | None = field(default=None, repr=False)  # Monte Carlo run id per epoch
 
     def __post_init__(self) -> None:
         if self.rows is None:
@@ -599,6 +601,20 @@ def log_from_frame(
                 "standard deviations must be >= 0"
             )
     del cov_values
+    if schema.run != LogSchema.run and schema.run not in columns:
+        raise CredcliError(
+            f"{source}: run column '{schema.run}' not found; columns found: {_list(columns)}"
+        )
+    run = None
+    if schema.run in columns:
+        run_values, missing_run = _labels(frame, schema.run)
+        if missing_run.any():
+            first = int(np.argmax(missing_run)) + 1
+            raise CredcliError(
+                f"{source}: run column '{schema.run}' is empty or NA in row {first}; give "
+                "every epoch its Monte Carlo run"
+            )
+        run = run_values[rows - 1]
     segment = None
     if seg_col is not None:
         seg_values, missing_seg = _labels(frame, seg_col)
@@ -628,10 +644,22 @@ def log_from_frame(
         )
     del blocks
     if innovations or errors_only:
-        return EstimatorLog(
-            None, None, cov, time, segment, rows, source, dropped, state_errors=truth, notes=notes
-        )
-    return EstimatorLog(truth, estimate, cov, time, segment, rows, source, dropped, notes=notes)
+        truth, estimate, errors = None, None, truth
+    else:
+        errors = None
+    return EstimatorLog(
+        truth,
+        estimate,
+        cov,
+        time,
+        segment,
+        rows,
+        source,
+        dropped,
+        state_errors=errors,
+        notes=notes,
+        run=run,
+    )
 
 
 def _labels(frame, column: str) -> tuple[np.ndarray, np.ndarray]:

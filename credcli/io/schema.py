@@ -28,6 +28,7 @@ class LogSchema:
 
     time: str = "time"
     segment: str = "segment"
+    run: str = "run"  # Monte Carlo run ids (diagnose --monte-carlo pools them)
     truth_prefix: str = "truth_"
     estimate_prefix: str = "est_"
     cov_prefix: str = "cov_"

@@ -42,6 +42,7 @@ def test_to_dict_equals_the_cli_json(capsys):
         == 0
     )
     cli = json.loads(capsys.readouterr().out)["segments"]
+    assert len(records) == len(cli) == 6  # a truncated document fails here, not silently
     for a, b in zip(records, cli):
         a = dict(a, log=os.path.basename(a["log"]))
         b = dict(b, log=os.path.basename(b["log"]))

@@ -172,7 +172,7 @@ def test_same_seed_same_result_and_segment_streams_independent(rng):
     "field, value", [("tau_nci", 0), ("alpha", 1.5), ("c", 1.0), ("n_flips", 0)]
 )
 def test_config_validation(field, value):
-    with pytest.raises(CredcliError, match="invalid setting"):
+    with pytest.raises(CredcliError, match=f"invalid setting.*{field}|{field}.*invalid setting"):
         DiagnosisConfig(**{field: value})
 
 

@@ -130,9 +130,10 @@ def test_simulate_plots(tmp_path, capsys):
     np.testing.assert_array_equal(
         fig.data["counts"], [list(row.values()) for row in confusion.values()]
     )
-    code, _, _ = _run(
+    code, _, err = _run(
         capsys, "simulate", "--sweep", "n=20,60", "--trials", "4", "--plots", tmp_path
     )
+    assert code == 0, err
     _check_png((tmp_path / "sweep_n.png").read_bytes())
 
 

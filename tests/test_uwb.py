@@ -145,6 +145,7 @@ def test_export_log_reruns_with_diagnose(tmp_path, capsys):
     code, out, _ = _run(capsys, "diagnose", exported, "-f", "json")
     assert code == 0
     again = json.loads(out)["segments"]
+    assert len(again) == len(uwb_segments) > 0
     keys = ["segment", "n", "label", "elt_pvalue", "nci", "anees", "nees_label", "nci_label"]
     for a, b in zip(uwb_segments, again):
         for k in keys:

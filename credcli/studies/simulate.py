@@ -334,6 +334,15 @@ def sweep_specs(sweep: Sweep, value: float, config: SimulationConfig, scenarios:
     return unique, cfg
 
 
+def _checked_specs(sweep: Sweep, value: float, config: SimulationConfig, scenarios):
+    """:func:`sweep_specs`, with a refused value named as the sweep's (not as the setting
+    it changes, whose own flag the user did not give)."""
+    try:
+        return sweep_specs(sweep, value, config, scenarios)
+    except CredcliError as exc:
+        raise CredcliError(f"sweep {sweep.parameter.value}={value:g}: {exc.message}") from exc
+
+
 def run_sweep(
     sweep: Sweep,
     config: SimulationConfig,
@@ -344,7 +353,7 @@ def run_sweep(
 ) -> list[SweepPoint]:
     """Accuracy of every method per sweep value and true label (every point's trials are
     one set of tasks)."""
-    plans = [(v, *sweep_specs(sweep, v, config, scenarios)) for v in sweep.values]
+    plans = [(v, *_checked_specs(sweep, v, config, scenarios)) for v in sweep.values]
     groups = run_group_sets([(specs, cfg) for _, specs, cfg in plans], jobs, progress, runner)
     points: list[SweepPoint] = []
     for (value, specs, _), per_spec in zip(plans, groups):

@@ -119,6 +119,8 @@ def read_log(
         reading["truth"] = str(reading["truth"])
     try:
         options = ReadOptions(**reading)
+    except CredcliError:
+        raise
     except (TypeError, ValueError) as exc:
         raise CredcliError(f"read_log: {exc}") from exc
     return open_log(path, columns, options, drop_invalid)

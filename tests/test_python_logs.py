@@ -310,3 +310,38 @@ def test_run_ids_pool_monte_carlo_runs_in_python_and_on_the_command_line(tmp_pat
     assert credcli.log_from_frame(frame, run="trial").run[0] == "r0"
     with pytest.raises(CredcliError, match="run column 'replica' not found"):
         credcli.log_from_frame(frame, run="replica")
+
+
+@pytest.mark.parametrize(
+    "call, parameter, message",
+    [
+        (lambda e, c: credcli.nees(e, c), "cov", r"cov\[2\] is not positive definite"),
+        (lambda e, c: credcli.nci(e, c), "cov", r"cov\[2\] is not positive definite"),
+        (lambda e, c: credcli.diagnose(e, c, rng=0), "cov", r"cov\[2\] is not positive definite"),
+    ],
+)
+def test_public_entries_name_the_bad_argument(call, parameter, message):
+    """Issue 23, point 4: a non-positive-definite covariance is a CredcliError (a
+    ValueError) naming the argument and the epoch, not numpy's LinAlgError."""
+    e = np.random.default_rng(45).standard_normal((40, 2))
+    cov = np.broadcast_to(np.eye(2), (40, 2, 2)).copy()
+    cov[2] = [[1.0, 2.0], [2.0, 1.0]]  # symmetric, indefinite
+    with pytest.raises(ValueError, match=message) as info:
+        call(e, cov)
+    assert isinstance(info.value, CredcliError) and info.value.parameter == parameter
+
+
+def test_an_asymmetric_covariance_and_bad_flips_are_refused():
+    from credcli.engine.elt import whitened_location_test
+
+    e = np.random.default_rng(46).standard_normal((40, 2))
+    asym = np.array([[1.0, 0.5], [0.0, 1.0]])
+    with pytest.raises(CredcliError, match=r"cov\[0\] is not symmetric"):
+        credcli.diagnose(e, asym, rng=0)
+    with pytest.raises(CredcliError, match=r"errors\[3, 1\] is not finite"):
+        credcli.nees(
+            np.where(np.arange(80).reshape(40, 2) == 7, np.nan, e), np.eye(2)[None].repeat(40, 0)
+        )
+    with pytest.raises(CredcliError, match="n_flips .* must be a positive integer; got 0") as info:
+        whitened_location_test(e, 0, np.random.default_rng(0))
+    assert info.value.parameter == "n_flips"

@@ -1552,7 +1552,7 @@ def _run(command, args: list[str], debug: bool) -> int:
     except CredcliError as exc:
         _traceback(debug)
         print(f"credcli: error: {one_line(flag_names(exc.message))}", file=sys.stderr)
-        return exc.exit_code
+        return 2
     except _click_exception_types() as exc:
         ctx = getattr(exc, "ctx", None)
         if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:

@@ -72,6 +72,8 @@ def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> Lo
     values = _table(config, "columns", LogSchema, cli, where)
     try:
         return LogSchema().updated(**values)
+    except CredcliError:
+        raise  # already a message for the user (a ValueError too)
     except ValueError as exc:
         raise CredcliError(f"{where}: {exc}") from exc
 
@@ -83,6 +85,8 @@ def build_reading(config: dict, cli: dict, where: str = "config [input]") -> Rea
         values["truth"] = str(values["truth"])
     try:
         return ReadOptions(**values)
+    except CredcliError:
+        raise
     except ValueError as exc:
         name = str(exc).split(" ", 1)[0]
         if cli.get(name) is not None or name not in config.get("input", {}):
@@ -119,6 +123,8 @@ def build_diagnosis_config(
         raise CredcliError(f"the seed must be a non-negative integer; got {seed_value!r}")
     try:
         return DiagnosisConfig(**values), seed_value
+    except CredcliError:
+        raise
     except (TypeError, ValueError) as exc:
         raise CredcliError(f"invalid diagnosis setting: {exc}") from exc
 

@@ -181,11 +181,9 @@ def diagnose_errors(
 
 
 def _cholesky(cov: np.ndarray) -> np.ndarray:
-    """The covariances' Cholesky factors, or the error that one is not positive definite."""
-    try:
-        return np.linalg.cholesky(cov)
-    except np.linalg.LinAlgError as exc:
-        raise CredcliError("a claimed covariance is not positive definite") from exc
+    """The covariances' Cholesky factors, or the error naming the first that is not
+    positive definite (:func:`credcli.engine.metrics.cholesky`)."""
+    return metrics.cholesky(cov)
 
 
 def diagnose_variants(

@@ -260,12 +260,7 @@ def location_test(
         The p-value is (1 + #{T_b >= T_obs}) / (B + 1), Eq. (16); T_b within a relative
         100 eps of T_obs count as ties (>=).
     """
-    if not (isinstance(n_flips, (int, np.integer)) and n_flips >= 1):
-        raise CredcliError(f"the number of sign flips B must be a positive integer; got {n_flips}")
-    if not (isinstance(block_length, (int, np.integer)) and block_length >= 1):
-        raise CredcliError(f"block_length must be a positive integer; got {block_length}")
-    if max_epochs < 2:
-        raise CredcliError(f"the ELT memory budget must allow at least 2 epochs; got {max_epochs}")
+    _check_flips(n_flips, block_length, max_epochs)
     s = whiten(np.asarray(errors, float), np.asarray(cov, float))
     return whitened_location_test(s, n_flips, as_generator(rng), block_length, max_epochs)
 
@@ -291,6 +286,24 @@ def sign_blocks(n: int, block_length: int, runs: int = 1) -> tuple[np.ndarray, n
     blocks = run * width + local
     keys = np.arange(runs * width) + np.arange(runs * width) // width
     return blocks, keys
+
+
+def _check_flips(n_flips, block_length, max_epochs) -> None:
+    """The one validation of the ELT's settings, for both public entries."""
+    if not (isinstance(n_flips, (int, np.integer)) and n_flips >= 1):
+        raise CredcliError(
+            f"n_flips (the number of sign flips B) must be a positive integer; got {n_flips}",
+            "n_flips",
+        )
+    if not (isinstance(block_length, (int, np.integer)) and block_length >= 1):
+        raise CredcliError(
+            f"block_length must be a positive integer; got {block_length}", "block_length"
+        )
+    if max_epochs < 2:
+        raise CredcliError(
+            f"max_epochs (the ELT's memory budget) must allow at least 2 epochs; got {max_epochs}",
+            "max_epochs",
+        )
 
 
 def whitened_location_test(
@@ -325,9 +338,10 @@ def whitened_location_test(
     ``runs``: s holds that many independent Monte Carlo runs of N/runs epochs one after
     the other; each run's errors are flipped in their own blocks (:func:`sign_blocks`).
     """
+    _check_flips(n_flips, block_length, max_epochs)
     n = s.shape[0]
     if runs < 1 or n % runs:
-        raise CredcliError(f"{n} epochs cannot be {runs} runs of equal length")
+        raise CredcliError(f"runs: {n} epochs cannot be {runs} runs of equal length", "runs")
     blocks, keys = sign_blocks(n, block_length, runs)
     subsampled = n > max_epochs
     if subsampled:

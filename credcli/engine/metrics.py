@@ -50,7 +50,15 @@ _QUAD_CHUNK_ELEMENTS = 32_768  # epochs x nodes per block: the block stays in ca
 _TRIDIAGONAL_CHUNK = 4096  # epochs per block of the Householder reduction
 
 
+SYMMETRY_RTOL = 1e-6
+"""Largest relative asymmetry |Σ_ij − Σ_ji| / max|Σ| of a claimed covariance."""
+
+
 def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The one validation of (errors, cov) for every public entry of the engine: shapes
+    (N, d) and (N, d, d) ((N,) is d = 1), finite values, symmetric covariances (to
+    :data:`SYMMETRY_RTOL`). Positive definiteness is checked where the covariances are
+    factored (:func:`cholesky`). Errors name the argument and the epoch."""
     errors = np.asarray(errors, dtype=float)
     cov = np.asarray(cov, dtype=float)
     if errors.ndim == 1:
@@ -59,14 +67,53 @@ def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, n
         cov = cov[:, None, None]
     if errors.ndim != 2 or cov.ndim != 3:
         raise CredcliError(
-            f"errors must have shape (N, d) and cov (N, d, d); got {errors.shape} and {cov.shape}"
+            f"errors must have shape (N, d) and cov (N, d, d); got {errors.shape} and {cov.shape}",
+            "errors" if errors.ndim != 2 else "cov",
         )
     n, d = errors.shape
     if cov.shape != (n, d, d):
         raise CredcliError(
-            f"cov must have shape (N, d, d) = ({n}, {d}, {d}) to match errors; got {cov.shape}"
+            f"cov must have shape (N, d, d) = ({n}, {d}, {d}) to match errors; got {cov.shape}",
+            "cov",
         )
+    for name, values in (("errors", errors), ("cov", cov)):
+        bad = ~np.isfinite(values)
+        if bad.any():
+            where = ", ".join(str(int(i)) for i in np.argwhere(bad)[0])
+            raise CredcliError(f"{name}[{where}] is not finite", name)
+    if d > 1:
+        scale = np.abs(cov).max(axis=(1, 2))
+        asym = np.abs(cov - cov.transpose(0, 2, 1)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
+        if asym.any():
+            k = int(np.argmax(asym))
+            raise CredcliError(
+                f"cov[{k}] is not symmetric (relative asymmetry above {SYMMETRY_RTOL:g})", "cov"
+            )
     return errors, cov
+
+
+def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
+    """Cholesky factors of (N, d, d) (or (d, d)) positive definite matrices; one that is not
+    is an error naming ``name`` and its epoch."""
+    try:
+        return np.linalg.cholesky(matrices)
+    except np.linalg.LinAlgError:
+        stack = np.asarray(matrices, dtype=float).reshape(-1, *np.shape(matrices)[-2:])
+        k = next(
+            (i for i in range(stack.shape[0]) if not _factorable(stack[i])), 0
+        )  # only on failure: find the first one
+        where = f"{name}[{k}]" if np.ndim(matrices) == 3 else name
+        raise CredcliError(
+            f"{where} is not positive definite (a claimed covariance must be)", name
+        ) from None
+
+
+def _factorable(matrix: np.ndarray) -> bool:
+    try:
+        np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:
+        return False
+    return True
 
 
 def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
@@ -82,7 +129,7 @@ def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     array([0.25])
     """
     errors, cov = check_errors_cov(errors, cov)
-    return nees_factored(errors, np.linalg.cholesky(cov))
+    return nees_factored(errors, cholesky(cov))
 
 
 def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
@@ -103,7 +150,7 @@ def anees(errors: np.ndarray, cov: np.ndarray) -> float:
     Equals 1 for a credible estimator, since E[ε_k] = d by Eq. (2).
     """
     errors, cov = check_errors_cov(errors, cov)
-    return float(np.mean(nees_factored(errors, np.linalg.cholesky(cov))) / errors.shape[1])
+    return float(np.mean(nees_factored(errors, cholesky(cov))) / errors.shape[1])
 
 
 def mse_matrix(errors: np.ndarray) -> np.ndarray:
@@ -136,7 +183,7 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
     """
     errors, cov = check_errors_cov(errors, cov)
     mse = mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
-    return nci_factored(errors, np.linalg.cholesky(cov), np.linalg.cholesky(mse))
+    return nci_factored(errors, cholesky(cov), cholesky(mse, "mse"))
 
 
 def nci_factored(
@@ -159,7 +206,7 @@ def gaussian_nll(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     The log-determinant comes from the Cholesky factor.
     """
     errors, cov = check_errors_cov(errors, cov)
-    chol = np.linalg.cholesky(cov)
+    chol = cholesky(cov)
     return nll_from_nees(nees_factored(errors, chol), log_det(chol), errors.shape[1], scale)
 
 
@@ -496,7 +543,7 @@ def probes(
     errors, cov = check_errors_cov(errors, cov)
     if not c > 1:
         raise CredcliError(f"the probe factor c must be > 1; got {c}")
-    chol = np.linalg.cholesky(cov)
+    chol = cholesky(cov)
     return probes_scored(errors, EnergyScorer(cov), chol, c, srd_absolute)
 
 
@@ -534,7 +581,7 @@ def score_curves(errors: np.ndarray, cov: np.ndarray, scales) -> tuple[np.ndarra
     """
     errors, cov = check_errors_cov(errors, cov)
     scales = tuple(float(x) for x in scales)
-    chol = np.linalg.cholesky(cov)
+    chol = cholesky(cov)
     eps = nees_factored(errors, chol)
     logdet, d = log_det(chol), errors.shape[1]
     nll = np.array([nll_from_nees(eps, logdet, d, x).mean() for x in scales])

@@ -17,10 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from credcli.engine.config import epoch_chunks
+from credcli.engine.metrics import SYMMETRY_RTOL
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
-
-SYMMETRY_RTOL = 1e-6
 
 
 @dataclass(frozen=True)

@@ -90,4 +90,4 @@ def readable(path: str | Path) -> Iterator[Path]:
         try:
             yield local
         except CredcliError as exc:
-            raise CredcliError(exc.message.replace(str(local), name), exc.exit_code) from exc
+            raise CredcliError(exc.message.replace(str(local), name), exc.parameter) from exc

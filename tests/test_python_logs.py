@@ -345,3 +345,19 @@ def test_an_asymmetric_covariance_and_bad_flips_are_refused():
     with pytest.raises(CredcliError, match="n_flips .* must be a positive integer; got 0") as info:
         whitened_location_test(e, 0, np.random.default_rng(0))
     assert info.value.parameter == "n_flips"
+
+
+def test_errors_only_flag_with_named_columns(tmp_path):
+    e = np.random.default_rng(47).standard_normal((300, 2)) * 2.0
+    frame = pd.DataFrame({"ex": e[:, 0], "ey": e[:, 1], "var_0": 1.0, "var_1": 1.0})
+    frame.to_csv(tmp_path / "named.csv", index=False, float_format="%.17g")
+    args = ("diagnose", tmp_path / "named.csv", "--truth-columns", "ex,ey")
+    line = error_line(*run(*args)[::2])
+    assert "no estimate columns" in line and "--errors-only" in line
+    code, out, err = run(*args, "--errors-only", "-f", "json")
+    assert code == 0, err
+    (seg,) = json.loads(out)["segments"]
+    assert seg["label"] == "optimism" and seg["scale_factor_low"] < 4.0 < seg["scale_factor_high"]
+    assert "errors-only log: ex, ey are the errors e_k" in err
+    line = error_line(*run(*args, "--errors-only", "--truth", tmp_path / "named.csv")[::2])
+    assert "--errors-only needs no ground truth" in line

@@ -454,6 +454,14 @@ PerturbationOpt = Annotated[
         "--perturbation", help="Orientation error convention (README: Conventions) [default: left]."
     ),
 ]
+ErrorsOnlyOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--errors-only",
+        help="The logs hold errors e_k (err_i, or the columns --truth-columns names) and "
+        "their covariance, no truth or estimate (found by itself for err_i columns).",
+    ),
+]
 InnovationsOpt = Annotated[
     bool | None,
     typer.Option(
@@ -556,6 +564,7 @@ _READING_PARAMS = (
     "states",
     "perturbation",
     "innovations",
+    "errors_only",
 )
 """The parameter names of a command's column, method and reading options, in the order
 _columns, _diagnosis_cli and _reading take them."""
@@ -585,6 +594,7 @@ def _reading(
     states,
     perturbation,
     innovations,
+    errors_only,
 ) -> dict:
     """The reading options of a command, by ReadOptions field name."""
     return {
@@ -599,6 +609,7 @@ def _reading(
         "states": states,
         "perturbation": perturbation,
         "innovations": innovations,
+        "errors_only": errors_only,
     }
 
 
@@ -754,6 +765,7 @@ def diagnose(
     states: StatesOpt = None,
     perturbation: PerturbationOpt = None,
     innovations: InnovationsOpt = None,
+    errors_only: ErrorsOnlyOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
     probe_factor: COpt = None,
@@ -869,6 +881,7 @@ def baseline(
     states: StatesOpt = None,
     perturbation: PerturbationOpt = None,
     innovations: InnovationsOpt = None,
+    errors_only: ErrorsOnlyOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
     probe_factor: COpt = None,
@@ -1404,6 +1417,7 @@ def report(
     states: StatesOpt = None,
     perturbation: PerturbationOpt = None,
     innovations: InnovationsOpt = None,
+    errors_only: ErrorsOnlyOpt = None,
     tau: TauOpt = None,
     alpha: AlphaOpt = None,
     probe_factor: COpt = None,

@@ -63,6 +63,11 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
             raise CredcliError("--innovations needs no ground truth: drop --truth/--truth-topic")
         _only_credcli(path, reading.input_format, "--innovations")
         return load_log(path, schema, drop_invalid, reading.time_unit, innovations=True)
+    if reading.errors_only:
+        if reading.paired:
+            raise CredcliError("--errors-only needs no ground truth: drop --truth/--truth-topic")
+        _only_credcli(path, reading.input_format, "--errors-only")
+        return load_log(path, schema, drop_invalid, reading.time_unit, errors_only=True)
     if not reading.paired:
         fmt = reading.input_format
         if fmt is InputFormat.AUTO:

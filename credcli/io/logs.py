@@ -76,6 +76,7 @@ def load_log(
     drop_invalid: bool = False,
     time_unit: TimeUnit = TimeUnit.AUTO,
     innovations: bool = False,
+    errors_only: bool | None = None,
 ) -> EstimatorLog:
     """Read and validate an estimator log from CSV, whitespace-separated text or Parquet.
 
@@ -84,6 +85,8 @@ def load_log(
     an asymmetric or non-positive-definite covariance, mismatched dimensions.
     ``innovations``: the log holds a filter's innovations ``innov_i`` and their covariance
     ``innov_cov_i_j`` (or ``innov_var_i``, ``innov_std_i``) instead of truth and estimate.
+    ``errors_only``: the log holds errors (``err_i``, or the columns
+    ``schema.truth_columns`` names); None: when it has ``err_0`` and no truth or estimate.
     """
     url = as_url(path)
     path = Path(path)
@@ -93,7 +96,13 @@ def load_log(
         return load_npz(path)
     frame = read_table(path, columnwise=True)
     return log_from_frame(
-        frame, schema or LogSchema(), url or str(path), drop_invalid, time_unit, innovations
+        frame,
+        schema or LogSchema(),
+        url or str(path),
+        drop_invalid,
+        time_unit,
+        innovations,
+        errors_only,
     )
 
 
@@ -398,9 +407,11 @@ def _vector_columns(columns, prefix: str, explicit, what: str, source: str) -> l
             "innovations log is read with --innovations (NIS, no ground truth)"
         )
     if not found:
+        alone = " (a log of errors alone: --errors-only)" if what == "estimate" else ""
         raise CredcliError(
             f"{source}: no {what} columns ({prefix}0, {prefix}1, …) found; columns found: "
             f"{_list(columns)}. Name them with the column options or a [columns] config"
+            f"{alone}"
         )
     d = max(found) + 1
     missing = [f"{prefix}{i}" for i in range(d) if i not in found]

@@ -95,6 +95,7 @@ class ReadOptions:
     states: States | None = None
     perturbation: Perturbation = Perturbation.LEFT
     innovations: bool = False
+    errors_only: bool = False  # the log holds errors (err_i or the truth columns named)
 
     def __post_init__(self) -> None:
         for name, kind in (

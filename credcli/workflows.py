@@ -24,6 +24,7 @@ from credcli.io.arrays import split_runs
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.schema import ReadOptions
 from credcli.report.render import Report, config_parameters, diagnose_report
+from credcli.studies.settings import CURVE_RUNS
 
 
 def split(
@@ -482,7 +483,7 @@ def run_simulate(
     scenario: str = "all",
     sweep: str | None = None,
     curves: bool = False,
-    curve_runs: int = 5000,
+    curve_runs: int = CURVE_RUNS,
     jobs: int = 1,
     progress=None,
     plots: bool = False,

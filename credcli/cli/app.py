@@ -19,7 +19,7 @@ from credcli.engine.config import AUTO, DiagnosisConfig, MetricsLevel, SrdForm, 
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, InputFormat, LogSchema, Perturbation, States, TimeUnit
 from credcli.report.formats import OutputFormat
-from credcli.studies.settings import RobustLoss, SimulationConfig, UwbSettings
+from credcli.studies.settings import CURVE_RUNS, RobustLoss, SimulationConfig, UwbSettings
 
 app = typer.Typer(
     name="credcli",
@@ -1107,7 +1107,7 @@ def simulate(
     ] = False,
     curve_runs: Annotated[
         int, typer.Option("--curve-runs", help="Monte Carlo runs per curve point.")
-    ] = 5000,
+    ] = CURVE_RUNS,
     ar: Annotated[
         float | None,
         typer.Option(

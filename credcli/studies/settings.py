@@ -10,6 +10,9 @@ from dataclasses import dataclass, field
 from credcli.engine.config import DiagnosisConfig, Label
 from credcli.errors import CredcliError
 
+CURVE_RUNS = 5000
+"""Monte Carlo runs per point of the Fig. 1 curves (``simulate --curves``)."""
+
 
 class Noise(str, enum.Enum):
     GAUSSIAN = "gaussian"

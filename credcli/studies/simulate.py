@@ -27,21 +27,26 @@ from credcli.engine.diagnosis import (
 from credcli.errors import CredcliError
 from credcli.parallel import ordered_map, prepare_worker
 from credcli.studies.settings import (  # noqa: F401 (re-exported)
+    CURVE_RUNS,
     ErrorModel,
     Noise,
     ScenarioSpec,
     SimulationConfig,
 )
 
+BASELINES = ("nees", "nci")
+"""The single-metric columns of Table II, after the variants of the rule."""
 
-class Method(str, enum.Enum):
-    """A column of Table II: each variant of the rule, then the single-metric baselines."""
-
-    CALIBRATED = "calibrated"
-    KS = "ks"
-    PAPER = "paper"
-    NEES = "nees"
-    NCI = "nci"
+Method = enum.Enum(
+    "Method",
+    [(v.name, v.value) for v in (Variant.CALIBRATED, Variant.KS, Variant.PAPER)]
+    + [(name.upper(), name) for name in BASELINES],
+    type=str,
+    module=__name__,
+    qualname="Method",
+)
+Method.__doc__ = """A column of Table II: each variant of the rule (its value spelled once,
+in :class:`credcli.engine.config.Variant`), then the single-metric baselines."""
 
 
 VARIANT_ORDER = (Variant.KS, Variant.PAPER, Variant.CALIBRATED)
@@ -379,7 +384,7 @@ class CurvePoint:
 
 
 def fig1_curves(
-    rhos, gammas, runs: int = 5000, dim: int = 2, seed: int = 0
+    rhos, gammas, runs: int = CURVE_RUNS, dim: int = 2, seed: int = 0
 ) -> tuple[list[CurvePoint], list[CurvePoint]]:
     """Fig. 1a (ES against ρ, γ = 0) and Fig. 1b (ES against γ, ρ = 1), with NLL beside.
 

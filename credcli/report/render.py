@@ -162,17 +162,21 @@ def advice(rec: dict) -> str | None:
     return f"{rec['segment']}: " + "; ".join(p for p in parts if p)
 
 
+def _factors(rec: dict, key: str) -> list[str]:
+    """Each factor with its interval, "f (low–high)", from the record's ``key``,
+    ``key_low`` and ``key_high`` lists."""
+    return [
+        f"{_number(f)} ({_number(lo)}–{_number(hi)})"
+        for f, lo, hi in zip(rec[key], rec[f"{key}_low"], rec[f"{key}_high"])
+    ]
+
+
 def direction_advice(rec: dict) -> str:
     """The matrix correction of a scale decided along principal directions: the factor
     (interval) along each direction of the whitened errors, Σ̂_k to become L_k Ŝ L_kᵀ."""
     parts = [
-        f"{_number(f)} ({_number(lo)}–{_number(hi)}) along ({', '.join(_number(c) for c in v)})"
-        for f, lo, hi, v in zip(
-            rec["direction_factors"],
-            rec["direction_factors_low"],
-            rec["direction_factors_high"],
-            rec["directions"],
-        )
+        f"{factor} along ({', '.join(_number(c) for c in v)})"
+        for factor, v in zip(_factors(rec, "direction_factors"), rec["directions"])
     ]
     return (
         "the misfit differs between directions; multiply the covariance, in whitened "
@@ -183,15 +187,7 @@ def direction_advice(rec: dict) -> str:
 def block_advice(rec: dict) -> str:
     """The factor (interval) of each named block of the state, e.g. a pose's position and
     orientation: the blocks of the covariance to correct, when they differ."""
-    parts = [
-        f"{name} {_number(f)} ({_number(lo)}–{_number(hi)})"
-        for name, f, lo, hi in zip(
-            rec["block_names"],
-            rec["block_factors"],
-            rec["block_factors_low"],
-            rec["block_factors_high"],
-        )
-    ]
+    parts = [f"{n} {f}" for n, f in zip(rec["block_names"], _factors(rec, "block_factors"))]
     return "by block: " + ", ".join(parts)
 
 

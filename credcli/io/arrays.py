@@ -4,7 +4,7 @@
 naming the argument and the epoch of the first problem; :func:`log_table` and
 :func:`write_log` give a log back as the columns ``credcli diagnose`` reads (CSV or
 Parquet), so that a log made in Python can be diagnosed, gated and shared from the command
-line. :func:`time_seconds` converts datetime and ISO-8601 times once, for both paths.
+line. Date-time columns are converted by :func:`credcli.io.text.time_seconds`.
 """
 
 from __future__ import annotations
@@ -14,67 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
+from credcli.io.files import write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
-
-ISO_TIME_NOTE = (
-    "{what}: date-times read as seconds since 1970-01-01 00:00 UTC (times without a zone "
-    "taken as UTC)"
-)
-"""The note of a time column given as datetime64 or ISO-8601 strings."""
-
-
-def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
-    """Seconds (float64) from numbers, numpy datetime64, pandas timestamps or ISO-8601
-    strings, and the note to show when they were date-times (None for numbers).
-
-    Date-times become seconds since the Unix epoch in UTC, rounded once to float64
-    (a resolution of 0.24 µs at today's dates). A value that is neither a number nor a date-time is an error naming
-    ``what`` and the first such value.
-
-    Examples
-    --------
-    >>> t, note = time_seconds(["2024-05-01T12:00:00Z", "2024-05-01T12:00:00.25Z"], "time")
-    >>> t - t[0], note is not None
-    (array([0.  , 0.25]), True)
-    >>> time_seconds(np.array([0.0, 0.1]), "time")[1] is None
-    True
-    """
-    import pandas as pd
-
-    array = values if isinstance(values, pd.Series) else np.asarray(values)
-    dtype = array.dtype
-    if pd.api.types.is_numeric_dtype(dtype) and not pd.api.types.is_bool_dtype(dtype):
-        return np.asarray(array, dtype=float), None
-    series = pd.Series(array)
-    if not pd.api.types.is_datetime64_any_dtype(series.dtype):
-        numbers = pd.to_numeric(series, errors="coerce")
-        if numbers.notna().sum() == series.notna().sum():
-            return numbers.to_numpy(dtype=float, na_value=np.nan), None
-    try:
-        stamps = pd.to_datetime(series, utc=True, format="ISO8601")
-    except (ValueError, TypeError, OverflowError):
-        bad = [v for v in series if v is not None and not _is_time(v)][:1]
-        shown = f" ('{bad[0]}')" if bad else ""
-        raise CredcliError(
-            f"{what}: a value{shown} is neither a number nor an ISO-8601 date-time such as "
-            "2024-05-01T12:00:00.25Z"
-        ) from None
-    nanoseconds = stamps.to_numpy(dtype="datetime64[ns]").astype(np.int64)
-    # whole seconds and the fraction apart: one rounding, not two (ns as a float loses 256 ns)
-    whole, fraction = np.divmod(nanoseconds, 1_000_000_000)
-    seconds = whole.astype(float) + fraction / 1e9
-    seconds[stamps.isna().to_numpy()] = np.nan
-    return seconds, ISO_TIME_NOTE.format(what=what)
-
-
-def _is_time(value) -> bool:
-    import pandas as pd
-
-    try:
-        pd.to_datetime([value], utc=True, format="ISO8601")
-    except (ValueError, TypeError, OverflowError):
-        return False
-    return True
+from credcli.io.text import time_seconds
 
 
 def _matrix(name: str, value, n: int | None) -> np.ndarray:
@@ -255,8 +197,6 @@ def write_log(log: EstimatorLog, path: str | Path) -> Path:
     """Write ``log`` as its canonical table (:func:`log_table`): Parquet for a ``.parquet``
     or ``.pq`` name, else CSV; atomically (no half-written file)."""
     import io
-
-    from credcli.io.files import write_atomic
 
     path = Path(path)
     table = log_table(log)

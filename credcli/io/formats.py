@@ -17,39 +17,24 @@ TransformStamped (``rostopic echo -p``: ``field.header.stamp`` in ns,
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from credcli.errors import CredcliError
+from credcli.io import logs
+from credcli.io.logs import numeric_columns
+from credcli.io.rosbag import read_bag, read_bag_topics
 from credcli.io.schema import InputFormat, LogSchema, TimeUnit
+from credcli.io.text import (
+    head_lines,
+    numeric_line,
+    read_text_table,
+    seconds,
+)
+from credcli.io.trajectory import Trajectory
 
-_SNIFF_BYTES = 65536
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """Stamped states read from one file (or bag topic), sorted by time.
-
-    ``position`` is (N, 3) for pose formats and the (N, d) vector of a credcli log;
-    ``quaternion`` (N, 4) is x, y, z, w, or None; ``cov`` is (N, 6, 6) in ROS order for
-    pose formats, (N, d, d) for a credcli log, or None; ``rows`` are the 1-based data rows
-    (message numbers for a bag) of the epochs. ``cross_covariance`` is False for a pose
-    covariance read as two 3×3 blocks (OpenVINS): the cross terms are then 0, not read.
-    """
-
-    time: np.ndarray
-    position: np.ndarray
-    quaternion: np.ndarray | None
-    cov: np.ndarray | None
-    rows: np.ndarray
-    source: str
-    format: InputFormat
-    pose: bool = True
-    notes: tuple[str, ...] = field(default=())
-    cross_covariance: bool = True  # False: the file has no position-orientation block
 
 
 # ---------------------------------------------------------------------------- sniffing
@@ -61,7 +46,7 @@ def sniff_format(path: Path) -> InputFormat:
         return InputFormat.ROSBAG
     if path.suffix.lower() in (".parquet", ".pq", ".npz"):
         return InputFormat.CREDCLI
-    lines = _head_lines(path)
+    lines = head_lines(path)
     text = "\n".join(lines)
     if "p_RS_R_x" in text:
         return InputFormat.EUROC
@@ -74,124 +59,9 @@ def sniff_format(path: Path) -> InputFormat:
     if re.search(r"(^|[,\s#])(truth_|est_|innov_|err_)\d", text):
         return InputFormat.CREDCLI
     data = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
-    if data and len(data[0].replace(",", " ").split()) in (8, 20) and _numeric(data[0]):
+    if data and len(data[0].replace(",", " ").split()) in (8, 20) and numeric_line(data[0]):
         return InputFormat.TUM
     return InputFormat.CREDCLI
-
-
-def _head_lines(path: Path) -> list[str]:
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(_SNIFF_BYTES)
-    except OSError as exc:
-        raise CredcliError(f"{path}: cannot be read ({exc.strerror})") from exc
-    text = head.decode("utf-8", errors="replace")
-    lines = text.splitlines()
-    return lines[:-1] if len(head) == _SNIFF_BYTES and len(lines) > 1 else lines
-
-
-def _numeric(line: str) -> bool:
-    try:
-        [float(x) for x in line.replace(",", " ").split()]
-    except ValueError:
-        return False
-    return True
-
-
-# ---------------------------------------------------------------------- text tables
-
-
-def read_text_table(path: Path):
-    """A text table as a DataFrame: comma- or whitespace-separated, with the header on
-    the first line or on the last ``#`` line above the data (``# time truth_0 …``);
-    other ``#`` lines are comments. A table without a header gets columns 0, 1, …"""
-    import pandas as pd
-
-    lines = _head_lines(path)
-    first = next((i for i, ln in enumerate(lines) if ln.strip() and not _comment(ln)), None)
-    if first is None:
-        raise CredcliError(f"{path}: no data rows (only blank or # comment lines)")
-    names = None
-    skip = first
-    if not _numeric(lines[first]):  # a header line
-        names, skip = _fields(lines[first]), first + 1
-    else:
-        above = [ln for ln in lines[:first] if _comment(ln) and ln.strip("# \t")]
-        if above and not _numeric(above[-1].lstrip("#")):
-            names = _fields(above[-1].lstrip("#"))
-    probe = lines[skip] if skip < len(lines) else lines[first]
-    sep = "," if "," in probe else r"\s+"
-    try:
-        frame = pd.read_csv(
-            path,
-            sep=sep,
-            skiprows=skip,
-            header=None,
-            comment="#",
-            skipinitialspace=True,
-            skip_blank_lines=True,
-            engine="c",
-        )
-    except pd.errors.EmptyDataError as exc:
-        raise CredcliError(
-            f"{path}: header has no rows below it; expected one row per epoch"
-        ) from exc
-    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
-        first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise CredcliError(f"{path}: cannot be read as a text table: {first_line}") from exc
-    if names is not None:
-        if len(names) != frame.shape[1]:
-            raise CredcliError(
-                f"{path}: the header names {len(names)} columns but the rows have "
-                f"{frame.shape[1]}; check the separator (comma or whitespace) and the header"
-            )
-        frame.columns = names
-    if len(frame) == 0:
-        raise CredcliError(f"{path}: header has no rows below it; expected one row per epoch")
-    return frame
-
-
-def _comment(line: str) -> bool:
-    return line.lstrip().startswith("#")
-
-
-def _fields(line: str) -> list[str]:
-    parts = line.split(",") if "," in line else line.split()
-    return [p.strip() for p in parts]
-
-
-# ------------------------------------------------------------------------- time units
-
-
-_INTEGER_UNITS = ((1e17, TimeUnit.NS), (1e14, TimeUnit.US), (1e11, TimeUnit.MS))
-"""Integer stamps at least this large are epoch times in this unit (1e11 s would be the
-year 5138; epoch ns are about 1.7e18, µs 1.7e15, ms 1.7e12)."""
-
-
-def decide_unit(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: str):
-    """(seconds per stamp unit, note) for stamps ``raw``: the given unit, the format's own
-    (``native``), or by magnitude for integer stamps."""
-    unit = TimeUnit(unit)
-    if unit is not TimeUnit.AUTO:
-        return unit.seconds, None
-    if native is not None:
-        return native.seconds, f"{what}: stamps read as {native.value} (the format's unit)"
-    finite = raw[np.isfinite(raw)]
-    if finite.size and np.all(finite == np.round(finite)):
-        peak = float(np.max(np.abs(finite)))
-        for bound, candidate in _INTEGER_UNITS:
-            if peak >= bound:
-                return candidate.seconds, (
-                    f"{what}: integer stamps near {peak:.3g} read as epoch {candidate.value} "
-                    f"(--time-unit auto; give --time-unit to override)"
-                )
-    return 1.0, None
-
-
-def seconds(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: str):
-    """Stamps in seconds and the note on the unit decided."""
-    scale, note = decide_unit(raw, unit, native, what)
-    return raw * scale if scale != 1.0 else raw, note
 
 
 # ----------------------------------------------------------------------------- readers
@@ -210,8 +80,6 @@ def read_trajectory(
     path = Path(path)
     fmt, notes = _format_of(path, fmt, role, topic)
     if fmt is InputFormat.ROSBAG:
-        from credcli.io.rosbag import read_bag
-
         traj = read_bag(path, topic, role, time_unit)
     elif path.is_dir():
         raise CredcliError(
@@ -244,8 +112,6 @@ def read_bag_pair(
     truth_fmt, truth_notes = _format_of(path, truth_fmt, "truth", truth_topic)
     if fmt is not InputFormat.ROSBAG or truth_fmt is not InputFormat.ROSBAG:
         return None
-    from credcli.io.rosbag import read_bag_topics
-
     requests = [(topic, "estimate"), (truth_topic, "truth")]
     estimate, truth = read_bag_topics(path, requests, time_unit)
     return _finished(estimate, "estimate", notes), _finished(truth, "truth", truth_notes)
@@ -282,8 +148,6 @@ def _with(traj: Trajectory, **changes) -> Trajectory:
 
 
 def _column_values(frame, cols, source: str) -> np.ndarray:
-    from credcli.io.logs import numeric_columns
-
     return numeric_columns(frame, list(cols), source)
 
 
@@ -431,8 +295,6 @@ def _pose(time, position, quaternion, cov, path, fmt, note) -> Trajectory:
 
 def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajectory:
     """The estimate (est_i and the covariance) or the truth (truth_i) of a credcli log."""
-    from credcli.io import logs
-
     frame = logs.read_table(path, columnwise=True)
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
@@ -443,18 +305,18 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
             "stamps (name the column with --time-column)"
         )
     if role == "truth":
-        cols = logs._vector_columns(
+        cols = logs.vector_columns(
             columns, schema.truth_prefix, schema.truth_columns, "truth", source
         )
     else:
-        cols = logs._vector_columns(
+        cols = logs.vector_columns(
             columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
         )
     logs.check_not_orientation(cols, source)
     d = len(cols)
     cov = cov_cols = None
     if role != "truth":
-        kind, cov_cols = logs._cov_layout(columns, schema, d, source)
+        kind, cov_cols = logs.cov_layout(columns, schema, d, source)
     values = _column_values(frame, [schema.time, *cols, *(cov_cols or [])], source)
     rows = np.arange(1, len(values) + 1)
     bad = ~np.isfinite(values).all(axis=1)
@@ -462,7 +324,7 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
         i = int(np.argmax(bad))
         raise CredcliError(f"{path}: row {rows[i]}: NaN, Inf or empty value; fix or remove the row")
     if cov_cols:
-        cov = logs.validated_cov(logs._build_cov(values[:, 1 + d :], kind, d), rows, source, kind)
+        cov = logs.validated_cov(logs.build_cov(values[:, 1 + d :], kind, d), rows, source, kind)
     time, note = seconds(values[:, 0], unit, None, source)
     return Trajectory(
         time=time,

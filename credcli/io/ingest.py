@@ -15,11 +15,17 @@ import numpy as np
 
 from credcli.engine import lie
 from credcli.engine.config import Perturbation, States
+from credcli.engine.scale import gls_residuals
 from credcli.errors import CredcliError
-from credcli.io.formats import Trajectory, read_bag_pair, read_trajectory
+from credcli.io.arrays import load_npz
+from credcli.io.formats import read_bag_pair, read_trajectory, sniff_format
 from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log, validated_cov
+from credcli.io.pairing import pair
+from credcli.io.rosbag import check_bag_path
 from credcli.io.schema import InputFormat, ReadOptions
 from credcli.io.streams import display_name, is_stream, readable
+from credcli.io.trajectory import Trajectory
+from credcli.parallel import release_free_memory
 
 COVARIANCE_FORMATS = (
     "credcli, ros-csv with field.pose.covariance0..35, a rosbag Odometry or "
@@ -37,8 +43,6 @@ def open_log(
     in each row when no truth is named). ``path`` (or the truth) may be a stream: ``-`` for
     standard input, a pipe or a FIFO (:mod:`credcli.io.streams`). What reading it freed
     goes back to the system."""
-    from credcli.parallel import release_free_memory
-
     reading = reading or ReadOptions()
     with contextlib.ExitStack() as stack:
         local = stack.enter_context(readable(path))
@@ -63,6 +67,8 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
             raise CredcliError("--innovations needs no ground truth: drop --truth/--truth-topic")
         _only_credcli(path, reading.input_format, "--innovations")
         return load_log(path, schema, drop_invalid, reading.time_unit, innovations=True)
+    if not reading.paired and Path(path).suffix.lower() == ".npz":
+        return load_npz(Path(path))
     if reading.errors_only:
         if reading.paired:
             raise CredcliError("--errors-only needs no ground truth: drop --truth/--truth-topic")
@@ -71,12 +77,8 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
     if not reading.paired:
         fmt = reading.input_format
         if fmt is InputFormat.AUTO:
-            from credcli.io.formats import sniff_format
-
             fmt = sniff_format(path) if path.exists() else InputFormat.CREDCLI
         if fmt is InputFormat.ROSBAG:
-            from credcli.io.rosbag import check_bag_path
-
             check_bag_path(path)
         if fmt is not InputFormat.CREDCLI:
             raise CredcliError(
@@ -145,8 +147,6 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
     truth = (
         both[1] if both else read("truth", truth_path, reading.truth_format, reading.truth_topic)
     )
-    from credcli.io.pairing import pair
-
     pairing = pair(estimate, truth, reading.max_dt, reading.time_offset)
     keep = pairing.keep
     rows = estimate.rows[keep]
@@ -238,8 +238,6 @@ on a log scale) before the convention note warns: noise moves ln κ̂ by about
 def _centred_scale(errors: np.ndarray, cov: np.ndarray) -> float:
     """κ̂ of the scale test (the NEES of GLS-centred errors over (N − 1)d): how far the
     claimed covariance is from the errors once a constant mean is removed."""
-    from credcli.engine.scale import gls_residuals
-
     residuals = gls_residuals(errors, np.linalg.cholesky(cov))
     n, d = errors.shape
     return float(residuals.q.sum() / max(1, (n - 1) * d))

@@ -11,15 +11,16 @@ from __future__ import annotations
 import collections
 import itertools
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from credcli.engine.config import epoch_chunks
-from credcli.engine.metrics import SYMMETRY_RTOL
+from credcli.engine.metrics import SYMMETRY_RTOL, eigenvalues_2x2
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
+from credcli.io.text import read_text_table, seconds, time_seconds
 
 
 @dataclass(frozen=True)
@@ -90,10 +91,6 @@ def load_log(
     """
     url = as_url(path)
     path = Path(path)
-    if url is None and path.suffix.lower() == ".npz":
-        from credcli.io.arrays import load_npz
-
-        return load_npz(path)
     frame = read_table(path, columnwise=True)
     return log_from_frame(
         frame,
@@ -326,8 +323,6 @@ def _read_frame(path: Path):
             return pd.read_parquet(path)
         if _plain_csv(path):
             return pd.read_csv(path, skipinitialspace=True)
-        from credcli.io.formats import read_text_table
-
         return read_text_table(path)
     except pd.errors.EmptyDataError as exc:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
@@ -397,7 +392,7 @@ def _indexed(columns, prefix: str) -> dict[int, str]:
     return found
 
 
-def _vector_columns(columns, prefix: str, explicit, what: str, source: str) -> list[str]:
+def vector_columns(columns, prefix: str, explicit, what: str, source: str) -> list[str]:
     if explicit:
         return list(explicit)
     found = _indexed(columns, prefix)
@@ -426,7 +421,7 @@ def _list(columns) -> str:
     return text + (f", … ({len(cols)} in all)" if len(cols) > 30 else "")
 
 
-def _cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind, list[str]]:
+def cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind, list[str]]:
     """Which covariance columns to read, and how."""
     if schema.cov_columns:
         cols = list(schema.cov_columns)
@@ -503,8 +498,6 @@ def log_from_frame(
     ``errors_only``: the log holds errors ``err_i`` (or the columns ``schema.truth_columns``
     names) and no truth or estimate; None: so when it has ``err_0`` and no ``truth_`` or
     ``est_`` columns."""
-    from dataclasses import replace
-
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
     counts = collections.Counter(columns)  # linear: a header may have 10⁶ columns
@@ -518,7 +511,7 @@ def log_from_frame(
         errors_only = _errors_layout(columns, schema) and not innovations
     if innovations or errors_only:
         schema = replace(schema, **(INNOVATION_SCHEMA if innovations else ERRORS_SCHEMA))
-        truth_cols = _vector_columns(
+        truth_cols = vector_columns(
             columns,
             schema.truth_prefix,
             schema.truth_columns,
@@ -527,10 +520,10 @@ def log_from_frame(
         )
         est_cols = []
     else:
-        truth_cols = _vector_columns(
+        truth_cols = vector_columns(
             columns, schema.truth_prefix, schema.truth_columns, "truth", source
         )
-        est_cols = _vector_columns(
+        est_cols = vector_columns(
             columns, schema.estimate_prefix, schema.estimate_columns, "estimate", source
         )
     check_not_orientation(truth_cols + est_cols, source)
@@ -552,7 +545,7 @@ def log_from_frame(
             "dimensions do not match"
         )
     d = len(truth_cols)
-    kind, cov_cols = _cov_layout(columns, schema, d, source)
+    kind, cov_cols = cov_layout(columns, schema, d, source)
     time_col = schema.time if schema.time in columns else None
     explicit_time = schema.time != LogSchema.time
     if explicit_time and time_col is None:
@@ -601,7 +594,7 @@ def log_from_frame(
         if rows.size == 0:
             raise CredcliError(f"{source}: every row has a NaN/Inf value; nothing left to diagnose")
     truth, estimate, cov_values = blocks[:3]
-    cov = validated_cov(_build_cov(cov_values, kind, d), rows, source, kind)
+    cov = validated_cov(build_cov(cov_values, kind, d), rows, source, kind)
     if kind is CovKind.STD:
         negative = (cov_values < 0).any(axis=1)
         if negative.any():
@@ -640,8 +633,6 @@ def log_from_frame(
     notes = ()
     time = None
     if time_col:
-        from credcli.io.formats import seconds
-
         if time_note is None:
             time, note = seconds(blocks[3][:, 0], time_unit, None, f"{source} ({time_col})")
             notes = (note,) if note else ()
@@ -731,14 +722,12 @@ def _time_column(frame, col: str, source: str, out: np.ndarray) -> str | None:
     (datetime64, ISO-8601 strings) as seconds since the Unix epoch (with the note)."""
     if isinstance(frame, ParquetColumns) and frame.floats(col, out):
         return None
-    from credcli.io.arrays import time_seconds
-
     values, note = time_seconds(frame[col], f"{source} ({col})")
     out[:] = values
     return note
 
 
-def _build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
+def build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
     """(N, d, d) covariances from their columns; for the full layout a view of ``values``
     when it is contiguous (no copy of a large log's covariances)."""
     n = values.shape[0]
@@ -807,8 +796,6 @@ def validated_cov(
     if kind in (CovKind.VAR, CovKind.STD):
         min_eig = diag.min(axis=1)
     elif cov.shape[1] == 2:  # closed form, scale-free, no cancellation
-        from credcli.engine.metrics import eigenvalues_2x2
-
         min_eig = eigenvalues_2x2(cov)[1]
     else:
         min_eig = np.empty(cov.shape[0])

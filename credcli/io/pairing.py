@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.io.formats import Trajectory
+from credcli.io.trajectory import Trajectory
 
 MAX_DT_FACTOR = 2.5
 

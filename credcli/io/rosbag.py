@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.io.formats import Trajectory
 from credcli.io.schema import InputFormat, TimeUnit
+from credcli.io.trajectory import Trajectory
 
 ESTIMATE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseWithCovarianceStamped")
 TRUTH_TYPES = ESTIMATE_TYPES + (

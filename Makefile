@@ -3,11 +3,11 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
-EXTRAS := .[plots,ros,dask,filterpy,stonesoup,dev]
+EXTRAS := .[plots,ros,dask,filterpy,stonesoup,docs,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 
-.PHONY: install demo test test-oldest lock lint format bench bench-dask sample-data config clean
+.PHONY: install demo test docs test-oldest lock lint format bench bench-dask sample-data config clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -69,6 +69,10 @@ sample-data: $(STAMP)
 	$(BIN)/python -m credcli.studies.samples sample_data
 
 ## config: regenerate configs/default.toml from the settings classes
+## docs: the site from docs/ and the docstrings (site/), failing on any warning
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
+
 config: $(STAMP)
 	$(BIN)/python -m credcli.cli.settings > configs/default.toml
 

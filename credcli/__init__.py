@@ -5,7 +5,7 @@ and System Model Mismatch": NEES/NCI, Gaussian NLL and energy score, an energy-d
 location test and directional probes (Algorithm 1), and adds a calibrated, dependence-aware
 decision rule (the default).
 
-The Python API, in one path (see the README's "Python API")::
+The Python API, in one path (see docs/python.md)::
 
     log = credcli.read_log("log.csv")
     results = credcli.diagnose_log(log)          # or segments="5s", "whole", [...]

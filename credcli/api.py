@@ -1,5 +1,7 @@
 """The Python API: one obvious path from a file, a DataFrame or arrays to results.
 
+Examples
+--------
 >>> import credcli
 >>> log = credcli.read_log("sample_data/estimator_log.csv")
 >>> results = credcli.diagnose_log(log)              # the log's segments, calibrated rule
@@ -100,7 +102,7 @@ def read_log(
     drop_invalid: bool = False,
     **reading,
 ) -> EstimatorLog:
-    """Read and validate an estimator log; see the README's log format and formats.
+    """Read and validate an estimator log; see docs/formats.md.
 
     ``reading`` takes the fields of :class:`credcli.io.schema.ReadOptions` (the command
     line's reading options): ``truth``, ``input_format``, ``truth_format``, ``topic``,
@@ -132,7 +134,8 @@ def diagnose_log(
     config: DiagnosisConfig | None = None,
     seed: int = 0,
 ) -> Results:
-    """Diagnose every segment of ``log``.
+    """Diagnose every segment of ``log``. A log with Monte Carlo run ids is diagnosed as its
+    runs pooled (:func:`diagnose_monte_carlo`).
 
     Parameters
     ----------
@@ -142,9 +145,6 @@ def diagnose_log(
         The calibrated rule with its defaults when not given.
     seed : int
         Each segment's sign flips come from (seed, segment name): the same as the CLI's.
-
-    A log with Monte Carlo run ids is diagnosed as its runs pooled
-    (:func:`diagnose_monte_carlo`).
     """
     if log.run is not None:
         if not (segments is None or isinstance(segments, str)):

@@ -113,7 +113,7 @@ def release_free_memory() -> None:
     """Give back to the system what reading a log freed: Arrow's allocator keeps freed
     buffers for reuse, and glibc keeps freed heap chunks below its adaptive trim threshold,
     where the diagnosis's large arrays (mapped afresh) cannot reuse them. One 2,000,000-epoch
-    Parquet log: the later peak falls by about 100 MiB (README "Measured performance")."""
+    Parquet log: the later peak falls by about 100 MiB (docs/performance.md)."""
     import sys
 
     if "pyarrow" in sys.modules:

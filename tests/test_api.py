@@ -1,4 +1,4 @@
-"""The Python API: the README's example runs, and the API gives what the CLI gives."""
+"""The Python API: the examples of docs/python.md run, and the API gives what the CLI gives."""
 
 from __future__ import annotations
 
@@ -15,10 +15,10 @@ from credcli.cli import main
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_readme_python_api_runs(monkeypatch):
+def test_python_api_page_runs(monkeypatch):
     monkeypatch.chdir(ROOT)
     failures, tried = doctest.testfile(
-        str(ROOT / "README.md"),
+        str(ROOT / "docs" / "python.md"),
         module_relative=False,
         optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
     )

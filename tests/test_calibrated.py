@@ -164,7 +164,7 @@ def _ar1(rng, n, d, phi):
 def test_false_alarms_on_ar1_errors_are_controlled():
     """AR(1) φ = 0.9, N = 2000, correct covariance: of 150 stored seeds at most 10 % are not
     credible (credcli 0.1 labelled 88 % smm), and none is insufficient-data. At the
-    measured rate (6.5 % over 400 trials, README) 150 trials exceed 10 % with probability
+    measured rate (6.5 % over 400 trials, docs/measured.md) 150 trials exceed 10 % with probability
     about 5 %; these seeds are fixed, so the test is deterministic."""
     labels = []
     for seed in range(150):

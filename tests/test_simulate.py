@@ -86,7 +86,7 @@ def test_default_protocol_reproduces_table_ii_within_8_points():
 def test_mean_over_seeds_is_close_to_table_ii():
     """Averaged over 5 seeds (250 trials per scenario, s.e. ~2.5 points) the ks variant is
     within 8 points of the paper in every scenario, and the calibrated variant is at least
-    85 % in every scenario (its 20-seed figures are 90.1–98.3 %, README) and beats ks on
+    85 % in every scenario (its 20-seed figures are 90.1–98.3 %, docs/measured.md) and beats ks on
     average."""
     ks, cal = [], []
     for seed in range(5):

@@ -39,7 +39,7 @@ from credcli.engine import dependence
 
 MAX_BATCHES = 12
 """Most batches per segment: between 8 and 16, as Ibragimov & Müller (2010) recommend,
-long enough for correlation times of a few percent of the segment (measured in the README)."""
+long enough for correlation times of a few percent of the segment (measured in docs/measured.md)."""
 MIN_SCALE_BATCHES = 4
 """Fewest batches for the scale test: t with 3 degrees of freedom (a two-sided 2.5 % test
 needs |t| > 5.8): only a strong misfit is decided on so few, but it is decided at the level."""

@@ -174,7 +174,7 @@ def ar1_variance_ratio(x: np.ndarray) -> np.ndarray:
     with :func:`variance_ratio` as the larger of the two, for lengths of batches and sign
     blocks only: in a window of 50–120 epochs the kernel τ̂ is often far below the truth,
     and the windows where it happens to be low were the ones decided, with false alarms of
-    10–24 % on AR(1) errors with φ = 0.5–0.95 (measured; the README has the table).
+    10–24 % on AR(1) errors with φ = 0.5–0.95 (measured; docs/measured.md has the table).
 
     Examples
     --------

@@ -1,6 +1,6 @@
 """Errors of pose states: positions in R³ and orientations on SO(3), vectorised over epochs.
 
-Conventions (the README's "Conventions" section has them with the equations):
+Conventions (docs/formats.md, "Conventions", has them with the equations):
 
 - ROS orders a pose covariance x, y, z, then rotations about x, y, z, row-major (REP 103,
   geometry_msgs/PoseWithCovariance); the rotations are about the fixed (parent) axes.

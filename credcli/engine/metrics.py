@@ -173,13 +173,13 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
                      - \frac{10}{N}\sum_k \log_{10}\epsilon_k^*,
         \qquad \epsilon_k^* = e_k^\top \mathcal{M}_k^{-1} e_k
 
+    Under pure scaling (Σ̂ = ρΣ, M = Σ) this is exactly −10 log10 ρ, Eq. (5).
+
     Parameters
     ----------
     mse : array, optional
         The MSE matrix, shape ``(d, d)`` (one for the segment) or ``(N, d, d)``. Estimated
         from the errors (:func:`mse_matrix`) when not given.
-
-    Under pure scaling (Σ̂ = ρΣ, M = Σ) this is exactly −10 log10 ρ, Eq. (5).
     """
     errors, cov = check_errors_cov(errors, cov)
     mse = mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)

@@ -141,7 +141,7 @@ _T_RATIO = special.stdtrit(_T_NU, 0.975) / special.stdtrit(_T_NU, 0.75)  # decre
 TAIL_GATE = 1.28
 """The ratio is read as a tail only when it exceeds the normal value by this many standard
 errors (one-sided 10 %); below that the tails are taken as normal. Measured trade-off
-(README): 1.645 left Student-t(5) at N = 100 at 6.3 % false alarms; 1.28 gives 5.9 % and
+(docs/measured.md): 1.645 left Student-t(5) at N = 100 at 6.3 % false alarms; 1.28 gives 5.9 % and
 costs the paper's protocol 0.7 points of mean accuracy; no gate cost 0.8 and left optimism
 below 90 %."""
 

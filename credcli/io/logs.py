@@ -118,7 +118,7 @@ INNOVATION_SCHEMA = {
 class ParquetColumns:
     """A Parquet file read one column at a time: the loader never holds the file's whole
     table and its numeric copy at once (a 2,000,000-epoch log: 756 MiB peak with
-    pandas.read_parquet, see README "Measured performance").
+    pandas.read_parquet, see docs/performance.md).
 
     Numeric and string columns are read through Arrow's buffers (:meth:`floats`,
     :meth:`labels`), without pandas: importing it, which Arrow's ``to_numpy`` does, costs

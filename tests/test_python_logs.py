@@ -109,6 +109,9 @@ def test_errors_only_and_npz_files_through_the_cli(tmp_path, arrays):
     np.savez(tmp_path / "typo.npz", erors=arrays["errors"], cov=arrays["cov"])
     line = error_line(*run("diagnose", tmp_path / "typo.npz")[::2])
     assert "unknown array(s) erors" in line and "typo.npz" in line
+    assert error_line(*run("diagnose", tmp_path / "none.npz")[::2]).endswith(
+        "none.npz: file not found"
+    )
 
 
 def test_iso_times_in_a_csv_make_windows_in_seconds(tmp_path, arrays):

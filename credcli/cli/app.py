@@ -451,7 +451,8 @@ StatesOpt = Annotated[
 PerturbationOpt = Annotated[
     Perturbation | None,
     typer.Option(
-        "--perturbation", help="Orientation error convention (docs/formats.md: Conventions) [default: left]."
+        "--perturbation",
+        help="Orientation error convention (docs/formats.md: Conventions) [default: left].",
     ),
 ]
 ErrorsOnlyOpt = Annotated[

@@ -226,6 +226,8 @@ def load_npz(path: Path) -> EstimatorLog:
     """A log from a NumPy ``.npz`` file of named arrays (:data:`NPZ_NAMES`): ``truth`` and
     ``estimate`` or ``errors`` (N, d), ``cov`` (N, d, d) or (d, d), optional ``time`` and
     ``segment`` (N,). Other names are an error, so that a typo is not silently ignored."""
+    if not path.exists():
+        raise CredcliError(f"{path}: file not found")
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}

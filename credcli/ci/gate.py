@@ -325,16 +325,21 @@ def gate_fail_on(
     return False, (f"{verdict}; {line}" if not passed else f"FAIL: {line}")
 
 
-def fail_on_verdict(records: list[dict], fail_on: FailOn) -> tuple[bool, str, list[dict]]:
-    """(passed, one-line verdict, failing records) of `diagnose --fail-on`."""
-    bad = [r for r in records if fails(Label(r["label"]), fail_on, r.get("untested") or ())]
+def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
+    """(passed, one-line verdict, indices of the failing segments) of `diagnose --fail-on`,
+    decided on the typed results (:class:`credcli.engine.diagnosis.SegmentDiagnosis`)."""
+    bad = [
+        k for k, r in enumerate(results) if fail_on.fails(r.diagnosis.label, r.diagnosis.untested)
+    ]
     listed = str(fail_on)
     if bad:
-        shown = ", ".join(f"{r['segment']} ({r['label']})" for r in bad[:5])
+        shown = ", ".join(
+            f"{results[k].segment} ({results[k].diagnosis.label.value})" for k in bad[:5]
+        )
         more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
         return (
             False,
-            f"FAIL: {len(bad)} of {len(records)} segment(s) match --fail-on {listed}: {shown}{more}",
+            f"FAIL: {len(bad)} of {len(results)} segment(s) match --fail-on {listed}: {shown}{more}",
             bad,
         )
-    return True, f"PASS: none of {len(records)} segment(s) match --fail-on {listed}", []
+    return True, f"PASS: none of {len(results)} segment(s) match --fail-on {listed}", []

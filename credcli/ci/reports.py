@@ -74,18 +74,19 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
     return cases
 
 
-def fail_on_cases(records: list[dict], failing: list[dict], fail_on) -> list[Case]:
-    bad = {id(r) for r in failing}
+def fail_on_cases(records: list[dict], failing: list[int], fail_on) -> list[Case]:
+    """One JUnit case per segment record; ``failing``: the indices of the failing ones."""
+    bad = set(failing)
     listed = str(fail_on)
     return [
         Case(
             r["segment"],
             f"credcli.diagnose.{_classname(r['log'])}",
-            f"label {r['label']} matches --fail-on {listed}" if id(r) in bad else None,
+            f"label {r['label']} matches --fail-on {listed}" if k in bad else None,
             f"label {r['label']}, ELT p {format_cell(r['elt_pvalue'], 3)}, NCI {format_cell(r['nci'], 3)} dB, "
             f"ANEES {format_cell(r['anees'], 3)}",
         )
-        for r in records
+        for k, r in enumerate(records)
     ]
 
 

@@ -837,7 +837,7 @@ def diagnose(
     from credcli.ci.reports import fail_on_cases, summary_markdown
 
     records = report.document["segments"]
-    passed, verdict, failing = fail_on_verdict(records, conditions)
+    passed, verdict, failing = fail_on_verdict(run.results, conditions)
     _write_ci_reports(
         junit,
         summary,

@@ -28,6 +28,8 @@ from credcli.errors import CredcliError
 from credcli.io.arrays import log_from_arrays, write_log
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
+from credcli.scheduling import diagnose_plans
+from credcli.segments import split
 
 __all__ = [
     "MonteCarloResults",
@@ -153,8 +155,6 @@ def diagnose_log(
             )
         return diagnose_monte_carlo(log, segments, config, seed)
     if segments is None or isinstance(segments, str):
-        from credcli.workflows import split  # the command line's segmentation
-
         whole = segments == "whole"
         plan = split(log, None if segments is None or whole else segments, whole)
     else:
@@ -221,7 +221,7 @@ def diagnose_monte_carlo(
     (1000, 10)
     """
     from credcli.io.arrays import split_runs
-    from credcli.workflows import diagnose_plans, monte_carlo_plan, split
+    from credcli.workflows import monte_carlo_plan
 
     config = config or DiagnosisConfig()
     runs = split_runs(runs) if isinstance(runs, EstimatorLog) else list(runs)

@@ -107,8 +107,12 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
 
 
 def whole(n: int, time: np.ndarray | None) -> list[Segment]:
+    """The whole log as one segment, "all"."""
     idx = np.arange(n)
     return [Segment("all", idx, *_span(time, idx))]
+
+
+_whole_log = whole  # for split(), whose flag of the same name shadows it
 
 
 SPEED_LAG_S = 0.1
@@ -137,3 +141,45 @@ def static_periods(
         if t[b - 1] - t[a] >= min_duration:
             out.append(Segment(f"P{len(out) + 1}", np.arange(a, b), float(t[a]), float(t[b - 1])))
     return out, speed
+
+
+def split(
+    log, window: str | None = None, whole: bool = False, min_epochs: int = 0
+) -> list[Segment]:
+    """Segments of a log: the whole log, fixed windows, or the segment column (in that
+    order of precedence); a log without a segment column is one segment.
+
+    Duration windows none of which holds ``min_epochs`` epochs are an error: that is
+    a unit mistake (nanosecond stamps read as seconds) or a window far too short. A log of
+    several Monte Carlo runs (a run column) is refused: its runs are pooled, not
+    concatenated (:func:`monte_carlo_plan`)."""
+    if log.run is not None and len(set(log.run)) > 1:
+        raise CredcliError(
+            f"{log.source}: holds {len(set(log.run))} Monte Carlo runs (a run column); "
+            "diagnose them pooled with --monte-carlo (credcli.diagnose_monte_carlo in Python)"
+        )
+    if whole:
+        return _whole_log(log.n, log.time)
+    if window is not None:
+        parsed = Window.parse(window)
+        out = by_window(log.n, parsed, log.time)
+        largest = max(len(s.index) for s in out)
+        if parsed.seconds and largest < min_epochs and log.n >= min_epochs:
+            step = float(np.median(np.diff(log.time))) if log.n > 1 else float("nan")
+            raise CredcliError(
+                f"{log.source}: --window {parsed} gives {len(out)} windows of at most "
+                f"{largest} epoch(s), fewer than --min-epochs {min_epochs}; the median time "
+                f"step is {step:.6g} s: if the stamps are not seconds, give --time-unit "
+                "(ms, us or ns), else use a longer window"
+            )
+        if not parsed.seconds and largest < min_epochs and log.n >= min_epochs:
+            raise CredcliError(
+                f"{log.source}: --window {parsed} was read as {parsed} epochs per window "
+                f"(a number without a unit counts epochs), fewer than --min-epochs "
+                f"{min_epochs}; write a duration such as {parsed}s, or at least {min_epochs} "
+                "epochs"
+            )
+        return out
+    if log.segment is not None:
+        return by_column(log.segment, log.time)
+    return _whole_log(log.n, log.time)

@@ -15,7 +15,7 @@ from conftest import SAMPLE
 from credcli import DiagnosisConfig, load_log
 from credcli.cli import main
 from credcli.engine.diagnosis import diagnose_log
-from credcli.workflows import split
+from credcli.segments import split
 
 LOG = SAMPLE / "estimator_log.csv"
 REQUIRED = {

@@ -23,8 +23,8 @@ from credcli.engine import metrics  # noqa: E402
 from credcli.engine.diagnosis import diagnose_log  # noqa: E402
 from credcli.engine.elt import whiten  # noqa: E402
 from credcli.report import plots  # noqa: E402
+from credcli.segments import split  # noqa: E402
 from credcli.studies import simulate as sim  # noqa: E402
-from credcli.workflows import split  # noqa: E402
 
 LOG = SAMPLE / "estimator_log.csv"
 GRID = SAMPLE / "starloc_grid_uwb.csv"

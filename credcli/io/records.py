@@ -122,3 +122,16 @@ def segment_record(result: SegmentDiagnosis) -> dict:
             "whiteness_lags": white.lags,
         }
     return rec
+
+
+def log_info(log, segments) -> dict:
+    """The report's entry for one log."""
+    return {
+        "path": log.source,
+        "epochs": log.n,
+        "dim": log.dim,
+        "dropped_rows": log.dropped_rows,
+        "unpaired_epochs": log.unpaired,
+        "segments": len(segments),
+        "notes": list(log.notes),
+    }

@@ -1,0 +1,187 @@
+"""Where the segments are diagnosed: in this process, in local worker processes
+(``--jobs``), or on a Dask cluster whose workers read the logs (``--scheduler``). Every
+path gives the same results in the same order: each segment's sign flips depend on (seed,
+segment name) only."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from credcli import segments as seg
+from credcli.engine.diagnosis import (
+    DiagnosisConfig,
+    SegmentDiagnosis,
+    diagnose_segment,
+    innovation_whiteness,
+)
+from credcli.io.records import log_info
+from credcli.segments import split
+
+PARALLEL_MIN_EPOCHS = 50_000
+"""Below this many epochs in all, segments are diagnosed in this process: starting worker
+processes would cost more than it saves (a spawned worker imports numpy and scipy again,
+about 0.5 s; a forked one, see parallel.start_method, starts at once but still costs its
+set-up and the transfer of the segments)."""
+
+
+TASKS_PER_JOB = 32
+"""Tasks per worker process: a task holds about total epochs / (TASKS_PER_JOB · jobs)."""
+
+PARALLEL_MIN_BYTES = 2_000_000
+"""Logs this large (in all) start the worker processes before they are read."""
+
+
+def file_size(path) -> int:
+    try:
+        return Path(path).stat().st_size
+    except OSError:
+        return 0
+
+
+def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
+    """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
+    source, items, config, seed, innovations, runs, blocks = task
+    out = []
+    for name, t0, t1, e, c in items:
+        diag = diagnose_segment(e, c, config, seed, name, source, runs, blocks)
+        white = innovation_whiteness(e, c) if innovations else None
+        out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
+    return out
+
+
+def _as_slice(index: np.ndarray):
+    """``index`` as a slice when it is a contiguous increasing range, else as it is."""
+    size = index.size
+    if size == 1:  # one epoch: no difference to take (a log of 10⁶ one-epoch segments)
+        return slice(int(index[0]), int(index[0]) + 1)
+    if size and index[-1] - index[0] + 1 == size and np.all(np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
+    return index
+
+
+def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray) -> tuple:
+    """A segment as a task item: (name, t_start, t_end, errors, covariances), the arrays as
+    views when the segment is contiguous."""
+    index = _as_slice(segment.index)
+    return (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
+
+
+def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1):
+    """Tasks of consecutive segments of one log, each closing once it holds ``target``
+    epochs (one segment per task for target 0); made as they are consumed."""
+    items, size, source, blocks = [], 0, None, ()
+    for log, segments in plans:
+        errors = log.errors
+        for segment in segments:
+            if items and (size >= target or source != log.source):
+                yield (source, items, config, seed, innovations, runs, blocks)
+                items, size = [], 0
+            source, blocks = log.source, log.blocks
+            items.append(_item(segment, errors, log.cov))
+            size += len(segment.index)
+    if items:
+        yield (source, items, config, seed, innovations, runs, blocks)
+
+
+def diagnose_plans(
+    plans,
+    config: DiagnosisConfig,
+    seed: int,
+    jobs: int = 1,
+    progress=None,
+    pool=None,
+    innovations: bool = False,
+    runs: int = 1,
+):
+    """Every segment of every (log, segments) plan, in order. From PARALLEL_MIN_EPOCHS on,
+    ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
+    otherwise segments are diagnosed one by one in this process. Each segment's sign flips
+    depend on (seed, segment name) only, so the results are the same for any ``jobs``."""
+    from credcli.parallel import ordered_map
+
+    total_segments = sum(len(s) for _, s in plans)
+    total_epochs = sum(log.n for log, _ in plans)
+    parallel = jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1
+    if pool is not None and not parallel:
+        pool.close()
+        pool = None
+    target = max(1, total_epochs // (TASKS_PER_JOB * jobs)) if parallel else 0
+    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs)
+    if pool is not None:
+        outputs = pool.map(_diagnose_chunk, list(tasks))
+    else:
+        outputs = ordered_map(_diagnose_chunk, tasks, jobs if parallel else 1)
+    results = []
+    try:
+        for out in outputs:
+            results.extend(out)
+            if progress is not None:
+                progress(len(results), total_segments)
+    finally:
+        outputs.close()
+    return results
+
+
+# --- on a Dask cluster: the workers read the logs ----------------------------------------
+
+CLUSTER_TASK_EPOCHS = 5_000
+"""Epochs of consecutive segments per cluster task: about 50 ms of diagnosis (d = 2) on
+this machine, so that Dask's per-task cost (about 1 ms) stays small beside it."""
+
+_WORKER_LOGS: dict = {}
+_WORKER_LOGS_KEPT = 2
+
+
+def _worker_log(source):
+    """(log, segments, errors) of ``source`` in this worker, read once for the tasks that share it
+    (the last few are kept, keyed by the file's size and modification time too)."""
+    from credcli.io.ingest import open_log
+    from credcli.parallel import prepare_worker
+
+    prepare_worker()
+    path, schema, reading, drop_invalid, window, whole, min_epochs = source
+    try:
+        stat = Path(path).stat()
+        key = (source, stat.st_size, stat.st_mtime_ns)
+    except OSError:
+        key = (source, None, None)
+    if key not in _WORKER_LOGS:
+        log = open_log(path, schema, reading, drop_invalid)
+        while len(_WORKER_LOGS) >= _WORKER_LOGS_KEPT:
+            _WORKER_LOGS.pop(next(iter(_WORKER_LOGS)))
+        _WORKER_LOGS[key] = (log, split(log, window, whole, min_epochs), log.errors)
+    return _WORKER_LOGS[key]
+
+
+def _plan_task(source) -> tuple[dict, list[int]]:
+    """Worker: the report entry of a log and the epochs of each of its segments."""
+    log, segments, _ = _worker_log(source)
+    return log_info(log, segments), [len(s.index) for s in segments]
+
+
+def _segments_task(task) -> list[SegmentDiagnosis]:
+    """Worker: diagnose segments [first, stop) of a log."""
+    source, first, stop, config, seed, innovations = task
+    log, segments, errors = _worker_log(source)
+    items = [_item(segment, errors, log.cov) for segment in segments[first:stop]]
+    return _diagnose_chunk((log.source, items, config, seed, innovations, 1, log.blocks))
+
+
+def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=None):
+    """Every segment of every log, diagnosed by the cluster's workers: one task per log
+    to plan its segments, then one task per run of consecutive segments of about
+    CLUSTER_TASK_EPOCHS epochs. Returns (results in log and segment order, log entries)."""
+    planned = runner.map(_plan_task, sources)
+    tasks = []
+    for source, (_, sizes) in zip(sources, planned):
+        first, held = 0, 0
+        for k, size in enumerate(sizes):
+            held += size
+            if held >= CLUSTER_TASK_EPOCHS or k == len(sizes) - 1:
+                tasks.append((source, first, k + 1, config, seed, innovations))
+                first, held = k + 1, 0
+    counts = [task[2] - task[1] for task in tasks]  # segments per task
+    outputs = runner.map(_segments_task, tasks, progress, counts)
+    return [r for out in outputs for r in out], [info for info, _ in planned]

@@ -17,10 +17,11 @@ from credcli.engine.diagnosis import (
     MetricsLevel,
     diagnose_log,
 )
+from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
-from credcli.io.arrays import split_runs
+from credcli.io.arrays import pool_runs, split_runs
 from credcli.io.logs import EstimatorLog, LogSchema
-from credcli.io.records import log_info
+from credcli.io.records import log_info, monte_carlo_record
 from credcli.io.schema import ReadOptions
 from credcli.report.render import Report, config_parameters, diagnose_report
 from credcli.scheduling import PARALLEL_MIN_BYTES, diagnose_on_cluster, diagnose_plans, file_size
@@ -124,7 +125,7 @@ def run_diagnose(
     if mc is not None:
         parameters["monte_carlo"] = True
     report = diagnose_report(
-        results, parameters, logs, config.metrics is MetricsLevel.ALL, mc and mc.record()
+        results, parameters, logs, config.metrics is MetricsLevel.ALL, mc and monte_carlo_record(mc)
     )
     figures = []
     if plots and plans is None:  # the cluster read the logs; the figures need them here
@@ -180,47 +181,10 @@ def _diagnose_here(
     return results, logs, plans, mc
 
 
-@dataclass(frozen=True)
-class MonteCarlo:
-    """Bar-Shalom's per-epoch ANEES test over M runs (Bar-Shalom, Li and Kirubarajan,
-    *Estimation with Applications to Tracking and Navigation*, 2001, Sec. 5.4.2): the
-    average NEES over runs ε̄_k, with M ε̄_k ~ χ²_{Md} for a consistent filter, inside
-    [χ²_{Md}(α/2), χ²_{Md}(1 − α/2)] / M at a fraction 1 − α of the epochs."""
-
-    runs: int
-    dim: int
-    level: float
-    time: np.ndarray | None
-    anees: np.ndarray
-    lower: float
-    upper: float
-    segments: dict
-
-    @property
-    def inside(self) -> np.ndarray:
-        return (self.anees >= self.lower) & (self.anees <= self.upper)
-
-    def record(self) -> dict:
-        return {
-            "runs": self.runs,
-            "dof": self.runs * self.dim,
-            "confidence": 1.0 - self.level,
-            "lower": self.lower,
-            "upper": self.upper,
-            "fraction_inside": float(self.inside.mean()),
-            "mean_anees": float(self.anees.mean()),
-            "segments": self.segments,
-        }
-
-
 def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
     """Pool M runs of one scenario: one plan whose segment k holds the epochs of segment k
     of every run, run after run (so that the ELT flips each run in its own blocks), and
-    the per-epoch ANEES test."""
-    from scipy import special
-
-    from credcli.engine.metrics import nees_factored
-
+    the per-epoch ANEES test (:func:`credcli.engine.montecarlo.anees_test`)."""
     if len(loaded) < 2:
         raise CredcliError("--monte-carlo needs at least two runs (logs) of the scenario")
     base = loaded[0]
@@ -235,25 +199,11 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
                 f"d = {log.dim} against {base.n} of d = {base.dim} in {base.source}"
                 + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
             )
-    m, n, d = len(loaded), base.n, base.dim
-    nees = np.stack([nees_factored(log.errors, np.linalg.cholesky(log.cov)) for log in loaded])
-    anees = nees.mean(axis=0)
-    lower = float(special.chdtri(m * d, 1 - alpha / 2) / m)
-    upper = float(special.chdtri(m * d, alpha / 2) / m)
     segments = plans[0][1]
-    order = np.concatenate([run * n + seg.index for seg in segments for run in range(m)])
-    errors = np.concatenate([log.errors for log in loaded])[order]
-    cov = np.concatenate([log.cov for log in loaded])[order]
-    pooled = EstimatorLog(None, None, cov, source=f"monte-carlo ({m} runs)", state_errors=errors)
-    starts = np.cumsum([0] + [m * len(s.index) for s in segments])
-    pooled_segments = [
-        seg.Segment(s.name, np.arange(a, b), s.t_start, s.t_end)
-        for s, a, b in zip(segments, starts[:-1], starts[1:])
-    ]
-    inside = (anees >= lower) & (anees <= upper)
-    fractions = {s.name: float(inside[s.index].mean()) for s in segments}
-    mc = MonteCarlo(m, d, alpha, base.time, anees, lower, upper, fractions)
-    return [(pooled, pooled_segments)], mc
+    mc = anees_test(
+        [log.errors for log in loaded], [log.cov for log in loaded], alpha, base.time, segments
+    )
+    return [pool_runs(loaded, segments)], mc
 
 
 def run_simulate(

@@ -17,6 +17,7 @@ from credcli.errors import CredcliError
 from credcli.io.files import write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
 from credcli.io.text import time_seconds
+from credcli.segments import Segment
 
 
 def _matrix(name: str, value, n: int | None) -> np.ndarray:
@@ -168,6 +169,23 @@ def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
             )
         )
     return out
+
+
+def pool_runs(runs: list[EstimatorLog], segments) -> tuple[EstimatorLog, list]:
+    """M runs on one time base as one log whose segment k holds the epochs of segment k of
+    every run, run after run (so that the ELT flips each run in its own blocks), and those
+    pooled segments."""
+    m, n = len(runs), runs[0].n
+    order = np.concatenate([run * n + s.index for s in segments for run in range(m)])
+    errors = np.concatenate([log.errors for log in runs])[order]
+    cov = np.concatenate([log.cov for log in runs])[order]
+    pooled = EstimatorLog(None, None, cov, source=f"monte-carlo ({m} runs)", state_errors=errors)
+    starts = np.cumsum([0] + [m * len(s.index) for s in segments])
+    pooled_segments = [
+        Segment(s.name, np.arange(a, b), s.t_start, s.t_end)
+        for s, a, b in zip(segments, starts[:-1], starts[1:])
+    ]
+    return pooled, pooled_segments
 
 
 def log_table(log: EstimatorLog):

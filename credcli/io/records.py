@@ -135,3 +135,17 @@ def log_info(log, segments) -> dict:
         "segments": len(segments),
         "notes": list(log.notes),
     }
+
+
+def monte_carlo_record(mc) -> dict:
+    """The JSON record of the per-epoch ANEES test (:class:`credcli.engine.montecarlo.MonteCarlo`)."""
+    return {
+        "runs": mc.runs,
+        "dof": mc.runs * mc.dim,
+        "confidence": 1.0 - mc.level,
+        "lower": mc.lower,
+        "upper": mc.upper,
+        "fraction_inside": float(mc.inside.mean()),
+        "mean_anees": float(mc.anees.mean()),
+        "segments": mc.segments,
+    }

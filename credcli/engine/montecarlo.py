@@ -1,7 +1,7 @@
 """Bar-Shalom's per-epoch ANEES test over M Monte Carlo runs (Bar-Shalom, Li and
 Kirubarajan, *Estimation with Applications to Tracking and Navigation*, 2001, Sec. 5.4.2):
-the average NEES over runs ε̄_k (not divided by d), with M ε̄_k ~ χ²_{Md} for a consistent filter, inside
-[χ²_{Md}(α/2), χ²_{Md}(1 − α/2)] / M at a fraction 1 − α of the epochs."""
+the average NEES over runs ε̄_k (not divided by d), with M ε̄_k ~ χ²_{Md} for a consistent
+filter, inside [χ²_{Md}(α/2), χ²_{Md}(1 − α/2)] / M at a fraction 1 − α of the epochs."""
 
 from __future__ import annotations
 

@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from credcli import segments as seg
-from credcli.engine._rng import RngLike
 from credcli.engine.diagnosis import Diagnosis, DiagnosisConfig, SegmentDiagnosis, diagnose_errors
 from credcli.engine.diagnosis import diagnose_log as _diagnose_segments
+from credcli.engine.rng import RngLike
 from credcli.errors import CredcliError
 from credcli.io.arrays import log_from_arrays, write_log
 from credcli.io.logs import EstimatorLog, LogSchema

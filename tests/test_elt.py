@@ -221,7 +221,7 @@ def test_fast_rademacher_signs_are_numpys_draws_bit_for_bit():
     of ~3.5 ms); they equal 2·integers(0, 2) − 1 bit for bit, and leave the generator in
     the same state, whatever the shape and whether a 32-bit word was left buffered; other
     bit generators take numpy's own path."""
-    from credcli.engine import _rng
+    from credcli.engine import rng as _rng
 
     assert _rng._raw_draws_match()
     shapes = np.random.default_rng(9).integers(1, 60, size=(150, 2))

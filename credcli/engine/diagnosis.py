@@ -11,7 +11,6 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import batches, dependence, metrics
-from credcli.engine._rng import RngLike, as_generator
 from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-exported)
     AUTO,
     DEFAULT_MAX_EPOCHS,
@@ -28,6 +27,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
     parse_label,
 )
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
+from credcli.engine.rng import RngLike, as_generator
 from credcli.engine.scale import (
     DirectionScales,
     ScaleTest,

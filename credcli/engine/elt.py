@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import blas  # here, not in the flips: forked workers find it loaded
 
-from credcli.engine._rng import RngLike, as_generator, rademacher
 from credcli.engine.config import DEFAULT_MAX_EPOCHS, epoch_chunks
+from credcli.engine.rng import RngLike, as_generator, rademacher
 from credcli.errors import CredcliError
 
 _PVALUE_RTOL = 100 * np.finfo(float).eps

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from credcli.engine._rng import RngLike, as_generator
+from credcli.engine.rng import RngLike, as_generator
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from credcli.engine._rng import RngLike, as_generator
+from credcli.engine.rng import RngLike, as_generator
 from credcli.io.logs import EstimatorLog
 
 

@@ -300,7 +300,7 @@ def test_variance_ratio_of_a_near_unit_root_ar1():
 
 def test_a_constant_bias_under_long_memory_is_found():
     """A 1σ bias on AR(1) φ = 0.99 errors (N/τ = 30): the mean test on 12 batches finds it
-    in most segments at 100 Hz and at 10 Hz (measured 34–36 of 40)."""
+    in most segments at 100 Hz and at 10 Hz (measured 35–38 of 40)."""
     rng = np.random.default_rng(3)
     for every in (1, 10):
         found = 0

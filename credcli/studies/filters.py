@@ -30,20 +30,21 @@ from credcli.engine.rng import RngLike, as_generator
 
 @dataclass(frozen=True)
 class FilterTuning:
-    """The filter's model against the truth's: factors on q, R and P0, and a range bias
-    (m) in the measurements that the filter does not model."""
+    """The filter's model against the truth's: factors on q, R and P0, and a bias in the
+    measurements that the filter does not model, in the study's own unit (here metres of
+    range; in :mod:`credcli.studies.libraries`, standard deviations of R on x)."""
 
     q_factor: float = 1.0
     r_factor: float = 1.0
     p0_factor: float = 1.0
-    range_bias: float = 0.0
+    bias: float = 0.0
 
 
 TUNINGS = {
     "right": FilterTuning(),
     "too-small": FilterTuning(0.25, 0.25, 0.25),
     "too-large": FilterTuning(4.0, 4.0, 4.0),
-    "bias": FilterTuning(range_bias=0.5),
+    "bias": FilterTuning(bias=0.5),
 }
 """The four cases of the measured tables: right tuning, Q/R/P0 4× too small (optimism),
 4× too large (pessimism), an unmodelled range bias (smm)."""
@@ -103,7 +104,7 @@ def ekf_runs(
         xh = xh @ f.T
         p = f @ p @ f.T + qf
         rho = np.hypot(x[:, 0], x[:, 1])
-        z = np.c_[rho + tuning.range_bias, np.arctan2(x[:, 1], x[:, 0])]
+        z = np.c_[rho + tuning.bias, np.arctan2(x[:, 1], x[:, 0])]
         z += rng.standard_normal((runs, 2)) * chol_r
         rho_h = np.hypot(xh[:, 0], xh[:, 1])
         h = np.zeros((runs, 2, 4))

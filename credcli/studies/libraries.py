@@ -1,7 +1,7 @@
 """Filters from public estimator libraries, run as their users run them, for the measured
 tables of issue 24 and the adapters' tests: filterpy's ``KalmanFilter`` and Stone Soup's
 Kalman predictor/updater (and its single-target tracker), on a 2-D constant-velocity
-target, in the four cases of :data:`credcli.studies.filters.TUNINGS`-like tunings.
+target, in the four cases of :data:`LIBRARY_TUNINGS`.
 
 The truth follows the nearly-constant-velocity model (white-noise acceleration of spectral
 density q per axis; Bar-Shalom et al. 2001, Sec. 6.3.2) and is measured in position with
@@ -13,32 +13,16 @@ imported on use (extras ``filterpy`` and ``stonesoup``).
 from __future__ import annotations
 
 import datetime as _dt
-from dataclasses import dataclass
 
 import numpy as np
 
 from credcli.engine.rng import RngLike, as_generator
 from credcli.io.logs import EstimatorLog
+from credcli.studies.filters import TUNINGS, FilterTuning
 
-
-@dataclass(frozen=True)
-class Tuning:
-    """The filter's model against the truth's: factors on Q, R and P0, and a measurement
-    offset on x (in units of √r) that the filter does not model."""
-
-    q_factor: float = 1.0
-    r_factor: float = 1.0
-    p0_factor: float = 1.0
-    bias_sigma: float = 0.0
-
-
-LIBRARY_TUNINGS = {
-    "right": Tuning(),
-    "too-small": Tuning(0.25, 0.25, 0.25),
-    "too-large": Tuning(4.0, 4.0, 4.0),
-    "bias": Tuning(bias_sigma=1.0),
-}
-"""The four cases of the per-library tables."""
+LIBRARY_TUNINGS = TUNINGS | {"bias": FilterTuning(bias=1.0)}
+"""The four cases of the per-library tables: those of the EKF study, with the unmodelled
+bias a 1σ (of R) offset on the x measurements."""
 
 EXPECTED = {"right": "credible", "too-small": "optimism", "too-large": "pessimism", "bias": "smm"}
 """What each case should be called (for "bias", any label with smm)."""
@@ -74,7 +58,7 @@ def cv_truth(steps: int, seed: RngLike = 0) -> tuple[np.ndarray, np.ndarray, np.
     return x, z, x0
 
 
-def filterpy_run(tuning: Tuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
+def filterpy_run(tuning: FilterTuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
     """filterpy's KalmanFilter with a Saver, as its documentation runs it."""
     from filterpy.common import Saver
     from filterpy.kalman import KalmanFilter
@@ -82,7 +66,7 @@ def filterpy_run(tuning: Tuning, seed: RngLike = 0, steps: int = 300) -> Estimat
     from credcli.adapters.filterpy import log_from_saver
 
     truth, z, x0 = cv_truth(steps, seed)
-    z = z + [tuning.bias_sigma * np.sqrt(R_VARIANCE), 0.0]
+    z = z + [tuning.bias * np.sqrt(R_VARIANCE), 0.0]
     f, q = cv_matrices()
     kf = KalmanFilter(dim_x=4, dim_z=2)
     kf.F, kf.Q = f, q * tuning.q_factor
@@ -99,7 +83,7 @@ def filterpy_run(tuning: Tuning, seed: RngLike = 0, steps: int = 300) -> Estimat
     return log_from_saver(saver, truth, time=np.arange(steps) * DT, source="filterpy")
 
 
-def stonesoup_run(tuning: Tuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
+def stonesoup_run(tuning: FilterTuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
     """Stone Soup's KalmanPredictor and KalmanUpdater over its own models, the loop of its
     Kalman filter tutorial; the truth and detections drawn as above."""
     from stonesoup.models.measurement.linear import LinearGaussian
@@ -118,7 +102,7 @@ def stonesoup_run(tuning: Tuning, seed: RngLike = 0, steps: int = 300) -> Estima
     from credcli.adapters.stonesoup import log_from_track
 
     truth_x, z, x0 = cv_truth(steps, seed)
-    z = z + [tuning.bias_sigma * np.sqrt(R_VARIANCE), 0.0]
+    z = z + [tuning.bias * np.sqrt(R_VARIANCE), 0.0]
     start = _dt.datetime(2024, 5, 1)
     times = [start + _dt.timedelta(seconds=k * DT) for k in range(steps)]
     truth = GroundTruthPath([GroundTruthState(x, timestamp=t) for x, t in zip(truth_x, times)])

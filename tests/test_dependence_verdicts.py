@@ -468,7 +468,7 @@ def test_bias_corrected_ar1_variance_ratio():
 
     rng = np.random.default_rng(30)
     windows = [ar1_errors(50, 1, 0.75, rng) for _ in range(400)]
-    corrected = np.median([ar1_variance_ratio(w)[0] for w in windows])
+    corrected = np.median([ar1_variance_ratio(autocorrelation(w), 50)[0] for w in windows])
     raw = np.median([(1 + r) / (1 - r) for r in (autocorrelation(w)[0] for w in windows)])
     assert abs(corrected / 7.0 - 1) < 0.15 and raw < 5.5, (corrected, raw)
 

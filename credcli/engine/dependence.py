@@ -165,8 +165,9 @@ def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> 
     return max(1, math.ceil(float(np.max(need)) - 1e-9))
 
 
-def ar1_variance_ratio(x: np.ndarray) -> np.ndarray:
-    r"""τ per column of x (T, p) from its lag-1 autocorrelation, bias-corrected, as an AR(1).
+def ar1_variance_ratio(r1: np.ndarray, n: int) -> np.ndarray:
+    r"""τ per column from the lag-1 autocorrelations ``r1`` (:func:`autocorrelation`) of
+    ``n`` epochs, bias-corrected, as an AR(1).
 
     The least-squares lag-1 coefficient of a short series with an estimated mean is biased
     towards 0 by about (1 + 3ρ)/T (Kendall 1954; Marriott & Pope 1954, Biometrika 41), so
@@ -179,13 +180,10 @@ def ar1_variance_ratio(x: np.ndarray) -> np.ndarray:
     Examples
     --------
     >>> x = np.random.default_rng(0).standard_normal(100_000)
-    >>> round(float(ar1_variance_ratio(x)[0]), 2)
+    >>> round(float(ar1_variance_ratio(autocorrelation(x), x.size)[0]), 2)
     1.0
     """
-    x = np.asarray(x, dtype=float)
-    x = x.reshape(x.shape[0], -1)
-    n = x.shape[0]
-    r1 = autocorrelation(x)
+    r1 = np.asarray(r1, dtype=float)
     rho = np.clip(r1 + (1.0 + 3.0 * r1) / max(n, 1), 0.0, _MAX_PREWHITEN)
     return (1.0 + rho) / (1.0 - rho)
 

@@ -403,18 +403,17 @@ def _serial_dependence(s: np.ndarray, q: np.ndarray, r1: np.ndarray | None = Non
     (:func:`credcli.engine.dependence.serially_dependent`); if so, the kernel τ̂ of each
     component (the reported effective N) and, for the lengths of batches and sign blocks,
     the neighbour correction and the centring of κ̄, the larger of τ̂ and the
-    bias-corrected AR(1) τ;
-    for the squared errors q also at least the τ that the errors' own τ implies for a
-    Gaussian AR(1). On independent epochs all are 1."""
+    bias-corrected AR(1) τ; for the squared errors q also at least the τ that the errors'
+    own τ implies for a Gaussian AR(1). On independent epochs all are 1."""
     r1 = dependence.autocorrelation(s) if r1 is None else r1
-    d = s.shape[1]
-    if not dependence.serially_dependent(r1, s.shape[0]):
+    n, d = s.shape
+    if not dependence.serially_dependent(r1, n):
         return False, np.ones(d), np.ones(d), 1.0  # τ̂ is not used (see serially_dependent)
     tau_point = dependence.variance_ratio(s)
-    tau = np.maximum(tau_point, dependence.ar1_variance_ratio(s))
+    tau = np.maximum(tau_point, dependence.ar1_variance_ratio(r1, n))
     tau_q = max(
         float(dependence.variance_ratio(q)[0]),
-        float(dependence.ar1_variance_ratio(q)[0]),
+        float(dependence.ar1_variance_ratio(dependence.autocorrelation(q), n)[0]),
         dependence.squared_variance_ratio(tau),
     )
     return True, tau_point, tau, tau_q

@@ -12,21 +12,22 @@ import numpy as np
 
 from credcli import scheduling
 from credcli import segments as seg
-from credcli.engine.diagnosis import (
-    DiagnosisConfig,
-    MetricsLevel,
-    diagnose_log,
-)
+from credcli.engine.diagnosis import MetricsLevel, diagnose_log
 from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
 from credcli.io.arrays import pool_runs, split_runs
 from credcli.io.logs import EstimatorLog, LogSchema
-from credcli.io.records import log_info, monte_carlo_record
-from credcli.io.schema import ReadOptions
+from credcli.io.records import (
+    BASELINE_KIND,
+    BASELINE_SCHEMA_VERSION,
+    Snapshot,
+    log_info,
+    monte_carlo_record,
+)
 from credcli.report.render import Report, config_parameters, diagnose_report
+from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
 from credcli.scheduling import PARALLEL_MIN_BYTES, diagnose_on_cluster, diagnose_plans, file_size
 from credcli.segments import split
-from credcli.studies.settings import CURVE_RUNS
 
 
 def segmentation_name(window: str | None, whole: bool) -> str:
@@ -54,37 +55,25 @@ class Run:
     results: list = field(default_factory=list)  # SegmentDiagnosis, in report order
 
 
-def run_diagnose(
-    paths: list[Path],
-    schema: LogSchema,
-    config: DiagnosisConfig,
-    window: str | None = None,
-    whole: bool = False,
-    seed: int = 0,
-    drop_invalid: bool = False,
-    progress=None,
-    plots: bool = False,
-    jobs: int = 1,
-    reading: ReadOptions | None = None,
-    monte_carlo: bool = False,
-    runner=None,
-) -> Run:
-    """Load, segment and diagnose every log; return the `diagnose` report (and plots).
-    ``jobs`` processes share the segments; the output is the same for any value.
-    ``reading`` says how the logs are read (formats, a separate truth, states).
-    ``monte_carlo``: the logs are independent runs of one scenario on one time base; their
-    segments are pooled (see :func:`monte_carlo_plan`) and the report adds Bar-Shalom's
-    per-epoch ANEES test. ``runner`` (a credcli.cluster.DaskRunner): the segments are
-    diagnosed on a Dask cluster whose workers read the logs themselves."""
+def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
+    """Load, segment and diagnose every log of ``request``; return the `diagnose` report
+    (and the figures, when asked for). Local worker processes share the segments; the
+    output is the same for any number. Monte Carlo runs (``request.monte_carlo``) are
+    pooled segment by segment (see :func:`monte_carlo_plan`) and the report adds
+    Bar-Shalom's per-epoch ANEES test. ``runner`` (a credcli.cluster.DaskRunner): the
+    segments are diagnosed on a Dask cluster whose workers read the logs themselves."""
     from credcli.io.ingest import open_log
 
-    reading = reading or ReadOptions()
+    paths, config, seed = request.logs, request.config, request.seed
+    reading = request.reading
+    schema, options, drop_invalid = reading.schema, reading.options, reading.drop_invalid
+    window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     if runner is not None:
         if monte_carlo:
             raise CredcliError("--monte-carlo runs on this machine: drop --scheduler")
         from credcli.io.streams import display_name, is_stream
 
-        streamed = [p for p in [*paths, reading.truth] if p is not None and is_stream(p)]
+        streamed = [p for p in [*paths, options.truth] if p is not None and is_stream(p)]
         if streamed:
             raise CredcliError(
                 f"{display_name(streamed[0])}: a stream (stdin, pipe or FIFO) cannot be read by "
@@ -92,27 +81,15 @@ def run_diagnose(
                 "drop --scheduler"
             )
         sources = [
-            (str(p), schema, reading, drop_invalid, window, whole, config.min_epochs) for p in paths
+            (str(p), schema, options, drop_invalid, window, whole, config.min_epochs) for p in paths
         ]
         results, logs = diagnose_on_cluster(
-            runner, sources, config, seed, reading.innovations, progress
+            runner, sources, config, seed, options.innovations, progress
         )
         plans = None
         mc = None
     else:
-        results, logs, plans, mc = _diagnose_here(
-            paths,
-            schema,
-            config,
-            window,
-            whole,
-            seed,
-            drop_invalid,
-            progress,
-            jobs,
-            reading,
-            monte_carlo,
-        )
+        results, logs, plans, mc = _diagnose_here(request, progress)
     parameters = config_parameters(config) | {
         "seed": seed,
         "segmentation": segmentation_name(window, whole),
@@ -120,7 +97,7 @@ def run_diagnose(
         "whole": whole,
         "drop_invalid": drop_invalid,
         "columns": schema_parameters(schema),
-        "input": schema_parameters(reading),
+        "input": schema_parameters(options),
     }
     if mc is not None:
         parameters["monte_carlo"] = True
@@ -128,8 +105,9 @@ def run_diagnose(
         results, parameters, logs, config.metrics is MetricsLevel.ALL, mc and monte_carlo_record(mc)
     )
     figures = []
+    plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here
-        loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
+        loaded = [open_log(p, schema, options, drop_invalid) for p in paths]
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
@@ -149,20 +127,20 @@ def run_diagnose(
     return Run(report, figures, results)
 
 
-def _diagnose_here(
-    paths, schema, config, window, whole, seed, drop_invalid, progress, jobs, reading, monte_carlo
-):
-    """Read and diagnose the logs in this process and ``jobs`` local worker processes;
-    returns (results, log entries, plans, Monte Carlo test or None)."""
+def _diagnose_here(request: DiagnoseRequest, progress):
+    """Read and diagnose the logs in this process and ``request.jobs`` local worker
+    processes; returns (results, log entries, plans, Monte Carlo test or None)."""
     from credcli.io.ingest import open_log
 
+    paths, config, jobs, reading = request.logs, request.config, request.jobs, request.reading
+    window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     pool = None
     if jobs > 1 and sum(file_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
         from credcli.parallel import WorkerPool
 
         pool = WorkerPool(jobs, warm=scheduling.__name__)  # workers import while the logs are read
     try:
-        loaded = [open_log(p, schema, reading, drop_invalid) for p in paths]
+        loaded = [open_log(p, reading.schema, reading.options, reading.drop_invalid) for p in paths]
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
@@ -176,7 +154,7 @@ def _diagnose_here(
         diagnosed, mc = monte_carlo_plan(loaded, plans, config.alpha)
         runs = len(loaded)
     results = diagnose_plans(
-        diagnosed, config, seed, jobs, progress, pool, reading.innovations, runs
+        diagnosed, config, request.seed, jobs, progress, pool, reading.options.innovations, runs
     )
     return results, logs, plans, mc
 
@@ -206,17 +184,7 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
     return [pool_runs(loaded, segments)], mc
 
 
-def run_simulate(
-    config,
-    scenario: str = "all",
-    sweep: str | None = None,
-    curves: bool = False,
-    curve_runs: int = CURVE_RUNS,
-    jobs: int = 1,
-    progress=None,
-    plots: bool = False,
-    runner=None,
-) -> tuple[Run, str]:
+def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[Run, str]:
     """The `simulate` report (and plots) and a one-line summary; ``runner``: trials on a
     Dask cluster (credcli.cluster.DaskRunner)."""
     import dataclasses
@@ -226,7 +194,14 @@ def run_simulate(
     from credcli.report.render import curves_report, simulate_report, sweep_report
     from credcli.studies import simulate as sim
 
-    scenarios = sim.parse_scenarios(scenario)
+    config, sweep, curves, curve_runs = (
+        request.config,
+        request.sweep,
+        request.curves,
+        request.curve_runs,
+    )
+    jobs, plots = request.jobs, request.figures
+    scenarios = sim.parse_scenarios(request.scenario)
     parameters = {
         "scenarios": [s.value for s in scenarios],
         "trials": config.trials,
@@ -303,23 +278,20 @@ def export_log_text(log: EstimatorLog) -> str:
     return buf.getvalue()
 
 
-def run_uwb(
-    path: Path,
-    settings,
-    config: DiagnosisConfig,
-    anchors: Path | None = None,
-    window: str | None = None,
-    whole: bool = False,
-    seed: int = 0,
-    progress=None,
-    plots: bool = False,
-):
+def run_uwb(request: UwbRequest, progress=None):
     """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (Run, UwbRun)."""
     import dataclasses
 
     from credcli.report.render import uwb_report
     from credcli.studies import uwb
 
+    path, settings, config, anchors = (
+        request.file,
+        request.settings,
+        request.config,
+        request.anchors,
+    )
+    window, whole, seed = request.window, request.whole, request.seed
     run = uwb.run_pipeline(path, settings, anchors, window, whole)
     if not run.segments:
         raise CredcliError(f"{path}: no fix falls in any period; try --window 5s or --whole")
@@ -334,117 +306,46 @@ def run_uwb(
         | {"anchors": str(anchors) if anchors else "self-calibrated"}
     )
     figures = []
-    if plots:
+    if request.figures:
         from credcli.report.plots import segment_plots, uwb_plots
 
         figures = uwb_plots(run) + segment_plots(run.log, results, run.segments)
     return Run(uwb_report(run, results, parameters), figures), run
 
 
-def run_baseline(path: Path, **setup) -> Report:
+def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report:
     """`diagnose` on one log, marked as a baseline of the current schema version."""
-    from credcli.ci.gate import BASELINE_KIND, BASELINE_SCHEMA_VERSION
-
-    report = run_diagnose([path], **setup).report
+    report = run_diagnose(request, progress, runner).report
     report.document.update(kind=BASELINE_KIND, schema_version=BASELINE_SCHEMA_VERSION)
     report.document["command"] = "baseline"
     return report
 
 
-def run_gate(
-    path: Path,
-    baseline_path: Path,
-    thresholds,
-    requested: dict,
-    progress=None,
-    plots=False,
-    jobs: int = 1,
-    truth: Path | None = None,
-    runner=None,
-):
-    """Diagnose ``path`` with the baseline's parameters and compare segment by segment;
-    returns (report, comparisons, passed, verdict, figures). ``truth`` replaces the
-    baseline's separate ground truth file, if it had one."""
-    import dataclasses
-    import json
-    import typing
+@dataclass(frozen=True)
+class GateRun:
+    """What `gate` produced: the report, the comparison of every segment, the verdict."""
 
-    from credcli.ci.gate import (
-        Snapshot,
-        check_baseline,
-        check_same_parameters,
-        compare,
-        verdict_line,
-    )
-    from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
+    report: Report
+    comparisons: list
+    passed: bool
+    verdict: str
+    plots: list = field(default_factory=list)
+
+
+def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
+    """Diagnose the new log with the baseline's settings and compare segment by segment."""
+    from credcli.ci.gate import compare, verdict_line
     from credcli.report.render import gate_report
 
-    def non_finite(word: str):
-        raise ValueError(f"'{word}' is not a number JSON allows")
-
-    try:
-        baseline = json.loads(Path(baseline_path).read_text(), parse_constant=non_finite)
-    except FileNotFoundError as exc:
-        raise CredcliError(f"{baseline_path}: baseline file not found") from exc
-    except IsADirectoryError as exc:
-        raise CredcliError(
-            f"{baseline_path}: is a directory, expected a baseline JSON file"
-        ) from exc
-    except OSError as exc:
-        raise CredcliError(f"{baseline_path}: cannot be read ({exc.strerror})") from exc
-    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
-        raise CredcliError(f"{baseline_path}: not valid JSON ({exc})") from exc
-    check_baseline(baseline, str(baseline_path))
-    check_same_parameters(baseline, requested, str(baseline_path))
-    params = baseline["parameters"]
-    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
-    try:
-        hints = diagnosis_hints() | SEGMENT_HINTS | {"window": str | None, "drop_invalid": bool}
-        check_types(params, hints, "baseline parameters")
-        if not isinstance(params.get("columns"), dict):
-            raise CredcliError("baseline parameters: 'columns' must be an object")
-        check_types(params["columns"], typing.get_type_hints(LogSchema), "baseline columns")
-        if params["seed"] < 0:
-            raise CredcliError("baseline parameters: seed must be >= 0")
-        config = DiagnosisConfig(**{k: v for k, v in params.items() if k in fields})
-        schema = LogSchema().updated(**params["columns"])
-        recorded = params.get("input", {})  # baselines before 0.2 have none
-        if not isinstance(recorded, dict):
-            raise CredcliError("baseline parameters: 'input' must be an object")
-        check_types(recorded, typing.get_type_hints(ReadOptions), "baseline input")
-        reading = ReadOptions(**recorded)
-        if truth is not None:
-            reading = reading.updated(truth=str(truth))
-        setup = {
-            "window": params["window"],
-            "whole": params["whole"],
-            "seed": params["seed"],
-            "drop_invalid": params["drop_invalid"],
-        }
-    except CredcliError as exc:
-        raise CredcliError(f"{baseline_path}: {exc.message}; record the baseline again") from exc
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CredcliError(
-            f"{baseline_path}: baseline parameters are incomplete ({exc}); record it again"
-        ) from exc
-    run = run_diagnose(
-        [path],
-        schema,
-        config,
-        progress=progress,
-        plots=plots,
-        jobs=jobs,
-        reading=reading,
-        runner=runner,
-        **setup,
-    )
+    run = run_diagnose(request.diagnose, progress, runner)
+    baseline, thresholds = request.baseline, request.thresholds
     comparisons = compare(
-        [Snapshot.from_record(r) for r in baseline["segments"]],
+        list(baseline.segments),
         [Snapshot.from_result(r) for r in run.results],
         thresholds,
-        config.elt_level,
+        baseline.config.elt_level,
     )
     passed, verdict = verdict_line(comparisons, thresholds)
     parameters = run.report.document["parameters"]
-    report = gate_report(comparisons, parameters, str(baseline_path), passed, verdict)
-    return report, comparisons, passed, verdict, run.plots
+    report = gate_report(comparisons, parameters, baseline.source, passed, verdict)
+    return GateRun(report, comparisons, passed, verdict, run.plots)

@@ -70,7 +70,7 @@ def test_the_command_line_starts_without_the_numeric_stack():
     import sys
 
     code = (
-        "import sys, credcli, credcli.cli.app; "
+        "import sys, credcli, credcli.cli, credcli.cli.edge; "
         "print(sorted(m for m in ('numpy', 'scipy', 'pandas', 'matplotlib') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -14,8 +14,8 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from credcli.cluster import DaskRunner  # noqa: E402
-from credcli.engine.config import DiagnosisConfig  # noqa: E402
-from credcli.io.schema import LogSchema  # noqa: E402
+from credcli.io.schema import LogReading  # noqa: E402
+from credcli.requests import DiagnoseRequest, SimulateRequest  # noqa: E402
 from credcli.studies.samples import GOOD_SEGMENTS, estimator_log  # noqa: E402
 from credcli.workflows import run_diagnose, run_simulate  # noqa: E402
 from tests.test_edges import ROOT, error_line, run  # noqa: E402
@@ -44,8 +44,9 @@ def runner():
 
 def test_diagnose_on_the_cluster_equals_the_local_run(tmp_path, runner):
     paths = _logs(tmp_path, 3)
-    local = run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s")
-    remote = run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s", runner=runner)
+    request = DiagnoseRequest(tuple(paths), LogReading(window="10s"))
+    local = run_diagnose(request)
+    remote = run_diagnose(request, runner=runner)
     assert _document(remote) == _document(local)
     assert len(remote.results) == 3 * 36  # 12 segments of 30 s in 10 s windows
 
@@ -54,8 +55,9 @@ def test_a_sweep_on_the_cluster_equals_the_local_run(runner):
     from credcli.studies.settings import SimulationConfig
 
     config = SimulationConfig(trials=12)
-    local, _ = run_simulate(config, sweep="ar=0,0.5")
-    remote, _ = run_simulate(config, sweep="ar=0,0.5", runner=runner)
+    request = SimulateRequest(config, sweep="ar=0,0.5")
+    local, _ = run_simulate(request)
+    remote, _ = run_simulate(request, runner=runner)
     assert _document(remote) == _document(local)
 
 
@@ -96,13 +98,14 @@ def test_unreachable_scheduler_and_bad_address(monkeypatch):
 
 def test_a_worker_killed_mid_run_leaves_the_result_complete_and_identical(tmp_path):
     paths = _logs(tmp_path, 6, per_segment=600)
-    local = run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s")
+    local = run_diagnose(DiagnoseRequest(tuple(paths), LogReading(window="10s")))
     with DaskRunner("local:2") as r:
         pids = r.client.run(os.getpid)
         out = {}
         worker = threading.Thread(
             target=lambda: out.setdefault(
-                "run", run_diagnose(paths, LogSchema(), DiagnosisConfig(), window="10s", runner=r)
+                "run",
+                run_diagnose(DiagnoseRequest(tuple(paths), LogReading(window="10s")), runner=r),
             )
         )
         worker.start()
@@ -156,10 +159,10 @@ def test_workers_read_fsspec_urls(tmp_path, runner):
 
     with fsspec.open(url, "wb") as fh:  # the client's memory filesystem: local run only
         fh.write(path.read_bytes())
-    local = run_diagnose([url], LogSchema(), DiagnosisConfig())
+    local = run_diagnose(DiagnoseRequest((url,)))
     assert local.results[0].log == url
     file_url = f"file://{path}"
-    here = run_diagnose([file_url], LogSchema(), DiagnosisConfig())
-    there = run_diagnose([file_url], LogSchema(), DiagnosisConfig(), runner=runner)
+    here = run_diagnose(DiagnoseRequest((file_url,)))
+    there = run_diagnose(DiagnoseRequest((file_url,)), runner=runner)
     assert _document(there) == _document(here)
     assert _document(here).replace(file_url, url) == _document(local)

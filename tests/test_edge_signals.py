@@ -301,7 +301,7 @@ def test_json_output_takes_non_finite_numbers():
 
 
 def test_numpy_warnings_are_one_note_without_source_paths(capsys):
-    from credcli.cli.app import _note_warnings
+    from credcli.cli.edge import note_warnings as _note_warnings
 
     class W:
         def __init__(self, message, category=RuntimeWarning):

@@ -575,12 +575,11 @@ def test_random_baseline_edits_never_crash(tmp_path, recorded, where, key, value
 
 
 def test_labels_and_sizes_are_never_cut_on_80_columns():
-    from credcli.engine.diagnosis import DiagnosisConfig
-    from credcli.io.logs import LogSchema
     from credcli.report.render import OutputFormat, to_text
+    from credcli.requests import DiagnoseRequest
     from credcli.workflows import run_diagnose
 
-    report = run_diagnose([LOG], LogSchema(), DiagnosisConfig()).report
+    report = run_diagnose(DiagnoseRequest((LOG,))).report
     text = to_text(report, OutputFormat.TABLE, width=80)
     assert max(len(line) for line in text.splitlines()) <= 80
     for label in ("pessimism+smm", "optimism+smm", "credible"):

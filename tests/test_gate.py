@@ -15,6 +15,7 @@ from conftest import SAMPLE
 from credcli.ci import gate
 from credcli.engine.diagnosis import Label
 from credcli.errors import CredcliError
+from credcli.io import records
 
 GOOD = SAMPLE / "estimator_log.csv"
 REGRESSED = SAMPLE / "estimator_log_regressed.csv"
@@ -73,7 +74,7 @@ def test_fail_on_parsing_and_matching():
 
 
 def _rec(label, nci=0.1, anees=1.0, p=0.5):
-    return gate.Snapshot.from_record(
+    return records.Snapshot.from_record(
         {"segment": "s", "label": label, "nci": nci, "anees": anees, "elt_pvalue": p}
     )
 
@@ -121,7 +122,8 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
     base = baseline
     doc = json.loads(base.read_text())
     assert (
-        doc["schema_version"] == gate.BASELINE_SCHEMA_VERSION and doc["kind"] == gate.BASELINE_KIND
+        doc["schema_version"] == records.BASELINE_SCHEMA_VERSION
+        and doc["kind"] == records.BASELINE_KIND
     )
     assert doc["parameters"]["seed"] == 0 and len(doc["segments"]) == 6
 

@@ -330,9 +330,13 @@ def test_invalid_config_file(tmp_path, capsys):
 
 def test_config_tables_and_keys_that_nothing_reads_are_errors(tmp_path, capsys):
     path = _write(tmp_path, GOOD_HEADER + GOOD_ROW)
-    cfg = _write(tmp_path, "[uwb]\nmax_speed = 0.2\n", "c.toml")
+    cfg = _write(tmp_path, "[plots]\ndpi = 200\n", "c.toml")
     code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
-    assert code == 2 and "unknown table(s) or key(s) uwb" in err
+    assert code == 2 and "unknown table(s) or key(s) plots" in err
+    # a table that diagnose does not read is still checked: a typo there is an error too
+    cfg = _write(tmp_path, "[uwb]\nmax_sped = 0.2\n", "c1.toml")
+    code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
+    assert code == 2 and "config [uwb]: unknown key(s) max_sped; allowed: " in err
     cfg = _write(tmp_path, '[segments]\nwindw = "5s"\n', "c2.toml")
     code, _, err = _run(capsys, "diagnose", path, "--config", cfg)
     assert code == 2 and "config [segments]: unknown key(s) windw" in err

@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
-from credcli.engine.diagnosis import LABEL_ALIASES, Label, SegmentDiagnosis, parse_label
+from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
 from credcli.errors import CredcliError
-from credcli.io.records import segment_record
+from credcli.io.records import Baseline, Snapshot, json_value
 from credcli.report.formats import format_pvalue
-
-BASELINE_SCHEMA_VERSION = 1
-BASELINE_KIND = "credcli-baseline"
 
 _CONDITIONS = ("optimism", "pessimism", "smm")
 NONCREDIBLE = "noncredible"
@@ -98,42 +95,6 @@ class Status(str, enum.Enum):
     REGRESSED = "regressed"
     NEW = "new"
     MISSING = "missing"
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """What the gate compares of one segment, typed; ``record`` is the whole record, kept
-    only to be reported."""
-
-    segment: str
-    label: Label
-    nci: float | None
-    anees: float | None
-    elt_pvalue: float | None
-    record: dict = field(repr=False, compare=False, default_factory=dict)
-    untested: tuple[str, ...] = ()
-
-    @classmethod
-    def from_record(cls, rec: dict) -> Snapshot:
-        """From a baseline's segment record (checked by :func:`check_baseline`; a baseline
-        written before partial verdicts has no ``untested``: nothing was)."""
-        return cls(
-            rec["segment"],
-            Label(rec["label"]),
-            rec.get("nci"),
-            rec.get("anees"),
-            rec.get("elt_pvalue"),
-            rec,
-            tuple(rec.get("untested") or ()),
-        )
-
-    @classmethod
-    def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
-        d = result.diagnosis
-        untested = tuple(q.value for q in d.untested)
-        return cls(
-            result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result), untested
-        )
 
 
 @dataclass(frozen=True)
@@ -243,56 +204,19 @@ def compare(
     return out
 
 
-def check_baseline(doc: dict, source: str) -> None:
-    """Refuse a file that is not a credcli baseline of a known schema version."""
-    if not isinstance(doc, dict) or doc.get("kind") != BASELINE_KIND:
-        raise CredcliError(
-            f"{source}: not a credcli baseline (make one with `credcli baseline LOG -o FILE`)"
-        )
-    version = doc.get("schema_version")
-    if version != BASELINE_SCHEMA_VERSION:
-        raise CredcliError(
-            f"{source}: baseline schema version {version!r} is not supported (this credcli reads "
-            f"version {BASELINE_SCHEMA_VERSION}); record the baseline again with this version"
-        )
-    for key in ("parameters", "segments"):
-        if key not in doc:
-            raise CredcliError(f"{source}: baseline has no '{key}'; record it again")
-    if not isinstance(doc["parameters"], dict) or not isinstance(doc["segments"], list):
-        raise CredcliError(
-            f"{source}: baseline 'parameters' must be an object and 'segments' a list; "
-            "record it again"
-        )
-    labels = {lab.value for lab in Label}
-    for k, rec in enumerate(doc["segments"], start=1):
-        where = f"{source}: segment {k}"
-        if not isinstance(rec, dict) or not isinstance(rec.get("segment"), str):
-            raise CredcliError(f"{where}: needs a 'segment' name (a string); record it again")
-        where = f"{source}: segment '{rec['segment']}'"
-        label = rec.get("label")
-        if not isinstance(label, str) or label not in labels:
-            got = "no label" if "label" not in rec else f"label {rec['label']!r}"
-            raise CredcliError(f"{where}: {got}; a label is one of {', '.join(sorted(labels))}")
-        for key in ("nci", "anees", "elt_pvalue"):
-            value = rec.get(key)
-            if value is not None and (
-                isinstance(value, bool) or not isinstance(value, (int, float))
-            ):
-                raise CredcliError(f"{where}: '{key}' must be a number or null; got {value!r}")
-
-
-def check_same_parameters(baseline: dict, requested: dict, source: str) -> None:
-    """Options given on the gate's command line must equal the baseline's."""
-    params = baseline["parameters"]
-    diff = [
-        f"{k}: baseline {params.get(k)!r}, now {v!r}"
-        for k, v in requested.items()
-        if v is not None and params.get(k) != v
-    ]
+def check_same_parameters(baseline: Baseline, requested: dict) -> None:
+    """Settings given to the gate (command line or config file) must equal the baseline's;
+    ``requested`` maps a setting's name (a DiagnosisConfig field, ``seed``, ``window``,
+    ``whole``) to its value."""
+    diff = []
+    for name, value in requested.items():
+        recorded, now = json_value(baseline.setting(name)), json_value(value)
+        if value is not None and recorded != now:
+            diff.append(f"{name}: baseline {recorded!r}, now {now!r}")
     if diff:
         raise CredcliError(
-            f"{source}: the baseline was made with different parameters ({'; '.join(diff)}); "
-            "gate with the baseline's settings or record a new baseline"
+            f"{baseline.source}: the baseline was made with different parameters "
+            f"({'; '.join(diff)}); gate with the baseline's settings or record a new baseline"
         )
 
 

@@ -1,4 +1,10 @@
-"""Settings from a TOML config file and the command line: CLI over config over defaults."""
+"""Settings from a TOML config file and the command line, merged one way for every
+command: command line > config file > defaults. Each command's option groups
+(:mod:`credcli.cli.options`) become one typed request (:mod:`credcli.requests`) here.
+
+A config file's tables: [columns] and [input] (how logs are read), [segments],
+[diagnosis] (the rule and the seed), [simulate], [uwb] and [gate].
+"""
 
 from __future__ import annotations
 
@@ -6,14 +12,28 @@ import dataclasses
 import typing
 from pathlib import Path
 
+from credcli.ci.thresholds import Thresholds
+from credcli.cli.options import (
+    LogOptions,
+    RuleOptions,
+    RunOptions,
+    ScreenMode,
+    SegmentOptions,
+    StudyOptions,
+    ThresholdOptions,
+    UwbOptions,
+)
+from credcli.engine.config import AUTO
 from credcli.engine.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.files import read_toml
 from credcli.io.logs import LogSchema
-from credcli.io.schema import ReadOptions
+from credcli.io.schema import LogReading, ReadOptions
+from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
+from credcli.studies.settings import STD_ESTIMATE, UwbSettings
 
-CONFIG_SECTIONS = ("columns", "input", "diagnosis", "segments", "simulate")
+CONFIG_SECTIONS = ("columns", "input", "diagnosis", "segments", "simulate", "uwb", "gate")
 """The tables a config file may hold; any other table is an error, never silently ignored."""
 
 
@@ -21,8 +41,27 @@ KEY_ALIASES = {"tau": "tau_nci", "flips": "n_flips", "probe_factor": "c"}
 """Config keys spelled as the command-line flags, beside the field names."""
 
 
+def config_tables() -> dict[str, dict]:
+    """Each table a config file may hold: its keys and their types (the fields of the
+    settings dataclass it sets)."""
+    from credcli.studies.settings import SimulationConfig
+
+    simulate = typing.get_type_hints(SimulationConfig)
+    del simulate["diagnosis"]  # [diagnosis] is its own table
+    return {
+        "columns": typing.get_type_hints(LogSchema),
+        "input": typing.get_type_hints(ReadOptions),
+        "diagnosis": diagnosis_hints(),
+        "segments": SEGMENT_HINTS,
+        "simulate": simulate,
+        "uwb": typing.get_type_hints(UwbSettings),
+        "gate": typing.get_type_hints(Thresholds),
+    }
+
+
 def load_config(path: str | Path | None) -> dict:
-    """The config file's tables (empty when no file is given)."""
+    """The config file's tables (empty when no file is given), every key and value
+    checked, whichever command reads them: a typo is an error, never ignored."""
     if path is None:
         return {}
     data = read_toml(path)
@@ -32,44 +71,37 @@ def load_config(path: str | Path | None) -> dict:
             f"{path}: unknown table(s) or key(s) {', '.join(unknown)}; a config holds only the "
             f"tables [{'], ['.join(CONFIG_SECTIONS)}]"
         )
+    tables = config_tables()
+    out = {}
     for name, table in data.items():
         if not isinstance(table, dict):
             raise CredcliError(
                 f"{path}: '{name}' must be a table ([{name}] with keys below it); "
                 f"got {name} = {table!r}"
             )
-    return {name: {KEY_ALIASES.get(k, k): v for k, v in t.items()} for name, t in data.items()}
+        table = {KEY_ALIASES.get(k, k): v for k, v in table.items()}
+        hints, where = tables[name], f"config [{name}]"
+        wrong = sorted(set(table) - set(hints))
+        if wrong:
+            raise CredcliError(
+                f"{where}: unknown key(s) {', '.join(wrong)}; allowed: {', '.join(sorted(hints))}"
+            )
+        check_types(table, hints, where)
+        out[name] = table
+    return out
 
 
-def merged(section: dict, cli: dict, allowed, where: str, hints: dict | None = None) -> dict:
-    """Config values (type-checked against ``hints``) overridden by CLI values that were
-    given (not None)."""
-    unknown = sorted(set(section) - set(allowed))
-    if unknown:
-        raise CredcliError(
-            f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}"
-        )
-    if hints is not None:
-        check_types(section, hints, where)
-    out = dict(section)
+def merged(config: dict, section: str, cli: dict) -> dict:
+    """The values of ``[section]`` of a loaded config, overridden by the command line's
+    given (not None) values: command line > config file. The defaults are the settings
+    dataclass's own."""
+    out = dict(config.get(section, {}))
     out.update({k: v for k, v in cli.items() if v is not None})
     return out
 
 
-def _table(config: dict, section: str, cls, cli: dict, where: str) -> dict:
-    """The fields of dataclass ``cls`` from the config's ``[section]`` (type-checked),
-    overridden by the command line."""
-    return merged(
-        config.get(section, {}),
-        cli,
-        cls.__dataclass_fields__,
-        where,
-        typing.get_type_hints(cls),
-    )
-
-
 def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> LogSchema:
-    values = _table(config, "columns", LogSchema, cli, where)
+    values = merged(config, "columns", cli)
     try:
         return LogSchema().updated(**values)
     except CredcliError:
@@ -80,7 +112,7 @@ def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> Lo
 
 def build_reading(config: dict, cli: dict, where: str = "config [input]") -> ReadOptions:
     """How logs are read: [input] of the config, overridden by the command line."""
-    values = _table(config, "input", ReadOptions, cli, where)
+    values = merged(config, "input", cli)
     if values.get("truth") is not None:
         values["truth"] = str(values["truth"])
     try:
@@ -98,26 +130,15 @@ def segment_settings(
     config: dict, window: str | None, whole: bool | None
 ) -> tuple[str | None, bool]:
     """``--window`` and ``--whole`` from the command line, else from [segments]."""
-    values = _segments(config, {"window": window, "whole": whole})
+    values = merged(config, "segments", {"window": window, "whole": whole})
     return values.get("window"), bool(values.get("whole", False))
-
-
-def _segments(config: dict, cli: dict) -> dict:
-    return merged(
-        config.get("segments", {}), cli, SEGMENT_HINTS, "config [segments]", SEGMENT_HINTS
-    )
-
-
-def _diagnosis(config: dict, cli: dict) -> dict:
-    hints = diagnosis_hints()
-    return merged(config.get("diagnosis", {}), cli, hints, "config [diagnosis]", hints)
 
 
 def build_diagnosis_config(
     config: dict, cli: dict, seed: int | None = None
 ) -> tuple[DiagnosisConfig, int]:
     """The DiagnosisConfig and the seed (default 0) from [diagnosis] and the CLI."""
-    values = _diagnosis(config, cli | {"seed": seed})
+    values = merged(config, "diagnosis", cli | {"seed": seed})
     seed_value = values.pop("seed", 0)
     if not isinstance(seed_value, int) or seed_value < 0:
         raise CredcliError(f"the seed must be a non-negative integer; got {seed_value!r}")
@@ -127,6 +148,126 @@ def build_diagnosis_config(
         raise
     except (TypeError, ValueError) as exc:
         raise CredcliError(f"invalid diagnosis setting: {exc}") from exc
+
+
+def split_list(text: str | None) -> tuple[str, ...] | None:
+    """'a,b, c' -> ('a', 'b', 'c'); None stays None."""
+    if text is None:
+        return None
+    items = tuple(t.strip() for t in text.split(",") if t.strip())
+    if not items:
+        raise CredcliError(f"expected a comma-separated list of column names; got '{text}'")
+    return items
+
+
+def block_length_value(text: str | None) -> int | str | None:
+    """--block-length: 'auto' or a positive integer."""
+    if text is None or text.strip().lower() == AUTO:
+        return None if text is None else AUTO
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise CredcliError(f"--block-length: expected auto or an integer >= 1; got '{text}'")
+    return value
+
+
+def jobs_value(jobs: int | None) -> int:
+    """--jobs: given, or the number of cores."""
+    from credcli.parallel import default_jobs
+
+    if jobs is None:
+        return default_jobs()
+    if jobs < 1:
+        raise CredcliError(f"--jobs must be >= 1; got {jobs}")
+    return jobs
+
+
+def rule_values(rule: RuleOptions) -> dict:
+    """The rule options by DiagnosisConfig field name (None where not given)."""
+    values = {KEY_ALIASES.get(k, k): v for k, v in dataclasses.asdict(rule).items()}
+    values["block_length"] = block_length_value(rule.block_length)
+    return values
+
+
+def log_reading(config: dict, log: LogOptions, segments: SegmentOptions) -> LogReading:
+    """How logs are read and cut: [columns], [input] and [segments] under the command line."""
+    schema = build_schema(
+        config,
+        {
+            "time": log.time_column,
+            "segment": log.segment_column,
+            "truth_columns": split_list(log.truth_columns),
+            "estimate_columns": split_list(log.estimate_columns),
+            "cov_columns": split_list(log.cov_columns),
+            "cov_kind": log.cov_kind,
+        },
+    )
+    window, whole = segment_settings(config, segments.window, segments.whole)
+    given = {f.name: getattr(log, f.name) for f in dataclasses.fields(ReadOptions)}
+    if given["truth"] is not None:
+        given["truth"] = str(given["truth"])
+    return LogReading(schema, build_reading(config, given), bool(log.drop_invalid), window, whole)
+
+
+def diagnose_request(
+    logs,
+    config_file: Path | None,
+    log: LogOptions,
+    segments: SegmentOptions,
+    rule: RuleOptions,
+    seed: int | None,
+    run: RunOptions,
+    *,
+    monte_carlo: bool = False,
+    figures: bool = False,
+) -> DiagnoseRequest:
+    """What `diagnose`, `baseline` and `report` ask for."""
+    config = load_config(config_file)
+    diagnosis, seed_value = build_diagnosis_config(config, rule_values(rule), seed)
+    reading = log_reading(config, log, segments)
+    jobs = jobs_value(run.jobs)
+    return DiagnoseRequest(tuple(logs), reading, diagnosis, seed_value, jobs, monte_carlo, figures)
+
+
+def gate_request(
+    log: Path,
+    baseline_file: Path,
+    config_file: Path | None,
+    thresholds: ThresholdOptions,
+    truth: Path | None,
+    segments: SegmentOptions,
+    rule: RuleOptions,
+    seed: int | None,
+    run: RunOptions,
+    *,
+    figures: bool = False,
+) -> GateRequest:
+    """What `gate` asks for: LOG diagnosed with the baseline's settings, which every
+    setting given (command line or [diagnosis] and [segments]) must equal."""
+    from credcli.ci.gate import check_same_parameters
+    from credcli.io.records import read_baseline
+
+    config = load_config(config_file)
+    limits = merged(config, "gate", dataclasses.asdict(thresholds))
+    try:
+        limits = Thresholds(**limits)
+    except TypeError as exc:
+        raise CredcliError(f"invalid gate setting: {exc}") from exc
+    given = rule_values(rule) | {"seed": seed, "window": segments.window, "whole": segments.whole}
+    requested = config.get("diagnosis", {}) | config.get("segments", {})
+    requested.update({k: v for k, v in given.items() if v is not None})
+    jobs = jobs_value(run.jobs)
+    baseline = read_baseline(baseline_file)
+    check_same_parameters(baseline, requested)
+    reading = baseline.reading
+    if truth is not None:  # the new log's own ground truth
+        reading = dataclasses.replace(reading, options=reading.options.updated(truth=str(truth)))
+    diagnose = DiagnoseRequest(
+        (log,), reading, baseline.config, baseline.seed, jobs, figures=figures
+    )
+    return GateRequest(diagnose, baseline, limits)
 
 
 def parse_range(text, what: str) -> tuple[float, float] | None:
@@ -146,44 +287,113 @@ def parse_range(text, what: str) -> tuple[float, float] | None:
     return lo, hi
 
 
-def build_simulation_config(config: dict, cli: dict, diagnosis_cli: dict):
-    """SimulationConfig from [simulate], [diagnosis] and the CLI."""
-    from credcli.studies.simulate import SimulationConfig
+def simulate_request(
+    config_file: Path | None,
+    study: StudyOptions,
+    rule: RuleOptions,
+    seed: int | None,
+    run: RunOptions,
+    *,
+    scenario: str,
+    sweep: str | None,
+    curves: bool,
+    curve_runs: int,
+    figures: bool = False,
+) -> SimulateRequest:
+    """What `simulate` asks for: [simulate] and [diagnosis] under the command line."""
+    from credcli.studies.settings import SimulationConfig
 
-    fields = {f.name for f in dataclasses.fields(SimulationConfig)} - {"diagnosis"}
-    values = merged(
-        config.get("simulate", {}),
-        cli,
-        fields,
-        "config [simulate]",
-        typing.get_type_hints(SimulationConfig),
-    )
+    jobs = jobs_value(run.jobs)
+    if curve_runs < 1:
+        raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
+    config = load_config(config_file)
+    values = merged(config, "simulate", dataclasses.asdict(study) | {"seed": seed})
     for key in ("rho_optimism", "rho_pessimism", "bias", "eigenvalues"):
         if key in values:
             values[key] = parse_range(values[key], f"--{key.replace('_', '-')}")
-    diagnosis, seed = build_diagnosis_config(config, diagnosis_cli, values.pop("seed", None))
+    diagnosis, seed_value = build_diagnosis_config(
+        config, rule_values(rule), values.pop("seed", None)
+    )
     try:
-        return SimulationConfig(**values, seed=seed, diagnosis=diagnosis)
+        sim = SimulationConfig(**values, seed=seed_value, diagnosis=diagnosis)
     except TypeError as exc:
         raise CredcliError(f"invalid simulation setting: {exc}") from exc
+    return SimulateRequest(sim, scenario, sweep, curves, curve_runs, jobs, figures)
 
 
-def split_list(text: str | None) -> tuple[str, ...] | None:
-    """'a,b, c' -> ('a', 'b', 'c'); None stays None."""
+def id_pairs(text: str | None, flag: str, kind) -> tuple:
+    """'4=1,5=2' -> ((4, 1), (5, 2)) with values of ``kind``."""
+    if not text:
+        return ()
+    out = []
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError(item)
+            out.append((int(key), kind(value)))
+        except ValueError as exc:
+            raise CredcliError(
+                f"{flag}: expected ID=VALUE pairs separated by commas (e.g. 4=1,5=2); got '{item}'"
+            ) from exc
+    return tuple(out)
+
+
+def std_settings(text: str | None) -> dict:
+    """--std: a value, ID=VALUE pairs (with an optional plain default among them), or
+    'estimate'; by UwbSettings field name."""
     if text is None:
-        return None
-    items = tuple(t.strip() for t in text.split(",") if t.strip())
-    if not items:
-        raise CredcliError(f"expected a comma-separated list of column names; got '{text}'")
-    return items
+        return {}
+    if text.strip().lower() == STD_ESTIMATE:
+        return {"std_estimate": True}
+    default = [t for t in text.split(",") if "=" not in t]
+    pairs = ",".join(t for t in text.split(",") if "=" in t)
+    try:
+        value = float(default[0]) if default else None
+    except ValueError as exc:
+        raise CredcliError(
+            f"--std: expected metres (0.1), ID=VALUE pairs (4=0.1,9=0.12) or 'estimate'; got '{text}'"
+        ) from exc
+    if len(default) > 1:
+        raise CredcliError(f"--std: at most one default value; got '{text}'")
+    return {"std": value, "std_by_anchor": id_pairs(pairs, "--std", float)}
 
 
-def gate_requests(config: dict, cli: dict) -> dict:
-    """What `gate` was asked for: [diagnosis] and [segments] of its config, overridden by
-    the command line; each must equal the baseline's parameter of the same name."""
-    out = _diagnosis(config, {}) | _segments(config, {})
-    out.update({k: v for k, v in cli.items() if v is not None})
-    return out
+def uwb_request(
+    file: Path,
+    config_file: Path | None,
+    uwb: UwbOptions,
+    anchors: Path | None,
+    segments: SegmentOptions,
+    rule: RuleOptions,
+    seed: int | None,
+    *,
+    figures: bool = False,
+) -> UwbRequest:
+    """What `uwb` asks for: [uwb], [segments] and [diagnosis] under the command line."""
+    config = load_config(config_file)
+    diagnosis, seed_value = build_diagnosis_config(config, rule_values(rule), seed)
+    given = {
+        "range_column": uwb.range_column,
+        "packet_window": uwb.packet_window,
+        "min_anchors": uwb.min_anchors,
+        "max_speed": uwb.max_speed,
+        "min_static": uwb.min_static,
+        "screen": None if uwb.screen is None else uwb.screen is ScreenMode.ALL,
+        "residual_level": uwb.residual_level,
+        "robust": uwb.robust,
+        "anchor_map": id_pairs(uwb.anchor_map, "--anchor-map", int) or None,
+    } | std_settings(uwb.std)
+    values = merged(config, "uwb", given)
+    for key in ("anchor_map", "std_by_anchor"):  # lists of [id, value] pairs in a file
+        if key in values:
+            values[key] = tuple(tuple(pair) for pair in values[key])
+    try:
+        settings = UwbSettings(**values)
+    except TypeError as exc:
+        raise CredcliError(f"invalid uwb setting: {exc}") from exc
+    window, whole = segment_settings(config, segments.window, segments.whole)
+    return UwbRequest(file, settings, diagnosis, anchors, window, whole, seed_value, figures)
 
 
 def _toml_value(value) -> str | None:
@@ -241,6 +451,9 @@ def default_config_text() -> str:
         "max_dt": "0.05",
         "states": '"pose"',
         "window": '"5s"',
+        "std": "0.1",
+        "std_by_anchor": "[[4, 0.1], [9, 0.12]]",
+        "anchor_map": "[[1, 4], [2, 9]]",
     }
     lines = [
         "# Every setting credcli reads from a config file, at its default value.",
@@ -254,6 +467,8 @@ def default_config_text() -> str:
     lines += _section("diagnosis", defaults(DiagnosisConfig) | {"seed": 0}, examples)
     lines += _section("segments", {"window": None, "whole": False}, examples)
     lines += _section("simulate", simulate, examples)
+    lines += _section("uwb", defaults(UwbSettings), examples)
+    lines += _section("gate", defaults(Thresholds), examples)
     return "\n".join(lines).rstrip() + "\n"
 
 

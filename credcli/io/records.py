@@ -1,13 +1,25 @@
-"""Records: a Diagnosis as a flat, JSON-safe dict. The only place that knows the keys of a
-segment record; the renderers, the CI gate and the Python API's ``to_dict``/``to_frame``
-all read them from here."""
+"""Records: a Diagnosis as a flat, JSON-safe dict, and a baseline file read back into
+typed values. The only place that knows the keys of a segment record and of a baseline;
+the renderers, the CI gate and the Python API's ``to_dict``/``to_frame`` all read them
+from here."""
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
 
-from credcli.engine.diagnosis import Diagnosis, SegmentDiagnosis
+from credcli.engine.config import DiagnosisConfig
+from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
+from credcli.errors import CredcliError
+from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
+from credcli.io.schema import LogReading, LogSchema, ReadOptions
+
+BASELINE_SCHEMA_VERSION = 1
+BASELINE_KIND = "credcli-baseline"
 
 
 def json_value(x):
@@ -149,3 +161,155 @@ def monte_carlo_record(mc) -> dict:
         "mean_anees": float(mc.anees.mean()),
         "segments": mc.segments,
     }
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What the gate compares of one segment, typed; ``record`` is the whole record, kept
+    only to be reported."""
+
+    segment: str
+    label: Label
+    nci: float | None
+    anees: float | None
+    elt_pvalue: float | None
+    record: dict = field(repr=False, compare=False, default_factory=dict)
+    untested: tuple[str, ...] = ()
+
+    @classmethod
+    def from_record(cls, rec: dict) -> Snapshot:
+        """From a baseline's segment record (checked by :func:`check_baseline`; a baseline
+        written before partial verdicts has no ``untested``: nothing was)."""
+        return cls(
+            rec["segment"],
+            Label(rec["label"]),
+            rec.get("nci"),
+            rec.get("anees"),
+            rec.get("elt_pvalue"),
+            rec,
+            tuple(rec.get("untested") or ()),
+        )
+
+    @classmethod
+    def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
+        d = result.diagnosis
+        untested = tuple(q.value for q in d.untested)
+        return cls(
+            result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result), untested
+        )
+
+
+def check_baseline(doc: dict, source: str) -> None:
+    """Refuse a file that is not a credcli baseline of a known schema version."""
+    if not isinstance(doc, dict) or doc.get("kind") != BASELINE_KIND:
+        raise CredcliError(
+            f"{source}: not a credcli baseline (make one with `credcli baseline LOG -o FILE`)"
+        )
+    version = doc.get("schema_version")
+    if version != BASELINE_SCHEMA_VERSION:
+        raise CredcliError(
+            f"{source}: baseline schema version {version!r} is not supported (this credcli reads "
+            f"version {BASELINE_SCHEMA_VERSION}); record the baseline again with this version"
+        )
+    for key in ("parameters", "segments"):
+        if key not in doc:
+            raise CredcliError(f"{source}: baseline has no '{key}'; record it again")
+    if not isinstance(doc["parameters"], dict) or not isinstance(doc["segments"], list):
+        raise CredcliError(
+            f"{source}: baseline 'parameters' must be an object and 'segments' a list; "
+            "record it again"
+        )
+    labels = {lab.value for lab in Label}
+    for k, rec in enumerate(doc["segments"], start=1):
+        where = f"{source}: segment {k}"
+        if not isinstance(rec, dict) or not isinstance(rec.get("segment"), str):
+            raise CredcliError(f"{where}: needs a 'segment' name (a string); record it again")
+        where = f"{source}: segment '{rec['segment']}'"
+        label = rec.get("label")
+        if not isinstance(label, str) or label not in labels:
+            got = "no label" if "label" not in rec else f"label {rec['label']!r}"
+            raise CredcliError(f"{where}: {got}; a label is one of {', '.join(sorted(labels))}")
+        for key in ("nci", "anees", "elt_pvalue"):
+            value = rec.get(key)
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, (int, float))
+            ):
+                raise CredcliError(f"{where}: '{key}' must be a number or null; got {value!r}")
+
+
+SEGMENTATION_SETTINGS = ("seed", "window", "whole", "drop_invalid")
+"""A baseline's settings beside its DiagnosisConfig fields."""
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A baseline file (``credcli baseline``), read and checked once: the settings it was
+    made with, typed, and its segments as :class:`Snapshot`."""
+
+    source: str
+    config: DiagnosisConfig
+    seed: int
+    reading: LogReading
+    segments: tuple[Snapshot, ...]
+
+    def setting(self, name: str):
+        """The value of a DiagnosisConfig field, or of ``seed``, ``window``, ``whole`` or
+        ``drop_invalid``, as the baseline was made with it."""
+        if name == "seed":
+            return self.seed
+        if name in SEGMENTATION_SETTINGS:
+            return getattr(self.reading, name)
+        return getattr(self.config, name)
+
+
+def read_baseline(path: str | Path) -> Baseline:
+    """Read a baseline JSON file and check every key it must have; errors name the file
+    and say to record it again."""
+    import json
+
+    def non_finite(word: str):
+        raise ValueError(f"'{word}' is not a number JSON allows")
+
+    try:
+        doc = json.loads(Path(path).read_text(), parse_constant=non_finite)
+    except FileNotFoundError as exc:
+        raise CredcliError(f"{path}: baseline file not found") from exc
+    except IsADirectoryError as exc:
+        raise CredcliError(f"{path}: is a directory, expected a baseline JSON file") from exc
+    except OSError as exc:
+        raise CredcliError(f"{path}: cannot be read ({exc.strerror})") from exc
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
+        raise CredcliError(f"{path}: not valid JSON ({exc})") from exc
+    check_baseline(doc, str(path))
+    params = doc["parameters"]
+    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
+    try:
+        hints = diagnosis_hints() | SEGMENT_HINTS | {"window": str | None, "drop_invalid": bool}
+        check_types(params, hints, "baseline parameters")
+        if not isinstance(params.get("columns"), dict):
+            raise CredcliError("baseline parameters: 'columns' must be an object")
+        check_types(params["columns"], typing.get_type_hints(LogSchema), "baseline columns")
+        if params["seed"] < 0:
+            raise CredcliError("baseline parameters: seed must be >= 0")
+        config = DiagnosisConfig(**{k: v for k, v in params.items() if k in fields})
+        schema = LogSchema().updated(**params["columns"])
+        recorded = params.get("input", {})  # baselines before 0.2 have none
+        if not isinstance(recorded, dict):
+            raise CredcliError("baseline parameters: 'input' must be an object")
+        check_types(recorded, typing.get_type_hints(ReadOptions), "baseline input")
+        reading = LogReading(
+            schema,
+            ReadOptions(**recorded),
+            params["drop_invalid"],
+            params["window"],
+            params["whole"],
+        )
+        seed = params["seed"]
+    except CredcliError as exc:
+        raise CredcliError(f"{path}: {exc.message}; record the baseline again") from exc
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CredcliError(
+            f"{path}: baseline parameters are incomplete ({exc}); record it again"
+        ) from exc
+    segments = tuple(Snapshot.from_record(r) for r in doc["segments"])
+    return Baseline(str(path), config, seed, reading, segments)

@@ -119,3 +119,16 @@ class ReadOptions:
 
     def updated(self, **changes) -> ReadOptions:
         return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+
+@dataclass(frozen=True)
+class LogReading:
+    """How logs are read and cut into segments: the column layout, the reading options,
+    whether rows with NaN/Inf are dropped, and the segmentation (``window`` a duration or
+    an epoch count; ``whole``: each log one segment; neither: the segment column)."""
+
+    schema: LogSchema = LogSchema()
+    options: ReadOptions = ReadOptions()
+    drop_invalid: bool = False
+    window: str | None = None
+    whole: bool = False

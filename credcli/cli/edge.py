@@ -1,0 +1,280 @@
+"""The command line's outer edge: run the app, and turn every outcome into an exit code
+and one line on stderr. The only place that knows exit codes.
+
+0 ok; 1 a regression verdict (gate, --fail-on); 2 bad input or usage; 3 an internal error
+(the traceback with --debug); 130 interrupted; 128 + N on signal N.
+"""
+
+from __future__ import annotations
+
+import errno
+import re
+import sys
+
+import typer
+
+from credcli.cli.app import app
+from credcli.errors import CredcliError
+
+
+def _click_exception_types() -> tuple[type, ...]:
+    """Click's exception base: vendored by typer >= 0.2x, the click package before."""
+    types: list[type] = []
+    try:
+        from typer._click.exceptions import ClickException as Vendored
+
+        types.append(Vendored)
+    except ImportError:
+        pass
+    try:
+        from click import ClickException
+
+        types.append(ClickException)
+    except ImportError:
+        pass
+    return tuple(types)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run the app and turn every outcome into an exit code.
+
+    0 ok; 1 a regression verdict (gate, --fail-on); 2 bad input or usage, one line on
+    stderr; 3 an internal error, one line (the traceback with --debug); 130 interrupted.
+    Warnings (numpy's among them) are never printed raw: each distinct one becomes a
+    ``credcli: note:`` line on stderr at the end, with its source under --debug.
+    """
+    import warnings
+
+    from credcli.parallel import keep_freed_memory, single_threaded_blas
+
+    single_threaded_blas()  # before numpy loads; a user's own setting wins
+    _terminate_on_signals()
+    args = list(sys.argv[1:] if argv is None else argv)
+    if "--help" not in args and not app_commands().isdisjoint(args):
+        keep_freed_memory()  # this process is credcli's own: it may tune its allocator
+    debug = (
+        "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]
+    )
+    command = typer.main.get_command(app)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            code = _run(command, args, debug)
+        finally:
+            note_warnings(caught, debug)
+    return code
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived: unwinds like Ctrl-C (temporary files removed, workers
+    stopped), but is not a KeyboardInterrupt, which Click would report as an abort."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _terminate_on_signals() -> None:
+    """SIGTERM and SIGHUP end a run as Ctrl-C does, with exit 128 + the signal's number."""
+    import signal
+
+    def handler(signum, frame):
+        raise Terminated(signum)
+
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), handler)
+
+
+def app_commands() -> set[str]:
+    return {c.name or c.callback.__name__ for c in app.registered_commands}
+
+
+_LIBRARY_CHATTER = (DeprecationWarning, PendingDeprecationWarning, FutureWarning)
+
+
+def note_warnings(caught, debug: bool) -> None:
+    """Each distinct warning once, as a ``credcli: note:`` line. numpy's floating-point
+    warnings ("overflow encountered in matmul") are one line in the user's terms, with
+    numpy's words in brackets; where they came from only under --debug."""
+    seen: dict[str, None] = {}
+    floating: dict[str, None] = {}
+    for w in caught:
+        if issubclass(w.category, _LIBRARY_CHATTER) and not debug:
+            continue  # a library's notice to its own callers, not about the user's data
+        message = str(w.message).splitlines()[0] if str(w.message) else ""
+        where = f" ({w.filename}:{w.lineno})" if debug else ""
+        if issubclass(w.category, RuntimeWarning) and " encountered in " in message:
+            floating[message + where] = None
+        else:
+            seen[f"{w.category.__name__}: {message}{where}"] = None
+    if floating:
+        print(
+            "credcli: note: some numbers overflowed or were undefined while computing "
+            f"({'; '.join(floating)}); the log's values may be far outside the range of its "
+            "claimed covariances, so read the affected figures with care",
+            file=sys.stderr,
+        )
+    for text in seen:
+        print(f"credcli: note: {text}", file=sys.stderr)
+
+
+def _run(command, args: list[str], debug: bool) -> int:
+    try:
+        result = command.main(args=args, prog_name="credcli", standalone_mode=False)
+    except CredcliError as exc:
+        _traceback(debug)
+        print(f"credcli: error: {one_line(flag_names(exc.message))}", file=sys.stderr)
+        return 2
+    except _click_exception_types() as exc:
+        ctx = getattr(exc, "ctx", None)
+        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+            print(ctx.get_help())
+            return 0
+        hint = f" (see 'credcli {ctx.info_name} --help')" if ctx is not None and ctx.parent else ""
+        print(f"credcli: error: {exc.format_message()}{hint}", file=sys.stderr)
+        return 2 if getattr(exc, "exit_code", 2) in (1, 2) else exc.exit_code
+    except Terminated as exc:
+        import signal
+
+        print(f"credcli: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        return 128 + exc.signum
+    except (typer.Abort, KeyboardInterrupt) as exc:
+        if isinstance(exc.__context__, EOFError):  # Click turns an EOFError into an Abort
+            _traceback(debug)
+            print(
+                "credcli: error: an input ended early (a truncated compressed file?)",
+                file=sys.stderr,
+            )
+            return 2
+        print("credcli: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        _silence_stdout()
+        return 0
+    except SystemExit as exc:  # Typer's answer to a closed pipe (EPIPE) is sys.exit(1)
+        if exc.code == 1:
+            _silence_stdout()
+            return 0
+        return int(exc.code or 0)
+    except OSError as exc:
+        from credcli.io.files import USER_ERRNOS, describe_os_error
+
+        if exc.errno not in USER_ERRNOS:
+            return _internal_error(exc, debug)
+        _traceback(debug)
+        if exc.filename is None and exc.errno == errno.ENOSPC:
+            _silence_stdout()  # so that Python's own flush at exit does not fail again
+        print(f"credcli: error: {describe_os_error(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError as exc:
+        if not _raised_by_credcli(exc):  # a library's (Dask reading a bad frame, say)
+            return _internal_error(exc, debug)
+        _traceback(debug)
+        print(
+            "credcli: error: not enough memory for this run; use fewer --flips, a smaller "
+            "--max-elt-epochs or shorter segments",
+            file=sys.stderr,
+        )
+        return 2
+    except Exception as exc:  # noqa: BLE001 (the outer edge: one line, or the traceback)
+        return _internal_error(exc, debug)
+    if result == 130:  # Typer turns KeyboardInterrupt into a silent Exit(130)
+        print("credcli: interrupted", file=sys.stderr)
+    return int(result or 0)
+
+
+def _raised_by_credcli(exc: BaseException) -> bool:
+    """Whether the innermost frame of the traceback is credcli's own code (an allocation
+    of ours, sized by the user's settings)."""
+    import os
+
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return tb is not None and os.path.abspath(tb.tb_frame.f_code.co_filename).startswith(package)
+
+
+def _internal_error(exc: BaseException, debug: bool) -> int:
+    from credcli.io.files import shown
+
+    _traceback(debug)
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    print(
+        f"credcli: internal error: {type(exc).__name__}{': ' + shown(first, 300) if first else ''}"
+        "; run with --debug for the traceback",
+        file=sys.stderr,
+    )
+    return 3
+
+
+FLAG_NAMES = {
+    "max_dt": "--max-dt",
+    "time_offset": "--time-offset",
+    "n_flips": "--flips",
+    "tau_nci": "--tau",
+    "alpha": "--alpha",
+    "c": "--probe-factor",
+    "block_length": "--block-length",
+    "variant": "--variant",
+    "min_epochs": "--min-epochs",
+    "max_elt_epochs": "--max-elt-epochs",
+    "ks_alpha": "--ks-alpha",
+    "nees_alpha": "--nees-alpha",
+    "max_nci_increase": "--max-nci-increase",
+    "max_anees_ratio": "--max-anees-ratio",
+    "fail_on": "--fail-on",
+    "plots": "--plots",
+    "window": "--window",
+    "scenario": "--scenario",
+    "sweep": "--sweep",
+    "seed": "--seed",
+    "trials": "--trials",
+    "n": "--n",
+    "dim": "--dim",
+    "std": "--std",
+    "packet_window": "--packet-window",
+    "min_anchors": "--min-anchors",
+    "max_speed": "--max-speed",
+    "min_static": "--min-static",
+}
+"""Library parameter names and the flags that set them."""
+
+_LEADING_PARAMETER = re.compile(r"^(invalid setting: )?([a-z_]+)\b")
+
+
+def flag_names(message: str) -> str:
+    """A library message names a parameter first ("n_flips 5 is too few …"); on the command
+    line it names the flag ("--flips 5 is too few …"). Messages about files are untouched."""
+    m = _LEADING_PARAMETER.match(message)
+    if m and m[2] in FLAG_NAMES:
+        return message[: m.start(2)] + FLAG_NAMES[m[2]] + message[m.end(2) :]
+    return message
+
+
+def one_line(message: str) -> str:
+    """A message as one line: a newline in it (a file name's, a library's) is escaped."""
+    return message.replace("\r", "\\r").replace("\n", "\\n")
+
+
+def _traceback(debug: bool) -> None:
+    if debug:
+        import traceback
+
+        traceback.print_exc()
+
+
+def _silence_stdout() -> None:
+    """After a closed pipe (credcli … | head), stop Python from failing again at exit."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+def entry() -> None:
+    sys.exit(main())

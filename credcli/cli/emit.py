@@ -1,0 +1,165 @@
+"""What a command shows and writes: reports on stdout or to files, notes and progress on
+stderr, figures, HTML and CI reports; and the checks on output paths made before any work.
+
+Imports inside the functions are lazy on purpose: Rich, numpy (through the report
+modules) and Dask load only when a command runs, so that ``credcli --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from credcli.errors import CredcliError
+from credcli.report.formats import OutputFormat
+
+
+def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
+    """Print a report to stdout (Rich tables when a terminal) or write it to a file."""
+    from credcli.io.files import write_atomic
+    from credcli.report.render import rich_table, to_text
+
+    if output is not None:
+        write_atomic(output, to_text(report, fmt), inputs)
+        stderr_console().print(f"wrote {output}", highlight=False)
+        return
+    if fmt is OutputFormat.TABLE:
+        from rich.console import Console
+
+        console = Console()
+        fit: int | None = console.width  # a terminal: hide columns that do not fit
+        if not console.is_terminal:  # a log or a pipe: $COLUMNS if given, else every column
+            fit = given_width()
+            console = Console(width=fit or UNLIMITED_WIDTH, soft_wrap=fit is None)
+        for table in report.tables:
+            console.print(rich_table(table, fit))
+        for note in report.notes:
+            console.print(note, markup=False, highlight=False)
+        return
+    sys.stdout.write(to_text(report, fmt))
+
+
+UNLIMITED_WIDTH = 10_000
+"""Width of text output that is not a terminal and was given no $COLUMNS: tables keep every
+column (a CI log scrolls sideways, it does not lose the "why")."""
+
+
+def given_width() -> int | None:
+    import os
+
+    try:
+        width = int(os.environ.get("COLUMNS", ""))
+    except ValueError:
+        return None
+    return width if width > 0 else None
+
+
+def stderr_console():
+    """Messages on stderr, never wrapped off a terminal (a CI log keeps each on one line)."""
+    from rich.console import Console
+
+    console = Console(stderr=True)
+    if not console.is_terminal:
+        console = Console(stderr=True, soft_wrap=True, width=given_width() or UNLIMITED_WIDTH)
+    return console
+
+
+class Progress:
+    """A Rich progress bar on stderr, shown only on a terminal and for runs of at least
+    ``min_total`` steps. Called as ``progress(done, total)``."""
+
+    def __init__(self, description: str, min_total: int = 10) -> None:
+        self.description = description
+        self.min_total = min_total
+        self._bar = None
+        self._task = None
+        self._show = stderr_console().is_terminal
+
+    def __enter__(self):
+        return self
+
+    def __call__(self, done: int, total: int) -> None:
+        if self._bar is None and self._show and total >= self.min_total:
+            from rich.progress import Progress as RichProgress
+
+            self._bar = RichProgress(console=stderr_console(), transient=True)
+            self._bar.start()
+            self._task = self._bar.add_task(self.description, total=total)
+        if self._bar is not None:
+            self._bar.update(self._task, completed=done)
+
+    def __exit__(self, *exc) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+def print_notes(report) -> None:
+    """The decisions taken while reading the logs, one ``credcli: note:`` line each."""
+    for log in report.document.get("logs", []):
+        for note in log.get("notes", []):
+            print(f"credcli: note: {note}", file=sys.stderr)
+
+
+def cluster(scheduler: str | None):
+    """A DaskRunner for --scheduler (closed on exit), or a context of None."""
+    import contextlib
+
+    if not scheduler:
+        return contextlib.nullcontext(None)
+    from credcli.cluster import DaskRunner
+
+    console = stderr_console()
+
+    def announce(text: str) -> None:  # on a terminal, as the progress bar; quiet in CI
+        console.print(f"credcli: {text}", highlight=False, markup=False)
+
+    return DaskRunner(scheduler, announce if console.is_terminal else None)
+
+
+def write_html(path: Path, title: str, run, sources, inputs) -> None:
+    from credcli.io.files import write_atomic
+    from credcli.report.html import build_html
+
+    html = build_html(title, run.report, run.plots, ", ".join(map(str, sources)))
+    write_atomic(path, html, inputs)
+    stderr_console().print(f"wrote {path} ({len(run.plots)} figures)", highlight=False)
+
+
+def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
+    """Before any work: no output may be an input or another output, or a directory; the
+    --plots directory may not be an input file."""
+    from credcli.io.files import check_outputs
+
+    check_outputs(outputs, [p for p in inputs if p is not None])
+    if plots is not None and plots.exists() and not plots.is_dir():
+        raise CredcliError(f"--plots {plots}: exists and is not a directory")
+
+
+def check_plotting(*wanted) -> None:
+    if any(w is not None for w in wanted):
+        from credcli.report.plots import require_plotting
+
+        require_plotting()
+
+
+def write_plots(run, directory: Path | None) -> None:
+    """Write the figures of a Run (or a list of figures) into ``directory``, if given."""
+    if directory is None:
+        return
+    from credcli.report.plots import write_plots as write_figures
+
+    paths = write_figures(run if isinstance(run, list) else run.plots, directory)
+    stderr_console().print(f"wrote {len(paths)} figure(s) to {directory}", highlight=False)
+
+
+def write_ci_reports(
+    junit: Path | None, summary: Path | None, cases, markdown: str, inputs
+) -> None:
+    from credcli.ci.reports import append_step_summary, junit_xml
+    from credcli.io.files import write_atomic
+
+    if junit is not None:
+        write_atomic(junit, junit_xml("credcli", cases), inputs)
+    if summary is not None:
+        write_atomic(summary, markdown, inputs)
+    append_step_summary(markdown)

@@ -1,0 +1,661 @@
+"""Every command-line option, declared once, and the groups the commands share.
+
+A command lists its groups (:class:`LogOptions`, :class:`RuleOptions`, …) as parameters;
+:func:`declare` spreads each group into its options for Typer and hands the command one
+frozen dataclass per group. The defaults shown in ``--help`` are read from the settings
+dataclasses; an option left out is None, so that a config file can set it
+(:mod:`credcli.cli.settings`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import functools
+import inspect
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from credcli.ci.thresholds import Thresholds
+from credcli.engine.config import DiagnosisConfig, MetricsLevel, SrdForm, Variant
+from credcli.io.schema import CovKind, InputFormat, LogSchema, Perturbation, States, TimeUnit
+from credcli.report.formats import OutputFormat
+from credcli.studies.settings import RobustLoss, SimulationConfig, UwbSettings
+
+_D = DiagnosisConfig()
+_S = SimulationConfig()
+_U = UwbSettings()
+_T = Thresholds()
+_L = LogSchema()
+
+
+def range_text(pair) -> str:
+    return f"{pair[0]:g}:{pair[1]:g}"
+
+
+LOG_FORMATS = (
+    "credcli CSV/Parquet (also .gz), TUM, OpenVINS, EuRoC, ros-csv, ROS1 bag, ROS2 bag "
+    "(with --truth for a separate ground truth), or innovations (--innovations)"
+)
+
+
+def file_name(text: str) -> Path:
+    """A path typed on the command line; never empty (``Path("")`` would read ``.``)."""
+    if not text:
+        raise typer.BadParameter("an empty file name; give a path")
+    return Path(text)
+
+
+def output_name(text: str) -> Path:
+    """A file to write: not empty, and not a name ending in '/' (a directory)."""
+    if text.endswith("/"):
+        raise typer.BadParameter(f"{text!r} ends with '/', a directory; give a file name")
+    return file_name(text)
+
+
+# Options shared by the commands that diagnose (declared once, reused).
+ConfigOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--config", parser=file_name, metavar="FILE", help="TOML config file (see configs/)."
+    ),
+]
+FormatOpt = Annotated[
+    OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
+]
+OutputOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--output",
+        "-o",
+        parser=output_name,
+        metavar="FILE",
+        help="Write the output to FILE (atomically).",
+    ),
+]
+SeedOpt = Annotated[
+    int | None, typer.Option("--seed", help=f"Seed of the ELT sign flips [default: {_S.seed}].")
+]
+TauOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--tau",
+        help="calibrated (default): the smallest covariance misfit worth a label, "
+        "|10 log10 κ̂| > τ dB; paper and ks: the NCI threshold of Algorithm 1 "
+        f"[default: {_D.tau_nci}].",
+    ),
+]
+AlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--alpha",
+        help="calibrated (default): the false-alarm level per segment, split by Šidák "
+        "between the location and the scale test; paper and ks: the ELT's level "
+        f"[default: {_D.alpha}].",
+    ),
+]
+COpt = Annotated[
+    float | None, typer.Option("--probe-factor", "-c", help=f"Probe scale c > 1 [default: {_D.c}].")
+]
+FlipsOpt = Annotated[
+    int | None, typer.Option("--flips", "-B", help=f"ELT sign flips B [default: {_D.n_flips}].")
+]
+BlockOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--block-length",
+        help="Epochs per ELT sign block, or auto (estimated from the serial dependence in the "
+        f"calibrated variant; 1 in paper and ks) [default: {_D.block_length}].",
+    ),
+]
+VariantOpt = Annotated[
+    Variant | None,
+    typer.Option(
+        "--variant",
+        help="Decision rule: calibrated (level-α tests, dependence-aware), ks (the authors' "
+        f"code) or paper (Algorithm 1 as printed) [default: {_D.variant.value}].",
+    ),
+]
+SrdOpt = Annotated[
+    SrdForm | None,
+    typer.Option(
+        "--srd-form",
+        help=f"SRD of Eq. (19): printed or absolute [default: {_D.srd_form.value}].",
+    ),
+]
+MetricsOpt = Annotated[
+    MetricsLevel | None,
+    typer.Option(
+        "--metrics",
+        help="needed: probes only where Algorithm 1 uses them; all: always "
+        f"[default: {_D.metrics.value}].",
+    ),
+]
+SchedulerOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        envvar="CREDCLI_SCHEDULER",
+        help="Run on a Dask cluster: its scheduler's address (tcp://host:8786), or local:N "
+        "for N local workers (needs credcli[dask]; docs/scale.md).",
+    ),
+]
+JobsOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--jobs",
+        "-j",
+        help="Worker processes (same output for any value; a log is shared among them from "
+        "50,000 epochs on) [default: the number of cores].",
+    ),
+]
+ExactOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--exact-pvalue",
+        help="Evaluate all B sign flips (default: stop once the ELT cannot reject; the label "
+        "is the same, the p-value then sequential).",
+    ),
+]
+KsAlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--ks-alpha", help=f"Level of the KS check of the ks variant [default: {_D.ks_alpha}]."
+    ),
+]
+NeesAlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--nees-alpha",
+        help=f"Level of the NEES baseline's χ² test [default: {_D.nees_alpha}].",
+    ),
+]
+MinEpochsOpt = Annotated[
+    int | None,
+    typer.Option("--min-epochs", help=f"Smallest segment diagnosed [default: {_D.min_epochs}]."),
+]
+MaxEltOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--max-elt-epochs", help=f"ELT memory budget in epochs [default: {_D.max_elt_epochs}]."
+    ),
+]
+
+
+FailOnOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--fail-on",
+        help="Exit 1 if a segment fails any of these (comma-separated): a condition "
+        "(optimism, pessimism, smm: every label containing it), a combined label "
+        "(optimism+smm: that label only), insufficient-data, untested (a partial verdict), "
+        "or noncredible (all but a complete credible).",
+    ),
+]
+MonteCarloOpt = Annotated[
+    bool,
+    typer.Option(
+        "--monte-carlo",
+        help="The logs are independent runs of one scenario: pool them, and test the "
+        "per-epoch ANEES.",
+    ),
+]
+LogsArg = Annotated[
+    list[Path],
+    typer.Argument(
+        parser=file_name,
+        metavar="LOG...",
+        help=f"Estimator logs: {LOG_FORMATS}; '-' reads standard input.",
+        show_default=False,
+    ),
+]
+WindowOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--window", "-w", help="Split into windows: a duration (5s, 250ms) or an epoch count (200)."
+    ),
+]
+WholeOpt = Annotated[bool | None, typer.Option("--whole", help="Diagnose each log as one segment.")]
+TimeColOpt = Annotated[
+    str | None, typer.Option("--time-column", help=f"Time column [default: {_L.time}].")
+]
+SegColOpt = Annotated[
+    str | None,
+    typer.Option("--segment-column", help=f"Segment column [default: {_L.segment}]."),
+]
+TruthColsOpt = Annotated[
+    str | None, typer.Option("--truth-columns", help="Truth columns, comma-separated.")
+]
+EstColsOpt = Annotated[
+    str | None, typer.Option("--estimate-columns", help="Estimate columns, comma-separated.")
+]
+CovColsOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--cov-columns",
+        help="Covariance columns, comma-separated: d² (full), d(d+1)/2 (upper) or d.",
+    ),
+]
+CovKindOpt = Annotated[
+    CovKind | None, typer.Option("--cov-kind", help="How --cov-columns store the covariance.")
+]
+DropOpt = Annotated[
+    bool | None, typer.Option("--drop-invalid", help="Drop rows with NaN/Inf instead of failing.")
+]
+TruthOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--truth",
+        parser=file_name,
+        metavar="FILE",
+        help="Ground truth in a separate file (or bag), paired by time.",
+    ),
+]
+InputFormatOpt = Annotated[
+    InputFormat | None,
+    typer.Option("--input-format", help="Format of the logs [default: auto, from the file]."),
+]
+TruthFormatOpt = Annotated[
+    InputFormat | None,
+    typer.Option("--truth-format", help="Format of --truth [default: auto, from the file]."),
+]
+TopicOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--topic", help="Bag topic of the estimate (Odometry or PoseWithCovarianceStamped)."
+    ),
+]
+TruthTopicOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--truth-topic", help="Bag topic of the truth (PoseStamped, Odometry, TransformStamped)."
+    ),
+]
+TimeUnitOpt = Annotated[
+    TimeUnit | None,
+    typer.Option("--time-unit", help="Unit of the stamps [default: auto, said in a note]."),
+]
+MaxDtOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--max-dt",
+        help="Interpolate truth only across gaps up to this (s) [default: 2.5 × its median period].",
+    ),
+]
+TimeOffsetOpt = Annotated[
+    float | None,
+    typer.Option("--time-offset", help="Seconds added to the estimate stamps [default: 0]."),
+]
+StatesOpt = Annotated[
+    States | None,
+    typer.Option(
+        "--states",
+        help="Errors of pose logs: position, orientation, pose or planar [default: position].",
+    ),
+]
+PerturbationOpt = Annotated[
+    Perturbation | None,
+    typer.Option(
+        "--perturbation",
+        help="Orientation error convention (docs/formats.md: Conventions) [default: left].",
+    ),
+]
+ErrorsOnlyOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--errors-only",
+        help="The logs hold errors e_k (err_i, or the columns --truth-columns names) and "
+        "their covariance, no truth or estimate (found by itself for err_i columns).",
+    ),
+]
+InnovationsOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--innovations", help="The logs hold innovations innov_i and innov_cov_i_j: NIS, no truth."
+    ),
+]
+JunitOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--junit",
+        parser=output_name,
+        metavar="FILE",
+        help="Write a JUnit XML report (one case per segment).",
+    ),
+]
+PlotsOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--plots",
+        parser=file_name,
+        metavar="DIR",
+        help="Write PNG figures into this directory (needs credcli[plots]).",
+    ),
+]
+SummaryOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--summary",
+        parser=output_name,
+        metavar="FILE",
+        help="Write a Markdown summary (also appended to $GITHUB_STEP_SUMMARY when set).",
+    ),
+]
+
+
+ReportOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--report",
+        parser=output_name,
+        metavar="FILE",
+        help="Also write a self-contained HTML report.",
+    ),
+]
+
+
+class ScreenMode(str, enum.Enum):
+    ALL = "all"
+    NONE = "none"
+
+
+# The groups. Field order is the order of --help; a field's name is its parameter name.
+
+
+@dataclass(frozen=True)
+class SegmentOptions:
+    """How a log is cut into segments: [segments] of a config file."""
+
+    window: WindowOpt = None
+    whole: WholeOpt = None
+
+
+@dataclass(frozen=True)
+class LogOptions:
+    """How a log is read: [columns] and [input] of a config file, and --drop-invalid."""
+
+    time_column: TimeColOpt = None
+    segment_column: SegColOpt = None
+    truth_columns: TruthColsOpt = None
+    estimate_columns: EstColsOpt = None
+    cov_columns: CovColsOpt = None
+    cov_kind: CovKindOpt = None
+    drop_invalid: DropOpt = None
+    truth: TruthOpt = None
+    input_format: InputFormatOpt = None
+    truth_format: TruthFormatOpt = None
+    topic: TopicOpt = None
+    truth_topic: TruthTopicOpt = None
+    time_unit: TimeUnitOpt = None
+    max_dt: MaxDtOpt = None
+    time_offset: TimeOffsetOpt = None
+    states: StatesOpt = None
+    perturbation: PerturbationOpt = None
+    innovations: InnovationsOpt = None
+    errors_only: ErrorsOnlyOpt = None
+
+
+@dataclass(frozen=True)
+class RuleOptions:
+    """How a segment is judged: [diagnosis] of a config file (the seed is its own option)."""
+
+    tau: TauOpt = None
+    alpha: AlphaOpt = None
+    probe_factor: COpt = None
+    flips: FlipsOpt = None
+    block_length: BlockOpt = None
+    variant: VariantOpt = None
+    srd_form: SrdOpt = None
+    metrics: MetricsOpt = None
+    min_epochs: MinEpochsOpt = None
+    max_elt_epochs: MaxEltOpt = None
+    ks_alpha: KsAlphaOpt = None
+    nees_alpha: NeesAlphaOpt = None
+    exact_pvalue: ExactOpt = None
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Where the work runs: local processes or a Dask cluster."""
+
+    jobs: JobsOpt = None
+    scheduler: SchedulerOpt = None
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """What is printed or written, in which format."""
+
+    fmt: FormatOpt = OutputFormat.TABLE
+    output: OutputOpt = None
+
+
+@dataclass(frozen=True)
+class VerdictOptions:
+    """A CI verdict: exit 1 on the conditions of --fail-on, JUnit and Markdown reports."""
+
+    fail_on: FailOnOpt = None
+    junit: JunitOpt = None
+    summary: SummaryOpt = None
+
+
+def _default(value) -> str:
+    return f"[default: {getattr(value, 'value', value)}]"
+
+
+@dataclass(frozen=True)
+class ThresholdOptions:
+    """When the gate fails: [gate] of a config file."""
+
+    max_nci_increase: Annotated[
+        float | None,
+        typer.Option(
+            "--max-nci-increase",
+            help="Fail when |NCI| grows by more than this (dB) "
+            + _default(_T.max_nci_increase)
+            + ".",
+        ),
+    ] = None
+    max_anees_ratio: Annotated[
+        float | None,
+        typer.Option(
+            "--max-anees-ratio",
+            help="Fail when ANEES moves further from 1 by more than this factor "
+            + _default(_T.max_anees_ratio)
+            + ".",
+        ),
+    ] = None
+    allow_new_segments: Annotated[
+        bool | None,
+        typer.Option(
+            "--allow-new-segments", help="New or missing segments are reported, not failures."
+        ),
+    ] = None
+
+
+@dataclass(frozen=True)
+class StudyOptions:
+    """The Monte Carlo study's design: [simulate] of a config file."""
+
+    trials: Annotated[
+        int | None, typer.Option("--trials", help=f"Trials per scenario {_default(_S.trials)}.")
+    ] = None
+    n: Annotated[int | None, typer.Option("--n", help=f"Epochs per trial {_default(_S.n)}.")] = None
+    dim: Annotated[
+        int | None, typer.Option("--dim", help=f"State dimension d {_default(_S.dim)}.")
+    ] = None
+    rho_optimism: Annotated[
+        str | None,
+        typer.Option(
+            "--rho-optimism",
+            help=f"ρ range of optimism, lo:hi {_default(range_text(_S.rho_optimism))}.",
+        ),
+    ] = None
+    rho_pessimism: Annotated[
+        str | None,
+        typer.Option(
+            "--rho-pessimism",
+            help=f"ρ range of pessimism, lo:hi {_default(range_text(_S.rho_pessimism))}.",
+        ),
+    ] = None
+    bias: Annotated[
+        str | None,
+        typer.Option("--bias", help=f"‖μ‖ range of SMM, lo:hi {_default(range_text(_S.bias))}."),
+    ] = None
+    eigenvalues: Annotated[
+        str | None,
+        typer.Option(
+            "--eigenvalues",
+            help=f"Range of the eigenvalues of Σ_true {_default(range_text(_S.eigenvalues))}.",
+        ),
+    ] = None
+    ar: Annotated[
+        float | None,
+        typer.Option(
+            "--ar",
+            help="AR(1) coefficient φ of the whitened errors in time (marginal covariance "
+            f"unchanged) {_default(f'{_S.ar:g}')}.",
+        ),
+    ] = None
+    noise: Annotated[
+        str | None,
+        typer.Option(
+            "--noise",
+            help=f"Error distribution: gaussian or student-t:NU {_default(_S.noise)}.",
+        ),
+    ] = None
+
+
+@dataclass(frozen=True)
+class UwbOptions:
+    """The UWB pipeline's settings: [uwb] of a config file."""
+
+    range_column: Annotated[
+        str | None,
+        typer.Option(
+            "--range-column",
+            help=f"range_calib (calibrated) or range (raw) {_default(_U.range_column)}.",
+        ),
+    ] = None
+    std: Annotated[
+        str | None,
+        typer.Option(
+            "--std",
+            help="Range std in m: one value (files without a std column, s5), per anchor "
+            "(4=0.1,9=0.12, over the column), or 'estimate' (from the data; the verdict is then "
+            "about the estimated model).",
+        ),
+    ] = None
+    screen: Annotated[
+        ScreenMode | None,
+        typer.Option(
+            "--screen",
+            help="Drop stale packets and packets failing the residual test (all), or nothing "
+            f"(none) {_default(ScreenMode.ALL if _U.screen else ScreenMode.NONE)}.",
+        ),
+    ] = None
+    residual_level: Annotated[
+        float | None,
+        typer.Option(
+            "--residual-level",
+            help=f"Level of the per-packet residual test {_default(_U.residual_level)}.",
+        ),
+    ] = None
+    robust: Annotated[
+        RobustLoss | None,
+        typer.Option(
+            "--robust",
+            help="Position solve: none (WLS) or huber (downweights outliers) "
+            f"{_default(_U.robust)}.",
+        ),
+    ] = None
+    anchor_map: Annotated[
+        str | None,
+        typer.Option(
+            "--anchor-map", help="Map the log's anchor ids to the markers' ids: LOG_ID=MARKER_ID,…"
+        ),
+    ] = None
+    max_speed: Annotated[
+        float | None,
+        typer.Option(
+            "--max-speed", help=f"Static: speed below this (m/s) {_default(_U.max_speed)}."
+        ),
+    ] = None
+    min_static: Annotated[
+        float | None,
+        typer.Option(
+            "--min-static", help=f"Static: for at least this long (s) {_default(_U.min_static)}."
+        ),
+    ] = None
+    packet_window: Annotated[
+        float | None,
+        typer.Option(
+            "--packet-window",
+            help=f"Packet: distinct anchors within this (s) {_default(_U.packet_window)}.",
+        ),
+    ] = None
+    min_anchors: Annotated[
+        int | None,
+        typer.Option("--min-anchors", help=f"Anchors per 2-D fix {_default(_U.min_anchors)}."),
+    ] = None
+
+
+GROUPS = (
+    SegmentOptions,
+    LogOptions,
+    RuleOptions,
+    RunOptions,
+    OutputOptions,
+    VerdictOptions,
+    ThresholdOptions,
+    StudyOptions,
+    UwbOptions,
+)
+"""Every option group (a test checks that no two share an option name)."""
+
+
+def declare(command):
+    """A command whose parameters may be option groups, made into one Typer can read.
+
+    Each parameter annotated with a group dataclass is replaced, in place, by the group's
+    fields (their Typer options, in field order); when the command runs, those options are
+    gathered back into one frozen instance of the group. Other parameters pass unchanged.
+    """
+    hints = typing.get_type_hints(command, include_extras=True)
+    spread: list[inspect.Parameter] = []
+    groups: dict[str, tuple[type, tuple[str, ...]]] = {}
+    for param in inspect.signature(command).parameters.values():
+        hint = hints[param.name]
+        if isinstance(hint, type) and dataclasses.is_dataclass(hint):
+            fields = typing.get_type_hints(hint, include_extras=True)
+            names = tuple(f.name for f in dataclasses.fields(hint))
+            spread += [
+                inspect.Parameter(
+                    f.name,
+                    inspect.Parameter.KEYWORD_ONLY,
+                    default=f.default,
+                    annotation=fields[f.name],
+                )
+                for f in dataclasses.fields(hint)
+            ]
+            groups[param.name] = (hint, names)
+        else:
+            spread.append(param.replace(kind=inspect.Parameter.KEYWORD_ONLY, annotation=hint))
+    taken = [p.name for p in spread]
+    twice = sorted({n for n in taken if taken.count(n) > 1})
+    if twice:
+        raise TypeError(f"{command.__name__}: option(s) {', '.join(twice)} declared twice")
+
+    @functools.wraps(command)
+    def gathered(**given):
+        for name, (group, names) in groups.items():
+            given[name] = group(**{n: given.pop(n) for n in names})
+        return command(**given)
+
+    gathered.__signature__ = inspect.Signature(spread, return_annotation=hints.get("return"))
+    gathered.__annotations__ = {p.name: p.annotation for p in spread}
+    return gathered

@@ -49,7 +49,7 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
     if address.strip().count("://") and not address.strip().startswith("tcp://"):
         return
     if not m:
-        raise CredcliError(f"--scheduler {address}: expected tcp://host:port or local:N")
+        raise CredcliError(f"`scheduler` {address}: expected tcp://host:port or local:N")
     host, port = m.group(1), int(m.group(2) or 8786)
     try:
         with socket.create_connection((host, port), timeout=seconds) as sock:
@@ -57,22 +57,22 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
             first = sock.recv(8)
     except TimeoutError:
         raise CredcliError(
-            f"--scheduler {address}: no answer from a Dask scheduler within {seconds:g} s "
+            f"`scheduler` {address}: no answer from a Dask scheduler within {seconds:g} s "
             "(something else listens there, or a firewall holds the connection)"
         ) from None
     except OSError as exc:
         raise CredcliError(
-            f"--scheduler {address}: cannot connect ({exc.strerror or exc}); start one with "
+            f"`scheduler` {address}: cannot connect ({exc.strerror or exc}); start one with "
             "`dask scheduler` and `dask worker ADDRESS`, or use local:N"
         ) from exc
     if first.startswith(b"HTTP") or first[:1] in (b"<", b"{"):
         raise CredcliError(
-            f"--scheduler {address}: an HTTP server answers there, not a Dask scheduler "
+            f"`scheduler` {address}: an HTTP server answers there, not a Dask scheduler "
             "(the dashboard's port? the scheduler's is 8786 by default)"
         )
     if not first:
         raise CredcliError(
-            f"--scheduler {address}: the connection was closed at once; not a Dask scheduler"
+            f"`scheduler` {address}: the connection was closed at once; not a Dask scheduler"
         )
 
 
@@ -120,18 +120,18 @@ class DaskRunner:
         try:
             from distributed import Client
         except ImportError as exc:
-            raise CredcliError(f"--scheduler needs Dask: {INSTALL_HINT}") from exc
+            raise CredcliError(f"`scheduler` needs Dask: {INSTALL_HINT}") from exc
         self.cluster = None
         local = _LOCAL.match(address.strip())
         try:
             if local:
                 workers = int(local.group(1))
                 if workers < 1:
-                    raise CredcliError(f"--scheduler local:N needs N >= 1; got {address}")
+                    raise CredcliError(f"`scheduler` local:N needs N >= 1; got {address}")
                 self.cluster = _local_cluster(workers)
                 self.client = Client(self.cluster)
             elif address.strip().startswith("local:"):  # not localhost:8786, an address
-                raise CredcliError(f"--scheduler {address}: expected local:N, e.g. local:2")
+                raise CredcliError(f"`scheduler` {address}: expected local:N, e.g. local:2")
             else:
                 probe_scheduler(address)
                 self.client = Client(address, timeout=CONNECT_TIMEOUT)
@@ -141,7 +141,7 @@ class DaskRunner:
         except (OSError, TimeoutError, ValueError) as exc:
             self.close()
             raise CredcliError(
-                f"--scheduler {address}: cannot connect ({type(exc).__name__}: {exc}); start "
+                f"`scheduler` {address}: cannot connect ({type(exc).__name__}: {exc}); start "
                 "one with `dask scheduler` and `dask worker ADDRESS`, or use local:N"
             ) from exc
         if announce is not None:

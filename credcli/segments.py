@@ -32,14 +32,16 @@ class Window:
         m = re.fullmatch(r"\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|min)?\s*", str(text))
         if not m:
             raise CredcliError(
-                f"window '{text}' is not a duration like 5s, 250ms, 2min or an epoch count like 200"
+                f"`window` '{text}' is not a duration like 5s, 250ms, 2min or an epoch count like 200"
             )
         value, unit = float(m.group(1)), m.group(2)
         if value <= 0:
-            raise CredcliError(f"window must be positive; got '{text}'")
+            raise CredcliError(f"`window` must be positive; got '{text}'", "window")
         if unit is None:
             if value != int(value):
-                raise CredcliError(f"window '{text}': an epoch count must be a whole number")
+                raise CredcliError(
+                    f"`window` '{text}': an epoch count must be a whole number", "window"
+                )
             return cls(value, False)
         return cls(value * {"ms": 1e-3, "s": 1.0, "min": 60.0}[unit], True)
 
@@ -86,12 +88,12 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
     if window.seconds:
         if time is None:
             raise CredcliError(
-                f"--window {window} needs a time column; use an epoch count (e.g. --window 200) "
+                f"`window` {window} needs a time column; use an epoch count (e.g. `window` 200) "
                 "or name the time column"
             )
         if np.any(np.diff(time) < 0):
             raise CredcliError(
-                "the time column is not sorted; sort the log by time to use --window"
+                "the time column is not sorted; sort the log by time to use `window`"
             )
         k = np.floor((time - time[0]) / window.length).astype(np.int64)
     else:
@@ -156,7 +158,7 @@ def split(
     if log.run is not None and len(set(log.run)) > 1:
         raise CredcliError(
             f"{log.source}: holds {len(set(log.run))} Monte Carlo runs (a run column); "
-            "diagnose them pooled with --monte-carlo (credcli.diagnose_monte_carlo in Python)"
+            "diagnose them pooled with `monte_carlo` (credcli.diagnose_monte_carlo in Python)"
         )
     if whole:
         return _whole_log(log.n, log.time)
@@ -167,15 +169,15 @@ def split(
         if parsed.seconds and largest < min_epochs and log.n >= min_epochs:
             step = float(np.median(np.diff(log.time))) if log.n > 1 else float("nan")
             raise CredcliError(
-                f"{log.source}: --window {parsed} gives {len(out)} windows of at most "
-                f"{largest} epoch(s), fewer than --min-epochs {min_epochs}; the median time "
-                f"step is {step:.6g} s: if the stamps are not seconds, give --time-unit "
+                f"{log.source}: `window` {parsed} gives {len(out)} windows of at most "
+                f"{largest} epoch(s), fewer than `min_epochs` {min_epochs}; the median time "
+                f"step is {step:.6g} s: if the stamps are not seconds, give `time_unit` "
                 "(ms, us or ns), else use a longer window"
             )
         if not parsed.seconds and largest < min_epochs and log.n >= min_epochs:
             raise CredcliError(
-                f"{log.source}: --window {parsed} was read as {parsed} epochs per window "
-                f"(a number without a unit counts epochs), fewer than --min-epochs "
+                f"{log.source}: `window` {parsed} was read as {parsed} epochs per window "
+                f"(a number without a unit counts epochs), fewer than `min_epochs` "
                 f"{min_epochs}; write a duration such as {parsed}s, or at least {min_epochs} "
                 "epochs"
             )

@@ -70,15 +70,15 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     if runner is not None:
         if monte_carlo:
-            raise CredcliError("--monte-carlo runs on this machine: drop --scheduler")
+            raise CredcliError("`monte_carlo` runs on this machine: drop `scheduler`")
         from credcli.io.streams import display_name, is_stream
 
         streamed = [p for p in [*paths, options.truth] if p is not None and is_stream(p)]
         if streamed:
             raise CredcliError(
                 f"{display_name(streamed[0])}: a stream (stdin, pipe or FIFO) cannot be read by "
-                "--scheduler's workers, which read each log themselves; save it to a file or "
-                "drop --scheduler"
+                "`scheduler`'s workers, which read each log themselves; save it to a file or "
+                "drop `scheduler`"
             )
         sources = [
             (str(p), schema, options, drop_invalid, window, whole, config.min_epochs) for p in paths
@@ -164,7 +164,7 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
     of every run, run after run (so that the ELT flips each run in its own blocks), and
     the per-epoch ANEES test (:func:`credcli.engine.montecarlo.anees_test`)."""
     if len(loaded) < 2:
-        raise CredcliError("--monte-carlo needs at least two runs (logs) of the scenario")
+        raise CredcliError("`monte_carlo` needs at least two runs (logs) of the scenario")
     base = loaded[0]
     for log in loaded[1:]:
         same_time = (log.time is None) == (base.time is None) and (
@@ -173,7 +173,7 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
         )
         if log.n != base.n or log.dim != base.dim or not same_time:
             raise CredcliError(
-                f"{log.source}: --monte-carlo runs need one time base: {log.n} epochs of "
+                f"{log.source}: `monte_carlo` runs need one time base: {log.n} epochs of "
                 f"d = {log.dim} against {base.n} of d = {base.dim} in {base.source}"
                 + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
             )
@@ -294,7 +294,7 @@ def run_uwb(request: UwbRequest, progress=None):
     window, whole, seed = request.window, request.whole, request.seed
     run = uwb.run_pipeline(path, settings, anchors, window, whole)
     if not run.segments:
-        raise CredcliError(f"{path}: no fix falls in any period; try --window 5s or --whole")
+        raise CredcliError(f"{path}: no fix falls in any period; try `window` 5s or `whole`")
     results = diagnose_log(run.log, run.segments, config, seed, progress)
     parameters = (
         config_parameters(config)

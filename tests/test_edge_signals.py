@@ -475,6 +475,7 @@ def test_default_config_is_generated_and_current():
         ["diagnose", LOG, "-f", "json"],
         ["simulate", "--trials", "5", "-f", "json"],
         ["baseline", LOG],
+        ["uwb", ROOT / "sample_data" / "starloc_grid_uwb.csv", "-f", "json"],
     ],
 )
 def test_loading_the_default_config_changes_nothing(args):
@@ -486,16 +487,26 @@ def test_loading_the_default_config_changes_nothing(args):
     assert strip(configured[1]) == plain[1]
 
 
+def test_gate_with_the_default_config_changes_nothing(tmp_path):
+    config = ROOT / "configs" / "default.toml"
+    baseline = tmp_path / "b.json"
+    assert run("baseline", LOG, "-o", baseline)[0] == 0
+    plain = run("gate", LOG, "--baseline", baseline, "-f", "json")
+    assert plain[0] == 0, plain[2]
+    assert run("gate", LOG, "--baseline", baseline, "-f", "json", "--config", config) == plain
+
+
 def test_the_default_config_sets_every_setting():
     """Each field of the settings classes appears in the file, set or commented out."""
     import dataclasses
 
+    from credcli.ci.thresholds import Thresholds
     from credcli.engine.config import DiagnosisConfig
     from credcli.io.schema import LogSchema, ReadOptions
-    from credcli.studies.settings import SimulationConfig
+    from credcli.studies.settings import SimulationConfig, UwbSettings
 
     text = (ROOT / "configs" / "default.toml").read_text()
-    for cls in (LogSchema, ReadOptions, DiagnosisConfig, SimulationConfig):
+    for cls in (LogSchema, ReadOptions, DiagnosisConfig, SimulationConfig, UwbSettings, Thresholds):
         for f in dataclasses.fields(cls):
             if f.name not in ("diagnosis", "seed"):
                 assert f"\n{f.name} = " in text or f"\n# {f.name} = " in text, f.name

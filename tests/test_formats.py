@@ -223,7 +223,7 @@ def test_pairing_errors_name_the_cause():
     truth = _traj(np.arange(0.0, 1.0, 0.5), np.zeros((2, 3)))
     with pytest.raises(Exception, match="do not overlap"):
         pair(_traj(np.array([5.0, 6.0]), np.zeros((2, 3))), truth, None, 0.0)
-    with pytest.raises(Exception, match="raise --max-dt"):
+    with pytest.raises(Exception, match="raise `max_dt`"):
         pair(_traj(np.array([0.25]), np.zeros((1, 3))), truth, 0.1, 0.0)
 
 

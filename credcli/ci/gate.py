@@ -70,7 +70,7 @@ def parse_fail_on(text: str) -> FailOn:
         label = parse_label(item)
         if label is None or label is Label.CREDIBLE:
             raise CredcliError(
-                f"fail_on: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
+                f"`fail_on`: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
                 f"{Label.INSUFFICIENT.value}, {UNTESTED}, {NONCREDIBLE}, a label such as "
                 "optimism+smm, or "
                 f"an alias ({', '.join(a for a in LABEL_ALIASES if a != 'cred')})"
@@ -80,7 +80,7 @@ def parse_fail_on(text: str) -> FailOn:
         else:
             labels.add(label)
     if not (conditions or labels or noncredible or untested):
-        raise CredcliError("fail_on: give at least one condition, e.g. noncredible")
+        raise CredcliError("`fail_on`: give at least one condition, e.g. noncredible", "fail_on")
     return FailOn(frozenset(conditions), frozenset(labels), noncredible, untested)
 
 

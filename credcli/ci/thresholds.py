@@ -22,6 +22,10 @@ class Thresholds:
 
     def __post_init__(self) -> None:
         if not self.max_nci_increase >= 0:
-            raise CredcliError(f"max_nci_increase must be >= 0; got {self.max_nci_increase}")
+            raise CredcliError(
+                f"`max_nci_increase` must be >= 0; got {self.max_nci_increase}", "max_nci_increase"
+            )
         if not self.max_anees_ratio >= 1:
-            raise CredcliError(f"max_anees_ratio must be >= 1; got {self.max_anees_ratio}")
+            raise CredcliError(
+                f"`max_anees_ratio` must be >= 1; got {self.max_anees_ratio}", "max_anees_ratio"
+            )

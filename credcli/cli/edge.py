@@ -8,13 +8,14 @@ and one line on stderr. The only place that knows exit codes.
 from __future__ import annotations
 
 import errno
-import re
+import functools
 import sys
 
 import typer
 
 from credcli.cli.app import app
-from credcli.errors import CredcliError
+from credcli.cli.options import FIELD_OPTIONS
+from credcli.errors import NAMED, CredcliError
 
 
 def _click_exception_types() -> tuple[type, ...]:
@@ -209,48 +210,24 @@ def _internal_error(exc: BaseException, debug: bool) -> int:
     return 3
 
 
-FLAG_NAMES = {
-    "max_dt": "--max-dt",
-    "time_offset": "--time-offset",
-    "n_flips": "--flips",
-    "tau_nci": "--tau",
-    "alpha": "--alpha",
-    "c": "--probe-factor",
-    "block_length": "--block-length",
-    "variant": "--variant",
-    "min_epochs": "--min-epochs",
-    "max_elt_epochs": "--max-elt-epochs",
-    "ks_alpha": "--ks-alpha",
-    "nees_alpha": "--nees-alpha",
-    "max_nci_increase": "--max-nci-increase",
-    "max_anees_ratio": "--max-anees-ratio",
-    "fail_on": "--fail-on",
-    "plots": "--plots",
-    "window": "--window",
-    "scenario": "--scenario",
-    "sweep": "--sweep",
-    "seed": "--seed",
-    "trials": "--trials",
-    "n": "--n",
-    "dim": "--dim",
-    "std": "--std",
-    "packet_window": "--packet-window",
-    "min_anchors": "--min-anchors",
-    "max_speed": "--max-speed",
-    "min_static": "--min-static",
-}
-"""Library parameter names and the flags that set them."""
-
-_LEADING_PARAMETER = re.compile(r"^(invalid setting: )?([a-z_]+)\b")
-
-
 def flag_names(message: str) -> str:
-    """A library message names a parameter first ("n_flips 5 is too few …"); on the command
-    line it names the flag ("--flips 5 is too few …"). Messages about files are untouched."""
-    m = _LEADING_PARAMETER.match(message)
-    if m and m[2] in FLAG_NAMES:
-        return message[: m.start(2)] + FLAG_NAMES[m[2]] + message[m.end(2) :]
-    return message
+    """A library message names parameters in backticks (```n_flips` 5 is too few``); on
+    the command line each is its flag (``--flips 5 is too few``). A name that is no
+    option of any command keeps its backticks."""
+    flags = _flags()
+    return NAMED.sub(lambda m: flags.get(m[1], m[0]), message)
+
+
+@functools.cache
+def _flags() -> dict[str, str]:
+    """Parameter name -> flag, for every option of every command, and for the settings
+    fields that an option of another name sets (``n_flips`` is ``--flips``)."""
+    flags: dict[str, str] = {}
+    for command in typer.main.get_command(app).commands.values():
+        for param in command.params:
+            if getattr(param, "param_type_name", "") == "option":
+                flags.setdefault(param.name, next(o for o in param.opts if o.startswith("--")))
+    return flags | {field: flags[option] for field, option in FIELD_OPTIONS.items()}
 
 
 def one_line(message: str) -> str:

@@ -26,6 +26,16 @@ from credcli.io.schema import CovKind, InputFormat, LogSchema, Perturbation, Sta
 from credcli.report.formats import OutputFormat
 from credcli.studies.settings import RobustLoss, SimulationConfig, UwbSettings
 
+FIELD_OPTIONS = {
+    "tau_nci": "tau",
+    "n_flips": "flips",
+    "c": "probe_factor",
+    "time": "time_column",
+    "segment": "segment_column",
+}
+"""Settings fields set by an option of another name (DiagnosisConfig.n_flips is --flips,
+LogSchema.time is --time-column); every other field is set by the option of its name."""
+
 _D = DiagnosisConfig()
 _S = SimulationConfig()
 _U = UwbSettings()

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from credcli.ci.thresholds import Thresholds
 from credcli.cli.options import (
+    FIELD_OPTIONS,
     LogOptions,
     RuleOptions,
     RunOptions,
@@ -25,7 +26,7 @@ from credcli.cli.options import (
 )
 from credcli.engine.config import AUTO
 from credcli.engine.diagnosis import DiagnosisConfig
-from credcli.errors import CredcliError
+from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.files import read_toml
 from credcli.io.logs import LogSchema
@@ -37,8 +38,10 @@ CONFIG_SECTIONS = ("columns", "input", "diagnosis", "segments", "simulate", "uwb
 """The tables a config file may hold; any other table is an error, never silently ignored."""
 
 
-KEY_ALIASES = {"tau": "tau_nci", "flips": "n_flips", "probe_factor": "c"}
-"""Config keys spelled as the command-line flags, beside the field names."""
+KEY_ALIASES = {
+    option: field for field, option in FIELD_OPTIONS.items() if field in ("tau_nci", "n_flips", "c")
+}
+"""[diagnosis] keys spelled as the command-line flags, beside the field names."""
 
 
 def config_tables() -> dict[str, dict]:
@@ -100,30 +103,39 @@ def merged(config: dict, section: str, cli: dict) -> dict:
     return out
 
 
-def build_schema(config: dict, cli: dict, where: str = "config [columns]") -> LogSchema:
+def built(cls, values: dict, config: dict, section: str, given: dict):
+    """``cls(**values)``, the settings of ``[section]`` under the command line's ``given``
+    values. A bad value names its source: a config file's table and key, or (through the
+    parameter in the message) the command line's flag."""
+    try:
+        return cls(**values)
+    except CredcliError as exc:
+        name = exc.parameter
+        if name is not None and given.get(name) is None and name in config.get(section, {}):
+            message = plain(exc.message).removeprefix("invalid setting: ")
+            raise CredcliError(f"config [{section}]: {message}", name) from exc
+        raise
+    except (TypeError, ValueError) as exc:
+        raise CredcliError(f"invalid {section} setting: {exc}") from exc
+
+
+def build_schema(config: dict, cli: dict) -> LogSchema:
+    """The column layout: [columns] of the config, overridden by the command line."""
     values = merged(config, "columns", cli)
     try:
         return LogSchema().updated(**values)
     except CredcliError:
         raise  # already a message for the user (a ValueError too)
     except ValueError as exc:
-        raise CredcliError(f"{where}: {exc}") from exc
+        raise CredcliError(f"config [columns]: {exc}") from exc
 
 
-def build_reading(config: dict, cli: dict, where: str = "config [input]") -> ReadOptions:
+def build_reading(config: dict, cli: dict) -> ReadOptions:
     """How logs are read: [input] of the config, overridden by the command line."""
     values = merged(config, "input", cli)
     if values.get("truth") is not None:
         values["truth"] = str(values["truth"])
-    try:
-        return ReadOptions(**values)
-    except CredcliError:
-        raise
-    except ValueError as exc:
-        name = str(exc).split(" ", 1)[0]
-        if cli.get(name) is not None or name not in config.get("input", {}):
-            raise CredcliError(str(exc)) from exc  # the command line's value: its flag
-        raise CredcliError(f"{where}: {exc}") from exc
+    return built(ReadOptions, values, config, "input", cli)
 
 
 def segment_settings(
@@ -142,12 +154,7 @@ def build_diagnosis_config(
     seed_value = values.pop("seed", 0)
     if not isinstance(seed_value, int) or seed_value < 0:
         raise CredcliError(f"the seed must be a non-negative integer; got {seed_value!r}")
-    try:
-        return DiagnosisConfig(**values), seed_value
-    except CredcliError:
-        raise
-    except (TypeError, ValueError) as exc:
-        raise CredcliError(f"invalid diagnosis setting: {exc}") from exc
+    return built(DiagnosisConfig, values, config, "diagnosis", cli), seed_value
 
 
 def split_list(text: str | None) -> tuple[str, ...] | None:
@@ -250,11 +257,8 @@ def gate_request(
     from credcli.io.records import read_baseline
 
     config = load_config(config_file)
-    limits = merged(config, "gate", dataclasses.asdict(thresholds))
-    try:
-        limits = Thresholds(**limits)
-    except TypeError as exc:
-        raise CredcliError(f"invalid gate setting: {exc}") from exc
+    given = dataclasses.asdict(thresholds)
+    limits = built(Thresholds, merged(config, "gate", given), config, "gate", given)
     given = rule_values(rule) | {"seed": seed, "window": segments.window, "whole": segments.whole}
     requested = config.get("diagnosis", {}) | config.get("segments", {})
     requested.update({k: v for k, v in given.items() if v is not None})
@@ -307,17 +311,17 @@ def simulate_request(
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
     config = load_config(config_file)
-    values = merged(config, "simulate", dataclasses.asdict(study) | {"seed": seed})
+    given = dataclasses.asdict(study)
+    values = merged(config, "simulate", given | {"seed": seed})
     for key in ("rho_optimism", "rho_pessimism", "bias", "eigenvalues"):
         if key in values:
-            values[key] = parse_range(values[key], f"--{key.replace('_', '-')}")
+            where = f"`{key}`" if given[key] is not None else f"config [simulate] {key}"
+            values[key] = parse_range(values[key], where)
     diagnosis, seed_value = build_diagnosis_config(
         config, rule_values(rule), values.pop("seed", None)
     )
-    try:
-        sim = SimulationConfig(**values, seed=seed_value, diagnosis=diagnosis)
-    except TypeError as exc:
-        raise CredcliError(f"invalid simulation setting: {exc}") from exc
+    values |= {"seed": seed_value, "diagnosis": diagnosis}
+    sim = built(SimulationConfig, values, config, "simulate", given)
     return SimulateRequest(sim, scenario, sweep, curves, curve_runs, jobs, figures)
 
 
@@ -388,10 +392,7 @@ def uwb_request(
     for key in ("anchor_map", "std_by_anchor"):  # lists of [id, value] pairs in a file
         if key in values:
             values[key] = tuple(tuple(pair) for pair in values[key])
-    try:
-        settings = UwbSettings(**values)
-    except TypeError as exc:
-        raise CredcliError(f"invalid uwb setting: {exc}") from exc
+    settings = built(UwbSettings, values, config, "uwb", given)
     window, whole = segment_settings(config, segments.window, segments.whole)
     return UwbRequest(file, settings, diagnosis, anchors, window, whole, seed_value, figures)
 

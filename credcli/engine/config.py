@@ -174,31 +174,38 @@ class DiagnosisConfig:
         for name in reals:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise CredcliError(f"invalid setting: {name} must be a number; got {value!r}")
+                raise CredcliError(
+                    f"invalid setting: `{name}` must be a number; got {value!r}", name
+                )
         for name in integers:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-                raise CredcliError(f"invalid setting: {name} must be an integer; got {value!r}")
+                raise CredcliError(
+                    f"invalid setting: `{name}` must be an integer; got {value!r}", name
+                )
         if not isinstance(self.exact_pvalue, bool):
             raise CredcliError(
-                f"invalid setting: exact_pvalue must be true or false; got {self.exact_pvalue!r}"
+                f"invalid setting: `exact_pvalue` must be true or false; got {self.exact_pvalue!r}",
+                "exact_pvalue",
             )
         try:
             object.__setattr__(self, "variant", Variant(self.variant))
         except ValueError:
             names = ", ".join(v.value for v in Variant)
             raise CredcliError(
-                f"invalid setting: variant must be one of {names}; got {self.variant!r}"
+                f"invalid setting: `variant` must be one of {names}; got {self.variant!r}",
+                "variant",
             ) from None
         object.__setattr__(self, "srd_form", SrdForm(self.srd_form))
         object.__setattr__(self, "metrics", MetricsLevel(self.metrics))
         checks = [
-            (0 < self.tau_nci < math.inf, "tau_nci must be finite and > 0 (dB)"),
-            (0 < self.alpha < 1, "alpha must be in (0, 1)"),
-            (1 < self.c < math.inf, "c must be finite and > 1 (the probe factor of Eq. (18))"),
+            (0 < self.tau_nci < math.inf, "tau_nci", "must be finite and > 0 (dB)"),
+            (0 < self.alpha < 1, "alpha", "must be in (0, 1)"),
+            (1 < self.c < math.inf, "c", "must be finite and > 1 (the probe factor of Eq. (18))"),
             (
                 self.n_flips <= MAX_FLIPS,
-                f"n_flips {self.n_flips} would need {self.n_flips * 8 / 2**30:.3g} GiB for the "
+                "n_flips",
+                f"{self.n_flips} would need {self.n_flips * 8 / 2**30:.3g} GiB for the "
                 f"null distribution alone; at most {MAX_FLIPS:,} are allowed (the p-value's "
                 "Monte Carlo error is already below 1e-4 there)",
             ),
@@ -209,32 +216,36 @@ class DiagnosisConfig:
                     and not isinstance(self.block_length, bool)
                     and self.block_length >= 1
                 ),
-                f"block_length must be 'auto' or an integer >= 1; got {self.block_length!r}",
+                "block_length",
+                f"must be 'auto' or an integer >= 1; got {self.block_length!r}",
             ),
-            (0 < self.ks_alpha < 1, "ks_alpha must be in (0, 1)"),
-            (0 < self.nees_alpha < 1, "nees_alpha must be in (0, 1)"),
-            (self.min_epochs >= 2, "min_epochs must be >= 2"),
+            (0 < self.ks_alpha < 1, "ks_alpha", "must be in (0, 1)"),
+            (0 < self.nees_alpha < 1, "nees_alpha", "must be in (0, 1)"),
+            (self.min_epochs >= 2, "min_epochs", "must be >= 2"),
             (
                 self.max_elt_epochs >= MIN_ELT_EPOCHS,
-                f"max_elt_epochs must be >= {MIN_ELT_EPOCHS}: a smaller budget leaves the ELT "
+                "max_elt_epochs",
+                f"must be >= {MIN_ELT_EPOCHS}: a smaller budget leaves the ELT "
                 f"almost no power; got {self.max_elt_epochs}",
             ),
         ]
-        for ok, message in checks:
+        for ok, name, message in checks:
             if not ok:
-                raise CredcliError(f"invalid setting: {message}")
+                raise CredcliError(f"invalid setting: `{name}` {message}", name)
         level = self.elt_level
         smallest = math.ceil(1.0 / level - 1e-9) - 1
         if smallest > MAX_FLIPS:
             raise CredcliError(
-                f"invalid setting: alpha {self.alpha:g} is too small to test: the ELT's p-value "
-                f"can only reach its level {level:.3g} with more than {MAX_FLIPS:,} sign flips"
+                f"invalid setting: `alpha` {self.alpha:g} is too small to test: the ELT's p-value "
+                f"can only reach its level {level:.3g} with more than {MAX_FLIPS:,} sign flips",
+                "alpha",
             )
         if self.n_flips < smallest:
             raise CredcliError(
-                f"invalid setting: n_flips {self.n_flips} is too few: the ELT's p-value "
+                f"invalid setting: `n_flips` {self.n_flips} is too few: the ELT's p-value "
                 f"(1 + count)/(B + 1) can only fall below its level {level:.3g} with "
-                f"B >= {smallest}"
+                f"B >= {smallest}",
+                "n_flips",
             )
 
     @property

@@ -127,7 +127,7 @@ def _format_of(path: Path, fmt: InputFormat, role: str, topic: str | None):
         fmt = sniff_format(path)
         notes.append(f"{path}: read as {fmt.value} (--{_flag(role)}-format auto)")
     if topic is not None and fmt is not InputFormat.ROSBAG:
-        flag = "--topic" if role == "estimate" else "--truth-topic"
+        flag = "`topic`" if role == "estimate" else "`truth_topic`"
         raise CredcliError(f"{path}: {flag} applies to bags, and this is a {fmt.value} file")
     return fmt, notes
 
@@ -302,7 +302,7 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
     if schema.time not in columns:
         raise CredcliError(
             f"{path}: no time column '{schema.time}'; pairing with a separate truth needs "
-            "stamps (name the column with --time-column)"
+            "stamps (name the column with `time_column`)"
         )
     if role == "truth":
         cols = logs.vector_columns(

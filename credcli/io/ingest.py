@@ -64,15 +64,15 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
     _check_options(reading)
     if reading.innovations:
         if reading.paired:
-            raise CredcliError("--innovations needs no ground truth: drop --truth/--truth-topic")
-        _only_credcli(path, reading.input_format, "--innovations")
+            raise CredcliError("`innovations` needs no ground truth: drop `truth`/`truth_topic`")
+        _only_credcli(path, reading.input_format, "`innovations`")
         return load_log(path, schema, drop_invalid, reading.time_unit, innovations=True)
     if not reading.paired and Path(path).suffix.lower() == ".npz":
         return load_npz(Path(path))
     if reading.errors_only:
         if reading.paired:
-            raise CredcliError("--errors-only needs no ground truth: drop --truth/--truth-topic")
-        _only_credcli(path, reading.input_format, "--errors-only")
+            raise CredcliError("`errors_only` needs no ground truth: drop `truth`/`truth_topic`")
+        _only_credcli(path, reading.input_format, "`errors_only`")
         return load_log(path, schema, drop_invalid, reading.time_unit, errors_only=True)
     if not reading.paired:
         fmt = reading.input_format
@@ -83,12 +83,12 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
         if fmt is not InputFormat.CREDCLI:
             raise CredcliError(
                 f"{path}: a {fmt.value} file has no ground truth beside the estimate; name it "
-                "with --truth FILE (or --truth-topic for a bag)"
+                "with `truth` FILE (or `truth_topic` for a bag)"
             )
         if reading.states not in (None, States.POSITION):
             raise CredcliError(
-                f"{path}: --states {reading.states.value} needs orientations, which a credcli "
-                "log does not have; read a pose log (tum, euroc, ros-csv, rosbag) with --truth"
+                f"{path}: `states` {reading.states.value} needs orientations, which a credcli "
+                "log does not have; read a pose log (tum, euroc, ros-csv, rosbag) with `truth`"
             )
         return load_log(path, schema, drop_invalid, reading.time_unit)
     return paired_log(path, schema, reading)
@@ -100,25 +100,25 @@ def _check_options(reading: ReadOptions) -> None:
         unused = [
             flag
             for flag, given in (
-                ("--max-dt", reading.max_dt is not None),
-                ("--time-offset", reading.time_offset != 0),
-                ("--truth-format", reading.truth_format is not InputFormat.AUTO),
-                ("--perturbation", reading.perturbation is not Perturbation.LEFT),
-                ("--topic", reading.topic is not None),
+                ("`max_dt`", reading.max_dt is not None),
+                ("`time_offset`", reading.time_offset != 0),
+                ("`truth_format`", reading.truth_format is not InputFormat.AUTO),
+                ("`perturbation`", reading.perturbation is not Perturbation.LEFT),
+                ("`topic`", reading.topic is not None),
             )
             if given
         ]
         if unused:
             raise CredcliError(
                 f"{', '.join(unused)} appl{'ies' if len(unused) == 1 else 'y'} to a separate "
-                "ground truth: give --truth FILE (or --truth-topic for a bag)"
+                "ground truth: give `truth` FILE (or `truth_topic` for a bag)"
             )
 
 
 def _only_credcli(path: Path, fmt: InputFormat, what: str) -> None:
     if fmt not in (InputFormat.AUTO, InputFormat.CREDCLI):
         raise CredcliError(
-            f"{path}: {what} reads credcli logs only; got --input-format {fmt.value}"
+            f"{path}: {what} reads credcli logs only; got `input_format` {fmt.value}"
         )
 
 
@@ -158,7 +158,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
             raise
         raise CredcliError(
             f"{exc.message} (the {states.value} block of the 6×6 pose covariance; a planar "
-            "robot that leaves z, roll and pitch at 0 needs --states planar)"
+            "robot that leaves z, roll and pitch at 0 needs `states` planar)"
         ) from exc
     notes = (*estimate.notes, *truth.notes, pairing.note, convention)
     return EstimatorLog(
@@ -182,7 +182,7 @@ def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: Rea
         if reading.states not in (None, States.POSITION):
             who = estimate if not estimate.pose else truth
             raise CredcliError(
-                f"{who.source}: --states {reading.states.value} needs orientations, which a "
+                f"{who.source}: `states` {reading.states.value} needs orientations, which a "
                 "credcli log does not have"
             )
         p_est = estimate.position[keep]
@@ -208,8 +208,8 @@ def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: Rea
         for traj in (estimate, truth):
             if traj.quaternion is None:
                 raise CredcliError(
-                    f"{traj.source}: has no orientation, which --states {states.value}"
-                    f"{' with --perturbation right' if right else ''} needs"
+                    f"{traj.source}: has no orientation, which `states` {states.value}"
+                    f"{' with `perturbation` right' if right else ''} needs"
                 )
         from scipy.spatial.transform import Rotation
 

@@ -359,8 +359,8 @@ def check_not_orientation(columns, source: str) -> None:
     if named:
         raise CredcliError(
             f"{source}: column(s) {', '.join(named)} look like orientation (quaternion) "
-            "components, which are not a vector; read the file as a pose (--input-format "
-            "tum/euroc/ros-csv with --truth) and choose --states orientation or pose"
+            "components, which are not a vector; read the file as a pose (`input_format` "
+            "tum/euroc/ros-csv with `truth`) and choose `states` orientation or pose"
         )
 
 
@@ -399,10 +399,10 @@ def vector_columns(columns, prefix: str, explicit, what: str, source: str) -> li
     if not found and _indexed(columns, "innov_") and prefix != "innov_":
         raise CredcliError(
             f"{source}: no {what} columns, but innovations (innov_0, …): a filter's "
-            "innovations log is read with --innovations (NIS, no ground truth)"
+            "innovations log is read with `innovations` (NIS, no ground truth)"
         )
     if not found:
-        alone = " (a log of errors alone: --errors-only)" if what == "estimate" else ""
+        alone = " (a log of errors alone: `errors_only`)" if what == "estimate" else ""
         raise CredcliError(
             f"{source}: no {what} columns ({prefix}0, {prefix}1, …) found; columns found: "
             f"{_list(columns)}. Name them with the column options or a [columns] config"
@@ -587,7 +587,7 @@ def log_from_frame(
             first_col = numeric_cols[int(np.argmax(~np.isfinite(first_row)))]
             raise CredcliError(
                 f"{source}: NaN, Inf or empty value in row(s) {shown}{more} (first in column "
-                f"'{first_col}'); fix them or pass --drop-invalid to drop those rows"
+                f"'{first_col}'); fix them or pass `drop_invalid` to drop those rows"
             )
         dropped = int(bad.sum())
         blocks, rows = [block[~bad] for block in blocks], rows[~bad]
@@ -626,7 +626,7 @@ def log_from_frame(
             raise CredcliError(
                 f"{source}: segment column '{seg_col}' is empty or NA in {int(missing_seg.sum())} "
                 f"row(s), first in row {first}; fill in the segment names, or name another "
-                "column with --segment-column"
+                "column with `segment_column`"
             )
         segment = seg_values[rows - 1]
     estimate = None if innovations else estimate

@@ -50,7 +50,7 @@ def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_off
     if t_est[-1] < lo or t_est[0] > hi:
         raise CredcliError(
             f"{estimate.source}: its stamps ({_span(t_est)}) do not overlap the truth's "
-            f"({_span(t_true)} in {truth.source}); check --time-offset and --time-unit"
+            f"({_span(t_true)} in {truth.source}); check `time_offset` and `time_unit`"
         )
     left = pd.DataFrame({"t": t_est, "k": np.arange(t_est.size)})
     right = pd.DataFrame({"t": t_true, "i": np.arange(t_true.size, dtype=float)})
@@ -65,9 +65,9 @@ def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_off
     dropped = int(t_est.size - keep.sum())
     if not keep.any():
         raise CredcliError(
-            f"{estimate.source}: no estimate epoch has truth samples within --max-dt "
+            f"{estimate.source}: no estimate epoch has truth samples within `max_dt` "
             f"{max_dt:.6g} s on both sides (the truth period is {period:.6g} s); "
-            "raise --max-dt, or check --time-offset and --time-unit"
+            "raise `max_dt`, or check `time_offset` and `time_unit`"
         )
     i0, i1 = i0[keep], i1[keep]
     span = t_true[i1] - t_true[i0]

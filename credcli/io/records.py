@@ -14,7 +14,7 @@ from pathlib import Path
 
 from credcli.engine.config import DiagnosisConfig
 from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
-from credcli.errors import CredcliError
+from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
 
@@ -306,7 +306,7 @@ def read_baseline(path: str | Path) -> Baseline:
         )
         seed = params["seed"]
     except CredcliError as exc:
-        raise CredcliError(f"{path}: {exc.message}; record the baseline again") from exc
+        raise CredcliError(f"{path}: {plain(exc.message)}; record the baseline again") from exc
     except (KeyError, TypeError, ValueError) as exc:
         raise CredcliError(
             f"{path}: baseline parameters are incomplete ({exc}); record it again"

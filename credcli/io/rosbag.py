@@ -120,7 +120,7 @@ def _resolve_topic(path: Path, topics: dict, topic: str | None, role: str) -> tu
     """The topic of a request (the only one of a usable type when not named), checked, and
     the note that says it was picked ("" when named)."""
     wanted = ESTIMATE_TYPES if role == "estimate" else TRUTH_TYPES
-    flag = "--topic" if role == "estimate" else "--truth-topic"
+    flag = "`topic`" if role == "estimate" else "`truth_topic`"
     note = ""
     if topic is None:
         usable = sorted(t for t, m in topics.items() if m in wanted)

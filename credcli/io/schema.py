@@ -6,6 +6,7 @@ import enum
 from dataclasses import dataclass, replace
 
 from credcli.engine.config import Perturbation, States
+from credcli.errors import CredcliError
 
 
 class CovKind(str, enum.Enum):
@@ -108,9 +109,11 @@ class ReadOptions:
         if self.states is not None:
             object.__setattr__(self, "states", States(self.states))
         if self.max_dt is not None and not self.max_dt > 0:
-            raise ValueError(f"max_dt must be > 0 seconds; got {self.max_dt}")
+            raise CredcliError(f"`max_dt` must be > 0 seconds; got {self.max_dt}", "max_dt")
         if not isinstance(self.time_offset, (int, float)) or self.time_offset != self.time_offset:
-            raise ValueError(f"time_offset must be a number of seconds; got {self.time_offset}")
+            raise CredcliError(
+                f"`time_offset` must be a number of seconds; got {self.time_offset}", "time_offset"
+            )
 
     @property
     def paired(self) -> bool:

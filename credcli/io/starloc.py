@@ -74,8 +74,8 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     if not std_given and "std" not in columns:
         raise CredcliError(
             f"{source}: no 'std' column (setup s5 runs do not report one); give the range "
-            "standard deviation in metres with --std VALUE (e.g. --std 0.1), per anchor "
-            "(--std 4=0.1,9=0.12) or --std estimate"
+            "standard deviation in metres with `std` VALUE (e.g. `std` 0.1), per anchor "
+            "(`std` 4=0.1,9=0.12) or `std` estimate"
         )
     rig_cols = ["x", "y", "z"] if all(c in columns for c in ("x", "y", "z")) else None
     numeric = list(_REQUIRED) + [range_column]
@@ -148,7 +148,7 @@ def _range_std(col: dict, settings: UwbSettings, source: str, range_column: str)
         missing = sorted(set(np.unique(anchor).tolist()) - set(given))
         if missing and std is None:
             raise CredcliError(
-                f"{source}: --std gives no std for anchor(s) {', '.join(map(str, missing))} "
+                f"{source}: `std` gives no std for anchor(s) {', '.join(map(str, missing))} "
                 "and the file has no std column; give one for every anchor, or a default"
             )
         std = np.full(n, np.nan) if std is None else std.copy()

@@ -32,7 +32,7 @@ def _pyplot():
         import matplotlib
     except ModuleNotFoundError as exc:
         raise CredcliError(
-            f"plots need matplotlib, which is not installed: {INSTALL_HINT}"
+            f"figures need matplotlib, which is not installed: {INSTALL_HINT}"
         ) from exc
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
@@ -83,7 +83,7 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
 
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
-        raise CredcliError(f"plots {directory}: exists and is not a directory")
+        raise CredcliError(f"`plots` {directory}: exists and is not a directory", "plots")
     directory.mkdir(parents=True, exist_ok=True)
     paths = []
     for plot in plots:

@@ -42,14 +42,17 @@ class ErrorModel:
                 nu = float("nan")
             if not (math.isfinite(nu) and nu > 2):
                 raise CredcliError(
-                    f"noise '{noise}': the degrees of freedom must be a number > 2 "
-                    "(the covariance must exist), e.g. student-t:5"
+                    f"`noise` '{noise}': the degrees of freedom must be a number > 2 "
+                    "(the covariance must exist), e.g. student-t:5",
+                    "noise",
                 )
             model = cls(Noise.STUDENT_T, nu, ar)
         else:
-            raise CredcliError(f"noise '{noise}': use gaussian or student-t:NU, e.g. student-t:5")
+            raise CredcliError(
+                f"`noise` '{noise}': use gaussian or student-t:NU, e.g. student-t:5", "noise"
+            )
         if not (math.isfinite(ar) and -1 < ar < 1):
-            raise CredcliError(f"ar must be in (-1, 1); got {ar}")
+            raise CredcliError(f"`ar` must be in (-1, 1); got {ar}", "ar")
         return model
 
     def __str__(self) -> str:
@@ -114,27 +117,38 @@ class SimulationConfig:
 
     def __post_init__(self) -> None:
         checks = [
-            (1 <= self.trials <= 1_000_000, f"trials must be 1 … 1,000,000; got {self.trials}"),
-            (2 <= self.n <= 10_000_000, f"n must be 2 … 10,000,000; got {self.n}"),
-            (1 <= self.dim <= 64, f"dim must be 1 … 64; got {self.dim}"),
+            (
+                1 <= self.trials <= 1_000_000,
+                "trials",
+                f"`trials` must be 1 … 1,000,000; got {self.trials}",
+            ),
+            (2 <= self.n <= 10_000_000, "n", f"`n` must be 2 … 10,000,000; got {self.n}"),
+            (1 <= self.dim <= 64, "dim", f"`dim` must be 1 … 64; got {self.dim}"),
             (
                 0 < self.rho_optimism[0] <= self.rho_optimism[1] < 1,
+                "rho_optimism",
                 f"the optimism ρ range must lie in (0, 1); got {self.rho_optimism}",
             ),
             (
                 1 < self.rho_pessimism[0] <= self.rho_pessimism[1],
+                "rho_pessimism",
                 f"the pessimism ρ range must lie above 1; got {self.rho_pessimism}",
             ),
-            (0 < self.bias[0] <= self.bias[1], f"the bias range must be positive; got {self.bias}"),
+            (
+                0 < self.bias[0] <= self.bias[1],
+                "bias",
+                f"the bias range must be positive; got {self.bias}",
+            ),
             (
                 0 < self.eigenvalues[0] <= self.eigenvalues[1],
+                "eigenvalues",
                 f"the eigenvalue range must be positive; got {self.eigenvalues}",
             ),
-            (self.seed >= 0, f"seed must be >= 0; got {self.seed}"),
+            (self.seed >= 0, "seed", f"`seed` must be >= 0; got {self.seed}"),
         ]
-        for ok, message in checks:
+        for ok, name, message in checks:
             if not ok:
-                raise CredcliError(message)
+                raise CredcliError(message, name)
         self.error_model  # noqa: B018 (validates noise and ar)
         smallest = self.diagnosis.min_n(self.dim)
         if self.n < smallest:
@@ -197,23 +211,34 @@ class UwbSettings:
     def __post_init__(self) -> None:
         object.__setattr__(self, "robust", RobustLoss(self.robust))
         checks = [
-            (self.std is None or self.std > 0, f"std must be > 0; got {self.std}"),
+            (self.std is None or self.std > 0, "std", f"`std` must be > 0; got {self.std}"),
             (
                 all(v > 0 for _, v in self.std_by_anchor),
-                f"std of every anchor must be > 0; got {dict(self.std_by_anchor)}",
+                "std",
+                f"`std` of every anchor must be > 0; got {dict(self.std_by_anchor)}",
             ),
-            (self.packet_window > 0, f"packet_window must be > 0; got {self.packet_window}"),
+            (
+                self.packet_window > 0,
+                "packet_window",
+                f"`packet_window` must be > 0; got {self.packet_window}",
+            ),
             (
                 self.min_anchors >= 3,
-                f"min_anchors must be >= 3 for a 2-D fix; got {self.min_anchors}",
+                "min_anchors",
+                f"`min_anchors` must be >= 3 for a 2-D fix; got {self.min_anchors}",
             ),
-            (self.max_speed > 0, f"max_speed must be > 0; got {self.max_speed}"),
-            (self.min_static > 0, f"min_static must be > 0; got {self.min_static}"),
+            (self.max_speed > 0, "max_speed", f"`max_speed` must be > 0; got {self.max_speed}"),
+            (
+                self.min_static > 0,
+                "min_static",
+                f"`min_static` must be > 0; got {self.min_static}",
+            ),
             (
                 0 < self.residual_level < 1,
-                f"residual_level must be in (0, 1); got {self.residual_level}",
+                "residual_level",
+                f"`residual_level` must be in (0, 1); got {self.residual_level}",
             ),
         ]
-        for ok, message in checks:
+        for ok, name, message in checks:
             if not ok:
-                raise CredcliError(message)
+                raise CredcliError(message, name)

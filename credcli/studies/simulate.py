@@ -24,7 +24,7 @@ from credcli.engine.diagnosis import (
     diagnose_variants,
     parse_label,
 )
-from credcli.errors import CredcliError
+from credcli.errors import CredcliError, plain
 from credcli.parallel import ordered_map, prepare_worker
 from credcli.studies.settings import (  # noqa: F401 (re-exported)
     CURVE_RUNS,
@@ -63,7 +63,9 @@ def parse_scenarios(text: str) -> list[Label]:
         label = parse_label(item)
         if label is None or label is Label.INSUFFICIENT:
             names = ", ".join([lab.value for lab in DIAGNOSIS_LABELS] + list(LABEL_ALIASES))
-            raise CredcliError(f"scenario: unknown scenario '{item}'; choose all, {names}")
+            raise CredcliError(
+                f"`scenario`: unknown scenario '{item}'; choose all, {names}", "scenario"
+            )
         if label not in out:
             out.append(label)
     return out
@@ -266,7 +268,7 @@ class Sweep:
     def parse(cls, text: str) -> Sweep:
         """``name=start:stop:count`` (evenly spaced) or ``name=v1,v2,...``."""
         if "=" not in text:
-            raise CredcliError(f"sweep '{text}': expected NAME=start:stop:count or NAME=v1,v2,…")
+            raise CredcliError(f"`sweep` '{text}': expected NAME=start:stop:count or NAME=v1,v2,…")
         name, spec = (t.strip() for t in text.split("=", 1))
         by_name = {p.value.lower(): p for p in SweepParameter}
         param = by_name.get(name.lower())
@@ -280,7 +282,7 @@ class Sweep:
                 count = int(count)
                 if not 1 <= count <= MAX_SWEEP_VALUES:
                     raise CredcliError(
-                        f"sweep '{text}': the count must be 1 … {MAX_SWEEP_VALUES}; got {count}"
+                        f"`sweep` '{text}': the count must be 1 … {MAX_SWEEP_VALUES}; got {count}"
                     )
                 grid = np.linspace(float(start), float(stop), count)
                 # 12 significant digits: no float noise such as 19.950000000000003
@@ -289,23 +291,23 @@ class Sweep:
                 values = tuple(float(v) for v in spec.split(",") if v.strip())
         except ValueError as exc:
             raise CredcliError(
-                f"sweep '{text}': expected NAME=start:stop:count or NAME=v1,v2,… with numbers"
+                f"`sweep` '{text}': expected NAME=start:stop:count or NAME=v1,v2,… with numbers"
             ) from exc
         if not values:
-            raise CredcliError(f"sweep '{text}': no values")
+            raise CredcliError(f"`sweep` '{text}': no values")
         if len(values) > MAX_SWEEP_VALUES:
-            raise CredcliError(f"sweep '{text}': at most {MAX_SWEEP_VALUES} values")
+            raise CredcliError(f"`sweep` '{text}': at most {MAX_SWEEP_VALUES} values")
         if not all(math.isfinite(v) for v in values):
-            raise CredcliError(f"sweep '{text}': every value must be a finite number")
+            raise CredcliError(f"`sweep` '{text}': every value must be a finite number")
         if param in (SweepParameter.N, SweepParameter.DIM, SweepParameter.B):
             if any(v != int(v) or v < 1 for v in values):
-                raise CredcliError(f"sweep {param.value}: values must be positive integers")
+                raise CredcliError(f"`sweep` {param.value}: values must be positive integers")
         if param in (SweepParameter.RHO, SweepParameter.TAU) and any(v <= 0 for v in values):
-            raise CredcliError(f"sweep {param.value}: values must be > 0")
+            raise CredcliError(f"`sweep` {param.value}: values must be > 0")
         if param is SweepParameter.BIAS and any(v < 0 for v in values):
-            raise CredcliError("sweep bias: values must be >= 0")
+            raise CredcliError("`sweep` bias: values must be >= 0")
         if param is SweepParameter.AR and any(not -1 < v < 1 for v in values):
-            raise CredcliError("sweep ar: values must be in (-1, 1)")
+            raise CredcliError("`sweep` ar: values must be in (-1, 1)")
         return cls(param, values)
 
 
@@ -345,7 +347,9 @@ def _checked_specs(sweep: Sweep, value: float, config: SimulationConfig, scenari
     try:
         return sweep_specs(sweep, value, config, scenarios)
     except CredcliError as exc:
-        raise CredcliError(f"sweep {sweep.parameter.value}={value:g}: {exc.message}") from exc
+        raise CredcliError(
+            f"`sweep` {sweep.parameter.value}={value:g}: {plain(exc.message)}", "sweep"
+        ) from exc
 
 
 def run_sweep(

@@ -102,7 +102,7 @@ def anchors_from_markers(
         raise CredcliError(
             f"{path}: no marker for anchor id(s) {', '.join(map(str, missing))} of {ranges.source} "
             f"(markers have {', '.join(map(str, sorted(markers)))}); map the log's ids with "
-            "--anchor-map LOG_ID=MARKER_ID,… or drop --anchors to self-calibrate the anchors"
+            "`anchor_map` LOG_ID=MARKER_ID,… or drop `anchors` to self-calibrate the anchors"
         )
     out = []
     for anchor_id in used:
@@ -595,7 +595,7 @@ def position_log(
         raise CredcliError(
             f"{ranges.source}: no static period found (rig speed below {settings.max_speed:g} m/s "
             f"for at least {settings.min_static:g} s); the rig may move the whole time: use "
-            "--window 5s for fixed windows, or --whole"
+            "`window` 5s for fixed windows, or `whole`"
         )
     period_of = np.full(fixes.time.size, -1)
     for k, p in enumerate(periods):
@@ -637,19 +637,19 @@ def run_pipeline(
         notes.extend(anchor_warnings(anchors, settings.anchor_rms_warn))
     else:
         if settings.anchor_map:
-            raise CredcliError("--anchor-map maps ids to a markers file: give --anchors FILE")
+            raise CredcliError("`anchor_map` maps ids to a markers file: give `anchors` FILE")
         anchors = calibrate_anchors(ranges)
     packets = make_packets(ranges, settings.packet_window, settings.min_anchors)
     if packets.rows.shape[0] == 0:
         raise CredcliError(
             f"{ranges.source}: no packet has {settings.min_anchors} distinct anchors within "
-            f"{settings.packet_window:g} s; try a longer --packet-window"
+            f"{settings.packet_window:g} s; try a longer `packet_window`"
         )
     fixes = solve_packets(ranges, packets, anchors, settings)
     if fixes.time.size == 0:
         raise CredcliError(
             f"{ranges.source}: every packet was dropped ({_dropped_text(fixes)}); try "
-            "--screen none or a longer --packet-window"
+            "`screen` none or a longer `packet_window`"
         )
     log, segments, spans = position_log(ranges, fixes, window, whole, settings)
     stats = range_stats(ranges, spans, fixes.screened_rows)

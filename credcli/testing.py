@@ -44,11 +44,12 @@ def _results(log, segments, alpha: float, seed: int, arrays: dict) -> Results:
 
 def diagnosis_text(results: Results, alpha: float) -> str:
     """The diagnosis table and its advice lines, as ``credcli diagnose`` prints them."""
+    from credcli.io.records import config_record
     from credcli.report.formats import OutputFormat
-    from credcli.report.render import config_parameters, diagnose_report, to_text
+    from credcli.report.render import diagnose_report, to_text
 
-    parameters = config_parameters(DiagnosisConfig(alpha=alpha))
-    report = diagnose_report(list(results), parameters, [], show_all=False)
+    config = DiagnosisConfig(alpha=alpha)
+    report = diagnose_report(list(results), config, config_record(config), [], show_all=False)
     return to_text(report, OutputFormat.TABLE)
 
 

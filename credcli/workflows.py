@@ -12,19 +12,21 @@ import numpy as np
 
 from credcli import scheduling
 from credcli import segments as seg
-from credcli.engine.diagnosis import MetricsLevel, diagnose_log
+from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_log
 from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
 from credcli.io.arrays import pool_runs, split_runs
-from credcli.io.logs import EstimatorLog, LogSchema
+from credcli.io.logs import EstimatorLog
 from credcli.io.records import (
     BASELINE_KIND,
     BASELINE_SCHEMA_VERSION,
     Snapshot,
+    config_record,
+    diagnose_parameters,
     log_info,
     monte_carlo_record,
 )
-from credcli.report.render import Report, config_parameters, diagnose_report
+from credcli.report.render import Report, diagnose_report
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
 from credcli.scheduling import PARALLEL_MIN_BYTES, diagnose_on_cluster, diagnose_plans, file_size
 from credcli.segments import split
@@ -34,16 +36,6 @@ def segmentation_name(window: str | None, whole: bool) -> str:
     if whole:
         return "whole"
     return f"window:{seg.Window.parse(window)}" if window is not None else "column"
-
-
-def schema_parameters(schema: LogSchema) -> dict:
-    import dataclasses
-
-    out = {}
-    for f in dataclasses.fields(schema):
-        value = getattr(schema, f.name)
-        out[f.name] = list(value) if isinstance(value, tuple) else getattr(value, "value", value)
-    return out
 
 
 @dataclass(frozen=True)
@@ -90,20 +82,12 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
         mc = None
     else:
         results, logs, plans, mc = _diagnose_here(request, progress)
-    parameters = config_parameters(config) | {
-        "seed": seed,
-        "segmentation": segmentation_name(window, whole),
-        "window": window,
-        "whole": whole,
-        "drop_invalid": drop_invalid,
-        "columns": schema_parameters(schema),
-        "input": schema_parameters(options),
-    }
+    parameters = diagnose_parameters(config, seed, reading, segmentation_name(window, whole))
     if mc is not None:
         parameters["monte_carlo"] = True
-    report = diagnose_report(
-        results, parameters, logs, config.metrics is MetricsLevel.ALL, mc and monte_carlo_record(mc)
-    )
+    show_all = config.metrics is MetricsLevel.ALL
+    mc_record = mc and monte_carlo_record(mc)
+    report = diagnose_report(results, config, parameters, logs, show_all, mc_record)
     figures = []
     plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here
@@ -116,15 +100,30 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
 
         figures.append(anees_plot("monte_carlo_anees", mc))
     elif plots:
-        from credcli.report.plots import segment_plots
-
         k = 0
         for log, segments in plans:
             mine = results[k : k + len(segments)]
             k += len(segments)
             prefix = f"{Path(log.source).stem}_" if len(plans) > 1 else ""
-            figures.extend(segment_plots(log, mine, segments, prefix))
+            figures.extend(segment_figures(log, mine, segments, prefix))
     return Run(report, figures, results)
+
+
+def segment_figures(log: EstimatorLog, results, segments, prefix: str = "") -> list:
+    """The figures of a log's diagnosed segments, from the curves the engine computes."""
+    from credcli.engine.curves import segment_curves
+    from credcli.report.plots import segment_plots
+
+    by_name = {s.name: s for s in segments}
+    errors = log.errors  # computed once: a property
+    curves, times = [], []
+    for result in results:
+        index = by_name[result.segment].index
+        decided = result.diagnosis.label is not Label.INSUFFICIENT
+        c = result.diagnosis.config.c if decided else None
+        curves.append(segment_curves(errors[index], log.cov[index], c))
+        times.append(None if log.time is None else log.time[index])
+    return segment_plots(results, curves, times, log.dim, prefix)
 
 
 def _diagnose_here(request: DiagnoseRequest, progress):
@@ -214,7 +213,7 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
         "seed": config.seed,
         "ar": config.ar,
         "noise": config.noise,
-    } | config_parameters(config.diagnosis)
+    } | config_record(config.diagnosis)
 
     if plots:
         from credcli.report import plots as figs
@@ -227,7 +226,7 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
             figures.append(figs.curves_plot(by_rho, by_gamma))
     if curves:
         parameters |= {"curve_runs": curve_runs}
-        return Run(curves_report(by_rho, by_gamma, parameters), figures), (
+        return Run(curves_report(by_rho, by_gamma, curve_runs, parameters), figures), (
             f"Fig. 1 curves: {len(by_rho)} values of ρ and {len(by_gamma)} of γ, {curve_runs} runs each"
         )
     if sweep is not None:
@@ -297,7 +296,7 @@ def run_uwb(request: UwbRequest, progress=None):
         raise CredcliError(f"{path}: no fix falls in any period; try `window` 5s or `whole`")
     results = diagnose_log(run.log, run.segments, config, seed, progress)
     parameters = (
-        config_parameters(config)
+        config_record(config)
         | {
             "seed": seed,
             "segmentation": "static" if not (window or whole) else segmentation_name(window, whole),
@@ -307,10 +306,11 @@ def run_uwb(request: UwbRequest, progress=None):
     )
     figures = []
     if request.figures:
-        from credcli.report.plots import segment_plots, uwb_plots
+        from credcli.report.plots import uwb_plots
 
-        figures = uwb_plots(run) + segment_plots(run.log, results, run.segments)
-    return Run(uwb_report(run, results, parameters), figures), run
+        figures = uwb_plots(run) + segment_figures(run.log, results, run.segments)
+    checks = uwb.range_checks(run, results, config.tau_nci)
+    return Run(uwb_report(run, results, checks, parameters), figures), run
 
 
 def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report:

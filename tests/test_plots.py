@@ -25,6 +25,7 @@ from credcli.engine.elt import whiten  # noqa: E402
 from credcli.report import plots  # noqa: E402
 from credcli.segments import split  # noqa: E402
 from credcli.studies import simulate as sim  # noqa: E402
+from credcli.workflows import segment_figures  # noqa: E402
 
 LOG = SAMPLE / "estimator_log.csv"
 GRID = SAMPLE / "starloc_grid_uwb.csv"
@@ -54,7 +55,7 @@ def sample_plots():
     log = load_log(LOG)
     segments = split(log)
     results = diagnose_log(log, segments, DiagnosisConfig(metrics="all"), seed=0)
-    return log, segments, results, plots.segment_plots(log, results, segments)
+    return log, segments, results, segment_figures(log, results, segments)
 
 
 def test_segment_plots_are_pngs_of_the_computed_numbers(sample_plots):

@@ -113,6 +113,75 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     return {k: json_value(v) for k, v in rec.items()}
 
 
+def config_record(config: DiagnosisConfig) -> dict:
+    """Every DiagnosisConfig setting as JSON-safe values, by field name."""
+    return {f.name: json_value(getattr(config, f.name)) for f in dataclasses.fields(config)}
+
+
+def settings_record(settings) -> dict:
+    """A settings dataclass (LogSchema, ReadOptions) as JSON-safe values: tuples as lists,
+    enums as their values."""
+    out = {}
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        out[f.name] = list(value) if isinstance(value, tuple) else getattr(value, "value", value)
+    return out
+
+
+def diagnose_parameters(
+    config: DiagnosisConfig, seed: int, reading: LogReading, segmentation: str
+) -> dict:
+    """The ``parameters`` of a diagnose (and baseline) document; :func:`read_baseline`
+    reads them back."""
+    return config_record(config) | {
+        "seed": seed,
+        "segmentation": segmentation,
+        "window": reading.window,
+        "whole": reading.whole,
+        "drop_invalid": reading.drop_invalid,
+        "columns": settings_record(reading.schema),
+        "input": settings_record(reading.options),
+    }
+
+
+def uwb_segment_record(result: SegmentDiagnosis, check) -> dict:
+    """A period of `uwb`: its segment record and the range-level evidence beside it
+    (:class:`credcli.studies.uwb.RangeCheck`)."""
+    return segment_record(result) | {"range_label": check.label, "range_agrees": check.agrees}
+
+
+def range_record(stats) -> dict:
+    """The range errors of one anchor in one period (:class:`credcli.studies.uwb.RangeStats`)."""
+    return {
+        "segment": stats.segment,
+        "anchor": stats.anchor,
+        "n": stats.n,
+        "mean_error": stats.mean_error,
+        "bias_stderr": json_value(stats.bias_stderr),
+        "std_error": json_value(stats.std_error),
+        "robust_std": stats.robust_std,
+        "median_std": stats.median_std,
+        "std_ratio": json_value(stats.std_ratio),
+        "robust_ratio": json_value(stats.robust_ratio),
+        "beyond_3sigma": stats.beyond_3sigma,
+    }
+
+
+def anchor_record(anchor, mismatch: bool) -> dict:
+    """An anchor of `uwb` (:class:`credcli.studies.uwb.Anchor`) and whether its markers
+    position disagrees with the log's gt_range."""
+    return {
+        "id": anchor.id,
+        "x": float(anchor.position[0]),
+        "y": float(anchor.position[1]),
+        "z": float(anchor.position[2]),
+        "source": anchor.source,
+        "rms_mm": 1000 * anchor.rms,
+        "rows": anchor.n,
+        "check": "MISMATCH" if mismatch else "ok",
+    }
+
+
 def _floats(values) -> list | None:
     return None if values is None else [json_value(float(v)) for v in values]
 

@@ -195,14 +195,6 @@ def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) ->
     return _finish(fig, name, title, {"s": shown, "mirror": -shown, "pvalue": pvalue})
 
 
-PROBE_CURVE_SCALES = (0.25, 4.0, 17)
-"""The covariance scales of the score curves: geomspace(1/4, 4, 17), plus 1/c, 1 and c."""
-
-
-def curve_scales(c: float) -> np.ndarray:
-    return np.unique(np.r_[np.geomspace(*PROBE_CURVE_SCALES), 1.0 / c, 1.0, c])
-
-
 def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str) -> Plot:
     """Mean NLL and mean ES against the covariance scale, for the claimed predictive and
     the centred one F̃ (Section III-C), with the probes at 1/c, 1, c. ``curves`` maps
@@ -237,31 +229,23 @@ def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str
     return _finish(fig, name, title, data)
 
 
-def segment_plots(log, results, segments, prefix: str = "") -> list[Plot]:
-    """The three pictures of every diagnosed segment of a log."""
-    from credcli.engine.elt import whiten
-    from credcli.engine.metrics import nees, score_curves
-
-    by_name = {s.name: s for s in segments}
-    all_errors = log.errors
+def segment_plots(results, curves, times, dim: int, prefix: str = "") -> list[Plot]:
+    """The three pictures of every diagnosed segment: ``curves`` (the engine's
+    :class:`credcli.engine.curves.SegmentCurves`) and ``times`` (stamps or None) in the
+    order of ``results``."""
     plots = []
-    for res in results:
-        seg = by_name[res.segment]
+    for res, numbers, time in zip(results, curves, times, strict=True):
         diag = res.diagnosis
-        errors, cov = all_errors[seg.index], log.cov[seg.index]
-        time = None if log.time is None else log.time[seg.index]
         stem = safe_name(f"{prefix}{res.segment}")
         head = f"{short_title(res.segment)}: {diag.label.value} (N = {diag.n})"
-        plots.append(nees_plot(f"{stem}_nees", time, nees(errors, cov), log.dim, head))
-        plots.append(whitened_plot(f"{stem}_whitened", whiten(errors, cov), diag.elt_pvalue, head))
-        if diag.label.value != "insufficient-data":
-            c = diag.config.c
-            scales = curve_scales(c)
-            curves = {
-                "claimed": score_curves(errors, cov, scales),
-                "centred": score_curves(errors - errors.mean(axis=0), cov, scales),
-            }
-            plots.append(scale_plot(f"{stem}_scores", scales, curves, c, head))
+        plots.append(nees_plot(f"{stem}_nees", time, numbers.nees, dim, head))
+        plots.append(whitened_plot(f"{stem}_whitened", numbers.whitened, diag.elt_pvalue, head))
+        if numbers.scores is not None:
+            scores = numbers.scores
+            curves_by_kind = {"claimed": scores.claimed, "centred": scores.centred}
+            plots.append(
+                scale_plot(f"{stem}_scores", scores.scales, curves_by_kind, diag.config.c, head)
+            )
     return plots
 
 

@@ -14,8 +14,14 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from credcli.engine.config import DiagnosisConfig, Variant
 from credcli.engine.diagnosis import SegmentDiagnosis
-from credcli.io.records import json_value, segment_record
+from credcli.io.records import (
+    anchor_record,
+    range_record,
+    segment_record,
+    uwb_segment_record,
+)
 from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR re-exported)
     PVALUE_FLOOR,
     OutputFormat,
@@ -407,22 +413,17 @@ def _markdown(report: Report) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def config_parameters(config) -> dict:
-    """Every DiagnosisConfig setting as JSON-safe values."""
-    import dataclasses
-
-    return {f.name: json_value(getattr(config, f.name)) for f in dataclasses.fields(config)}
-
-
 def diagnose_report(
     results: list[SegmentDiagnosis],
+    config: DiagnosisConfig,
     parameters: dict,
     logs: list[dict],
     show_all: bool,
     monte_carlo: dict | None = None,
 ) -> Report:
     """The `credcli diagnose` report: one row per segment, and the JSON document (with
-    the per-epoch ANEES test of Monte Carlo runs, when given)."""
+    the per-epoch ANEES test of Monte Carlo runs, when given). ``config`` is the rule the
+    results were decided with; ``parameters`` its record, shown in the document."""
     from credcli import __version__
 
     records = [segment_record(r) for r in results]
@@ -436,14 +437,14 @@ def diagnose_report(
     sub = [r["segment"] for r in records if r["elt_subsampled"]]
     if sub:
         notes.append(
-            f"ELT ran on a random subsample of {parameters['max_elt_epochs']} epochs in "
+            f"ELT ran on a random subsample of {config.max_elt_epochs} epochs in "
             f"segment(s) {', '.join(sub)} (memory budget; see --max-elt-epochs)."
         )
     for info in logs:
         if info["dropped_rows"]:
             notes.append(f"{info['path']}: dropped {info['dropped_rows']} row(s) with NaN/Inf.")
     notes.extend(_advice_lines(records))
-    notes.extend(_whiteness_lines(records, parameters["alpha"]))
+    notes.extend(_whiteness_lines(records, config.alpha))
     if monte_carlo is not None:
         mc = monte_carlo
         notes.append(
@@ -453,7 +454,7 @@ def diagnose_report(
             f"(expected {100 * mc['confidence']:g}%); per segment: "
             + ", ".join(f"{k} {100 * v:.1f}%" for k, v in mc["segments"].items())
         )
-    table = Table("credcli diagnose", columns, records, caption=_level_caption(parameters))
+    table = Table("credcli diagnose", columns, records, caption=_level_caption(config))
     document = {
         "version": __version__,
         "command": "diagnose",
@@ -493,11 +494,11 @@ def _whiteness_lines(records: list[dict], alpha: float, limit: int = 10) -> list
     return lines
 
 
-def _level_caption(parameters: dict) -> str:
-    if parameters.get("variant") != "calibrated":
-        return f"variant {parameters.get('variant')}: ELT at α = {parameters['alpha']:g}"
+def _level_caption(config: DiagnosisConfig) -> str:
+    if config.variant is not Variant.CALIBRATED:
+        return f"variant {config.variant.value}: ELT at α = {config.alpha:g}"
     return (
-        f"calibrated rule: false-alarm level {parameters['alpha']:g} per segment "
+        f"calibrated rule: false-alarm level {config.alpha:g} per segment "
         "(ELT and scale test at 1 − √(1 − α) each); cov ×: factor for the claimed covariance"
     )
 
@@ -624,7 +625,8 @@ def sweep_report(sweep, points, parameters: dict) -> Report:
     return Report([Table(f"Accuracy against {sweep.parameter.value}", cols, rows)], document)
 
 
-def curves_report(by_rho, by_gamma, parameters: dict) -> Report:
+def curves_report(by_rho, by_gamma, runs: int, parameters: dict) -> Report:
+    """The Fig. 1 curves (``runs`` Monte Carlo runs a point) against their exact values."""
     from dataclasses import asdict
 
     from credcli import __version__
@@ -638,7 +640,6 @@ def curves_report(by_rho, by_gamma, parameters: dict) -> Report:
             Column("expected_nll", "E[NLL] exact", 5),
         )
 
-    runs = parameters["curve_runs"]
     tables = [
         Table(
             "Fig. 1a: scores against the covariance scale ρ (γ = 0)",
@@ -680,72 +681,24 @@ UWB_COLUMNS = (
 )
 
 
-def _answers_agree(label: str, other: str, untested) -> bool:
-    """Whether two labels agree on the questions the first one answered: its noise part
-    unless the scale is untested, its SMM part unless the location is."""
-    mine, theirs = set(label.split("+")) - {"credible"}, set(other.split("+")) - {"credible"}
-    asked = set()
-    if "scale" not in untested:
-        asked |= {"optimism", "pessimism"}
-    if "location" not in untested:
-        asked.add("smm")
-    return mine & asked == theirs & asked
-
-
-def uwb_report(run, results, parameters: dict) -> Report:
-    """Table IV per period with the range-level verdict beside it, the range-level table
-    per period and anchor (Figs. 4 and 5), and the anchors."""
+def uwb_report(run, results, checks, parameters: dict) -> Report:
+    """Table IV per period with the range-level verdict beside it (``checks``, one
+    :class:`credcli.studies.uwb.RangeCheck` per result), the range-level table per period
+    and anchor (Figs. 4 and 5), and the anchors."""
     from credcli import __version__
-    from credcli.studies.uwb import range_verdict, screening_note
+    from credcli.studies.uwb import screening_note
 
-    segments = [segment_record(r) for r in results]
-    agreement = []
-    for rec in segments:
-        mine = [s for s in run.range_stats if s.segment == rec["segment"]]
-        label, why = range_verdict(mine, parameters["tau_nci"]) if mine else (None, "")
-        verdict = rec["label"] != "insufficient-data"
-        rec["range_label"] = label
-        rec["range_agrees"] = (
-            _answers_agree(rec["label"], label, rec.get("untested") or ())
-            if verdict and label
-            else None
-        )
-        if label and verdict:
-            word = "agrees with" if rec["range_agrees"] else "DISAGREES with"
-            agreement.append(
-                f"{rec['segment']}: the position-level label {label_text(rec)} {word} the "
-                f"range-level evidence, {label} ({why})"
-            )
-    ranges = [
-        {
-            "segment": s.segment,
-            "anchor": s.anchor,
-            "n": s.n,
-            "mean_error": s.mean_error,
-            "bias_stderr": json_value(s.bias_stderr),
-            "std_error": json_value(s.std_error),
-            "robust_std": s.robust_std,
-            "median_std": s.median_std,
-            "std_ratio": json_value(s.std_ratio),
-            "robust_ratio": json_value(s.robust_ratio),
-            "beyond_3sigma": s.beyond_3sigma,
-        }
-        for s in run.range_stats
+    segments = [uwb_segment_record(r, c) for r, c in zip(results, checks, strict=True)]
+    agreement = [
+        f"{rec['segment']}: the position-level label {label_text(rec)} "
+        f"{'agrees with' if check.agrees else 'DISAGREES with'} the range-level evidence, "
+        f"{check.label} ({check.why})"
+        for rec, check in zip(segments, checks)
+        if check.agrees is not None
     ]
-    warn = parameters["anchor_rms_warn"]
-    anchors = [
-        {
-            "id": a.id,
-            "x": float(a.position[0]),
-            "y": float(a.position[1]),
-            "z": float(a.position[2]),
-            "source": a.source,
-            "rms_mm": 1000 * a.rms,
-            "rows": a.n,
-            "check": "ok" if a.source != "markers" or a.rms <= warn else "MISMATCH",
-        }
-        for a in run.anchors
-    ]
+    ranges = [range_record(s) for s in run.range_stats]
+    warn = run.settings.anchor_rms_warn
+    anchors = [anchor_record(a, a.disagrees(warn)) for a in run.anchors]
     range_cols = (
         Column("segment", "period", 0),
         Column("anchor", "anchor", 0),

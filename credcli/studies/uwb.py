@@ -28,6 +28,11 @@ class Anchor:
     rms: float  # RMS of ‖tag_pos − a‖ − gt_range over the anchor's rows (m)
     n: int  # rows of this anchor
 
+    def disagrees(self, limit: float) -> bool:
+        """A markers position whose distances to the ground-truth tag positions disagree
+        with the log's gt_range by more than ``limit`` (m) RMS."""
+        return self.source == "markers" and self.rms > limit
+
 
 def _residual_rms(points: np.ndarray, ranges: np.ndarray, a: np.ndarray) -> float:
     return float(np.sqrt(np.mean((np.linalg.norm(points - a, axis=1) - ranges) ** 2)))
@@ -116,7 +121,7 @@ def anchors_from_markers(
 def anchor_warnings(anchors: list[Anchor], limit: float) -> list[str]:
     """Given anchors whose distances to the ground-truth tag positions disagree with the
     log's gt_range by more than ``limit`` (m) RMS: wrong markers or a wrong id map."""
-    bad = [a for a in anchors if a.source == "markers" and a.rms > limit]
+    bad = [a for a in anchors if a.disagrees(limit)]
     return [
         f"anchor {a.id}: the markers disagree with the log's gt_range by {1000 * a.rms:.0f} mm "
         f"RMS (more than {1000 * limit:.0f} mm): a wrong markers file or id map? Check "
@@ -526,6 +531,51 @@ def range_verdict(stats: list[RangeStats], tau_db: float) -> tuple[str, str]:
     worst = max(stats, key=lambda s: abs(s.mean_error))
     why = f"range spread {ratio:.2g}× the reported std, bias up to {worst.mean_error:+.3f} m"
     return label, why
+
+
+@dataclass(frozen=True)
+class RangeCheck:
+    """The range-level evidence of one period beside its position-level verdict:
+    ``label`` the ranges point to (None: no ranges in the period), ``why``, and whether
+    the two agree (None: no range label, or no position-level verdict)."""
+
+    segment: str
+    label: str | None
+    why: str
+    agrees: bool | None
+
+
+def answers_agree(label, other: str, untested) -> bool:
+    """Whether two labels agree on the questions the first one answered: its noise part
+    unless the scale is untested, its SMM part unless the location is."""
+    from credcli.engine.config import Label
+
+    mine = set(Label(label).value.split("+")) - {"credible"}
+    theirs = set(other.split("+")) - {"credible"}
+    asked = set()
+    if "scale" not in untested:
+        asked |= {"optimism", "pessimism"}
+    if "location" not in untested:
+        asked.add("smm")
+    return mine & asked == theirs & asked
+
+
+def range_checks(run: UwbRun, results, tau_db: float) -> list[RangeCheck]:
+    """The range-level evidence of each diagnosed period (:func:`range_verdict`) and
+    whether the position-level label agrees with it."""
+    from credcli.engine.config import Label
+
+    checks = []
+    for result in results:
+        mine = [s for s in run.range_stats if s.segment == result.segment]
+        label, why = range_verdict(mine, tau_db) if mine else (None, "")
+        diagnosis = result.diagnosis
+        agrees = None
+        if label and diagnosis.label is not Label.INSUFFICIENT:
+            untested = [q.value for q in diagnosis.untested]
+            agrees = answers_agree(diagnosis.label, label, untested)
+        checks.append(RangeCheck(result.segment, label, why, agrees))
+    return checks
 
 
 @dataclass(frozen=True)

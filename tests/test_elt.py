@@ -9,7 +9,7 @@ import pytest
 from conftest import gaussian_segment
 from scipy import stats
 
-from credcli.engine import elt
+from credcli.engine import elt, flips
 from credcli.errors import CredcliError
 
 
@@ -53,7 +53,7 @@ def test_pvalue_matches_exact_enumeration():
     rng = np.random.default_rng(5)
     errors, cov = gaussian_segment(rng, n=10, d=2, bias=[0.6, 0.0])
     s = elt.whiten(errors, cov)
-    a = elt.pair_matrix(s)
+    a = flips.pair_matrix(s)
     t_obs = a.sum() / 90
     patterns = np.array(list(itertools.product([-1.0, 1.0], repeat=10)))
     null = np.einsum("bi,ij,bj->b", patterns, a, patterns) / 90
@@ -94,7 +94,7 @@ def test_power_under_bias():
 def test_block_flips_share_a_sign_within_blocks(rng):
     errors, cov = gaussian_segment(rng, n=30, d=2)
     s = elt.whiten(errors, cov)
-    a = elt.pair_matrix(s)
+    a = flips.pair_matrix(s)
     r = elt.location_test(errors, cov, n_flips=40, rng=9, block_length=4)
     gen = np.random.default_rng(9)
     signs = (gen.integers(0, 2, size=(40, 8), dtype=np.int8) * 2 - 1).astype(float)
@@ -156,7 +156,7 @@ def test_fast_product_decides_every_flip_as_float64():
         gen = np.random.default_rng(300 + k)
         errors, cov = gaussian_segment(gen, n=400, d=2, bias=[0.05 * k, 0.0])
         r = elt.location_test(errors, cov, n_flips=500, rng=k)
-        a = elt.pair_matrix(elt.whiten(errors, cov))
+        a = flips.pair_matrix(elt.whiten(errors, cov))
         signs = np.random.default_rng(k).integers(0, 2, size=(500, 400), dtype=np.int8)
         xi = signs.astype(float) * 2 - 1
         exact = np.einsum("bi,bi->b", xi @ a, xi) / (400 * 399)
@@ -177,16 +177,16 @@ def test_large_segments_hold_the_pair_matrix_in_float32_only(monkeypatch):
     p-value, flips used and labels equal those of the float64-matrix path, with and
     without early stopping, near and far from rejection."""
     gen = np.random.default_rng(41)
-    n = elt.STREAM_EPOCHS + 150
+    n = flips.STREAM_EPOCHS + 150
     s = gen.standard_normal((n, 2))
-    a = elt.pair_matrix(s)
-    upper32, total, absolute = elt.pair_matrix_float32(s)
+    a = flips.pair_matrix(s)
+    upper32, total, absolute = flips.pair_matrix_float32(s)
     np.testing.assert_array_equal(upper32, np.triu(a, 1).astype(np.float32))
     assert total == pytest.approx(a.sum(), rel=1e-13)
     assert absolute == pytest.approx(np.abs(a).sum(), rel=1e-13)
     xi = gen.choice([-1.0, 1.0], size=(7, n))
     np.testing.assert_allclose(
-        elt._exact_quadratic(s, xi), np.einsum("bi,bi->b", xi @ a, xi), rtol=1e-13
+        flips._exact_quadratic(s, xi), np.einsum("bi,bi->b", xi @ a, xi), rtol=1e-13
     )
     for bias, stop in itertools.product((0.0, 0.05, 0.2), (None, 0.05)):  # p 0.94, 0.047, 0.005
         shifted = s + [bias, 0.0]
@@ -194,7 +194,7 @@ def test_large_segments_hold_the_pair_matrix_in_float32_only(monkeypatch):
             shifted, 199, np.random.default_rng(3), stop_level=stop
         )
         with monkeypatch.context() as m:
-            m.setattr(elt, "STREAM_EPOCHS", 10**9)
+            m.setattr(flips, "STREAM_EPOCHS", 10**9)
             whole = elt.whitened_location_test(
                 shifted, 199, np.random.default_rng(3), stop_level=stop
             )
@@ -212,7 +212,7 @@ def test_block_sums_equal_reduceat(sizes):
     starts = np.cumsum([0] + sizes[:-1])
     a = np.random.default_rng(len(sizes)).standard_normal((sum(sizes), 6))
     np.testing.assert_allclose(
-        elt._block_sums(a, starts), np.add.reduceat(a, starts, axis=0), rtol=0, atol=1e-14
+        flips._block_sums(a, starts), np.add.reduceat(a, starts, axis=0), rtol=0, atol=1e-14
     )
 
 
@@ -250,8 +250,8 @@ def test_block_flips_null_equals_the_direct_quadratic_forms(separate):
     direct float64 evaluation with the same signs."""
     s = np.random.default_rng(17).standard_normal((300, 2)) + [0.05, 0.0]
     blocks, keys = elt.sign_blocks(300, 3)
-    result = elt._sign_flip_test(s, blocks, keys, 199, np.random.default_rng(2), 3, False, separate)
-    a = elt.pair_matrix(s)
+    result = flips.sign_flip_test(s, blocks, keys, 199, np.random.default_rng(2), separate)
+    a = flips.pair_matrix(s)
     keep = np.abs(blocks[:, None] - blocks[None, :]) > 1 if separate else ~np.eye(300, dtype=bool)
     signs = np.random.default_rng(2).integers(0, 2, size=(199, 100), dtype=np.int8) * 2 - 1
     xi = signs[:, blocks].astype(float)  # each epoch carries its block's sign
@@ -272,14 +272,14 @@ def test_squared_norms_that_round_below_zero_count_as_zero(monkeypatch):
     base = rng.normal(size=(100, 3))
     s = np.concatenate([base, base, -base])  # repeats 100 and 200 rows apart
     clamped = []
-    pair_block = elt._pair_block
+    pair_block = flips._pair_block
 
     def spy(*args, clamp):
         clamped.append(clamp)
         pair_block(*args, clamp=clamp)
 
-    monkeypatch.setattr(elt, "_pair_block", spy)
-    a = elt.pair_matrix(s)
+    monkeypatch.setattr(flips, "_pair_block", spy)
+    a = flips.pair_matrix(s)
     assert True in clamped  # the check found a rounded-negative square in some block
     norms = np.linalg.norm(s, axis=1)
     direct = np.linalg.norm(s[:, None] + s[None], axis=2) - np.linalg.norm(
@@ -303,8 +303,8 @@ def test_block_sums_made_by_bands_equal_those_of_the_whole_pair_matrix(sizes):
     rounding."""
     s = np.random.default_rng(len(sizes)).normal(size=(sum(sizes), 2))
     starts = np.r_[0, np.cumsum(sizes)[:-1]]
-    whole = elt._block_sums(elt._block_sums(elt.pair_upper(s), starts).T, starts).T
-    banded = elt.pair_block_upper(s, starts)
+    whole = flips._block_sums(flips._block_sums(flips.pair_upper(s), starts).T, starts).T
+    banded = flips.pair_block_upper(s, starts)
     n = sum(sizes)
     if set(range(96, n, 96)) <= set(starts.tolist()):
         np.testing.assert_array_equal(banded, whole)

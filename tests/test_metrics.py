@@ -7,7 +7,7 @@ import pytest
 from conftest import gaussian_segment
 from scipy import integrate, special, stats
 
-from credcli.engine import metrics
+from credcli.engine import metrics, quadrature
 
 
 def test_nees_matches_explicit_inverse(rng):
@@ -250,7 +250,7 @@ def test_expected_norm_against_the_30_digit_reference():
             got = metrics.expected_norm(mean[None], ((q * lam) @ q.T)[None])[0]
             worst = max(worst, abs(got - ref) / ref)
         if not np.any(nu2):
-            worst = max(worst, abs(metrics.centred_norm(np.diag(lam)[None])[0] - ref) / ref)
+            worst = max(worst, abs(quadrature.centred_norm(np.diag(lam)[None])[0] - ref) / ref)
     assert worst <= 1e-9, worst
 
 
@@ -266,17 +266,17 @@ def test_expected_norm_window_ends_early_only_where_the_rest_is_negligible():
         cov = a @ np.swapaxes(a, 1, 2) + 1e-12 * np.eye(d)
         mean = rng.standard_normal((n, d)) * 10.0 ** rng.uniform(-3, 3, (n, 1))
         mean[::4] = 0.0
-        diag, off2, unit = metrics._tridiagonal(cov, mean)
+        diag, off2, unit = quadrature._tridiagonal(cov, mean)
         mean2 = np.einsum("ni,ni->n", mean, mean) / unit
-        got = metrics._norm_tridiagonal(diag, off2, mean2)
+        got = quadrature._norm_tridiagonal(diag, off2, mean2)
         scale = diag.sum(axis=0) + mean2
         alpha, beta = 2 * diag / scale, 4 * off2 / scale**2
-        ends = metrics._window_ends(alpha, beta, mean2 / scale)
+        ends = quadrature._window_ends(alpha, beta, mean2 / scale)
         assert np.unique(ends).size > 1  # the test exercises early ends
-        full = metrics._QUAD_U.size
+        full = quadrature._QUAD_U.size
         second = 1 + 0.5 * (alpha**2).sum(0) + beta.sum(0) + 2 * mean2 / scale * alpha[0]
-        whole = metrics._window_sum(alpha, beta, mean2 / scale, full) + metrics._UPPER[full]
-        whole += metrics._LOW_FIRST - 0.5 * metrics._LOW_SECOND * second
+        whole = quadrature._window_sum(alpha, beta, mean2 / scale, full) + quadrature._UPPER[full]
+        whole += quadrature._LOW_FIRST - 0.5 * quadrature._LOW_SECOND * second
         np.testing.assert_allclose(got, whole * np.sqrt(scale), rtol=1e-12, atol=0)
 
 
@@ -297,12 +297,12 @@ def test_centred_norm_with_a_zero_eigenvalue_is_the_one_dimensional_norm():
     does a rank-one 3-D one; and N(0, 0) has 0."""
     cov = np.array([np.diag([0.0, 4.0]), np.diag([4.0, 0.0]), np.zeros((2, 2))])
     np.testing.assert_allclose(
-        metrics.centred_norm(cov), [2 * np.sqrt(2 / np.pi), 2 * np.sqrt(2 / np.pi), 0.0]
+        quadrature.centred_norm(cov), [2 * np.sqrt(2 / np.pi), 2 * np.sqrt(2 / np.pi), 0.0]
     )
     u = np.array([1.0, 2.0, 2.0]) / 3.0
     rank_one = np.array([4.0 * np.outer(u, u), np.zeros((3, 3))])
     np.testing.assert_allclose(
-        metrics.centred_norm(rank_one), [2 * np.sqrt(2 / np.pi), 0.0], rtol=1e-9, atol=1e-300
+        quadrature.centred_norm(rank_one), [2 * np.sqrt(2 / np.pi), 0.0], rtol=1e-9, atol=1e-300
     )
 
 

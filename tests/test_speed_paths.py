@@ -10,9 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from credcli.engine import elt
+from credcli.engine import elt, flips
 from credcli.engine.diagnosis import DiagnosisConfig, diagnose_errors
 from credcli.engine.elt import whiten, whitened_location_test
+from credcli.engine.rng import rademacher
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -79,7 +80,7 @@ def test_blocked_pair_matrix_equals_the_direct_formula(n):
     s = np.random.default_rng(n).standard_normal((n, 3)) * 7.0
     direct = np.array([[np.linalg.norm(a + b) - np.linalg.norm(a - b) for b in s] for a in s])
     np.fill_diagonal(direct, 0.0)
-    a = elt.pair_matrix(s)
+    a = flips.pair_matrix(s)
     np.testing.assert_allclose(a, direct, rtol=1e-12, atol=1e-12)
     assert np.array_equal(a, a.T)
 
@@ -143,8 +144,8 @@ def test_low_rank_bound_is_above_every_exact_form(upper, rank, noise, exponent, 
     columns = v.astype(float) if basis == "range" else np.random.default_rng(0).random((n, 6))
     flat = scaled.reshape(-1)
     squares = (2.0 if upper else 1.0) * float(flat @ flat)
-    bound = elt._LowRankBound.of_matrix(scaled, upper, columns, squares)
-    signs = elt.rademacher(np.random.default_rng(rank), (1000, n))
+    bound = flips._LowRankBound.of_matrix(scaled, upper, columns, squares)
+    signs = rademacher(np.random.default_rng(rank), (1000, n))
     signs[0] = 1  # ξ = 1 too, where 1ᵀA1 is largest for a low-rank A
     exact = _exact_forms(a, upper, signs).astype(np.float64) * 2.0**exponent
     bounds = bound(signs.T.astype(np.float32, order="F"))
@@ -182,14 +183,14 @@ def test_bounded_flips_decide_as_the_exhaustive_test(bias, block_length, separat
             fast.null_distribution[~bounded], full.null_distribution[~bounded], atol=1e-5 * spread
         )
         if bias >= 1.0:  # strong bias: all flips after the first batch are bounded
-            assert fast.flips_bounded == 1000 - elt._FIRST_BATCH
+            assert fast.flips_bounded == 1000 - flips._FIRST_BATCH
 
 
 def test_weak_bias_does_not_build_the_bound(monkeypatch):
     """Under the gate the bound is not built (it would certify nothing): the cost stays."""
     built = []
-    original = elt._LowRankBound.of_matrix
-    monkeypatch.setattr(elt._LowRankBound, "of_matrix", lambda *a: built.append(1) or original(*a))
+    original = flips._LowRankBound.of_matrix
+    monkeypatch.setattr(flips._LowRankBound, "of_matrix", lambda *a: built.append(1) or original(*a))
     s = np.random.default_rng(3).standard_normal((900, 2)) + [0.25, 0.0]
     res = whitened_location_test(s, 1000, np.random.default_rng(0), stop_level=0.05)
     assert res.pvalue < 0.05 and res.flips_bounded == 0 and not built

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from credcli.engine.config import epoch_chunks
-from credcli.engine.metrics import SYMMETRY_RTOL, eigenvalues_2x2
+from credcli.engine.metrics import SYMMETRY_RTOL
+from credcli.engine.quadrature import eigenvalues_2x2
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 from credcli.io.text import read_text_table, seconds, time_seconds

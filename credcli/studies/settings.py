@@ -153,8 +153,9 @@ class SimulationConfig:
         smallest = self.diagnosis.min_n(self.dim)
         if self.n < smallest:
             raise CredcliError(
-                f"n {self.n} is below the smallest segment that is diagnosed ({smallest} epochs "
-                f"for d = {self.dim}); every trial would be insufficient-data"
+                f"`n` {self.n} is below the smallest segment that is diagnosed ({smallest} "
+                f"epochs for d = {self.dim}); every trial would be insufficient-data",
+                "n",
             )
 
     def spec(self, scenario: Label) -> ScenarioSpec:

@@ -274,7 +274,9 @@ class Sweep:
         param = by_name.get(name.lower())
         if param is None:
             raise CredcliError(
-                f"sweep: unknown parameter '{name}'; choose {', '.join(p.value for p in SweepParameter)}"
+                f"`sweep`: unknown parameter '{name}'; choose "
+                f"{', '.join(p.value for p in SweepParameter)}",
+                "sweep",
             )
         try:
             if ":" in spec:

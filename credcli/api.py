@@ -25,9 +25,13 @@ from credcli.engine.diagnosis import Diagnosis, DiagnosisConfig, SegmentDiagnosi
 from credcli.engine.diagnosis import diagnose_log as _diagnose_segments
 from credcli.engine.rng import RngLike
 from credcli.errors import CredcliError
-from credcli.io.arrays import log_from_arrays, write_log
+from credcli.io import logs
+from credcli.io.arrays import log_from_arrays, monte_carlo_plan, split_runs, write_log
+from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
+from credcli.io.schema import ReadOptions
+from credcli.report.html import records_table
 from credcli.scheduling import diagnose_plans
 from credcli.segments import split
 
@@ -74,7 +78,6 @@ class Results(Sequence):
 
     def _repr_html_(self) -> str:
         """The diagnosis table in a notebook: the columns ``credcli diagnose`` shows."""
-        from credcli.report.html import records_table
 
         return records_table(self.to_dict())
 
@@ -116,8 +119,6 @@ def read_log(
     >>> log.n, log.dim, log.unpaired
     (2380, 3, 0)
     """
-    from credcli.io.ingest import open_log
-    from credcli.io.schema import ReadOptions
 
     if reading.get("truth") is not None:
         reading["truth"] = str(reading["truth"])
@@ -189,14 +190,12 @@ def log_from_frame(
     >>> log_from_frame(df, errors=["ex", "ey"], cov=["vx", "vy"]).dim
     2
     """
-    from credcli.io.logs import log_from_frame as _validate
-
     changes = {"truth_columns": truth or errors, "estimate_columns": estimate, "cov_columns": cov}
     schema = LogSchema().updated(**changes, time=time, segment=segment, run=run)
     errors_only = True if errors is not None else None
     if errors is not None and (truth is not None or estimate is not None):
         raise CredcliError("give errors, or truth and estimate, not both")
-    return _validate(frame.copy(deep=False), schema, source, errors_only=errors_only)
+    return logs.log_from_frame(frame.copy(deep=False), schema, source, errors_only=errors_only)
 
 
 def diagnose_monte_carlo(
@@ -220,9 +219,6 @@ def diagnose_monte_carlo(
     >>> mc[0].diagnosis.n, mc.anees.runs
     (1000, 10)
     """
-    from credcli.io.arrays import split_runs
-    from credcli.workflows import monte_carlo_plan
-
     config = config or DiagnosisConfig()
     runs = split_runs(runs) if isinstance(runs, EstimatorLog) else list(runs)
     whole = segments == "whole"

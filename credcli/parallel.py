@@ -13,7 +13,11 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib
 import os
+import signal
+import sys
+import threading
 from collections.abc import Callable, Iterable, Iterator
 
 _BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -62,8 +66,6 @@ def follow_parent() -> None:
     the command line's handler), and ignores Ctrl-C, which the terminal sends to the whole
     process group: the parent stops the work and reports it once, instead of every worker
     printing its own traceback."""
-    import signal
-    import sys
 
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -114,7 +116,6 @@ def release_free_memory() -> None:
     buffers for reuse, and glibc keeps freed heap chunks below its adaptive trim threshold,
     where the diagnosis's large arrays (mapped afresh) cannot reuse them. One 2,000,000-epoch
     Parquet log: the later peak falls by about 100 MiB (docs/performance.md)."""
-    import sys
 
     if "pyarrow" in sys.modules:
         sys.modules["pyarrow"].default_memory_pool().release_unused()
@@ -169,8 +170,6 @@ def start_method() -> str:
     0.6 s of trials). Forking a process with other threads could copy a lock one of them
     holds, so then the workers are spawned. Buffered output is flushed first, so that no
     worker writes it a second time when it exits."""
-    import sys
-    import threading
 
     if sys.platform != "linux" or threading.active_count() != 1 or "pyarrow" in sys.modules:
         return "spawn"
@@ -182,7 +181,6 @@ def start_method() -> str:
 
 def _warm_up(module: str) -> None:
     """Worker: import a module now, so that it is loaded when the first task arrives."""
-    import importlib
 
     importlib.import_module(module)
 

@@ -16,7 +16,9 @@ from credcli.engine.diagnosis import (
     diagnose_segment,
     innovation_whiteness,
 )
+from credcli.io.ingest import open_log
 from credcli.io.records import log_info
+from credcli.parallel import ordered_map, prepare_worker
 from credcli.segments import split
 
 PARALLEL_MIN_EPOCHS = 50_000
@@ -99,7 +101,6 @@ def diagnose_plans(
     ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
     otherwise segments are diagnosed one by one in this process. Each segment's sign flips
     depend on (seed, segment name) only, so the results are the same for any ``jobs``."""
-    from credcli.parallel import ordered_map
 
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
@@ -137,8 +138,6 @@ _WORKER_LOGS_KEPT = 2
 def _worker_log(source):
     """(log, segments, errors) of ``source`` in this worker, read once for the tasks that share it
     (the last few are kept, keyed by the file's size and modification time too)."""
-    from credcli.io.ingest import open_log
-    from credcli.parallel import prepare_worker
 
     prepare_worker()
     path, schema, reading, drop_invalid, window, whole, min_epochs = source

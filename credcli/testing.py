@@ -25,6 +25,9 @@ from collections.abc import Sequence
 from credcli.api import Results, diagnose_log, log_from_arrays
 from credcli.engine.diagnosis import DiagnosisConfig, Label
 from credcli.io.logs import EstimatorLog
+from credcli.io.records import config_record
+from credcli.report.formats import OutputFormat
+from credcli.report.render import diagnose_report, to_text
 
 __all__ = ["assert_credible", "assert_label", "diagnosis_text"]
 
@@ -44,9 +47,6 @@ def _results(log, segments, alpha: float, seed: int, arrays: dict) -> Results:
 
 def diagnosis_text(results: Results, alpha: float) -> str:
     """The diagnosis table and its advice lines, as ``credcli diagnose`` prints them."""
-    from credcli.io.records import config_record
-    from credcli.report.formats import OutputFormat
-    from credcli.report.render import diagnose_report, to_text
 
     config = DiagnosisConfig(alpha=alpha)
     report = diagnose_report(list(results), config, config_record(config), [], show_all=False)

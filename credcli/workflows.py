@@ -5,6 +5,8 @@ Each function is what one command does, minus option parsing and printing.
 
 from __future__ import annotations
 
+import dataclasses
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,10 +14,12 @@ import numpy as np
 
 from credcli import scheduling
 from credcli import segments as seg
+from credcli.ci.gate import compare, verdict_line
+from credcli.engine.curves import segment_curves
 from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_log
-from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
-from credcli.io.arrays import pool_runs, split_runs
+from credcli.io.arrays import monte_carlo_plan, split_runs
+from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog
 from credcli.io.records import (
     BASELINE_KIND,
@@ -26,10 +30,23 @@ from credcli.io.records import (
     log_info,
     monte_carlo_record,
 )
-from credcli.report.render import Report, diagnose_report
+from credcli.io.streams import display_name, is_stream
+from credcli.parallel import WorkerPool
+from credcli.report import plots as figs
+from credcli.report.render import (
+    Report,
+    curves_report,
+    diagnose_report,
+    gate_report,
+    simulate_report,
+    sweep_report,
+    uwb_report,
+)
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
 from credcli.scheduling import PARALLEL_MIN_BYTES, diagnose_on_cluster, diagnose_plans, file_size
 from credcli.segments import split
+from credcli.studies import simulate as sim
+from credcli.studies import uwb
 
 
 def segmentation_name(window: str | None, whole: bool) -> str:
@@ -54,7 +71,6 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     pooled segment by segment (see :func:`monte_carlo_plan`) and the report adds
     Bar-Shalom's per-epoch ANEES test. ``runner`` (a credcli.cluster.DaskRunner): the
     segments are diagnosed on a Dask cluster whose workers read the logs themselves."""
-    from credcli.io.ingest import open_log
 
     paths, config, seed = request.logs, request.config, request.seed
     reading = request.reading
@@ -63,7 +79,6 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     if runner is not None:
         if monte_carlo:
             raise CredcliError("`monte_carlo` runs on this machine: drop `scheduler`")
-        from credcli.io.streams import display_name, is_stream
 
         streamed = [p for p in [*paths, options.truth] if p is not None and is_stream(p)]
         if streamed:
@@ -96,9 +111,7 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
     if plots and mc is not None:
-        from credcli.report.plots import anees_plot
-
-        figures.append(anees_plot("monte_carlo_anees", mc))
+        figures.append(figs.anees_plot("monte_carlo_anees", mc))
     elif plots:
         k = 0
         for log, segments in plans:
@@ -111,8 +124,6 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
 
 def segment_figures(log: EstimatorLog, results, segments, prefix: str = "") -> list:
     """The figures of a log's diagnosed segments, from the curves the engine computes."""
-    from credcli.engine.curves import segment_curves
-    from credcli.report.plots import segment_plots
 
     by_name = {s.name: s for s in segments}
     errors = log.errors  # computed once: a property
@@ -123,20 +134,17 @@ def segment_figures(log: EstimatorLog, results, segments, prefix: str = "") -> l
         c = result.diagnosis.config.c if decided else None
         curves.append(segment_curves(errors[index], log.cov[index], c))
         times.append(None if log.time is None else log.time[index])
-    return segment_plots(results, curves, times, log.dim, prefix)
+    return figs.segment_plots(results, curves, times, log.dim, prefix)
 
 
 def _diagnose_here(request: DiagnoseRequest, progress):
     """Read and diagnose the logs in this process and ``request.jobs`` local worker
     processes; returns (results, log entries, plans, Monte Carlo test or None)."""
-    from credcli.io.ingest import open_log
 
     paths, config, jobs, reading = request.logs, request.config, request.jobs, request.reading
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     pool = None
     if jobs > 1 and sum(file_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
-        from credcli.parallel import WorkerPool
-
         pool = WorkerPool(jobs, warm=scheduling.__name__)  # workers import while the logs are read
     try:
         loaded = [open_log(p, reading.schema, reading.options, reading.drop_invalid) for p in paths]
@@ -158,40 +166,9 @@ def _diagnose_here(request: DiagnoseRequest, progress):
     return results, logs, plans, mc
 
 
-def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
-    """Pool M runs of one scenario: one plan whose segment k holds the epochs of segment k
-    of every run, run after run (so that the ELT flips each run in its own blocks), and
-    the per-epoch ANEES test (:func:`credcli.engine.montecarlo.anees_test`)."""
-    if len(loaded) < 2:
-        raise CredcliError("`monte_carlo` needs at least two runs (logs) of the scenario")
-    base = loaded[0]
-    for log in loaded[1:]:
-        same_time = (log.time is None) == (base.time is None) and (
-            log.time is None
-            or (log.n == base.n and np.allclose(log.time, base.time, rtol=0, atol=1e-6))
-        )
-        if log.n != base.n or log.dim != base.dim or not same_time:
-            raise CredcliError(
-                f"{log.source}: `monte_carlo` runs need one time base: {log.n} epochs of "
-                f"d = {log.dim} against {base.n} of d = {base.dim} in {base.source}"
-                + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
-            )
-    segments = plans[0][1]
-    mc = anees_test(
-        [log.errors for log in loaded], [log.cov for log in loaded], alpha, base.time, segments
-    )
-    return [pool_runs(loaded, segments)], mc
-
-
 def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[Run, str]:
     """The `simulate` report (and plots) and a one-line summary; ``runner``: trials on a
     Dask cluster (credcli.cluster.DaskRunner)."""
-    import dataclasses
-
-    import numpy as np
-
-    from credcli.report.render import curves_report, simulate_report, sweep_report
-    from credcli.studies import simulate as sim
 
     config, sweep, curves, curve_runs = (
         request.config,
@@ -215,8 +192,6 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
         "noise": config.noise,
     } | config_record(config.diagnosis)
 
-    if plots:
-        from credcli.report import plots as figs
     figures = []
     if plots or curves:
         rhos = np.round(np.geomspace(0.1, 10.0, 21), 6)
@@ -261,7 +236,6 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
 
 def export_log_text(log: EstimatorLog) -> str:
     """An EstimatorLog in diagnose's default CSV format (upper-triangle covariance)."""
-    import io
 
     import pandas as pd
 
@@ -279,10 +253,6 @@ def export_log_text(log: EstimatorLog) -> str:
 
 def run_uwb(request: UwbRequest, progress=None):
     """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (Run, UwbRun)."""
-    import dataclasses
-
-    from credcli.report.render import uwb_report
-    from credcli.studies import uwb
 
     path, settings, config, anchors = (
         request.file,
@@ -306,9 +276,7 @@ def run_uwb(request: UwbRequest, progress=None):
     )
     figures = []
     if request.figures:
-        from credcli.report.plots import uwb_plots
-
-        figures = uwb_plots(run) + segment_figures(run.log, results, run.segments)
+        figures = figs.uwb_plots(run) + segment_figures(run.log, results, run.segments)
     checks = uwb.range_checks(run, results, config.tau_nci)
     return Run(uwb_report(run, results, checks, parameters), figures), run
 
@@ -334,8 +302,6 @@ class GateRun:
 
 def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
     """Diagnose the new log with the baseline's settings and compare segment by segment."""
-    from credcli.ci.gate import compare, verdict_line
-    from credcli.report.render import gate_report
 
     run = run_diagnose(request.diagnose, progress, runner)
     baseline, thresholds = request.baseline, request.thresholds

@@ -192,3 +192,99 @@ def test_gate_reads_its_thresholds_from_a_config_file(tmp_path):
         run(*gate, "--config", config, "--max-nci-increase", "1", "--max-anees-ratio", "1.25")
         == strict
     )
+
+
+LAZY_IMPORTS = {
+    # optional extras: absent from a plain install
+    "matplotlib": "the [plots] extra",
+    "rosbags": "the [ros] extra",
+    "dask": "the [dask] extra",
+    "distributed": "the [dask] extra",
+    "filterpy": "the [filterpy] extra",
+    "stonesoup": "the [stonesoup] extra",
+    "credcli.adapters": "the adapters import the optional libraries",
+    # heavy, and needed only by some paths
+    "pandas": "0.2-0.4 s to import; only text tables, exports and frames need it",
+    "pyarrow": "only Parquet files",
+    "scipy": "scipy.special, .signal, .spatial and .stats only where used",
+    "threadpoolctl": "only where worker processes limit BLAS threads",
+    "multiprocessing": "only with worker processes (--jobs > 1)",
+    "concurrent.futures": "only with worker processes (--jobs > 1)",
+    "ctypes": "only to tune glibc's allocator when a command runs",
+    # one of two, by version
+    "tomllib": "Python >= 3.11; tomli before",
+    "tomli": "Python < 3.11",
+    "click": "the click package before typer vendored it",
+    "typer._click": "typer >= 0.2x vendors click",
+    # start-up: `credcli --help` loads no numpy, Rich, tempfile or socket
+    "numpy": "start-up: studies/settings.py holds the defaults --help shows",
+    "rich": "start-up: tables and progress bars load Rich when they print",
+}
+"""Why a module may be imported inside a function: each is optional, heavy, or kept off
+the start-up path. Every other import is at the top of its module (no hidden cycles)."""
+
+START_UP = ("cli",)
+"""Packages on the start-up path (every command and --help): they import credcli's own
+numerical modules (settings, workflows, reports, files, cluster) inside the commands."""
+
+
+def test_function_local_imports_are_lazy_for_a_stated_reason():
+    found = {}
+    for path in (ROOT / "credcli").rglob("*.py"):
+        relative = path.relative_to(ROOT / "credcli")
+        tree = ast.parse(path.read_text())
+        for function in ast.walk(tree):
+            if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(function):
+                if isinstance(node, ast.ImportFrom):
+                    names = [node.module or ""]
+                elif isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                else:
+                    continue
+                for name in names:
+                    allowed = any(name == m or name.startswith(m + ".") for m in LAZY_IMPORTS)
+                    own = name.startswith("credcli") and relative.parts[0] in START_UP
+                    if not (allowed or own):
+                        found[f"{relative}:{node.lineno}"] = name
+    assert found == {}
+
+
+def _module_imports() -> dict[str, set[str]]:
+    """credcli module -> the credcli modules it imports at its top level."""
+    modules = {}
+    for path in (ROOT / "credcli").rglob("*.py"):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    graph: dict[str, set[str]] = {name: set() for name in modules}
+    for name, path in modules.items():
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("credcli"):
+                for alias in node.names:
+                    child = f"{node.module}.{alias.name}"
+                    graph[name].add(child if child in modules else node.module)
+            elif isinstance(node, ast.Import):
+                graph[name] |= {a.name for a in node.names if a.name.startswith("credcli")}
+    return graph
+
+
+def test_no_import_cycles():
+    graph = _module_imports()
+    state: dict[str, int] = {}  # 1: on the path, 2: done
+    cycles = []
+
+    def visit(name: str, path: list[str]) -> None:
+        state[name] = 1
+        for other in sorted(graph.get(name, ())):
+            if state.get(other) == 1:
+                cycles.append(path[path.index(other) :] + [other])
+            elif other not in state:
+                visit(other, path + [other])
+        state[name] = 2
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+    assert cycles == []
+    assert "credcli.engine.elt" in graph["credcli.engine.diagnosis"]  # the graph is read

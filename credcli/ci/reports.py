@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from credcli.errors import CredcliError
-from credcli.report.render import format_cell
+from credcli.report.render import OutputFormat, format_cell, markdown_text, to_text
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,6 @@ def _classname(path: str) -> str:
 def summary_markdown(heading: str, verdict: str, report, context: str = "") -> str:
     """The Markdown summary of a CI run: a heading, the verdict, then the report's own
     tables (the same ones the other output formats show)."""
-    from credcli.report.render import OutputFormat, markdown_text, to_text
 
     parts = [f"## {markdown_text(heading)}", "", f"**{markdown_text(verdict)}**", ""]
     if context:

@@ -9,11 +9,13 @@ and ``credcli --help`` must not.
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from credcli import __version__
 from credcli.cli.emit import (
     Progress,
     check_plotting,
@@ -64,8 +66,6 @@ app = typer.Typer(
 
 def _show_version(value: bool) -> None:
     if value:
-        from credcli import __version__
-
         print(f"credcli {__version__}")
         raise typer.Exit(0)
 
@@ -309,7 +309,6 @@ def simulate(
     out: OutputOptions = OutputOptions(),
 ) -> int:
     """The paper's Monte Carlo study (Tables II and III), sweeps and the Fig. 1 curves."""
-    import time
 
     from credcli.cli.settings import simulate_request
     from credcli.workflows import run_simulate

@@ -9,7 +9,11 @@ from __future__ import annotations
 
 import errno
 import functools
+import os
+import signal
 import sys
+import traceback
+import warnings
 
 import typer
 
@@ -44,7 +48,6 @@ def main(argv: list[str] | None = None) -> int:
     Warnings (numpy's among them) are never printed raw: each distinct one becomes a
     ``credcli: note:`` line on stderr at the end, with its source under --debug.
     """
-    import warnings
 
     from credcli.parallel import keep_freed_memory, single_threaded_blas
 
@@ -77,7 +80,6 @@ class Terminated(BaseException):
 
 def _terminate_on_signals() -> None:
     """SIGTERM and SIGHUP end a run as Ctrl-C does, with exit 128 + the signal's number."""
-    import signal
 
     def handler(signum, frame):
         raise Terminated(signum)
@@ -136,8 +138,6 @@ def _run(command, args: list[str], debug: bool) -> int:
         print(f"credcli: error: {exc.format_message()}{hint}", file=sys.stderr)
         return 2 if getattr(exc, "exit_code", 2) in (1, 2) else exc.exit_code
     except Terminated as exc:
-        import signal
-
         print(f"credcli: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)
         return 128 + exc.signum
     except (typer.Abort, KeyboardInterrupt) as exc:
@@ -188,7 +188,6 @@ def _run(command, args: list[str], debug: bool) -> int:
 def _raised_by_credcli(exc: BaseException) -> bool:
     """Whether the innermost frame of the traceback is credcli's own code (an allocation
     of ours, sized by the user's settings)."""
-    import os
 
     tb = exc.__traceback__
     while tb is not None and tb.tb_next is not None:
@@ -237,14 +236,11 @@ def one_line(message: str) -> str:
 
 def _traceback(debug: bool) -> None:
     if debug:
-        import traceback
-
         traceback.print_exc()
 
 
 def _silence_stdout() -> None:
     """After a closed pipe (credcli … | head), stop Python from failing again at exit."""
-    import os
 
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -7,6 +7,8 @@ modules) and Dask load only when a command runs, so that ``credcli --help`` stay
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 from pathlib import Path
 
@@ -45,7 +47,6 @@ column (a CI log scrolls sideways, it does not lose the "why")."""
 
 
 def given_width() -> int | None:
-    import os
 
     try:
         width = int(os.environ.get("COLUMNS", ""))
@@ -102,7 +103,6 @@ def print_notes(report) -> None:
 
 def cluster(scheduler: str | None):
     """A DaskRunner for --scheduler (closed on exit), or a context of None."""
-    import contextlib
 
     if not scheduler:
         return contextlib.nullcontext(None)

@@ -9,9 +9,13 @@ A config file's tables: [columns] and [input] (how logs are read), [segments],
 from __future__ import annotations
 
 import dataclasses
+import enum
+import json
+import sys
 import typing
 from pathlib import Path
 
+from credcli.ci.gate import check_same_parameters
 from credcli.ci.thresholds import Thresholds
 from credcli.cli.options import (
     FIELD_OPTIONS,
@@ -30,9 +34,11 @@ from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.files import read_toml
 from credcli.io.logs import LogSchema
+from credcli.io.records import read_baseline
 from credcli.io.schema import LogReading, ReadOptions
+from credcli.parallel import default_jobs
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
-from credcli.studies.settings import STD_ESTIMATE, UwbSettings
+from credcli.studies.settings import STD_ESTIMATE, SimulationConfig, UwbSettings
 
 CONFIG_SECTIONS = ("columns", "input", "diagnosis", "segments", "simulate", "uwb", "gate")
 """The tables a config file may hold; any other table is an error, never silently ignored."""
@@ -47,7 +53,6 @@ KEY_ALIASES = {
 def config_tables() -> dict[str, dict]:
     """Each table a config file may hold: its keys and their types (the fields of the
     settings dataclass it sets)."""
-    from credcli.studies.settings import SimulationConfig
 
     simulate = typing.get_type_hints(SimulationConfig)
     del simulate["diagnosis"]  # [diagnosis] is its own table
@@ -182,7 +187,6 @@ def block_length_value(text: str | None) -> int | str | None:
 
 def jobs_value(jobs: int | None) -> int:
     """--jobs: given, or the number of cores."""
-    from credcli.parallel import default_jobs
 
     if jobs is None:
         return default_jobs()
@@ -253,8 +257,6 @@ def gate_request(
 ) -> GateRequest:
     """What `gate` asks for: LOG diagnosed with the baseline's settings, which every
     setting given (command line or [diagnosis] and [segments]) must equal."""
-    from credcli.ci.gate import check_same_parameters
-    from credcli.io.records import read_baseline
 
     config = load_config(config_file)
     given = dataclasses.asdict(thresholds)
@@ -305,7 +307,6 @@ def simulate_request(
     figures: bool = False,
 ) -> SimulateRequest:
     """What `simulate` asks for: [simulate] and [diagnosis] under the command line."""
-    from credcli.studies.settings import SimulationConfig
 
     jobs = jobs_value(run.jobs)
     if curve_runs < 1:
@@ -399,8 +400,6 @@ def uwb_request(
 
 def _toml_value(value) -> str | None:
     """A default as TOML, or None for a setting that is unset by default."""
-    import enum
-    import json
 
     if isinstance(value, enum.Enum):
         value = value.value
@@ -431,7 +430,6 @@ def _section(name: str, values: dict[str, object], unset_examples: dict[str, str
 def default_config_text() -> str:
     """configs/default.toml: every setting a config file takes, at its default, made from
     the settings dataclasses themselves (``make config`` writes it; a test checks it)."""
-    from credcli.studies.simulate import SimulationConfig
 
     def defaults(cls, skip=()) -> dict:
         instance = cls()
@@ -475,7 +473,6 @@ def default_config_text() -> str:
 
 def main() -> int:
     """``python -m credcli.cli.settings``: print configs/default.toml."""
-    import sys
 
     sys.stdout.write(default_config_text())
     return 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 RngLike = np.random.Generator | np.random.SeedSequence | int | None
@@ -68,8 +70,6 @@ _MATCH: list[bool] = []
 def _raw_draws_match() -> bool:
     """Whether :func:`_raw_signs` reproduces ``gen.integers`` on this numpy (once)."""
     if not _MATCH:
-        import sys
-
         ok = sys.byteorder == "little"
         for first, shape in ((0, (3, 5)), (1, (2, 7)), (3, (4, 4)), (0, (1, 1))):
             if not ok:

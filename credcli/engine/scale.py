@@ -27,6 +27,7 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import dependence
+from credcli.engine.batches import batch_mean_test, batch_scale, boundary_inflation, bounds
 from credcli.engine.config import EPOCH_CHUNK, epoch_chunks
 
 
@@ -264,7 +265,6 @@ def batch_scale_test(
     batch sums of the GLS scores (their covariance times K is that of Σ W_k e_k). ``tau_q``
     and ``tau`` (the variance ratios of q and of the whitened errors) correct both for the
     correlation of neighbouring batches (:func:`credcli.engine.batches.boundary_inflation`)."""
-    from credcli.engine.batches import batch_scale, boundary_inflation, bounds
 
     q = residuals.q
     n, d = residuals.whitened.shape
@@ -362,8 +362,6 @@ def direction_scales(residuals: GlsResiduals, level: float, batches: int = 0) ->
     each = level / d**DIRECTION_POWER
     low, high = np.empty(d), np.empty(d)
     if batches:
-        from credcli.engine.batches import batch_scale
-
         for i in range(d):
             r = batch_scale(w2[:, i], 1, batches, each)
             low[i], high[i] = r.scale_factor_low, r.scale_factor_high
@@ -395,7 +393,6 @@ def sphericity_pvalue(residuals: GlsResiduals, batches: int = 0) -> float | None
     if batches:
         if batches <= m + 2:
             return None
-        from credcli.engine.batches import batch_mean_test, bounds
 
         iu = np.triu_indices(d, 1)
         contrasts = np.c_[(u[:, iu[0]] * u[:, iu[1]]), u[:, 1:] ** 2 - u[:, :1] ** 2]

@@ -9,10 +9,12 @@ line. Date-time columns are converted by :func:`credcli.io.text.time_seconds`.
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 
+from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
 from credcli.io.files import write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
@@ -214,7 +216,6 @@ def log_table(log: EstimatorLog):
 def write_log(log: EstimatorLog, path: str | Path) -> Path:
     """Write ``log`` as its canonical table (:func:`log_table`): Parquet for a ``.parquet``
     or ``.pq`` name, else CSV; atomically (no half-written file)."""
-    import io
 
     path = Path(path)
     table = log_table(log)
@@ -266,3 +267,28 @@ def load_npz(path: Path) -> EstimatorLog:
         return log_from_arrays(source=str(path), **kwargs)
     except CredcliError as exc:
         raise CredcliError(f"{path}: {exc.message}") from exc
+
+
+def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
+    """Pool M runs of one scenario: one plan whose segment k holds the epochs of segment k
+    of every run, run after run (so that the ELT flips each run in its own blocks), and
+    the per-epoch ANEES test (:func:`credcli.engine.montecarlo.anees_test`)."""
+    if len(loaded) < 2:
+        raise CredcliError("`monte_carlo` needs at least two runs (logs) of the scenario")
+    base = loaded[0]
+    for log in loaded[1:]:
+        same_time = (log.time is None) == (base.time is None) and (
+            log.time is None
+            or (log.n == base.n and np.allclose(log.time, base.time, rtol=0, atol=1e-6))
+        )
+        if log.n != base.n or log.dim != base.dim or not same_time:
+            raise CredcliError(
+                f"{log.source}: `monte_carlo` runs need one time base: {log.n} epochs of "
+                f"d = {log.dim} against {base.n} of d = {base.dim} in {base.source}"
+                + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
+            )
+    segments = plans[0][1]
+    mc = anees_test(
+        [log.errors for log in loaded], [log.cov for log in loaded], alpha, base.time, segments
+    )
+    return [pool_runs(loaded, segments)], mc

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import errno
 import os
+import secrets
 import stat
 import tempfile
 from pathlib import Path
@@ -212,7 +213,6 @@ def _write_unnamed(target: Path, data: bytes) -> bool:
 
 
 def _temporary_name(target: Path) -> Path:
-    import secrets
 
     return target.parent / f".{target.name[:200]}.{secrets.token_hex(4)}.tmp"
 

@@ -17,6 +17,7 @@ TransformStamped (``rostopic echo -p``: ``field.header.stamp`` in ns,
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -142,7 +143,6 @@ def _flag(role: str) -> str:
 
 
 def _with(traj: Trajectory, **changes) -> Trajectory:
-    from dataclasses import replace
 
     return replace(traj, **changes)
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import json
 import math
 import typing
 from dataclasses import dataclass, field
@@ -334,7 +335,6 @@ class Baseline:
 def read_baseline(path: str | Path) -> Baseline:
     """Read a baseline JSON file and check every key it must have; errors name the file
     and say to record it again."""
-    import json
 
     def non_finite(word: str):
         raise ValueError(f"'{word}' is not a number JSON allows")

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.io.logs import read_table
+from credcli.io.logs import numeric_columns, read_table
 from credcli.studies.settings import UwbSettings
 
 
@@ -46,7 +46,6 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     Without ``range_calib`` (setup s5) the raw ``range`` column is used, with a note.
     Without ``std`` a fixed ``settings.std`` is required.
     """
-    from credcli.io.logs import numeric_columns, read_table
 
     path = Path(path)
     frame = read_table(path)

@@ -11,6 +11,7 @@ the temporary copy.
 from __future__ import annotations
 
 import contextlib
+import gzip
 import os
 import shutil
 import stat
@@ -69,8 +70,6 @@ def readable(path: str | Path) -> Iterator[Path]:
         else:
             source = stack.enter_context(open(path, "rb"))  # noqa: SIM115
         if source.peek(2)[:2] == _GZIP_MAGIC:
-            import gzip
-
             source = stack.enter_context(gzip.GzipFile(fileobj=source, mode="rb"))
         directory = stack.enter_context(tempfile.TemporaryDirectory(prefix="credcli-stream-"))
         try:

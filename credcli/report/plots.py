@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import io
 import re
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from credcli.errors import CredcliError
+from credcli.io.files import write_atomic
 from credcli.report.formats import format_pvalue
+from credcli.studies.simulate import CONFUSION_LABELS
 
 INSTALL_HINT = "pip install 'credcli[plots]' (or pip install matplotlib)"
 
@@ -63,7 +66,6 @@ def safe_name(text: str) -> str:
     """A file-name stem for ``text``: itself when it is short and made of safe characters;
     otherwise the safe characters, cut to MAX_STEM, and a checksum of the whole name, so
     that names differing only in unsafe characters ('a b', 'a/b') stay apart."""
-    import zlib
 
     text = str(text)
     stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text[: 4 * MAX_STEM]).strip("_.") or "segment"
@@ -79,7 +81,6 @@ def short_title(text: str, limit: int = 80) -> str:
 
 def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
     """Write each plot as DIR/<name>.png (atomically); create DIR if needed."""
-    from credcli.io.files import write_atomic
 
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
@@ -253,7 +254,6 @@ def segment_plots(results, curves, times, dim: int, prefix: str = "") -> list[Pl
 
 
 def confusion_plot(study) -> Plot:
-    from credcli.studies.simulate import CONFUSION_LABELS
 
     plt = _pyplot()
     rows = study.scenarios

@@ -12,8 +12,9 @@ import json
 import math
 import re
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
+from credcli import __version__
 from credcli.engine.config import DiagnosisConfig, Variant
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.io.records import (
@@ -27,6 +28,8 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
     OutputFormat,
     format_pvalue,
 )
+from credcli.studies.simulate import CONFUSION_LABELS
+from credcli.studies.uwb import screening_note
 
 
 @dataclass(frozen=True)
@@ -424,7 +427,6 @@ def diagnose_report(
     """The `credcli diagnose` report: one row per segment, and the JSON document (with
     the per-epoch ANEES test of Monte Carlo runs, when given). ``config`` is the rule the
     results were decided with; ``parameters`` its record, shown in the document."""
-    from credcli import __version__
 
     records = [segment_record(r) for r in results]
     multi = len({r["log"] for r in records}) > 1
@@ -543,8 +545,6 @@ def _method_columns(methods) -> tuple[Column, ...]:
 
 def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
     """Table II (accuracy per scenario and method) and Table III (confusion matrix)."""
-    from credcli import __version__
-    from credcli.studies.simulate import CONFUSION_LABELS
 
     rows = []
     for s in study.scenarios:
@@ -592,7 +592,6 @@ def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
 
 
 def sweep_report(sweep, points, parameters: dict) -> Report:
-    from credcli import __version__
 
     rows = [
         {"value": p.value, "scenario": p.truth.value, "trials": p.trials}
@@ -627,9 +626,6 @@ def sweep_report(sweep, points, parameters: dict) -> Report:
 
 def curves_report(by_rho, by_gamma, runs: int, parameters: dict) -> Report:
     """The Fig. 1 curves (``runs`` Monte Carlo runs a point) against their exact values."""
-    from dataclasses import asdict
-
-    from credcli import __version__
 
     def cols(x):
         return (
@@ -685,8 +681,6 @@ def uwb_report(run, results, checks, parameters: dict) -> Report:
     """Table IV per period with the range-level verdict beside it (``checks``, one
     :class:`credcli.studies.uwb.RangeCheck` per result), the range-level table per period
     and anchor (Figs. 4 and 5), and the anchors."""
-    from credcli import __version__
-    from credcli.studies.uwb import screening_note
 
     segments = [uwb_segment_record(r, c) for r, c in zip(results, checks, strict=True)]
     agreement = [
@@ -781,7 +775,6 @@ def _label(snap) -> str | None:
 
 
 def gate_report(comparisons, parameters: dict, baseline: str, passed: bool, verdict: str) -> Report:
-    from credcli import __version__
 
     rows = [
         {

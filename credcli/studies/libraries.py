@@ -124,7 +124,6 @@ def stonesoup_tracker_run(seed: int = 0, steps: int = 300) -> EstimatorLog:
     """Stone Soup's SingleTargetTracker (nearest-neighbour association, measurement
     initiator, deleter) on its own single-target simulator, right tuning: the tracks and
     ground-truth paths a tracker user has, paired by :func:`log_from_tracks`."""
-    import numpy as _np
     from stonesoup.dataassociator.neighbour import NearestNeighbour
     from stonesoup.deleter.time import UpdateTimeStepsDeleter
     from stonesoup.hypothesiser.distance import DistanceHypothesiser
@@ -151,8 +150,8 @@ def stonesoup_tracker_run(seed: int = 0, steps: int = 300) -> EstimatorLog:
     transition = CombinedLinearGaussianTransitionModel(
         [ConstantVelocity(Q_DENSITY), ConstantVelocity(Q_DENSITY)], seed=seed
     )
-    measurement = LinearGaussian(4, (0, 2), R_VARIANCE * _np.eye(2), seed=seed + 1)
-    initial = GaussianState(StateVector([0, 1, 0, 1]), CovarianceMatrix(_np.zeros((4, 4))), start)
+    measurement = LinearGaussian(4, (0, 2), R_VARIANCE * np.eye(2), seed=seed + 1)
+    initial = GaussianState(StateVector([0, 1, 0, 1]), CovarianceMatrix(np.zeros((4, 4))), start)
     truths = SingleTargetGroundTruthSimulator(
         transition_model=transition,
         initial_state=initial,
@@ -162,16 +161,14 @@ def stonesoup_tracker_run(seed: int = 0, steps: int = 300) -> EstimatorLog:
     detector = SimpleDetectionSimulator(
         groundtruth=truths,
         measurement_model=measurement,
-        meas_range=_np.array([[-1e9, 1e9], [-1e9, 1e9]]),
+        meas_range=np.array([[-1e9, 1e9], [-1e9, 1e9]]),
         detection_probability=1.0,
         clutter_rate=0.0,
         seed=seed + 2,
     )
     predictor, updater = KalmanPredictor(transition), KalmanUpdater(measurement)
     hypothesiser = DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=5)
-    prior = GaussianState(
-        StateVector([0, 0, 0, 0]), CovarianceMatrix(_np.diag([0, 1, 0, 1])), start
-    )
+    prior = GaussianState(StateVector([0, 0, 0, 0]), CovarianceMatrix(np.diag([0, 1, 0, 1])), start)
     tracker = SingleTargetTracker(
         initiator=SimpleMeasurementInitiator(prior, measurement_model=measurement),
         deleter=UpdateTimeStepsDeleter(time_steps_since_update=3),

@@ -25,6 +25,7 @@ What each file plants (tests/test_formats.py checks the labels):
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -213,8 +214,6 @@ def write_bag(path: Path, version: int, estimate, truth) -> Path:
         writer = Writer(path)
         serialize = store.serialize_ros1
     else:
-        import shutil
-
         from rosbags.rosbag2 import Writer
 
         shutil.rmtree(path, ignore_errors=True)

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from credcli.studies.pose_samples import write_pose_samples
+
 
 @dataclass(frozen=True)
 class PlantedSegment:
@@ -99,7 +101,6 @@ def write_samples(outdir: Path) -> list[Path]:
     estimator_log(REGRESSED_SEGMENTS).to_csv(written[-1], index=False)
     written.append(outdir / "starloc_grid_uwb.csv")
     starloc_log().to_csv(written[-1], index=False)
-    from credcli.studies.pose_samples import write_pose_samples
 
     written.extend(write_pose_samples(outdir / "formats"))
     return written

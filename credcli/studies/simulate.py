@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import enum
 import math
+import zlib
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -146,7 +147,6 @@ def _run_chunk_on_worker(args) -> list[TrialResult]:
 
 def _stream_key(spec: ScenarioSpec) -> int:
     """A stable number for a group's random streams, from its parameters."""
-    import zlib
 
     return zlib.crc32(repr((spec.rho, spec.bias)).encode())
 

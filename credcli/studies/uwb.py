@@ -12,10 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
+from credcli import segments as seg
+from credcli.engine.config import Label
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
 from credcli.io.starloc import RangeLog, read_markers, read_starloc  # noqa: F401 (re-exported)
-from credcli.studies.settings import UwbSettings  # noqa: F401 (re-exported)
+from credcli.studies.settings import (
+    RobustLoss,
+    UwbSettings,  # noqa: F401 (re-exported)
+)
 
 
 @dataclass(frozen=True)
@@ -269,7 +274,6 @@ def _jump(pos: np.ndarray, tag: np.ndarray, time: np.ndarray, scale: np.ndarray)
 def _gauss_newton(pos, anchor_xy, dz2, weight, meas, iterations, robust):
     """Gauss–Newton (iteratively reweighted with Huber's weights when ``robust``) from
     ``pos`` for every packet at once; returns the positions and whether each converged."""
-    from credcli.studies.settings import RobustLoss
 
     step = np.full_like(pos, np.inf)
     w = weight
@@ -520,7 +524,6 @@ def range_verdict(stats: list[RangeStats], tau_db: float) -> tuple[str, str]:
     robust spread against the reported std (pooled over anchors, the same relevance floor
     τ dB on the variance as the position-level rule), SMM from any anchor's range bias
     beyond RANGE_BIAS_Z standard errors."""
-    from credcli.engine.config import Label
 
     n = np.array([s.n for s in stats], float)
     ratio = float(np.exp(np.sum(n * np.log([max(s.robust_ratio, 1e-12) for s in stats])) / n.sum()))
@@ -548,7 +551,6 @@ class RangeCheck:
 def answers_agree(label, other: str, untested) -> bool:
     """Whether two labels agree on the questions the first one answered: its noise part
     unless the scale is untested, its SMM part unless the location is."""
-    from credcli.engine.config import Label
 
     mine = set(Label(label).value.split("+")) - {"credible"}
     theirs = set(other.split("+")) - {"credible"}
@@ -563,7 +565,6 @@ def answers_agree(label, other: str, untested) -> bool:
 def range_checks(run: UwbRun, results, tau_db: float) -> list[RangeCheck]:
     """The range-level evidence of each diagnosed period (:func:`range_verdict`) and
     whether the position-level label agrees with it."""
-    from credcli.engine.config import Label
 
     checks = []
     for result in results:
@@ -596,7 +597,6 @@ class UwbRun:
 def merge_short_tail(segments: list, window: str) -> list:
     """Windows with the last one merged into the one before when it is shorter than half a
     window (in time, or in epochs for a count): a 1-fix tail is not a period."""
-    from credcli import segments as seg
 
     if len(segments) < 2:
         return segments
@@ -617,7 +617,6 @@ def position_log(
 ):
     """Assign fixes to static periods (default), windows or the whole run; returns the
     EstimatorLog of the fixes kept and its segments, and the segment time spans."""
-    from credcli import segments as seg
 
     if whole or window is not None:
         n = fixes.time.size

@@ -7,6 +7,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from credcli.errors import CredcliError
+from credcli.io.records import json_value
 from credcli.report.render import OutputFormat, format_cell, markdown_text, to_text
 
 
@@ -74,20 +75,29 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
     return cases
 
 
-def fail_on_cases(records: list[dict], failing: list[int], fail_on) -> list[Case]:
-    """One JUnit case per segment record; ``failing``: the indices of the failing ones."""
+def fail_on_cases(results, failing: list[int], fail_on) -> list[Case]:
+    """One JUnit case per diagnosed segment (:class:`credcli.engine.diagnosis.SegmentDiagnosis`);
+    ``failing``: the indices of the failing ones."""
     bad = set(failing)
     listed = str(fail_on)
-    return [
-        Case(
-            r["segment"],
-            f"credcli.diagnose.{_classname(r['log'])}",
-            f"label {r['label']} matches --fail-on {listed}" if k in bad else None,
-            f"label {r['label']}, ELT p {format_cell(r['elt_pvalue'], 3)}, NCI {format_cell(r['nci'], 3)} dB, "
-            f"ANEES {format_cell(r['anees'], 3)}",
+    cases = []
+    for k, result in enumerate(results):
+        d = result.diagnosis
+        label = d.label.value
+        cases.append(
+            Case(
+                result.segment,
+                f"credcli.diagnose.{_classname(result.log)}",
+                f"label {label} matches --fail-on {listed}" if k in bad else None,
+                f"label {label}, ELT p {_cell(d.elt_pvalue)}, NCI {_cell(d.nci)} dB, "
+                f"ANEES {_cell(d.anees)}",
+            )
         )
-        for k, r in enumerate(records)
-    ]
+    return cases
+
+
+def _cell(value) -> str:
+    return format_cell(json_value(value), 3)
 
 
 def _classname(path: str) -> str:

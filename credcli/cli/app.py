@@ -140,7 +140,7 @@ def diagnose(
     write_ci_reports(
         ci.junit,
         ci.summary,
-        fail_on_cases(result.report.document["segments"], failing, conditions),
+        fail_on_cases(result.results, failing, conditions),
         summary_markdown("credcli diagnose", verdict, result.report),
         inputs,
     )

@@ -183,6 +183,22 @@ def anchor_record(anchor, mismatch: bool) -> dict:
     }
 
 
+def comparison_record(comparison) -> dict:
+    """A segment of `gate` (:class:`credcli.ci.gate.SegmentComparison`): its status, the
+    labels then and now, why, and both segment records."""
+    old, new = comparison.old, comparison.new
+    return {
+        "segment": comparison.segment,
+        "status": comparison.status.value,
+        "baseline_label": None if old is None else old.label.value,
+        "label": None if new is None else new.label.value,
+        "reasons": list(comparison.reasons),
+        "improvements": list(comparison.improvements),
+        "baseline": None if old is None else old.record,
+        "current": None if new is None else new.record,
+    }
+
+
 def _floats(values) -> list | None:
     return None if values is None else [json_value(float(v)) for v in values]
 

@@ -19,6 +19,7 @@ from credcli.engine.config import DiagnosisConfig, Variant
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.io.records import (
     anchor_record,
+    comparison_record,
     range_record,
     segment_record,
     uwb_segment_record,
@@ -795,18 +796,6 @@ def gate_report(comparisons, parameters: dict, baseline: str, passed: bool, verd
         "parameters": parameters,
         "passed": passed,
         "verdict": verdict,
-        "segments": [
-            {
-                "segment": c.segment,
-                "status": c.status.value,
-                "baseline_label": _label(c.old),
-                "label": _label(c.new),
-                "reasons": list(c.reasons),
-                "improvements": list(c.improvements),
-                "baseline": None if c.old is None else c.old.record,
-                "current": None if c.new is None else c.new.record,
-            }
-            for c in comparisons
-        ],
+        "segments": [comparison_record(c) for c in comparisons],
     }
     return Report([Table("credcli gate", GATE_COLUMNS, rows)], document)

@@ -494,3 +494,33 @@ def test_short_dependent_windows_hold_the_level(n, phi):
         e = ar1_errors(n, 2, phi, rng)
         bad += diagnose_errors(e, _eye(n), rng=k).label not in (Label.CREDIBLE, Label.INSUFFICIENT)
     assert bad / 300 <= 0.06 + 2 * math.sqrt(0.05 * 0.95 / 300), bad
+
+
+def test_segments_without_a_scale_interval_print_in_every_format(tmp_path):
+    """Short windows of long-memory errors have κ̂ but too few batches for its interval:
+    every output format shows them (the table says 'no interval'), none fails."""
+    from credcli import log_from_arrays, write_log
+    from credcli.cli import main
+
+    gen = np.random.default_rng(3)
+    z = gen.standard_normal((400, 2))
+    e = np.empty_like(z)
+    e[0] = z[0]
+    for k in range(1, 400):  # AR(1), φ = 0.95: about 2 effective epochs in 50
+        e[k] = 0.95 * e[k - 1] + np.sqrt(1 - 0.95**2) * z[k]
+    segment = np.repeat([f"w{i}" for i in range(8)], 50)
+    path = tmp_path / "short.csv"
+    write_log(log_from_arrays(np.eye(2), errors=e, segment=segment), path)
+    out = {}
+    for fmt in ("json", "table", "csv", "markdown"):
+        target = tmp_path / f"out.{fmt}"
+        assert main(["diagnose", str(path), "-f", fmt, "-o", str(target)]) == 0
+        out[fmt] = target.read_text()
+    records = json.loads(out["json"])["segments"]
+    open_ended = [
+        r for r in records if r["scale_factor"] is not None and r["scale_factor_low"] is None
+    ]
+    assert open_ended and all(r["label"] == "insufficient-data" for r in open_ended)
+    for r in open_ended:
+        shown = f"{r['scale_factor']:.3g} (no interval)"
+        assert shown in out["table"] and shown in out["markdown"], shown

@@ -229,3 +229,14 @@ def test_real_file_range_table_matches_the_data_readme(capsys):
 def test_real_file_has_no_static_period(capsys):
     code, _, err = _run(capsys, "uwb", REAL)
     assert code == 2 and "no static period found" in err
+
+
+def test_real_s5_windows_print_as_a_table(capsys):
+    """The real loop-2d_s5 run in 5-s windows, as a user first runs it (a table): periods
+    whose scale factor has no interval print as such, not as an internal error."""
+    s5 = SHARED / "data" / "starloc" / "loop-2d_s5_uwb.csv"
+    if not s5.exists():
+        pytest.skip("the STAR-loc data are not beside the repository")
+    code, out, err = _run(capsys, "uwb", s5, "--window", "5s", "--std", "0.1")
+    assert code == 0, err
+    assert "Table IV" in out and "(no interval)" in out

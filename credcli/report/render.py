@@ -139,13 +139,14 @@ def _number(x: float) -> str:
 
 
 def scale_interval(rec: dict) -> str | None:
-    """'2.3 (1.9–2.8)': κ̂ with its interval, for tables."""
+    """'2.3 (1.9–2.8)': κ̂ with its interval, for tables; '2.3 (no interval)' where the
+    data hold too few batches for one (the segment's reason says why)."""
     if rec.get("scale_factor") is None:
         return None
-    return (
-        f"{_number(rec['scale_factor'])} ({_number(rec['scale_factor_low'])}–"
-        f"{_number(rec['scale_factor_high'])})"
-    )
+    low, high = rec.get("scale_factor_low"), rec.get("scale_factor_high")
+    if low is None or high is None:
+        return f"{_number(rec['scale_factor'])} (no interval)"
+    return f"{_number(rec['scale_factor'])} ({_number(low)}–{_number(high)})"
 
 
 def advice(rec: dict) -> str | None:

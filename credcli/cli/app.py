@@ -8,7 +8,6 @@ and ``credcli --help`` must not.
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 from typing import Annotated
@@ -21,10 +20,14 @@ from credcli.cli.emit import (
     check_plotting,
     cluster,
     emit,
+    emit_fail_on,
+    emit_gate_verdict,
+    emit_run,
+    emit_uwb,
+    fail_on_conditions,
     guard_outputs,
     print_notes,
     stderr_console,
-    write_ci_reports,
     write_html,
     write_plots,
 )
@@ -50,7 +53,6 @@ from credcli.cli.options import (
     file_name,
     output_name,
 )
-from credcli.errors import CredcliError
 from credcli.report.formats import OutputFormat
 from credcli.studies.settings import CURVE_RUNS
 
@@ -101,50 +103,23 @@ def diagnose(
     monte_carlo: MonteCarloOpt = False,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (calibrated rule by default)."""
-    from credcli.ci.gate import fail_on_verdict, parse_fail_on
-    from credcli.ci.reports import fail_on_cases, summary_markdown
     from credcli.cli.settings import diagnose_request
     from credcli.workflows import run_diagnose
 
-    conditions = parse_fail_on(ci.fail_on) if ci.fail_on is not None else None
-    if (ci.junit or ci.summary) and conditions is None:
-        raise CredcliError(
-            "--junit and --summary report a verdict: give --fail-on too (e.g. --fail-on noncredible)"
-        )
+    conditions = fail_on_conditions(ci)
     inputs = [*logs, config, log.truth]
     written = {"--output": out.output, "--junit": ci.junit, "--summary": ci.summary}
     guard_outputs(written | {"--report": report_file}, inputs, plots)
     check_plotting(plots, report_file)
+    figures = plots is not None or report_file is not None
     request = diagnose_request(
-        logs,
-        config,
-        log,
-        segments,
-        rule,
-        seed,
-        run,
-        monte_carlo=monte_carlo,
-        figures=plots is not None or report_file is not None,
+        logs, config, log, segments, rule, seed, run, monte_carlo=monte_carlo, figures=figures
     )
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner)
-    print_notes(result.report)
-    emit(result.report, out.fmt, out.output, inputs=inputs)
-    write_plots(result, plots)
-    if report_file is not None:
-        title = "credcli diagnose: " + ", ".join(p.name for p in logs)
-        write_html(report_file, title, result, logs, inputs)
-    if conditions is None:
-        return 0
-    passed, verdict, failing = fail_on_verdict(result.results, conditions)
-    write_ci_reports(
-        ci.junit,
-        ci.summary,
-        fail_on_cases(result.results, failing, conditions),
-        summary_markdown("credcli diagnose", verdict, result.report),
-        inputs,
-    )
-    print(f"credcli: {verdict}", file=sys.stderr)
+    title = "credcli diagnose: " + ", ".join(p.name for p in logs)
+    emit_run(result, out, plots, report_file, title, logs, inputs)
+    passed = emit_fail_on(result, conditions, ci, inputs)
     return 0 if passed else 1
 
 
@@ -225,49 +200,22 @@ def gate(
     seed: SeedOpt = None,
 ) -> int:
     """Diagnose LOG with the baseline's parameters and fail (exit 1) on a regression."""
-    from credcli.ci.gate import gate_fail_on, parse_fail_on
-    from credcli.ci.reports import gate_cases, summary_markdown
+    from credcli.ci.gate import parse_fail_on
     from credcli.cli.settings import gate_request
     from credcli.workflows import run_gate
 
+    conditions = parse_fail_on(ci.fail_on) if ci.fail_on is not None else None
     inputs = [log, baseline_file, config, truth]
     written = {"--output": out.output, "--junit": ci.junit, "--summary": ci.summary}
     guard_outputs(written, inputs, plots)
     check_plotting(plots)
-    request = gate_request(
-        log,
-        baseline_file,
-        config,
-        thresholds,
-        truth,
-        segments,
-        rule,
-        seed,
-        run,
-        figures=plots is not None,
-    )
+    given = (thresholds, truth, segments, rule, seed, run)
+    request = gate_request(log, baseline_file, config, *given, figures=plots is not None)
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_gate(request, bar, runner)
-    passed, verdict = result.passed, result.verdict
-    if ci.fail_on is not None:
-        passed, verdict = gate_fail_on(
-            result.comparisons, parse_fail_on(ci.fail_on), passed, verdict
-        )
     emit(result.report, out.fmt, out.output, inputs=inputs)
     write_plots(result.plots, plots)
-    write_ci_reports(
-        ci.junit,
-        ci.summary,
-        gate_cases(result.comparisons, request.thresholds, str(log)),
-        summary_markdown(
-            f"credcli gate: {log}",
-            verdict,
-            result.report,
-            f"Baseline `{baseline_file}`; {request.thresholds.describe()}.",
-        ),
-        inputs,
-    )
-    print(f"credcli: {verdict}", file=sys.stderr)
+    passed = emit_gate_verdict(result, request, conditions, ci, str(log), baseline_file, inputs)
     return 0 if passed else 1
 
 
@@ -380,8 +328,7 @@ def uwb(
 ) -> int:
     """The paper's UWB pipeline on a STAR-loc uwb.csv (Section V, Table IV)."""
     from credcli.cli.settings import uwb_request
-    from credcli.io.files import write_atomic
-    from credcli.workflows import export_log_text, run_uwb
+    from credcli.workflows import run_uwb
 
     inputs = [file, anchors, config]
     written = {"--output": out.output, "--export-log": export_log, "--report": report_file}
@@ -398,22 +345,7 @@ def uwb(
     )
     with Progress("diagnosing periods") as bar:
         result, fixes = run_uwb(request, bar)
-    for warning in fixes.notes:  # anchors that disagree with the log's ground truth
-        print(f"credcli: warning: {warning}", file=sys.stderr)
-    if export_log is not None:
-        write_atomic(export_log, export_log_text(fixes.log), inputs)
-        stderr_console().print(f"wrote {export_log} ({fixes.log.n} fixes)", highlight=False)
-    emit(result.report, out.fmt, out.output, inputs=inputs)
-    write_plots(result, plots)
-    if report_file is not None:
-        from credcli.report.html import build_html
-
-        write_atomic(
-            report_file,
-            build_html(f"credcli uwb: {file.name}", result.report, result.plots, str(file)),
-            inputs,
-        )
-        stderr_console().print(f"wrote {report_file}", highlight=False)
+    emit_uwb(result, fixes, out, plots, report_file, export_log, file, inputs)
     return 0
 
 

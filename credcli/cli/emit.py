@@ -163,3 +163,87 @@ def write_ci_reports(
     if summary is not None:
         write_atomic(summary, markdown, inputs)
     append_step_summary(markdown)
+
+
+def emit_run(run, out, plots: Path | None, report_file: Path | None, title, sources, inputs):
+    """What `diagnose` shows of a Run: the reading notes, the report (``out``: its format
+    and file), the figures into ``plots`` and an HTML report into ``report_file``."""
+    print_notes(run.report)
+    emit(run.report, out.fmt, out.output, inputs=inputs)
+    write_plots(run, plots)
+    if report_file is not None:
+        write_html(report_file, title, run, sources, inputs)
+
+
+def fail_on_conditions(ci):
+    """The --fail-on conditions (None without --fail-on), checked before any work."""
+    from credcli.ci.gate import parse_fail_on
+
+    conditions = parse_fail_on(ci.fail_on) if ci.fail_on is not None else None
+    if (ci.junit or ci.summary) and conditions is None:
+        raise CredcliError(
+            "--junit and --summary report a verdict: give --fail-on too (e.g. --fail-on noncredible)"
+        )
+    return conditions
+
+
+def emit_fail_on(run, conditions, ci, inputs) -> bool:
+    """The --fail-on verdict of a diagnosed Run: JUnit and Markdown reports, one line on
+    stderr; whether it passed (True without --fail-on)."""
+    if conditions is None:
+        return True
+    from credcli.ci.gate import fail_on_verdict
+    from credcli.ci.reports import fail_on_cases, summary_markdown
+
+    passed, verdict, failing = fail_on_verdict(run.results, conditions)
+    write_ci_reports(
+        ci.junit,
+        ci.summary,
+        fail_on_cases(run.results, failing, conditions),
+        summary_markdown("credcli diagnose", verdict, run.report),
+        inputs,
+    )
+    print(f"credcli: {verdict}", file=sys.stderr)
+    return passed
+
+
+def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) -> bool:
+    """The verdict of `gate` (a GateRun), failed also by a label matching --fail-on:
+    JUnit and Markdown reports, one line on stderr; whether it passed."""
+    from credcli.ci.gate import gate_fail_on
+    from credcli.ci.reports import gate_cases, summary_markdown
+
+    passed, verdict = run.passed, run.verdict
+    if conditions is not None:
+        passed, verdict = gate_fail_on(run.comparisons, conditions, passed, verdict)
+    thresholds = request.thresholds
+    context = f"Baseline `{baseline}`; {thresholds.describe()}."
+    write_ci_reports(
+        ci.junit,
+        ci.summary,
+        gate_cases(run.comparisons, thresholds, log),
+        summary_markdown(f"credcli gate: {log}", verdict, run.report, context),
+        inputs,
+    )
+    print(f"credcli: {verdict}", file=sys.stderr)
+    return passed
+
+
+def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inputs) -> None:
+    """What `uwb` shows: warnings about the anchors, the fixes as a diagnose log
+    (``export_log``), the report, the figures and an HTML report."""
+    from credcli.io.files import write_atomic
+    from credcli.report.html import build_html
+    from credcli.workflows import export_log_text
+
+    for warning in fixes.notes:  # anchors that disagree with the log's ground truth
+        print(f"credcli: warning: {warning}", file=sys.stderr)
+    if export_log is not None:
+        write_atomic(export_log, export_log_text(fixes.log), inputs)
+        stderr_console().print(f"wrote {export_log} ({fixes.log.n} fixes)", highlight=False)
+    emit(run.report, out.fmt, out.output, inputs=inputs)
+    write_plots(run, plots)
+    if report_file is not None:
+        title = f"credcli uwb: {source.name}"
+        write_atomic(report_file, build_html(title, run.report, run.plots, str(source)), inputs)
+        stderr_console().print(f"wrote {report_file}", highlight=False)

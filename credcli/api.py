@@ -78,7 +78,6 @@ class Results(Sequence):
 
     def _repr_html_(self) -> str:
         """The diagnosis table in a notebook: the columns ``credcli diagnose`` shows."""
-
         return records_table(self.to_dict())
 
 
@@ -119,7 +118,6 @@ def read_log(
     >>> log.n, log.dim, log.unpaired
     (2380, 3, 0)
     """
-
     if reading.get("truth") is not None:
         reading["truth"] = str(reading["truth"])
     try:

@@ -47,7 +47,6 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
     handshake with "HTTP/1.1 400" (which Dask read as a frame length and failed on with a
     MemoryError). So the first bytes are read here, with a deadline. Only plain TCP
     addresses are probed (tls://, ucx:// and others go to Dask as they are)."""
-
     m = _TCP.match(address.strip())
     if address.strip().count("://") and not address.strip().startswith("tcp://"):
         return
@@ -84,7 +83,6 @@ def _local_cluster(workers: int):
     whole process group: each worker printed its own traceback), keep their scratch files
     in a directory removed on close, and whose semaphores the resource tracker does not
     warn about when a signal ends the run."""
-
     import dask
     from distributed import LocalCluster
 

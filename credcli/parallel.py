@@ -66,7 +66,6 @@ def follow_parent() -> None:
     the command line's handler), and ignores Ctrl-C, which the terminal sends to the whole
     process group: the parent stops the work and reports it once, instead of every worker
     printing its own traceback."""
-
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if sys.platform == "linux":
@@ -116,7 +115,6 @@ def release_free_memory() -> None:
     buffers for reuse, and glibc keeps freed heap chunks below its adaptive trim threshold,
     where the diagnosis's large arrays (mapped afresh) cannot reuse them. One 2,000,000-epoch
     Parquet log: the later peak falls by about 100 MiB (docs/performance.md)."""
-
     if "pyarrow" in sys.modules:
         sys.modules["pyarrow"].default_memory_pool().release_unused()
     try:
@@ -170,7 +168,6 @@ def start_method() -> str:
     0.6 s of trials). Forking a process with other threads could copy a lock one of them
     holds, so then the workers are spawned. Buffered output is flushed first, so that no
     worker writes it a second time when it exits."""
-
     if sys.platform != "linux" or threading.active_count() != 1 or "pyarrow" in sys.modules:
         return "spawn"
     for stream in (sys.stdout, sys.stderr):
@@ -181,7 +178,6 @@ def start_method() -> str:
 
 def _warm_up(module: str) -> None:
     """Worker: import a module now, so that it is loaded when the first task arrives."""
-
     importlib.import_module(module)
 
 

@@ -101,7 +101,6 @@ def diagnose_plans(
     ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
     otherwise segments are diagnosed one by one in this process. Each segment's sign flips
     depend on (seed, segment name) only, so the results are the same for any ``jobs``."""
-
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
     parallel = jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1
@@ -138,7 +137,6 @@ _WORKER_LOGS_KEPT = 2
 def _worker_log(source):
     """(log, segments, errors) of ``source`` in this worker, read once for the tasks that share it
     (the last few are kept, keyed by the file's size and modification time too)."""
-
     prepare_worker()
     path, schema, reading, drop_invalid, window, whole, min_epochs = source
     try:

@@ -47,7 +47,6 @@ def _results(log, segments, alpha: float, seed: int, arrays: dict) -> Results:
 
 def diagnosis_text(results: Results, alpha: float) -> str:
     """The diagnosis table and its advice lines, as ``credcli diagnose`` prints them."""
-
     config = DiagnosisConfig(alpha=alpha)
     report = diagnose_report(list(results), config, config_record(config), [], show_all=False)
     return to_text(report, OutputFormat.TABLE)

@@ -71,7 +71,6 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     pooled segment by segment (see :func:`monte_carlo_plan`) and the report adds
     Bar-Shalom's per-epoch ANEES test. ``runner`` (a credcli.cluster.DaskRunner): the
     segments are diagnosed on a Dask cluster whose workers read the logs themselves."""
-
     paths, config, seed = request.logs, request.config, request.seed
     reading = request.reading
     schema, options, drop_invalid = reading.schema, reading.options, reading.drop_invalid
@@ -124,7 +123,6 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
 
 def segment_figures(log: EstimatorLog, results, segments, prefix: str = "") -> list:
     """The figures of a log's diagnosed segments, from the curves the engine computes."""
-
     by_name = {s.name: s for s in segments}
     errors = log.errors  # computed once: a property
     curves, times = [], []
@@ -140,7 +138,6 @@ def segment_figures(log: EstimatorLog, results, segments, prefix: str = "") -> l
 def _diagnose_here(request: DiagnoseRequest, progress):
     """Read and diagnose the logs in this process and ``request.jobs`` local worker
     processes; returns (results, log entries, plans, Monte Carlo test or None)."""
-
     paths, config, jobs, reading = request.logs, request.config, request.jobs, request.reading
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     pool = None
@@ -169,7 +166,6 @@ def _diagnose_here(request: DiagnoseRequest, progress):
 def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[Run, str]:
     """The `simulate` report (and plots) and a one-line summary; ``runner``: trials on a
     Dask cluster (credcli.cluster.DaskRunner)."""
-
     config, sweep, curves, curve_runs = (
         request.config,
         request.sweep,
@@ -236,7 +232,6 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
 
 def export_log_text(log: EstimatorLog) -> str:
     """An EstimatorLog in diagnose's default CSV format (upper-triangle covariance)."""
-
     import pandas as pd
 
     d = log.dim
@@ -253,7 +248,6 @@ def export_log_text(log: EstimatorLog) -> str:
 
 def run_uwb(request: UwbRequest, progress=None):
     """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (Run, UwbRun)."""
-
     path, settings, config, anchors = (
         request.file,
         request.settings,
@@ -302,7 +296,6 @@ class GateRun:
 
 def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
     """Diagnose the new log with the baseline's settings and compare segment by segment."""
-
     run = run_diagnose(request.diagnose, progress, runner)
     baseline, thresholds = request.baseline, request.thresholds
     comparisons = compare(

@@ -108,7 +108,6 @@ def _classname(path: str) -> str:
 def summary_markdown(heading: str, verdict: str, report, context: str = "") -> str:
     """The Markdown summary of a CI run: a heading, the verdict, then the report's own
     tables (the same ones the other output formats show)."""
-
     parts = [f"## {markdown_text(heading)}", "", f"**{markdown_text(verdict)}**", ""]
     if context:
         parts += [markdown_text(context), ""]

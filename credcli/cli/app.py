@@ -257,7 +257,6 @@ def simulate(
     out: OutputOptions = OutputOptions(),
 ) -> int:
     """The paper's Monte Carlo study (Tables II and III), sweeps and the Fig. 1 curves."""
-
     from credcli.cli.settings import simulate_request
     from credcli.workflows import run_simulate
 

@@ -48,7 +48,6 @@ def main(argv: list[str] | None = None) -> int:
     Warnings (numpy's among them) are never printed raw: each distinct one becomes a
     ``credcli: note:`` line on stderr at the end, with its source under --debug.
     """
-
     from credcli.parallel import keep_freed_memory, single_threaded_blas
 
     single_threaded_blas()  # before numpy loads; a user's own setting wins
@@ -188,7 +187,6 @@ def _run(command, args: list[str], debug: bool) -> int:
 def _raised_by_credcli(exc: BaseException) -> bool:
     """Whether the innermost frame of the traceback is credcli's own code (an allocation
     of ours, sized by the user's settings)."""
-
     tb = exc.__traceback__
     while tb is not None and tb.tb_next is not None:
         tb = tb.tb_next
@@ -241,7 +239,6 @@ def _traceback(debug: bool) -> None:
 
 def _silence_stdout() -> None:
     """After a closed pipe (credcli … | head), stop Python from failing again at exit."""
-
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())

@@ -103,7 +103,6 @@ def print_notes(report) -> None:
 
 def cluster(scheduler: str | None):
     """A DaskRunner for --scheduler (closed on exit), or a context of None."""
-
     if not scheduler:
         return contextlib.nullcontext(None)
     from credcli.cluster import DaskRunner

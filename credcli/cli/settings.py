@@ -40,31 +40,34 @@ from credcli.parallel import default_jobs
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
 from credcli.studies.settings import STD_ESTIMATE, SimulationConfig, UwbSettings
 
-CONFIG_SECTIONS = ("columns", "input", "diagnosis", "segments", "simulate", "uwb", "gate")
-"""The tables a config file may hold; any other table is an error, never silently ignored."""
-
-
 KEY_ALIASES = {
-    option: field for field, option in FIELD_OPTIONS.items() if field in ("tau_nci", "n_flips", "c")
+    option: field
+    for field, option in FIELD_OPTIONS.items()
+    if field in DiagnosisConfig.__dataclass_fields__
 }
-"""[diagnosis] keys spelled as the command-line flags, beside the field names."""
+"""[diagnosis] keys spelled as the command-line flags (tau, flips, probe_factor), beside
+the field names."""
 
 
-def config_tables() -> dict[str, dict]:
-    """Each table a config file may hold: its keys and their types (the fields of the
-    settings dataclass it sets)."""
+def _simulate_hints() -> dict:
+    hints = typing.get_type_hints(SimulationConfig)
+    del hints["diagnosis"]  # [diagnosis] is its own table
+    return hints
 
-    simulate = typing.get_type_hints(SimulationConfig)
-    del simulate["diagnosis"]  # [diagnosis] is its own table
-    return {
-        "columns": typing.get_type_hints(LogSchema),
-        "input": typing.get_type_hints(ReadOptions),
-        "diagnosis": diagnosis_hints(),
-        "segments": SEGMENT_HINTS,
-        "simulate": simulate,
-        "uwb": typing.get_type_hints(UwbSettings),
-        "gate": typing.get_type_hints(Thresholds),
-    }
+
+CONFIG_TABLES = {
+    "columns": typing.get_type_hints(LogSchema),
+    "input": typing.get_type_hints(ReadOptions),
+    "diagnosis": diagnosis_hints(),
+    "segments": SEGMENT_HINTS,
+    "simulate": _simulate_hints(),
+    "uwb": typing.get_type_hints(UwbSettings),
+    "gate": typing.get_type_hints(Thresholds),
+}
+"""Each table a config file may hold: its keys and their types (the fields of the
+settings dataclass it sets). Any other table or key is an error, never silently ignored."""
+
+CONFIG_SECTIONS = tuple(CONFIG_TABLES)
 
 
 def load_config(path: str | Path | None) -> dict:
@@ -79,7 +82,6 @@ def load_config(path: str | Path | None) -> dict:
             f"{path}: unknown table(s) or key(s) {', '.join(unknown)}; a config holds only the "
             f"tables [{'], ['.join(CONFIG_SECTIONS)}]"
         )
-    tables = config_tables()
     out = {}
     for name, table in data.items():
         if not isinstance(table, dict):
@@ -88,7 +90,7 @@ def load_config(path: str | Path | None) -> dict:
                 f"got {name} = {table!r}"
             )
         table = {KEY_ALIASES.get(k, k): v for k, v in table.items()}
-        hints, where = tables[name], f"config [{name}]"
+        hints, where = CONFIG_TABLES[name], f"config [{name}]"
         wrong = sorted(set(table) - set(hints))
         if wrong:
             raise CredcliError(
@@ -187,7 +189,6 @@ def block_length_value(text: str | None) -> int | str | None:
 
 def jobs_value(jobs: int | None) -> int:
     """--jobs: given, or the number of cores."""
-
     if jobs is None:
         return default_jobs()
     if jobs < 1:
@@ -217,8 +218,6 @@ def log_reading(config: dict, log: LogOptions, segments: SegmentOptions) -> LogR
     )
     window, whole = segment_settings(config, segments.window, segments.whole)
     given = {f.name: getattr(log, f.name) for f in dataclasses.fields(ReadOptions)}
-    if given["truth"] is not None:
-        given["truth"] = str(given["truth"])
     return LogReading(schema, build_reading(config, given), bool(log.drop_invalid), window, whole)
 
 
@@ -257,7 +256,6 @@ def gate_request(
 ) -> GateRequest:
     """What `gate` asks for: LOG diagnosed with the baseline's settings, which every
     setting given (command line or [diagnosis] and [segments]) must equal."""
-
     config = load_config(config_file)
     given = dataclasses.asdict(thresholds)
     limits = built(Thresholds, merged(config, "gate", given), config, "gate", given)
@@ -307,7 +305,6 @@ def simulate_request(
     figures: bool = False,
 ) -> SimulateRequest:
     """What `simulate` asks for: [simulate] and [diagnosis] under the command line."""
-
     jobs = jobs_value(run.jobs)
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
@@ -400,7 +397,6 @@ def uwb_request(
 
 def _toml_value(value) -> str | None:
     """A default as TOML, or None for a setting that is unset by default."""
-
     if isinstance(value, enum.Enum):
         value = value.value
     if value is None:
@@ -473,7 +469,6 @@ def default_config_text() -> str:
 
 def main() -> int:
     """``python -m credcli.cli.settings``: print configs/default.toml."""
-
     sys.stdout.write(default_config_text())
     return 0
 

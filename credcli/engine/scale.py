@@ -265,7 +265,6 @@ def batch_scale_test(
     batch sums of the GLS scores (their covariance times K is that of Σ W_k e_k). ``tau_q``
     and ``tau`` (the variance ratios of q and of the whitened errors) correct both for the
     correlation of neighbouring batches (:func:`credcli.engine.batches.boundary_inflation`)."""
-
     q = residuals.q
     n, d = residuals.whitened.shape
     taus = np.ones(d) if taus is None else np.asarray(taus, dtype=float)

@@ -216,7 +216,6 @@ def log_table(log: EstimatorLog):
 def write_log(log: EstimatorLog, path: str | Path) -> Path:
     """Write ``log`` as its canonical table (:func:`log_table`): Parquet for a ``.parquet``
     or ``.pq`` name, else CSV; atomically (no half-written file)."""
-
     path = Path(path)
     table = log_table(log)
     if path.suffix.lower() in (".parquet", ".pq"):

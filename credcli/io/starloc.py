@@ -46,7 +46,6 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     Without ``range_calib`` (setup s5) the raw ``range`` column is used, with a note.
     Without ``std`` a fixed ``settings.std`` is required.
     """
-
     path = Path(path)
     frame = read_table(path)
     columns = [str(c) for c in frame.columns]

@@ -66,7 +66,6 @@ def safe_name(text: str) -> str:
     """A file-name stem for ``text``: itself when it is short and made of safe characters;
     otherwise the safe characters, cut to MAX_STEM, and a checksum of the whole name, so
     that names differing only in unsafe characters ('a b', 'a/b') stay apart."""
-
     text = str(text)
     stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text[: 4 * MAX_STEM]).strip("_.") or "segment"
     if stem == text and len(stem) <= MAX_STEM:
@@ -81,7 +80,6 @@ def short_title(text: str, limit: int = 80) -> str:
 
 def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
     """Write each plot as DIR/<name>.png (atomically); create DIR if needed."""
-
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
         raise CredcliError(f"`plots` {directory}: exists and is not a directory", "plots")

@@ -429,7 +429,6 @@ def diagnose_report(
     """The `credcli diagnose` report: one row per segment, and the JSON document (with
     the per-epoch ANEES test of Monte Carlo runs, when given). ``config`` is the rule the
     results were decided with; ``parameters`` its record, shown in the document."""
-
     records = [segment_record(r) for r in results]
     multi = len({r["log"] for r in records}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
@@ -547,7 +546,6 @@ def _method_columns(methods) -> tuple[Column, ...]:
 
 def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
     """Table II (accuracy per scenario and method) and Table III (confusion matrix)."""
-
     rows = []
     for s in study.scenarios:
         row = {"scenario": s.value}
@@ -683,7 +681,6 @@ def uwb_report(run, results, checks, parameters: dict) -> Report:
     """Table IV per period with the range-level verdict beside it (``checks``, one
     :class:`credcli.studies.uwb.RangeCheck` per result), the range-level table per period
     and anchor (Figs. 4 and 5), and the anchors."""
-
     segments = [uwb_segment_record(r, c) for r, c in zip(results, checks, strict=True)]
     agreement = [
         f"{rec['segment']}: the position-level label {label_text(rec)} "

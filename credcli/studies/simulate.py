@@ -147,7 +147,6 @@ def _run_chunk_on_worker(args) -> list[TrialResult]:
 
 def _stream_key(spec: ScenarioSpec) -> int:
     """A stable number for a group's random streams, from its parameters."""
-
     return zlib.crc32(repr((spec.rho, spec.bias)).encode())
 
 

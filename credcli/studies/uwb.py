@@ -274,7 +274,6 @@ def _jump(pos: np.ndarray, tag: np.ndarray, time: np.ndarray, scale: np.ndarray)
 def _gauss_newton(pos, anchor_xy, dz2, weight, meas, iterations, robust):
     """Gauss–Newton (iteratively reweighted with Huber's weights when ``robust``) from
     ``pos`` for every packet at once; returns the positions and whether each converged."""
-
     step = np.full_like(pos, np.inf)
     w = weight
     for _ in range(max(1, iterations)):
@@ -524,7 +523,6 @@ def range_verdict(stats: list[RangeStats], tau_db: float) -> tuple[str, str]:
     robust spread against the reported std (pooled over anchors, the same relevance floor
     τ dB on the variance as the position-level rule), SMM from any anchor's range bias
     beyond RANGE_BIAS_Z standard errors."""
-
     n = np.array([s.n for s in stats], float)
     ratio = float(np.exp(np.sum(n * np.log([max(s.robust_ratio, 1e-12) for s in stats])) / n.sum()))
     db = 20.0 * np.log10(ratio)  # of the variance
@@ -551,7 +549,6 @@ class RangeCheck:
 def answers_agree(label, other: str, untested) -> bool:
     """Whether two labels agree on the questions the first one answered: its noise part
     unless the scale is untested, its SMM part unless the location is."""
-
     mine = set(Label(label).value.split("+")) - {"credible"}
     theirs = set(other.split("+")) - {"credible"}
     asked = set()
@@ -565,7 +562,6 @@ def answers_agree(label, other: str, untested) -> bool:
 def range_checks(run: UwbRun, results, tau_db: float) -> list[RangeCheck]:
     """The range-level evidence of each diagnosed period (:func:`range_verdict`) and
     whether the position-level label agrees with it."""
-
     checks = []
     for result in results:
         mine = [s for s in run.range_stats if s.segment == result.segment]
@@ -597,7 +593,6 @@ class UwbRun:
 def merge_short_tail(segments: list, window: str) -> list:
     """Windows with the last one merged into the one before when it is shorter than half a
     window (in time, or in epochs for a count): a 1-fix tail is not a period."""
-
     if len(segments) < 2:
         return segments
     w = seg.Window.parse(window)
@@ -617,7 +612,6 @@ def position_log(
 ):
     """Assign fixes to static periods (default), windows or the whole run; returns the
     EstimatorLog of the fixes kept and its segments, and the segment time spans."""
-
     if whole or window is not None:
         n = fixes.time.size
         segments = (

@@ -524,3 +524,25 @@ def test_segments_without_a_scale_interval_print_in_every_format(tmp_path):
     for r in open_ended:
         shown = f"{r['scale_factor']:.3g} (no interval)"
         assert shown in out["table"] and shown in out["markdown"], shown
+
+
+@pytest.mark.parametrize(("exponent", "label"), [(-240, "optimism"), (240, "pessimism")])
+def test_dependent_errors_at_extreme_scales_keep_their_verdict(exponent, label):
+    """The dependence estimates, the batch scale and mean tests and the bias's standard
+    error are scale-free (exact power-of-two units): serially dependent errors whose
+    claimed covariance is 1e±240 times their own give the verdict and the interval (in
+    proportion) of a covariance 1e±2 times their own, without a floating-point warning."""
+    import warnings
+
+    e = ar1_errors(2000, 2, 0.9, np.random.default_rng(8))
+    near = 10.0 ** (2 if exponent > 0 else -2)
+    reference = diagnose_errors(e, _eye(2000) * near, rng=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        extreme = diagnose_errors(e, _eye(2000) * 10.0**exponent, rng=0)
+    ratio = near / 10.0**exponent
+    assert reference.scale.batches and extreme.label is reference.label is Label(label)
+    for name in ("scale_factor", "scale_factor_low", "scale_factor_high"):
+        got, want = getattr(extreme.scale, name), getattr(reference.scale, name) * ratio
+        assert got == pytest.approx(want, rel=1e-9), name
+    assert np.all(np.isfinite(extreme.scale.bias_stderr))

@@ -345,7 +345,9 @@ def test_an_asymmetric_covariance_and_bad_flips_are_refused():
         credcli.nees(
             np.where(np.arange(80).reshape(40, 2) == 7, np.nan, e), np.eye(2)[None].repeat(40, 0)
         )
-    with pytest.raises(CredcliError, match="`n_flips` .* must be a positive integer; got 0") as info:
+    with pytest.raises(
+        CredcliError, match="`n_flips` .* must be a positive integer; got 0"
+    ) as info:
         whitened_location_test(e, 0, np.random.default_rng(0))
     assert info.value.parameter == "n_flips"
 

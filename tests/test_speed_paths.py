@@ -190,7 +190,9 @@ def test_weak_bias_does_not_build_the_bound(monkeypatch):
     """Under the gate the bound is not built (it would certify nothing): the cost stays."""
     built = []
     original = flips._LowRankBound.of_matrix
-    monkeypatch.setattr(flips._LowRankBound, "of_matrix", lambda *a: built.append(1) or original(*a))
+    monkeypatch.setattr(
+        flips._LowRankBound, "of_matrix", lambda *a: built.append(1) or original(*a)
+    )
     s = np.random.default_rng(3).standard_normal((900, 2)) + [0.25, 0.0]
     res = whitened_location_test(s, 1000, np.random.default_rng(0), stop_level=0.05)
     assert res.pvalue < 0.05 and res.flips_bounded == 0 and not built

@@ -156,7 +156,6 @@ def batch_scale(
     kept = max(1.0 - centring / (q.size * dim), 0.5)  # the sample mean takes at most half
     factors = np.add.reduceat(q, starts) / (sizes * dim * kept)
     mean = float(factors.mean())
-    spread = float(factors.std(ddof=1))
     if not mean > 0:
         return BatchScale(k, mean, 0.0, math.inf, 1.0, 1.0)
     if np.all(factors > 0):  # Cox's interval for a log-normal mean (Land 1972)
@@ -164,9 +163,9 @@ def batch_scale(
         v = float(logs.var(ddof=1))
         centre = float(logs.mean()) + v / 2
         se = math.sqrt(inflation * (v / k + v * v / (2 * (k - 1))))
-    else:
+    else:  # the delta method; the relative spread, which cannot overflow
         centre = math.log(mean)
-        se = spread * math.sqrt(inflation) / (mean * math.sqrt(k))
+        se = float((factors / mean).std(ddof=1)) * math.sqrt(inflation) / math.sqrt(k)
     if se == 0:
         se = np.finfo(float).tiny
     crit = float(special.stdtrit(k - 1, 1 - level / 2))
@@ -225,6 +224,9 @@ def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:
     True
     """
     k, d = scores.shape
+    peak = float(np.max(np.abs(scores)))
+    if 0 < peak < math.inf:  # T² is scale-free: a power of two (exact) keeps it finite
+        scores = scores / 2.0 ** round(math.log2(peak))
     mean = scores.mean(axis=0)
     cov = np.cov(scores, rowvar=False).reshape(d, d)
     try:

@@ -21,6 +21,7 @@ whitened component when the epochs are correlated.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -272,9 +273,13 @@ def batch_scale_test(
     result = batch_scale(q, d, k, level, boundary_inflation(tau_q, n, k), centring)
     starts = bounds(n, k)
     sums = np.add.reduceat(residuals.scores, starts, axis=0)
-    cov_mean = np.linalg.inv(residuals.precision_sum)
+    # the sums are in units of the precision, cov_mean in its inverse: scaled by a power
+    # of two each (exact), their product cannot overflow for any scale of Σ̂
+    peak = float(np.max(np.abs(sums)))
+    unit = 2.0 ** round(math.log2(peak)) if 0 < peak < math.inf else 1.0
+    cov_mean = np.linalg.inv(residuals.precision_sum) * unit
     inflation = boundary_inflation(float(np.max(taus)), n, k)
-    cov_sum = k * inflation * np.cov(sums, rowvar=False).reshape(d, d)
+    cov_sum = k * inflation * np.cov(sums / unit, rowvar=False).reshape(d, d)
     stderr = np.sqrt(np.clip(np.diag(cov_mean @ cov_sum @ cov_mean), 0.0, None))
     mean = residuals.mean
     mahalanobis = float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean)))

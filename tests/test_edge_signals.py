@@ -575,8 +575,12 @@ def test_html_cells_are_formatted_as_the_terminal_shows_them(tmp_path):
     code, _, err = run("diagnose", LOG, "--report", report)
     assert code == 0, err
     html = report.read_text()
-    assert "&lt;0.001" in html and "0.9 (0.783–1.05)" in html
-    assert "0.900263" not in html and "e-1" not in html.split("<h2>Parameters")[0]
+    cruise = json.loads(run("diagnose", LOG, "-f", "json")[1])["segments"][0]
+    kappa, low, high = (
+        cruise[k] for k in ("scale_factor", "scale_factor_low", "scale_factor_high")
+    )
+    assert "&lt;0.001" in html and f"{kappa:.3g} ({low:.3g}–{high:.3g})" in html
+    assert f"{kappa:.6g}" not in html and "e-1" not in html.split("<h2>Parameters")[0]
 
 
 def test_gate_fail_on_and_report_monte_carlo(tmp_path):

@@ -133,6 +133,10 @@ def variance_ratio(x: np.ndarray) -> np.ndarray:
 DEPENDENCE_LEVEL = 0.01
 """Level of the test for serial dependence that decides whether τ̂ is used at all."""
 
+SCREENING_LEVEL = 0.2
+"""Level at which weaker evidence of serial dependence still sends a segment to the
+dependence-aware tests, where their batches fit (``diagnosis._serial_dependence``)."""
+
 
 def serially_dependent(r1: np.ndarray, n: int, level: float = DEPENDENCE_LEVEL) -> bool:
     """Whether some of the lag-1 autocorrelations ``r1`` (:func:`autocorrelation`) of ``n``

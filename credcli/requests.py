@@ -28,11 +28,6 @@ class DiagnoseRequest:
     monte_carlo: bool = False
     figures: bool = False
 
-    @property
-    def inputs(self) -> list:
-        """The files read: the logs and a separate ground truth."""
-        return [*self.logs, self.reading.options.truth]
-
 
 @dataclass(frozen=True)
 class SimulateRequest:

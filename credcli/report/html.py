@@ -10,6 +10,7 @@ import base64
 import html
 import json
 
+from credcli.engine.config import Label
 from credcli.report.render import SEGMENT_COLUMNS, Report, Table, advice, format_cell
 
 _STYLE = """
@@ -40,7 +41,7 @@ def _table_html(table) -> str:
             text = html.escape(format_cell(c.value(row), c.digits))  # as the terminal shows it
             cls = "text" if not c.digits else "num"
             if c.key in ("label", "nees_label", "nci_label") and isinstance(value, str):
-                cls += " credible" if value == "credible" else " bad"
+                cls += " credible" if value == Label.CREDIBLE.value else " bad"
             cells.append(f'<td class="{cls}">{text}</td>')
         rows.append("<tr>" + "".join(cells) + "</tr>")
     caption = f'<p class="note">{html.escape(table.caption)}</p>' if table.caption else ""

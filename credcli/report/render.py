@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 from credcli import __version__
-from credcli.engine.config import DiagnosisConfig, Variant
+from credcli.engine.config import DiagnosisConfig, Label, Variant
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.io.records import (
     anchor_record,
@@ -92,7 +92,7 @@ def label_text(rec: dict) -> str:
     ("pessimism (location untested)")."""
     untested = rec.get("untested") or []
     label = str(rec["label"])
-    if not untested or label == "insufficient-data":
+    if not untested or label == Label.INSUFFICIENT.value:
         return label
     return f"{label} ({' and '.join(untested)} untested)"
 
@@ -149,24 +149,29 @@ def scale_interval(rec: dict) -> str | None:
     return f"{_number(rec['scale_factor'])} ({_number(low)}–{_number(high)})"
 
 
+NOISE_CONDITIONS = frozenset({Label.OPTIMISM.value, Label.PESSIMISM.value})
+"""The conditions of a label that a covariance factor answers."""
+
+
 def advice(rec: dict) -> str | None:
     """What a user acts on for a segment that is not credible, in one line."""
-    label = rec["label"]
+    label = Label(rec["label"])
     untested = rec.get("untested") or []
-    if label == "credible" and not untested:
+    if label is Label.CREDIBLE and not untested:
         return None
-    if label == "insufficient-data":
+    if label is Label.INSUFFICIENT:
         return f"{rec['segment']}: no verdict: {rec['reason']}"
+    noise = bool(label.conditions & NOISE_CONDITIONS)
     parts = []
     if untested:
         parts.append(f"{' and '.join(untested)} untested: {rec['reason']}")
     if rec.get("scale_by_direction"):
         parts.append(direction_advice(rec))
-    elif "optimism" in label or "pessimism" in label:
+    elif noise:
         parts.append(f"multiply the covariance by {scale_interval(rec)}")
-    if rec.get("block_names") and ("optimism" in label or "pessimism" in label):
+    if rec.get("block_names") and noise:
         parts.append(block_advice(rec))
-    if "smm" in label:
+    if Label.SMM.value in label.conditions:
         bias = ", ".join(_number(b) for b in rec["bias"])
         parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
         parts.append(_smm_hint(rec))
@@ -253,8 +258,8 @@ def _csv_cell(value) -> str:
 
 
 _LABEL_STYLE = {
-    "credible": "green",
-    "insufficient-data": "dim",
+    Label.CREDIBLE.value: "green",
+    Label.INSUFFICIENT.value: "dim",
     "regressed": "bold red",
     "improved": "green",
     "unchanged": "dim",
@@ -474,7 +479,7 @@ def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
     lines = [a for a in (advice(r) for r in records) if a]
     if len(lines) > limit:
         lines = lines[:limit] + [f"... and {len(lines) - limit} more segment(s); see --format json"]
-    if any("smm" in str(r.get("label", "")).split("+") for r in records):
+    if any(Label.SMM.value in Label(r["label"]).conditions for r in records):
         lines.append(SMM_MEANING)
     return lines
 
@@ -507,23 +512,23 @@ def _level_caption(config: DiagnosisConfig) -> str:
 
 
 PAPER_TABLE_II = {
-    "credible": 0.94,
-    "optimism": 0.84,
-    "pessimism": 0.90,
-    "smm": 0.80,
-    "optimism+smm": 0.82,
-    "pessimism+smm": 1.00,
+    Label.CREDIBLE.value: 0.94,
+    Label.OPTIMISM.value: 0.84,
+    Label.PESSIMISM.value: 0.90,
+    Label.SMM.value: 0.80,
+    Label.OPTIMISM_SMM.value: 0.82,
+    Label.PESSIMISM_SMM.value: 1.00,
 }
 """Accuracy of the proposed method in the paper's Table II."""
 
 _SHORT = {
-    "credible": "Credible",
-    "optimism": "O",
-    "pessimism": "P",
-    "smm": "SMM",
-    "optimism+smm": "O+SMM",
-    "pessimism+smm": "P+SMM",
-    "insufficient-data": "insuff.",
+    Label.CREDIBLE.value: "Credible",
+    Label.OPTIMISM.value: "O",
+    Label.PESSIMISM.value: "P",
+    Label.SMM.value: "SMM",
+    Label.OPTIMISM_SMM.value: "O+SMM",
+    Label.PESSIMISM_SMM.value: "P+SMM",
+    Label.INSUFFICIENT.value: "insuff.",
 }
 
 

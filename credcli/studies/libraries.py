@@ -16,6 +16,7 @@ import datetime as _dt
 
 import numpy as np
 
+from credcli.engine.config import Label
 from credcli.engine.rng import RngLike, as_generator
 from credcli.io.logs import EstimatorLog
 from credcli.studies.filters import TUNINGS, FilterTuning
@@ -24,7 +25,12 @@ LIBRARY_TUNINGS = TUNINGS | {"bias": FilterTuning(bias=1.0)}
 """The four cases of the per-library tables: those of the EKF study, with the unmodelled
 bias a 1σ (of R) offset on the x measurements."""
 
-EXPECTED = {"right": "credible", "too-small": "optimism", "too-large": "pessimism", "bias": "smm"}
+EXPECTED = {
+    "right": Label.CREDIBLE.value,
+    "too-small": Label.OPTIMISM.value,
+    "too-large": Label.PESSIMISM.value,
+    "bias": Label.SMM.value,
+}
 """What each case should be called (for "bias", any label with smm)."""
 
 Q_DENSITY = 0.05

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli import segments as seg
-from credcli.engine.config import Label
+from credcli.engine.config import Label, Question
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
 from credcli.io.starloc import RangeLog, read_markers, read_starloc  # noqa: F401 (re-exported)
@@ -549,14 +549,12 @@ class RangeCheck:
 def answers_agree(label, other: str, untested) -> bool:
     """Whether two labels agree on the questions the first one answered: its noise part
     unless the scale is untested, its SMM part unless the location is."""
-    mine = set(Label(label).value.split("+")) - {"credible"}
-    theirs = set(other.split("+")) - {"credible"}
     asked = set()
-    if "scale" not in untested:
-        asked |= {"optimism", "pessimism"}
-    if "location" not in untested:
-        asked.add("smm")
-    return mine & asked == theirs & asked
+    if Question.SCALE.value not in untested:
+        asked |= {Label.OPTIMISM.value, Label.PESSIMISM.value}
+    if Question.LOCATION.value not in untested:
+        asked.add(Label.SMM.value)
+    return Label(label).conditions & asked == Label(other).conditions & asked
 
 
 def range_checks(run: UwbRun, results, tau_db: float) -> list[RangeCheck]:

@@ -36,6 +36,7 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import dependence
+from credcli.engine.units import power_of_two_unit
 
 MAX_BATCHES = 12
 """Most batches per segment: between 8 and 16, as Ibragimov & Müller (2010) recommend,
@@ -224,9 +225,7 @@ def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:
     True
     """
     k, d = scores.shape
-    peak = float(np.max(np.abs(scores)))
-    if 0 < peak < math.inf:  # T² is scale-free: a power of two (exact) keeps it finite
-        scores = scores / 2.0 ** round(math.log2(peak))
+    scores = scores / power_of_two_unit(scores)  # T² is scale-free; exact, and finite
     mean = scores.mean(axis=0)
     cov = np.cov(scores, rowvar=False).reshape(d, d)
     try:

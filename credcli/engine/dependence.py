@@ -33,6 +33,8 @@ import math
 
 import numpy as np
 
+from credcli.engine.units import power_of_two_unit
+
 _BARTLETT_CONSTANT = 1.1447  # Andrews (1991), Eq. (6.4), Bartlett kernel
 _MAX_PREWHITEN = 0.999  # cap on the AR(1) prewhitening coefficient (see above)
 BLOCK_VARIANCE_LOSS = 0.1
@@ -51,19 +53,11 @@ def _lag1(x: np.ndarray) -> np.ndarray:
     return _ratio(num, np.einsum("tp,tp->p", x[:-1], x[:-1]), 0.0)
 
 
-def _power_of_two_units(x: np.ndarray) -> np.ndarray:
-    """x (T, p) with each column divided by a power of two near its largest magnitude:
-    exact, so ratios of its moments are unchanged, and their squares cannot overflow
-    (errors of 1e150 σ, NEES of 1e300)."""
-    peak = np.max(np.abs(x), axis=0) if x.size else np.ones(x.shape[1])
-    ok = np.isfinite(peak) & (peak > 0)
-    return x / np.exp2(np.round(np.log2(np.where(ok, peak, 1.0))))
-
-
 def autocorrelation(x: np.ndarray) -> np.ndarray:
     """Lag-1 sample autocorrelation γ̂(1)/γ̂(0) of each column of x (T, p), after centring."""
     x = np.asarray(x, dtype=float)
-    x = _power_of_two_units(x.reshape(x.shape[0], -1))
+    x = x.reshape(x.shape[0], -1)
+    x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
     x = x - x.mean(axis=0)
     if x.shape[0] < 2:
         return np.zeros(x.shape[1])
@@ -126,7 +120,8 @@ def long_run_variance(x: np.ndarray) -> np.ndarray:
 def variance_ratio(x: np.ndarray) -> np.ndarray:
     """τ = Ω / γ(0) per column: 1 for independent epochs, (1 + φ)/(1 − φ) for an AR(1)."""
     x = np.asarray(x, dtype=float)
-    x = _power_of_two_units(x.reshape(x.shape[0], -1))
+    x = x.reshape(x.shape[0], -1)
+    x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
     return _ratio(long_run_variance(x), x.var(axis=0), 1.0)
 
 

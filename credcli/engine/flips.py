@@ -15,6 +15,7 @@ import numpy as np
 from scipy.linalg import blas  # here, not in the flips: forked workers find it loaded
 
 from credcli.engine.rng import rademacher
+from credcli.engine.units import power_of_two_unit
 
 PVALUE_RTOL = 100 * np.finfo(float).eps
 """Flipped statistics within this relative distance of T_obs count as ties (>=)."""
@@ -411,15 +412,6 @@ def _abs_sum(a: np.ndarray, rows: int = 256) -> float:
     return float(sum(np.abs(a[i : i + rows]).sum() for i in range(0, a.shape[0], rows)))
 
 
-def _power_of_two_scale(s: np.ndarray) -> float:
-    """2^k near the largest |s|: dividing by it is exact and keeps the squares of the
-    pair matrix far from overflow and underflow, whatever the units of the log."""
-    peak = float(np.max(np.abs(s))) if s.size else 0.0
-    if not (peak > 0 and np.isfinite(peak)):
-        return 1.0
-    return float(2.0 ** np.round(np.log2(peak)))
-
-
 _FIRST_BATCH = 64  # flips evaluated before the first stopping check; batches then double
 
 
@@ -444,7 +436,7 @@ def sign_flip_test(
     flips cost m²B instead of N²B. The statistic is homogeneous of degree 1 in s, so it is
     computed on s/2^k and multiplied back, exactly."""
     n = s.shape[0]
-    unit = _power_of_two_scale(s)
+    unit = power_of_two_unit(s)
     n_blocks = int(blocks[-1]) + 1
     flips = dict(n_flips=n_flips, gen=gen, unit=unit, stop_level=stop_level)
     scaled = s / unit

@@ -21,7 +21,7 @@ whitened component when the epochs are correlated.
 
 from __future__ import annotations
 
-import math
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +30,7 @@ from scipy import special
 from credcli.engine import dependence
 from credcli.engine.batches import batch_mean_test, batch_scale, boundary_inflation, bounds
 from credcli.engine.config import EPOCH_CHUNK, epoch_chunks
+from credcli.engine.units import power_of_two_unit
 
 
 @dataclass(frozen=True)
@@ -97,10 +98,17 @@ class GlsResiduals:
     precision_sum: np.ndarray  # Σ W_k (d, d)
     scores: np.ndarray  # g_k = W_k e_k (N, d): Σ g_k = (Σ W_k) μ̂
 
-    @property
+    @functools.cached_property
     def q(self) -> np.ndarray:
-        """q_k = (e_k − μ̂)ᵀ W_k (e_k − μ̂)."""
+        """q_k = (e_k − μ̂)ᵀ W_k (e_k − μ̂), computed once (the scale and dependence
+        estimates of a segment all read it)."""
         return np.einsum("ni,ni->n", self.whitened, self.whitened)
+
+    @property
+    def bias_mahalanobis(self) -> float:
+        """‖μ̂‖ in the metric of the mean claimed precision, Σ W_k / N: the bias in σ."""
+        n = self.whitened.shape[0]
+        return float(np.sqrt(max(0.0, self.mean @ (self.precision_sum / n) @ self.mean)))
 
 
 def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
@@ -238,7 +246,6 @@ def scale_test(
     high = x / float(special.chdtri(dof, 1 - level / 2))
     stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None) * kappa * inflation)
     mean = residuals.mean
-    mahalanobis = float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean)))
     return ScaleTest(
         statistic=total,
         dof=dof,
@@ -250,7 +257,7 @@ def scale_test(
         pvalue_lower=lower,
         bias=mean,
         bias_stderr=stderr,
-        bias_mahalanobis=mahalanobis,
+        bias_mahalanobis=residuals.bias_mahalanobis,
     )
 
 
@@ -275,14 +282,12 @@ def batch_scale_test(
     sums = np.add.reduceat(residuals.scores, starts, axis=0)
     # the sums are in units of the precision, cov_mean in its inverse: scaled by a power
     # of two each (exact), their product cannot overflow for any scale of Σ̂
-    peak = float(np.max(np.abs(sums)))
-    unit = 2.0 ** round(math.log2(peak)) if 0 < peak < math.inf else 1.0
+    unit = power_of_two_unit(sums)
     cov_mean = np.linalg.inv(residuals.precision_sum) * unit
     inflation = boundary_inflation(float(np.max(taus)), n, k)
     cov_sum = k * inflation * np.cov(sums / unit, rowvar=False).reshape(d, d)
     stderr = np.sqrt(np.clip(np.diag(cov_mean @ cov_sum @ cov_mean), 0.0, None))
     mean = residuals.mean
-    mahalanobis = float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean)))
     return ScaleTest(
         statistic=float(q.sum()),
         dof=float(k - 1),
@@ -294,7 +299,7 @@ def batch_scale_test(
         pvalue_lower=result.pvalue_lower,
         bias=mean,
         bias_stderr=stderr,
-        bias_mahalanobis=mahalanobis,
+        bias_mahalanobis=residuals.bias_mahalanobis,
         batches=k,
     )
 
@@ -317,7 +322,7 @@ def untested_scale(residuals: GlsResiduals) -> ScaleTest:
         pvalue_lower=nan,
         bias=mean,
         bias_stderr=np.full(d, nan),
-        bias_mahalanobis=float(np.sqrt(max(0.0, mean @ (residuals.precision_sum / n) @ mean))),
+        bias_mahalanobis=residuals.bias_mahalanobis,
     )
 
 

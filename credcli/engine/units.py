@@ -1,0 +1,19 @@
+"""Exact rescaling: dividing by a power of two changes no digit of a mantissa."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def power_of_two_unit(a, axis: int | None = None):
+    """2^k nearest (in log) to the largest |a| (per column along ``axis``), or 1 where
+    that is 0 or not finite. Dividing by it is exact, so every ratio of moments is
+    unchanged, and squares of the result cannot overflow or underflow whatever the units
+    of the log (errors of 1e150 σ, NEES of 1e300)."""
+    a = np.asarray(a, dtype=float)
+    if a.size == 0:
+        return 1.0 if axis is None else np.ones(np.delete(a.shape, axis))
+    peak = np.max(np.abs(a), axis=axis)
+    ok = np.isfinite(peak) & (peak > 0)
+    unit = np.exp2(np.round(np.log2(np.where(ok, peak, 1.0))))
+    return float(unit) if axis is None else unit

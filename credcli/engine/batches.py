@@ -31,12 +31,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import special
 
 from credcli.engine import dependence
 from credcli.engine.units import power_of_two_unit
+
+if TYPE_CHECKING:
+    from credcli.engine.scale import GlsResiduals
 
 MAX_BATCHES = 12
 """Most batches per segment: between 8 and 16, as Ibragimov & Müller (2010) recommend,
@@ -191,21 +195,35 @@ class MeanTest:
     batches: int  # K; 0 for the independent-epoch F test
 
 
-def independent_mean_test(
-    mean: np.ndarray, precision_sum: np.ndarray, kappa: float, n: int
-) -> MeanTest:
-    r"""The GLS mean's Wald test for independent epochs.
+def independent_mean_test(residuals: GlsResiduals) -> MeanTest:
+    r"""The GLS mean's Hotelling test for independent epochs, with a sandwich covariance.
 
-    .. math:: F = \frac{\hat\mu^\top (\sum_k W_k)\hat\mu / d}{\hat\kappa} \sim F(d, (N-1)d)
+    With g = Σ_k W_k e_k = (Σ W_k)μ̂ and g̃_k = W_k(e_k − μ̂),
 
-    exactly when e_k ~ N(μ, κΣ̂_k) independently, for any κ: the numerator and T = κ̂(N − 1)d
-    are independent χ² (Cochran's theorem, as for the scale test), so an optimistic or
-    pessimistic covariance does not change the level."""
-    d = mean.size
-    dof2 = float((n - 1) * d)
-    wald = float(mean @ precision_sum @ mean) / d
-    f = wald / kappa if kappa > 0 else math.inf
-    return MeanTest(f, (float(d), dof2), float(special.fdtrc(d, dof2, f)), 0)
+    .. math:: T^2 = g^\top \Big(\frac{N}{N-1}\sum_k \tilde g_k\tilde g_k^\top\Big)^{-1} g,
+              \qquad \frac{N-d}{d(N-1)}\,T^2 \sim F(d, N-d).
+
+    With one claimed covariance for every epoch this is Hotelling's T² of the whitened
+    errors (Hotelling 1931), exact for independent Gaussian errors whatever their true
+    covariance: a covariance too small, too large or of the wrong shape (whitened variances
+    (4, 0.25)) does not change the level. The earlier test, μ̂ᵀ(Σ W_k)μ̂/(d κ̂) against
+    F(d, (N − 1)d), is exact only when the misfit is the same in every direction, and found
+    a "bias" in 3.4 % of unbiased (4, 0.25) segments at 1.27 % (N = 100), 7.5 % where the
+    claimed covariance also turns (N = 300). When Σ̂_k changes from epoch to epoch the sum of
+    g̃_k g̃_kᵀ is White's (1980) heteroskedasticity-consistent estimate of Cov(g), scaled so
+    that the constant case stays exact."""
+    n, d = residuals.whitened.shape
+    g = residuals.precision_sum @ residuals.mean
+    unit = power_of_two_unit(g)  # T² is scale-free; exact, and finite for any units
+    g = g / unit
+    meat = residuals.centred_outer * ((residuals.centred_unit / unit) ** 2 * (n / (n - 1)))
+    try:
+        t2 = float(g @ np.linalg.solve(meat, g))
+    except np.linalg.LinAlgError:
+        t2 = math.inf if np.any(g != 0) else 0.0
+    f = (n - d) * t2 / (d * (n - 1))
+    p = float(special.fdtrc(d, n - d, f)) if math.isfinite(f) else 0.0
+    return MeanTest(f, (float(d), float(n - d)), p, 0)
 
 
 def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:

@@ -251,13 +251,13 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
         batched = _batched(config, dependent)
         key = _scale_key(config, batched)
         if key not in scales:
-            scales[key] = _scale_evidence(gls, config, tau, tau_q, batched)
+            scales[key] = _scale_evidence(gls, config, tau, tau_q, batched, runs=runs)
             if config.calibrated and d > 1 and scales[key][1] is None:
                 k = scales[key][0].batches
                 directional[key] = direction_scales(gls, config.scale_level, k)
         mean_key = (batched, config.fixed_block_length)
         if config.calibrated and mean_key not in means:
-            means[mean_key] = _mean_evidence(gls, config, tau, batched)
+            means[mean_key] = _mean_evidence(gls, config, tau, batched, runs)
     del gls
     elts: dict = {}
     plans = [_location_plan(config, n, tau, means, dependent, runs) for config in configs]
@@ -454,17 +454,21 @@ def _batch_length(config: DiagnosisConfig, tau: float) -> int:
     return config.fixed_block_length or batches.batch_length(tau)
 
 
-def _scale_evidence(gls, config: DiagnosisConfig, tau, tau_q: float, batched: bool, level=None):
+def _scale_evidence(
+    gls, config: DiagnosisConfig, tau, tau_q: float, batched: bool, level=None, runs: int = 1
+):
     """(scale test or None, why it is untested): batch means on dependent epochs, else the
     χ² (Satterthwaite-scaled) test of :func:`credcli.engine.scale.scale_test`; at
-    ``level`` (default: the configuration's α_S)."""
+    ``level`` (default: the configuration's α_S). ``runs``: see :func:`_batches`."""
     level = config.scale_level if level is None else level
     if not batched:
         fixed = config.block_length == 1
         return scale_test(gls, level, None if fixed else tau), None
     n = gls.whitened.shape[0]
     length = _batch_length(config, tau_q)
-    k = batches.batch_count(n, length, batches.MIN_SCALE_BATCHES)
+    k, aligned = _batches(n, length, batches.MIN_SCALE_BATCHES, runs)
+    if aligned:
+        return batch_scale_test(gls, level, k, 1.0, tau, independent=True), None
     if not k:  # κ̂ and the bias are still reported; the interval and p-values are NaN
         return untested_scale(gls), (
             f"scale untested: the squared errors' serial dependence (variance ratio "
@@ -474,24 +478,39 @@ def _scale_evidence(gls, config: DiagnosisConfig, tau, tau_q: float, batched: bo
     return batch_scale_test(gls, level, k, tau_q, tau), None
 
 
-def _mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool):
+def _mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool, runs: int = 1):
     """(the GLS mean test or None, why it is untested): Hotelling on batch score sums on
-    dependent epochs, else the exact F test of independent epochs."""
+    dependent epochs, else Hotelling's test of independent epochs. ``runs``: see
+    :func:`_batches`."""
     n, d = gls.whitened.shape
     if not batched:
-        kappa = float(gls.q.sum()) / max(1, (n - 1) * d)
-        return batches.independent_mean_test(gls.mean, gls.precision_sum, kappa, n), None
+        return batches.independent_mean_test(gls), None
     worst = float(np.max(tau))
     smallest = batches.min_location_batches(d)
     length = _batch_length(config, worst)
-    k = batches.batch_count(n, length, smallest)
+    k, aligned = _batches(n, length, smallest, runs)
     if not k:
         return None, (
             f"serial dependence (variance ratio {worst:.3g}) needs batches of {length} epochs "
             f"for the mean test, and fewer than the {smallest} it needs fit in {n}"
         )
     sums = np.add.reduceat(gls.scores, batches.bounds(n, k), axis=0)
-    return batches.batch_mean_test(sums, batches.boundary_inflation(worst, n, k)), None
+    inflation = 1.0 if aligned else batches.boundary_inflation(worst, n, k)
+    return batches.batch_mean_test(sums, inflation), None
+
+
+def _batches(n: int, length: int, smallest: int, runs: int) -> tuple[int, bool]:
+    """(K, whether the batches are the runs). A segment that pools ``runs`` independent
+    Monte Carlo runs of equal length has batches that are independent by construction:
+    the runs themselves. They are used when there are at least as many runs as batches of
+    ``length`` epochs would fit (and at least ``smallest``); then no estimate of the
+    correlation time decides the reference, and no correction for neighbouring batches is
+    needed. Otherwise K batches of at least ``length`` epochs, or 0 when fewer than
+    ``smallest`` fit (:func:`credcli.engine.batches.batch_count`)."""
+    k = batches.batch_count(n, length, smallest)
+    if runs > 1 and n % runs == 0 and runs >= max(k, smallest):
+        return runs, True
+    return k, False
 
 
 @dataclass(frozen=True)

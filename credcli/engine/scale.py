@@ -97,6 +97,10 @@ class GlsResiduals:
     whitened: np.ndarray  # u_k = L_k⁻¹(e_k − μ̂), (N, d)
     precision_sum: np.ndarray  # Σ W_k (d, d)
     scores: np.ndarray  # g_k = W_k e_k (N, d): Σ g_k = (Σ W_k) μ̂
+    # Σ g̃_k g̃_kᵀ / unit², g̃_k = W_k (e_k − μ̂) (d, d): the sandwich's meat, in a
+    # power-of-two unit (g̃ is in units of the precision: 1e240 for Σ̂ of 1e-240)
+    centred_outer: np.ndarray
+    centred_unit: float
 
     @functools.cached_property
     def q(self) -> np.ndarray:
@@ -124,7 +128,11 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         scores = z @ inv
         weighted = inv.T @ z.sum(axis=0)
         mean = np.linalg.solve(precision_sum, weighted)
-        return GlsResiduals(mean, z - inv @ mean, precision_sum, scores)
+        u = z - inv @ mean
+        centred = u @ inv
+        unit = power_of_two_unit(centred)
+        outer = (centred / unit).T @ (centred / unit)
+        return GlsResiduals(mean, u, precision_sum, scores, outer, unit)
     z = np.empty((n, d))
     scores = np.empty((n, d))
     precision_sum = np.zeros((d, d))
@@ -137,10 +145,17 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         scores[sl] = np.einsum("nki,nk->ni", inv, z[sl])
         weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
+    outer, unit = np.zeros((d, d)), 0.0
     for sl in epoch_chunks(n):
         inv = inv if single else np.linalg.inv(chol[sl])
         z[sl] -= np.einsum("nij,j->ni", inv, mean)
-    return GlsResiduals(mean, z, precision_sum, scores)
+        centred = np.einsum("nki,nk->ni", inv, z[sl])
+        here = power_of_two_unit(centred)
+        if here > unit:  # rescale what is summed so far: exact, powers of two
+            outer *= (unit / here) ** 2
+            unit = here
+        outer += (centred / unit).T @ (centred / unit)
+    return GlsResiduals(mean, z, precision_sum, scores, outer, unit)
 
 
 _TAIL_PROBS = (0.025, 0.25, 0.75, 0.975)
@@ -234,7 +249,7 @@ def scale_test(
         # scale-free: the long-run variance of q/q̄ (q̄² can overflow for extreme scales)
         omega = float(dependence.long_run_variance(q / q_mean)[0]) if q_mean > 0 else 0.0
         factor = max(1.0, nu0 * omega / (2.0 * n))
-        factor = max(factor, tail_factor(residuals.whitened))
+        factor = max(factor, tail_factor(standardized(residuals.whitened)))
         inflation = float(tau.max())
     nu0 = max(nu0, 1.0)
     dof = nu0 / factor
@@ -267,24 +282,27 @@ def batch_scale_test(
     k: int,
     tau_q: float = 1.0,
     taus=None,
+    independent: bool = False,
 ) -> ScaleTest:
     """The scale test on serially dependent errors: batch means with ``k`` batches
     (:func:`credcli.engine.batches.batch_scale`), and the bias's standard error from the
     batch sums of the GLS scores (their covariance times K is that of Σ W_k e_k). ``tau_q``
     and ``tau`` (the variance ratios of q and of the whitened errors) correct both for the
-    correlation of neighbouring batches (:func:`credcli.engine.batches.boundary_inflation`)."""
+    correlation of neighbouring batches (:func:`credcli.engine.batches.boundary_inflation`),
+    unless the batches are ``independent`` (independent Monte Carlo runs)."""
     q = residuals.q
     n, d = residuals.whitened.shape
     taus = np.ones(d) if taus is None else np.asarray(taus, dtype=float)
     centring = float(np.sum(np.maximum(taus, 1.0)))
-    result = batch_scale(q, d, k, level, boundary_inflation(tau_q, n, k), centring)
+    inflation = 1.0 if independent else boundary_inflation(tau_q, n, k)
+    result = batch_scale(q, d, k, level, inflation, centring)
     starts = bounds(n, k)
     sums = np.add.reduceat(residuals.scores, starts, axis=0)
     # the sums are in units of the precision, cov_mean in its inverse: scaled by a power
     # of two each (exact), their product cannot overflow for any scale of Σ̂
     unit = power_of_two_unit(sums)
     cov_mean = np.linalg.inv(residuals.precision_sum) * unit
-    inflation = boundary_inflation(float(np.max(taus)), n, k)
+    inflation = 1.0 if independent else boundary_inflation(float(np.max(taus)), n, k)
     cov_sum = k * inflation * np.cov(sums / unit, rowvar=False).reshape(d, d)
     stderr = np.sqrt(np.clip(np.diag(cov_mean @ cov_sum @ cov_mean), 0.0, None))
     mean = residuals.mean

@@ -195,7 +195,7 @@ class MeanTest:
     batches: int  # K; 0 for the independent-epoch F test
 
 
-def independent_mean_test(residuals: GlsResiduals) -> MeanTest:
+def independent_mean_test(residuals: GlsResiduals, inflation: float = 1.0) -> MeanTest:
     r"""The GLS mean's Hotelling test for independent epochs, with a sandwich covariance.
 
     With g = Σ_k W_k e_k = (Σ W_k)μ̂ and g̃_k = W_k(e_k − μ̂),
@@ -211,7 +211,9 @@ def independent_mean_test(residuals: GlsResiduals) -> MeanTest:
     a "bias" in 3.4 % of unbiased (4, 0.25) segments at 1.27 % (N = 100), 7.5 % where the
     claimed covariance also turns (N = 300). When Σ̂_k changes from epoch to epoch the sum of
     g̃_k g̃_kᵀ is White's (1980) heteroskedasticity-consistent estimate of Cov(g), scaled so
-    that the constant case stays exact."""
+    that the constant case stays exact. T² is divided by ``inflation`` first: the variance
+    ratio τ of weakly dependent epochs, by which their sum varies more than independent
+    ones would."""
     n, d = residuals.whitened.shape
     g = residuals.precision_sum @ residuals.mean
     unit = power_of_two_unit(g)  # T² is scale-free; exact, and finite for any units
@@ -221,7 +223,7 @@ def independent_mean_test(residuals: GlsResiduals) -> MeanTest:
         t2 = float(g @ np.linalg.solve(meat, g))
     except np.linalg.LinAlgError:
         t2 = math.inf if np.any(g != 0) else 0.0
-    f = (n - d) * t2 / (d * (n - 1))
+    f = (n - d) * t2 / (d * (n - 1) * inflation)
     p = float(special.fdtrc(d, n - d, f)) if math.isfinite(f) else 0.0
     return MeanTest(f, (float(d), float(n - d)), p, 0)
 

@@ -65,6 +65,19 @@ def autocorrelation(x: np.ndarray) -> np.ndarray:
     return _ratio(g1, np.einsum("tp,tp->p", x, x), 0.0)
 
 
+def autocorrelation_about_zero(x: np.ndarray) -> np.ndarray:
+    """Lag-1 autocorrelation Σ x_k x_{k−1} / Σ x_k² of each column of x (T, p), about zero
+    rather than the sample mean: the estimate under a null hypothesis of mean zero, which
+    a slow excursion of the sample mean does not hide."""
+    x = np.asarray(x, dtype=float)
+    x = x.reshape(x.shape[0], -1)
+    x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
+    if x.shape[0] < 2:
+        return np.zeros(x.shape[1])
+    g1 = np.einsum("tp,tp->p", x[1:], x[:-1])
+    return _ratio(g1, np.einsum("tp,tp->p", x, x), 0.0)
+
+
 def andrews_bandwidth(rho: np.ndarray, n: int) -> np.ndarray:
     r"""Andrews (1991) AR(1) plug-in bandwidth of the Bartlett kernel, per column.
 

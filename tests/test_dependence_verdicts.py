@@ -126,8 +126,8 @@ def test_independent_mean_test_is_exact_under_any_covariance(variances):
 
 def test_independent_mean_test_on_turning_covariances():
     """Claimed covariances 20× anisotropic that turn three times, errors of the wrong shape
-    (variances 4 and 1/4 along the axes): the sandwich keeps the level near 5 % (2,000
-    segments of 50 epochs: 4.6 %; 5.4 % at 25), where the isotropic F test rejected 22.6 %."""
+    (variances 4 and 1/4 along the axes): the score-form sandwich keeps the level (2,000
+    segments of 50 epochs: 3.9 %; 4.0 % at 25), where the isotropic F test rejected 22.6 %."""
     from credcli.engine.scale import gls_residuals
 
     rejections = 0

@@ -97,10 +97,6 @@ class GlsResiduals:
     whitened: np.ndarray  # u_k = L_k⁻¹(e_k − μ̂), (N, d)
     precision_sum: np.ndarray  # Σ W_k (d, d)
     scores: np.ndarray  # g_k = W_k e_k (N, d): Σ g_k = (Σ W_k) μ̂
-    # Σ g̃_k g̃_kᵀ / unit², g̃_k = W_k (e_k − μ̂) (d, d): the sandwich's meat, in a
-    # power-of-two unit (g̃ is in units of the precision: 1e240 for Σ̂ of 1e-240)
-    centred_outer: np.ndarray
-    centred_unit: float
 
     @functools.cached_property
     def q(self) -> np.ndarray:
@@ -128,11 +124,7 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         scores = z @ inv
         weighted = inv.T @ z.sum(axis=0)
         mean = np.linalg.solve(precision_sum, weighted)
-        u = z - inv @ mean
-        centred = u @ inv
-        unit = power_of_two_unit(centred)
-        outer = (centred / unit).T @ (centred / unit)
-        return GlsResiduals(mean, u, precision_sum, scores, outer, unit)
+        return GlsResiduals(mean, z - inv @ mean, precision_sum, scores)
     z = np.empty((n, d))
     scores = np.empty((n, d))
     precision_sum = np.zeros((d, d))
@@ -145,17 +137,10 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
         scores[sl] = np.einsum("nki,nk->ni", inv, z[sl])
         weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
-    outer, unit = np.zeros((d, d)), 0.0
     for sl in epoch_chunks(n):
         inv = inv if single else np.linalg.inv(chol[sl])
         z[sl] -= np.einsum("nij,j->ni", inv, mean)
-        centred = np.einsum("nki,nk->ni", inv, z[sl])
-        here = power_of_two_unit(centred)
-        if here > unit:  # rescale what is summed so far: exact, powers of two
-            outer *= (unit / here) ** 2
-            unit = here
-        outer += (centred / unit).T @ (centred / unit)
-    return GlsResiduals(mean, z, precision_sum, scores, outer, unit)
+    return GlsResiduals(mean, z, precision_sum, scores)
 
 
 _TAIL_PROBS = (0.025, 0.25, 0.75, 0.975)

@@ -380,6 +380,26 @@ def test_pooled_monte_carlo_runs_are_the_batches():
     assert math.log(ratio) == pytest.approx(width, rel=1e-9)
 
 
+def test_pooled_runs_are_the_batches_of_each_block_too():
+    """Per block of the state, pooled runs are the batches as for the whole: block a's
+    interval is the one the whole rule gives for its marginal errors alone at α_S/2
+    (Bonferroni over the two blocks), runs as batches."""
+    from credcli.engine.diagnosis import diagnose_segment
+
+    rng = np.random.default_rng(6)
+    e = np.concatenate([ar1_errors(600, 4, 0.99, rng) for _ in range(20)])
+    blocks = (("a", (0, 1)), ("b", (2, 3)))
+    config = DiagnosisConfig()
+    d = diagnose_segment(e, _eye(len(e), 4), config, 0, "s", runs=20, blocks=blocks)
+    half = config.scale_level / 2
+    alone = DiagnosisConfig(alpha=1 - (1 - half) ** 2)  # its α_S is half the whole's
+    a = diagnose_errors(e[:, :2], _eye(len(e)), alone, rng=0, runs=20).scale
+    assert a.batches == 20
+    assert (d.blocks[0].low, d.blocks[0].high) == pytest.approx(
+        (a.scale_factor_low, a.scale_factor_high), rel=1e-9
+    )
+
+
 def test_pooled_runs_hold_the_level_and_find_a_drifting_bias():
     """20 pooled runs of 600 epochs, AR(1) φ = 0.99 (3 correlation times a run): correct
     covariances are called credible at the level (1,000 pooled studies: 5.5 % not

@@ -770,18 +770,19 @@ def diagnose_segment(
             return _too_short(n, d, config)
         diag = diagnose_errors(errors, cov, config, segment_seed(seed, name), runs=runs)
         if blocks and config.calibrated:
-            diag = replace(diag, blocks=block_scales(errors, cov, blocks, config))
+            diag = replace(diag, blocks=block_scales(errors, cov, blocks, config, runs))
         return diag
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc
 
 
 def block_scales(
-    errors: np.ndarray, cov: np.ndarray, blocks: tuple, config: DiagnosisConfig
+    errors: np.ndarray, cov: np.ndarray, blocks: tuple, config: DiagnosisConfig, runs: int = 1
 ) -> tuple[BlockScale, ...]:
     """The scale factor of each named block of the state, as the calibrated rule finds the
     overall one (batch means when the block's errors are serially dependent, the χ² test
-    otherwise), each interval at α_S divided by the number of blocks.
+    otherwise; pooled Monte Carlo ``runs`` as the batches, as for the overall one), each
+    interval at α_S divided by the number of blocks.
 
     The marginal of a Gaussian error is Gaussian with the marginal block of the covariance,
     so each block is a credibility question of its own (paper, Section II, for any d): a
@@ -807,7 +808,7 @@ def block_scales(
         s = whiten(e, c)
         dependent, _, tau, tau_q = _serial_dependence(s, gls.q)
         batched = _batched(config, dependent)
-        test, _ = _scale_evidence(gls, config, tau, tau_q, batched, level)
+        test, _ = _scale_evidence(gls, config, tau, tau_q, batched, level, runs)
         out.append(
             BlockScale(
                 name,

@@ -6,6 +6,7 @@ import functools
 import math
 import zlib
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy import special
@@ -240,8 +241,9 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
         del centred, chol
     s = whiten(errors, cov)
     r1 = dependence.autocorrelation(s)
-    dependent, tau_point, tau, tau_q = _serial_dependence(s, gls.q, r1)
-    located, tau_location = _location_dependence(s, r1, dependent, tau)
+    dep = _serial_dependence(s, gls.q, r1)
+    dependent, tau_point, tau, tau_q = dep.dependent, dep.tau_point, dep.tau, dep.tau_q
+    located, tau_location = _location_dependence(s, r1, dep)
     autocorr = float(np.max(r1))
     effective_n = float(n / max(1.0, float(np.max(tau_point))))
     # every scale and mean test now, so the GLS residuals can be freed
@@ -261,7 +263,12 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
             means[mean_key] = _mean_evidence(gls, config, tau_location, mean_key[0], runs)
     del gls
     elts: dict = {}
-    plans = [_location_plan(config, n, tau_location, means, located, runs) for config in configs]
+    plans = [
+        _location_plan(config, n, tau_location, means, located, runs)
+        if config.calibrated
+        else _location_plan(config, n, tau, means, dependent, runs)  # paper, ks: unchanged
+        for config in configs
+    ]
     # an ELT shared by several variants stops only when none of them can still reject
     exact = any(c.exact_pvalue for c in configs)
     used = [plan.elt_level for plan in plans if plan.elt_level is not None]
@@ -397,28 +404,35 @@ def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
     )
 
 
-def _serial_dependence(s: np.ndarray, q: np.ndarray, r1: np.ndarray | None = None):
-    """(dependent, τ̂ per component, τ per component for lengths, τ of q for lengths).
+class _Dependence(NamedTuple):
+    """What the segment's serial dependence implies for its tests (:func:`_serial_dependence`)."""
 
-    Whether the whitened errors ``s`` are serially dependent
+    dependent: bool  # the scale (and, for paper/ks, the ELT) refer to dependent epochs
+    tau_point: np.ndarray  # the kernel τ̂ per component (the reported effective N); 1s if not
+    tau: np.ndarray  # τ per component for lengths, the neighbour correction, the centring
+    tau_q: float  # τ of the squared errors q, for the scale's batches
+    weak_tau: np.ndarray | None  # τ of weak evidence where no batches fit (the location's)
+
+
+def _serial_dependence(s: np.ndarray, q: np.ndarray, r1: np.ndarray | None = None) -> _Dependence:
+    """Whether the whitened errors ``s`` are serially dependent
     (:func:`credcli.engine.dependence.serially_dependent`): at ``DEPENDENCE_LEVEL``
     (1 %), or at ``SCREENING_LEVEL`` (20 %) where the batch-means tests fit in the
     segment. The tests for independent epochs lose their level on weak dependence that a
     1 % test misses (9 % wrong labels on 50-epoch AR(1) windows with φ = 0.3), while batch
-    means on independent epochs lose only some power; where no batches fit, weak evidence
-    keeps the independent-epoch tests rather than leaving the segment untested, with the
-    ELT's sign blocks and the mean test's variance from the estimated τ (dependent False,
-    τ as below: on 25-epoch windows with φ = 0.3, 11.8 % wrong labels -> 8.8 %). If
-    dependent, the kernel τ̂ of each
-    component (the reported effective N) and, for the lengths of batches and sign blocks,
-    the neighbour correction and the centring of κ̄, the larger of τ̂ and the
-    bias-corrected AR(1) τ; for the squared errors q also at least the τ that the errors'
-    own τ implies for a Gaussian AR(1). On independent epochs all are 1."""
+    means on independent epochs lose only some power. Where no batches fit, weak evidence
+    keeps the independent-epoch tests rather than leaving the segment untested; its τ is
+    ``weak_tau``, which the calibrated rule's location question uses
+    (:func:`_location_dependence`). If dependent, the kernel τ̂ of each component and, for
+    the lengths of batches and sign blocks, the neighbour correction and the centring of
+    κ̄, the larger of τ̂ and the bias-corrected AR(1) τ; for the squared errors q also at
+    least the τ that the errors' own τ implies for a Gaussian AR(1). On independent epochs
+    all are 1."""
     r1 = dependence.autocorrelation(s) if r1 is None else r1
     n, d = s.shape
-    independent = (False, np.ones(d), np.ones(d), 1.0)  # τ̂ is not used
+    ones = np.ones(d)
     if not dependence.serially_dependent(r1, n, dependence.SCREENING_LEVEL):
-        return independent
+        return _Dependence(False, ones, ones, 1.0, None)
     tau_point = dependence.variance_ratio(s)
     tau = np.maximum(tau_point, dependence.ar1_variance_ratio(r1, n))
     tau_q = max(
@@ -427,14 +441,12 @@ def _serial_dependence(s: np.ndarray, q: np.ndarray, r1: np.ndarray | None = Non
         dependence.squared_variance_ratio(tau),
     )
     if not dependence.serially_dependent(r1, n) and not _batches_fit(n, d, tau, tau_q):
-        # weak evidence, and batch means could answer neither question: the tests for
-        # independent epochs, with the lengths and variance ratios of the estimated τ
-        return False, tau_point, tau, tau_q
-    return True, tau_point, tau, tau_q
+        return _Dependence(False, ones, ones, 1.0, tau)  # weak, and no batches fit
+    return _Dependence(True, tau_point, tau, tau_q, None)
 
 
-def _location_dependence(s: np.ndarray, r1: np.ndarray, dependent: bool, tau: np.ndarray):
-    """(dependent, τ per component) for the location question.
+def _location_dependence(s: np.ndarray, r1: np.ndarray, dep: _Dependence):
+    """(dependent, τ per component) for the calibrated rule's location question.
 
     Under the location's null hypothesis the errors have mean zero, so their dependence is
     screened once more by the lag-1 autocorrelation about zero
@@ -443,19 +455,26 @@ def _location_dependence(s: np.ndarray, r1: np.ndarray, dependent: bool, tau: np
     dependent errors shifts their sample mean and, once that is removed, leaves little
     lag-1 correlation, so such windows passed the screening and went to the tests for
     independent epochs, which found a "bias" in them (AR(1) φ = 0.3, correct covariance:
-    19 % smm among the unflagged 50-epoch windows; wrong labels 8.8 % -> 6.0 % at N = 25,
-    7.7 % -> 6.4 % at N = 50). The lengths of batches and sign blocks still come from the
-    centred estimate (the bias-corrected AR(1) τ): a real bias inflates the uncentred
-    autocorrelation, and lengths from it left the paper's smm scenarios untested (Table
-    II's smm column 96 -> 88 % on one seed); with the centred lengths it is unchanged."""
-    if dependent:
-        return True, tau
+    19 % smm among the unflagged 50-epoch windows). A window flagged either way goes to
+    batch means where they fit; where they do not, the tests for independent epochs run
+    with its τ: the ELT in blocks, the mean test's T² divided by max_i τ_i. The lengths
+    come from the centred estimate (the bias-corrected AR(1) τ): a real bias inflates the
+    uncentred autocorrelation, and lengths from it left the paper's smm scenarios untested
+    (Table II's smm column 96 -> 88 % on one seed). Wrong labels on correct covariances,
+    AR(1) φ = 0.3: 11.8 % -> 5.3 % at N = 25, 7.7 % -> 6.4 % at N = 50 (1,000 windows)."""
+    if dep.dependent:
+        return True, dep.tau
     n, d = s.shape
-    if not dependence.serially_dependent(
+    about_zero = dependence.serially_dependent(
         dependence.autocorrelation_about_zero(s), n, dependence.SCREENING_LEVEL
-    ):
-        return False, tau
-    tau = np.maximum(tau, dependence.ar1_variance_ratio(r1, n))
+    )
+    if dep.weak_tau is None and not about_zero:
+        return False, dep.tau
+    tau = (
+        dep.weak_tau
+        if dep.weak_tau is not None
+        else np.maximum(dep.tau, dependence.ar1_variance_ratio(r1, n))
+    )
     length = batches.batch_length(float(np.max(tau)))
     fits = batches.batch_count(n, length, batches.min_location_batches(d))
     return bool(fits), tau
@@ -806,9 +825,9 @@ def block_scales(
         c = cov[:, idx[:, None], idx[None, :]]
         gls = gls_residuals(e, _cholesky(c))
         s = whiten(e, c)
-        dependent, _, tau, tau_q = _serial_dependence(s, gls.q)
-        batched = _batched(config, dependent)
-        test, _ = _scale_evidence(gls, config, tau, tau_q, batched, level, runs)
+        dep = _serial_dependence(s, gls.q)
+        batched = _batched(config, dep.dependent)
+        test, _ = _scale_evidence(gls, config, dep.tau, dep.tau_q, batched, level, runs)
         out.append(
             BlockScale(
                 name,

@@ -192,7 +192,7 @@ class MeanTest:
     statistic: float  # F
     dof: tuple[float, float]  # of the F reference
     pvalue: float
-    batches: int  # K; 0 for the independent-epoch F test
+    batches: int  # K; 0 for the test of independent epochs
 
 
 def independent_mean_test(residuals: GlsResiduals, inflation: float = 1.0) -> MeanTest:

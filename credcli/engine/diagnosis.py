@@ -520,7 +520,7 @@ def _scale_evidence(
     length = _batch_length(config, tau_q)
     k, aligned = _batches(n, length, batches.MIN_SCALE_BATCHES, runs)
     if aligned:
-        return batch_scale_test(gls, level, k, 1.0, tau, independent=True), None
+        return batch_scale_test(gls, level, k, taus=tau, independent=True), None
     if not k:  # κ̂ and the bias are still reported; the interval and p-values are NaN
         return untested_scale(gls), (
             f"scale untested: the squared errors' serial dependence (variance ratio "

@@ -57,7 +57,7 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     segment is ``insufficient-data``, or why a question is in ``untested`` ("scale",
     "location": a partial verdict, whose label answers only the other question).
     ``mean_*`` is the GLS mean test of the calibrated rule (``mean_batches`` K of its batch
-    means, 0 for the exact F test of independent epochs); ``scale_batches`` likewise.
+    means, 0 for Hotelling's test of independent epochs); ``scale_batches`` likewise.
     """
     elt = diag.elt
     sc = diag.scale

@@ -400,22 +400,22 @@ def test_pooled_runs_are_the_batches_of_each_block_too():
     )
 
 
-def test_pooled_runs_hold_the_level_and_find_a_drifting_bias():
-    """20 pooled runs of 600 epochs, AR(1) φ = 0.99 (3 correlation times a run): correct
-    covariances are called credible at the level (1,000 pooled studies: 5.5 % not
-    credible, 2.5 % smm; with 12 batches across run boundaries 4.4 % and 1.9 %), and a
-    0.5σ bias is found in 95 % (86 % with 12 batches). Here 100 of each."""
+def test_pooled_runs_hold_the_level_and_find_a_bias():
+    """20 pooled runs of 300 epochs, AR(1) φ = 0.98 (three correlation times a run),
+    runs as batches: correct covariances are not credible in 5.0 % of 1,000 pooled
+    studies, and a 0.5σ bias is found in 89 % of 300 (with 600-epoch runs of φ = 0.99
+    against 12 batches across run boundaries: 5.5 / 4.4 % and 95 / 86 %). Here 60 of each."""
     rng = np.random.default_rng(5)
     wrong = sum(
-        diagnose_errors(*_pooled_runs(rng, 20, 600, 0.99), rng=k, runs=20).label
+        diagnose_errors(*_pooled_runs(rng, 20, 300, 0.98), rng=k, runs=20).label
         is not Label.CREDIBLE
-        for k in range(100)
+        for k in range(60)
     )
     found = sum(
-        "smm" in diagnose_errors(*_pooled_runs(rng, 20, 600, 0.99, 0.5), rng=k, runs=20).label.value
-        for k in range(100)
+        "smm" in diagnose_errors(*_pooled_runs(rng, 20, 300, 0.98, 0.5), rng=k, runs=20).label.value
+        for k in range(60)
     )
-    assert wrong <= 12 and found >= 85, (wrong, found)
+    assert wrong <= 8 and found >= 46, (wrong, found)
 
 
 def test_untested_is_a_fail_on_item():

@@ -404,18 +404,18 @@ def test_pooled_runs_hold_the_level_and_find_a_bias():
     """20 pooled runs of 300 epochs, AR(1) φ = 0.98 (three correlation times a run),
     runs as batches: correct covariances are not credible in 5.0 % of 1,000 pooled
     studies, and a 0.5σ bias is found in 89 % of 300 (with 600-epoch runs of φ = 0.99
-    against 12 batches across run boundaries: 5.5 / 4.4 % and 95 / 86 %). Here 60 of each."""
+    against 12 batches across run boundaries: 5.5 / 4.4 % and 95 / 86 %). Here 40 of each."""
     rng = np.random.default_rng(5)
     wrong = sum(
         diagnose_errors(*_pooled_runs(rng, 20, 300, 0.98), rng=k, runs=20).label
         is not Label.CREDIBLE
-        for k in range(60)
+        for k in range(40)
     )
     found = sum(
         "smm" in diagnose_errors(*_pooled_runs(rng, 20, 300, 0.98, 0.5), rng=k, runs=20).label.value
-        for k in range(60)
+        for k in range(40)
     )
-    assert wrong <= 8 and found >= 46, (wrong, found)
+    assert wrong <= 6 and found >= 30, (wrong, found)
 
 
 def test_untested_is_a_fail_on_item():

@@ -353,8 +353,9 @@ def test_a_constant_bias_under_long_memory_is_found():
 
 
 def _pooled_runs(rng, runs, epochs, phi, bias=0.0):
-    e = np.concatenate([ar1_errors(epochs, 2, phi, rng) for _ in range(runs)]) + [bias, 0.0]
-    return e, _eye(runs * epochs)
+    """``runs`` independent AR(1) runs of ``epochs`` (d = 2), one after the other."""
+    e = ar1_errors(epochs, 2 * runs, phi, rng).reshape(epochs, runs, 2).transpose(1, 0, 2)
+    return e.reshape(runs * epochs, 2) + [bias, 0.0], _eye(runs * epochs)
 
 
 def test_pooled_monte_carlo_runs_are_the_batches():

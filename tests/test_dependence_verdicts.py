@@ -459,7 +459,7 @@ def test_a_covariance_too_small_in_one_direction_is_not_credible(variances):
 
 
 def test_one_direction_too_large_is_pessimism():
-    """Whitened variances (1, 0.25): pessimism in >= 37 of 40 segments (measured 198 of
+    """Whitened variances (1, 0.25): pessimism in >= 37 of 40 segments (measured 200 of
     200), never a complete `credible`. The overall scale test read the unequal variances
     of the pooled components as heavy tails (a Satterthwaite factor of 81) until its tail
     check, too, standardized each principal direction: pessimism in 142 of 200 then."""

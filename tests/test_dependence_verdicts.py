@@ -612,11 +612,11 @@ def test_bias_corrected_ar1_variance_ratio():
 def test_autocorrelation_about_zero_keeps_what_the_mean_absorbs():
     """An offset b on white noise: centred, the lag-1 autocorrelation is about 0; about
     zero it is b²/(1 + b²), what the location's screening sees under its null."""
-    from credcli.engine.dependence import autocorrelation, autocorrelation_about_zero
+    from credcli.engine.dependence import autocorrelation
 
     x = np.random.default_rng(30).standard_normal((200_000, 1)) + 2.0
     assert abs(float(autocorrelation(x)[0])) < 0.01
-    assert float(autocorrelation_about_zero(x)[0]) == pytest.approx(4 / 5, abs=0.01)
+    assert float(autocorrelation(x, about_zero=True)[0]) == pytest.approx(4 / 5, abs=0.01)
 
 
 def test_squared_variance_ratio_is_that_of_the_squares():

@@ -53,25 +53,15 @@ def _lag1(x: np.ndarray) -> np.ndarray:
     return _ratio(num, np.einsum("tp,tp->p", x[:-1], x[:-1]), 0.0)
 
 
-def autocorrelation(x: np.ndarray) -> np.ndarray:
-    """Lag-1 sample autocorrelation γ̂(1)/γ̂(0) of each column of x (T, p), after centring."""
+def autocorrelation(x: np.ndarray, about_zero: bool = False) -> np.ndarray:
+    """Lag-1 sample autocorrelation γ̂(1)/γ̂(0) of each column of x (T, p), after centring;
+    ``about_zero``: Σ x_k x_{k−1} / Σ x_k² without centring, the estimate under a null
+    hypothesis of mean zero, which a slow excursion of the sample mean does not hide."""
     x = np.asarray(x, dtype=float)
     x = x.reshape(x.shape[0], -1)
     x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
-    x = x - x.mean(axis=0)
-    if x.shape[0] < 2:
-        return np.zeros(x.shape[1])
-    g1 = np.einsum("tp,tp->p", x[1:], x[:-1])
-    return _ratio(g1, np.einsum("tp,tp->p", x, x), 0.0)
-
-
-def autocorrelation_about_zero(x: np.ndarray) -> np.ndarray:
-    """Lag-1 autocorrelation Σ x_k x_{k−1} / Σ x_k² of each column of x (T, p), about zero
-    rather than the sample mean: the estimate under a null hypothesis of mean zero, which
-    a slow excursion of the sample mean does not hide."""
-    x = np.asarray(x, dtype=float)
-    x = x.reshape(x.shape[0], -1)
-    x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
+    if not about_zero:
+        x = x - x.mean(axis=0)
     if x.shape[0] < 2:
         return np.zeros(x.shape[1])
     g1 = np.einsum("tp,tp->p", x[1:], x[:-1])

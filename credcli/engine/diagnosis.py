@@ -450,7 +450,7 @@ def _location_dependence(s: np.ndarray, r1: np.ndarray, dep: _Dependence):
 
     Under the location's null hypothesis the errors have mean zero, so their dependence is
     screened once more by the lag-1 autocorrelation about zero
-    (:func:`credcli.engine.dependence.autocorrelation_about_zero`), at ``SCREENING_LEVEL``.
+    (:func:`credcli.engine.dependence.autocorrelation`), at ``SCREENING_LEVEL``.
     The centred one misses exactly the windows that matter: a slow excursion of weakly
     dependent errors shifts their sample mean and, once that is removed, leaves little
     lag-1 correlation, so such windows passed the screening and went to the tests for
@@ -466,7 +466,7 @@ def _location_dependence(s: np.ndarray, r1: np.ndarray, dep: _Dependence):
         return True, dep.tau
     n, d = s.shape
     about_zero = dependence.serially_dependent(
-        dependence.autocorrelation_about_zero(s), n, dependence.SCREENING_LEVEL
+        dependence.autocorrelation(s, about_zero=True), n, dependence.SCREENING_LEVEL
     )
     if dep.weak_tau is None and not about_zero:
         return False, dep.tau

@@ -12,7 +12,7 @@ from kalman import run_filter
 from scipy import special
 
 from credcli.cli import main
-from credcli.engine import dependence
+from credcli.engine import correlation
 from credcli.engine.diagnosis import DiagnosisConfig, Label, diagnose_errors
 from credcli.engine.scale import gls_residuals, scale_test
 
@@ -100,10 +100,10 @@ def test_interval_matches_chi_square_quantiles():
 def test_andrews_bandwidth_published_formula():
     """Andrews (1991), Eq. (6.4): S = 1.1447 (α(1) T)^(1/3), α(1) = 4ρ²/((1−ρ)²(1+ρ)²)."""
     alpha1 = 4 * 0.25 / (0.25 * 2.25)
-    assert dependence.andrews_bandwidth(np.array([0.5]), 100)[0] == pytest.approx(
+    assert correlation.andrews_bandwidth(np.array([0.5]), 100)[0] == pytest.approx(
         1.1447 * (alpha1 * 100) ** (1 / 3)
     )
-    assert dependence.andrews_bandwidth(np.array([0.0]), 100)[0] == 0.0
+    assert correlation.andrews_bandwidth(np.array([0.0]), 100)[0] == 0.0
 
 
 def test_long_run_variance_equals_a_direct_bartlett_sum():
@@ -122,7 +122,7 @@ def test_long_run_variance_equals_a_direct_bartlett_sum():
         if j >= band:
             break
         total += 2 * (1 - j / band) * sum(eps[t] * eps[t - j] for t in range(j, m)) / m
-    assert dependence.long_run_variance(x)[0] == pytest.approx(total / (1 - rho) ** 2, rel=1e-10)
+    assert correlation.long_run_variance(x)[0] == pytest.approx(total / (1 - rho) ** 2, rel=1e-10)
 
 
 @pytest.mark.parametrize("phi", [0.0, 0.5, 0.9])
@@ -132,14 +132,14 @@ def test_variance_ratio_of_an_ar1_is_its_closed_form(phi):
 
     z = np.random.default_rng(5).standard_normal(200_000)
     x = lfilter([1.0], [1.0, -phi], z)
-    assert dependence.variance_ratio(x)[0] == pytest.approx((1 + phi) / (1 - phi), rel=0.06)
+    assert correlation.variance_ratio(x)[0] == pytest.approx((1 + phi) / (1 - phi), rel=0.06)
 
 
 def test_block_length_from_the_variance_ratio():
     # AR(1) φ = 0.5: τ = 3, (9 − 1)/(2·3·0.1) = 13.3 -> 14; φ = 0.9: τ = 19 -> 95
-    assert dependence.block_length(3.0) == 14
-    assert dependence.block_length(19.0) == 95
-    assert dependence.block_length(np.array([0.7, 1.0])) == 1
+    assert correlation.block_length(3.0) == 14
+    assert correlation.block_length(19.0) == 95
+    assert correlation.block_length(np.array([0.7, 1.0])) == 1
 
 
 def test_automatic_block_length_is_small_on_independent_errors():

@@ -333,7 +333,7 @@ def test_a_drifting_range_bias_gets_the_same_verdict_at_both_rates(ekf):
 def test_variance_ratio_of_a_near_unit_root_ar1():
     """τ̂ of an AR(1) with φ = 0.99 (τ = 199) on 6,000 epochs: the prewhitening cap of
     Andrews & Monahan (0.97) gave 28 here; the median of 40 series must be within 25 %."""
-    from credcli.engine.dependence import variance_ratio
+    from credcli.engine.correlation import variance_ratio
 
     rng = np.random.default_rng(4)
     taus = [float(variance_ratio(ar1_errors(6000, 1, 0.99, rng))[0]) for _ in range(40)]
@@ -600,7 +600,7 @@ def test_pose_log_reports_position_and_orientation_factors():
 def test_bias_corrected_ar1_variance_ratio():
     """Kendall's (1 + 3ρ)/T correction: on 400 windows of 50 epochs of an AR(1) with
     φ = 0.75 (τ = 7) the median τ is within 15 % of 7; the raw lag-1 plug-in is below 5.5."""
-    from credcli.engine.dependence import ar1_variance_ratio, autocorrelation
+    from credcli.engine.correlation import ar1_variance_ratio, autocorrelation
 
     rng = np.random.default_rng(30)
     windows = [ar1_errors(50, 1, 0.75, rng) for _ in range(400)]
@@ -612,7 +612,7 @@ def test_bias_corrected_ar1_variance_ratio():
 def test_autocorrelation_about_zero_keeps_what_the_mean_absorbs():
     """An offset b on white noise: centred, the lag-1 autocorrelation is about 0; about
     zero it is b²/(1 + b²), what the location's screening sees under its null."""
-    from credcli.engine.dependence import autocorrelation
+    from credcli.engine.correlation import autocorrelation
 
     x = np.random.default_rng(30).standard_normal((200_000, 1)) + 2.0
     assert abs(float(autocorrelation(x)[0])) < 0.01
@@ -621,7 +621,7 @@ def test_autocorrelation_about_zero_keeps_what_the_mean_absorbs():
 
 def test_squared_variance_ratio_is_that_of_the_squares():
     """τ of x² for a Gaussian AR(1) against the kernel estimate on 400,000 epochs."""
-    from credcli.engine.dependence import squared_variance_ratio, variance_ratio
+    from credcli.engine.correlation import squared_variance_ratio, variance_ratio
 
     x = ar1_errors(400_000, 1, 0.8, np.random.default_rng(31))
     closed = squared_variance_ratio(np.array([(1 + 0.8) / (1 - 0.8)]))

@@ -10,6 +10,7 @@ from conftest import gaussian_segment
 from scipy import stats
 
 from credcli.engine import diagnosis as dg
+from credcli.engine import rules
 from credcli.engine.diagnosis import DiagnosisConfig, Label, Variant
 from credcli.engine.metrics import Probes
 from credcli.errors import CredcliError
@@ -79,27 +80,27 @@ def probes_eigen(**kw):
 def test_smm_branch_decisions():
     """Lines 11–23 of Algorithm 1, branch by branch."""
     tau = 0.5
-    assert dg._label_with_smm(-0.6, None, tau) is Label.PESSIMISM_SMM
-    assert dg._label_with_smm(0.3, None, tau) is Label.SMM
-    assert dg._label_with_smm(0.6, probes_eigen(), tau) is Label.SMM  # all four probes positive
+    assert rules.label_with_smm(-0.6, None, tau) is Label.PESSIMISM_SMM
+    assert rules.label_with_smm(0.3, None, tau) is Label.SMM
+    assert rules.label_with_smm(0.6, probes_eigen(), tau) is Label.SMM  # all four probes positive
     mixed = dict(delta_nll_plus=-0.2)
     assert (
-        dg._label_with_smm(0.6, probes_eigen(**mixed, srd_nll=3, srd_es=1), tau)
+        rules.label_with_smm(0.6, probes_eigen(**mixed, srd_nll=3, srd_es=1), tau)
         is Label.OPTIMISM_SMM
     )
-    assert dg._label_with_smm(0.6, probes_eigen(**mixed, srd_nll=1, srd_es=3), tau) is Label.SMM
+    assert rules.label_with_smm(0.6, probes_eigen(**mixed, srd_nll=1, srd_es=3), tau) is Label.SMM
 
 
 def test_no_smm_branch_variants():
     paper = DiagnosisConfig(variant=Variant.PAPER)
     ks = DiagnosisConfig(variant=Variant.KS)
-    assert dg._label_without_smm(0.8, 0.5, paper) is Label.OPTIMISM
-    assert dg._label_without_smm(-0.8, 0.5, paper) is Label.PESSIMISM
-    assert dg._label_without_smm(0.2, 0.0, paper) is Label.CREDIBLE
-    assert dg._label_without_smm(0.8, 0.5, ks) is Label.CREDIBLE  # KS does not reject
-    assert dg._label_without_smm(0.8, 0.001, ks) is Label.OPTIMISM  # KS rejects, NCI > τ
-    assert dg._label_without_smm(-0.8, 0.001, ks) is Label.PESSIMISM
-    assert dg._label_without_smm(0.4, 0.001, ks) is Label.CREDIBLE  # |NCI| <= τ
+    assert rules.label_without_smm(0.8, 0.5, paper) is Label.OPTIMISM
+    assert rules.label_without_smm(-0.8, 0.5, paper) is Label.PESSIMISM
+    assert rules.label_without_smm(0.2, 0.0, paper) is Label.CREDIBLE
+    assert rules.label_without_smm(0.8, 0.5, ks) is Label.CREDIBLE  # KS does not reject
+    assert rules.label_without_smm(0.8, 0.001, ks) is Label.OPTIMISM  # KS rejects, NCI > τ
+    assert rules.label_without_smm(-0.8, 0.001, ks) is Label.PESSIMISM
+    assert rules.label_without_smm(0.4, 0.001, ks) is Label.CREDIBLE  # |NCI| <= τ
 
 
 def test_ks_variant_raises_credible_rate_at_n100():

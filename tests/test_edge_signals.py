@@ -513,20 +513,20 @@ def test_the_default_config_sets_every_setting():
 
 
 def test_memory_error_is_blamed_on_settings_only_when_ours(monkeypatch):
-    import credcli.engine.diagnosis as diagnosis
+    import credcli.engine.evidence as evidence
 
     namespace: dict = {}  # a function whose code is credcli's file, as an allocation of ours
     exec(
-        compile("def ours(*a, **k):\n    raise MemoryError\n", diagnosis.__file__, "exec"),
+        compile("def ours(*a, **k):\n    raise MemoryError\n", evidence.__file__, "exec"),
         namespace,
     )
-    monkeypatch.setattr(diagnosis, "ks_chi2_pvalue", namespace["ours"])
+    monkeypatch.setattr(evidence, "ks_chi2_pvalue", namespace["ours"])
     assert "--flips" in error_line(*run("diagnose", LOG)[::2])
 
     def foreign(*args, **kwargs):
         return np.ones(2**40)  # raised inside numpy's own Python code (16 TiB)
 
-    monkeypatch.setattr(diagnosis, "ks_chi2_pvalue", foreign)
+    monkeypatch.setattr(evidence, "ks_chi2_pvalue", foreign)
     line = error_line(*run("diagnose", LOG)[::2], expected_code=3)
     assert "internal error: MemoryError" in line
 

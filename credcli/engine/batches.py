@@ -20,7 +20,7 @@ correlation time, whatever that time is. The references are then exact small-sam
   Sun 2013, Econometrics Journal 16(1), with equal batches).
 
 K is chosen once per segment: as many batches (at most ``MAX_BATCHES``) as leave each at
-least one sign-block length long (:func:`credcli.engine.dependence.block_length`, the length
+least one sign-block length long (:func:`credcli.engine.correlation.block_length`, the length
 at which a block keeps all but a fraction ε of the variance across its boundaries), and at
 least ``min_batches``; a segment too short for that is untested for that question.
 Rate invariance follows: a 10 Hz export of a 100 Hz run has a tenth of the epochs and a
@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import special
 
-from credcli.engine import dependence
+from credcli.engine import correlation
 from credcli.engine.units import power_of_two_unit
 
 if TYPE_CHECKING:
@@ -50,7 +50,7 @@ MIN_SCALE_BATCHES = 4
 needs |t| > 5.8): only a strong misfit is decided on so few, but it is decided at the level."""
 BATCH_VARIANCE_LOSS = 0.2
 """ε of the batch length: a batch keeps all but this fraction of the variance across its
-boundaries (AR(1) plug-in, :func:`credcli.engine.dependence.block_length`)."""
+boundaries (AR(1) plug-in, :func:`credcli.engine.correlation.block_length`)."""
 
 
 def min_location_batches(dim: int) -> int:
@@ -61,7 +61,7 @@ def min_location_batches(dim: int) -> int:
 
 def batch_length(tau: float) -> int:
     """The shortest batch for a series whose variance ratio is ``tau`` (at least 2)."""
-    return max(2, dependence.block_length(max(float(tau), 1.0), BATCH_VARIANCE_LOSS))
+    return max(2, correlation.block_length(max(float(tau), 1.0), BATCH_VARIANCE_LOSS))
 
 
 def boundary_inflation(tau: float, n: int, k: int) -> float:
@@ -69,7 +69,7 @@ def boundary_inflation(tau: float, n: int, k: int) -> float:
     AR(1) plug-in; 1 for independent epochs.
 
     K batches of b = n/K epochs of a series with long-run variance Ω and
-    G = 2 Σ_h h γ(h) (the notation of :mod:`credcli.engine.dependence`): to first order a
+    G = 2 Σ_h h γ(h) (the notation of :mod:`credcli.engine.correlation`): to first order a
     batch sum has variance bΩ − G and two neighbouring sums covariance G/2, so their
     correlation is r = (g/2)/(b − g) with g = G/Ω = (τ² − 1)/(2τ) for an AR(1). Then the
     variance of the mean of the K sums is larger by 1 + 2r(K − 1)/K than for independent

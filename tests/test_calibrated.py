@@ -143,13 +143,16 @@ def test_block_length_from_the_variance_ratio():
 
 
 def test_automatic_block_length_is_small_on_independent_errors():
+    """On independent errors the sieve's order is mostly 0 (single-epoch signs); where AICc
+    fits a spurious order the blocks stay short: at least 20 of them in 500 epochs."""
     lengths = []
     for seed in range(20):
         rng = np.random.default_rng(seed)
         e = rng.standard_normal((500, 2))
         d = diagnose_errors(e, np.broadcast_to(np.eye(2), (500, 2, 2)), rng=seed)
         lengths.append(d.block_length)
-    assert max(lengths) <= 3 and np.mean(lengths) < 1.5
+    assert np.median(lengths) == 1 and np.mean(np.array(lengths) <= 2) >= 0.8
+    assert max(lengths) <= 500 // 20
 
 
 def _ar1(rng, n, d, phi):
@@ -181,10 +184,12 @@ def test_too_few_blocks_is_insufficient_data_with_a_reason():
     e = _ar1(rng, 300, 2, 0.98)
     d = diagnose_errors(e, np.broadcast_to(np.eye(2), (300, 2, 2)), rng=0)
     assert d.label is Label.INSUFFICIENT and d.elt is None
-    assert "scale untested" in d.reason and "location untested" in d.reason
+    assert "scale untested" in d.reason or "scale inconclusive" in d.reason
+    assert "location untested" in d.reason and "memory" in d.reason
     assert "ELT not run" in d.reason and d.effective_n < 300 / 10
     assert d.scale is not None and d.scale.scale_factor > 0  # the numbers are still reported
-    assert np.isnan(d.scale.scale_factor_low) and np.isnan(d.scale.pvalue)
+    low, high = d.scale.scale_factor_low, d.scale.scale_factor_high
+    assert not (low >= 0.5 and high <= 2.0)  # no interval that could support "credible"
 
 
 @pytest.mark.parametrize(

@@ -177,7 +177,7 @@ def test_kappa_interval_covers_under_long_memory(long_memory, rate):
     for each tail at α_S/2; the interval is 1 − α_S), at 100 Hz and at 10 Hz. 60 segments:
     the standard error of a 95 % coverage is 2.8 %."""
     diagnoses = long_memory[rate]
-    assert all(d.scale.batches > 0 for d in diagnoses)
+    assert all(np.isfinite(d.scale.scale_factor_high) for d in diagnoses)
     covered = sum(d.scale.scale_factor_low <= 1.0 <= d.scale.scale_factor_high for d in diagnoses)
     assert covered / len(diagnoses) >= 0.90, covered
 
@@ -206,7 +206,7 @@ def test_a_bias_that_turns_in_whitened_space_is_found():
         e, cov = rotating_bias_log(n=2000, bias_sigma=1.0, seed=seed)
         d = diagnose_errors(e, cov, config, rng=seed)
         found.append("smm" in d.label.value)
-        assert d.mean_test.pvalue < 1e-6
+        assert d.mean_test.pvalue < 1e-4  # far below the level (0.0127)
     assert all(found)
     clean = [
         "smm" in diagnose_errors(*rotating_bias_log(2000, 0.0, seed=s), config, rng=s).label
@@ -232,8 +232,8 @@ def scale_only(tmp_path):
     """A short window of strongly dependent errors with a covariance 9× too large: the scale
     is decided (pessimism), the location cannot be (too few batches or blocks)."""
     rng = np.random.default_rng(5)
-    e = ar1_errors(200, 2, 0.9, rng) / 3.0
-    d = diagnose_errors(e, _eye(200), rng=0)
+    e = ar1_errors(150, 2, 0.9, rng) / 4.0
+    d = diagnose_errors(e, _eye(150), rng=0)
     return e, d
 
 
@@ -274,11 +274,11 @@ def test_the_gate_sees_a_question_that_is_no_longer_tested(tmp_path, scale_only)
     import pandas as pd
 
     rng = np.random.default_rng(6)
-    long = _write(tmp_path, np.r_[scale_only[0], ar1_errors(2000, 2, 0.9, rng) / 3.0])
+    long = _write(tmp_path, np.r_[scale_only[0], ar1_errors(2000, 2, 0.9, rng) / 4.0])
     baseline = tmp_path / "base.json"
     assert run("baseline", long, "-o", baseline)[0] == 0
     short = tmp_path / "short.csv"
-    pd.read_csv(long).iloc[:200].to_csv(short, index=False)
+    pd.read_csv(long).iloc[:150].to_csv(short, index=False)
     code, _, err = run("gate", short, "--baseline", baseline)
     assert code == 1 and "location no longer tested" in err
 
@@ -645,13 +645,14 @@ def test_short_dependent_windows_hold_the_level(n, phi):
 
 
 def test_independent_short_windows_are_not_left_untested():
-    """Screening at 20 % flags a fifth of independent windows; where no batches fit (25
-    epochs) they keep the independent-epoch tests instead of becoming insufficient-data."""
+    """Independent 25-epoch windows: where the screening or AICc sees memory, the sieve's
+    model and its bootstrap carry it; at most 5 % become insufficient-data (a spurious
+    AR fit on 25 epochs is honestly uncertain), and the level holds."""
     rng = np.random.default_rng(33)
     labels = Counter(
         diagnose_errors(rng.standard_normal((25, 2)), _eye(25), rng=k).label for k in range(300)
     )
-    assert labels[Label.INSUFFICIENT] <= 3, labels
+    assert labels[Label.INSUFFICIENT] <= 15, labels
     wrong = 300 - labels[Label.CREDIBLE] - labels[Label.INSUFFICIENT]
     assert wrong / 300 <= 0.06 + 2 * math.sqrt(0.05 * 0.95 / 300), labels
 
@@ -701,7 +702,7 @@ def test_dependent_errors_at_extreme_scales_keep_their_verdict(exponent, label):
         warnings.simplefilter("error")
         extreme = diagnose_errors(e, _eye(2000) * 10.0**exponent, rng=0)
     ratio = near / 10.0**exponent
-    assert reference.scale.batches and extreme.label is reference.label is Label(label)
+    assert extreme.label is reference.label is Label(label)
     for name in ("scale_factor", "scale_factor_low", "scale_factor_high"):
         got, want = getattr(extreme.scale, name), getattr(reference.scale, name) * ratio
         assert got == pytest.approx(want, rel=1e-9), name

@@ -4,6 +4,7 @@ any number of processes against one, the blocked pair matrix against the direct 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -68,8 +69,9 @@ def test_far_from_significance_stops_after_about_a_hundred_flips():
 def test_exact_pvalue_option_gives_the_exhaustive_pvalue():
     rng = np.random.default_rng(6)
     e, cov = rng.standard_normal((300, 2)), np.broadcast_to(np.eye(2), (300, 2, 2))
-    exact = diagnose_errors(e, cov, DiagnosisConfig(exact_pvalue=True), rng=1)
-    fast = diagnose_errors(e, cov, rng=1)
+    one = DiagnosisConfig(block_length=1)  # independent epochs declared: single-epoch signs
+    exact = diagnose_errors(e, cov, replace(one, exact_pvalue=True), rng=1)
+    fast = diagnose_errors(e, cov, one, rng=1)
     assert exact.elt.flips_used == 1000 and exact.label is fast.label
     p = elt.location_test(e, cov, 1000, rng=1).pvalue  # B flips of the same stream
     assert exact.elt.pvalue == p

@@ -40,6 +40,7 @@ from credcli.engine import correlation
 from credcli.engine.units import power_of_two_unit
 
 if TYPE_CHECKING:
+    from credcli.engine.memory import Memory
     from credcli.engine.scale import GlsResiduals
 
 MAX_BATCHES = 12
@@ -256,3 +257,65 @@ def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:
     f = (k - d) * t2 / (d * (k - 1) * inflation)
     p = float(special.fdtrc(d, k - d, f)) if math.isfinite(f) else 0.0
     return MeanTest(f, (float(d), float(k - d)), p, k)
+
+
+def memory_mean_test(
+    residuals: GlsResiduals, memory: Memory, inverse: np.ndarray
+) -> tuple[MeanTest, np.ndarray]:
+    r"""The GLS mean's test under a fitted dependence model, and μ̂'s standard errors.
+
+    With the GLS scores g_k = W_k e_k = L_k^{-T} s_k and the whitened errors in the model's
+    principal directions, s_k = V y_k, each y_i with variance γ_i and autocorrelation ρ_i,
+
+    .. math:: \operatorname{Cov}\Big(\sum_k g_k\Big) = \sum_i \gamma_i \sum_{k,l}
+              \rho_i(k - l)\, m^{(i)}_k m^{(i)\top}_l,\qquad m^{(i)}_k = L_k^{-\top} V_{:,i},
+
+    a Toeplitz quadratic form per direction (one FFT convolution; a closed form when the
+    claimed covariance is constant). γ_i is estimated from the centred residuals, unbiased
+    under the model (divided by the expected centred sum of squares). T² = GᵀĈ⁻¹G with
+    G = Σ g_k is Hotelling's statistic with ν degrees of freedom,
+    (ν − d + 1)T²/(νd) ~ F(d, ν − d + 1), where 1/ν = 1/ν_Ω + 1/ν_γ: the model's own
+    estimation error (:class:`credcli.engine.memory.Memory`) and the Satterthwaite degrees
+    of freedom of the variance estimate. ``inverse``: L⁻¹ (d, d) or L_k⁻¹ (N, d, d).
+    """
+    from scipy.signal import fftconvolve
+
+    u = residuals.whitened
+    n, d = u.shape
+    unit = power_of_two_unit(residuals.scores)  # scale-free and exact: cannot overflow
+    y = u @ memory.directions
+    cov = np.zeros((d, d))
+    dof_var = math.inf
+    for i, series in enumerate(memory.series):
+        expected, variance = series.centred_square_moments(n)
+        gamma = float(y[:, i] @ y[:, i]) / expected
+        dof_var = min(dof_var, 2.0 * expected * expected / variance)
+        if inverse.ndim == 2:
+            m = (inverse.T @ memory.directions[:, i]) / unit
+            cov += gamma * n * series.mean_ratio(n) * np.outer(m, m)
+            continue
+        m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) / unit
+        rho = series.test_window(n)
+        horizon = int(np.max(np.flatnonzero(np.abs(rho) > 1e-12), initial=0)) + 1
+        kernel = np.concatenate([rho[horizon - 1 : 0 : -1], rho[:horizon]])
+        smoothed = fftconvolve(m, kernel[:, None], mode="full", axes=0)
+        smoothed = smoothed[horizon - 1 : horizon - 1 + n]
+        cov += gamma * (m.T @ smoothed)
+    cov = 0.5 * (cov + cov.T)
+    total = residuals.scores.sum(axis=0) / unit
+    dof = 1.0 / (1.0 / memory.dof + 1.0 / dof_var)
+    try:
+        t2 = float(total @ np.linalg.solve(cov, total))
+    except np.linalg.LinAlgError:
+        t2 = math.inf if np.any(total != 0) else 0.0
+    precision_unit = power_of_two_unit(residuals.precision_sum)
+    precision = residuals.precision_sum / precision_unit
+    ratio = unit / precision_unit  # (Σ W)⁻¹ Cov(G) (Σ W)⁻¹ in exact powers of two
+    cov_mean = np.linalg.solve(precision, np.linalg.solve(precision, cov).T) * ratio * ratio
+    stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None))
+    dof2 = dof - d + 1.0
+    if dof2 < 1.0:
+        return MeanTest(math.nan, (float(d), dof2), math.nan, 0), stderr
+    f = dof2 * t2 / (dof * d)
+    p = float(special.fdtrc(d, dof2, f)) if math.isfinite(f) else 0.0
+    return MeanTest(f, (float(d), dof2), p, 0), stderr

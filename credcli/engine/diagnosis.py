@@ -26,6 +26,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
 )
 from credcli.engine.elt import ELTResult, whiten
 from credcli.engine.evidence import ks_chi2_pvalue  # noqa: F401 (re-exported)
+from credcli.engine.memory import Memory, TimeScales, fit_memory
 from credcli.engine.rng import RngLike, as_generator
 from credcli.engine.rules import nci_baseline, nees_baseline  # noqa: F401 (re-exported)
 from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals
@@ -79,6 +80,9 @@ class Diagnosis:
     directions: DirectionScales | None = None  # per principal direction (calibrated, d > 1)
     by_direction: bool = False  # the noise label comes from the directions (mixed, anisotropic)
     blocks: tuple[BlockScale, ...] = ()  # per named block of the state (pose: position, ...)
+    memory: Memory | None = field(default=None, repr=False)  # the dependence model used
+    memory_source: str | None = None  # "segment" (fitted here) or "run" (the whole run's)
+    time_scales: TimeScales | None = field(default=None, repr=False)  # variance by averaging time
 
     @property
     def partial(self) -> bool:
@@ -115,6 +119,7 @@ def diagnose_errors(
     rng: RngLike = None,
     mse: np.ndarray | None = None,
     runs: int = 1,
+    memory: Memory | None = None,
 ) -> Diagnosis:
     """One segment of errors e_k = x_k − x̂_k (N, d) with claimed covariances (N, d, d),
     by ``config``'s rule (the calibrated variant by default). ``runs``: the segment pools
@@ -130,7 +135,7 @@ def diagnose_errors(
     """
     config = config or DiagnosisConfig()
     errors, cov = metrics.check_errors_cov(errors, cov)
-    return _diagnose_variants(errors, cov, [config], as_generator(rng), mse, runs)[0]
+    return _diagnose_variants(errors, cov, [config], as_generator(rng), mse, runs, memory)[0]
 
 
 def _cholesky(cov: np.ndarray) -> np.ndarray:
@@ -165,7 +170,7 @@ def _variant_configs(config: DiagnosisConfig, variants: tuple[Variant, ...]):
     return tuple(replace(config, variant=v) for v in variants)
 
 
-def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis]:
+def _diagnose_variants(errors, cov, configs, gen, mse, runs=1, memory=None) -> list[Diagnosis]:
     """Validate, gather the evidence once (:func:`credcli.engine.evidence.gather`), then
     decide by each configuration's rule (:func:`credcli.engine.rules.decide`). The
     Cholesky factors are made here, so that nothing else holds them once they are freed."""
@@ -173,7 +178,7 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1) -> list[Diagnosis
     chol = _cholesky(cov)
     if n < min(c.min_n(d) for c in configs):
         return [_too_short(n, d, c) for c in configs]
-    gathered = evidence.gather(errors, cov, chol, configs, gen, mse, runs)
+    gathered = evidence.gather(errors, cov, chol, configs, gen, mse, runs, memory)
     del chol
     return [_diagnosis(ev, config) for ev, config in zip(gathered, configs)]
 
@@ -199,6 +204,9 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
         "directions": ev.directions,
         "by_direction": verdict.by_direction,
         "reason": verdict.reason,
+        "memory": ev.memory,
+        "memory_source": ev.memory_source,
+        "time_scales": ev.time_scales,
     }
     if verdict.label is Label.INSUFFICIENT:
         return Diagnosis(label=Label.INSUFFICIENT, **common)
@@ -335,11 +343,22 @@ def block_scales(
         idx = np.asarray(indices)
         e = errors[:, idx]
         c = cov[:, idx[:, None], idx[None, :]]
-        gls = gls_residuals(e, _cholesky(c))
+        chol = _cholesky(c)
+        gls = gls_residuals(e, chol)
         s = whiten(e, c)
-        dep = dependence.serial_dependence(s, gls.q)
-        batched = evidence.refers_to_batches(config, dep.dependent)
-        test, _ = evidence.scale_evidence(gls, config, dep.tau, dep.tau_q, batched, level, runs)
+        if evidence.reads_memory(config, runs):
+            test = evidence.memory_evidence(
+                gls,
+                chol,
+                config,
+                fit_memory(evidence.memory_residuals(gls, chol), gls.q),
+                e.shape[0],
+                level=level,
+            ).scale
+        else:
+            dep = dependence.serial_dependence(s, gls.q)
+            batched = evidence.refers_to_batches(config, dep.dependent)
+            test, _ = evidence.scale_evidence(gls, config, dep.tau, dep.tau_q, batched, level, runs)
         out.append(
             BlockScale(
                 name,

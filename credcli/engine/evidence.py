@@ -18,12 +18,14 @@ from scipy import special
 from credcli.engine import batches, correlation, dependence, metrics
 from credcli.engine.config import DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
+from credcli.engine.memory import Memory, TimeScales, fit_memory, mean_free, time_scales
 from credcli.engine.scale import (
     DirectionScales,
     ScaleTest,
     batch_scale_test,
     direction_scales,
     gls_residuals,
+    memory_scale_test,
     scale_test,
     untested_scale,
 )
@@ -60,6 +62,9 @@ class Evidence:
     location_reason: str | None
     probes: metrics.Probes | None = None
     scores: metrics.Probes | None = None
+    memory: Memory | None = None
+    memory_source: str | None = None  # "segment" or "run": where the model was fitted
+    time_scales: TimeScales | None = None  # the variance at every averaging time
 
     @property
     def location_rejected(self) -> bool:
@@ -70,9 +75,15 @@ class Evidence:
         )
 
 
-def gather(errors, cov, chol, configs, gen, mse, runs=1) -> list[Evidence]:
+def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Evidence]:
     """The evidence of one segment of errors (N, d) with covariances (N, d, d) and their
     Cholesky factors, for each configuration in ``configs`` (all with n >= min_n).
+
+    The calibrated rule with estimated dependence (``block_length`` auto, one run) reads
+    the segment's memory from a fitted AR sieve (:func:`credcli.engine.memory.fit_memory`),
+    or from ``memory``, the model of the whole run the segment is a window of
+    (:func:`memory_evidence`). ``paper``, ``ks``, fixed block lengths and pooled Monte Carlo
+    ``runs`` keep the lag-1 screening and batch means (:mod:`credcli.engine.dependence`).
 
     Whole-length intermediates are freed as soon as they are used (a 2,000,000-epoch
     segment peaks ~250 MiB lower); the probes need ``centred`` and ``chol`` to the end."""
@@ -91,8 +102,6 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1) -> list[Evidence]:
     centred = errors - errors.mean(axis=0)
     nci_centred = metrics.nci_factored(centred, chol, mse_cholesky(metrics.mse_matrix(centred)))
     gls = gls_residuals(errors, chol)
-    if not probes_possible:
-        del centred, chol
     s = whiten(errors, cov)
     r1 = correlation.autocorrelation(s)
     dep = dependence.serial_dependence(s, gls.q, r1)
@@ -100,13 +109,36 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1) -> list[Evidence]:
     located, tau_location = dependence.location_dependence(s, r1, dep)
     autocorr = float(np.max(r1))
     effective_n = float(n / max(1.0, float(np.max(tau_point))))
+    modelled = [c for c in configs if reads_memory(c, runs)]
+    source = "run" if memory is not None else "segment"
+    scales_check = None
+    if modelled and memory is None:
+        # the lag-1 autocorrelation centred and about zero, at SCREENING_LEVEL (issue 22:
+        # a slow excursion moves the window's mean and hides from the centred one)
+        screened = correlation.serially_dependent(
+            r1, n, correlation.SCREENING_LEVEL
+        ) or correlation.serially_dependent(
+            correlation.autocorrelation(s, about_zero=True), n, correlation.SCREENING_LEVEL
+        )
+        residuals = memory_residuals(gls, chol)
+        memory = fit_memory(residuals, gls.q, screened=screened)
+        scales_check = time_scales(residuals, memory)
+    model_evidence = {c: memory_evidence(gls, chol, c, memory, n) for c in dict.fromkeys(modelled)}
+    slow = _slow_memory(scales_check, memory)
+    if slow is not None:
+        model_evidence = {c: _declined(ev, slow) for c, ev in model_evidence.items()}
+    if not probes_possible:
+        del centred, chol
     # every scale and mean test now, so the GLS residuals can be freed
     scales: dict = {}
     means: dict = {}
     directional: dict = {}
     for config in configs:
         key = scale_key(config, refers_to_batches(config, dependent))
-        if key not in scales:
+        if config in model_evidence:
+            scales.setdefault(key, (None, None))
+            continue
+        if key not in scales or scales[key][0] is None:
             batched = refers_to_batches(config, dependent)
             scales[key] = scale_evidence(gls, config, tau, tau_q, batched, runs=runs)
             if config.calibrated and d > 1 and scales[key][1] is None:
@@ -117,7 +149,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1) -> list[Evidence]:
             means[mean_key] = mean_evidence(gls, config, tau_location, mean_key[0], runs)
     del gls
     plans = [
-        location_plan(config, n, tau_location, means, located, runs)
+        model_evidence[config].plan
+        if config in model_evidence
+        else location_plan(config, n, tau_location, means, located, runs)
         if config.calibrated
         else location_plan(config, n, tau, means, dependent, runs)  # paper, ks: unchanged
         for config in configs
@@ -132,6 +166,12 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1) -> list[Evidence]:
         key = scale_key(config, refers_to_batches(config, dependent))
         scale, scale_reason = scales[key]
         directions = directional.get(key) if config.calibrated and scale_reason is None else None
+        segment_n = effective_n
+        if config in model_evidence:
+            modelled_config = model_evidence[config]
+            scale, scale_reason = modelled_config.scale, modelled_config.scale_reason
+            directions = modelled_config.directions
+            segment_n = float(n / max(1.0, float(np.max(memory.variance_ratios))))
         elt = None
         if plan.elt_level is not None:
             separate = config.calibrated and plan.block > 1
@@ -160,13 +200,16 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1) -> list[Evidence]:
             scale_reason=scale_reason,
             directions=directions,
             block_length=plan.block,
-            effective_n=effective_n,
+            effective_n=segment_n,
             autocorrelation=autocorr,
             mean_test=plan.mean_test,
             mean_level=plan.mean_level,
             elt=elt,
             elt_level=plan.elt_level,
             location_reason=plan.reason,
+            memory=memory if config in model_evidence else None,
+            memory_source=source if config in model_evidence else None,
+            time_scales=scales_check if config in model_evidence else None,
         )
         everything = config.metrics is MetricsLevel.ALL
         needs_probes = (
@@ -353,3 +396,141 @@ def ks_chi2_pvalue(eps: np.ndarray, dim: int) -> float:
     i = np.arange(1, n + 1)
     d_stat = max(float(np.max(i / n - cdf)), float(np.max(cdf - (i - 1) / n)))
     return float(min(1.0, 2.0 * special.smirnov(n, d_stat)))
+
+
+def reads_memory(config: DiagnosisConfig, runs: int) -> bool:
+    """Whether ``config``'s tests read the fitted dependence model: the calibrated rule
+    with the block length estimated (auto), on one run."""
+    return config.calibrated and config.fixed_block_length is None and runs == 1
+
+
+@dataclass(frozen=True)
+class ModelEvidence:
+    """The scale test, principal directions and location plan of one configuration under
+    the dependence model."""
+
+    scale: ScaleTest
+    scale_reason: str | None
+    directions: DirectionScales | None
+    plan: LocationPlan
+
+
+MEMORY_BLOCK_LOSS = correlation.BLOCK_VARIANCE_LOSS
+"""ε of the ELT's sign blocks under the fitted model (as for the AR(1) plug-in)."""
+MIN_MODEL_DOF = 4
+"""Fewest degrees of freedom ν_Ω of the dependence model for a scale interval: Student's t
+with 3 has a 0.6 % tail at 5.5 standard errors, beyond which an interval says nothing."""
+MIN_MEAN_DOF = 3
+"""Fewest denominator degrees of freedom of the mean test's F (as for batch means, K − d)."""
+
+
+def memory_evidence(
+    gls, chol, config: DiagnosisConfig, memory: Memory, n: int, level: float | None = None
+) -> ModelEvidence:
+    """The calibrated rule's evidence under the dependence model ``memory``.
+
+    A white model (every AIC order 0, fitted on this segment) keeps the exact tests for
+    independent epochs: the χ² scale test with its tail factor, Hotelling's mean test, the
+    ELT with single-epoch signs. Otherwise the scale test and the GLS mean test are referred
+    to their distributions under the model (:func:`credcli.engine.scale.memory_scale_test`,
+    :func:`credcli.engine.batches.memory_mean_test`), and the ELT flips blocks long enough
+    to lose at most ε of the variance under the model
+    (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or
+    adjacent blocks. ``level``: the scale test's (default α_S)."""
+    d = gls.whitened.shape[1]
+    level = config.scale_level if level is None else level
+    if memory.white and memory.epochs == n:
+        scale = scale_test(gls, level, np.ones(d))
+        directions = direction_scales(gls, level, 0) if d > 1 else None
+        mean = batches.independent_mean_test(gls, 1.0)
+        return ModelEvidence(scale, None, directions, _model_plan(config, n, 1, mean, None))
+    scale = memory_scale_test(gls, memory, level)
+    inverse = np.linalg.inv(chol)
+    mean, stderr = batches.memory_mean_test(gls, memory, inverse)
+    scale = replace(scale, bias_stderr=stderr)
+    tau = float(np.max(memory.variance_ratios))
+    if scale.model_dof < MIN_MODEL_DOF:
+        untested = untested_scale(gls)
+        scale = replace(untested, bias_stderr=stderr, model_dof=scale.model_dof)
+        directions = None
+        scale_reason = (
+            f"scale untested: the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) is "
+            f"known to {scale.model_dof:.3g} degrees of freedom, fewer than the "
+            f"{MIN_MODEL_DOF} an interval needs"
+        )
+    else:
+        directions = direction_scales(gls, level, 0, memory) if d > 1 else None
+        scale_reason = None
+    why_not = None
+    if not mean.dof[1] >= MIN_MEAN_DOF:
+        why_not = (
+            f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) leaves it "
+            f"{max(mean.dof[1], 0.0):.3g} degrees of freedom, fewer than {MIN_MEAN_DOF}"
+        )
+        mean = None
+    block = memory.block_length(MEMORY_BLOCK_LOSS)
+    plan = _model_plan(config, n, block, mean, why_not)
+    return ModelEvidence(scale, scale_reason, directions, plan)
+
+
+def _model_plan(config: DiagnosisConfig, n: int, block: int, mean_test, why_not_mean):
+    """The location plan under the model: the mean test at its share of α_L and the ELT at
+    the rest where enough sign blocks fit; a test that cannot run leaves the whole α_L to
+    the other."""
+    n_blocks = tested_blocks(n, block, config.max_elt_epochs, 1)
+    elt_ok = n_blocks >= config.min_blocks
+    why_not_elt = None
+    if not elt_ok:
+        budget = tested_blocks(n, block, n, 1) >= config.min_blocks
+        cause = (
+            f"its budget of {config.max_elt_epochs} epochs (max_elt_epochs)"
+            if budget
+            else f"the errors' memory needs sign blocks of {block} epochs, which"
+        )
+        why_not_elt = (
+            f"ELT not run: {cause} leaves {n_blocks} of the {config.min_blocks} sign blocks "
+            "it needs"
+        )
+    if mean_test is not None and elt_ok:
+        return LocationPlan(block, mean_test, config.mean_level, config.elt_level, None)
+    if mean_test is not None:
+        return LocationPlan(block, mean_test, config.location_level, None, why_not_elt)
+    if elt_ok:
+        return LocationPlan(
+            block, None, 0.0, config.location_level, f"mean test not run: {why_not_mean}"
+        )
+    reason = f"location untested: {why_not_elt}; the mean test: {why_not_mean}"
+    return LocationPlan(block, None, 0.0, None, reason)
+
+
+def memory_residuals(gls, chol) -> np.ndarray:
+    """The Cholesky-whitened errors z_k = L_k⁻¹e_k without their fitted constants
+    (:func:`credcli.engine.memory.mean_free`): what the memory is fitted on, in the frame
+    the model's tests use (the GLS residuals and scores)."""
+    inverse = np.linalg.inv(chol)
+    if inverse.ndim == 2:
+        z = gls.whitened + inverse @ gls.mean
+    else:
+        z = gls.whitened + np.einsum("nij,j->ni", inverse, gls.mean)
+    return mean_free(z, inverse)
+
+
+def _slow_memory(scales: TimeScales | None, memory: Memory) -> str | None:
+    """The finding of errors slower than the fitted memory explains, or None."""
+    if scales is None or scales.failed_at is None:
+        return None
+    m = scales.failed_at
+    i = int(np.flatnonzero(scales.epochs == m)[0])
+    return (
+        f"slowly varying errors: averaged over {m} epochs they vary "
+        f"{scales.observed[i] / scales.predicted[i]:.3g}× as much as the memory fitted on "
+        f"this segment explains (p {scales.pvalue:.2g}); errors slower than the segment can "
+        "resolve may be read as a bias or a wrong scale, so neither question is answered "
+        "(a longer segment, or windows of one run, can decide)"
+    )
+
+
+def _declined(ev: ModelEvidence, reason: str) -> ModelEvidence:
+    """``ev`` with both questions declined for ``reason``."""
+    plan = LocationPlan(ev.plan.block, None, 0.0, None, None)
+    return ModelEvidence(ev.scale, reason, None, plan)

@@ -116,7 +116,7 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     return (
         f"scale inconclusive: κ̂ {scale.scale_factor:.3g} with interval [{low:.3g}, {high:.3g}] "
         f"finds no misfit but does not exclude one of a factor {CREDIBLE_FACTOR:g} "
-        "(too few independent batches for a tighter interval)"
+        "(too few independent epochs or batches for a tighter interval)"
     )
 
 

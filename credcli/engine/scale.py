@@ -30,6 +30,7 @@ from scipy import special
 from credcli.engine import correlation
 from credcli.engine.batches import batch_mean_test, batch_scale, boundary_inflation, bounds
 from credcli.engine.config import EPOCH_CHUNK, epoch_chunks
+from credcli.engine.memory import studentized_quantile, studentized_tail
 from credcli.engine.units import power_of_two_unit
 
 
@@ -60,6 +61,9 @@ class ScaleTest:
     batches : int
         K when the reference is batch means (:mod:`credcli.engine.batches`: serially
         dependent errors; ``dof`` is then K − 1 of Student's t); 0 for the χ² reference.
+    model_dof : float
+        ν_Ω, the degrees of freedom of the dependence model behind the reference
+        (:func:`memory_scale_test`); inf when the reference assumes no estimated memory.
     """
 
     statistic: float
@@ -74,6 +78,7 @@ class ScaleTest:
     bias_stderr: np.ndarray
     bias_mahalanobis: float
     batches: int = 0
+    model_dof: float = float("inf")  # ν_Ω of a dependence model's reference (inf: none)
 
     @property
     def pvalue(self) -> float:
@@ -354,14 +359,20 @@ class DirectionScales:
     sphericity_pvalue: float | None = None  # :func:`sphericity_pvalue`
 
 
-def direction_scales(residuals: GlsResiduals, level: float, batches: int = 0) -> DirectionScales:
+def direction_scales(
+    residuals: GlsResiduals, level: float, batches: int = 0, memory=None
+) -> DirectionScales:
     """Per-direction factors of the whitened GLS residuals u_k (N, d).
 
     For independent epochs each direction's w_k² = (v_iᵀu_k)² is referred to χ² with
     (N − 1)/f degrees of freedom, f the tail factor of the residuals standardized per
     direction (:func:`standardized`): pooled components of unequal variances look like heavy
     tails, standardized ones do not. With ``batches`` K > 0 (dependent epochs), Student's t on the
-    log of the batch means of w_k², as :func:`credcli.engine.batches.batch_scale`. The
+    log of the batch means of w_k², as :func:`credcli.engine.batches.batch_scale`. With a
+    dependence model ``memory`` (:class:`credcli.engine.memory.Memory`), each direction's
+    sum of squares is referred to the Satterthwaite χ² of the model's least informative
+    direction (its centred-sum moments), studentized by the model's ν_Ω as the overall
+    test is (:func:`memory_scale_test`). The
     directions are estimated from the same data, so the largest factor is biased up a
     little; the rule uses these intervals only where the overall test is inconclusive.
     """
@@ -373,6 +384,19 @@ def direction_scales(residuals: GlsResiduals, level: float, batches: int = 0) ->
     w2 = (u @ vectors) ** 2
     each = level / d**DIRECTION_POWER
     low, high = np.empty(d), np.empty(d)
+    if memory is not None:
+        moments = [m.centred_square_moments(n) for m in memory.series]
+        expected, variance = min(moments, key=lambda ev: 2.0 * ev[0] ** 2 / ev[1])
+        variance *= tail_factor(standardized(u))
+        c = variance / (2.0 * expected)
+        dof = 2.0 * expected * expected / variance
+        upper = _studentized_chi2_quantile(dof, memory.dof, each / 2, upper=True)
+        lower = _studentized_chi2_quantile(dof, memory.dof, each / 2, upper=False)
+        with np.errstate(over="ignore", divide="ignore"):
+            x = values * (n - 1) / c
+            low, high = x / upper, x / lower
+        values = values * (n - 1) / expected
+        return DirectionScales(vectors, values, low, high, None)
     if batches:
         for i in range(d):
             r = batch_scale(w2[:, i], 1, batches, each)
@@ -421,3 +445,82 @@ def sphericity_pvalue(residuals: GlsResiduals, batches: int = 0) -> float | None
     log_w = logdet - d * np.log(trace / d)
     statistic = -(n - (2 * d * d + d + 2) / (6 * d)) * log_w
     return float(special.chdtrc(m, max(statistic, 0.0)))
+
+
+def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTest:
+    r"""The scale test of serially dependent errors under a fitted dependence model
+    (:class:`credcli.engine.memory.Memory`, possibly fitted on a whole run of which these
+    epochs are a window).
+
+    Under the model, each principal direction's centred sum of squares is a Gaussian
+    quadratic form with exact mean E_i and variance V_i
+    (:meth:`credcli.engine.memory.SeriesMemory.centred_square_moments`); T = Σ_k q_k has
+    mean E = Σ E_i and variance V = max(f Σ V_i, V_q/κ̂²), f the tail factor of the
+    residuals (:func:`tail_factor`) and V_q the variance of T implied by the centred NEES's
+    own fitted memory (heavy tails and any dependence between directions). Then T/c ~ χ²_ν
+    with c = V/(2E), ν = 2E²/V (Satterthwaite 1946) and κ̂ = T/E: at short windows of slow
+    errors E is well below (N − 1)d, since centring a window removes its slow part.
+
+    The model's own estimation error enters through ν_Ω (its degrees of freedom): each
+    one-sided p-value is the χ² evidence as a normal score referred to Student's t with
+    ν_Ω degrees of freedom, and the interval is inverted from the same p-values, so the
+    interval and the test agree.
+    """
+    q = residuals.q
+    n, d = residuals.whitened.shape
+    total = float(q.sum())
+    expected = 0.0
+    gaussian = 0.0
+    for series in memory.series:
+        e_i, v_i = series.centred_square_moments(n)
+        expected += e_i
+        gaussian += v_i
+    kappa = total / expected
+    gaussian *= tail_factor(standardized(residuals.whitened))
+    dof_model = memory.dof
+    variance = gaussian
+    if kappa > 0:
+        q_mean = total / n
+        # q's own variance of T in units of κ = 1: Var(q/q̄)·n·v_q·(q̄/κ̂)², scale-free
+        own = float(np.var(q / q_mean)) * n * memory.squares.mean_ratio(n) * (expected / n) ** 2
+        if own > variance:
+            variance = own
+            dof_model = min(dof_model, memory.squares.dof)
+    c = variance / (2.0 * expected)
+    dof = 2.0 * expected * expected / variance
+    x = total / c
+    upper, lower = _studentized_chi2(x, dof, dof_model)
+    with np.errstate(over="ignore", divide="ignore"):
+        low = x / _studentized_chi2_quantile(dof, dof_model, level / 2, upper=True)
+        high = x / _studentized_chi2_quantile(dof, dof_model, level / 2, upper=False)
+    return ScaleTest(
+        statistic=total,
+        dof=dof,
+        satterthwaite=c * dof / expected,
+        scale_factor=kappa,
+        scale_factor_low=low,
+        scale_factor_high=high,
+        pvalue_upper=upper,
+        pvalue_lower=lower,
+        bias=residuals.mean,
+        bias_stderr=np.full(d, np.nan),  # filled by the model's mean test
+        bias_mahalanobis=residuals.bias_mahalanobis,
+        model_dof=dof_model,
+    )
+
+
+def _studentized_chi2(x: float, dof: float, dof_model: float) -> tuple[float, float]:
+    """(P upper, P lower) of x against χ²_dof, each turned into a normal score and referred
+    to Student's t with ``dof_model`` degrees of freedom (the reference's own uncertainty)."""
+    z_upper = -float(special.ndtri(max(float(special.chdtrc(dof, x)), 1e-300)))
+    z_lower = -float(special.ndtri(max(float(special.chdtr(dof, x)), 1e-300)))
+    return studentized_tail(z_upper, dof_model), studentized_tail(z_lower, dof_model)
+
+
+def _studentized_chi2_quantile(dof: float, dof_model: float, p: float, upper: bool) -> float:
+    """The x whose studentized upper (or lower) p-value is ``p``: the χ²_dof quantile at the
+    normal tail of Student's critical value."""
+    tail = float(special.ndtr(-studentized_quantile(p, dof_model)))
+    if upper:
+        return 2.0 * float(special.gammainccinv(dof / 2.0, tail))
+    return max(2.0 * float(special.gammaincinv(dof / 2.0, tail)), np.finfo(float).tiny)

@@ -133,9 +133,10 @@ WHITENESS_COLUMN = Column("whiteness_pvalue", "white p", 3, pvalue=True, rank=2)
 """The innovations' portmanteau p-value (--innovations), after the ELT's."""
 
 
-def _number(x: float) -> str:
-    """A short number for sentences: 3 significant digits, no float noise."""
-    return f"{x:.3g}"
+def _number(x: float | None) -> str:
+    """A short number for sentences: 3 significant digits, no float noise; "—" for a
+    number that is not there (an open interval's end)."""
+    return "—" if x is None else f"{x:.3g}"
 
 
 def scale_interval(rec: dict) -> str | None:

@@ -33,7 +33,7 @@ from credcli.io.records import segment_record
 from credcli.io.schema import ReadOptions
 from credcli.report.html import records_table
 from credcli.scheduling import diagnose_plans
-from credcli.segments import split
+from credcli.segments import split, without_run
 
 __all__ = [
     "MonteCarloResults",
@@ -221,7 +221,7 @@ def diagnose_monte_carlo(
     runs = split_runs(runs) if isinstance(runs, EstimatorLog) else list(runs)
     whole = segments == "whole"
     plans = [
-        (log, split(log, None if segments is None or whole else segments, whole))
+        (log, without_run(split(log, None if segments is None or whole else segments, whole)))
         for log in runs[:1]
     ]
     pooled, anees = monte_carlo_plan(runs, plans, config.alpha)

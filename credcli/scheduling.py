@@ -5,6 +5,7 @@ segment name) only."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,9 @@ from credcli.engine.diagnosis import (
     DiagnosisConfig,
     SegmentDiagnosis,
     diagnose_segment,
+    innovation_config,
     innovation_whiteness,
+    run_model,
 )
 from credcli.io.ingest import open_log
 from credcli.io.records import log_info
@@ -45,10 +48,19 @@ def file_size(path) -> int:
 def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
     source, items, config, seed, innovations, runs, blocks = task
+    white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
-    for name, t0, t1, e, c in items:
-        diag = diagnose_segment(e, c, config, seed, name, source, runs, blocks)
-        white = innovation_whiteness(e, c) if innovations else None
+    for name, t0, t1, e, c, memory, findings in items:
+        white = innovation_whiteness(e, c, level) if innovations else None
+        # innovations are tested under their white null unless the whiteness test rejects;
+        # correlated innovations are then a finding, and the two questions are answered
+        # with their memory, at the same share of α
+        chosen = (
+            white_null
+            if white is None or not white.rejected
+            else replace(config, alpha=white_null.alpha)
+        )
+        diag = diagnose_segment(e, c, chosen, seed, name, source, runs, blocks, memory, findings)
         out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
     return out
 
@@ -63,11 +75,24 @@ def _as_slice(index: np.ndarray):
     return index
 
 
-def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray) -> tuple:
-    """A segment as a task item: (name, t_start, t_end, errors, covariances), the arrays as
-    views when the segment is contiguous."""
+def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray, run=None) -> tuple:
+    """A segment as a task item: (name, t_start, t_end, errors, covariances, the run's
+    dependence model for a window, the run's findings for the run's own segment), the
+    arrays as views when the segment is contiguous."""
     index = _as_slice(segment.index)
-    return (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
+    memory = run.memory if run is not None and segment.window else None
+    findings = run.findings if run is not None and segment.name == seg.RUN_SEGMENT else ()
+    item = (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
+    return (*item, memory, findings)
+
+
+def _run_model(log, segments, config: DiagnosisConfig):
+    """What a run tells its windows (:func:`credcli.engine.diagnosis.run_model`) when the
+    segments are windows of one run; None otherwise."""
+    windows = [s.index for s in segments if s.window]
+    if not windows:
+        return None
+    return run_model(log.errors, log.cov, windows, config)
 
 
 def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1):
@@ -76,12 +101,13 @@ def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovat
     items, size, source, blocks = [], 0, None, ()
     for log, segments in plans:
         errors = log.errors
+        model = None if innovations else _run_model(log, segments, config)
         for segment in segments:
             if items and (size >= target or source != log.source):
                 yield (source, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
             source, blocks = log.source, log.blocks
-            items.append(_item(segment, errors, log.cov))
+            items.append(_item(segment, errors, log.cov, model))
             size += len(segment.index)
     if items:
         yield (source, items, config, seed, innovations, runs, blocks)
@@ -148,21 +174,24 @@ def _worker_log(source):
         log = open_log(path, schema, reading, drop_invalid)
         while len(_WORKER_LOGS) >= _WORKER_LOGS_KEPT:
             _WORKER_LOGS.pop(next(iter(_WORKER_LOGS)))
-        _WORKER_LOGS[key] = (log, split(log, window, whole, min_epochs), log.errors)
+        _WORKER_LOGS[key] = (log, split(log, window, whole, min_epochs), log.errors, {})
     return _WORKER_LOGS[key]
 
 
 def _plan_task(source) -> tuple[dict, list[int]]:
     """Worker: the report entry of a log and the epochs of each of its segments."""
-    log, segments, _ = _worker_log(source)
+    log, segments, _, _ = _worker_log(source)
     return log_info(log, segments), [len(s.index) for s in segments]
 
 
 def _segments_task(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose segments [first, stop) of a log."""
     source, first, stop, config, seed, innovations = task
-    log, segments, errors = _worker_log(source)
-    items = [_item(segment, errors, log.cov) for segment in segments[first:stop]]
+    log, segments, errors, models = _worker_log(source)
+    if config not in models:  # the run's model, once per worker and configuration
+        models[config] = None if innovations else _run_model(log, segments, config)
+    model = models[config]
+    items = [_item(segment, errors, log.cov, model) for segment in segments[first:stop]]
     return _diagnose_chunk((log.source, items, config, seed, innovations, 1, log.blocks))
 
 

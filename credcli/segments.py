@@ -18,6 +18,7 @@ class Segment:
     index: np.ndarray
     t_start: float | None = None
     t_end: float | None = None
+    window: bool = False  # a window of the run: judged against the run's dependence model
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,7 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
     stops = np.r_[bounds, n]
     width = max(3, len(str(int(k[-1]) + 1)))
     return [
-        Segment(f"w{int(k[a]) + 1:0{width}d}", np.arange(a, b), *_span(time, np.arange(a, b)))
+        Segment(f"w{int(k[a]) + 1:0{width}d}", np.arange(a, b), *_span(time, np.arange(a, b)), True)
         for a, b in zip(starts, stops)
     ]
 
@@ -145,6 +146,17 @@ def static_periods(
     return out, speed
 
 
+def without_run(segments: list[Segment]) -> list[Segment]:
+    """``segments`` without the whole-run segment that :func:`split` adds after windows
+    (Monte Carlo runs are the replicates; their windows are pooled across runs)."""
+    return [s for s in segments if s.window or s.name != RUN_SEGMENT]
+
+
+RUN_SEGMENT = "run"
+"""The name of the whole run, diagnosed after its windows (``window``): one dependence model
+is fitted on it and every window is judged against that model."""
+
+
 def split(
     log, window: str | None = None, whole: bool = False, min_epochs: int = 0
 ) -> list[Segment]:
@@ -181,6 +193,8 @@ def split(
                 f"{min_epochs}; write a duration such as {parsed}s, or at least {min_epochs} "
                 "epochs"
             )
+        if len(out) > 1:  # the run's own verdict beside its windows
+            out.append(Segment(RUN_SEGMENT, np.arange(log.n), *_span(log.time, np.arange(log.n))))
         return out
     if log.segment is not None:
         return by_column(log.segment, log.time)

@@ -148,6 +148,8 @@ def _diagnose_here(request: DiagnoseRequest, progress):
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
+        if monte_carlo:
+            plans = [(log, seg.without_run(segments)) for log, segments in plans]
     except BaseException:
         if pool is not None:
             pool.stop()

@@ -52,8 +52,8 @@ def test_to_dict_equals_the_cli_json(capsys):
 def test_segments_argument():
     log = credcli.read_log(ROOT / "sample_data" / "estimator_log.csv")
     assert len(credcli.diagnose_log(log, "whole")) == 1
-    assert len(credcli.diagnose_log(log, "30s")) == 6  # 1,800 epochs at 10 Hz
-    assert len(credcli.diagnose_log(log, "300")) == 6
+    assert len(credcli.diagnose_log(log, "30s")) == 7  # 1,800 epochs at 10 Hz, and the run
+    assert len(credcli.diagnose_log(log, "300")) == 7
 
 
 def test_short_reprs_and_unpacking():

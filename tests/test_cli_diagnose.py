@@ -116,12 +116,11 @@ def test_markdown_and_table(capsys):
 def test_window_by_epochs_and_duration(capsys):
     _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--window", "600")
     segs = json.loads(out)["segments"]
-    assert [s["segment"] for s in segs] == ["w001", "w002", "w003"] and all(
-        s["n"] == 600 for s in segs
-    )
+    assert [s["segment"] for s in segs] == ["w001", "w002", "w003", "run"]  # and the run
+    assert [s["n"] for s in segs] == [600, 600, 600, 1800]
     _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--window", "45s")
     segs = json.loads(out)["segments"]
-    assert [s["n"] for s in segs] == [450, 450, 450, 450]
+    assert [s["n"] for s in segs] == [450, 450, 450, 450, 1800]
     assert segs[1]["t_start"] == pytest.approx(45.0)
     _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--whole")
     assert json.loads(out)["segments"][0]["n"] == 1800
@@ -129,7 +128,7 @@ def test_window_by_epochs_and_duration(capsys):
 
 def test_insufficient_data_segment(capsys):
     _, out, _ = _run(capsys, "diagnose", LOG, "-f", "json", "--window", "299")
-    last = json.loads(out)["segments"][-1]
+    last = json.loads(out)["segments"][-2]  # the last window; the run follows
     assert last["n"] == 1800 - 6 * 299 and last["label"] == "insufficient-data"
     assert last["elt_pvalue"] is None
 

@@ -48,7 +48,7 @@ def test_diagnose_on_the_cluster_equals_the_local_run(tmp_path, runner):
     local = run_diagnose(request)
     remote = run_diagnose(request, runner=runner)
     assert _document(remote) == _document(local)
-    assert len(remote.results) == 3 * 36  # 12 segments of 30 s in 10 s windows
+    assert len(remote.results) == 3 * 37  # 36 windows of 10 s and the run, per log
 
 
 def test_a_sweep_on_the_cluster_equals_the_local_run(runner):

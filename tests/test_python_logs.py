@@ -122,7 +122,7 @@ def test_iso_times_in_a_csv_make_windows_in_seconds(tmp_path, arrays):
     code, out, err = run("diagnose", tmp_path / "iso.csv", "--window", "15s", "-f", "json")
     assert code == 0, err
     segments = json.loads(out)["segments"]
-    assert [s["n"] for s in segments] == [150, 150, 150, 150]  # 10 Hz, 15 s windows
+    assert [s["n"] for s in segments] == [150, 150, 150, 150, 600]  # 10 Hz, 15 s windows; run
     assert "date-times read as seconds since 1970-01-01 00:00 UTC" in err
     frame.loc[7, "time"] = "yesterday"
     frame.to_csv(tmp_path / "bad.csv", index=False)

@@ -7,6 +7,7 @@ import zlib
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy import special
 
 from credcli.engine import batches, dependence, evidence, metrics, rules
 from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-exported)
@@ -30,7 +31,7 @@ from credcli.engine.memory import Memory, TimeScales, fit_memory
 from credcli.engine.rng import RngLike, as_generator
 from credcli.engine.rules import nci_baseline, nees_baseline  # noqa: F401 (re-exported)
 from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals
-from credcli.engine.whiteness import Whiteness, portmanteau
+from credcli.engine.whiteness import Whiteness, innovation_levels, portmanteau
 from credcli.errors import CredcliError
 
 
@@ -83,6 +84,7 @@ class Diagnosis:
     memory: Memory | None = field(default=None, repr=False)  # the dependence model used
     memory_source: str | None = None  # "segment" (fitted here) or "run" (the whole run's)
     time_scales: TimeScales | None = field(default=None, repr=False)  # variance by averaging time
+    findings: tuple[str, ...] = ()  # what the data show beside the label (slow errors, ...)
 
     @property
     def partial(self) -> bool:
@@ -257,13 +259,18 @@ def diagnose_log(
     """Run Algorithm 1 on every segment of an EstimatorLog.
 
     Each segment's sign flips come from :func:`segment_seed` (the seed and the segment's
-    name), so a segment's result does not depend on the other segments.
+    name), so a segment's result does not depend on the other segments. Windows of one
+    run (``segment.window``) are judged against the run's dependence model
+    (:func:`run_model`), whose findings go to the run's own segment.
     ``progress``, if given, is called as ``progress(done, total)`` after each segment.
     """
     config = config or DiagnosisConfig()
     errors = log.errors
+    windows = [seg.index for seg in segments if getattr(seg, "window", False)]
+    run = run_model(errors, log.cov, windows, config) if windows else RunModel(None)
     out = []
     for done, seg in enumerate(segments, start=1):
+        window = getattr(seg, "window", False)
         diag = diagnose_segment(
             errors[seg.index],
             log.cov[seg.index],
@@ -272,6 +279,8 @@ def diagnose_log(
             seg.name,
             log.source,
             blocks=getattr(log, "blocks", ()),
+            memory=run.memory if window else None,
+            findings=run.findings if windows and not window and seg.name == "run" else (),
         )
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
@@ -279,12 +288,102 @@ def diagnose_log(
     return out
 
 
-def innovation_whiteness(errors: np.ndarray, cov: np.ndarray) -> Whiteness | None:
-    """The portmanteau test of innovations whitened by their claimed covariance, or None
-    for a segment too short for one lag."""
+def innovation_whiteness(
+    errors: np.ndarray, cov: np.ndarray, level: float | None = None
+) -> Whiteness | None:
+    """The portmanteau test of innovations whitened by their claimed covariance at ``level``
+    (:func:`credcli.engine.whiteness.innovation_levels`), or None for a segment too short
+    for one lag."""
     if errors.shape[0] < 5 + errors.shape[1]:
         return None
-    return portmanteau(whiten(errors, cov))
+    white = portmanteau(whiten(errors, cov))
+    return white if level is None else replace(white, level=level)
+
+
+def innovation_config(config: DiagnosisConfig) -> tuple[DiagnosisConfig, float]:
+    """(the configuration of innovations' two questions, the whiteness test's level).
+
+    Under a right filter the innovations are white (Mehra 1970, IEEE TAC 15(2)): their
+    null is independent epochs, so the questions are tested with single-epoch signs and
+    the exact χ² and Hotelling references (``block_length`` 1), and correlation in time is
+    a finding of its own, the portmanteau test, inside the α split
+    (:func:`credcli.engine.whiteness.innovation_levels`), not a reason to decline. The
+    paper and ks variants keep their own level and take the whiteness test at α."""
+    if not config.calibrated:
+        return config, config.alpha
+    pair, each = innovation_levels(config.alpha)
+    return replace(config, block_length=1, alpha=pair), each
+
+
+@dataclass(frozen=True)
+class RunModel:
+    """What a run tells its windows (:func:`run_model`): the dependence model of the errors
+    within a window, fitted once on all windows, and the run's findings."""
+
+    memory: Memory | None
+    findings: tuple[str, ...] = ()
+
+
+HOMOGENEITY_LEVEL = 0.01
+"""Level of the test that the windows' means vary no more than the memory within a window
+explains (:func:`run_model`)."""
+
+
+def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisConfig) -> RunModel:
+    r"""The dependence model against which the windows of one run are judged, and the run's
+    homogeneity finding.
+
+    The model is fitted once on every window (:func:`credcli.engine.evidence.segment_memory`
+    on the windows' whitened errors, each window less its own mean and divided by its own
+    root mean square, one after the other): the memory within a window, estimated from
+    the whole run, so that short windows are judged with a model they could not fit
+    themselves, and no window's bias or scale reads as memory.
+
+    Homogeneity: under that model the window means ȳ_w (principal directions, unit
+    variance) have variance v_i(n_w)/n_w, so
+    :math:`\sum_w \sum_i n_w (\bar y_{wi} - \bar y_i)^2 / v_i(n_w) \sim \chi^2_{d(W-1)}`
+    (adjacent windows' means taken as independent). A rejection is the finding of a slowly
+    varying error (or conditions that change between windows): each window's verdict then
+    describes the errors about that window's mean, and the run's own verdict the total."""
+    if not evidence.reads_memory(config, 1) or len(windows) < 2:
+        return RunModel(None)
+    errors, cov = metrics.check_errors_cov(errors, cov)
+    d = errors.shape[1]
+    chol = _cholesky(cov)
+    gls = gls_residuals(errors, chol)
+    z = evidence.memory_residuals(gls, chol)
+    parts, means, sizes = [], [], []
+    for index in windows:
+        w = z[index]
+        if w.shape[0] < max(config.min_n(d), 3):
+            continue
+        centre = w.mean(axis=0)
+        spread = np.sqrt(np.mean((w - centre) ** 2, axis=0))
+        parts.append((w - centre) / np.where(spread > 0, spread, 1.0))
+        means.append(centre / np.where(spread > 0, spread, 1.0))
+        sizes.append(w.shape[0])
+    if len(parts) < 2:
+        return RunModel(None)
+    pooled = np.concatenate(parts)
+    memory = evidence.segment_memory_of(pooled, np.einsum("ni,ni->n", pooled, pooled))
+    rotated = np.asarray(means) @ memory.directions
+    sizes = np.asarray(sizes)
+    ratios = np.array([[m.mean_ratio(int(k)) for m in memory.series] for k in sizes])
+    centre = np.sum(rotated * (sizes[:, None] / ratios), axis=0) / np.sum(
+        sizes[:, None] / ratios, axis=0
+    )
+    statistic = float(np.sum(sizes[:, None] * (rotated - centre) ** 2 / ratios))
+    dof = d * (len(parts) - 1)
+    pvalue = float(special.chdtrc(dof, statistic))
+    findings = ()
+    if pvalue < HOMOGENEITY_LEVEL:
+        findings = (
+            f"slowly varying error: the {len(parts)} windows' means vary "
+            f"{statistic / dof:.3g}× as much as the memory within a window explains "
+            f"(p {pvalue:.2g}); each window's verdict describes the errors about its own "
+            "mean, and this verdict of the whole run the total error",
+        )
+    return RunModel(memory, findings)
 
 
 def diagnose_segment(
@@ -296,20 +395,28 @@ def diagnose_segment(
     source: str = "<memory>",
     runs: int = 1,
     blocks: tuple = (),
+    memory: Memory | None = None,
+    findings: tuple[str, ...] = (),
 ) -> Diagnosis:
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
     the log and the segment. ``runs``: see :func:`diagnose_errors`; ``blocks``: named
     blocks of the state (:data:`credcli.engine.lie.STATE_BLOCKS`) whose scale factors the
-    calibrated rule reports beside the overall one (:func:`block_scales`)."""
+    calibrated rule reports beside the overall one (:func:`block_scales`); ``memory``: the
+    dependence model of the run the segment is a window of (:func:`run_model`);
+    ``findings``: the run's, for the run's own segment."""
     try:
         errors, cov = metrics.check_errors_cov(errors, cov)
         n, d = errors.shape
         if n < config.min_n(d):  # checked as diagnose_errors checks, without a random stream
             _cholesky(cov)
             return _too_short(n, d, config)
-        diag = diagnose_errors(errors, cov, config, segment_seed(seed, name), runs=runs)
+        diag = diagnose_errors(
+            errors, cov, config, segment_seed(seed, name), runs=runs, memory=memory
+        )
         if blocks and config.calibrated:
             diag = replace(diag, blocks=block_scales(errors, cov, blocks, config, runs))
+        if findings:
+            diag = replace(diag, findings=diag.findings + findings)
         return diag
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc

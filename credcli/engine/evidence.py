@@ -113,16 +113,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     source = "run" if memory is not None else "segment"
     scales_check = None
     if modelled and memory is None:
-        # the lag-1 autocorrelation centred and about zero, at SCREENING_LEVEL (issue 22:
-        # a slow excursion moves the window's mean and hides from the centred one)
-        screened = correlation.serially_dependent(
-            r1, n, correlation.SCREENING_LEVEL
-        ) or correlation.serially_dependent(
-            correlation.autocorrelation(s, about_zero=True), n, correlation.SCREENING_LEVEL
-        )
-        residuals = memory_residuals(gls, chol)
-        memory = fit_memory(residuals, gls.q, screened=screened)
-        scales_check = time_scales(residuals, memory)
+        memory, scales_check = segment_memory(gls, chol, s, r1)
     model_evidence = {c: memory_evidence(gls, chol, c, memory, n) for c in dict.fromkeys(modelled)}
     slow = _slow_memory(scales_check, memory)
     if slow is not None:
@@ -534,3 +525,30 @@ def _declined(ev: ModelEvidence, reason: str) -> ModelEvidence:
     """``ev`` with both questions declined for ``reason``."""
     plan = LocationPlan(ev.plan.block, None, 0.0, None, None)
     return ModelEvidence(ev.scale, reason, None, plan)
+
+
+def segment_memory(gls, chol, s, r1=None) -> tuple[Memory, TimeScales]:
+    """The dependence model fitted on one segment (or run) and its check at every
+    averaging time. The sieve is told of memory that the lag-1 autocorrelation of the
+    whitened errors ``s`` shows, centred or about zero, at SCREENING_LEVEL (issue 22: a
+    slow excursion moves a window's mean and hides from the centred one)."""
+    n = s.shape[0]
+    r1 = correlation.autocorrelation(s) if r1 is None else r1
+    screened = correlation.serially_dependent(
+        r1, n, correlation.SCREENING_LEVEL
+    ) or correlation.serially_dependent(
+        correlation.autocorrelation(s, about_zero=True), n, correlation.SCREENING_LEVEL
+    )
+    residuals = memory_residuals(gls, chol)
+    memory = fit_memory(residuals, gls.q, screened=screened)
+    return memory, time_scales(residuals, memory)
+
+
+def segment_memory_of(residuals: np.ndarray, q: np.ndarray) -> Memory:
+    """The dependence model of mean-free whitened residuals (N, d) and their squares ``q``,
+    screened by their own lag-1 autocorrelation (:func:`segment_memory`)."""
+    n = residuals.shape[0]
+    screened = correlation.serially_dependent(
+        correlation.autocorrelation(residuals), n, correlation.SCREENING_LEVEL
+    )
+    return fit_memory(residuals, q, screened=screened)

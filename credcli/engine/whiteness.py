@@ -19,6 +19,7 @@ h = min(10, ⌊n/5⌋) (Hyndman and Athanasopoulos, *Forecasting: Principles and
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +36,23 @@ class Whiteness:
     pvalue: float
     lags: int
     dof: int
+    level: float = float("nan")  # its share of α (:func:`innovation_levels`); NaN: none
+
+    @property
+    def rejected(self) -> bool:
+        """Whether the innovations are correlated in time at :attr:`level`."""
+        return bool(self.pvalue < self.level)
+
+
+def innovation_levels(alpha: float) -> tuple[float, float]:
+    """(α of the two questions, α_W of the whiteness test) for innovations: under a right
+    filter the innovations are white (Mehra 1970), so whiteness is a third question of the
+    same segment. Šidák's split gives each of the three tests the same share,
+    1 − (1 − α)^{1/3}: the two questions together 1 − (1 − α)^{2/3}, whiteness the rest,
+    and a right filter is flagged at most α in all."""
+    each = -math.expm1(math.log1p(-alpha) / 3.0)
+    pair = -math.expm1(2.0 * math.log1p(-alpha) / 3.0)
+    return pair, each
 
 
 def default_lags(n: int) -> int:

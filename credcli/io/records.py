@@ -58,6 +58,12 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     "location": a partial verdict, whose label answers only the other question).
     ``mean_*`` is the GLS mean test of the calibrated rule (``mean_batches`` K of its batch
     means, 0 for Hotelling's test of independent epochs); ``scale_batches`` likewise.
+    ``memory_*``: the dependence model the calibrated rule used (fitted on this segment or
+    on the ``run`` it is a window of): AR order, τ per principal direction, ν_Ω.
+    ``time_scale_*``: the variance of the whitened errors at each averaging time (epochs)
+    against the model's prediction and interval, and the check's p-value
+    (:class:`credcli.engine.memory.TimeScales`). ``findings``: what the data show beside
+    the label (a slowly varying error across the windows of a run).
     """
     elt = diag.elt
     sc = diag.scale
@@ -110,6 +116,20 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "effective_n": diag.effective_n,
         "autocorrelation": diag.autocorrelation,
         "reason": diag.reason,
+    }
+    memory, scales = diag.memory, diag.time_scales
+    rec |= {
+        "memory_source": diag.memory_source,
+        "memory_orders": None if memory is None else [m.order for m in memory.series],
+        "memory_variance_ratios": _floats(None if memory is None else memory.variance_ratios),
+        "memory_dof": None if memory is None else memory.dof,
+        "time_scale_epochs": None if scales is None else [int(m) for m in scales.epochs],
+        "time_scale_observed": _floats(None if scales is None else scales.observed),
+        "time_scale_predicted": _floats(None if scales is None else scales.predicted),
+        "time_scale_low": _floats(None if scales is None else scales.low),
+        "time_scale_high": _floats(None if scales is None else scales.high),
+        "time_scale_pvalue": None if scales is None else scales.pvalue,
+        "findings": list(diag.findings) or None,
     }
     return {k: json_value(v) for k, v in rec.items()}
 
@@ -218,6 +238,8 @@ def segment_record(result: SegmentDiagnosis) -> dict:
             "whiteness_statistic": white.statistic,
             "whiteness_pvalue": white.pvalue,
             "whiteness_lags": white.lags,
+            "whiteness_level": white.level,
+            "whiteness_rejected": white.rejected,
         }
     return rec
 

@@ -453,7 +453,8 @@ def diagnose_report(
         if info["dropped_rows"]:
             notes.append(f"{info['path']}: dropped {info['dropped_rows']} row(s) with NaN/Inf.")
     notes.extend(_advice_lines(records))
-    notes.extend(_whiteness_lines(records, config.alpha))
+    notes.extend(_finding_lines(records))
+    notes.extend(_whiteness_lines(records))
     if monte_carlo is not None:
         mc = monte_carlo
         notes.append(
@@ -485,16 +486,22 @@ def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
     return lines
 
 
-def _whiteness_lines(records: list[dict], alpha: float, limit: int = 10) -> list[str]:
-    """Segments whose innovations are not white at level α."""
-    bad = [
-        r
-        for r in records
-        if r.get("whiteness_pvalue") is not None and r["whiteness_pvalue"] < alpha
-    ]
+def _finding_lines(records: list[dict], limit: int = 10) -> list[str]:
+    """The findings the engine reports beside the labels (a slowly varying error, ...)."""
+    lines = [f"{r['segment']}: {f}" for r in records for f in r.get("findings") or ()]
+    if len(lines) > limit:
+        lines = lines[:limit] + [f"... and {len(lines) - limit} more finding(s); see --format json"]
+    return lines
+
+
+def _whiteness_lines(records: list[dict], limit: int = 10) -> list[str]:
+    """Segments whose innovations are not white at the whiteness test's share of α (the
+    engine's decision, ``whiteness_rejected``)."""
+    bad = [r for r in records if r.get("whiteness_rejected")]
     lines = [
         f"{r['segment']}: innovations correlated in time (portmanteau p = "
-        f"{format_cell(r['whiteness_pvalue'], 3)}, {r['whiteness_lags']} lags): the filter's "
+        f"{format_cell(r['whiteness_pvalue'], 3)}, {r['whiteness_lags']} lags, level "
+        f"{format_cell(r['whiteness_level'], 3)}): the filter's "
         "model or noise is inconsistent even if the NIS level is right"
         for r in bad[:limit]
     ]

@@ -50,7 +50,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     source, items, config, seed, innovations, runs, blocks = task
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
-    for name, t0, t1, e, c, memory, findings in items:
+    for name, t0, t1, e, c, memory, findings, declined in items:
         white = innovation_whiteness(e, c, level) if innovations else None
         # innovations are tested under their white null unless the whiteness test rejects;
         # correlated innovations are then a finding, and the two questions are answered
@@ -60,7 +60,9 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             if white is None or not white.rejected
             else replace(config, alpha=white_null.alpha)
         )
-        diag = diagnose_segment(e, c, chosen, seed, name, source, runs, blocks, memory, findings)
+        diag = diagnose_segment(
+            e, c, chosen, seed, name, source, runs, blocks, memory, findings, declined
+        )
         out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
     return out
 
@@ -77,13 +79,16 @@ def _as_slice(index: np.ndarray):
 
 def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray, run=None) -> tuple:
     """A segment as a task item: (name, t_start, t_end, errors, covariances, the run's
-    dependence model for a window, the run's findings for the run's own segment), the
-    arrays as views when the segment is contiguous."""
+    dependence model for a window, the run's findings for the run's own segment, why a
+    window gets no verdict of its own), the arrays as views when the segment is
+    contiguous."""
     index = _as_slice(segment.index)
-    memory = run.memory if run is not None and segment.window else None
+    window = run is not None and segment.window
+    memory = run.memory if window else None
+    declined = run.window_reason if window else None
     findings = run.findings if run is not None and segment.name == seg.RUN_SEGMENT else ()
     item = (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
-    return (*item, memory, findings)
+    return (*item, memory, findings, declined)
 
 
 def _run_model(log, segments, config: DiagnosisConfig):

@@ -281,6 +281,7 @@ def diagnose_log(
             blocks=getattr(log, "blocks", ()),
             memory=run.memory if window else None,
             findings=run.findings if windows and not window and seg.name == "run" else (),
+            declined=run.window_reason if window else None,
         )
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
@@ -322,6 +323,20 @@ class RunModel:
 
     memory: Memory | None
     findings: tuple[str, ...] = ()
+
+    @property
+    def window_reason(self) -> str | None:
+        """Why a window of this run gets no label of its own: the errors vary slowly
+        between windows, so a window cannot tell a bias from that slow error, and its
+        spread is only the fast part (None when the run is homogeneous)."""
+        if not self.findings:
+            return None
+        return (
+            "no window verdict: the run's errors vary slowly between windows, or its conditions "
+            "change (see the run's finding); a window cannot tell a bias from that slow error, "
+            "and its spread is the fast part only: the run's own verdict covers the total "
+            "error, and a segment column can name windows of different conditions"
+        )
 
 
 HOMOGENEITY_LEVEL = 0.01
@@ -380,8 +395,8 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
         findings = (
             f"slowly varying error: the {len(parts)} windows' means vary "
             f"{statistic / dof:.3g}× as much as the memory within a window explains "
-            f"(p {pvalue:.2g}); each window's verdict describes the errors about its own "
-            "mean, and this verdict of the whole run the total error",
+            f"(p {pvalue:.2g}): a slowly varying error, or conditions that change between "
+            "windows; this verdict of the whole run covers the total error",
         )
     return RunModel(memory, findings)
 
@@ -397,13 +412,15 @@ def diagnose_segment(
     blocks: tuple = (),
     memory: Memory | None = None,
     findings: tuple[str, ...] = (),
+    declined: str | None = None,
 ) -> Diagnosis:
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
     the log and the segment. ``runs``: see :func:`diagnose_errors`; ``blocks``: named
     blocks of the state (:data:`credcli.engine.lie.STATE_BLOCKS`) whose scale factors the
     calibrated rule reports beside the overall one (:func:`block_scales`); ``memory``: the
     dependence model of the run the segment is a window of (:func:`run_model`);
-    ``findings``: the run's, for the run's own segment."""
+    ``findings``: the run's, for the run's own segment; ``declined``: why a window of a
+    run gets no label of its own (:attr:`RunModel.window_reason`)."""
     try:
         errors, cov = metrics.check_errors_cov(errors, cov)
         n, d = errors.shape
@@ -417,6 +434,10 @@ def diagnose_segment(
             diag = replace(diag, blocks=block_scales(errors, cov, blocks, config, runs))
         if findings:
             diag = replace(diag, findings=diag.findings + findings)
+        if declined is not None:  # the numbers stay; the label claims no misfit
+            diag = replace(
+                diag, label=Label.INSUFFICIENT, reason=declined, untested=(), smm_detected=None
+            )
         return diag
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc

@@ -277,6 +277,9 @@ MIN_ORDER = 1
 errors too often (AR(1) φ = 0.3, 25 epochs: the tests for independent epochs then found a
 "bias" in 10 % of windows); an AR(1) at least, its estimation error bootstrapped, keeps the
 level there and costs independent errors little (their fitted τ̂ is near 1)."""
+FORCED_BELOW = 200
+"""Runs shorter than this get :data:`MIN_ORDER` in every series; longer ones keep AICc's
+order 0 for a series that shows no memory (known white, no bootstrap)."""
 BOOTSTRAP_REPLICATES = 40
 """Series drawn from each fitted model to measure its estimation error (a variance from
 40 draws is within ±22 % at one standard error, which moves a t critical value at 20
@@ -317,12 +320,11 @@ def bootstrap_spread(
     draws -= draws.mean(axis=2, keepdims=True)
     fit = burg(draws.reshape(len(phis) * b, 1, n), p_max)
     orders = fit.orders(minimum)
-    logs = np.array(
-        [
-            _log_tau(fit.coefficients(k, int(orders[k])), float(fit.variance[k, orders[k]]))
-            for k in range(len(phis) * b)
-        ]
-    ).reshape(len(phis), b)
+    # τ of an AR(p) from its reflection coefficients: γ(0) = σ²_p/Π(1 − k_j²) and
+    # A(1) = Π(1 + k_j) (Levinson's step at z = 1), so τ = σ²_p/(A(1)²γ(0)) = Π (1 − k_j)/(1 + k_j)
+    steps = np.log1p(-fit.reflection) - np.log1p(fit.reflection)
+    cumulative = np.concatenate([np.zeros((steps.shape[0], 1)), np.cumsum(steps, axis=1)], axis=1)
+    logs = np.maximum(cumulative[np.arange(orders.size), orders], 0.0).reshape(len(phis), b)
     truths = np.array([_log_tau(phi, 1.0) for phi in phis])
     return np.var(logs, axis=1, ddof=1), np.mean(logs, axis=1) - truths
 
@@ -392,7 +394,7 @@ class Memory:
 def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     """Orthonormal directions (columns) of the long-run covariance of the whitened errors
     ``s`` (N, d): eigenvectors of a Bartlett estimate with bandwidth ⌈√T⌉ (T epochs per
-    run), largest first. They only rotate the whitened frame, so the lag-0 covariance is
+    run, as moving sums), largest first. They only rotate the whitened frame, so the lag-0 covariance is
     unchanged; a poor estimate costs efficiency, not level."""
     n, d = s.shape
     if d == 1:
@@ -401,10 +403,11 @@ def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     x = x - x.mean(axis=1, keepdims=True)
     t = x.shape[1]
     band = max(1, min(t - 1, math.ceil(math.sqrt(t))))
-    omega = np.einsum("mti,mtj->ij", x, x)
-    for lag in range(1, band + 1):  # ⌈√T⌉ lags of (d, d) products, not a loop over epochs
-        c = np.einsum("mti,mtj->ij", x[:, lag:], x[:, :-lag])
-        omega += (1.0 - lag / (band + 1)) * (c + c.T)
+    # the Bartlett estimate with bandwidth H is, up to the ends, the covariance of sums of
+    # H + 1 consecutive epochs over H + 1: one cumulative sum, no loop over lags
+    c = np.concatenate([np.zeros((runs, 1, d)), np.cumsum(x, axis=1)], axis=1)
+    sums = c[:, band + 1 :] - c[:, : -band - 1]
+    omega = np.einsum("mti,mtj->ij", sums, sums) / (band + 1)
     _, vectors = np.linalg.eigh(omega)
     return vectors[:, ::-1]
 
@@ -454,14 +457,17 @@ def fit_memory(
     if not screened and not np.any(fit.orders()):
         white = SeriesMemory(np.zeros(0), np.ones(1), math.inf, (0,))
         return Memory(directions, (white,) * d, white, n, runs)
-    minimum = min(MIN_ORDER, p_max)
+    # short or screened: every series at least AR(1); else AICc's order, 0 included
+    minimum = min(MIN_ORDER, p_max) if screened or t < FORCED_BELOW else 0
     orders = fit.orders(minimum)
     spreads: list = [None] * (d + 1)
-    if np.any(orders > 0):
-        phis = [fit.coefficients(i, int(orders[i])) for i in range(d + 1)]
+    fitted = np.flatnonzero(orders > 0)
+    if fitted.size:
+        phis = [fit.coefficients(int(i), int(orders[i])) for i in fitted]
         search = min(p_max, 2 * int(orders.max()) + 4)
         spread, bias = bootstrap_spread(phis, n, search, int(orders.sum()), minimum)
-        spreads = list(zip(spread, bias))
+        for i, v, b in zip(fitted, spread, bias):
+            spreads[int(i)] = (v, b)
     memories = [series_memory(fit, i, t, spreads[i], minimum) for i in range(d + 1)]
     return Memory(directions, tuple(memories[:d]), memories[d], n, runs)
 

@@ -1,0 +1,124 @@
+"""The rule on evidence written by hand, windows of one run judged against the run's memory,
+the run's homogeneity finding, the check at every averaging time, and innovations under
+their white null (issue 30)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from credcli.engine import memory as mem
+from credcli.engine.batches import MeanTest
+from credcli.engine.config import DiagnosisConfig, Label, Question
+from credcli.engine.diagnosis import (
+    diagnose_errors,
+    diagnose_segment,
+    innovation_config,
+    run_model,
+)
+from credcli.engine.evidence import Evidence
+from credcli.engine.rules import decide
+from credcli.engine.scale import ScaleTest
+from credcli.engine.whiteness import innovation_levels
+
+
+def _scale(kappa: float, low: float, high: float, up: float, down: float) -> ScaleTest:
+    zero = np.zeros(2)
+    return ScaleTest(1.0, 100.0, 1.0, kappa, low, high, up, down, zero, zero, 0.0)
+
+
+def _evidence(scale: ScaleTest, mean_p: float | None, scale_reason=None) -> Evidence:
+    mean = None if mean_p is None else MeanTest(1.0, (2.0, 98.0), mean_p, 0)
+    config = DiagnosisConfig()
+    return Evidence(
+        n=100, dim=2, nci=0.0, nci_centered=0.0, anees=1.0, ks_pvalue=0.5, nees_total=200.0,
+        scale=scale, scale_reason=scale_reason, directions=None, block_length=1,
+        effective_n=100.0, autocorrelation=0.0, mean_test=mean,
+        mean_level=config.location_level, elt=None, elt_level=None,
+        location_reason=None if mean is not None else "location untested: planted",
+    )  # fmt: skip
+
+
+def test_the_rule_decides_on_evidence_written_by_hand():
+    config = DiagnosisConfig()
+    credible = _scale(1.0, 0.8, 1.25, 0.5, 0.5)
+    assert decide(_evidence(credible, 0.5), config).label is Label.CREDIBLE
+    assert decide(_evidence(credible, 1e-6), config).label is Label.SMM
+    too_small = _scale(3.0, 2.5, 3.6, 1e-9, 1.0)
+    assert decide(_evidence(too_small, 1e-6), config).label is Label.OPTIMISM_SMM
+    # an interval that does not exclude a factor 2 is not "credible": scale untested
+    wide = _scale(1.0, 0.4, 2.5, 0.5, 0.5)
+    verdict = decide(_evidence(wide, 0.5), config)
+    assert verdict.label is Label.CREDIBLE and verdict.untested == (Question.SCALE,)
+    # neither question: insufficient-data, with both reasons
+    verdict = decide(_evidence(wide, None), config)
+    assert verdict.label is Label.INSUFFICIENT and "planted" in verdict.reason
+
+
+def _slow_white(n, phi, white, rng, d=2):
+    slow = lfilter([1.0], [1.0, -phi], rng.standard_normal((n + 3000, d)), axis=0)[3000:]
+    slow *= math.sqrt(1 - phi**2)
+    return math.sqrt(1 - white) * slow + math.sqrt(white) * rng.standard_normal((n, d))
+
+
+def test_windows_share_the_runs_model_and_the_run_names_a_slow_error():
+    """A run of slow + white errors (φ = 0.998, 10 % white; credible by construction) cut
+    into 40-epoch windows: alone, a window reads a near-constant offset over small white
+    noise as a misfit (pessimism+smm); the run names the slowly varying error, and its
+    windows get no label that holds only for their fast part."""
+    rng = np.random.default_rng(1)
+    e = _slow_white(4000, 0.998, 0.1, rng)
+    cov = np.broadcast_to(np.eye(2), (4000, 2, 2))
+    windows = [np.arange(k, k + 40) for k in range(0, 4000, 40)]
+    run = run_model(e, cov, windows, DiagnosisConfig())
+    assert run.findings and "slowly varying error" in run.findings[0]
+    alone = sum(
+        diagnose_errors(e[index], cov[index], rng=k).label.conditions != frozenset()
+        for k, index in enumerate(windows[:40])
+    )
+    assert alone > 20
+    d = diagnose_segment(
+        e[windows[0]], cov[windows[0]], DiagnosisConfig(), 0, "w001",
+        memory=run.memory, declined=run.window_reason,
+    )  # fmt: skip
+    assert d.label is Label.INSUFFICIENT and "vary slowly between windows" in d.reason
+    assert d.memory_source == "run" and d.scale is not None  # the numbers stay
+
+
+def test_a_homogeneous_run_has_no_finding():
+    rng = np.random.default_rng(2)
+    e = lfilter([1.0], [1.0, -0.5], rng.standard_normal((3000, 2)), axis=0) * math.sqrt(0.75)
+    cov = np.broadcast_to(np.eye(2), (3000, 2, 2))
+    windows = [np.arange(k, k + 100) for k in range(0, 3000, 100)]
+    run = run_model(e, cov, windows, DiagnosisConfig())
+    assert run.memory is not None and not run.findings
+    assert run.memory.series[0].variance_ratio == pytest.approx(3.0, rel=0.25)
+
+
+def test_the_time_scale_check_is_exact_for_white_errors_and_sees_long_memory():
+    """White errors: the observed variance at every averaging time is inside the model's
+    interval at about the nominal rate. A random walk plus white noise fitted by a white
+    model (its sieve at order 0 forced): the check fails at long averaging times."""
+    rng = np.random.default_rng(3)
+    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf, (0,))
+    model = mem.Memory(np.eye(2), (white, white), white, 2000)
+    outside = 0
+    for _ in range(100):
+        y = rng.standard_normal((2000, 2))
+        ts = mem.time_scales(y - y.mean(axis=0), model)
+        outside += ts.failed_at is not None
+    assert outside <= 6  # 1 % nominal, Bonferroni over 8 scales: s.e. 1 %
+    walk = np.cumsum(rng.standard_normal((2000, 2)), axis=0) * 0.05 + rng.standard_normal((2000, 2))
+    ts = mem.time_scales(walk - walk.mean(axis=0), model)
+    assert ts.failed_at is not None and ts.observed[-1] > ts.high[-1]
+
+
+def test_innovations_split_alpha_in_three_and_test_white():
+    pair, each = innovation_levels(0.05)
+    assert (1 - pair) * (1 - each) == pytest.approx(0.95, rel=1e-12)
+    assert (1 - each) ** 3 == pytest.approx(0.95, rel=1e-12)
+    config, level = innovation_config(DiagnosisConfig())
+    assert config.block_length == 1 and config.alpha == pytest.approx(pair) and level == each

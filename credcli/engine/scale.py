@@ -22,6 +22,7 @@ whitened component when the epochs are correlated.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -455,9 +456,10 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
     Under the model, each principal direction's centred sum of squares is a Gaussian
     quadratic form with exact mean E_i and variance V_i
     (:meth:`credcli.engine.memory.SeriesMemory.centred_square_moments`); T = Σ_k q_k has
-    mean E = Σ E_i and variance V = max(f Σ V_i, V_q/κ̂²), f the tail factor of the
-    residuals (:func:`tail_factor`) and V_q the variance of T implied by the centred NEES's
-    own fitted memory (heavy tails and any dependence between directions). Then T/c ~ χ²_ν
+    mean E = Σ E_i and variance V = f Σ V_i, f the tail factor of the residuals
+    (:func:`tail_factor`), or V_q/κ̂², the variance of T implied by the centred NEES's own
+    fitted memory (heavy tails and any dependence between directions), where that exceeds
+    it by two of its own standard errors. Then T/c ~ χ²_ν
     with c = V/(2E), ν = 2E²/V (Satterthwaite 1946) and κ̂ = T/E: at short windows of slow
     errors E is well below (N − 1)d, since centring a window removes its slow part.
 
@@ -483,7 +485,9 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
         q_mean = total / n
         # q's own variance of T in units of κ = 1: Var(q/q̄)·n·v_q·(q̄/κ̂)², scale-free
         own = float(np.var(q / q_mean)) * n * memory.squares.mean_ratio(n) * (expected / n) ** 2
-        if own > variance:
+        # q's own estimate is noisier (ν_Ω of the squares): it replaces the Gaussian one
+        # only where it exceeds it by two of its standard errors
+        if own > variance * (1.0 + 2.0 * math.sqrt(2.0 / memory.squares.dof)):
             variance = own
             dof_model = min(dof_model, memory.squares.dof)
     c = variance / (2.0 * expected)

@@ -1,0 +1,231 @@
+"""The calibrated rule on the zoo of error processes (benchmarks/zoo.py): decided share,
+false alarms and power by family, segment length N and misfit. Measurements with their
+binomial standard errors, not tests.
+
+    python benchmarks/memory.py [--quick] [--families a,b] [--lengths 50,300,2000]
+                                [--reps R] [--misfits none,small4,large4,bias1] [--seed S]
+
+For each family × N × misfit it draws R cases (R = 100, 30 with --quick; fewer for long
+segments, see :func:`reps_for`) and runs ``diagnose_errors(errors, cov, rng=seed)`` with
+the default (calibrated) configuration. Cases are paired across misfits: draw r of a family
+and N uses one random stream for all four misfits, so the misfits differ only by the misfit
+(and a library filter is run once per draw).
+
+Columns: decided = both questions answered (label not insufficient, nothing untested);
+credible = label "credible"; false alarm (misfit none) = a label naming a condition;
+power (misfits) = the label contains the right condition (optimism for small4, pessimism
+for large4, smm for bias1); insufficient = label insufficient-data. Library families are
+not exactly credible when right-tuned (truth_factor NaN): their "none" rows are a separate
+"right-tuned library" table whose "flagged" is not a false-alarm rate.
+
+``run(families, lengths, reps, misfits, diagnose=...)`` returns the rows as dicts, for
+other code to compare another rule: ``diagnose(errors, cov, rng)`` must return an object
+with ``.label`` (a :class:`Label`) and ``.untested``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import hashlib
+import math
+import os
+import sys
+import time
+import zlib
+from collections.abc import Callable, Iterable
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import zoo  # noqa: E402
+
+from credcli.engine.diagnosis import Label, diagnose_errors  # noqa: E402
+
+EXPECTED = {"small4": "optimism", "large4": "pessimism", "bias1": "smm"}
+SEED = 20240
+
+
+def reps_for(n: int, reps: int) -> int:
+    """R for segments of n epochs: all R up to 500 epochs, R·500/n beyond (at least 10),
+    since a diagnosis costs ~n² beyond a few hundred epochs (the ELT)."""
+    if n <= 500:
+        return reps
+    return max(10, min(reps, int(round(reps * 500 / n))))
+
+
+def _seeds(family: str, n: int, rep: int, seed: int) -> tuple[np.random.SeedSequence, int]:
+    ss = np.random.SeedSequence(entropy=seed, spawn_key=(zlib.crc32(family.encode()), n, rep))
+    return ss, int(ss.generate_state(1)[0])
+
+
+def run(
+    families: Iterable[str],
+    lengths: Iterable[int],
+    reps: int,
+    misfits: Iterable[str] = zoo.MISFITS,
+    diagnose: Callable = diagnose_errors,
+    seed: int = SEED,
+    progress: bool = False,
+) -> list[dict]:
+    """One row per family × N × misfit with the counts over R = reps_for(N, reps) cases."""
+    misfits = list(misfits)
+    rows = []
+    for family in families:
+        kind = zoo.kind(family)
+        for n in lengths:
+            r = reps_for(n, reps)
+            acc = {
+                m: dict(decided=0, credible=0, flagged=0, power=0, insufficient=0, partial=0)
+                for m in misfits
+            }
+            info: dict[str, zoo.Case] = {}
+            t0 = time.process_time()
+            for rep in range(r):
+                ss, diag_seed = _seeds(family, n, rep, seed)
+                for m in misfits:
+                    case = zoo.make(family, n, np.random.default_rng(ss), m)
+                    info.setdefault(m, case)
+                    d = diagnose(case.errors, case.cov, rng=diag_seed)
+                    a = acc[m]
+                    insufficient = d.label is Label.INSUFFICIENT
+                    a["insufficient"] += insufficient
+                    a["decided"] += (not insufficient) and not d.untested
+                    a["partial"] += (not insufficient) and bool(d.untested)
+                    a["credible"] += d.label is Label.CREDIBLE
+                    a["flagged"] += bool(d.label.conditions)
+                    a["power"] += m in EXPECTED and EXPECTED[m] in d.label.conditions
+            seconds = time.process_time() - t0
+            for m in misfits:
+                case = info[m]
+                rows.append(
+                    dict(
+                        family=family,
+                        kind=kind,
+                        n=n,
+                        misfit=m,
+                        reps=r,
+                        tau=case.tau,
+                        n_over_tau=n / case.tau if case.tau > 0 else float("nan"),
+                        truth_factor=case.truth_factor,
+                        library=kind == "library",
+                        seconds=seconds / len(misfits),
+                        **acc[m],
+                    )
+                )
+            if progress:
+                print(f"  {family} N={n} R={r}: {seconds:.1f}s", file=sys.stderr, flush=True)
+    return rows
+
+
+def _pct(k: int, n: int) -> str:
+    if n == 0:
+        return "–"
+    p = k / n
+    return f"{100 * p:.0f}±{100 * math.sqrt(p * (1 - p) / n):.0f}"
+
+
+def _pooled(rows: list[dict], key: str, label: str) -> str:
+    k, n = sum(r[key] for r in rows), sum(r["reps"] for r in rows)
+    return f"{label}: {_pct(k, n)} % ({k}/{n} cases, {len(rows)} cells)"
+
+
+def _table(rows: list[dict], rate: str, rate_name: str) -> list[str]:
+    head = (
+        f"| family | N | R | N/τ | truth | decided % | credible % | {rate_name} % "
+        "| insufficient % |"
+    )
+    out = [head, "|" + "---|" * 9]
+    for r in rows:
+        tf = r["truth_factor"]
+        out.append(
+            f"| {r['family']}{' †' if r['library'] else ''} | {r['n']} | {r['reps']} "
+            f"| {r['n_over_tau']:.3g} | {'–' if math.isnan(tf) else f'{tf:.3g}'} "
+            f"| {_pct(r['decided'], r['reps'])} | {_pct(r['credible'], r['reps'])} "
+            f"| {_pct(r[rate], r['reps'])} | {_pct(r['insufficient'], r['reps'])} |"
+        )
+    return out
+
+
+def report(rows: list[dict]) -> str:
+    """The Markdown tables of :func:`run`'s rows, one per misfit."""
+    out = []
+    for m in dict.fromkeys(r["misfit"] for r in rows):
+        sub = [r for r in rows if r["misfit"] == m]
+        if m == "none":
+            exact = [r for r in sub if not r["library"]]
+            lib = [r for r in sub if r["library"]]
+            if exact:
+                out += ["", "### misfit none: credible by construction", ""]
+                out += _table(exact, "flagged", "false alarm")
+                long = [r for r in exact if r["n_over_tau"] >= 30]
+                out += [
+                    "",
+                    _pooled(exact, "flagged", "- false alarms over all credible cells"),
+                    _pooled(long, "decided", "- decided over cells with N/τ ≥ 30"),
+                    _pooled(long, "credible", "- credible over cells with N/τ ≥ 30"),
+                ]
+            if lib:
+                out += [
+                    "",
+                    "### misfit none: right-tuned library filters (not exactly credible)",
+                    "",
+                ]
+                out += _table(lib, "flagged", "flagged")
+                out += ["", _pooled(lib, "flagged", "- flagged over right-tuned library cells")]
+        else:
+            out += ["", f"### misfit {m}: power = label contains {EXPECTED[m]!r}", ""]
+            out += _table(sub, "power", "power")
+            long = [r for r in sub if r["n_over_tau"] >= 30]
+            exact = [r for r in sub if not r["library"]]
+            out += [
+                "",
+                _pooled(exact, "power", "- power over all exact (non-library) cells"),
+                _pooled(long, "power", "- power over cells with N/τ ≥ 30"),
+                _pooled(long, "decided", "- decided over cells with N/τ ≥ 30"),
+            ]
+    out += ["", "† library filter: truth_factor relative to the right-tuned filter (NaN: –)."]
+    return "\n".join(out)
+
+
+def engine_fingerprint() -> str:
+    """Where credcli was imported from and a short hash of its engine's sources, to tell
+    which engine a saved table measured."""
+    import credcli
+
+    root = os.path.dirname(credcli.__file__)
+    h = hashlib.sha256()
+    for path in sorted(glob.glob(os.path.join(root, "engine", "*.py"))):
+        h.update(os.path.basename(path).encode())
+        with open(path, "rb") as f:
+            h.update(f.read())
+    return f"credcli from {root}, engine sources sha256 {h.hexdigest()[:12]}"
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="R = 30")
+    ap.add_argument("--families", help="comma-separated (default: all of zoo.families())")
+    ap.add_argument("--lengths", default="50,300,2000")
+    ap.add_argument("--reps", type=int, help="R (default 100, 30 with --quick)")
+    ap.add_argument("--misfits", default=",".join(zoo.MISFITS))
+    ap.add_argument("--seed", type=int, default=SEED)
+    args = ap.parse_args(argv)
+    fams = args.families.split(",") if args.families else zoo.families()
+    lengths = [int(x) for x in args.lengths.split(",")]
+    reps = args.reps or (30 if args.quick else 100)
+    misfits = args.misfits.split(",")
+    t0, w0 = time.process_time(), time.time()
+    rows = run(fams, lengths, reps, misfits, seed=args.seed, progress=True)
+    print(
+        f"# Calibrated rule on the zoo: {len(fams)} families, N = {lengths}, R = {reps} "
+        f"(R = {reps_for(max(lengths), reps)} at N = {max(lengths)}), seed {args.seed}"
+    )
+    print(f"# {engine_fingerprint()}")
+    print(report(rows))
+    print(f"\n{time.process_time() - t0:.0f} s CPU, {time.time() - w0:.0f} s wall")
+
+
+if __name__ == "__main__":
+    main()

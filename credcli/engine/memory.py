@@ -169,6 +169,7 @@ class SeriesMemory:
     rho: np.ndarray
     dof: float
     orders: tuple[int, ...] = ()  # the order(s) fitted; () when given
+    square_dof: float = math.inf  # ν of τ₂ = Σρ², the scale test's model uncertainty
 
     @property
     def order(self) -> int:
@@ -301,7 +302,7 @@ def _log_tau(phi: np.ndarray, sigma2: float) -> float:
 def bootstrap_spread(
     phis: list[np.ndarray], n: int, p_max: int, seed: int, minimum: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(Var(log τ̂*), mean(log τ̂*) − log τ) of each AR model in ``phis`` (unit
+    """(Var(log τ̂*), mean(log τ̂*) − log τ, Var(log τ̂₂*)) of each AR model in ``phis`` (unit
     innovations): B series of ``n`` epochs drawn from it (Gaussian, stationary by a
     burn-in), each refitted as the data were (Burg, order by AICc among ``minimum`` …
     ``p_max``), and the variance and bias of their log τ̂ (τ floored at 1). This is the
@@ -326,7 +327,32 @@ def bootstrap_spread(
     cumulative = np.concatenate([np.zeros((steps.shape[0], 1)), np.cumsum(steps, axis=1)], axis=1)
     logs = np.maximum(cumulative[np.arange(orders.size), orders], 0.0).reshape(len(phis), b)
     truths = np.array([_log_tau(phi, 1.0) for phi in phis])
-    return np.var(logs, axis=1, ddof=1), np.mean(logs, axis=1) - truths
+    squares = np.log(_square_ratios(fit.reflection, orders)).reshape(len(phis), b)
+    return (
+        np.var(logs, axis=1, ddof=1),
+        np.mean(logs, axis=1) - truths,
+        np.var(squares, axis=1, ddof=1),
+    )
+
+
+SPECTRUM_POINTS = 4096
+"""Frequencies on which :func:`_square_ratios` integrates the AR spectra."""
+
+
+def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
+    """τ₂ = Σ_h ρ(h)² of each AR model given by its reflection coefficients (k, p_max) at
+    its order: Levinson's step on all models at once, then Parseval on the spectrum
+    f ∝ 1/|A(e^{iω})|², τ₂ = mean(f²)/mean(f)². The scale test's variance is proportional
+    to τ₂ (:meth:`SeriesMemory.centred_square_moments`), so its spread is the scale's model
+    uncertainty."""
+    k, p_max = reflection.shape
+    a = np.zeros((k, p_max + 1))
+    a[:, 0] = 1.0
+    for j in range(1, p_max + 1):
+        step = np.where(j <= orders, reflection[:, j - 1], 0.0)
+        a[:, 1 : j + 1] += step[:, None] * a[:, j - 1 :: -1].copy()
+    spectrum = 1.0 / np.abs(np.fft.fft(a, SPECTRUM_POINTS, axis=1)) ** 2
+    return np.mean(spectrum**2, axis=1) / np.mean(spectrum, axis=1) ** 2
 
 
 def series_memory(
@@ -341,6 +367,7 @@ def series_memory(
     method (module docstring); order 0 without a spread is taken as known white noise."""
     order = int(fit.orders(minimum)[series])
     phi, rho, log_tau, var_log = _order_memory(fit, series, order, n)
+    square_dof = math.inf if spread is None else 2.0 / max(float(spread[2]), 1e-300)
     if spread is not None:
         var_log, bias = float(spread[0]), float(spread[1])
         tau = math.exp(log_tau)
@@ -350,7 +377,9 @@ def series_memory(
     elif order == 0:
         var_log = 0.0
     dof = 2.0 / var_log if var_log > 0 else math.inf
-    return SeriesMemory(phi, rho, dof, (order,))
+    if spread is None and order > 0:
+        square_dof = dof
+    return SeriesMemory(phi, rho, dof, (order,), square_dof)
 
 
 @dataclass(frozen=True)
@@ -381,6 +410,11 @@ class Memory:
     def dof(self) -> float:
         """ν_Ω of the least certain direction (the location's reference)."""
         return float(min(m.dof for m in self.series))
+
+    @property
+    def square_dof(self) -> float:
+        """ν of τ₂ = Σρ² of the least certain direction (the scale's reference)."""
+        return float(min(m.square_dof for m in self.series))
 
     def block_length(self, loss: float) -> int:
         """The shortest sign block that loses at most ``loss`` of the variance in every
@@ -465,9 +499,9 @@ def fit_memory(
     if fitted.size:
         phis = [fit.coefficients(int(i), int(orders[i])) for i in fitted]
         search = min(p_max, 2 * int(orders.max()) + 4)
-        spread, bias = bootstrap_spread(phis, n, search, int(orders.sum()), minimum)
-        for i, v, b in zip(fitted, spread, bias):
-            spreads[int(i)] = (v, b)
+        spread, bias, square = bootstrap_spread(phis, n, search, int(orders.sum()), minimum)
+        for i, v, b, w in zip(fitted, spread, bias, square):
+            spreads[int(i)] = (v, b, w)
     memories = [series_memory(fit, i, t, spreads[i], minimum) for i in range(d + 1)]
     return Memory(directions, tuple(memories[:d]), memories[d], n, runs)
 

@@ -391,8 +391,8 @@ def direction_scales(
         variance *= tail_factor(standardized(u))
         c = variance / (2.0 * expected)
         dof = 2.0 * expected * expected / variance
-        upper = _studentized_chi2_quantile(dof, memory.dof, each / 2, upper=True)
-        lower = _studentized_chi2_quantile(dof, memory.dof, each / 2, upper=False)
+        upper = _studentized_chi2_quantile(dof, memory.square_dof, each / 2, upper=True)
+        lower = _studentized_chi2_quantile(dof, memory.square_dof, each / 2, upper=False)
         with np.errstate(over="ignore", divide="ignore"):
             x = values * (n - 1) / c
             low, high = x / upper, x / lower
@@ -463,7 +463,8 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
     with c = V/(2E), ν = 2E²/V (Satterthwaite 1946) and κ̂ = T/E: at short windows of slow
     errors E is well below (N − 1)d, since centring a window removes its slow part.
 
-    The model's own estimation error enters through ν_Ω (its degrees of freedom): each
+    The model's own estimation error enters through the degrees of freedom of τ₂ = Σρ²
+    (to which V is proportional; :func:`credcli.engine.memory.bootstrap_spread`): each
     one-sided p-value is the χ² evidence as a normal score referred to Student's t with
     ν_Ω degrees of freedom, and the interval is inverted from the same p-values, so the
     interval and the test agree.
@@ -479,7 +480,7 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
         gaussian += v_i
     kappa = total / expected
     gaussian *= tail_factor(standardized(residuals.whitened))
-    dof_model = memory.dof
+    dof_model = memory.square_dof
     variance = gaussian
     if kappa > 0:
         q_mean = total / n

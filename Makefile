@@ -59,6 +59,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/calibrated_rule.py
 	$(BIN)/python benchmarks/filters.py
 	$(BIN)/python benchmarks/libraries.py
+	$(BIN)/python benchmarks/memory.py --quick
 
 ## bench-dask: only the Dask rows of make bench (issue 13)
 bench-dask: $(STAMP)

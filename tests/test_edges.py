@@ -626,7 +626,7 @@ def test_gate_takes_config_and_plots(tmp_path):
         "gate", LOG, "--baseline", base, "--config", config, "--plots", tmp_path / "f"
     )
     assert code == 0, err
-    assert len(list((tmp_path / "f").glob("*.png"))) == 18
+    assert len(list((tmp_path / "f").glob("*.png"))) == 24
 
 
 def test_fail_on_accepts_label_aliases():
@@ -640,7 +640,7 @@ def test_diagnose_writes_an_html_report(tmp_path):
     code, _, err = run("diagnose", LOG, "--report", path)
     assert code == 0, err
     html = path.read_text()
-    assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 18
+    assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 24
 
 
 def test_ks_and_nees_alpha_flags_reach_the_settings():

@@ -60,11 +60,14 @@ def sample_plots():
 
 def test_segment_plots_are_pngs_of_the_computed_numbers(sample_plots):
     log, segments, results, figs = sample_plots
-    assert len(figs) == 3 * len(segments)
+    assert len(figs) == 4 * len(segments)  # nees, whitened, time scales, scores
     for fig in figs:
         _check_png(fig.png)
     by_name = {f.name: f for f in figs}
     seg, res = segments[1], results[1]  # "turn"
+    scales = by_name["turn_timescales"].data
+    np.testing.assert_array_equal(scales["observed"], res.diagnosis.time_scales.observed)
+    np.testing.assert_array_equal(scales["epochs"], res.diagnosis.time_scales.epochs)
     errors, cov = log.errors[seg.index], log.cov[seg.index]
     nees = by_name["turn_nees"].data
     np.testing.assert_array_equal(nees["nees"], metrics.nees(errors, cov))
@@ -100,9 +103,9 @@ def test_whitened_plot_other_dimensions():
 
 def test_diagnose_plots_option_writes_files(tmp_path, capsys):
     code, _, err = _run(capsys, "diagnose", LOG, "--plots", tmp_path / "figs")
-    assert code == 0 and "wrote 18 figure(s)" in err
+    assert code == 0 and "wrote 24 figure(s)" in err
     files = sorted((tmp_path / "figs").glob("*.png"))
-    assert len(files) == 18 and {f.name for f in files} >= {"cruise_nees.png", "urban_scores.png"}
+    assert len(files) == 24 and {f.name for f in files} >= {"cruise_nees.png", "urban_scores.png"}
     for f in files:
         _check_png(f.read_bytes())
 
@@ -175,12 +178,12 @@ def test_uwb_plots_and_report(tmp_path, capsys):
 def test_report_is_self_contained(tmp_path, capsys):
     out = tmp_path / "report.html"
     code, _, err = _run(capsys, "report", LOG, "-o", out)
-    assert code == 0 and "18 figures" in err
+    assert code == 0 and "24 figures" in err
     html = out.read_text()
     assert html.startswith("<!DOCTYPE html>")
     assert not re.search(r'(src|href)="(https?:)?//', html)  # nothing fetched from a network
     assert "<script" not in html
-    assert html.count('src="data:image/png;base64,') == 18
+    assert html.count('src="data:image/png;base64,') == 24
     assert "optimism+smm" in html and "&quot;n_flips&quot;: 1000" in html
 
 

@@ -132,6 +132,39 @@ def nees_plot(name: str, time, nees: np.ndarray, dim: int, title: str) -> Plot:
     return _finish(fig, name, title, data)
 
 
+def time_scales_plot(name: str, scales, rate_hz: float | None, title: str) -> Plot:
+    """The variance of the whitened errors at every averaging time (m times the variance
+    of m-epoch means, per direction in its own units) against the dependence model's
+    prediction and its interval (:class:`credcli.engine.memory.TimeScales`): where the
+    points leave the band, the errors vary more slowly than the model explains."""
+    plt = _pyplot()
+    m = np.asarray(scales.epochs, dtype=float)
+    x = m / rate_hz if rate_hz else m
+    fig, ax = plt.subplots(figsize=(6.5, 3.8))
+    ax.fill_between(
+        x, scales.low, scales.high, color="tab:green", alpha=0.2, label="model's interval"
+    )
+    ax.plot(x, scales.predicted, color="tab:green", lw=1.5, label="memory model v_m")
+    ax.plot(x, scales.observed, "o-", color="tab:blue", ms=4, label="observed")
+    ax.axhline(1.0, color="gray", lw=0.8, ls=":", label="independent errors")
+    tested = np.asarray(scales.tested, dtype=bool)
+    if tested.any():
+        ax.axvline(x[tested][0], color="gray", lw=0.8, ls="--", label="checked from here")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("averaging time [s]" if rate_hz else "averaging time [epochs]")
+    ax.set_ylabel("m · Var(mean of m epochs)")
+    ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    data = {
+        "epochs": m,
+        "observed": np.asarray(scales.observed),
+        "predicted": np.asarray(scales.predicted),
+        "low": np.asarray(scales.low),
+        "high": np.asarray(scales.high),
+    }
+    return _finish(fig, name, title, data)
+
+
 def anees_plot(name: str, mc) -> Plot:
     """Per-epoch ANEES over Monte Carlo runs with its two-sided χ²_{Md}/M bounds."""
     plt = _pyplot()
@@ -229,7 +262,8 @@ def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str
 
 
 def segment_plots(results, curves, times, dim: int, prefix: str = "") -> list[Plot]:
-    """The three pictures of every diagnosed segment: ``curves`` (the engine's
+    """The pictures of every diagnosed segment (NEES, whitened errors, the variance at every
+    averaging time where the memory model was read, the scores): ``curves`` (the engine's
     :class:`credcli.engine.curves.SegmentCurves`) and ``times`` (stamps or None) in the
     order of ``results``."""
     plots = []
@@ -239,6 +273,11 @@ def segment_plots(results, curves, times, dim: int, prefix: str = "") -> list[Pl
         head = f"{short_title(res.segment)}: {diag.label.value} (N = {diag.n})"
         plots.append(nees_plot(f"{stem}_nees", time, numbers.nees, dim, head))
         plots.append(whitened_plot(f"{stem}_whitened", numbers.whitened, diag.elt_pvalue, head))
+        if diag.time_scales is not None and diag.time_scales.epochs.size > 1:
+            rate = None
+            if time is not None and len(time) > 1 and np.ptp(time) > 0:
+                rate = (len(time) - 1) / float(np.ptp(time))
+            plots.append(time_scales_plot(f"{stem}_timescales", diag.time_scales, rate, head))
         if numbers.scores is not None:
             scores = numbers.scores
             curves_by_kind = {"claimed": scores.claimed, "centred": scores.centred}

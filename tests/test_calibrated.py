@@ -184,12 +184,10 @@ def test_too_few_blocks_is_insufficient_data_with_a_reason():
     e = _ar1(rng, 300, 2, 0.98)
     d = diagnose_errors(e, np.broadcast_to(np.eye(2), (300, 2, 2)), rng=0)
     assert d.label is Label.INSUFFICIENT and d.elt is None
-    assert "scale untested" in d.reason or "scale inconclusive" in d.reason
-    assert "location untested" in d.reason and "memory" in d.reason
-    assert "ELT not run" in d.reason and d.effective_n < 300 / 10
+    # AR(1) φ = 0.98 in 300 epochs: three correlation times, so the memory itself is unknown
+    assert "memory comparable to the segment" in d.reason and "neither question" in d.reason
+    assert d.effective_n < 300 / 10
     assert d.scale is not None and d.scale.scale_factor > 0  # the numbers are still reported
-    low, high = d.scale.scale_factor_low, d.scale.scale_factor_high
-    assert not (low >= 0.5 and high <= 2.0)  # no interval that could support "credible"
 
 
 @pytest.mark.parametrize(

@@ -229,11 +229,14 @@ def test_the_elt_budget_no_longer_hides_a_bias():
 
 @pytest.fixture
 def scale_only(tmp_path):
-    """A short window of strongly dependent errors with a covariance 9× too large: the scale
-    is decided (pessimism), the location cannot be (too few batches or blocks)."""
+    """A short window of strongly dependent errors with a covariance 9× too large, sign
+    blocks and batches of 50 epochs given (``block_length``, the batch-means route): the
+    scale is decided (pessimism), the location cannot be (too few batches or blocks). (The
+    memory model, the default, answers both or neither on AR(1) windows: from N/τ̂ >= 8
+    its mean test has the degrees of freedom it needs.)"""
     rng = np.random.default_rng(5)
-    e = ar1_errors(150, 2, 0.9, rng) / 4.0
-    d = diagnose_errors(e, _eye(150), rng=0)
+    e = ar1_errors(200, 2, 0.9, rng) / 3.0
+    d = diagnose_errors(e, _eye(200), DiagnosisConfig(block_length=50), rng=0)
     return e, d
 
 
@@ -257,28 +260,29 @@ def _write(tmp_path, e):
 
 def test_a_partial_verdict_in_json_table_and_fail_on(tmp_path, scale_only):
     path = _write(tmp_path, scale_only[0])
-    code, out, err = run("diagnose", path, "-f", "json")
+    blocks = ("--block-length", "50")
+    code, out, err = run("diagnose", path, "-f", "json", *blocks)
     assert code == 0, err
     (rec,) = json.loads(out)["segments"]
     assert rec["label"] == "pessimism" and rec["untested"] == ["location"]
     assert rec["smm_detected"] is None
-    code, out, _ = run("diagnose", path)
+    code, out, _ = run("diagnose", path, *blocks)
     assert "pessimism (location untested)" in out
-    assert run("diagnose", path, "--fail-on", "untested")[0] == 1
-    assert run("diagnose", path, "--fail-on", "pessimism")[0] == 1
-    assert run("diagnose", path, "--fail-on", "smm")[0] == 0
-    assert run("diagnose", path, "--fail-on", "noncredible")[0] == 1
+    assert run("diagnose", path, "--fail-on", "untested", *blocks)[0] == 1
+    assert run("diagnose", path, "--fail-on", "pessimism", *blocks)[0] == 1
+    assert run("diagnose", path, "--fail-on", "smm", *blocks)[0] == 0
+    assert run("diagnose", path, "--fail-on", "noncredible", *blocks)[0] == 1
 
 
 def test_the_gate_sees_a_question_that_is_no_longer_tested(tmp_path, scale_only):
     import pandas as pd
 
     rng = np.random.default_rng(6)
-    long = _write(tmp_path, np.r_[scale_only[0], ar1_errors(2000, 2, 0.9, rng) / 4.0])
+    long = _write(tmp_path, np.r_[scale_only[0], ar1_errors(2000, 2, 0.9, rng) / 3.0])
     baseline = tmp_path / "base.json"
-    assert run("baseline", long, "-o", baseline)[0] == 0
+    assert run("baseline", long, "-o", baseline, "--block-length", "50")[0] == 0
     short = tmp_path / "short.csv"
-    pd.read_csv(long).iloc[:150].to_csv(short, index=False)
+    pd.read_csv(long).iloc[:200].to_csv(short, index=False)
     code, _, err = run("gate", short, "--baseline", baseline)
     assert code == 1 and "location no longer tested" in err
 

@@ -121,6 +121,8 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         memory, scales_check = segment_memory(gls, chol, s, r1)
     model_evidence = {c: memory_evidence(gls, chol, c, memory, n) for c in dict.fromkeys(modelled)}
     slow = _slow_memory(scales_check, memory)
+    if slow is None and modelled and source == "segment":
+        slow = _unresolved_memory(memory, n)
     if slow is not None:
         model_evidence = {c: _declined(ev, slow) for c, ev in model_evidence.items()}
     if not probes_possible:
@@ -529,6 +531,26 @@ def _slow_memory(scales: TimeScales | None, memory: Memory) -> str | None:
         f"this segment explains (p {scales.pvalue:.2g}); errors slower than the segment can "
         "resolve may be read as a bias or a wrong scale, so neither question is answered "
         "(a longer segment, or windows of one run, can decide)"
+    )
+
+
+MIN_RESOLUTION = 8.0
+"""Fewest correlation times a segment must hold to be judged by the memory fitted on it:
+an AR fit on a window of a few correlation times sees only the part of the memory that the
+window resolves (AR(1) φ = 0.99 in 50-epoch windows: τ̂ ≈ 20 against 199, and 20 % of the
+windows were called a misfit), so the memory itself is then unknown."""
+
+
+def _unresolved_memory(memory: Memory, n: int) -> str | None:
+    """Why a segment is too short for the memory fitted on it, or None."""
+    tau = float(np.max(memory.variance_ratios))
+    if n / tau >= MIN_RESOLUTION:
+        return None
+    return (
+        f"memory comparable to the segment: τ̂ {tau:.3g} epochs leaves N/τ̂ {n / tau:.3g}, "
+        f"fewer than {MIN_RESOLUTION:g} correlation times, and the true memory may be longer "
+        "than the segment shows; neither question is answered (a longer segment, or windows "
+        "of one run, can decide)"
     )
 
 

@@ -106,7 +106,7 @@ def test_centred_square_moments_against_monte_carlo():
     [([1, -1.6, 0.8], [1], 2), ([1, -1.9, 0.9025], [1], 2), ([1, -0.9], [1, -0.5], 2)],
 )
 def test_sieve_recovers_the_long_run_variance(ar, ma, order_at_least):
-    """Oscillating AR(2), smooth AR(2) (lag-1 near 1, τ 78) and ARMA(1,1): τ̂ of 20 series
+    """Oscillating AR(2), smooth AR(2) (lag-1 near 1, τ 78) and ARMA(1,1): τ̂ of 10 series
     of 20,000 epochs within 10 % of the exact τ (median), where a lag-1 AR(1) reading
     is off by 4× or more."""
     from statsmodels.tsa.arima_process import arma_acovf
@@ -116,7 +116,7 @@ def test_sieve_recovers_the_long_run_variance(ar, ma, order_at_least):
     gamma = arma_acovf(ar, ma, nobs=200_000)
     tau = 1 + 2 * gamma[1:].sum() / gamma[0]
     taus, orders = [], []
-    for _ in range(20):
+    for _ in range(10):
         x = lfilter(ma, ar, rng.standard_normal(25_000))[5000:]
         x = x / math.sqrt(gamma[0])
         m = mem.fit_memory(x[:, None], x**2)

@@ -21,16 +21,18 @@ From the fitted model the exact finite-sample moments follow (:class:`SeriesMemo
 the variance of a window mean, the mean and variance of a window's centred sum of squares
 (Gaussian quadratic forms, Cochran/Isserlis), the variance lost by sign blocks of length L,
 and the covariance of the GLS mean for claimed covariances that change from epoch to
-epoch. The model's own estimation error is carried into the critical values by the delta
-method on log Ω̂: with the asymptotic covariance σ²Γ_p⁻¹/T of φ̂ (Brockwell & Davis 1991,
-Thm. 8.1.1),
+epoch. The model's own estimation error is carried into the critical values by a
+parametric bootstrap of the fitted model (:func:`bootstrap_spread`: 40 series drawn from
+it and refitted as the data were, order selection included), expressed as the degrees of
+freedom ν = 2/Var(log τ̂*) of a χ²-distributed variance estimate (and likewise for
+τ₂ = Σρ², to which the scale test's variance is proportional); the bootstrap's bias towards
+less memory is corrected. A statistic studentized by the model is referred to Student's t
+(or F) with those degrees of freedom instead of the normal (or χ²). Where the bootstrap is
+not run, the delta method on log Ω̂ with the asymptotic covariance σ²Γ_p⁻¹/T of φ̂
+(Brockwell & Davis 1991, Thm. 8.1.1) gives ν:
 
 .. math:: \operatorname{Var}\log\hat\Omega \approx \frac{2}{T}
-          + \frac{4\,\mathbf 1^\top\Gamma_p^{-1}\mathbf 1\,\sigma^2}{T\,A(1)^2},
-
-which is expressed as the degrees of freedom ν_Ω = 2/Var(log Ω̂) of a χ²-distributed
-variance estimate; a statistic studentized by the model is referred to Student's t (or F)
-with ν_Ω degrees of freedom instead of the normal (or χ²).
+          + \frac{4\,\mathbf 1^\top\Gamma_p^{-1}\mathbf 1\,\sigma^2}{T\,A(1)^2}.
 
 Memory differs between directions (a slow heading error beside a fast position error), so
 the whitened errors are modelled per principal direction of their long-run covariance

@@ -86,7 +86,7 @@ def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray, run=None) -
     window = run is not None and segment.window
     memory = run.memory if window else None
     declined = run.window_reason if window else None
-    findings = run.findings if run is not None and segment.name == seg.RUN_SEGMENT else ()
+    findings = run.findings if run is not None and not segment.window else ()  # the run's
     item = (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
     return (*item, memory, findings, declined)
 

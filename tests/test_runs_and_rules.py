@@ -103,7 +103,7 @@ def test_the_time_scale_check_is_exact_for_white_errors_and_sees_long_memory():
     interval at about the nominal rate. A random walk plus white noise fitted by a white
     model (its sieve at order 0 forced): the check fails at long averaging times."""
     rng = np.random.default_rng(3)
-    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf, (0,))
+    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf)
     model = mem.Memory(np.eye(2), (white, white), white, 2000)
     outside = 0
     for _ in range(100):

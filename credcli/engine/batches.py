@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import special
+from scipy.signal import fftconvolve
 
 from credcli.engine import correlation
 from credcli.engine.units import power_of_two_unit
@@ -278,8 +279,6 @@ def memory_mean_test(
     estimation error (:class:`credcli.engine.memory.Memory`) and the Satterthwaite degrees
     of freedom of the variance estimate. ``inverse``: L⁻¹ (d, d) or L_k⁻¹ (N, d, d).
     """
-    from scipy.signal import fftconvolve
-
     u = residuals.whitened
     n, d = u.shape
     unit = power_of_two_unit(residuals.scores)  # scale-free and exact: cannot overflow

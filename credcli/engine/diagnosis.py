@@ -27,7 +27,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
 )
 from credcli.engine.elt import ELTResult, whiten
 from credcli.engine.evidence import ks_chi2_pvalue  # noqa: F401 (re-exported)
-from credcli.engine.memory import Memory, TimeScales, fit_memory
+from credcli.engine.memory import Memory, TimeScales
 from credcli.engine.rng import RngLike, as_generator
 from credcli.engine.rules import nci_baseline, nees_baseline  # noqa: F401 (re-exported)
 from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals
@@ -280,7 +280,7 @@ def diagnose_log(
             log.source,
             blocks=getattr(log, "blocks", ()),
             memory=run.memory if window else None,
-            findings=run.findings if windows and not window and seg.name == "run" else (),
+            findings=run.findings if windows and not window else (),  # the run's own
             declined=run.window_reason if window else None,
         )
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
@@ -366,7 +366,7 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
     d = errors.shape[1]
     chol = _cholesky(cov)
     gls = gls_residuals(errors, chol)
-    z = evidence.memory_residuals(gls, chol)
+    z = evidence.memory_residuals(gls, np.linalg.inv(chol))
     parts, means, sizes = [], [], []
     for index in windows:
         w = z[index]
@@ -474,14 +474,11 @@ def block_scales(
         chol = _cholesky(c)
         gls = gls_residuals(e, chol)
         s = whiten(e, c)
-        if evidence.reads_memory(config, runs):
+        if evidence.reads_memory(config, runs):  # the block's memory, fitted as a segment's
+            inverse = np.linalg.inv(chol)
+            memory, _ = evidence.segment_memory(gls, inverse, s)
             test = evidence.memory_evidence(
-                gls,
-                chol,
-                config,
-                fit_memory(evidence.memory_residuals(gls, chol), gls.q),
-                e.shape[0],
-                level=level,
+                gls, inverse, config, memory, e.shape[0], level=level
             ).scale
         else:
             dep = dependence.serial_dependence(s, gls.q)

@@ -117,9 +117,13 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     effective_n = float(n / max(1.0, float(np.max(tau_point))))
     source = "run" if memory is not None else "segment"
     scales_check = None
+    inverse = np.linalg.inv(chol) if modelled else None  # one factorisation's inverse
     if modelled and memory is None:
-        memory, scales_check = segment_memory(gls, chol, s, r1)
-    model_evidence = {c: memory_evidence(gls, chol, c, memory, n) for c in dict.fromkeys(modelled)}
+        memory, scales_check = segment_memory(gls, inverse, s, r1)
+    model_evidence = {
+        c: memory_evidence(gls, inverse, c, memory, n) for c in dict.fromkeys(modelled)
+    }
+    del inverse
     slow = _slow_memory(scales_check, memory)
     if slow is None and modelled and source == "segment":
         slow = _unresolved_memory(memory, n)
@@ -132,11 +136,10 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     means: dict = {}
     directional: dict = {}
     for config in configs:
-        key = scale_key(config, refers_to_batches(config, dependent))
         if config in model_evidence:
-            scales.setdefault(key, (None, None))
             continue
-        if key not in scales or scales[key][0] is None:
+        key = scale_key(config, refers_to_batches(config, dependent))
+        if key not in scales:
             batched = refers_to_batches(config, dependent)
             scales[key] = scale_evidence(gls, config, tau, tau_q, batched, runs=runs)
             if config.calibrated and d > 1 and scales[key][1] is None:
@@ -161,15 +164,17 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     scorer = None
     out = []
     for config, plan in zip(configs, plans):
-        key = scale_key(config, refers_to_batches(config, dependent))
-        scale, scale_reason = scales[key]
-        directions = directional.get(key) if config.calibrated and scale_reason is None else None
-        segment_n = effective_n
         if config in model_evidence:
             modelled_config = model_evidence[config]
             scale, scale_reason = modelled_config.scale, modelled_config.scale_reason
             directions = modelled_config.directions
             segment_n = float(n / max(1.0, float(np.max(memory.variance_ratios))))
+        else:
+            key = scale_key(config, refers_to_batches(config, dependent))
+            scale, scale_reason = scales[key]
+            calibrated = config.calibrated and scale_reason is None
+            directions = directional.get(key) if calibrated else None
+            segment_n = effective_n
         elt = None
         if plan.elt_level is not None:
             separate = config.calibrated and plan.block > 1
@@ -318,32 +323,43 @@ class LocationPlan:
 
 
 def location_plan(config: DiagnosisConfig, n, tau, means, dependent, runs) -> LocationPlan:
-    """The calibrated rule runs the GLS mean test at α_L·MEAN_SHARE and the ELT at the
-    rest; a test that cannot run leaves the whole α_L to the other. ``paper`` and ``ks``
-    run the ELT alone."""
+    """The location plan of the lag-1 route: sign blocks from the AR(1) plug-in τ, the mean
+    test from ``means`` (:func:`split_location`); ``paper`` and ``ks`` run the ELT alone."""
     block = config.fixed_block_length or correlation.block_length(tau)
-    n_blocks = tested_blocks(n, block, config.max_elt_epochs, runs)
-    elt_ok = n_blocks >= config.min_blocks
-    why_not_elt = None
-    if not elt_ok:
-        budget = tested_blocks(n, block, n, runs) >= config.min_blocks
-        cause = (
-            f"its budget of {config.max_elt_epochs} epochs (max_elt_epochs)"
-            if budget
-            else f"serial dependence (variance ratio {float(np.max(tau)):.3g}) needs sign "
-            f"blocks of {block} epochs, which"
-        )
-        why_not_elt = (
-            f"ELT not run: {cause} leaves {n_blocks} of the {config.min_blocks} sign blocks "
-            "it needs"
-        )
+    cause = (
+        f"serial dependence (variance ratio {float(np.max(tau)):.3g}) needs sign blocks of "
+        f"{block} epochs, which"
+    )
     if not config.calibrated:
+        elt_ok, why_not_elt = _elt_fits(config, n, block, runs, cause)
         return LocationPlan(
             block, None, 0.0, config.location_level if elt_ok else None, why_not_elt
         )
     mean_test, why_not_mean = means[
         (refers_to_batches(config, dependent), config.fixed_block_length)
     ]
+    return split_location(config, n, block, runs, mean_test, why_not_mean, cause)
+
+
+def _elt_fits(config: DiagnosisConfig, n: int, block: int, runs: int, cause: str):
+    """(whether the ELT has its sign blocks, why not): ``cause`` names what asks for blocks
+    of ``block`` epochs when they, not the memory budget, are too few."""
+    n_blocks = tested_blocks(n, block, config.max_elt_epochs, runs)
+    if n_blocks >= config.min_blocks:
+        return True, None
+    if tested_blocks(n, block, n, runs) >= config.min_blocks:
+        cause = f"its budget of {config.max_elt_epochs} epochs (max_elt_epochs)"
+    return False, (
+        f"ELT not run: {cause} leaves {n_blocks} of the {config.min_blocks} sign blocks it needs"
+    )
+
+
+def split_location(
+    config: DiagnosisConfig, n: int, block: int, runs: int, mean_test, why_not_mean, cause: str
+) -> LocationPlan:
+    """The calibrated rule runs the GLS mean test at α_L·MEAN_SHARE and the ELT at the
+    rest; a test that cannot run leaves the whole α_L to the other."""
+    elt_ok, why_not_elt = _elt_fits(config, n, block, runs, cause)
     if mean_test is not None and elt_ok:
         return LocationPlan(block, mean_test, config.mean_level, config.elt_level, None)
     if mean_test is not None:  # the mean test takes the whole location level
@@ -429,7 +445,7 @@ MIN_MEAN_DOF = 3
 
 
 def memory_evidence(
-    gls, chol, config: DiagnosisConfig, memory: Memory, n: int, level: float | None = None
+    gls, inverse, config: DiagnosisConfig, memory: Memory, n: int, level: float | None = None
 ) -> ModelEvidence:
     """The calibrated rule's evidence under the dependence model ``memory``.
 
@@ -440,16 +456,17 @@ def memory_evidence(
     :func:`credcli.engine.batches.memory_mean_test`), and the ELT flips blocks long enough
     to lose at most ε of the variance under the model
     (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or
-    adjacent blocks. ``level``: the scale test's (default α_S)."""
+    adjacent blocks. ``inverse``: L⁻¹ (d, d) or L_k⁻¹ (N, d, d); ``level``: the scale
+    test's (default α_S)."""
     d = gls.whitened.shape[1]
     level = config.scale_level if level is None else level
     if memory.white and memory.epochs == n:
         scale = scale_test(gls, level, np.ones(d))
         directions = direction_scales(gls, level, 0) if d > 1 else None
         mean = batches.independent_mean_test(gls, 1.0)
-        return ModelEvidence(scale, None, directions, _model_plan(config, n, 1, mean, None))
+        plan = split_location(config, n, 1, 1, mean, None, _MEMORY_BLOCKS.format(block=1))
+        return ModelEvidence(scale, None, directions, plan)
     scale = memory_scale_test(gls, memory, level)
-    inverse = np.linalg.inv(chol)
     mean, stderr = batches.memory_mean_test(gls, memory, inverse)
     scale = replace(scale, bias_stderr=stderr)
     tau = float(np.max(memory.variance_ratios))
@@ -473,45 +490,17 @@ def memory_evidence(
         )
         mean = None
     block = memory.block_length(MEMORY_BLOCK_LOSS)
-    plan = _model_plan(config, n, block, mean, why_not)
+    plan = split_location(config, n, block, 1, mean, why_not, _MEMORY_BLOCKS.format(block=block))
     return ModelEvidence(scale, scale_reason, directions, plan)
 
 
-def _model_plan(config: DiagnosisConfig, n: int, block: int, mean_test, why_not_mean):
-    """The location plan under the model: the mean test at its share of α_L and the ELT at
-    the rest where enough sign blocks fit; a test that cannot run leaves the whole α_L to
-    the other."""
-    n_blocks = tested_blocks(n, block, config.max_elt_epochs, 1)
-    elt_ok = n_blocks >= config.min_blocks
-    why_not_elt = None
-    if not elt_ok:
-        budget = tested_blocks(n, block, n, 1) >= config.min_blocks
-        cause = (
-            f"its budget of {config.max_elt_epochs} epochs (max_elt_epochs)"
-            if budget
-            else f"the errors' memory needs sign blocks of {block} epochs, which"
-        )
-        why_not_elt = (
-            f"ELT not run: {cause} leaves {n_blocks} of the {config.min_blocks} sign blocks "
-            "it needs"
-        )
-    if mean_test is not None and elt_ok:
-        return LocationPlan(block, mean_test, config.mean_level, config.elt_level, None)
-    if mean_test is not None:
-        return LocationPlan(block, mean_test, config.location_level, None, why_not_elt)
-    if elt_ok:
-        return LocationPlan(
-            block, None, 0.0, config.location_level, f"mean test not run: {why_not_mean}"
-        )
-    reason = f"location untested: {why_not_elt}; the mean test: {why_not_mean}"
-    return LocationPlan(block, None, 0.0, None, reason)
+_MEMORY_BLOCKS = "the errors' memory needs sign blocks of {block} epochs, which"
 
 
-def memory_residuals(gls, chol) -> np.ndarray:
+def memory_residuals(gls, inverse) -> np.ndarray:
     """The Cholesky-whitened errors z_k = L_k⁻¹e_k without their fitted constants
     (:func:`credcli.engine.memory.mean_free`): what the memory is fitted on, in the frame
-    the model's tests use (the GLS residuals and scores)."""
-    inverse = np.linalg.inv(chol)
+    the model's tests use (the GLS residuals and scores). ``inverse``: L⁻¹ or L_k⁻¹."""
     if inverse.ndim == 2:
         z = gls.whitened + inverse @ gls.mean
     else:
@@ -560,7 +549,7 @@ def _declined(ev: ModelEvidence, reason: str) -> ModelEvidence:
     return ModelEvidence(ev.scale, reason, None, plan)
 
 
-def segment_memory(gls, chol, s, r1=None) -> tuple[Memory, TimeScales]:
+def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
     """The dependence model fitted on one segment (or run) and its check at every
     averaging time. Below :data:`SCREENED_BELOW` epochs the sieve is also told of memory
     that the lag-1 autocorrelation of the whitened errors ``s`` shows, centred or about
@@ -574,7 +563,7 @@ def segment_memory(gls, chol, s, r1=None) -> tuple[Memory, TimeScales]:
             correlation.autocorrelation(s, about_zero=True), n, correlation.SCREENING_LEVEL
         )
     )
-    residuals = memory_residuals(gls, chol)
+    residuals = memory_residuals(gls, inverse)
     memory = fit_memory(residuals, gls.q, screened=screened)
     return memory, time_scales(residuals, memory)
 

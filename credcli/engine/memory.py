@@ -27,12 +27,7 @@ it and refitted as the data were, order selection included), expressed as the de
 freedom ν = 2/Var(log τ̂*) of a χ²-distributed variance estimate (and likewise for
 τ₂ = Σρ², to which the scale test's variance is proportional); the bootstrap's bias towards
 less memory is corrected. A statistic studentized by the model is referred to Student's t
-(or F) with those degrees of freedom instead of the normal (or χ²). Where the bootstrap is
-not run, the delta method on log Ω̂ with the asymptotic covariance σ²Γ_p⁻¹/T of φ̂
-(Brockwell & Davis 1991, Thm. 8.1.1) gives ν:
-
-.. math:: \operatorname{Var}\log\hat\Omega \approx \frac{2}{T}
-          + \frac{4\,\mathbf 1^\top\Gamma_p^{-1}\mathbf 1\,\sigma^2}{T\,A(1)^2}.
+(or F) with those degrees of freedom instead of the normal (or χ²).
 
 Memory differs between directions (a slow heading error beside a fast position error), so
 the whitened errors are modelled per principal direction of their long-run covariance
@@ -170,7 +165,6 @@ class SeriesMemory:
     phi: np.ndarray
     rho: np.ndarray
     dof: float
-    orders: tuple[int, ...] = ()  # the order(s) fitted; () when given
     square_dof: float = math.inf  # ν of τ₂ = Σρ², the scale test's model uncertainty
 
     @property
@@ -254,25 +248,14 @@ def _toeplitz_row_sums(rho: np.ndarray) -> np.ndarray:
 
 
 def _order_memory(fit: BurgFit, series: int, order: int, n: int):
-    """(φ, autocorrelation, log τ, Var log Ω̂ by the delta method) of one series at one
-    order (module docstring)."""
+    """(φ, autocorrelation, log max(τ, 1)) of one series at one order."""
     phi = fit.coefficients(series, order)
     sigma2 = float(fit.variance[series, order])
     gamma = autocovariance_of_ar(phi, sigma2, _horizon(phi, n))
     g0 = float(gamma[0])
     rho = gamma / g0 if g0 > 0 else np.eye(1, gamma.size)[0]
-    t = fit.epochs
-    a1 = 1.0 - float(phi.sum())
-    var_log = 2.0 / t
-    if order:
-        toeplitz = gamma[np.abs(np.subtract.outer(np.arange(order), np.arange(order)))]
-        try:
-            spread = float(np.ones(order) @ np.linalg.solve(toeplitz, np.ones(order)))
-        except np.linalg.LinAlgError:
-            spread = math.inf
-        var_log += 4.0 * spread * sigma2 / (t * max(a1 * a1, 1e-300))
     log_tau = math.log(max(1.0 + 2.0 * float(np.sum(rho[1:])), 1.0))
-    return phi, rho, log_tau, var_log
+    return phi, rho, log_tau
 
 
 MIN_ORDER = 1
@@ -358,30 +341,27 @@ def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
 
 
 def series_memory(
-    fit: BurgFit, series: int, n: int, spread: float | None = None, minimum: int = 0
+    fit: BurgFit, series: int, n: int, spread: tuple | None = None, minimum: int = 0
 ) -> SeriesMemory:
-    """The :class:`SeriesMemory` of one series of a Burg fit at its order of least AICc,
-    its autocorrelation kept for windows up to ``n`` epochs. With the bootstrap's
-    ``spread`` (variance, bias) of log τ̂ (:func:`bootstrap_spread`), ν_Ω = 2/variance,
-    and a bias towards less memory is corrected by stretching the correlations ρ(h), h > 0,
-    by the factor that multiplies τ by exp(−bias) (at most :data:`MAX_BIAS_FACTOR`; a bias
-    towards more memory is left, which errs on the safe side). Without it, the delta
-    method (module docstring); order 0 without a spread is taken as known white noise."""
+    """The :class:`SeriesMemory` of one series of a Burg fit at its order of least AICc (at
+    least ``minimum``), its autocorrelation kept for windows up to ``n`` epochs. ``spread``:
+    the bootstrap's (Var log τ̂*, bias of log τ̂*, Var log τ̂₂*) (:func:`bootstrap_spread`),
+    which every series of order > 0 has; ν = 2/variance for τ and for τ₂, and a bias towards
+    less memory is corrected by stretching the correlations ρ(h), h > 0, by the factor that
+    multiplies τ by exp(−bias) (at most :data:`MAX_BIAS_FACTOR`; a bias towards more memory
+    is left, which errs on the safe side). Order 0 without a spread is known white noise."""
     order = int(fit.orders(minimum)[series])
-    phi, rho, log_tau, var_log = _order_memory(fit, series, order, n)
-    square_dof = math.inf if spread is None else 2.0 / max(float(spread[2]), 1e-300)
-    if spread is not None:
-        var_log, bias = float(spread[0]), float(spread[1])
-        tau = math.exp(log_tau)
-        if bias < 0 and tau > 1.0 + 1e-9:  # τ̂ is low by exp(bias): lengthen the memory
-            factor = min((tau * math.exp(-bias) - 1.0) / (tau - 1.0), MAX_BIAS_FACTOR)
-            rho = np.concatenate([rho[:1], np.clip(rho[1:] * factor, -1.0, 1.0)])
-    elif order == 0:
-        var_log = 0.0
+    phi, rho, log_tau = _order_memory(fit, series, order, n)
+    if spread is None:
+        return SeriesMemory(phi, rho, math.inf)
+    var_log, bias, var_square = (float(v) for v in spread)
+    tau = math.exp(log_tau)
+    if bias < 0 and tau > 1.0 + 1e-9:  # τ̂ is low by exp(bias): lengthen the memory
+        factor = min((tau * math.exp(-bias) - 1.0) / (tau - 1.0), MAX_BIAS_FACTOR)
+        rho = np.concatenate([rho[:1], np.clip(rho[1:] * factor, -1.0, 1.0)])
     dof = 2.0 / var_log if var_log > 0 else math.inf
-    if spread is None and order > 0:
-        square_dof = dof
-    return SeriesMemory(phi, rho, dof, (order,), square_dof)
+    square_dof = 2.0 / var_square if var_square > 0 else math.inf
+    return SeriesMemory(phi, rho, dof, square_dof)
 
 
 @dataclass(frozen=True)
@@ -491,7 +471,7 @@ def fit_memory(
     p_max = max_order(t) if order is None else int(order)
     fit = burg(stacked, p_max)
     if not screened and not np.any(fit.orders()):
-        white = SeriesMemory(np.zeros(0), np.ones(1), math.inf, (0,))
+        white = SeriesMemory(np.zeros(0), np.ones(1), math.inf)
         return Memory(directions, (white,) * d, white, n, runs)
     # short or screened: every series at least AR(1); else AICc's order, 0 included
     minimum = min(MIN_ORDER, p_max) if screened or t < FORCED_BELOW else 0

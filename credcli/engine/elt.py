@@ -47,7 +47,8 @@ class ELTResult:
     block_length: int
     flips_used: int | None = None
     """Sign flips evaluated: B, or fewer when the test stopped once it could no longer
-    reject (``stop_level``); then ``pvalue`` is the sequential p-value h/l."""
+    reject (``stop_level``); then ``pvalue`` is the sequential p-value h/l, or
+    (1 + h)/(B + 1) where that is larger."""
     flips_bounded: int = 0
     """Of the flips used, those whose statistic an upper bound alone placed below T_obs
     (:mod:`credcli.engine.flips`; only with ``stop_level``): they count as in the exhaustive
@@ -185,7 +186,9 @@ def whitened_location_test(
     h* = ⌈level(B + 1) − 1⌉, so once h* exceedances are seen the decision is the exhaustive
     test's. The p-value is then Besag and Clifford's (1991, Biometrika 78(2)) sequential
     p-value h/l, with h >= h* the count after the l flips evaluated (the stop is checked
-    after each batch), which is >= the level; ``flips_used`` is l. A test on course to
+    after each batch), raised where needed to (1 + h)/(B + 1) >= level, the least the
+    exhaustive p-value can be: h/l alone can fall below the level (12/960 < 0.0127 with
+    B = 999), and the decision is read off the p-value; ``flips_used`` is l. A test on course to
     reject (fewer than h*·l/B exceedances after l flips) needs every flip; there, flips that
     a proven upper bound places below T_obs (:mod:`credcli.engine.flips`) are counted without
     their quadratic forms, so h, and the p-value, are the exhaustive test's

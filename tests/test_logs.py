@@ -311,11 +311,25 @@ def test_drop_invalid_reports_count(tmp_path, capsys):
     assert doc["logs"][0]["dropped_rows"] == 2 and doc["segments"][0]["n"] == 20
 
 
-def test_degenerate_errors_are_a_clear_error(tmp_path, capsys):
-    rows = "".join(f"{k / 10},{k},{k},{k + 0.5},{k - 0.3},1,1\n" for k in range(20))
-    path = _write(tmp_path, GOOD_HEADER + rows)
-    code, _, err = _run(capsys, "diagnose", path)
-    assert code == 2 and "segment 'all': the errors span fewer than d dimensions" in err
+def test_degenerate_segment_is_insufficient_and_the_others_are_diagnosed(tmp_path, capsys):
+    """Errors constant in one segment (a singular MSE) decide nothing there, and end
+    nothing else: the other segment gets its verdict (issue 31, item 9)."""
+    import json
+
+    gen = np.random.default_rng(3)
+    header = "time,segment,truth_0,truth_1,est_0,est_1,std_0,std_1\n"
+    flat = "".join(f"{k / 10},flat,{k},{k},{k + 0.5},{k - 0.3},1,1\n" for k in range(20))
+    noisy = "".join(
+        f"{2 + k / 10},noisy,{k},{k},{k + gen.normal()},{k + gen.normal()},1,1\n"
+        for k in range(200)
+    )
+    path = _write(tmp_path, header + flat + noisy)
+    code, out, _ = _run(capsys, "diagnose", path, "-f", "json")
+    assert code == 0
+    by_name = {s["segment"]: s for s in json.loads(out)["segments"]}
+    assert by_name["flat"]["label"] == "insufficient-data"
+    assert "span fewer than d dimensions" in by_name["flat"]["reason"]
+    assert by_name["noisy"]["label"] != "insufficient-data"
 
 
 def test_invalid_config_file(tmp_path, capsys):

@@ -180,7 +180,10 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1, memory=None) -> l
     chol = _cholesky(cov)
     if n < min(c.min_n(d) for c in configs):
         return [_too_short(n, d, c) for c in configs]
-    gathered = evidence.gather(errors, cov, chol, configs, gen, mse, runs, memory)
+    try:
+        gathered = evidence.gather(errors, cov, chol, configs, gen, mse, runs, memory)
+    except evidence.Undecidable as exc:
+        return [Diagnosis(Label.INSUFFICIENT, n, d, reason=exc.reason, config=c) for c in configs]
     del chol
     return [_diagnosis(ev, config) for ev, config in zip(gathered, configs)]
 

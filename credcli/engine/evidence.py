@@ -93,8 +93,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         eps = metrics.nees_factored(errors, chol)
     if not np.all(np.isfinite(eps)):
         raise CredcliError(overflow_message(errors, chol, eps))
-    mse = metrics.mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
-    nci_raw = metrics.nci_factored(errors, chol, mse_cholesky(mse), eps)
+    given = mse is not None
+    mse = np.asarray(mse, dtype=float) if given else metrics.mse_matrix(errors)
+    nci_raw = metrics.nci_factored(errors, chol, mse_cholesky(mse, given), eps)
     ks_p = ks_chi2_pvalue(eps, d)
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
@@ -371,15 +372,34 @@ def split_location(
     return LocationPlan(block, None, 0.0, None, reason)
 
 
-def mse_cholesky(mse: np.ndarray) -> np.ndarray:
+class Undecidable(Exception):
+    """A segment whose data cannot carry the tests at all (its ``reason``): the segment is
+    `insufficient-data`, and the other segments of the log are diagnosed as usual."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+DEGENERATE = (
+    "the errors span fewer than d dimensions (for example a component whose error is the "
+    "same in every epoch), so the MSE matrix of the NCI, Eq. (4), is singular"
+)
+
+
+def mse_cholesky(mse: np.ndarray, given: bool = False) -> np.ndarray:
+    """The Cholesky factor of the NCI's MSE matrix. A singular MSE estimated from the
+    segment makes the segment :class:`Undecidable`; a singular one the caller gave is an
+    error in the input."""
     try:
         return np.linalg.cholesky(mse)
     except np.linalg.LinAlgError as exc:
-        raise CredcliError(
-            "the errors span fewer than d dimensions (for example a component whose error is "
-            "the same in every epoch), so the MSE matrix of the NCI, Eq. (4), is singular; "
-            "drop that component or give the MSE matrix"
-        ) from exc
+        if given:
+            raise CredcliError(
+                "the given MSE matrix is singular; the NCI, Eq. (4), needs it positive definite",
+                "mse",
+            ) from exc
+        raise Undecidable(DEGENERATE) from exc
 
 
 def overflow_message(errors: np.ndarray, chol: np.ndarray, eps: np.ndarray) -> str:
@@ -461,7 +481,7 @@ def memory_evidence(
     d = gls.whitened.shape[1]
     level = config.scale_level if level is None else level
     if memory.white and memory.epochs == n:
-        scale = scale_test(gls, level, np.ones(d))
+        scale = scale_test(gls, level, np.ones(d), squares_white=True)
         directions = direction_scales(gls, level, 0) if d > 1 else None
         mean = batches.independent_mean_test(gls, 1.0)
         plan = split_location(config, n, 1, 1, mean, None, _MEMORY_BLOCKS.format(block=1))

@@ -203,6 +203,7 @@ def scale_test(
     residuals: GlsResiduals,
     level: float,
     tau: np.ndarray | None = None,
+    squares_white: bool = False,
 ) -> ScaleTest:
     """The scale test at two-sided ``level``, from the GLS residuals.
 
@@ -215,6 +216,13 @@ def scale_test(
         Variance ratios τ_i of the whitened components
         (:func:`credcli.engine.correlation.variance_ratio`). None: independent epochs, the exact
         χ²_{(N−1)d} reference with no Satterthwaite factor.
+    squares_white : bool
+        With ``tau``: the squared errors are known to be serially independent (a white
+        dependence model, :attr:`credcli.engine.memory.Memory.white`), so their variance,
+        not a long-run variance, sets the Satterthwaite factor.
+
+    With fewer than :data:`MIN_REFERENCE_DOF` degrees of freedom left, the p-values are NaN
+    and the interval (0, ∞): nothing is decided.
 
     Examples
     --------
@@ -238,18 +246,21 @@ def scale_test(
         nu0 = float(n * d - tau.sum())
         q_mean = total / n
         # scale-free: the long-run variance of q/q̄ (q̄² can overflow for extreme scales)
-        omega = float(correlation.long_run_variance(q / q_mean)[0]) if q_mean > 0 else 0.0
+        if not q_mean > 0:
+            omega = 0.0
+        elif squares_white:
+            omega = float(np.var(q / q_mean))
+        else:
+            omega = float(correlation.long_run_variance(q / q_mean)[0])
         factor = max(1.0, nu0 * omega / (2.0 * n))
         factor = max(factor, tail_factor(standardized(residuals.whitened)))
         inflation = float(tau.max())
     nu0 = max(nu0, 1.0)
     dof = nu0 / factor
     x = total / factor
-    upper = float(special.chdtrc(dof, x))
-    lower = float(special.chdtr(dof, x))
+    upper, lower = _pvalues(x, dof)
     kappa = total / nu0
-    low = x / float(special.chdtri(dof, level / 2))
-    high = x / float(special.chdtri(dof, 1 - level / 2))
+    low, high = chi2_interval(x, dof, level)
     stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None) * kappa * inflation)
     mean = residuals.mean
     return ScaleTest(
@@ -265,6 +276,36 @@ def scale_test(
         bias_stderr=stderr,
         bias_mahalanobis=residuals.bias_mahalanobis,
     )
+
+
+MIN_REFERENCE_DOF = 1.0
+"""Below one degree of freedom the Satterthwaite χ² is no sum of squares (its density is
+unbounded at 0) and its quantiles bound nothing: the interval is (0, ∞)."""
+
+
+def _pvalues(x: float, dof: float) -> tuple[float, float]:
+    """(P upper, P lower) of x against χ²_dof; NaN below :data:`MIN_REFERENCE_DOF`."""
+    if not dof >= MIN_REFERENCE_DOF:
+        return math.nan, math.nan
+    return float(special.chdtrc(dof, x)), float(special.chdtr(dof, x))
+
+
+def chi2_interval(x: float, dof: float, level: float) -> tuple[float, float]:
+    """The 1 − ``level`` interval of κ from T/c = ``x`` ~ κ·χ²_dof, equal tails."""
+    upper = float(special.chdtri(dof, level / 2))
+    return _interval(x, dof, upper, float(special.chdtri(dof, 1 - level / 2)))
+
+
+def _interval(x: float, dof: float, upper: float, lower: float) -> tuple[float, float]:
+    """(x/upper, x/lower) from the reference's upper and lower quantiles, or (0, ∞) where
+    the reference has fewer than :data:`MIN_REFERENCE_DOF` degrees of freedom (a short
+    segment of heavy-tailed or slow errors): such an interval decides nothing, where the
+    quantiles, underflowing to 0, would claim a misfit or end the run with a division by
+    zero (issue 31, items 7 and 9)."""
+    if not (dof >= MIN_REFERENCE_DOF and upper > 0.0):
+        return 0.0, math.inf
+    with np.errstate(over="ignore"):
+        return x / upper, (x / lower if lower > 0.0 else math.inf)
 
 
 def batch_scale_test(
@@ -405,10 +446,7 @@ def direction_scales(
     else:
         f = tail_factor(standardized(u))
         for i in range(d):
-            dof = (n - 1) / f
-            x = values[i] * (n - 1) / f
-            low[i] = x / float(special.chdtri(dof, each / 2))
-            high[i] = x / float(special.chdtri(dof, 1 - each / 2))
+            low[i], high[i] = chi2_interval(values[i] * (n - 1) / f, (n - 1) / f, each)
     return DirectionScales(vectors, values, low, high, sphericity_pvalue(residuals, batches))
 
 
@@ -495,9 +533,14 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
     dof = 2.0 * expected * expected / variance
     x = total / c
     upper, lower = _studentized_chi2(x, dof, dof_model)
-    with np.errstate(over="ignore", divide="ignore"):
-        low = x / _studentized_chi2_quantile(dof, dof_model, level / 2, upper=True)
-        high = x / _studentized_chi2_quantile(dof, dof_model, level / 2, upper=False)
+    if not dof >= MIN_REFERENCE_DOF:
+        upper = lower = math.nan
+    low, high = _interval(
+        x,
+        dof,
+        _studentized_chi2_quantile(dof, dof_model, level / 2, upper=True),
+        _studentized_chi2_quantile(dof, dof_model, level / 2, upper=False),
+    )
     return ScaleTest(
         statistic=total,
         dof=dof,

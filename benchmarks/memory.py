@@ -14,7 +14,7 @@ and N uses one random stream for all four misfits, so the misfits differ only by
 Columns: decided = both questions answered (label not insufficient, nothing untested);
 credible = label "credible"; false alarm (misfit none) = a label naming a condition;
 power (misfits) = the label contains the right condition (optimism for small4, pessimism
-for large4, smm for bias1); insufficient = label insufficient-data. Library families are
+for large4, bias for bias1); insufficient = label insufficient-data. Library families are
 not exactly credible when right-tuned (truth_factor NaN): their "none" rows are a separate
 "right-tuned library" table whose "flagged" is not a false-alarm rate.
 
@@ -43,7 +43,7 @@ import zoo  # noqa: E402
 
 from credcli.engine.diagnosis import Label, diagnose_errors  # noqa: E402
 
-EXPECTED = {"small4": "optimism", "large4": "pessimism", "bias1": "smm"}
+EXPECTED = {"small4": "optimism", "large4": "pessimism", "bias1": "bias"}
 SEED = 20240
 
 

@@ -195,7 +195,7 @@ def test_too_few_blocks_is_insufficient_data_with_a_reason():
     [
         ({}, Label.CREDIBLE),
         ({"filter_scale": 0.2}, Label.OPTIMISM),
-        ({"acceleration": 0.05}, Label.SMM),
+        ({"acceleration": 0.05}, Label.BIAS),
     ],
 )
 def test_constant_velocity_kalman_filter(kwargs, expected):
@@ -251,7 +251,7 @@ def test_json_record_equals_the_library_result(tmp_path, capsys):
     from credcli.engine.diagnosis import segment_seed
 
     d = diagnose_errors(e, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=segment_seed(3, "all"))
-    assert rec["label"] == d.label.value == "optimism+smm"
+    assert rec["label"] == d.label.value == "optimism+bias"
     # the CSV's text need not round-trip the last bit of every error (pandas' parser)
     assert rec["scale_factor"] == pytest.approx(d.scale.scale_factor, rel=1e-12)
     assert [rec["scale_factor_low"], rec["scale_factor_high"]] == pytest.approx(

@@ -73,7 +73,14 @@ def test_sample_log_labels_differ_and_values_are_null_when_not_computed(capsys):
     code, out, _ = _run(capsys, "diagnose", LOG, "-f", "json")
     doc = json.loads(out)
     labels = [s["label"] for s in doc["segments"]]
-    assert labels == ["credible", "optimism", "pessimism", "smm", "pessimism+smm", "optimism+smm"]
+    assert labels == [
+        "credible",
+        "optimism",
+        "pessimism",
+        "bias",
+        "pessimism+bias",
+        "optimism+bias",
+    ]
     cruise = doc["segments"][0]
     assert cruise["delta_nll_minus"] is None and cruise["nll"] is None  # probes not needed
     assert all(s["delta_nll_minus"] is None for s in doc["segments"])  # calibrated: no probes
@@ -109,7 +116,7 @@ def test_markdown_and_table(capsys):
     _, out, _ = _run(capsys, "diagnose", LOG, "-f", "markdown")
     assert out.startswith("### credcli diagnose") and "| hover | 300 | 2 | pessimism |" in out
     _, out, _ = _run(capsys, "diagnose", LOG)
-    for word in ("segment", "ELT p", "NCI", "ANEES", "NEES baseline", "optimism+smm"):
+    for word in ("segment", "ELT p", "NCI", "ANEES", "NEES baseline", "optimism+bias"):
         assert word in out
 
 

@@ -205,11 +205,12 @@ def test_a_bias_that_turns_in_whitened_space_is_found():
     for seed in range(20):
         e, cov = rotating_bias_log(n=2000, bias_sigma=1.0, seed=seed)
         d = diagnose_errors(e, cov, config, rng=seed)
-        found.append("smm" in d.label.value)
+        found.append(d.label.location == "bias")
         assert d.mean_test.pvalue < 1e-4  # far below the level (0.0127)
     assert all(found)
     clean = [
-        "smm" in diagnose_errors(*rotating_bias_log(2000, 0.0, seed=s), config, rng=s).label
+        diagnose_errors(*rotating_bias_log(2000, 0.0, seed=s), config, rng=s).label.location
+        is not None
         for s in range(20)
     ]
     assert sum(clean) <= 2  # 20 × 2.5 % = 0.5 expected
@@ -220,7 +221,7 @@ def test_the_elt_budget_no_longer_hides_a_bias():
     rng = np.random.default_rng(4)
     e = rng.standard_normal((12_000, 2)) + [0.05, 0.0]  # 0.05σ: 5.5 standard errors
     d = diagnose_errors(e, _eye(12_000), rng=0)
-    assert d.elt.subsampled and d.label is Label.SMM
+    assert d.elt.subsampled and d.label is Label.BIAS
     assert d.mean_test.pvalue < 1e-3  # on every epoch (batched or not, as the pre-test says)
 
 
@@ -264,7 +265,8 @@ def test_a_partial_verdict_in_json_table_and_fail_on(tmp_path, scale_only):
     code, out, err = run("diagnose", path, "-f", "json", *blocks)
     assert code == 0, err
     (rec,) = json.loads(out)["segments"]
-    assert rec["label"] == "pessimism" and rec["untested"] == ["location"]
+    assert rec["label"] == "pessimism (location untested)" and rec["untested"] == ["location"]
+    assert rec["label_answered"] == "pessimism"
     assert rec["smm_detected"] is None
     code, out, _ = run("diagnose", path, *blocks)
     assert "pessimism (location untested)" in out
@@ -352,7 +354,7 @@ def test_a_constant_bias_under_long_memory_is_found():
         found = 0
         for k in range(20):
             e = ar1_errors(6000, 2, 0.99, rng)[::every] + [1.0, 0.0]
-            found += "smm" in diagnose_errors(e, _eye(len(e)), rng=k).label.value
+            found += diagnose_errors(e, _eye(len(e)), rng=k).label.location is not None
         assert found >= 14, (every, found)
 
 
@@ -417,7 +419,8 @@ def test_pooled_runs_hold_the_level_and_find_a_bias():
         for k in range(40)
     )
     found = sum(
-        "smm" in diagnose_errors(*_pooled_runs(rng, 20, 300, 0.98, 0.5), rng=k, runs=20).label.value
+        diagnose_errors(*_pooled_runs(rng, 20, 300, 0.98, 0.5), rng=k, runs=20).label.location
+        is not None
         for k in range(40)
     )
     assert wrong <= 6 and found >= 30, (wrong, found)

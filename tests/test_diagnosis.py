@@ -19,9 +19,9 @@ PLANTED = {
     Label.CREDIBLE: (1.0, None),
     Label.OPTIMISM: (0.3, None),
     Label.PESSIMISM: (4.0, None),
-    Label.SMM: (1.0, [2.0, -1.0]),
-    Label.OPTIMISM_SMM: (0.2, [2.0, -1.0]),
-    Label.PESSIMISM_SMM: (5.0, [2.0, -1.0]),
+    Label.BIAS: (1.0, [2.0, -1.0]),
+    Label.OPTIMISM_BIAS: (0.2, [2.0, -1.0]),
+    Label.PESSIMISM_BIAS: (5.0, [2.0, -1.0]),
 }
 
 

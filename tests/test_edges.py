@@ -584,7 +584,7 @@ def test_labels_and_sizes_are_never_cut_on_80_columns():
     report = run_diagnose(DiagnoseRequest((LOG,))).report
     text = to_text(report, OutputFormat.TABLE, width=80)
     assert max(len(line) for line in text.splitlines()) <= 80
-    for label in ("pessimism+smm", "optimism+smm", "credible"):
+    for label in ("pessimism+bias", "optimism+bias", "credible"):
         assert label in text
     assert "│ 300 │ 2 │" in text  # N and d
     assert "not shown at" in text

@@ -40,7 +40,7 @@ def test_tum_truth_with_openvins_estimate():
 def test_ros_csv_odometry_with_euroc_truth_right_perturbation():
     args = (FORMATS / "odom_ros.csv", "--truth", FORMATS / "euroc_groundtruth.csv")
     right = ("--perturbation", "right", "--window", "60s")
-    assert labels(*args, *right) == ["smm"] * 3  # two windows and the run
+    assert labels(*args, *right) == ["bias"] * 3  # two windows and the run
     assert labels(*args, *right, "--states", "orientation") == ["credible"] * 3
 
 
@@ -58,7 +58,7 @@ def test_innovations_labels_and_whiteness():
     assert {k: s["label"] for k, s in segs.items()} == {
         "good": "credible",
         "optimistic": "optimism",
-        "biased": "smm",
+        "biased": "bias",
         "correlated": "credible",
     }
     white = {k: s["whiteness_pvalue"] for k, s in segs.items()}

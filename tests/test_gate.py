@@ -46,21 +46,32 @@ def baseline(tmp_path_factory):
 def test_fail_on_parsing_and_matching():
     any_of = gate.parse_fail_on("optimism,smm")
     assert any_of == gate.FailOn(conditions=frozenset({"optimism", "smm"}))
-    assert [lab for lab in Label if gate.fails(lab, any_of)] == [
-        Label.OPTIMISM,
-        Label.SMM,
-        Label.OPTIMISM_SMM,
+    # smm, the paper's condition, covers both location findings
+    assert {lab for lab in Label if gate.fails(lab, any_of)} == {
+        lab for lab in Label if lab.conditions & {"optimism"} or lab.location is not None
+    }
+    combined = gate.parse_fail_on("pessimism+bias")  # that label only
+    assert [lab for lab in Label if gate.fails(lab, combined)] == [Label.PESSIMISM_BIAS]
+    assert str(combined) == "pessimism+bias" and str(any_of) == "optimism,smm"
+    paper = gate.parse_fail_on("pessimism+smm")  # every label whose paper label it is
+    assert {lab for lab in Label if gate.fails(lab, paper)} == {
         Label.PESSIMISM_SMM,
-    ]
-    combined = gate.parse_fail_on("pessimism+smm")  # that label only
-    assert [lab for lab in Label if gate.fails(lab, combined)] == [Label.PESSIMISM_SMM]
-    assert str(combined) == "pessimism+smm" and str(any_of) == "optimism,smm"
+        Label.PESSIMISM_BIAS,
+        Label.PESSIMISM_ASYMMETRIC,
+    }
     both = gate.parse_fail_on("opt+smm, pessimism")
-    assert [lab for lab in Label if gate.fails(lab, both)] == [
+    assert {lab for lab in Label if gate.fails(lab, both)} == {
         Label.PESSIMISM,
         Label.OPTIMISM_SMM,
-        Label.PESSIMISM_SMM,
-    ]
+        Label.OPTIMISM_BIAS,
+        Label.OPTIMISM_ASYMMETRIC,
+    } | {lab for lab in Label if "pessimism" in lab.conditions}
+    asym = gate.parse_fail_on("asymmetric")
+    assert {lab for lab in Label if gate.fails(lab, asym)} == {
+        Label.ASYMMETRIC,
+        Label.OPTIMISM_ASYMMETRIC,
+        Label.PESSIMISM_ASYMMETRIC,
+    }
     nc = gate.parse_fail_on("noncredible")
     assert all(gate.fails(lab, nc) for lab in Label if lab is not Label.CREDIBLE)
     assert not gate.fails(Label.CREDIBLE, nc)
@@ -68,7 +79,7 @@ def test_fail_on_parsing_and_matching():
     assert gate.fails(Label.OPTIMISM_SMM, smm) and not gate.fails(Label.OPTIMISM, smm)
     assert not gate.fails(Label.INSUFFICIENT, smm)
     assert gate.fails(Label.INSUFFICIENT, gate.parse_fail_on("insufficient-data"))
-    for bad in ("credible", "bias", ""):
+    for bad in ("credible", "biased", ""):
         with pytest.raises(CredcliError, match="fail_on"):
             gate.parse_fail_on(bad)
 
@@ -85,6 +96,9 @@ def _rec(label, nci=0.1, anees=1.0, p=0.5):
         (_rec("credible"), _rec("optimism"), True, "label credible -> optimism"),
         (_rec("optimism"), _rec("optimism+smm", p=0.5), True, "gained smm"),
         (_rec("optimism"), _rec("optimism"), False, None),
+        (_rec("smm"), _rec("bias"), False, None),  # the same finding, named more precisely
+        (_rec("bias"), _rec("pessimism+asymmetric"), True, "gained pessimism"),
+        (_rec("credible"), _rec("asymmetric"), True, "label credible -> asymmetric"),
         (_rec("smm", nci=1.0), _rec("smm", nci=2.1), True, "|NCI| 1.00 -> 2.10 dB"),
         (_rec("smm", nci=1.0), _rec("smm", nci=-1.9), False, None),  # |NCI| +0.9 <= 1
         (
@@ -173,7 +187,7 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
     }
     assert set(failed) == {"cruise", "hover"}
     assert "label credible -> optimism" in failed["cruise"]
-    assert "gained smm" in failed["hover"] and "ELT newly rejects" in failed["hover"]
+    assert "gained bias" in failed["hover"] and "ELT newly rejects" in failed["hover"]
     md = summary.read_text()
     assert "**FAIL: 2 of 6 segment(s) regressed" in md
     assert "| cruise | regressed | credible → optimism | 0.141 → 4.12 |" in md
@@ -239,7 +253,7 @@ def test_diagnose_fail_on(tmp_path):
     proc = _cli("diagnose", GOOD, "--fail-on", "optimism,smm")
     assert proc.returncode == 1
     assert proc.stderr.strip().endswith(
-        "gps-multipath (smm), tunnel (pessimism+smm), urban (optimism+smm)"
+        "gps-multipath (bias), tunnel (pessimism+bias), urban (optimism+bias)"
     )
     assert "FAIL: 4 of 6 segment(s) match --fail-on optimism,smm" in proc.stderr
     proc = _cli("diagnose", GOOD, "--whole", "--window", "300", "--fail-on", "insufficient-data")

@@ -184,7 +184,7 @@ def test_report_is_self_contained(tmp_path, capsys):
     assert not re.search(r'(src|href)="(https?:)?//', html)  # nothing fetched from a network
     assert "<script" not in html
     assert html.count('src="data:image/png;base64,') == 24
-    assert "optimism+smm" in html and "&quot;n_flips&quot;: 1000" in html
+    assert "optimism+bias" in html and "&quot;n_flips&quot;: 1000" in html
 
 
 def _find_browser():

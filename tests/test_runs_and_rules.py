@@ -5,6 +5,7 @@ their white null (issue 30)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from credcli.engine.diagnosis import (
     innovation_config,
     run_model,
 )
+from credcli.engine.elt import ELTResult
 from credcli.engine.evidence import Evidence
 from credcli.engine.rules import decide
 from credcli.engine.scale import ScaleTest
@@ -46,9 +48,15 @@ def test_the_rule_decides_on_evidence_written_by_hand():
     config = DiagnosisConfig()
     credible = _scale(1.0, 0.8, 1.25, 0.5, 0.5)
     assert decide(_evidence(credible, 0.5), config).label is Label.CREDIBLE
-    assert decide(_evidence(credible, 1e-6), config).label is Label.SMM
+    assert decide(_evidence(credible, 1e-6), config).label is Label.BIAS
     too_small = _scale(3.0, 2.5, 3.6, 1e-9, 1.0)
-    assert decide(_evidence(too_small, 1e-6), config).label is Label.OPTIMISM_SMM
+    assert decide(_evidence(too_small, 1e-6), config).label is Label.OPTIMISM_BIAS
+    # the ELT alone rejects: asymmetric where the mean test ran, smm where it could not
+    elt = ELTResult(1.0, 0.001, np.zeros(1), 100, subsampled=False, block_length=1)
+    located = replace(_evidence(credible, 0.5), elt=elt, elt_level=0.01)
+    assert decide(located, config).label is Label.ASYMMETRIC
+    blind = replace(located, mean_test=None, location_reason=None)
+    assert decide(blind, config).label is Label.SMM
     # an interval that does not exclude a factor 2 is not "credible": scale untested
     wide = _scale(1.0, 0.4, 2.5, 0.5, 0.5)
     verdict = decide(_evidence(wide, 0.5), config)

@@ -125,12 +125,12 @@ def test_markers_file(tmp_path, capsys):
         assert code == 2 and "no marker for anchor id(s) 5, 6, 7, 10" in err
 
 
-def test_grid_sample_is_pessimism_plus_smm_in_every_period(capsys):
+def test_grid_sample_is_pessimism_plus_bias_in_every_period(capsys):
     code, out, _ = _run(capsys, "uwb", GRID, "-f", "json")
     assert code == 0
     doc = json.loads(out)
     assert [s["segment"] for s in doc["segments"]] == ["P1", "P2", "P3", "P4", "P5", "P6"]
-    assert all(s["label"] == "pessimism+smm" for s in doc["segments"])
+    assert all(s["label"] == "pessimism+bias" for s in doc["segments"])
     assert set(doc) >= {"parameters", "version", "segments", "anchors", "ranges"}
     # range-level evidence: reported std about twice the empirical one (Fig. 5)
     ratios = [r["std_ratio"] for r in doc["ranges"]]

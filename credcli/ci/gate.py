@@ -6,12 +6,13 @@ import enum
 from dataclasses import dataclass
 
 from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
+from credcli.engine.config import LOCATION_CONDITIONS, SMM_CONDITION
 from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
 from credcli.errors import CredcliError
 from credcli.io.records import Baseline, Snapshot, json_value
 from credcli.report.formats import format_pvalue
 
-_CONDITIONS = ("optimism", "pessimism", "smm")
+_CONDITIONS = ("optimism", "pessimism") + LOCATION_CONDITIONS
 NONCREDIBLE = "noncredible"
 UNTESTED = "untested"
 
@@ -20,9 +21,12 @@ UNTESTED = "untested"
 class FailOn:
     """What `--fail-on` fails on: any of its comma-separated items.
 
-    - a condition (``optimism``, ``pessimism``, ``smm``): every label that contains it
-      (``smm`` fails ``smm``, ``optimism+smm`` and ``pessimism+smm``);
-    - a combined label (``optimism+smm``): that label only;
+    - a condition (``optimism``, ``pessimism``, ``bias``, ``asymmetric``, ``smm``): every
+      label that contains it (``bias`` fails ``bias``, ``optimism+bias`` and
+      ``pessimism+bias``); ``smm``, the paper's system-model mismatch, fails every label
+      with a location condition (bias, asymmetric or smm);
+    - a combined label (``optimism+bias``): that label only (``optimism+smm``: every label
+      whose paper label it is, :attr:`Label.paper`);
     - ``insufficient-data``: segments without a verdict;
     - ``untested``: partial verdicts, whose label answers one question and leaves the other
       (scale or location) untested;
@@ -46,11 +50,15 @@ class FailOn:
             return label is not Label.CREDIBLE or bool(untested)
         if self.untested and untested and label is not Label.INSUFFICIENT:
             return True
-        return label in self.labels or bool(label.conditions & self.conditions)
+        if label in self.labels or label.paper in self.labels:
+            return True
+        if SMM_CONDITION in self.conditions and label.location is not None:
+            return True
+        return bool(label.conditions & self.conditions)
 
 
 def parse_fail_on(text: str) -> FailOn:
-    """``optimism,smm`` (any of), ``optimism+smm`` (that label), ``noncredible``,
+    """``optimism,bias`` (any of), ``optimism+bias`` (that label), ``noncredible``,
     ``insufficient-data`` or label aliases (``pess+smm``); see :class:`FailOn`."""
     conditions: set[str] = set()
     labels: set[Label] = set()
@@ -72,7 +80,7 @@ def parse_fail_on(text: str) -> FailOn:
             raise CredcliError(
                 f"`fail_on`: unknown condition '{item}'; use {', '.join(_CONDITIONS)}, "
                 f"{Label.INSUFFICIENT.value}, {UNTESTED}, {NONCREDIBLE}, a label such as "
-                "optimism+smm, or "
+                "optimism+bias, or "
                 f"an alias ({', '.join(a for a in LABEL_ALIASES if a != 'cred')})"
             )
         if len(label.conditions) == 1:
@@ -122,6 +130,16 @@ def _anees_deviation(a: float) -> float:
     return max(a, 1.0 / a)
 
 
+def _beyond(label: Label, other: Label) -> set[str]:
+    """The conditions of ``label`` that ``other`` lacks. A location condition is not new
+    where ``other`` has one too: a bias or an asymmetry where a baseline said smm is the
+    same finding (the paper's SMM), named more precisely."""
+    conditions = set(label.conditions - other.conditions)
+    if other.location is not None:
+        conditions -= set(LOCATION_CONDITIONS)
+    return conditions
+
+
 def compare_segment(
     name: str, old: Snapshot, new: Snapshot, alpha: float, th: Thresholds
 ) -> SegmentComparison:
@@ -131,7 +149,7 @@ def compare_segment(
     if old_label is Label.CREDIBLE and new_label is not Label.CREDIBLE:
         reasons.append(f"label credible -> {new_label.value}")
     else:
-        gained = sorted(new_label.conditions - old_label.conditions)
+        gained = sorted(_beyond(new_label, old_label))
         if gained:
             reasons.append(
                 f"label {old_label.value} -> {new_label.value} (gained {'+'.join(gained)})"
@@ -144,7 +162,7 @@ def compare_segment(
         if closed and old_label is not Label.INSUFFICIENT:
             better.append(f"{' and '.join(closed)} tested again")
     if new_label is not old_label and not reasons:
-        lost = sorted(old_label.conditions - new_label.conditions)
+        lost = sorted(_beyond(old_label, new_label))
         if lost or new_label is Label.CREDIBLE:
             better.append(f"label {old_label.value} -> {new_label.value}")
     if old.nci is not None and new.nci is not None:

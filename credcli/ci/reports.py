@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from credcli.errors import CredcliError
-from credcli.io.records import json_value
+from credcli.io.records import json_value, shown_label
 from credcli.report.render import OutputFormat, format_cell, markdown_text, to_text
 
 
@@ -83,7 +83,7 @@ def fail_on_cases(results, failing: list[int], fail_on) -> list[Case]:
     cases = []
     for k, result in enumerate(results):
         d = result.diagnosis
-        label = d.label.value
+        label = shown_label(d.label, d.untested)
         cases.append(
             Case(
                 result.segment,

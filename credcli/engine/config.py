@@ -36,7 +36,18 @@ tested on a seeded random subsample of this many epochs."""
 
 
 class Label(str, enum.Enum):
-    """Diagnosis labels. A label is a set of conditions joined by '+'."""
+    """Diagnosis labels. A label is a set of conditions joined by '+': a noise condition
+    (optimism, pessimism) and a location condition.
+
+    The location conditions split the paper's SMM (Section III-C: the ELT rejects) by its
+    cause, where the calibrated rule can tell it: ``bias``, the GLS mean test finds a mean
+    that no covariance allows for; ``asymmetric``, the ELT rejects the errors' central
+    symmetry while the mean test, run on the same segment, finds no mean (skewed errors,
+    outliers on one side: non-line-of-sight ranges); ``smm``, the ELT rejects and no mean
+    test could run, so the two cannot be told apart. The ``paper`` and ``ks`` variants
+    (Algorithm 1) say ``smm`` for any ELT rejection. :attr:`paper` maps every label to the
+    paper's six.
+    """
 
     CREDIBLE = "credible"
     OPTIMISM = "optimism"
@@ -44,22 +55,59 @@ class Label(str, enum.Enum):
     SMM = "smm"
     OPTIMISM_SMM = "optimism+smm"
     PESSIMISM_SMM = "pessimism+smm"
+    BIAS = "bias"
+    OPTIMISM_BIAS = "optimism+bias"
+    PESSIMISM_BIAS = "pessimism+bias"
+    ASYMMETRIC = "asymmetric"
+    OPTIMISM_ASYMMETRIC = "optimism+asymmetric"
+    PESSIMISM_ASYMMETRIC = "pessimism+asymmetric"
     INSUFFICIENT = "insufficient-data"
 
     @classmethod
-    def compose(cls, noise: str | None, smm: bool) -> Label:
-        """The label of a noise condition ("optimism", "pessimism" or None) and SMM."""
-        return cls("+".join(p for p in (noise, "smm" if smm else None) if p) or "credible")
+    def compose(cls, noise: str | None, location: str | bool | None) -> Label:
+        """The label of a noise condition ("optimism", "pessimism" or None) and a location
+        condition (one of :data:`LOCATION_CONDITIONS`, or True for "smm")."""
+        if location is True:
+            location = SMM_CONDITION
+        parts = (noise, location or None)
+        return cls("+".join(p for p in parts if p) or "credible")
 
     @property
     def conditions(self) -> frozenset[str]:
-        """The non-credibility conditions in the label: subsets of {optimism, pessimism, smm}."""
+        """The non-credibility conditions in the label: a noise condition and/or one of
+        :data:`LOCATION_CONDITIONS`."""
         if self in (Label.CREDIBLE, Label.INSUFFICIENT):
             return frozenset()
         return frozenset(self.value.split("+"))
 
+    @property
+    def location(self) -> str | None:
+        """The label's location condition, or None."""
+        found = self.conditions & frozenset(LOCATION_CONDITIONS)
+        return next(iter(found)) if found else None
 
-DIAGNOSIS_LABELS = tuple(lab for lab in Label if lab is not Label.INSUFFICIENT)
+    @property
+    def paper(self) -> Label:
+        """The paper's label (Table III's six and insufficient-data): a bias or an
+        asymmetry is the paper's SMM."""
+        noise = next(iter(self.conditions - frozenset(LOCATION_CONDITIONS)), None)
+        if self.location is None:
+            return self
+        return Label.compose(noise, SMM_CONDITION)
+
+
+SMM_CONDITION = "smm"
+LOCATION_CONDITIONS = (SMM_CONDITION, "bias", "asymmetric")
+"""The location conditions; ``smm`` (the paper's) covers the other two (:attr:`Label.paper`)."""
+
+DIAGNOSIS_LABELS = (
+    Label.CREDIBLE,
+    Label.OPTIMISM,
+    Label.PESSIMISM,
+    Label.SMM,
+    Label.OPTIMISM_SMM,
+    Label.PESSIMISM_SMM,
+)
 """The six labels Algorithm 1 can output, in the paper's order."""
 
 LABEL_ALIASES = {

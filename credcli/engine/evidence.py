@@ -16,7 +16,7 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import batches, correlation, dependence, metrics
-from credcli.engine.config import DiagnosisConfig, MetricsLevel, SrdForm
+from credcli.engine.config import SMM_CONDITION, DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.memory import Memory, TimeScales, fit_memory, mean_free, time_scales
 from credcli.engine.scale import (
@@ -67,12 +67,30 @@ class Evidence:
     time_scales: TimeScales | None = None  # the variance at every averaging time
 
     @property
+    def mean_rejected(self) -> bool:
+        """Whether the GLS mean test rejects at its level: a bias."""
+        return bool(self.mean_test is not None and self.mean_test.pvalue < self.mean_level)
+
+    @property
+    def elt_rejected(self) -> bool:
+        """Whether the ELT rejects central symmetry at its level."""
+        return bool(self.elt is not None and self.elt.pvalue < self.elt_level)
+
+    @property
     def location_rejected(self) -> bool:
-        """Whether the ELT or the GLS mean test rejects at its level (SMM)."""
-        return bool(
-            (self.elt is not None and self.elt.pvalue < self.elt_level)
-            or (self.mean_test is not None and self.mean_test.pvalue < self.mean_level)
-        )
+        """Whether the ELT or the GLS mean test rejects at its level (the paper's SMM)."""
+        return self.elt_rejected or self.mean_rejected
+
+    @property
+    def location_condition(self) -> str | None:
+        """What the location tests found (:data:`credcli.engine.config.LOCATION_CONDITIONS`):
+        "bias" when the mean test rejects; "asymmetric" when only the ELT rejects and the
+        mean test ran; "smm" when the ELT rejects and no mean test ran; None."""
+        if self.mean_rejected:
+            return "bias"
+        if self.elt_rejected:
+            return "asymmetric" if self.mean_test is not None else SMM_CONDITION
+        return None
 
 
 def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Evidence]:

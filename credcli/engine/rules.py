@@ -33,8 +33,9 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     """The label of one segment from its evidence, by ``config``'s variant.
 
     calibrated: the scale test at α_S with the relevance floor τ and the equivalence margin
-    :data:`CREDIBLE_FACTOR` (or the principal directions where they disagree), and SMM when
-    the GLS mean test or the ELT rejects at their share of α_L. paper and ks: Algorithm 1
+    :data:`CREDIBLE_FACTOR` (or the principal directions where they disagree), and the
+    location condition of the GLS mean test and the ELT at their shares of α_L: bias,
+    asymmetric, or smm where no mean test ran. paper and ks: Algorithm 1
     (lines 2–23), SMM from the ELT.
     """
     scale_reason = evidence.scale_reason
@@ -60,9 +61,10 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
         return Verdict(Label.INSUFFICIENT, (), reason, None, by_direction)
     smm = evidence.location_rejected
     if config.calibrated and noise_override is not None:
-        label = Label.compose(noise_override, smm)
+        label = Label.compose(noise_override, evidence.location_condition)
     elif config.calibrated:
-        label = calibrated_label(None if scale_reason else evidence.scale, smm, config)
+        scale = None if scale_reason else evidence.scale
+        label = calibrated_label(scale, evidence.location_condition, config)
     elif smm:
         label = label_with_smm(evidence.nci_centered, evidence.probes, config.tau_nci)
     else:
@@ -155,12 +157,15 @@ def noise(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     return None
 
 
-def calibrated_label(scale: ScaleTest | None, smm: bool, config: DiagnosisConfig) -> Label:
-    """Scale part (two-sided at α_S, with the relevance floor τ) plus SMM; without a scale
-    test, the location half alone (smm, or credible as far as the location goes)."""
+def calibrated_label(
+    scale: ScaleTest | None, location: str | None, config: DiagnosisConfig
+) -> Label:
+    """Scale part (two-sided at α_S, with the relevance floor τ) plus the location
+    condition (:attr:`credcli.engine.evidence.Evidence.location_condition`); without a
+    scale test, the location half alone (or credible as far as the location goes)."""
     if scale is None:
-        return Label.compose(None, smm)
-    return Label.compose(noise(scale, config), smm)
+        return Label.compose(None, location)
+    return Label.compose(noise(scale, config), location)
 
 
 def label_without_smm(nci_value: float, ks_p: float, config: DiagnosisConfig) -> Label:

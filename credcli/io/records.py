@@ -36,6 +36,22 @@ def json_value(x):
     return x
 
 
+def shown_label(label: Label, untested) -> str:
+    """The label as every output shows it: a partial verdict names the question it leaves
+    open ("credible (scale untested)"), so that a script reading only ``label`` never takes
+    a partial credible for a pass; the answered half alone is ``label_answered``."""
+    names = [q if isinstance(q, str) else q.value for q in untested]
+    if not names or label is Label.INSUFFICIENT:
+        return label.value
+    return f"{label.value} ({' and '.join(names)} untested)"
+
+
+def record_label(rec: dict) -> Label:
+    """The answered label of a segment record (a baseline written before partial verdicts
+    were shown has only ``label``)."""
+    return Label(rec.get("label_answered") or rec["label"])
+
+
 _SCORE_KEYS = ("nll", "es", "nll_minus", "nll_plus", "es_minus", "es_plus")
 _PROBE_KEYS = (
     "delta_nll_minus",
@@ -72,7 +88,8 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     rec = {
         "n": diag.n,
         "dim": diag.dim,
-        "label": diag.label,
+        "label": shown_label(diag.label, diag.untested),
+        "label_answered": diag.label,
         "untested": [q.value for q in diag.untested],
         "mean_statistic": None if mean is None else mean.statistic,
         "mean_pvalue": None if mean is None else mean.pvalue,
@@ -290,7 +307,7 @@ class Snapshot:
         written before partial verdicts has no ``untested``: nothing was)."""
         return cls(
             rec["segment"],
-            Label(rec["label"]),
+            record_label(rec),
             rec.get("nci"),
             rec.get("anees"),
             rec.get("elt_pvalue"),
@@ -334,9 +351,20 @@ def check_baseline(doc: dict, source: str) -> None:
             raise CredcliError(f"{where}: needs a 'segment' name (a string); record it again")
         where = f"{source}: segment '{rec['segment']}'"
         label = rec.get("label")
-        if not isinstance(label, str) or label not in labels:
+        answered = rec.get("label_answered", label)
+        untested = rec.get("untested") or []
+        if (
+            not isinstance(label, str)
+            or not isinstance(answered, str)
+            or answered not in labels
+            or not isinstance(untested, list)
+            or label not in (shown_label(Label(answered), [str(q) for q in untested]), answered)
+        ):  # a baseline written before partial labels were shown has the bare label
             got = "no label" if "label" not in rec else f"label {rec['label']!r}"
-            raise CredcliError(f"{where}: {got}; a label is one of {', '.join(sorted(labels))}")
+            raise CredcliError(
+                f"{where}: {got}; a label is one of {', '.join(sorted(labels))}, with its "
+                "untested questions in brackets, and agrees with 'label_answered'"
+            )
         for key in ("nci", "anees", "elt_pvalue"):
             value = rec.get(key)
             if value is not None and (

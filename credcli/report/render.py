@@ -15,12 +15,19 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 from credcli import __version__
-from credcli.engine.config import DiagnosisConfig, Label, Variant
+from credcli.engine.config import (
+    LOCATION_CONDITIONS,
+    SMM_CONDITION,
+    DiagnosisConfig,
+    Label,
+    Variant,
+)
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.io.records import (
     anchor_record,
     comparison_record,
     range_record,
+    record_label,
     segment_record,
     uwb_segment_record,
 )
@@ -88,13 +95,8 @@ class Report:
 
 
 def label_text(rec: dict) -> str:
-    """The label as tables show it: a partial verdict names the question it leaves open
-    ("pessimism (location untested)")."""
-    untested = rec.get("untested") or []
-    label = str(rec["label"])
-    if not untested or label == Label.INSUFFICIENT.value:
-        return label
-    return f"{label} ({' and '.join(untested)} untested)"
+    """The label as tables show it (:func:`credcli.io.records.shown_label`)."""
+    return str(rec["label"])
 
 
 NAME_LIMIT = 60
@@ -156,7 +158,7 @@ NOISE_CONDITIONS = frozenset({Label.OPTIMISM.value, Label.PESSIMISM.value})
 
 def advice(rec: dict) -> str | None:
     """What a user acts on for a segment that is not credible, in one line."""
-    label = Label(rec["label"])
+    label = record_label(rec)
     untested = rec.get("untested") or []
     if label is Label.CREDIBLE and not untested:
         return None
@@ -172,10 +174,17 @@ def advice(rec: dict) -> str | None:
         parts.append(f"multiply the covariance by {scale_interval(rec)}")
     if rec.get("block_names") and noise:
         parts.append(block_advice(rec))
-    if Label.SMM.value in label.conditions:
+    location = label.location
+    if location in ("bias", SMM_CONDITION):
         bias = ", ".join(_number(b) for b in rec["bias"])
         parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
         parts.append(_smm_hint(rec))
+    elif location == "asymmetric":
+        parts.append(
+            f"errors not symmetric about zero (ELT p {format_pvalue(rec['elt_pvalue'])}) with "
+            f"no mean found (mean test p {format_pvalue(rec['mean_pvalue'])}; "
+            f"mean {_number(rec['bias_mahalanobis'])} σ)"
+        )
     return f"{rec['segment']}: " + "; ".join(p for p in parts if p)
 
 
@@ -221,11 +230,25 @@ def _smm_hint(rec: dict) -> str:
     return f"look first at component {k} ({_number(ratios[k])} standard errors from 0)"
 
 
-SMM_MEANING = (
-    "smm: the errors have a mean that no covariance allows for, so retuning the noise will "
-    "not fix it; look for a model mismatch: an unmodelled sensor bias, lever arm, time "
-    "offset, frame or motion model"
-)
+LOCATION_MEANING = {
+    "bias": (
+        "bias: the errors have a mean that no covariance allows for, so retuning the noise "
+        "will not fix it; look for a model mismatch: an unmodelled sensor bias, lever arm, "
+        "time offset, frame or motion model"
+    ),
+    "asymmetric": (
+        "asymmetric: the errors are not symmetric about zero though the mean test finds no "
+        "mean: skewed errors or outliers on one side (non-line-of-sight or multipath ranges, "
+        "a one-sided fault), which a Gaussian covariance cannot describe; look at the "
+        "measurement model's tails, or gate the outliers"
+    ),
+    SMM_CONDITION: (
+        "smm: the errors are not symmetric about zero (the paper's system-model mismatch), "
+        "and no mean test could run to tell a bias from skewed errors; look for a model "
+        "mismatch: an unmodelled sensor bias, lever arm, time offset, frame or motion model"
+    ),
+}
+"""What each location condition means for the estimator (the advice's last lines)."""
 
 
 def format_cell(value, digits: int) -> str:
@@ -481,8 +504,8 @@ def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
     lines = [a for a in (advice(r) for r in records) if a]
     if len(lines) > limit:
         lines = lines[:limit] + [f"... and {len(lines) - limit} more segment(s); see --format json"]
-    if any(Label.SMM.value in Label(r["label"]).conditions for r in records):
-        lines.append(SMM_MEANING)
+    found = {record_label(r).location for r in records}
+    lines += [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in found]
     return lines
 
 

@@ -29,9 +29,9 @@ EXPECTED = {
     "right": Label.CREDIBLE.value,
     "too-small": Label.OPTIMISM.value,
     "too-large": Label.PESSIMISM.value,
-    "bias": Label.SMM.value,
+    "bias": Label.BIAS.value,
 }
-"""What each case should be called (for "bias", any label with smm)."""
+"""What each case should be called."""
 
 Q_DENSITY = 0.05
 R_VARIANCE = 0.75

@@ -548,13 +548,14 @@ class RangeCheck:
 
 def answers_agree(label, other: str, untested) -> bool:
     """Whether two labels agree on the questions the first one answered: its noise part
-    unless the scale is untested, its SMM part unless the location is."""
+    unless the scale is untested, its location part unless the location is (in the
+    paper's terms: a bias or an asymmetry is SMM)."""
     asked = set()
     if Question.SCALE.value not in untested:
         asked |= {Label.OPTIMISM.value, Label.PESSIMISM.value}
     if Question.LOCATION.value not in untested:
         asked.add(Label.SMM.value)
-    return Label(label).conditions & asked == Label(other).conditions & asked
+    return Label(label).paper.conditions & asked == Label(other).paper.conditions & asked
 
 
 def range_checks(run: UwbRun, results, tau_db: float) -> list[RangeCheck]:

@@ -19,6 +19,7 @@ from credcli.engine.diagnosis import (
     innovation_whiteness,
     run_model,
 )
+from credcli.engine.timing import truth_velocity
 from credcli.io.ingest import open_log
 from credcli.io.records import log_info
 from credcli.parallel import ordered_map, prepare_worker
@@ -50,7 +51,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     source, items, config, seed, innovations, runs, blocks = task
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
-    for name, t0, t1, e, c, memory, findings, declined in items:
+    for name, t0, t1, e, c, memory, findings, declined, velocity in items:
         white = innovation_whiteness(e, c, level) if innovations else None
         # innovations are tested under their white null unless the whiteness test rejects;
         # correlated innovations are then a finding, and the two questions are answered
@@ -61,7 +62,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             else replace(config, alpha=white_null.alpha)
         )
         diag = diagnose_segment(
-            e, c, chosen, seed, name, source, runs, blocks, memory, findings, declined
+            e, c, chosen, seed, name, source, runs, blocks, memory, findings, declined, velocity
         )
         out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
     return out
@@ -77,18 +78,21 @@ def _as_slice(index: np.ndarray):
     return index
 
 
-def _item(segment: seg.Segment, errors: np.ndarray, cov: np.ndarray, run=None) -> tuple:
+def _item(
+    segment: seg.Segment, errors: np.ndarray, cov: np.ndarray, run=None, velocity=None
+) -> tuple:
     """A segment as a task item: (name, t_start, t_end, errors, covariances, the run's
     dependence model for a window, the run's findings for the run's own segment, why a
-    window gets no verdict of its own), the arrays as views when the segment is
-    contiguous."""
+    window gets no verdict of its own, the truth's velocity or None), the arrays as views
+    when the segment is contiguous."""
     index = _as_slice(segment.index)
     window = run is not None and segment.window
     memory = run.memory if window else None
     declined = run.window_reason if window else None
     findings = run.findings if run is not None and not segment.window else ()  # the run's
     item = (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
-    return (*item, memory, findings, declined)
+    moving = None if velocity is None else velocity[index]
+    return (*item, memory, findings, declined, moving)
 
 
 def _run_model(log, segments, config: DiagnosisConfig):
@@ -107,12 +111,13 @@ def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovat
     for log, segments in plans:
         errors = log.errors
         model = None if innovations else _run_model(log, segments, config)
+        velocity = None if innovations else truth_velocity(log.truth, log.time)
         for segment in segments:
             if items and (size >= target or source != log.source):
                 yield (source, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
             source, blocks = log.source, log.blocks
-            items.append(_item(segment, errors, log.cov, model))
+            items.append(_item(segment, errors, log.cov, model, velocity))
             size += len(segment.index)
     if items:
         yield (source, items, config, seed, innovations, runs, blocks)
@@ -196,7 +201,10 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
     if config not in models:  # the run's model, once per worker and configuration
         models[config] = None if innovations else _run_model(log, segments, config)
     model = models[config]
-    items = [_item(segment, errors, log.cov, model) for segment in segments[first:stop]]
+    if "velocity" not in models:  # the truth's, once per worker
+        models["velocity"] = truth_velocity(log.truth, log.time)
+    velocity = None if innovations else models["velocity"]
+    items = [_item(segment, errors, log.cov, model, velocity) for segment in segments[first:stop]]
     return _diagnose_chunk((log.source, items, config, seed, innovations, 1, log.blocks))
 
 

@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 from credcli.cli import main
-from credcli.engine.config import Variant
+from credcli.engine.config import Label, Variant
 from credcli.engine.diagnosis import DiagnosisConfig, diagnose_errors
 from credcli.engine.scale import chi2_interval
 
@@ -178,3 +178,106 @@ def test_a_partial_credible_does_not_read_as_a_pass_in_json():
     rec = diagnosis_record(d)
     assert rec["label"] == "credible (scale untested)"
     assert rec["label_answered"] == Label.CREDIBLE.value and rec["untested"] == ["scale"]
+
+
+def _random_walk_filter(n, seed):
+    """A filter whose errors wander off as a random walk while it claims a fixed unit
+    covariance: they grow without bound."""
+    return np.cumsum(np.random.default_rng(seed).standard_normal((n, 2)), axis=0)
+
+
+def test_a_diverging_filter_is_named_never_insufficient():
+    """Issue 31 item 4: errors that grow without bound are optimism with a divergence
+    finding, where the memory-adjusted tests alone leave nothing decided."""
+    for seed in range(5):
+        e = _random_walk_filter(1000, seed)
+        d = diagnose_errors(e, np.broadcast_to(np.eye(2), (1000, 2, 2)), rng=seed)
+        assert d.label is not Label.INSUFFICIENT and "optimism" in d.label.conditions, d
+        assert any(f.startswith("diverging") for f in d.findings), d.findings
+
+
+def test_divergence_says_where_it_started():
+    from scipy.signal import lfilter
+
+    n = 600
+    growth = np.ones(n)
+    growth[200:] = np.exp(np.arange(n - 200) / 40.0)
+    gen = np.random.default_rng(0)
+    e = lfilter([1], [1, -0.9], gen.standard_normal((n, 2)), axis=0) * np.sqrt(0.19)
+    d = diagnose_errors(e * growth[:, None], np.broadcast_to(np.eye(2), (n, 2, 2)), rng=0)
+    (found,) = [f for f in d.findings if f.startswith("diverging")]
+    start = int(found.split("from epoch ")[1].split()[0])
+    assert 200 <= start <= 320, found
+
+
+def test_median_bound_in_closed_form():
+    from credcli.engine.episodes import median_bound
+
+    # χ²_2: P(X > c) = exp(−c/2) = α/4
+    assert median_bound(2, 0.05) == pytest.approx(-2.0 * math.log(0.05 / 4.0), rel=1e-9)
+
+
+def test_a_burst_is_listed_with_its_epochs_and_credible_errors_have_none():
+    from scipy.signal import lfilter
+
+    n = 600
+    e = np.random.default_rng(4).standard_normal((n, 2))
+    e[300:307] *= 5.0  # 7 epochs at 25× the claimed variance
+    d = diagnose_errors(e, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=0)
+    (burst,) = [f for f in d.findings if f.startswith("burst")]
+    first, last = burst.split("epochs ")[1].split()[0].split("–")
+    assert 297 <= int(first) <= 301 and int(last) == 307, burst  # the CUSUM may start early
+    # the CUSUM's threshold is ln(N/0.01): under the claim a segment lists a burst with
+    # probability <= 1 % (independent epochs; dependent ones by their squares' τ)
+    listed = 0
+    for k in range(12):
+        for phi in (0.0, 0.95):
+            x = np.random.default_rng([k, 7]).standard_normal((1000, 2))
+            x = lfilter([1], [1, -phi], x, axis=0) * np.sqrt(1 - phi**2)
+            got = diagnose_errors(x, np.broadcast_to(np.eye(2), (1000, 2, 2)), rng=k)
+            listed += any(f.startswith(("burst", "diverging")) for f in got.findings)
+    assert listed <= 1
+
+
+def _circle_log(seed, lag=0.0, noise=0.5, claimed=0.5, n=600):
+    """A target on a 50 m circle at 10 m/s, 10 Hz; the estimate is the truth ``lag``
+    seconds earlier plus white noise of ``noise`` m, claimed as ``claimed`` m."""
+    from credcli.api import log_from_arrays
+
+    t = np.arange(n) / 10.0
+
+    def path(tt):
+        return np.c_[50 * np.cos(tt / 5.0), 50 * np.sin(tt / 5.0)]
+
+    gen = np.random.default_rng(seed)
+    estimate = path(t - lag) + noise * gen.standard_normal((n, 2))
+    cov = np.broadcast_to(claimed**2 * np.eye(2), (n, 2, 2))
+    return log_from_arrays(cov, truth=path(t), estimate=estimate, time=t)
+
+
+def test_a_late_estimate_is_a_time_offset_named_first(tmp_path, capsys):
+    """Issue 31 item 3: an estimate 0.35 s late on a 10 m/s trajectory is a time offset,
+    named before any covariance advice, in the JSON and the table."""
+    import credcli
+    from credcli.api import write_log
+
+    results = credcli.diagnose_log(_circle_log(0, lag=0.35))
+    (rec,) = results.to_dict()
+    assert rec["time_offset"] == pytest.approx(0.35, abs=0.05)
+    assert rec["findings"][0].startswith("time offset: the estimate lags the truth by 0.3")
+    path = tmp_path / "late.csv"
+    write_log(_circle_log(0, lag=0.35), path)
+    assert main(["diagnose", str(path)]) == 0
+    advice = [line for line in capsys.readouterr().out.splitlines() if line.startswith("all: ")]
+    assert advice[0].startswith("all: the estimate lags the truth by 0.3"), advice
+
+
+@pytest.mark.parametrize("noise", [0.5, 1.0])
+def test_no_time_offset_without_a_lag(noise):
+    """Credible (noise as claimed) and optimistic (noise 2× the claim) estimates of the
+    same moving target: no offset is claimed (level 0.001 per segment)."""
+    import credcli
+
+    for seed in range(4):
+        (rec,) = credcli.diagnose_log(_circle_log(seed, noise=noise)).to_dict()
+        assert rec["time_offset"] is None, rec["findings"]

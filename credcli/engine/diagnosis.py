@@ -9,7 +9,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import special
 
-from credcli.engine import batches, dependence, evidence, metrics, rules
+from credcli.engine import batches, dependence, episodes, evidence, metrics, rules, timing
 from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-exported)
     AUTO,
     DEFAULT_MAX_EPOCHS,
@@ -31,6 +31,7 @@ from credcli.engine.memory import Memory, TimeScales
 from credcli.engine.rng import RngLike, as_generator
 from credcli.engine.rules import nci_baseline, nees_baseline  # noqa: F401 (re-exported)
 from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals
+from credcli.engine.timing import TimeOffset
 from credcli.engine.whiteness import Whiteness, innovation_levels, portmanteau
 from credcli.errors import CredcliError
 
@@ -85,6 +86,7 @@ class Diagnosis:
     memory_source: str | None = None  # "segment" (fitted here) or "run" (the whole run's)
     time_scales: TimeScales | None = field(default=None, repr=False)  # variance by averaging time
     findings: tuple[str, ...] = ()  # what the data show beside the label (slow errors, ...)
+    time_offset: TimeOffset | None = None  # a lag of the estimate that explains the misfit
 
     @property
     def partial(self) -> bool:
@@ -212,6 +214,7 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
         "memory": ev.memory,
         "memory_source": ev.memory_source,
         "time_scales": ev.time_scales,
+        "findings": episode_findings(ev, verdict, config),
     }
     if verdict.label is Label.INSUFFICIENT:
         return Diagnosis(label=Label.INSUFFICIENT, **common)
@@ -224,6 +227,25 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
         untested=verdict.untested,
         **common,
     )
+
+
+def episode_findings(ev: evidence.Evidence, verdict, config: DiagnosisConfig) -> tuple[str, ...]:
+    """What the NEES does in time (:mod:`credcli.engine.episodes`): a divergence, the
+    scale decided by the median bound, and the largest bursts."""
+    out = []
+    if ev.divergence is not None:
+        out.append(ev.divergence.describe())
+    if verdict.by_median:
+        bound = episodes.median_bound(ev.dim, config.scale_level)
+        out.append(
+            f"median NEES {ev.q_median:.3g} above {bound:.3g}, a bound that holds whatever "
+            "the errors' memory (Markov): the covariance is too small (scale decided by it)"
+        )
+    shown = ev.bursts[: episodes.MAX_BURSTS]
+    out += [b.describe(ev.dim) for b in shown]
+    if len(ev.bursts) > len(shown):
+        out.append(f"and {len(ev.bursts) - len(shown)} more burst(s)")
+    return tuple(out)
 
 
 def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
@@ -271,6 +293,7 @@ def diagnose_log(
     errors = log.errors
     windows = [seg.index for seg in segments if getattr(seg, "window", False)]
     run = run_model(errors, log.cov, windows, config) if windows else RunModel(None)
+    velocity = timing.truth_velocity(log.truth, log.time)
     out = []
     for done, seg in enumerate(segments, start=1):
         window = getattr(seg, "window", False)
@@ -285,6 +308,7 @@ def diagnose_log(
             memory=run.memory if window else None,
             findings=run.findings if windows and not window else (),  # the run's own
             declined=run.window_reason if window else None,
+            velocity=None if velocity is None else velocity[seg.index],
         )
         out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
@@ -416,6 +440,7 @@ def diagnose_segment(
     memory: Memory | None = None,
     findings: tuple[str, ...] = (),
     declined: str | None = None,
+    velocity: np.ndarray | None = None,
 ) -> Diagnosis:
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
     the log and the segment. ``runs``: see :func:`diagnose_errors`; ``blocks``: named
@@ -423,7 +448,9 @@ def diagnose_segment(
     calibrated rule reports beside the overall one (:func:`block_scales`); ``memory``: the
     dependence model of the run the segment is a window of (:func:`run_model`);
     ``findings``: the run's, for the run's own segment; ``declined``: why a window of a
-    run gets no label of its own (:attr:`RunModel.window_reason`)."""
+    run gets no label of its own (:attr:`RunModel.window_reason`); ``velocity``: the
+    truth's (:func:`credcli.engine.timing.truth_velocity`), to look for a time offset
+    that explains a misfit (:func:`credcli.engine.timing.time_offset`), named first."""
     try:
         errors, cov = metrics.check_errors_cov(errors, cov)
         n, d = errors.shape
@@ -437,6 +464,12 @@ def diagnose_segment(
             diag = replace(diag, blocks=block_scales(errors, cov, blocks, config, runs))
         if findings:
             diag = replace(diag, findings=diag.findings + findings)
+        if velocity is not None and diag.label.conditions and declined is None:
+            offset = timing.time_offset(errors, cov, velocity, memory_ratio(diag))
+            if offset is not None:
+                diag = replace(
+                    diag, time_offset=offset, findings=(offset.describe(),) + diag.findings
+                )
         if declined is not None:  # the numbers stay; the label claims no misfit
             diag = replace(
                 diag, label=Label.INSUFFICIENT, reason=declined, untested=(), smm_detected=None
@@ -444,6 +477,16 @@ def diagnose_segment(
         return diag
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc
+
+
+def memory_ratio(diag: Diagnosis) -> float:
+    """τ, the largest variance ratio of a diagnosis's errors: its memory model's, or N
+    over the lag-1 route's effective N."""
+    if diag.memory is not None:
+        return float(np.max(diag.memory.variance_ratios))
+    if diag.effective_n:
+        return diag.n / diag.effective_n
+    return 1.0
 
 
 def block_scales(

@@ -15,9 +15,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import special
 
-from credcli.engine import batches, correlation, dependence, metrics
+from credcli.engine import batches, correlation, dependence, episodes, metrics
 from credcli.engine.config import SMM_CONDITION, DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
+from credcli.engine.episodes import Burst, Divergence
 from credcli.engine.memory import Memory, TimeScales, fit_memory, mean_free, time_scales
 from credcli.engine.scale import (
     DirectionScales,
@@ -65,6 +66,9 @@ class Evidence:
     memory: Memory | None = None
     memory_source: str | None = None  # "segment" or "run": where the model was fitted
     time_scales: TimeScales | None = None  # the variance at every averaging time
+    q_median: float | None = None  # median GLS-centred NEES (the dependence-free bound)
+    bursts: tuple[Burst, ...] = ()  # where the NEES leaves its band (Page's CUSUM)
+    divergence: Divergence | None = None  # errors growing beyond any plausible tuning
 
     @property
     def mean_rejected(self) -> bool:
@@ -117,7 +121,6 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     ks_p = ks_chi2_pvalue(eps, d)
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
-    del eps
     centred = errors - errors.mean(axis=0)
     nci_centred = metrics.nci_factored(centred, chol, mse_cholesky(metrics.mse_matrix(centred)))
     gls = gls_residuals(errors, chol)
@@ -143,6 +146,17 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         c: memory_evidence(gls, inverse, c, memory, n) for c in dict.fromkeys(modelled)
     }
     del inverse
+    squares_ratio = memory.squares.variance_ratio if memory is not None else tau_q
+    found_bursts = episodes.bursts(eps, d, squares_ratio)
+    q_median = float(np.median(gls.q))
+    diverging = {
+        c.scale_level: episodes.divergence(gls.q, eps, d, c.scale_level)
+        for c in configs
+        if c.calibrated
+    }
+    del eps
+    if any(diverging.values()):  # the divergence names the run-away tail: not a burst
+        found_bursts = tuple(b for b in found_bursts if b.stop < n)
     slow = _slow_memory(scales_check, memory)
     if slow is None and modelled and source == "segment":
         slow = _unresolved_memory(memory, n)
@@ -232,6 +246,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             memory=memory if config in model_evidence else None,
             memory_source=source if config in model_evidence else None,
             time_scales=scales_check if config in model_evidence else None,
+            q_median=q_median,
+            bursts=found_bursts,
+            divergence=diverging.get(config.scale_level) if config.calibrated else None,
         )
         everything = config.metrics is MetricsLevel.ALL
         needs_probes = (

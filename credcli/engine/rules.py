@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from credcli.engine import metrics
+from credcli.engine import episodes, metrics
 from credcli.engine.config import DiagnosisConfig, Label, Question, Variant
 from credcli.engine.evidence import Evidence
 from credcli.engine.scale import DirectionScales, ScaleTest
@@ -27,6 +27,7 @@ class Verdict:
     reason: str | None
     smm_detected: bool | None
     by_direction: bool
+    by_median: bool = False  # the scale decided by the dependence-free median bound
 
 
 def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
@@ -40,6 +41,7 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     """
     scale_reason = evidence.scale_reason
     noise_override = None
+    by_median = False
     if config.calibrated and scale_reason is None:
         scale_reason = inconclusive_scale(evidence.scale, config)
         directions = evidence.directions
@@ -47,6 +49,9 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
             noise_override = direction_noise(directions, config)
             if noise_override is not None:
                 scale_reason = None  # decided along a principal direction
+    declined = scale_reason
+    if config.calibrated and scale_reason is not None and median_optimism(evidence, config):
+        scale_reason, by_median = None, True  # too large for any memory to explain
     untested = tuple(
         q
         for q, missing in (
@@ -55,8 +60,13 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
         )
         if missing
     )
-    reason = "; ".join(r for r in (scale_reason, evidence.location_reason) if r) or None
+    location_reason = evidence.location_reason
+    if Question.LOCATION in untested and location_reason is None:
+        location_reason = declined  # one reason declined both questions
+    reason = "; ".join(r for r in (scale_reason, location_reason) if r) or None
     by_direction = noise_override is not None
+    if by_median:
+        noise_override = "optimism"
     if len(untested) == 2 or (not config.calibrated and evidence.elt_level is None):
         return Verdict(Label.INSUFFICIENT, (), reason, None, by_direction)
     smm = evidence.location_rejected
@@ -70,7 +80,17 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     else:
         label = label_without_smm(evidence.nci, evidence.ks_pvalue, config)
     located = None if Question.LOCATION in untested else smm
-    return Verdict(label, untested, reason, located, by_direction)
+    return Verdict(label, untested, reason, located, by_direction, by_median)
+
+
+def median_optimism(evidence: Evidence, config: DiagnosisConfig) -> bool:
+    """Whether the median GLS-centred NEES is above the dependence-free bound at α_S/2
+    (:func:`credcli.engine.episodes.median_exceeds`): the covariance is too small whatever
+    the errors' memory, where the memory-adjusted scale test could not decide (a diverging
+    filter, whose squared errors' variance ratio leaves no degrees of freedom)."""
+    if evidence.q_median is None:
+        return False
+    return evidence.q_median > episodes.median_bound(evidence.dim, config.scale_level)
 
 
 def nees_label(nees_total: float, n: int, dim: int, alpha: float = 0.05) -> Label:

@@ -79,7 +79,10 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     ``time_scale_*``: the variance of the whitened errors at each averaging time (epochs)
     against the model's prediction and interval, and the check's p-value
     (:class:`credcli.engine.memory.TimeScales`). ``findings``: what the data show beside
-    the label (a slowly varying error across the windows of a run).
+    the label (a slowly varying error across the windows of a run, a divergence, bursts,
+    a time offset). ``time_offset``: the lag of the estimate behind the truth, in the time
+    column's unit, where one explains the misfit (:mod:`credcli.engine.timing`), with
+    ``time_offset_stderr``.
     """
     elt = diag.elt
     sc = diag.scale
@@ -147,6 +150,8 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "time_scale_high": _floats(None if scales is None else scales.high),
         "time_scale_pvalue": None if scales is None else scales.pvalue,
         "findings": list(diag.findings) or None,
+        "time_offset": None if diag.time_offset is None else diag.time_offset.seconds,
+        "time_offset_stderr": None if diag.time_offset is None else diag.time_offset.stderr,
     }
     return {k: json_value(v) for k, v in rec.items()}
 

@@ -166,6 +166,12 @@ def advice(rec: dict) -> str | None:
         return f"{rec['segment']}: no verdict: {rec['reason']}"
     noise = bool(label.conditions & NOISE_CONDITIONS)
     parts = []
+    if rec.get("time_offset") is not None:  # the cause to fix first
+        which = "lags" if rec["time_offset"] > 0 else "leads"
+        parts.append(
+            f"the estimate {which} the truth by {_number(abs(rec['time_offset']))} s: fix the "
+            "time stamps before the covariance"
+        )
     if untested:
         parts.append(f"{' and '.join(untested)} untested: {rec['reason']}")
     if rec.get("scale_by_direction"):

@@ -129,9 +129,7 @@ def bursts(eps: np.ndarray, dim: int, squares_ratio: float = 1.0) -> tuple[Burst
         end = hit + int(after[0]) if after.size else n
         peak = start + int(np.argmax(s[start:end]))
         if peak + 1 - start <= n * MAX_BURST_SHARE:
-            found.append(
-                Burst(start, peak + 1, float(eps[start : peak + 1].max()), float(s[peak]))
-            )
+            found.append(Burst(start, peak + 1, float(eps[start : peak + 1].max()), float(s[peak])))
         k = end
     return tuple(sorted(found, key=lambda b: -b.statistic))
 

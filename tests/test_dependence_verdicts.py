@@ -653,13 +653,15 @@ def test_short_dependent_windows_hold_the_level(n, phi):
 
 def test_independent_short_windows_are_not_left_untested():
     """Independent 25-epoch windows: where the screening or AICc sees memory, the sieve's
-    model and its bootstrap carry it; at most 7 % become insufficient-data (5.3 % measured:
-    a spurious AR fit on 25 epochs is honestly uncertain), and the level holds."""
+    model and its bootstrap carry it; at most 17 % become insufficient-data (14 % measured:
+    5.3 % where a spurious AR fit on 25 epochs is honestly uncertain, the rest where the
+    mean's confidence region cannot exclude a bias of √2σ, the location's margin), and the
+    level holds."""
     rng = np.random.default_rng(33)
     labels = Counter(
         diagnose_errors(rng.standard_normal((25, 2)), _eye(25), rng=k).label for k in range(300)
     )
-    assert labels[Label.INSUFFICIENT] <= 21, labels
+    assert labels[Label.INSUFFICIENT] <= 51, labels
     wrong = 300 - labels[Label.CREDIBLE] - labels[Label.INSUFFICIENT]
     assert wrong / 300 <= 0.06 + 2 * math.sqrt(0.05 * 0.95 / 300), labels
 

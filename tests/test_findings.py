@@ -172,8 +172,8 @@ def test_a_partial_credible_does_not_read_as_a_pass_in_json():
     from credcli.engine.config import Label, Question
     from credcli.io.records import diagnosis_record
 
-    e = np.random.default_rng(1229).standard_normal((10, 2))
-    d = diagnose_errors(e, np.broadcast_to(np.eye(2), (10, 2, 2)), rng=0)
+    e = np.random.default_rng(0).standard_normal((20, 2))  # scale interval past [½, 2]
+    d = diagnose_errors(e, np.broadcast_to(np.eye(2), (20, 2, 2)), rng=0)
     assert d.label is Label.CREDIBLE and d.untested == (Question.SCALE,)
     rec = diagnosis_record(d)
     assert rec["label"] == "credible (scale untested)"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
@@ -13,12 +14,20 @@ import pytest
 from conftest import SAMPLE
 
 from credcli.ci import gate
+from credcli.cli import main
 from credcli.engine.diagnosis import Label
 from credcli.errors import CredcliError
 from credcli.io import records
 
 GOOD = SAMPLE / "estimator_log.csv"
 REGRESSED = SAMPLE / "estimator_log_regressed.csv"
+
+
+def _main(capsys, *args):
+    """The command line in this process: the exit code, stdout and stderr of ``main``."""
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(args, code, out, err)
 
 
 def _cli(*args, env=None):
@@ -226,7 +235,9 @@ def test_missing_and_new_segments(tmp_path, baseline):
     assert proc.returncode == 0 and "1 missing" in proc.stderr
 
 
-def test_different_parameters_or_schema_are_errors(tmp_path):
+def test_different_parameters_or_schema_are_errors(tmp_path, capsys):
+    """In process (main), as the subprocess tests above run the same command line."""
+    _cli = functools.partial(_main, capsys)
     base = tmp_path / "b.json"
     _cli("baseline", GOOD, "-o", base, "--tau", "0.8")
     proc = _cli("gate", GOOD, "--baseline", base, "--tau", "0.5")
@@ -256,7 +267,7 @@ def test_diagnose_fail_on(tmp_path):
         "gps-multipath (bias), tunnel (pessimism+bias), urban (optimism+bias)"
     )
     assert "FAIL: 4 of 6 segment(s) match --fail-on optimism,smm" in proc.stderr
-    proc = _cli("diagnose", GOOD, "--whole", "--window", "300", "--fail-on", "insufficient-data")
+    proc = _cli("diagnose", GOOD, "--fail-on", "insufficient-data")
     assert proc.returncode == 0 and "PASS" in proc.stderr
     junit, summary = tmp_path / "j.xml", tmp_path / "s.md"
     proc = _cli(

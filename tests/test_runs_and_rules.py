@@ -32,8 +32,9 @@ def _scale(kappa: float, low: float, high: float, up: float, down: float) -> Sca
     return ScaleTest(1.0, 100.0, 1.0, kappa, low, high, up, down, zero, zero, 0.0)
 
 
-def _evidence(scale: ScaleTest, mean_p: float | None, scale_reason=None) -> Evidence:
-    mean = None if mean_p is None else MeanTest(1.0, (2.0, 98.0), mean_p, 0)
+def _evidence(scale: ScaleTest, mean_p: float | None, scale_reason=None, spread=0.01) -> Evidence:
+    # Cov(x̂) of 100 independent epochs in σ² (1/N), Hotelling's T² = 2·99/98 F
+    mean = None if mean_p is None else MeanTest(1.0, (2.0, 98.0), mean_p, 0, spread, 198 / 98)
     config = DiagnosisConfig()
     return Evidence(
         n=100, dim=2, nci=0.0, nci_centered=0.0, anees=1.0, ks_pvalue=0.5, nees_total=200.0,
@@ -61,6 +62,12 @@ def test_the_rule_decides_on_evidence_written_by_hand():
     wide = _scale(1.0, 0.4, 2.5, 0.5, 0.5)
     verdict = decide(_evidence(wide, 0.5), config)
     assert verdict.label is Label.CREDIBLE and verdict.untested == (Question.SCALE,)
+    # a mean test that finds no bias but whose region reaches past 1σ: location
+    # inconclusive (F(2, 98) at 1 − 0.0127 is 4.5, the radius √(2.02·4.5·v); margin √2)
+    assert decide(_evidence(credible, 0.5, spread=0.01), config).untested == ()
+    verdict = decide(_evidence(credible, 0.5, spread=0.5), config)
+    assert verdict.label is Label.CREDIBLE and verdict.untested == (Question.LOCATION,)
+    assert "does not exclude one of 1.41σ" in verdict.reason
     # neither question: insufficient-data, with both reasons
     verdict = decide(_evidence(wide, None), config)
     assert verdict.label is Label.INSUFFICIENT and "planted" in verdict.reason

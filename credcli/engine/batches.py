@@ -195,6 +195,31 @@ class MeanTest:
     dof: tuple[float, float]  # of the F reference
     pvalue: float
     batches: int  # K; 0 for the test of independent epochs
+    spread: float = math.nan  # λ_max of Cov(x̂), x = (ΣW/N)^{1/2}μ: the bias in σ
+    t2_per_f: float = math.nan  # T² = t2_per_f · F: the confidence region's radius
+
+    def bias_bound(self, norm: float, level: float) -> float:
+        """An upper bound on ‖μ‖ in σ (the metric of the mean claimed precision) over the
+        1 − ``level`` confidence region of the mean, {x: (x̂ − x)ᵀ Cov(x̂)⁻¹ (x̂ − x) <= T²},
+        whose centre is ``norm`` = ‖x̂‖ from the origin: ‖x̂‖ + √(T²·λ_max). NaN where the
+        test carries no region."""
+        if not (math.isfinite(self.spread) and math.isfinite(self.t2_per_f)):
+            return math.nan
+        crit = float(special.fdtri(self.dof[0], self.dof[1], 1.0 - level))
+        return norm + math.sqrt(max(self.t2_per_f * crit * self.spread, 0.0))
+
+
+def mean_spread(cov_sum: np.ndarray, precision: np.ndarray, ratio: float, n: int) -> float:
+    """λ_max of Cov(x̂) = S^{-1/2} Cov(G) S^{-1/2} / N, x = S^{1/2}μ/√N, S = Σ W_k, from
+    Cov(G) and S each divided by an exact power of two, ``ratio`` = Cov(G)'s unit over S's
+    (so that the result, which is scale-free, is exact and finite)."""
+    try:
+        lam, vecs = np.linalg.eigh(precision)
+        root = (vecs / np.sqrt(lam)) @ vecs.T  # S^{-1/2} (scaled)
+        values = np.linalg.eigvalsh(root @ cov_sum @ root)
+    except np.linalg.LinAlgError:
+        return math.nan
+    return float(values[-1]) * ratio / n
 
 
 def independent_mean_test(residuals: GlsResiduals, inflation: float = 1.0) -> MeanTest:
@@ -228,16 +253,32 @@ def independent_mean_test(residuals: GlsResiduals, inflation: float = 1.0) -> Me
     t2 = (n - 1) * b / (1.0 - b) if b < 1.0 else math.inf
     f = (n - d) * t2 / (d * (n - 1) * inflation)
     p = float(special.fdtrc(d, n - d, f)) if math.isfinite(f) else 0.0
-    return MeanTest(f, (float(d), float(n - d)), p, 0)
+    spread = _centred_spread(residuals, n * np.cov(scores, rowvar=False).reshape(d, d))
+    t2_per_f = d * (n - 1) * inflation / (n - d)
+    return MeanTest(f, (float(d), float(n - d)), p, 0, spread, t2_per_f)
 
 
-def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:
+def _centred_spread(residuals: GlsResiduals, cov_sum: np.ndarray) -> float:
+    """:func:`mean_spread` of a Cov(G) in the units of the scores divided by their
+    power-of-two unit (as the tests here scale them)."""
+    unit = power_of_two_unit(residuals.scores)
+    precision_unit = power_of_two_unit(residuals.precision_sum)
+    precision = residuals.precision_sum / precision_unit
+    n = residuals.scores.shape[0]
+    return mean_spread(cov_sum, precision, (unit / precision_unit) * unit, n)
+
+
+def batch_mean_test(
+    scores: np.ndarray, inflation: float = 1.0, residuals: GlsResiduals | None = None
+) -> MeanTest:
     r"""Hotelling's test that the batch sums of GLS scores U_j (K, d) have mean zero.
 
     .. math:: T^2 = K\,\bar U^\top S_U^{-1}\bar U,\qquad
               \frac{K-d}{d(K-1)}T^2 \sim F(d, K-d)
 
-    with T² divided by ``inflation`` (:func:`boundary_inflation`) first.
+    with T² divided by ``inflation`` (:func:`boundary_inflation`) first. With the
+    ``residuals`` whose scores were summed, the test carries its confidence region
+    (:meth:`MeanTest.bias_bound`).
 
     Examples
     --------
@@ -248,7 +289,8 @@ def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:
     True
     """
     k, d = scores.shape
-    scores = scores / power_of_two_unit(scores)  # T² is scale-free; exact, and finite
+    sums_unit = power_of_two_unit(scores)
+    scores = scores / sums_unit  # T² is scale-free; exact, and finite
     mean = scores.mean(axis=0)
     cov = np.cov(scores, rowvar=False).reshape(d, d)
     try:
@@ -257,7 +299,12 @@ def batch_mean_test(scores: np.ndarray, inflation: float = 1.0) -> MeanTest:
         t2 = math.inf if np.any(mean != 0) else 0.0
     f = (k - d) * t2 / (d * (k - 1) * inflation)
     p = float(special.fdtrc(d, k - d, f)) if math.isfinite(f) else 0.0
-    return MeanTest(f, (float(d), float(k - d)), p, k)
+    if residuals is None:
+        return MeanTest(f, (float(d), float(k - d)), p, k)
+    # Cov(G) = K·S_U, in the units of the scores over their own power-of-two unit
+    ratio = power_of_two_unit(residuals.scores) / sums_unit
+    spread = _centred_spread(residuals, k * cov / (ratio * ratio))
+    return MeanTest(f, (float(d), float(k - d)), p, k, spread, d * (k - 1) * inflation / (k - d))
 
 
 def memory_mean_test(
@@ -317,4 +364,5 @@ def memory_mean_test(
         return MeanTest(math.nan, (float(d), dof2), math.nan, 0), stderr
     f = dof2 * t2 / (dof * d)
     p = float(special.fdtrc(d, dof2, f)) if math.isfinite(f) else 0.0
-    return MeanTest(f, (float(d), dof2), p, 0), stderr
+    spread = mean_spread(cov, precision, ratio * unit, n)
+    return MeanTest(f, (float(d), dof2), p, 0, spread, dof * d / dof2), stderr

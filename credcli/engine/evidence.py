@@ -329,7 +329,7 @@ def mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool, runs: int = 
         )
     sums = np.add.reduceat(gls.scores, batches.bounds(n, k), axis=0)
     inflation = 1.0 if aligned else batches.boundary_inflation(worst, n, k)
-    return batches.batch_mean_test(sums, inflation), None
+    return batches.batch_mean_test(sums, inflation, gls), None
 
 
 def batch_plan(n: int, length: int, smallest: int, runs: int) -> tuple[int, bool]:

@@ -52,15 +52,21 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     declined = scale_reason
     if config.calibrated and scale_reason is not None and median_optimism(evidence, config):
         scale_reason, by_median = None, True  # too large for any memory to explain
+    location_reason = evidence.location_reason
+    location_open = evidence.mean_test is None and evidence.elt_level is None
+    if config.calibrated and not location_open and not evidence.location_rejected:
+        unresolved = inconclusive_location(evidence)
+        if unresolved is not None:
+            location_open = True
+            location_reason = "; ".join(r for r in (unresolved, location_reason) if r)
     untested = tuple(
         q
         for q, missing in (
             (Question.SCALE, scale_reason is not None),
-            (Question.LOCATION, evidence.mean_test is None and evidence.elt_level is None),
+            (Question.LOCATION, location_open),
         )
         if missing
     )
-    location_reason = evidence.location_reason
     if Question.LOCATION in untested and location_reason is None:
         location_reason = declined  # one reason declined both questions
     reason = "; ".join(r for r in (scale_reason, location_reason) if r) or None
@@ -126,6 +132,37 @@ CREDIBLE_FACTOR = 2.0
 side (two one-sided tests). A wider interval that contains 1 is inconclusive, and the scale
 question untested, not credible: never a guess behind a label. On the paper's protocol
 (N = 100, d = 2, independent) the interval is about [0.8, 1.27]: every segment is decided."""
+
+
+def bias_margin(dim: int) -> float:
+    """The calibrated rule calls a location credible only when the mean's confidence region
+    excludes a bias of this many σ (‖μ‖ in the metric of the mean claimed precision):
+    √(d(F − 1)), F = :data:`CREDIBLE_FACTOR`, i.e. √2σ for d = 2. A bias b raises the
+    mean NEES from d to d + b², so b² = d(F − 1) is the bias that misfits the claimed
+    covariance as much as the scale's margin, a factor F = 2 on the NEES: the two questions
+    share one definition of a relevant misfit. A region that reaches past it is
+    inconclusive, and the location question untested: no "no bias" claim from a mean test
+    too weak to see one."""
+    return math.sqrt(dim * (CREDIBLE_FACTOR - 1.0))
+
+
+def inconclusive_location(evidence: Evidence) -> str | None:
+    """Why a location that no test rejects still does not support "no bias", or None."""
+    mean = evidence.mean_test
+    margin = bias_margin(evidence.dim)
+    if mean is None:
+        return (
+            f"location inconclusive: no mean test ran, so no bias of {margin:.3g}σ is "
+            "excluded (the ELT has no margin)"
+        )
+    bound = mean.bias_bound(evidence.scale.bias_mahalanobis, evidence.mean_level)
+    if bound < margin:
+        return None
+    return (
+        f"location inconclusive: the bias is {evidence.scale.bias_mahalanobis:.3g}σ and its "
+        f"{1 - evidence.mean_level:.4g} confidence region reaches {bound:.3g}σ, which does "
+        f"not exclude one of {margin:.3g}σ (too few independent epochs or batches)"
+    )
 
 
 def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:

@@ -142,14 +142,19 @@ def bias_margin(dim: int) -> float:
     covariance as much as the scale's margin, a factor F = 2 on the NEES: the two questions
     share one definition of a relevant misfit. A region that reaches past it is
     inconclusive, and the location question untested: no "no bias" claim from a mean test
-    too weak to see one."""
+    too weak to see one. Where κ̂ > 1 the margin is in the σ of the corrected covariance,
+    √κ̂ times the claimed one (:func:`inconclusive_location`): after the covariance is
+    multiplied by κ̂, a bias misfits it as much as b/√κ̂ would the claimed one."""
     return math.sqrt(dim * (CREDIBLE_FACTOR - 1.0))
 
 
 def inconclusive_location(evidence: Evidence) -> str | None:
     """Why a location that no test rejects still does not support "no bias", or None."""
     mean = evidence.mean_test
-    margin = bias_margin(evidence.dim)
+    # in the σ of the covariance as the scale's answer corrects it (κ̂ > 1): the bias that
+    # matters once the covariance is fixed; never narrower than the claimed σ
+    inflation = evidence.scale.scale_factor if evidence.scale.scale_factor > 1.0 else 1.0
+    margin = bias_margin(evidence.dim) * math.sqrt(inflation)
     if mean is None:
         return (
             f"location inconclusive: no mean test ran, so no bias of {margin:.3g}σ is "

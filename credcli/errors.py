@@ -29,6 +29,27 @@ class CredcliError(ValueError):
         return (type(self), (self.message, self.parameter))
 
 
+_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def printable(text: str) -> str:
+    """``text`` safe to show on a terminal or in a one-line message: every control
+    character (C0, DEL, C1, the Unicode line and paragraph separators) as a backslash
+    escape (``\\n``, ``\\x1b``), as git and ls quote names, so that a name from the data
+    can neither move the cursor, set a window title, nor start a line of its own."""
+    if _CONTROL.search(text) is None:
+        return text
+    return _CONTROL.sub(
+        lambda m: (
+            _ESCAPES.get(m.group(), f"\\x{ord(m.group()):02x}")
+            if ord(m.group()) < 0x100
+            else f"\\u{ord(m.group()):04x}"
+        ),
+        text,
+    )
+
+
 def plain(message: str) -> str:
     """A message with its parameter names out of their backticks."""
     return NAMED.sub(r"\1", message)

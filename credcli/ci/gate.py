@@ -9,7 +9,7 @@ from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
 from credcli.engine.config import LOCATION_CONDITIONS, SMM_CONDITION
 from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
 from credcli.errors import CredcliError
-from credcli.io.records import Baseline, Snapshot, json_value
+from credcli.io.records import Baseline, Snapshot, json_value, shown_label
 from credcli.report.formats import format_pvalue
 
 _CONDITIONS = ("optimism", "pessimism") + LOCATION_CONDITIONS
@@ -261,7 +261,7 @@ def gate_fail_on(
     ]
     if not bad:
         return passed, verdict
-    shown = ", ".join(f"{c.segment} ({c.new.label.value})" for c in bad[:5])
+    shown = ", ".join(f"{c.segment} ({shown_label(c.new.label, c.new.untested)})" for c in bad[:5])
     more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
     line = f"{len(bad)} segment(s) match --fail-on {fail_on}: {shown}{more}"
     return False, (f"{verdict}; {line}" if not passed else f"FAIL: {line}")
@@ -276,7 +276,9 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
     listed = str(fail_on)
     if bad:
         shown = ", ".join(
-            f"{results[k].segment} ({results[k].diagnosis.label.value})" for k in bad[:5]
+            f"{results[k].segment} ({shown_label(d.label, d.untested)})"
+            for k in bad[:5]
+            for d in (results[k].diagnosis,)
         )
         more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
         return (

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -21,26 +22,38 @@ class Case:
     details: str = ""
 
 
+_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def xml_text(text: str) -> str:
+    """``text`` with the characters XML 1.0 forbids (most C0 controls, lone surrogates,
+    U+FFFE/U+FFFF) written as #xNN, as pytest writes them, so the document stays valid."""
+    return _NOT_XML.sub(lambda m: f"#x{ord(m.group()):02X}", text)
+
+
 def junit_xml(suite: str, cases: list[Case]) -> str:
-    """A JUnit XML document with one <testsuite>; failures carry their reason."""
+    """A JUnit XML document with one <testsuite>; failures carry their reason. Names and
+    messages from the data pass through :func:`xml_text`."""
     failures = sum(c.failure is not None for c in cases)
     root = ET.Element("testsuites", name="credcli", tests=str(len(cases)), failures=str(failures))
     node = ET.SubElement(
         root,
         "testsuite",
-        name=suite,
+        name=xml_text(suite),
         tests=str(len(cases)),
         failures=str(failures),
         errors="0",
         skipped="0",
     )
     for case in cases:
-        tc = ET.SubElement(node, "testcase", name=case.name, classname=case.classname)
+        name, classname = xml_text(case.name), xml_text(case.classname)
+        tc = ET.SubElement(node, "testcase", name=name, classname=classname)
         if case.failure is not None:
-            fail = ET.SubElement(tc, "failure", message=case.failure, type="CredibilityRegression")
-            fail.text = case.details or case.failure
+            message = xml_text(case.failure)
+            fail = ET.SubElement(tc, "failure", message=message, type="CredibilityRegression")
+            fail.text = xml_text(case.details or case.failure)
         elif case.details:
-            ET.SubElement(tc, "system-out").text = case.details
+            ET.SubElement(tc, "system-out").text = xml_text(case.details)
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 

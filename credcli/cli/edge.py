@@ -19,7 +19,7 @@ import typer
 
 from credcli.cli.app import app
 from credcli.cli.options import FIELD_OPTIONS
-from credcli.errors import NAMED, CredcliError
+from credcli.errors import NAMED, CredcliError, printable
 
 
 def _click_exception_types() -> tuple[type, ...]:
@@ -228,8 +228,9 @@ def _flags() -> dict[str, str]:
 
 
 def one_line(message: str) -> str:
-    """A message as one line: a newline in it (a file name's, a library's) is escaped."""
-    return message.replace("\r", "\\r").replace("\n", "\\n")
+    """A message as one line: a newline or any other control character in it (a file
+    name's, a segment's, a library's) is escaped (:func:`credcli.errors.printable`)."""
+    return printable(message)
 
 
 def _traceback(debug: bool) -> None:

@@ -12,7 +12,7 @@ import os
 import sys
 from pathlib import Path
 
-from credcli.errors import CredcliError
+from credcli.errors import CredcliError, printable
 from credcli.report.formats import OutputFormat
 
 
@@ -23,7 +23,7 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
 
     if output is not None:
         write_atomic(output, to_text(report, fmt), inputs)
-        stderr_console().print(f"wrote {output}", highlight=False)
+        stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
         return
     if fmt is OutputFormat.TABLE:
         from rich.console import Console
@@ -36,7 +36,7 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
         for table in report.tables:
             console.print(rich_table(table, fit))
         for note in report.notes:
-            console.print(note, markup=False, highlight=False)
+            console.print(printable(note), markup=False, highlight=False)
         return
     sys.stdout.write(to_text(report, fmt))
 
@@ -98,7 +98,7 @@ def print_notes(report) -> None:
     """The decisions taken while reading the logs, one ``credcli: note:`` line each."""
     for log in report.document.get("logs", []):
         for note in log.get("notes", []):
-            print(f"credcli: note: {note}", file=sys.stderr)
+            print(printable(f"credcli: note: {note}"), file=sys.stderr)
 
 
 def cluster(scheduler: str | None):
@@ -110,7 +110,7 @@ def cluster(scheduler: str | None):
     console = stderr_console()
 
     def announce(text: str) -> None:  # on a terminal, as the progress bar; quiet in CI
-        console.print(f"credcli: {text}", highlight=False, markup=False)
+        console.print(printable(f"credcli: {text}"), highlight=False, markup=False)
 
     return DaskRunner(scheduler, announce if console.is_terminal else None)
 
@@ -121,7 +121,9 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
 
     html = build_html(title, run.report, run.plots, ", ".join(map(str, sources)))
     write_atomic(path, html, inputs)
-    stderr_console().print(f"wrote {path} ({len(run.plots)} figures)", highlight=False)
+    stderr_console().print(
+        printable(f"wrote {path} ({len(run.plots)} figures)"), highlight=False, markup=False
+    )
 
 
 def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
@@ -148,7 +150,9 @@ def write_plots(run, directory: Path | None) -> None:
     from credcli.report.plots import write_plots as write_figures
 
     paths = write_figures(run if isinstance(run, list) else run.plots, directory)
-    stderr_console().print(f"wrote {len(paths)} figure(s) to {directory}", highlight=False)
+    stderr_console().print(
+        printable(f"wrote {len(paths)} figure(s) to {directory}"), highlight=False, markup=False
+    )
 
 
 def write_ci_reports(
@@ -202,7 +206,7 @@ def emit_fail_on(run, conditions, ci, inputs) -> bool:
         summary_markdown("credcli diagnose", verdict, run.report),
         inputs,
     )
-    print(f"credcli: {verdict}", file=sys.stderr)
+    print(printable(f"credcli: {verdict}"), file=sys.stderr)
     return passed
 
 
@@ -224,7 +228,7 @@ def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) 
         summary_markdown(f"credcli gate: {log}", verdict, run.report, context),
         inputs,
     )
-    print(f"credcli: {verdict}", file=sys.stderr)
+    print(printable(f"credcli: {verdict}"), file=sys.stderr)
     return passed
 
 
@@ -236,13 +240,15 @@ def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inpu
     from credcli.workflows import export_log_text
 
     for warning in fixes.notes:  # anchors that disagree with the log's ground truth
-        print(f"credcli: warning: {warning}", file=sys.stderr)
+        print(printable(f"credcli: warning: {warning}"), file=sys.stderr)
     if export_log is not None:
         write_atomic(export_log, export_log_text(fixes.log), inputs)
-        stderr_console().print(f"wrote {export_log} ({fixes.log.n} fixes)", highlight=False)
+        stderr_console().print(
+            printable(f"wrote {export_log} ({fixes.log.n} fixes)"), highlight=False, markup=False
+        )
     emit(run.report, out.fmt, out.output, inputs=inputs)
     write_plots(run, plots)
     if report_file is not None:
         title = f"credcli uwb: {source.name}"
         write_atomic(report_file, build_html(title, run.report, run.plots, str(source)), inputs)
-        stderr_console().print(f"wrote {report_file}", highlight=False)
+        stderr_console().print(printable(f"wrote {report_file}"), highlight=False, markup=False)

@@ -23,6 +23,7 @@ from credcli.engine.config import (
     Variant,
 )
 from credcli.engine.diagnosis import SegmentDiagnosis
+from credcli.errors import printable
 from credcli.io.records import (
     anchor_record,
     comparison_record,
@@ -282,9 +283,19 @@ def _csv_cell(value) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return repr(value)
+    if isinstance(value, int):
+        return str(value)
     if isinstance(value, list):
         return " ".join(_csv_cell(v) for v in value)
-    return str(value)
+    text = str(value)
+    if text[:1] in _FORMULA_STARTS:  # a name from the data: never a spreadsheet formula
+        return "'" + text
+    return text
+
+
+_FORMULA_STARTS = frozenset("=+-@\t\r")
+"""A text cell starting with one of these is read as a formula by spreadsheets (OWASP, CSV
+injection); it is written with a leading apostrophe. Numbers are written as numbers."""
 
 
 _LABEL_STYLE = {
@@ -339,7 +350,9 @@ def rich_table(table: Table, width: int | None = None):
     texts = [[t[k] for k in shown] for t in texts]
     table = Table(table.title, tuple(columns), table.rows, caption)
     out = RichTable(
-        title=escape(table.title), caption=escape(table.caption) or None, title_justify="left"
+        title=escape(printable(table.title)),
+        caption=escape(printable(table.caption)) or None,
+        title_justify="left",
     )
     for k, col in enumerate(table.columns):
         widest = max([len(col.header)] + [len(t[k]) for t in texts])
@@ -354,7 +367,7 @@ def rich_table(table: Table, width: int | None = None):
     for row, row_texts in zip(table.rows, texts):
         cells = []
         for col, raw in zip(table.columns, row_texts):
-            text = escape(raw)
+            text = escape(printable(raw))
             if col.key in _LABEL_KEYS and isinstance(row.get(col.key), str):
                 text = f"[{_LABEL_STYLE.get(text, 'bold yellow')}]{text}[/]"
             cells.append(text)
@@ -393,15 +406,16 @@ def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
     for table in report.tables:
         console.print(rich_table(table, width))
     for note in report.notes:
-        console.print(note, markup=False)
+        console.print(printable(note), markup=False)
     return buf.getvalue()
 
 
 def _csv(report: Report) -> str:
-    """One valid CSV. Several tables share it: a first column ``table`` names each row's
+    """One valid CSV (RFC 4180: CRLF line ends, cells with a comma, quote, CR or LF quoted).
+    Several tables share it: a first column ``table`` names each row's
     table, and the header is the union of the tables' columns."""
     buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
+    writer = csv.writer(buf, lineterminator="\r\n")  # RFC 4180: a CR or LF in a cell is quoted
     if len(report.tables) == 1:
         keys = _csv_keys(report.tables[0])
         writer.writerow(keys)

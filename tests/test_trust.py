@@ -1,0 +1,76 @@
+"""Issue 32: names from the data reach the terminal, CSV and JUnit made safe."""
+
+from __future__ import annotations
+
+import csv
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from credcli.cli import main
+from credcli.errors import printable
+
+NAMES = (
+    "ok",
+    '=HYPERLINK("http://x")',
+    "bad\x1b]0;title\x07",
+    "two\ncredcli: PASS: forged",
+    "cr\rrow",
+    "c1\x9bcsi",
+)
+
+
+@pytest.fixture(scope="module")
+def evil_log(tmp_path_factory):
+    """A Parquet log whose segment names carry control codes, a formula and a newline;
+    the second segment's covariance is 9× too small (a failing segment)."""
+    gen = np.random.default_rng(0)
+    rows = []
+    for i, name in enumerate(NAMES):
+        e = gen.standard_normal((60, 2)) * (3.0 if i == 1 else 1.0)
+        rows += [
+            {"time": i * 10 + k * 0.1, "segment": name, "truth_0": 0.0, "truth_1": 0.0}
+            | {"est_0": -e[k, 0], "est_1": -e[k, 1], "std_0": 1.0, "std_1": 1.0}
+            for k in range(60)
+        ]
+    path = tmp_path_factory.mktemp("evil") / "evil.parquet"
+    pd.DataFrame(rows).to_parquet(path, index=False)
+    return path
+
+
+def _controls(text: str) -> set[str]:
+    return {c for c in text if (ord(c) < 32 and c != "\n") or 0x7F <= ord(c) <= 0x9F}
+
+
+def test_printable_escapes_every_control_character():
+    assert printable("a\x1b[31mb\nc\rd\x00e\x9bf\u2028g") == (
+        "a\\x1b[31mb\\nc\\rd\\x00e\\x9bf\\u2028g"
+    )
+    assert printable("plain [brackets] and ünïcode") == "plain [brackets] and ünïcode"
+
+
+def test_names_reach_the_terminal_escaped_and_one_verdict_line(evil_log, capsys, tmp_path):
+    junit = tmp_path / "j.xml"
+    code = main(["diagnose", str(evil_log), "--fail-on", "noncredible", "--junit", str(junit)])
+    out, err = capsys.readouterr()
+    assert code == 1
+    assert not _controls(out) and not _controls(err), (_controls(out), _controls(err))
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("credcli: FAIL:"), lines
+    assert "two\\ncredcli: PASS: forged" in out
+    ET.parse(junit)  # valid XML, control characters written as #xNN
+    assert "#x1B" in junit.read_text()
+
+
+def test_csv_is_rfc4180_and_never_a_formula(evil_log, capsys, tmp_path):
+    (tmp_path / "a[").mkdir()
+    path = tmp_path / "a[" / "]b.csv"  # brackets in a path are not Rich markup
+    assert main(["diagnose", str(evil_log), "-f", "csv", "-o", str(path)]) == 0
+    assert "wrote" in capsys.readouterr().err
+    with path.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["segment"] for r in rows] == ["ok", "'" + NAMES[1], *NAMES[2:]]
+    assert all(not r["segment"].startswith(("=", "+", "-", "@")) for r in rows)
+    assert rows[0]["n"] == "60" and float(rows[0]["scale_factor"]) > 0  # numbers stay numbers

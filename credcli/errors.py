@@ -30,12 +30,13 @@ class CredcliError(ValueError):
 
 
 _ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
-_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff]")
 
 
 def printable(text: str) -> str:
     """``text`` safe to show on a terminal or in a one-line message: every control
-    character (C0, DEL, C1, the Unicode line and paragraph separators) as a backslash
+    character (C0, DEL, C1, the Unicode line and paragraph separators) and every lone
+    surrogate (a file name's bytes that are not UTF-8) as a backslash
     escape (``\\n``, ``\\x1b``), as git and ls quote names, so that a name from the data
     can neither move the cursor, set a window title, nor start a line of its own."""
     if _CONTROL.search(text) is None:

@@ -21,6 +21,11 @@ class Segment:
     window: bool = False  # a window of the run: judged against the run's dependence model
 
 
+MAX_WINDOW = 1e12
+"""The longest window accepted (epochs or seconds): past it no log has two windows, and an
+epoch count no longer fits the integers segmentation uses."""
+
+
 @dataclass(frozen=True)
 class Window:
     """A window length: seconds (``5s``, ``250ms``) or a number of epochs (``200``)."""
@@ -38,6 +43,12 @@ class Window:
         value, unit = float(m.group(1)), m.group(2)
         if value <= 0:
             raise CredcliError(f"`window` must be positive; got '{text}'", "window")
+        if not value < MAX_WINDOW:
+            raise CredcliError(
+                f"`window` '{text}' is longer than any log ({MAX_WINDOW:.0e} epochs or "
+                "seconds at most); give a window shorter than the log, or no window",
+                "window",
+            )
         if unit is None:
             if value != int(value):
                 raise CredcliError(

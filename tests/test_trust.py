@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -74,3 +75,60 @@ def test_csv_is_rfc4180_and_never_a_formula(evil_log, capsys, tmp_path):
     assert [r["segment"] for r in rows] == ["ok", "'" + NAMES[1], *NAMES[2:]]
     assert all(not r["segment"].startswith(("=", "+", "-", "@")) for r in rows)
     assert rows[0]["n"] == "60" and float(rows[0]["scale_factor"]) > 0  # numbers stay numbers
+
+
+SAMPLE_LOG = "sample_data/estimator_log.csv"
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("--alpha", "1e-308"),
+        ("--alpha", "5e-324"),
+        ("--window", "99999999999999999999"),
+        ("--window", "999999999999999999999s"),
+    ],
+)
+def test_extreme_settings_are_usage_errors(args, capsys, monkeypatch):
+    """Issue 32 item 8: exit 2 with one line, not an internal error (exit 3)."""
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    code = main(["diagnose", SAMPLE_LOG, *args])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "internal error" not in err
+
+
+def test_deeply_nested_baseline_and_config_are_usage_errors(tmp_path, capsys, monkeypatch):
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    assert main(["gate", SAMPLE_LOG, "--baseline", str(deep)]) == 2
+    assert "nested too deeply" in capsys.readouterr().err
+    toml = tmp_path / "deep.toml"
+    toml.write_text("a = " + "[" * 100_000 + "]" * 100_000)
+    assert main(["diagnose", SAMPLE_LOG, "--config", str(toml)]) == 2
+    assert "nested too deeply" in capsys.readouterr().err
+
+
+def test_file_names_that_are_not_utf8(tmp_path, capsys, monkeypatch):
+    """A log and outputs whose names are not valid UTF-8 (bytes held as surrogates):
+    written, with the name escaped inside them."""
+    import os
+    import shutil
+
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    base = os.fsencode(tmp_path)
+    log = os.fsdecode(base + b"/log\xff.csv")
+    shutil.copy(SAMPLE_LOG, log)
+    csv_out = os.fsdecode(base + b"/out\xff.csv")
+    junit = os.fsdecode(base + b"/j\xff.xml")
+    code = main(["diagnose", log, "-f", "csv", "-o", csv_out, "--junit", junit, "--fail-on", "smm"])
+    assert code == 1, capsys.readouterr().err
+    assert "\\udcff" in Path(csv_out).read_bytes().decode("utf-8")
+    ET.parse(junit)

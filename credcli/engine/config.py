@@ -281,7 +281,10 @@ class DiagnosisConfig:
             if not ok:
                 raise CredcliError(f"invalid setting: `{name}` {message}", name)
         level = self.elt_level
-        smallest = math.ceil(1.0 / level - 1e-9) - 1
+        if not level * (MAX_FLIPS + 1) > 1.0:  # 1/level overflows for a subnormal α
+            smallest = MAX_FLIPS + 1
+        else:
+            smallest = math.ceil(1.0 / level - 1e-9) - 1
         if smallest > MAX_FLIPS:
             raise CredcliError(
                 f"invalid setting: `alpha` {self.alpha:g} is too small to test: the ELT's p-value "

@@ -43,6 +43,10 @@ def read_toml(path: str | Path) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise CredcliError(f"{path}: not valid TOML: {exc}") from exc
+    except RecursionError as exc:
+        raise CredcliError(
+            f"{path}: nested too deeply to be a config file; a config has flat tables"
+        ) from exc
 
 
 def _umask() -> int:
@@ -98,7 +102,9 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
     on any error or signal that Python sees."""
     path = Path(path)
     check_outputs({"output": path}, inputs)
-    data = text.encode() if isinstance(text, str) else text
+    # a name that is not valid UTF-8 (a file name's bytes, held as surrogates) is written
+    # as its backslash escape rather than failing the whole output
+    data = text.encode("utf-8", "backslashreplace") if isinstance(text, str) else text
     try:
         if _is_stream(path):
             _write_stream(path, data)

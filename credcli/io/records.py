@@ -420,6 +420,10 @@ def read_baseline(path: str | Path) -> Baseline:
         raise CredcliError(f"{path}: cannot be read ({exc.strerror})") from exc
     except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
         raise CredcliError(f"{path}: not valid JSON ({exc})") from exc
+    except RecursionError as exc:
+        raise CredcliError(
+            f"{path}: nested too deeply to be a credcli baseline; record it again"
+        ) from exc
     check_baseline(doc, str(path))
     params = doc["parameters"]
     fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}

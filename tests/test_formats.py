@@ -571,7 +571,13 @@ def test_gate_reads_like_its_baseline(tmp_path):
     assert recorded["perturbation"] == "right" and recorded["truth"].endswith(
         "euroc_groundtruth.csv"
     )
-    code, out, err = run("gate", FORMATS / "odom_ros.csv", "--baseline", base, "-f", "json")
+    # the baseline keeps the reading settings (perturbation, window), never the truth's
+    # path: the command line names the truth again (issue 32)
+    code, _, err = run("gate", FORMATS / "odom_ros.csv", "--baseline", base)
+    assert code == 2 and "give the new log's truth with --truth" in err
+    code, out, err = run(
+        "gate", FORMATS / "odom_ros.csv", "--baseline", base, "--truth", args[1], "-f", "json"
+    )
     assert code == 0, err
     assert {c["status"] for c in json.loads(out)["segments"]} == {"unchanged"}
     # the same estimate against a truth 0.5 m off in x (10 σ): --truth replaces the

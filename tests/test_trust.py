@@ -132,3 +132,28 @@ def test_file_names_that_are_not_utf8(tmp_path, capsys, monkeypatch):
     assert code == 1, capsys.readouterr().err
     assert "\\udcff" in Path(csv_out).read_bytes().decode("utf-8")
     ET.parse(junit)
+
+
+def test_a_baseline_never_names_the_files_credcli_reads(tmp_path, capsys, monkeypatch):
+    """Issue 32 item 2: a committed baseline pointing its truth at a secret file made the
+    gate read it (a line of it in the error); now the gate reads only files the command
+    line names, and says so."""
+    import json
+
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    formats = ROOT / "sample_data" / "formats"
+    estimate, truth = formats / "openvins_estimate.txt", formats / "tum_groundtruth.txt"
+    base = tmp_path / "base.json"
+    assert main(["baseline", str(estimate), "--truth", str(truth), "-o", str(base)]) == 0
+    secret = tmp_path / "secret.txt"
+    secret.write_text("TOKEN=hunter2\n")
+    doc = json.loads(base.read_text())
+    doc["parameters"]["input"]["truth"] = str(secret)
+    base.write_text(json.dumps(doc))
+    capsys.readouterr()
+    assert main(["gate", str(estimate), "--baseline", str(base)]) == 2
+    err = capsys.readouterr().err
+    assert "hunter2" not in err and "give the new log's truth with --truth" in err
+    assert main(["gate", str(estimate), "--baseline", str(base), "--truth", str(truth)]) == 0

@@ -266,8 +266,18 @@ def gate_request(
     baseline = read_baseline(baseline_file)
     check_same_parameters(baseline, requested)
     reading = baseline.reading
-    if truth is not None:  # the new log's own ground truth
-        reading = dataclasses.replace(reading, options=reading.options.updated(truth=str(truth)))
+    recorded_truth = reading.options.truth
+    # a baseline carries settings, never paths: only the command line names files to read
+    reading = dataclasses.replace(
+        reading,
+        options=dataclasses.replace(reading.options, truth=None if truth is None else str(truth)),
+    )
+    if recorded_truth is not None and truth is None:
+        raise CredcliError(
+            f"{baseline_file}: the baseline was recorded with a separate ground truth "
+            f"('{Path(recorded_truth).name}'); a baseline never names the files credcli reads: "
+            "give the new log's truth with `truth`"
+        )
     diagnose = DiagnoseRequest(
         (log,), reading, baseline.config, baseline.seed, jobs, figures=figures
     )

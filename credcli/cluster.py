@@ -14,11 +14,20 @@ byte-identical to the local run for any number of workers. Tasks of a worker tha
 run again on the others (the scheduler's ``distributed.scheduler.allowed-failures``, 3 by
 default); an error raised by a task (a bad log) is not retried: it cancels the rest and is
 raised here as it was raised there.
+
+**Trust.** Results come back from the workers by pickle, so a scheduler and its workers can
+run code in this process: connect only to a cluster you control. Plain ``tcp://`` is
+unauthenticated and unencrypted; credcli refuses a ``tcp://`` scheduler that is not on the
+loopback interface unless :data:`REMOTE_OPT_IN` is set to 1 (which names the risk). For
+anything off this machine use ``tls://`` with certificates (Dask's ``distributed.comm.tls``
+settings), which credcli passes to Dask as it is.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import logging
+import os
 import re
 import signal
 import socket
@@ -35,6 +44,28 @@ _LOCAL = re.compile(r"^local:(\d+)$")
 
 
 CONNECT_SECONDS = 10.0
+REMOTE_OPT_IN = "CREDCLI_ALLOW_PLAINTEXT_REMOTE_SCHEDULER"
+"""Set to 1 to connect to a plain tcp:// scheduler off the loopback interface: anyone on
+the path can then read the logs and run code in credcli (pickled results)."""
+
+
+def check_loopback(host: str, address: str) -> None:
+    """Refuse a plain-TCP scheduler host that is not loopback, unless opted in."""
+    if os.environ.get(REMOTE_OPT_IN) == "1":
+        return
+    try:
+        found = {info[4][0] for info in socket.getaddrinfo(host, None)}
+    except OSError as exc:
+        raise CredcliError(f"`scheduler` {address}: cannot resolve {host} ({exc})") from exc
+    remote = sorted(a for a in found if not ipaddress.ip_address(a.split("%")[0]).is_loopback)
+    if remote:
+        raise CredcliError(
+            f"`scheduler` {address}: a plain tcp:// scheduler off this machine ({remote[0]}) "
+            "is unauthenticated and its workers can run code in credcli; use tls:// with "
+            f"certificates (docs/scale.md), or set {REMOTE_OPT_IN}=1 to accept the risk"
+        )
+
+
 _TCP = re.compile(r"^(?:tcp://)?\[?([^\]/]+?)\]?(?::(\d+))?/?$")
 
 
@@ -53,6 +84,7 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
     if not m:
         raise CredcliError(f"`scheduler` {address}: expected tcp://host:port or local:N")
     host, port = m.group(1), int(m.group(2) or 8786)
+    check_loopback(host, address)
     try:
         with socket.create_connection((host, port), timeout=seconds) as sock:
             sock.settimeout(seconds)

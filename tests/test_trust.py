@@ -157,3 +157,54 @@ def test_a_baseline_never_names_the_files_credcli_reads(tmp_path, capsys, monkey
     err = capsys.readouterr().err
     assert "hunter2" not in err and "give the new log's truth with --truth" in err
     assert main(["gate", str(estimate), "--baseline", str(base), "--truth", str(truth)]) == 0
+
+
+def test_a_plain_tcp_scheduler_off_this_machine_is_refused(capsys, monkeypatch):
+    """Issue 32 item 1: results come back by pickle, so an unauthenticated remote scheduler
+    could run code in credcli; refused before any connection (exit 2) unless opted in."""
+    pytest.importorskip("distributed")
+    from conftest import ROOT
+
+    from credcli.cluster import REMOTE_OPT_IN
+
+    monkeypatch.chdir(ROOT)
+    monkeypatch.delenv(REMOTE_OPT_IN, raising=False)
+    assert main(["diagnose", SAMPLE_LOG, "--scheduler", "tcp://192.0.2.7:8786"]) == 2
+    err = capsys.readouterr().err
+    assert "use tls://" in err and REMOTE_OPT_IN in err
+
+
+def test_the_scheduler_from_the_environment_is_announced(capsys, monkeypatch):
+    pytest.importorskip("distributed")
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    monkeypatch.setenv("CREDCLI_SCHEDULER", "tcp://127.0.0.1:1")  # nothing listens there
+    assert main(["diagnose", SAMPLE_LOG]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[0].endswith("(CREDCLI_SCHEDULER)") and "cannot connect" in lines[1]
+
+
+def test_outputs_never_follow_a_symlink_and_keep_a_files_mode(tmp_path, capsys, monkeypatch):
+    """Issue 32 item 3: a symbolic link at the output's name is refused (exit 2) and the
+    file it points to untouched; replacing a 0600 report keeps it 0600."""
+    import os
+    import stat
+
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    outside = tmp_path / "outside.txt"
+    outside.write_text("keep me\n")
+    link = tmp_path / "report.json"
+    link.symlink_to(outside)
+    assert main(["diagnose", SAMPLE_LOG, "-f", "json", "-o", str(link)]) == 2
+    assert "symbolic link" in capsys.readouterr().err
+    assert outside.read_text() == "keep me\n" and link.is_symlink()
+    private = tmp_path / "private.json"
+    private.write_text("{}")
+    os.chmod(private, 0o600)
+    assert main(["diagnose", SAMPLE_LOG, "-f", "json", "-o", str(private)]) == 0
+    assert stat.S_IMODE(private.stat().st_mode) == 0o600
+    assert private.read_text().startswith("{") and len(private.read_text()) > 100
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]

@@ -101,8 +101,18 @@ def print_notes(report) -> None:
             print(printable(f"credcli: note: {note}"), file=sys.stderr)
 
 
+SCHEDULER_ENV = "CREDCLI_SCHEDULER"
+
+
 def cluster(scheduler: str | None):
-    """A DaskRunner for --scheduler (closed on exit), or a context of None."""
+    """A DaskRunner for --scheduler, or for ``CREDCLI_SCHEDULER`` when the option is not
+    given (said in one line on stderr: never a silent redirection), closed on exit; or a
+    context of None."""
+    if not scheduler:
+        scheduler = os.environ.get(SCHEDULER_ENV) or None
+        if scheduler is not None:
+            note = f"credcli: note: running on the Dask scheduler {scheduler} ({SCHEDULER_ENV})"
+            print(printable(note), file=sys.stderr)
     if not scheduler:
         return contextlib.nullcontext(None)
     from credcli.cluster import DaskRunner

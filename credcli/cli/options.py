@@ -149,9 +149,9 @@ SchedulerOpt = Annotated[
     str | None,
     typer.Option(
         "--scheduler",
-        envvar="CREDCLI_SCHEDULER",
-        help="Run on a Dask cluster: its scheduler's address (tcp://host:8786), or local:N "
-        "for N local workers (needs credcli[dask]; docs/scale.md).",
+        help="Run on a Dask cluster: its scheduler's address (tcp://host:8786 on this "
+        "machine, tls://host:8786 elsewhere), or local:N for N local workers (needs "
+        "credcli[dask]; docs/scale.md). Default: $CREDCLI_SCHEDULER, announced on stderr.",
     ),
 ]
 JobsOpt = Annotated[

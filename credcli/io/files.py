@@ -109,9 +109,17 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
         if _is_stream(path):
             _write_stream(path, data)
             return
-        target = path.resolve()
+        # the directory resolved, the final name not: a symbolic link there is refused,
+        # never followed (a link planted in an output directory would send the write to
+        # a file outside it)
+        target = path.parent.resolve() / path.name
         if not target.parent.is_dir():
             raise CredcliError(f"{path}: directory {target.parent} does not exist")
+        if target.is_symlink():
+            raise CredcliError(
+                f"{shown(path)}: is a symbolic link; credcli does not write through links "
+                "(give the file's real path, or remove the link)"
+            )
         if not _write_unnamed(target, data):
             _write_named(target, data)
     except OSError as exc:
@@ -180,8 +188,18 @@ def _write_stream(path: Path, data: bytes) -> None:
         os.close(fd)
 
 
-def _mode() -> int:
-    return 0o666 & ~_umask()  # the mode open() would give a new file
+def _mode(target: Path | None = None) -> int:
+    """The mode of the file replacing ``target``: the existing file's own (a 0600 report
+    stays 0600), else the mode open() would give a new file."""
+    if target is not None:
+        try:
+            st = os.lstat(target)
+        except OSError:
+            pass
+        else:
+            if stat.S_ISREG(st.st_mode):
+                return stat.S_IMODE(st.st_mode)
+    return 0o666 & ~_umask()
 
 
 def _write_unnamed(target: Path, data: bytes) -> bool:
@@ -193,6 +211,7 @@ def _write_unnamed(target: Path, data: bytes) -> bool:
         return False
     try:
         fd = os.open(target.parent, flag | os.O_WRONLY, _mode())
+        os.fchmod(fd, _mode(target))
     except OSError as exc:
         if exc.errno in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL, errno.ENOENT):
             return False
@@ -233,7 +252,7 @@ def _write_named(target: Path, data: bytes) -> None:
             f"{target}: cannot write in {target.parent} ({os_reason(exc)}); choose another place"
         ) from exc
     try:
-        os.fchmod(fd, _mode())  # mkstemp makes 0600
+        os.fchmod(fd, _mode(target))  # mkstemp makes 0600
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         os.replace(tmp, target)

@@ -208,3 +208,46 @@ def test_outputs_never_follow_a_symlink_and_keep_a_files_mode(tmp_path, capsys, 
     assert stat.S_IMODE(private.stat().st_mode) == 0o600
     assert private.read_text().startswith("{") and len(private.read_text()) > 100
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def _npy_header(shape) -> bytes:
+    import struct
+
+    text = f"{{'descr': '<f8', 'fortran_order': False, 'shape': {shape}, }}"
+    text += " " * (64 - (10 + len(text) + 1) % 64) + "\n"
+    return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(text)) + text.encode()
+
+
+def test_an_npz_that_declares_more_than_it_holds_is_refused_before_allocating(tmp_path, capsys):
+    """Issue 32 item 6: 588 bytes declaring 10¹³ floats ended in "Unable to allocate
+    72.8 TiB" (exit 3)."""
+    import zipfile
+
+    path = tmp_path / "lying.npz"
+    with zipfile.ZipFile(path, "w") as z:
+        for name in ("truth", "estimate", "cov"):
+            z.writestr(f"{name}.npy", _npy_header((10**13,)))
+    assert main(["diagnose", str(path)]) == 2
+    assert "declares 80,000,000,000,000 bytes" in capsys.readouterr().err
+
+
+def test_an_npz_that_inflates_past_the_memory_budget_is_refused(tmp_path, capsys, monkeypatch):
+    from credcli.io import arrays
+
+    path = tmp_path / "bomb.npz"
+    n = 200_000
+    np.savez_compressed(path, truth=np.zeros((n, 2)), estimate=np.zeros((n, 2)), cov=np.eye(2))
+    monkeypatch.setattr(arrays, "memory_budget", lambda: 2**20)  # 1 MiB here
+    assert main(["diagnose", str(path)]) == 2
+    assert "more than the" in capsys.readouterr().err
+
+
+def test_a_header_gap_is_one_short_line(tmp_path, capsys):
+    """A 55-byte header naming truth_1000000000000 took 1.76 GB and a header gap to
+    truth_1000000 a 13.9 MB error line; both are one short line now."""
+    for index in (10**6, 10**12):
+        path = tmp_path / f"gap{index}.csv"
+        path.write_text(f"time,truth_0,truth_{index},est_0,est_1,var_0,var_1\n0,1,1,1,1,1,1\n")
+        assert main(["diagnose", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert len(err) < 300 and f"({index - 1:,} in all)" in err, err

@@ -229,8 +229,16 @@ def _flags() -> dict[str, str]:
 
 def one_line(message: str) -> str:
     """A message as one line: a newline or any other control character in it (a file
-    name's, a segment's, a library's) is escaped (:func:`credcli.errors.printable`)."""
-    return printable(message)
+    name's, a segment's, a library's) is escaped (:func:`credcli.errors.printable`), and
+    past :data:`MAX_LINE` characters its middle is cut (an error line stays readable
+    whatever the input holds)."""
+    text = printable(message)
+    if len(text) <= MAX_LINE:
+        return text
+    return f"{text[: MAX_LINE - 160]} … {text[-120:]} ({len(text):,} characters)"
+
+
+MAX_LINE = 600
 
 
 def _traceback(debug: bool) -> None:

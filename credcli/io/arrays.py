@@ -10,6 +10,7 @@ line. Date-time columns are converted by :func:`credcli.io.text.time_seconds`.
 from __future__ import annotations
 
 import io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -240,12 +241,54 @@ NPZ_NAMES = {
 names each may have in the file."""
 
 
+def check_npz_sizes(path: Path) -> None:
+    """Refuse, before anything is allocated, an ``.npz`` whose arrays declare more bytes
+    than they hold (a 588-byte file declaring 10¹³ floats) or than this machine has memory
+    for (a zip bomb: 4 MB of zeros inflating to 15 GB)."""
+    import zipfile
+
+    try:
+        archive = zipfile.ZipFile(path)
+    except (OSError, zipfile.BadZipFile):
+        return  # np.load reports it
+    with archive:
+        budget = memory_budget()
+        for info in archive.infolist():
+            if info.file_size > budget:
+                raise CredcliError(
+                    f"{path}: array {info.filename} inflates to {info.file_size / 2**30:.3g} GiB, "
+                    f"more than the {budget / 2**30:.3g} GiB of memory credcli may use here"
+                )
+            try:
+                with archive.open(info) as member:
+                    fmt = np.lib.format
+                    read = {(1, 0): fmt.read_array_header_1_0, (2, 0): fmt.read_array_header_2_0}
+                    shape, _, dtype = read[fmt.read_magic(member)](member)
+            except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+                continue  # np.load reports it
+            declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if declared > info.file_size:
+                raise CredcliError(
+                    f"{path}: array {info.filename} declares {declared:,} bytes of data "
+                    f"but holds {info.file_size:,}; the file is damaged or not a log"
+                )
+
+
+def memory_budget() -> int:
+    """Bytes an input may take once read: half of the machine's physical memory."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
+    except (ValueError, OSError, AttributeError):
+        return 8 * 2**30
+
+
 def load_npz(path: Path) -> EstimatorLog:
     """A log from a NumPy ``.npz`` file of named arrays (:data:`NPZ_NAMES`): ``truth`` and
     ``estimate`` or ``errors`` (N, d), ``cov`` (N, d, d) or (d, d), optional ``time`` and
     ``segment`` (N,). Other names are an error, so that a typo is not silently ignored."""
     if not path.exists():
         raise CredcliError(f"{path}: file not found")
+    check_npz_sizes(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}

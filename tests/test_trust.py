@@ -251,3 +251,51 @@ def test_a_header_gap_is_one_short_line(tmp_path, capsys):
         assert main(["diagnose", str(path)]) == 2
         err = capsys.readouterr().err
         assert len(err) < 300 and f"({index - 1:,} in all)" in err, err
+
+
+def test_endless_and_device_inputs_end_with_one_line(tmp_path, capsys, monkeypatch):
+    """Issue 32 item 7: /dev/zero as input hung (and filled TMPDIR); an endless pipe is
+    cut at the stream budget."""
+    import os
+    import threading
+
+    from credcli.io import streams
+
+    assert main(["diagnose", "/dev/zero"]) == 2
+    assert "is a device, not a log" in capsys.readouterr().err
+    fifo = tmp_path / "endless"
+    os.mkfifo(fifo)
+    monkeypatch.setattr(streams, "stream_limit", lambda directory: 2**20)
+
+    def feed():
+        try:
+            with open(fifo, "wb") as out:
+                for _ in range(16):  # 4 MiB of a log's rows, past the 1 MiB budget
+                    out.write(b"0,1,1,1,1,1,1\n" * 20_000)
+        except BrokenPipeError:
+            pass
+
+    writer = threading.Thread(target=feed, daemon=True)
+    writer.start()
+    assert main(["diagnose", str(fifo)]) == 2
+    assert "the stream goes on past" in capsys.readouterr().err
+    writer.join(timeout=10)
+
+
+def test_the_step_summary_is_checked_before_any_work(tmp_path, capsys, monkeypatch):
+    """A FIFO as $GITHUB_STEP_SUMMARY blocked forever, after the outputs were written; an
+    input named there would have been appended to."""
+    import os
+
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    fifo = tmp_path / "summary"
+    os.mkfifo(fifo)
+    out = tmp_path / "out.json"
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(fifo))
+    assert main(["diagnose", SAMPLE_LOG, "--fail-on", "smm", "-f", "json", "-o", str(out)]) == 2
+    assert "not a regular file" in capsys.readouterr().err and not out.exists()
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(ROOT / SAMPLE_LOG))
+    assert main(["diagnose", SAMPLE_LOG, "--fail-on", "smm"]) == 2
+    assert "is also an input" in capsys.readouterr().err

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import stat
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -58,11 +59,28 @@ def junit_xml(suite: str, cases: list[Case]) -> str:
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
+def check_step_summary(path: str) -> None:
+    """$GITHUB_STEP_SUMMARY must be a regular file or a new one (GitHub's always is): a
+    FIFO with no reader would block the run forever, a device is not a summary."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise CredcliError(f"GITHUB_STEP_SUMMARY={path}: {exc.strerror}") from exc
+    if not stat.S_ISREG(mode):
+        raise CredcliError(
+            f"GITHUB_STEP_SUMMARY={path}: not a regular file; the job summary is appended "
+            "to a file (unset the variable outside GitHub Actions)"
+        )
+
+
 def append_step_summary(markdown: str) -> None:
     """Append to $GITHUB_STEP_SUMMARY when it is set (GitHub Actions' job summary)."""
     path = os.environ.get("GITHUB_STEP_SUMMARY")
     if not path:
         return
+    check_step_summary(path)
     try:
         with open(path, "a", encoding="utf-8") as fh:
             fh.write(markdown if markdown.endswith("\n") else markdown + "\n")

@@ -139,8 +139,13 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
 def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
     """Before any work: no output may be an input or another output, or a directory; the
     --plots directory may not be an input file."""
+    from credcli.ci.reports import check_step_summary
     from credcli.io.files import check_outputs
 
+    summary = os.environ.get("GITHUB_STEP_SUMMARY")
+    if summary:  # appended at the end of a run: checked, like every output, first
+        check_step_summary(summary)
+        outputs = outputs | {"GITHUB_STEP_SUMMARY": Path(summary)}
     check_outputs(outputs, [p for p in inputs if p is not None])
     if plots is not None and plots.exists() and not plots.is_dir():
         raise CredcliError(f"--plots {plots}: exists and is not a directory")

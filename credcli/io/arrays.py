@@ -10,14 +10,14 @@ line. Date-time columns are converted by :func:`credcli.io.text.time_seconds`.
 from __future__ import annotations
 
 import io
-import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
-from credcli.io.files import write_atomic
+from credcli.io.files import memory_budget, write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
 from credcli.io.text import time_seconds
 from credcli.segments import Segment
@@ -245,8 +245,6 @@ def check_npz_sizes(path: Path) -> None:
     """Refuse, before anything is allocated, an ``.npz`` whose arrays declare more bytes
     than they hold (a 588-byte file declaring 10¹³ floats) or than this machine has memory
     for (a zip bomb: 4 MB of zeros inflating to 15 GB)."""
-    import zipfile
-
     try:
         archive = zipfile.ZipFile(path)
     except (OSError, zipfile.BadZipFile):
@@ -272,14 +270,6 @@ def check_npz_sizes(path: Path) -> None:
                     f"{path}: array {info.filename} declares {declared:,} bytes of data "
                     f"but holds {info.file_size:,}; the file is damaged or not a log"
                 )
-
-
-def memory_budget() -> int:
-    """Bytes an input may take once read: half of the machine's physical memory."""
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
-    except (ValueError, OSError, AttributeError):
-        return 8 * 2**30
 
 
 def load_npz(path: Path) -> EstimatorLog:

@@ -49,6 +49,14 @@ def read_toml(path: str | Path) -> dict:
         ) from exc
 
 
+def memory_budget() -> int:
+    """Bytes an input may take once read: half of the machine's physical memory."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
+    except (ValueError, OSError, AttributeError):
+        return 8 * 2**30
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from credcli.errors import CredcliError
+from credcli.io.files import memory_budget
 
 STDIN = "-"
 _GZIP_MAGIC = b"\x1f\x8b"
@@ -36,6 +37,16 @@ def is_stream(path: str | Path) -> bool:
     except (OSError, ValueError):
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def stream_limit(directory: str) -> int:
+    """Bytes a stream's copy may take: half the physical memory (the log must then fit in
+    memory) and 90 % of the free space where it is written, whichever is less."""
+    try:
+        free = shutil.disk_usage(directory).free
+    except OSError:
+        free = memory_budget()
+    return int(min(memory_budget(), 0.9 * free))
 
 
 def display_name(path: str | Path) -> str:
@@ -68,6 +79,11 @@ def readable(path: str | Path) -> Iterator[Path]:
                 )
             source = sys.stdin.buffer
         else:
+            mode = os.stat(path).st_mode
+            if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+                raise CredcliError(
+                    f"{name}: is a device, not a log; give a file, a pipe or - (standard input)"
+                )
             source = stack.enter_context(open(path, "rb"))  # noqa: SIM115
         if source.peek(2)[:2] == _GZIP_MAGIC:
             source = stack.enter_context(gzip.GzipFile(fileobj=source, mode="rb"))
@@ -75,9 +91,19 @@ def readable(path: str | Path) -> Iterator[Path]:
         try:
             first = source.read(_CHUNK)
             local = Path(directory) / f"stream{_suffix(first[:8], name)}"
+            limit = stream_limit(directory)
             with open(local, "wb") as out:
                 out.write(first)
-                shutil.copyfileobj(source, out, _CHUNK)
+                copied = len(first)
+                while chunk := source.read(_CHUNK):
+                    copied += len(chunk)
+                    if copied > limit:
+                        raise CredcliError(
+                            f"{name}: the stream goes on past {limit / 2**30:.3g} GiB (an endless "
+                            "input?); credcli keeps a stream's copy within half the memory "
+                            "and 90 % of the free space of its temporary directory"
+                        )
+                    out.write(chunk)
         except EOFError as exc:
             raise CredcliError(
                 f"{name}: the gzip stream ends early (truncated?); check how it was written"

@@ -260,17 +260,20 @@ def test_different_parameters_or_schema_are_errors(tmp_path, capsys):
     assert proc.returncode == 2 and "not a credcli baseline" in proc.stderr
 
 
-def test_diagnose_fail_on(tmp_path):
+def test_diagnose_fail_on(tmp_path, capsys, monkeypatch):
+    """The first run as a subprocess (as CI runs it), the rest in process."""
+    monkeypatch.delenv("GITHUB_STEP_SUMMARY", raising=False)
     proc = _cli("diagnose", GOOD, "--fail-on", "optimism,smm")
     assert proc.returncode == 1
     assert proc.stderr.strip().endswith(
         "gps-multipath (bias), tunnel (pessimism+bias), urban (optimism+bias)"
     )
     assert "FAIL: 4 of 6 segment(s) match --fail-on optimism,smm" in proc.stderr
-    proc = _cli("diagnose", GOOD, "--fail-on", "insufficient-data")
+    inproc = functools.partial(_main, capsys)
+    proc = inproc("diagnose", GOOD, "--fail-on", "insufficient-data")
     assert proc.returncode == 0 and "PASS" in proc.stderr
     junit, summary = tmp_path / "j.xml", tmp_path / "s.md"
-    proc = _cli(
+    proc = inproc(
         "diagnose", GOOD, "--fail-on", "noncredible", "--junit", junit, "--summary", summary
     )
     assert proc.returncode == 1
@@ -283,11 +286,12 @@ def test_diagnose_fail_on(tmp_path):
         if tc.find("failure") is not None
     ]
     assert fails == ["turn", "hover", "gps-multipath", "tunnel", "urban"]
-    assert _cli("diagnose", GOOD, "--fail-on", "bogus").returncode == 2
-    assert _cli("diagnose", "missing.csv", "--fail-on", "smm").returncode == 2
+    assert inproc("diagnose", GOOD, "--fail-on", "bogus").returncode == 2
+    assert inproc("diagnose", "missing.csv", "--fail-on", "smm").returncode == 2
 
 
-def test_a_baseline_of_one_variant_is_not_gated_with_another(tmp_path):
+def test_a_baseline_of_one_variant_is_not_gated_with_another(tmp_path, capsys):
+    _cli = functools.partial(_main, capsys)
     base = tmp_path / "ks.json"
     assert _cli("baseline", GOOD, "-o", base, "--variant", "ks").returncode == 0
     assert json.loads(base.read_text())["parameters"]["variant"] == "ks"

@@ -43,7 +43,7 @@ demo: $(STAMP)
 
 ## test: install, then run the whole test suite (on every core: pytest-xdist)
 test: $(STAMP)
-	$(BIN)/python -m pytest -n auto --dist worksteal  # idle workers take queued tests
+	$(BIN)/python -m pytest -n auto
 
 lint: $(STAMP)
 	$(BIN)/ruff check credcli tests

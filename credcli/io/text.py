@@ -170,7 +170,11 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
     try:
         stamps = pd.to_datetime(series, utc=True, format="ISO8601")
     except (ValueError, TypeError, OverflowError):
-        bad = [v for v in series if v is not None and not _is_time(v)][:1]
+        # the first value that is not a date-time, in one vectorised pass (a per-row parse
+        # took 70 s on a million rows)
+        coerced = pd.to_datetime(series, utc=True, format="ISO8601", errors="coerce")
+        wrong = np.flatnonzero((coerced.isna() & series.notna()).to_numpy())
+        bad = [series.iloc[int(wrong[0])]] if wrong.size else []
         shown = f" ('{bad[0]}')" if bad else ""
         raise CredcliError(
             f"{what}: a value{shown} is neither a number nor an ISO-8601 date-time such as "
@@ -182,13 +186,3 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
     seconds = whole.astype(float) + fraction / 1e9
     seconds[stamps.isna().to_numpy()] = np.nan
     return seconds, ISO_TIME_NOTE.format(what=what)
-
-
-def _is_time(value) -> bool:
-    import pandas as pd
-
-    try:
-        pd.to_datetime([value], utc=True, format="ISO8601")
-    except (ValueError, TypeError, OverflowError):
-        return False
-    return True

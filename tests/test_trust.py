@@ -311,3 +311,22 @@ def test_a_bad_time_is_named_from_one_vectorised_pass():
     stamps[1234], stamps[4000] = "12:00 yesterday", "later"
     with pytest.raises(CredcliError, match=r"a value \('12:00 yesterday'\) is neither"):
         time_seconds(stamps, "time")
+
+
+def test_a_figure_name_collision_is_an_error_and_overwrites_nothing(tmp_path, capsys):
+    """Two logs with one stem wrote one set of figures over the other, while stderr
+    reported every figure written."""
+    import shutil
+
+    from conftest import ROOT
+
+    pytest.importorskip("matplotlib")
+    logs = []
+    for part in ("a", "b"):
+        (tmp_path / part).mkdir()
+        logs.append(tmp_path / part / "run.csv")
+        shutil.copy(ROOT / SAMPLE_LOG, logs[-1])
+    figures = tmp_path / "figs"
+    assert main(["diagnose", *map(str, logs), "--plots", str(figures)]) == 2
+    assert "two figures would both be" in capsys.readouterr().err
+    assert not figures.exists() or not list(figures.iterdir())

@@ -83,6 +83,16 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
         raise CredcliError(f"`plots` {directory}: exists and is not a directory", "plots")
+    seen: set[str] = set()
+    for plot in plots:  # before any is written: a collision never overwrites a figure
+        if plot.name in seen:
+            raise CredcliError(
+                f"`plots`: two figures would both be {directory / plot.name}.png (two logs "
+                "with one file stem, or segment names that map to one file name); give "
+                "each log its own --plots directory or rename the segments",
+                "plots",
+            )
+        seen.add(plot.name)
     directory.mkdir(parents=True, exist_ok=True)
     paths = []
     for plot in plots:

@@ -330,3 +330,26 @@ def test_a_figure_name_collision_is_an_error_and_overwrites_nothing(tmp_path, ca
     assert main(["diagnose", *map(str, logs), "--plots", str(figures)]) == 2
     assert "two figures would both be" in capsys.readouterr().err
     assert not figures.exists() or not list(figures.iterdir())
+
+
+def test_huge_anchor_and_marker_ids_are_usage_errors(tmp_path, capsys):
+    """An id past 2**53 was cast to a wrong id (exit 0, a note on a cast) or crashed."""
+    from conftest import ROOT
+
+    grid = (ROOT / "sample_data" / "starloc_grid_uwb.csv").read_text().splitlines()
+    header = grid[0].split(",")
+    col = header.index("to_id")
+    rows = [grid[0]]
+    for line in grid[1:]:
+        cells = line.split(",")
+        cells[col] = "99999999999999999999999" if cells[col] == "4" else cells[col]
+        rows.append(",".join(cells))
+    log = tmp_path / "ids.csv"
+    log.write_text("\n".join(rows) + "\n")
+    assert main(["uwb", str(log)]) == 2
+    assert "is not an integer id" in capsys.readouterr().err
+    markers = tmp_path / "markers.csv"
+    markers.write_text(",x,y,z\n99999999999999999999999,1,2,3\n11,1,2,0.5\n")
+    grid_log = str(ROOT / "sample_data" / "starloc_grid_uwb.csv")
+    assert main(["uwb", grid_log, "--anchors", str(markers)]) == 2
+    assert "is not an integer id" in capsys.readouterr().err

@@ -37,6 +37,10 @@ class RangeLog:
         return self.range - self.gt_range
 
 
+MAX_ID = 2.0**53
+"""Anchor, tag and marker ids are whole numbers no larger than this (exact as float64 and
+as int64); a larger one was cast to a wrong id without a word."""
+
 _REQUIRED = ("time_s", "from_id", "to_id", "tag_pos_x", "tag_pos_y", "tag_pos_z", "gt_range")
 
 
@@ -94,11 +98,12 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
         row = int(np.argmax(std <= 0)) + 1
         raise CredcliError(f"{source}: row {row}, column 'std': a reported std must be > 0")
     for name in ("from_id", "to_id"):
-        fractional = col[name] != np.round(col[name])
+        fractional = (col[name] != np.round(col[name])) | ~(np.abs(col[name]) <= MAX_ID)
         if fractional.any():
             row = int(np.argmax(fractional)) + 1
             raise CredcliError(
-                f"{source}: row {row}, column '{name}': {col[name][row - 1]:g} is not an integer id"
+                f"{source}: row {row}, column '{name}': {col[name][row - 1]:g} is not an integer "
+                f"id (ids are whole numbers up to {MAX_ID:.0e})"
             )
     order = np.argsort(col["time_s"], kind="stable")
     tag_pos = np.c_[col["tag_pos_x"], col["tag_pos_y"], col["tag_pos_z"]]
@@ -165,8 +170,16 @@ def read_markers(path: str | Path) -> dict[int, np.ndarray]:
             f"{path}: a markers file needs an id column and x, y, z; found {', '.join(cols)}"
         )
     try:
-        ids = frame[cols[0]].astype(np.int64).to_numpy()
+        raw = frame[cols[0]].to_numpy(dtype=float)
         xyz = frame[["x", "y", "z"]].to_numpy(dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise CredcliError(f"{path}: markers must be numbers: {exc}") from exc
+    wrong = (raw != np.round(raw)) | ~(np.abs(raw) <= MAX_ID)
+    if wrong.any():
+        row = int(np.argmax(wrong)) + 1
+        raise CredcliError(
+            f"{path}: row {row}: marker id {raw[row - 1]:g} is not an integer id (ids are "
+            f"whole numbers up to {MAX_ID:.0e})"
+        )
+    ids = raw.astype(np.int64)
     return {int(i): p for i, p in zip(ids, xyz)}

@@ -31,6 +31,7 @@ import os
 import re
 import signal
 import socket
+import struct
 import sys
 import tempfile
 from collections.abc import Callable
@@ -143,6 +144,12 @@ def _local_cluster(workers: int):
     return cluster
 
 
+def _kind(exc: BaseException) -> str:
+    """An exception's name, with its module unless built in (struct.error, not error)."""
+    kind = type(exc)
+    return kind.__name__ if kind.__module__ == "builtins" else f"{kind.__module__}.{kind.__name__}"
+
+
 class DaskRunner:
     """A connection to a cluster that maps a top-level function over tasks, in order."""
 
@@ -173,6 +180,14 @@ class DaskRunner:
             raise CredcliError(
                 f"`scheduler` {address}: cannot connect ({type(exc).__name__}: {exc}); start "
                 "one with `dask scheduler` and `dask worker ADDRESS`, or use local:N"
+            ) from exc
+        except (MemoryError, EOFError, OverflowError, TypeError, KeyError, struct.error) as exc:
+            # what a peer that is no Dask scheduler sends (a short frame, a frame length of
+            # 2**63) fails inside distributed's protocol code: a bad address, not a bug here
+            self.close()
+            raise CredcliError(
+                f"`scheduler` {address}: the peer does not speak Dask's protocol "
+                f"({_kind(exc)}: {str(exc)[:120]}); check the address"
             ) from exc
         if announce is not None:
             workers = len(self.client.scheduler_info().get("workers", {}))

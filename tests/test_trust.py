@@ -353,3 +353,43 @@ def test_huge_anchor_and_marker_ids_are_usage_errors(tmp_path, capsys):
     grid_log = str(ROOT / "sample_data" / "starloc_grid_uwb.csv")
     assert main(["uwb", grid_log, "--anchors", str(markers)]) == 2
     assert "is not an integer id" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [(2**62).to_bytes(8, "little") + bytes(16), b"\x01\x00\x00\x00\x00\x00\x00\x00\x05"],
+    ids=["huge", "short"],
+)
+def test_a_peer_that_is_no_scheduler_is_a_usage_error(frame, capsys, monkeypatch):
+    """Issue 32 item 8: a fake scheduler sending a huge or a short frame ended in exit 3."""
+    import socket
+    import threading
+
+    pytest.importorskip("distributed")
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+
+    def answer():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            try:
+                conn.sendall(frame)
+                conn.recv(65536)
+            except OSError:
+                pass
+            conn.close()
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        assert main(["diagnose", SAMPLE_LOG, "--scheduler", address]) == 2
+    finally:
+        server.close()
+    assert "does not speak Dask's protocol" in capsys.readouterr().err

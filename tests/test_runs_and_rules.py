@@ -68,6 +68,10 @@ def test_the_rule_decides_on_evidence_written_by_hand():
     verdict = decide(_evidence(credible, 0.5, spread=0.5), config)
     assert verdict.label is Label.CREDIBLE and verdict.untested == (Question.LOCATION,)
     assert "does not exclude one of 1.41σ" in verdict.reason
+    # one reason that declined both questions is given once
+    declined = replace(_evidence(wide, None, "memory comparable"), location_reason=None)
+    verdict = decide(declined, config)
+    assert verdict.label is Label.INSUFFICIENT and verdict.reason == "memory comparable"
     # neither question: insufficient-data, with both reasons
     verdict = decide(_evidence(wide, None), config)
     assert verdict.label is Label.INSUFFICIENT and "planted" in verdict.reason

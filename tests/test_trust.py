@@ -316,16 +316,15 @@ def test_a_bad_time_is_named_from_one_vectorised_pass():
 def test_a_figure_name_collision_is_an_error_and_overwrites_nothing(tmp_path, capsys):
     """Two logs with one stem wrote one set of figures over the other, while stderr
     reported every figure written."""
-    import shutil
-
-    from conftest import ROOT
-
     pytest.importorskip("matplotlib")
+    gen = np.random.default_rng(5)
     logs = []
-    for part in ("a", "b"):
+    for part in ("a", "b"):  # one short segment each: few figures to draw
         (tmp_path / part).mkdir()
         logs.append(tmp_path / part / "run.csv")
-        shutil.copy(ROOT / SAMPLE_LOG, logs[-1])
+        e = gen.standard_normal((60, 2))
+        rows = "".join(f"{k / 10},0,0,{-a},{-b},1,1\n" for k, (a, b) in enumerate(e))
+        logs[-1].write_text("time,truth_0,truth_1,est_0,est_1,std_0,std_1\n" + rows)
     figures = tmp_path / "figs"
     assert main(["diagnose", *map(str, logs), "--plots", str(figures)]) == 2
     assert "two figures would both be" in capsys.readouterr().err

@@ -5,7 +5,7 @@ and one dependence-free bound on the scale that lets a diverging filter be named
 
 Three pieces, each with its reference:
 
-- :func:`median_exceeds`: Markov's inequality on the share F of epochs whose NEES exceeds
+- :func:`median_bound`: Markov's inequality on the share F of epochs whose NEES exceeds
   c. Under the claim every epoch's NEES is χ²_d whatever the dependence between epochs, so
   E F = P(χ²_d > c) and P(F >= ½) <= 2 P(χ²_d > c): a median NEES above the χ²_d quantile
   at 1 − α/4 rejects "the covariance is not too small" at α/2, with no model of the memory.
@@ -94,11 +94,6 @@ def median_bound(dim: int, level: float) -> float:
     return float(special.chdtri(dim, level / 4.0))
 
 
-def median_exceeds(q: np.ndarray, dim: int, level: float) -> bool:
-    """Whether the median of the centred NEES ``q`` is above :func:`median_bound`."""
-    return bool(q.size and float(np.median(q)) > median_bound(dim, level))
-
-
 def bursts(eps: np.ndarray, dim: int, squares_ratio: float = 1.0) -> tuple[Burst, ...]:
     """The NEES bursts of a segment (NEES ``eps`` (N,), d = ``dim``), the largest first,
     by Page's CUSUM (module docstring); ``squares_ratio``: τ_q of the squared errors."""
@@ -134,11 +129,12 @@ def bursts(eps: np.ndarray, dim: int, squares_ratio: float = 1.0) -> tuple[Burst
     return tuple(sorted(found, key=lambda b: -b.statistic))
 
 
-def divergence(q: np.ndarray, eps: np.ndarray, dim: int, level: float) -> Divergence | None:
-    """The segment's divergence (module docstring), or None: the median bound on the
-    GLS-centred NEES ``q`` fires, and the NEES ``eps`` grows or is beyond any tuning."""
-    n = q.size
-    if n < 8 or not median_exceeds(q, dim, level):
+def divergence(q_median: float, eps: np.ndarray, dim: int, level: float) -> Divergence | None:
+    """The segment's divergence (module docstring), or None: the median bound fires on the
+    GLS-centred NEES (its median ``q_median``), and the NEES ``eps`` grows or is beyond any
+    tuning."""
+    n = eps.size
+    if n < 8 or not q_median > median_bound(dim, level):
         return None
     quarter = n // 4
     first, last = float(np.median(eps[:quarter])), float(np.median(eps[-quarter:]))

@@ -150,7 +150,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     found_bursts = episodes.bursts(eps, d, squares_ratio)
     q_median = float(np.median(gls.q))
     diverging = {
-        c.scale_level: episodes.divergence(gls.q, eps, d, c.scale_level)
+        c.scale_level: episodes.divergence(q_median, eps, d, c.scale_level)
         for c in configs
         if c.calibrated
     }

@@ -91,7 +91,7 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
 
 def median_optimism(evidence: Evidence, config: DiagnosisConfig) -> bool:
     """Whether the median GLS-centred NEES is above the dependence-free bound at α_S/2
-    (:func:`credcli.engine.episodes.median_exceeds`): the covariance is too small whatever
+    (:func:`credcli.engine.episodes.median_bound`): the covariance is too small whatever
     the errors' memory, where the memory-adjusted scale test could not decide (a diverging
     filter, whose squared errors' variance ratio leaves no degrees of freedom)."""
     if evidence.q_median is None:

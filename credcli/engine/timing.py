@@ -23,8 +23,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from credcli.engine.elt import whiten
-
 OFFSET_LEVEL = 0.001
 """Two-sided level of the offset's significance: a finding that reorders the advice."""
 
@@ -70,11 +68,12 @@ def time_offset(
     n, d = errors.shape
     if n < d + 3:
         return None
-    z = whiten(errors, cov)
-    w = whiten(velocity, cov)
-    # the constant's whitened regressors are Σ̂_k^{-1/2}; the symmetric root as in whiten
+    # Σ̂_k^{-1/2}, the symmetric root (as :func:`credcli.engine.elt.whiten` takes it): the
+    # constant's whitened regressors, and what whitens the errors and the velocities
     lam, vecs = np.linalg.eigh(cov)
     roots = np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)  # (N, d, d)
+    z = np.einsum("nij,nj->ni", roots, errors)
+    w = np.einsum("nij,nj->ni", roots, velocity)
     # GLS of z_k = R_k μ + w_k δ: the normal equations in (μ, δ)
     a_mm = np.einsum("nji,njk->ik", roots, roots)
     a_md = np.einsum("nji,nj->i", roots, w)

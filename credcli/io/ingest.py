@@ -23,7 +23,7 @@ from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log, validate
 from credcli.io.pairing import pair
 from credcli.io.rosbag import check_bag_path
 from credcli.io.schema import InputFormat, ReadOptions
-from credcli.io.streams import display_name, is_stream, readable
+from credcli.io.streams import display_name, needs_copy, readable
 from credcli.io.trajectory import Trajectory
 from credcli.parallel import release_free_memory
 
@@ -46,7 +46,7 @@ def open_log(
     reading = reading or ReadOptions()
     with contextlib.ExitStack() as stack:
         local = stack.enter_context(readable(path))
-        if reading.truth is not None and is_stream(reading.truth):
+        if reading.truth is not None and needs_copy(reading.truth):
             truth = stack.enter_context(readable(reading.truth))
             reading = dataclasses.replace(reading, truth=str(truth))
         log = _read_log(local, schema, reading, drop_invalid)

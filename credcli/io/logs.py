@@ -21,7 +21,8 @@ from credcli.engine.metrics import SYMMETRY_RTOL
 from credcli.engine.quadrature import eigenvalues_2x2
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
-from credcli.io.text import read_text_table, seconds, time_seconds
+from credcli.io.streams import TEXT_HEAD, is_compressed, readable
+from credcli.io.text import read_csv_unmapped, read_text_table, seconds, time_seconds
 
 
 @dataclass(frozen=True)
@@ -280,6 +281,9 @@ def read_table(path: Path, columnwise: bool = False):
         raise CredcliError(f"{path}: is a directory, expected a CSV or Parquet file")
     if path.stat().st_size == 0:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows")
+    if not columnwise and is_compressed(path):  # read directly, not through an ingest copy
+        with readable(path) as local:
+            return read_table(local)
     if path.suffix.lower() not in (".parquet", ".pq"):
         _check_text(path)
     if columnwise and path.suffix.lower() in (".parquet", ".pq"):
@@ -298,9 +302,9 @@ def _check_text(path: Path) -> None:
     """A text log is UTF-8 (or ASCII) without NUL bytes: UTF-16, with or without its
     byte-order mark, and binary data are named, not misread as columns."""
     with open(path, "rb") as fh:
-        head = fh.read(4096)
-    if head[:2] == b"\x1f\x8b" or not head:
-        return  # gzip: pandas unpacks it
+        head = fh.read(TEXT_HEAD)
+    if not head:
+        return
     zeros = head.count(b"\x00") / len(head)
     marked = head[:2] in (b"\xff\xfe", b"\xfe\xff")
     if marked or 0.3 < zeros < 0.7:
@@ -323,14 +327,10 @@ def _read_frame(path: Path):
         if path.suffix.lower() in (".parquet", ".pq"):
             return pd.read_parquet(path)
         if _plain_csv(path):
-            return pd.read_csv(path, skipinitialspace=True)
+            return read_csv_unmapped(path, skipinitialspace=True)
         return read_text_table(path)
     except pd.errors.EmptyDataError as exc:
         raise CredcliError(f"{path}: file is empty; expected a header row and epoch rows") from exc
-    except EOFError as exc:  # gzip, bz2, xz: the compressed stream stops before its end
-        raise CredcliError(
-            f"{path}: the compressed file ends early (truncated?); check how it was written"
-        ) from exc
     except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
         raise _unreadable(path, exc) from exc
 

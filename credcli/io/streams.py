@@ -3,20 +3,25 @@
 Reading a log looks at a file more than once (its format from the first lines, then the
 table; a bag's index, then its messages), and a stream can be read only once. So a stream
 is first copied whole into a private temporary file, which is then read as any file and
-removed when the reading is done (also on Ctrl-C or SIGTERM). A gzip stream is unpacked as
-it is copied. Messages name the stream as the user did (``<stdin>``, ``/dev/fd/63``), never
-the temporary copy.
+removed when the reading is done (also on Ctrl-C or SIGTERM). A compressed file or stream
+(gzip, bzip2, xz) is unpacked the same way, as it is copied, so that what it holds is
+measured before it is read: a few megabytes that unpack to more numbers than fit in memory
+are refused, not read. Messages name the stream as the user did (``<stdin>``,
+``/dev/fd/63``), never the temporary copy.
 """
 
 from __future__ import annotations
 
+import bz2
 import contextlib
 import gzip
+import lzma
 import os
 import shutil
 import stat
 import sys
 import tempfile
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -24,8 +29,22 @@ from credcli.errors import CredcliError
 from credcli.io.files import memory_budget
 
 STDIN = "-"
-_GZIP_MAGIC = b"\x1f\x8b"
 _CHUNK = 1 << 20
+_UNPACKERS = (
+    (b"\x1f\x8b", lambda raw: gzip.GzipFile(fileobj=raw, mode="rb")),
+    (b"BZh", bz2.BZ2File),
+    (b"\xfd7zXZ\x00", lzma.LZMAFile),
+)
+"""The compressed formats unpacked here, by their first bytes."""
+_TEXT_SUFFIXES = (".csv", ".txt", ".tum")
+_SEPARATORS = (b",", b"\n", b" ", b"\t")
+_BYTES_PER_FIELD = 16
+"""Memory a text log's field takes as it is read: a float64, and about as much again while
+pandas parses (measured: 9.5 GB at the peak for 6e8 fields)."""
+TEXT_HEAD = 4096
+"""The first bytes of a text log that the readers look at for its encoding."""
+_DAMAGED = (EOFError, zlib.error, lzma.LZMAError, gzip.BadGzipFile)
+"""What unpacking raises on data that end early or are not what their first bytes say."""
 
 
 def is_stream(path: str | Path) -> bool:
@@ -37,6 +56,24 @@ def is_stream(path: str | Path) -> bool:
     except (OSError, ValueError):
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def _unpacker(head: bytes):
+    return next((opener for magic, opener in _UNPACKERS if head.startswith(magic)), None)
+
+
+def is_compressed(path: str | Path) -> bool:
+    """A regular file whose first bytes are those of gzip, bzip2 or xz."""
+    try:
+        with open(path, "rb") as fh:
+            return _unpacker(fh.read(6)) is not None
+    except (OSError, ValueError):
+        return False
+
+
+def needs_copy(path: str | Path) -> bool:
+    """A stream, or a compressed file: read through a private copy (:func:`readable`)."""
+    return is_stream(path) or is_compressed(path)
 
 
 def stream_limit(directory: str) -> int:
@@ -59,14 +96,17 @@ def _suffix(head: bytes, name: str) -> str:
         return ".parquet"
     if head.startswith(b"#ROSBAG"):
         return ".bag"
-    suffixes = "".join(Path(name).suffixes[-2:]).lower().removesuffix(".gz")
-    return suffixes if suffixes in (".csv", ".txt", ".tum") else ".csv"
+    suffixes = "".join(Path(name).suffixes[-2:]).lower()
+    for packed in (".gz", ".bz2", ".xz"):
+        suffixes = suffixes.removesuffix(packed)
+    return suffixes if suffixes in _TEXT_SUFFIXES else ".csv"
 
 
 @contextlib.contextmanager
 def readable(path: str | Path) -> Iterator[Path]:
-    """``path`` itself, or for a stream a complete private copy of it (removed at the end)."""
-    if not is_stream(path):
+    """``path`` itself, or for a stream or a compressed file a complete private copy of it,
+    unpacked (removed at the end)."""
+    if not needs_copy(path):
         yield Path(path)
         return
     name = display_name(path)
@@ -85,34 +125,65 @@ def readable(path: str | Path) -> Iterator[Path]:
                     f"{name}: is a device, not a log; give a file, a pipe or - (standard input)"
                 )
             source = stack.enter_context(open(path, "rb"))  # noqa: SIM115
-        if source.peek(2)[:2] == _GZIP_MAGIC:
-            source = stack.enter_context(gzip.GzipFile(fileobj=source, mode="rb"))
+        unpacker = _unpacker(source.peek(6)[:6])
+        if unpacker is not None:
+            source = stack.enter_context(unpacker(source))
         directory = stack.enter_context(tempfile.TemporaryDirectory(prefix="credcli-stream-"))
         try:
             first = source.read(_CHUNK)
             local = Path(directory) / f"stream{_suffix(first[:8], name)}"
-            limit = stream_limit(directory)
-            with open(local, "wb") as out:
-                out.write(first)
-                copied = len(first)
-                while chunk := source.read(_CHUNK):
-                    copied += len(chunk)
-                    if copied > limit:
-                        raise CredcliError(
-                            f"{name}: the stream goes on past {limit / 2**30:.3g} GiB (an endless "
-                            "input?); credcli keeps a stream's copy within half the memory "
-                            "and 90 % of the free space of its temporary directory"
-                        )
-                    out.write(chunk)
-        except EOFError as exc:
+            _copy(source, first, local, name, stream_limit(directory))
+        except (*_DAMAGED, OSError) as exc:
+            if not isinstance(exc, _DAMAGED) and (unpacker is None or exc.errno is not None):
+                raise  # bzip2 reports damaged data as an OSError with no errno
             raise CredcliError(
-                f"{name}: the gzip stream ends early (truncated?); check how it was written"
+                f"{name}: the compressed stream ends early or is damaged ({exc}); "
+                "check how it was written"
             ) from exc
         if local.stat().st_size == 0:
             raise CredcliError(
-                f"{name}: the stream carried no data; expected a log (a header row and epoch rows)"
+                f"{name}: holds no data; expected a log (a header row and epoch rows)"
             )
         try:
             yield local
         except CredcliError as exc:
             raise CredcliError(exc.message.replace(str(local), name), exc.parameter) from exc
+
+
+def _copy(source, first: bytes, local: Path, name: str, limit: int) -> None:
+    """Copy ``source`` (``first`` already read from it) to ``local``, stopping with an error
+    past ``limit`` bytes or, for text, past the fields that fit in memory as numbers.
+
+    Text whose first bytes hold NUL is copied no further: the readers refuse it from those
+    bytes (as UTF-16 or binary). A NUL further on is refused here."""
+    text = local.suffix in _TEXT_SUFFIXES
+    budget = memory_budget() // _BYTES_PER_FIELD
+    fields = copied = 0
+    with open(local, "wb") as out:
+        chunk = first
+        while chunk:
+            copied += len(chunk)
+            if copied > limit:
+                raise CredcliError(
+                    f"{name}: goes on past {limit / 2**30:.3g} GiB (an endless input?); "
+                    "credcli keeps a stream's or compressed file's copy within half the "
+                    "memory and 90 % of the free space of its temporary directory"
+                )
+            if text:
+                if b"\x00" in chunk:
+                    if chunk is first and b"\x00" in first[:TEXT_HEAD]:
+                        out.write(first[:TEXT_HEAD])
+                        return
+                    raise CredcliError(
+                        f"{name}: holds NUL bytes past its first {TEXT_HEAD:,} bytes, so it is "
+                        "not CSV or text; check how it was written"
+                    )
+                fields += sum(chunk.count(sep) for sep in _SEPARATORS)
+                if fields > budget:
+                    raise CredcliError(
+                        f"{name}: unpacks to over {fields:,} fields, more than "
+                        f"{memory_budget() / 2**30:.3g} GiB as numbers (half this machine's "
+                        "memory); split the log or read it on a larger machine"
+                    )
+            out.write(chunk)
+            chunk = source.read(_CHUNK)

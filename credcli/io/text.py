@@ -29,6 +29,19 @@ def head_lines(path: Path) -> list[str]:
     return lines[:-1] if len(head) == _SNIFF_BYTES and len(lines) > 1 else lines
 
 
+def read_csv_unmapped(path: Path, **options):
+    """``pandas.read_csv`` of ``path`` through an open file rather than its name.
+
+    Given a name, pandas (3.1 on) maps a large file into memory to parse it in threads; a
+    file cut short while it is read (a log still being rewritten) then kills the process
+    with SIGBUS. Through a file object it reads with plain reads: a file cut short is a
+    short read and an error message, not a signal. The cost is one parsing thread."""
+    import pandas as pd
+
+    with open(path, "rb") as fh:
+        return pd.read_csv(fh, **options)
+
+
 def numeric_line(line: str) -> bool:
     try:
         [float(x) for x in line.replace(",", " ").split()]
@@ -58,7 +71,7 @@ def read_text_table(path: Path):
     probe = lines[skip] if skip < len(lines) else lines[first]
     sep = "," if "," in probe else r"\s+"
     try:
-        frame = pd.read_csv(
+        frame = read_csv_unmapped(
             path,
             sep=sep,
             skiprows=skip,

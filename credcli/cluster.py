@@ -111,6 +111,36 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
         )
 
 
+TLS_SETTINGS = (
+    "distributed.comm.tls.ca-file, .client.cert and .client.key (or the variables "
+    "DASK_DISTRIBUTED__COMM__TLS__CA_FILE, __CLIENT__CERT, __CLIENT__KEY)"
+)
+
+
+def check_tls(address: str) -> None:
+    """A ``tls://`` scheduler needs this client's certificates, which Dask reads from its
+    configuration (``distributed.comm.tls``): the authority that signed the cluster's
+    certificates, and a certificate and key for this client (Dask's TLS is mutual)."""
+    if not address.strip().lower().startswith("tls://"):
+        return
+    from distributed.security import Security
+
+    security = Security()
+    missing = [
+        name
+        for name, value in (
+            ("ca-file", security.tls_ca_file),
+            ("client.cert", security.tls_client_cert),
+        )
+        if not value
+    ]
+    if missing:
+        raise CredcliError(
+            f"`scheduler` {address}: tls:// needs this client's certificates, and Dask's "
+            f"configuration has no {' or '.join(missing)}; set {TLS_SETTINGS}"
+        )
+
+
 def _local_cluster(workers: int):
     """A LocalCluster whose processes leave Ctrl-C to this one (the terminal sends it to the
     whole process group: each worker printed its own traceback), keep their scratch files
@@ -171,6 +201,7 @@ class DaskRunner:
                 raise CredcliError(f"`scheduler` {address}: expected local:N, e.g. local:2")
             else:
                 probe_scheduler(address)
+                check_tls(address)
                 self.client = Client(address, timeout=CONNECT_TIMEOUT)
         except CredcliError:
             self.close()

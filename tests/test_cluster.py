@@ -166,3 +166,66 @@ def test_workers_read_fsspec_urls(tmp_path, runner):
     there = run_diagnose(DiagnoseRequest((file_url,)), runner=runner)
     assert _document(there) == _document(here)
     assert _document(here).replace(file_url, url) == _document(local)
+
+
+def _certificates(directory) -> dict[str, str]:
+    """A certificate authority and one certificate it signed for 127.0.0.1 (openssl)."""
+    import shutil
+    import subprocess
+
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl is not installed")
+
+    def openssl(*args):
+        subprocess.run(["openssl", *args], cwd=directory, check=True, capture_output=True)
+
+    key = ("-newkey", "rsa:2048", "-nodes")
+    openssl("req", "-x509", *key, "-keyout", "ca.key", "-out", "ca.pem", "-subj", "/CN=test-ca")
+    openssl("req", *key, "-keyout", "node.key", "-out", "node.csr", "-subj", "/CN=127.0.0.1")
+    (directory / "san.cnf").write_text("subjectAltName=IP:127.0.0.1\n")
+    sign = ("-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-extfile", "san.cnf")
+    openssl("x509", "-req", "-in", "node.csr", *sign, "-out", "node.pem", "-days", "1")
+    return {name: str(directory / name) for name in ("ca.pem", "node.pem", "node.key")}
+
+
+def test_a_tls_cluster_end_to_end(tmp_path):
+    """Issue 32 item 1: a tls:// scheduler on loopback with generated certificates gives the
+    local run's document; without this client's certificates it is one line, exit 2."""
+    import dask
+    from distributed import LocalCluster
+    from distributed.security import Security
+
+    from credcli.errors import CredcliError
+
+    certs = _certificates(tmp_path)
+    node = {"cert": certs["node.pem"], "key": certs["node.key"]}
+    security = Security(
+        tls_ca_file=certs["ca.pem"],
+        require_encryption=True,
+        **{
+            f"tls_{role}_{part}": path
+            for role in ("client", "scheduler", "worker")
+            for part, path in node.items()
+        },
+    )
+    request = DiagnoseRequest((ROOT / "sample_data" / "estimator_log.csv",), LogReading())
+    with LocalCluster(
+        n_workers=1,
+        threads_per_worker=1,
+        protocol="tls",
+        host="127.0.0.1",
+        security=security,
+        dashboard_address=None,
+    ) as cluster:
+        address = cluster.scheduler_address
+        assert address.startswith("tls://127.0.0.1:")
+        tls = "distributed.comm.tls."
+        client = {f"{tls}client.{part}": path for part, path in node.items()}
+        with dask.config.set({f"{tls}ca-file": certs["ca.pem"], **client}):
+            runner = DaskRunner(address)
+        with runner:
+            remote = run_diagnose(request, runner=runner)
+        assert _document(remote) == _document(run_diagnose(request))
+        with dask.config.set({f"{tls}ca-file": None, f"{tls}client.cert": None}):
+            with pytest.raises(CredcliError, match="tls:// needs this client's certificates"):
+                DaskRunner(address)

@@ -159,6 +159,26 @@ def test_a_baseline_never_names_the_files_credcli_reads(tmp_path, capsys, monkey
     assert main(["gate", str(estimate), "--baseline", str(base), "--truth", str(truth)]) == 0
 
 
+def test_the_gate_names_a_reading_setting_that_differs_from_the_baseline(tmp_path, capsys):
+    """Issue 32 item 2: the gate reads the new log as the baseline's was; a config whose
+    [input] or [columns] says otherwise is named, not silently overridden."""
+    from conftest import ROOT
+
+    log, base = str(ROOT / SAMPLE_LOG), tmp_path / "base.json"
+    assert main(["baseline", log, "-o", str(base)]) == 0
+    for table, line, shown in (
+        ("input", 'time_unit = "ms"', "[input] time_unit: baseline 'auto', now 'ms'"),
+        ("columns", 'time = "t"', "[columns] time: baseline 'time', now 't'"),
+        ("input", 'time_unit = "auto"', None),
+    ):
+        config = tmp_path / "c.toml"
+        config.write_text(f"[{table}]\n{line}\n")
+        capsys.readouterr()
+        code = main(["gate", log, "-b", str(base), "--config", str(config)])
+        err = capsys.readouterr().err
+        assert (code, shown is None or shown in err) == (2 if shown else 0, True), err
+
+
 def test_a_plain_tcp_scheduler_off_this_machine_is_refused(capsys, monkeypatch):
     """Issue 32 item 1: results come back by pickle, so an unauthenticated remote scheduler
     could run code in credcli; refused before any connection (exit 2) unless opted in."""

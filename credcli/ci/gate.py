@@ -238,6 +238,30 @@ def check_same_parameters(baseline: Baseline, requested: dict) -> None:
         )
 
 
+def check_same_reading(baseline: Baseline, given: dict[str, tuple[object, list[str]]]) -> None:
+    """How the gate reads the new log is how the baseline's log was read: every reading
+    setting the gate is given (a config's [columns] and [input]) must equal the recorded
+    one. ``given`` maps a table name ("columns", "input") to the typed settings built from
+    it and the names the user set there; file names (``truth``) are not settings."""
+    recorded = {"columns": baseline.reading.schema, "input": baseline.reading.options}
+    diff = []
+    for table, (now, names) in given.items():
+        for name in names:
+            if name == "truth":
+                continue
+            before, after = getattr(recorded[table], name), getattr(now, name)
+            if json_value(before) != json_value(after):
+                diff.append(
+                    f"[{table}] {name}: baseline {json_value(before)!r}, now {json_value(after)!r}"
+                )
+    if diff:
+        raise CredcliError(
+            f"{baseline.source}: the baseline's log was read differently ({'; '.join(diff)}); "
+            "gate reads the new log as the baseline's was: drop these settings or record a "
+            "new baseline"
+        )
+
+
 def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[bool, str]:
     failed = [c for c in comparisons if c.failed_with(th)]
     counts = {s: sum(c.status is s for c in comparisons) for s in Status}

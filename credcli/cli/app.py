@@ -191,7 +191,7 @@ def gate(
             "--truth",
             parser=file_name,
             metavar="FILE",
-            help="Ground truth of LOG [default: the baseline's --truth].",
+            help="Ground truth of LOG; needed when the baseline had one (a baseline names no files).",
         ),
     ] = None,
     segments: SegmentOptions = SegmentOptions(),

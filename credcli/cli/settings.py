@@ -15,7 +15,7 @@ import sys
 import typing
 from pathlib import Path
 
-from credcli.ci.gate import check_same_parameters
+from credcli.ci.gate import check_same_parameters, check_same_reading
 from credcli.ci.thresholds import Thresholds
 from credcli.cli.options import (
     FIELD_OPTIONS,
@@ -265,6 +265,15 @@ def gate_request(
     jobs = jobs_value(run.jobs)
     baseline = read_baseline(baseline_file)
     check_same_parameters(baseline, requested)
+    check_same_reading(
+        baseline,
+        {
+            "columns": (build_schema(config, {}), list(config.get("columns", {}))),
+            "input": (build_reading(config, {}), list(config.get("input", {}))),
+        },
+    )
+    if truth is None and config.get("input", {}).get("truth") is not None:
+        truth = Path(str(config["input"]["truth"]))  # named by the user's config, not the baseline
     reading = baseline.reading
     recorded_truth = reading.options.truth
     # a baseline carries settings, never paths: only the command line names files to read

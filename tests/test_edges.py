@@ -69,7 +69,7 @@ def test_interrupt_is_130_and_leaves_no_temporary_file(tmp_path, monkeypatch):
 
     real = os.replace
 
-    def interrupted(src, dst):
+    def interrupted(src, dst, **where):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(files.os, "replace", interrupted)

@@ -205,14 +205,22 @@ def test_the_scheduler_from_the_environment_is_announced(capsys, monkeypatch):
     assert lines[0].endswith("(CREDCLI_SCHEDULER)") and "cannot connect" in lines[1]
 
 
-def test_outputs_never_follow_a_symlink_and_keep_a_files_mode(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("unnamed", [True, False], ids=["O_TMPFILE", "named-temporary"])
+def test_outputs_never_follow_a_symlink_and_keep_a_files_mode(
+    unnamed, tmp_path, capsys, monkeypatch
+):
     """Issue 32 item 3: a symbolic link at the output's name is refused (exit 2) and the
-    file it points to untouched; replacing a 0600 report keeps it 0600."""
+    file it points to untouched; replacing a 0600 report keeps it 0600; with an unnamed
+    O_TMPFILE and with the named temporary file used where there is none."""
     import os
     import stat
 
     from conftest import ROOT
 
+    from credcli.io import files
+
+    if not unnamed:
+        monkeypatch.setattr(files, "_write_unnamed", lambda *args: False)
     monkeypatch.chdir(ROOT)
     outside = tmp_path / "outside.txt"
     outside.write_text("keep me\n")
@@ -228,6 +236,28 @@ def test_outputs_never_follow_a_symlink_and_keep_a_files_mode(tmp_path, capsys, 
     assert stat.S_IMODE(private.stat().st_mode) == 0o600
     assert private.read_text().startswith("{") and len(private.read_text()) > 100
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_a_directory_swapped_while_writing_is_not_followed(tmp_path, monkeypatch):
+    """Issue 32 item 3: once the output's directory is open, every step works relative to
+    it; an attacker who swaps the directory for a link mid-write does not redirect it."""
+    from credcli.io import files
+
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    real = files._mode
+
+    def swapped(*args):
+        mode = real(*args)
+        out.rename(tmp_path / "moved")
+        out.symlink_to(outside)
+        return mode
+
+    monkeypatch.setattr(files, "_mode", swapped)
+    files.write_atomic(out / "report.json", "{}")
+    assert list(outside.iterdir()) == []
+    assert (tmp_path / "moved" / "report.json").read_text() == "{}"
 
 
 def _npy_header(shape) -> bytes:

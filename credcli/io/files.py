@@ -1,8 +1,9 @@
 """Files: TOML configs in, outputs written safely.
 
 Outputs never clobber an input and never leave a half-written file: a regular file is
-written unnamed (O_TMPFILE) or to a temporary file beside it, and renamed over the target
-(:func:`write_atomic`); anything else that already exists (a device such as /dev/null, a
+written unnamed (O_TMPFILE) or to a temporary file beside it, and renamed over the target,
+each step relative to the open output directory and never through a symbolic link at the
+final name (:func:`write_atomic`); anything else that already exists (a device such as /dev/null, a
 FIFO, /dev/stdout on a pipe or terminal) is written directly, since renaming over it would
 replace it with a regular file. An OSError about the user's files is described in one line
 (:func:`describe_os_error`).
@@ -10,11 +11,11 @@ replace it with a regular file. An OSError about the user's files is described i
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import secrets
 import stat
-import tempfile
 from pathlib import Path
 
 from credcli.errors import CredcliError
@@ -107,7 +108,10 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
     A regular file is written unnamed first (Linux's ``O_TMPFILE``), given a name only when
     it is complete and at once renamed over the target, so that even SIGKILL leaves no
     temporary file behind; elsewhere it is a named temporary file beside the target, removed
-    on any error or signal that Python sees."""
+    on any error or signal that Python sees. Every step after the directory is opened works
+    relative to that open directory (``dir_fd``), and a symbolic link at the final name is
+    refused, never followed: a link planted in an output directory, or a directory swapped
+    while credcli writes, cannot send the write to a file outside it."""
     path = Path(path)
     check_outputs({"output": path}, inputs)
     # a name that is not valid UTF-8 (a file name's bytes, held as surrogates) is written
@@ -117,19 +121,21 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
         if _is_stream(path):
             _write_stream(path, data)
             return
-        # the directory resolved, the final name not: a symbolic link there is refused,
-        # never followed (a link planted in an output directory would send the write to
-        # a file outside it)
-        target = path.parent.resolve() / path.name
-        if not target.parent.is_dir():
-            raise CredcliError(f"{path}: directory {target.parent} does not exist")
-        if target.is_symlink():
-            raise CredcliError(
-                f"{shown(path)}: is a symbolic link; credcli does not write through links "
-                "(give the file's real path, or remove the link)"
-            )
-        if not _write_unnamed(target, data):
-            _write_named(target, data)
+        parent = path.parent
+        if not parent.is_dir():
+            raise CredcliError(f"{path}: directory {parent.resolve()} does not exist")
+        directory = os.open(parent, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        try:
+            if stat.S_ISLNK(_lstat_mode(path.name, directory)):
+                raise CredcliError(
+                    f"{shown(path)}: is a symbolic link; credcli does not write through links "
+                    "(give the file's real path, or remove the link)"
+                )
+            mode = _mode(path.name, directory)
+            if not _write_unnamed(directory, path.name, data, mode):
+                _write_named(directory, path, data, mode)
+        finally:
+            os.close(directory)
     except OSError as exc:
         raise CredcliError(f"{path}: cannot be written ({os_reason(exc)})") from exc
 
@@ -196,30 +202,33 @@ def _write_stream(path: Path, data: bytes) -> None:
         os.close(fd)
 
 
-def _mode(target: Path | None = None) -> int:
-    """The mode of the file replacing ``target``: the existing file's own (a 0600 report
+def _lstat_mode(name: str, directory: int) -> int:
+    """The mode of ``name`` in the open ``directory`` (0 if there is none), links unfollowed."""
+    try:
+        return os.lstat(name, dir_fd=directory).st_mode
+    except FileNotFoundError:
+        return 0
+
+
+def _mode(name: str, directory: int) -> int:
+    """The mode of the file replacing ``name``: the existing file's own (a 0600 report
     stays 0600), else the mode open() would give a new file."""
-    if target is not None:
-        try:
-            st = os.lstat(target)
-        except OSError:
-            pass
-        else:
-            if stat.S_ISREG(st.st_mode):
-                return stat.S_IMODE(st.st_mode)
+    existing = _lstat_mode(name, directory)
+    if stat.S_ISREG(existing):
+        return stat.S_IMODE(existing)
     return 0o666 & ~_umask()
 
 
-def _write_unnamed(target: Path, data: bytes) -> bool:
-    """Write through an unnamed ``O_TMPFILE`` in the target's directory, linked to a
-    temporary name and renamed over the target once complete. False where the platform
-    or file system has no such files (the caller then uses a named temporary file)."""
+def _write_unnamed(directory: int, name: str, data: bytes, mode: int) -> bool:
+    """Write through an unnamed ``O_TMPFILE`` in the open ``directory``, linked to a
+    temporary name and renamed over ``name`` once complete. False where the platform or file
+    system has no such files (the caller then uses a named temporary file)."""
     flag = getattr(os, "O_TMPFILE", None)
     if flag is None or not os.path.isdir("/proc/self/fd"):
         return False
     try:
-        fd = os.open(target.parent, flag | os.O_WRONLY, _mode())
-        os.fchmod(fd, _mode(target))
+        fd = os.open(".", flag | os.O_WRONLY, 0o600, dir_fd=directory)
+        os.fchmod(fd, mode)
     except OSError as exc:
         if exc.errno in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL, errno.ENOENT):
             return False
@@ -227,43 +236,42 @@ def _write_unnamed(target: Path, data: bytes) -> bool:
     try:
         with os.fdopen(fd, "wb", closefd=False) as fh:
             fh.write(data)
-        name = _temporary_name(target)
-        directory = os.open(target.parent, os.O_RDONLY)
+        temporary = _temporary_name(name)
         try:  # a dir_fd makes CPython call linkat(), which follows the /proc link
-            os.link(f"/proc/self/fd/{fd}", name.name, dst_dir_fd=directory)
+            os.link(f"/proc/self/fd/{fd}", temporary, dst_dir_fd=directory)
         except OSError:  # a file system without linkat of such files: dropped on close
             return False
-        finally:
-            os.close(directory)
     finally:
         os.close(fd)
     try:
-        os.replace(name, target)
+        os.replace(temporary, name, src_dir_fd=directory, dst_dir_fd=directory)
     except BaseException:
-        Path(name).unlink(missing_ok=True)
+        os.unlink(temporary, dir_fd=directory)
         raise
     return True
 
 
-def _temporary_name(target: Path) -> Path:
+def _temporary_name(name: str) -> str:
+    return f".{name[:200]}.{secrets.token_hex(4)}.tmp"
 
-    return target.parent / f".{target.name[:200]}.{secrets.token_hex(4)}.tmp"
 
-
-def _write_named(target: Path, data: bytes) -> None:
+def _write_named(directory: int, path: Path, data: bytes, mode: int) -> None:
+    """A named temporary file in the open ``directory``, created exclusively (a name that
+    is already there, a link included, is never opened), renamed over ``path``'s name."""
+    temporary = _temporary_name(path.name)
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
     try:
-        fd, tmp = tempfile.mkstemp(
-            dir=target.parent, prefix=f".{target.name[:200]}.", suffix=".tmp"
-        )
+        fd = os.open(temporary, flags, 0o600, dir_fd=directory)
     except OSError as exc:
         raise CredcliError(
-            f"{target}: cannot write in {target.parent} ({os_reason(exc)}); choose another place"
+            f"{path}: cannot write in {path.parent} ({os_reason(exc)}); choose another place"
         ) from exc
     try:
-        os.fchmod(fd, _mode(target))  # mkstemp makes 0600
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
-        os.replace(tmp, target)
+        os.replace(temporary, path.name, src_dir_fd=directory, dst_dir_fd=directory)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            os.unlink(temporary, dir_fd=directory)
         raise

@@ -11,7 +11,8 @@ The Python API, in one path (see docs/python.md)::
     results = credcli.diagnose_log(log)          # or segments="5s", "whole", [...]
     results.to_frame(); results.to_dict()
     credcli.diagnose(errors, cov)                # arrays, one segment
-    log = credcli.log_from_arrays(cov, truth=..., estimate=..., time=..., segment=...)
+    log = credcli.log_from_arrays(truth, estimate, cov, time=..., segment=...)
+    log = credcli.log_from_arrays(errors=e, cov=cov)  # cov (N, d, d), (d, d) or (N, d)
     log = credcli.log_from_frame(df)             # or errors=[...], cov=[...], time="t"
     credcli.write_log(log, "log.parquet")        # for credcli diagnose / gate
     credcli.diagnose_monte_carlo([run_1, run_2, ...])

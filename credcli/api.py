@@ -15,18 +15,31 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from credcli import segments as seg
-from credcli.engine.diagnosis import Diagnosis, DiagnosisConfig, SegmentDiagnosis, diagnose_errors
+from credcli.engine.diagnosis import (
+    Diagnosis,
+    DiagnosisConfig,
+    Label,
+    SegmentDiagnosis,
+    diagnose_errors,
+)
 from credcli.engine.diagnosis import diagnose_log as _diagnose_segments
 from credcli.engine.rng import RngLike
 from credcli.errors import CredcliError
 from credcli.io import logs
-from credcli.io.arrays import log_from_arrays, monte_carlo_plan, split_runs, write_log
+from credcli.io.arrays import (
+    error_arrays,
+    log_from_arrays,
+    monte_carlo_plan,
+    split_runs,
+    write_log,
+)
 from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
@@ -66,6 +79,12 @@ class Results(Sequence):
         more = f", … ({len(self)} in all)" if len(self) > 4 else ""
         return f"Results([{labels}{more}])"
 
+    @property
+    def labels(self) -> list[Label]:
+        """Each segment's label, in order (a :class:`Label` equals its text:
+        ``results.labels == ["credible", "optimism"]``)."""
+        return [r.diagnosis.label for r in self._items]
+
     def to_dict(self) -> list[dict]:
         """One JSON-safe record per segment."""
         return [segment_record(r) for r in self._items]
@@ -77,8 +96,12 @@ class Results(Sequence):
         return pd.DataFrame(self.to_dict())
 
     def _repr_html_(self) -> str:
-        """The diagnosis table in a notebook: the columns ``credcli diagnose`` shows."""
-        return records_table(self.to_dict())
+        """The diagnosis table in a notebook: the columns ``credcli diagnose`` shows, the
+        labels coloured, the advice lines below."""
+        return records_table(self.to_dict(), self._notes())
+
+    def _notes(self) -> tuple[str, ...]:
+        return ()
 
 
 class MonteCarloResults(Results):
@@ -91,12 +114,13 @@ class MonteCarloResults(Results):
         self.anees = anees
 
     def __repr__(self) -> str:
+        return f"MonteCarloResults({self._notes()[0]}; {super().__repr__()})"
+
+    def _notes(self) -> tuple[str, ...]:
         inside = float(self.anees.inside.mean())
         return (
-            f"MonteCarloResults({self.anees.runs} runs; per-epoch ANEES inside its "
-            f"{1 - self.anees.level:.0%} interval at {inside:.1%} of epochs; "
-            + super().__repr__()
-            + ")"
+            f"{self.anees.runs} runs; per-epoch ANEES inside its {1 - self.anees.level:.0%} "
+            f"interval at {inside:.1%} of epochs",
         )
 
 
@@ -147,6 +171,7 @@ def diagnose_log(
     seed : int
         Each segment's sign flips come from (seed, segment name): the same as the CLI's.
     """
+    _check_log(log)
     if log.run is not None:
         if not (segments is None or isinstance(segments, str)):
             raise CredcliError(
@@ -155,10 +180,44 @@ def diagnose_log(
         return diagnose_monte_carlo(log, segments, config, seed)
     if segments is None or isinstance(segments, str):
         whole = segments == "whole"
-        plan = split(log, None if segments is None or whole else segments, whole)
+        with _python_names():
+            plan = split(log, None if segments is None or whole else segments, whole)
     else:
         plan = list(segments)
     return Results(_diagnose_segments(log, plan, config, seed))
+
+
+def _check_log(log) -> None:
+    if not isinstance(log, EstimatorLog):
+        hint = (
+            "; for arrays use credcli.diagnose(errors, cov) or credcli.log_from_arrays"
+            if isinstance(log, np.ndarray)
+            else ""
+        )
+        raise TypeError(
+            f"log: expected an EstimatorLog (read_log, log_from_arrays, log_from_frame); "
+            f"got {type(log).__name__}{hint}"
+        )
+
+
+_PYTHON_NAMES = {"window": "segments", "whole": "segments"}
+"""The settings of the segmenter as the Python API names them."""
+
+
+@contextlib.contextmanager
+def _python_names():
+    """Errors of the segmenter name the Python argument (``segments``), not the setting the
+    command line and config files call ``window``."""
+    try:
+        yield
+    except CredcliError as exc:
+        message = exc.message
+        for setting, argument in _PYTHON_NAMES.items():
+            message = message.replace(f"`{setting}`", f"`{argument}`")
+        named = _PYTHON_NAMES.get(exc.parameter, exc.parameter)
+        if named is None and message != exc.message:
+            named = "segments"
+        raise CredcliError(message, named) from exc
 
 
 def log_from_frame(
@@ -219,11 +278,14 @@ def diagnose_monte_carlo(
     """
     config = config or DiagnosisConfig()
     runs = split_runs(runs) if isinstance(runs, EstimatorLog) else list(runs)
+    for log in runs:
+        _check_log(log)
     whole = segments == "whole"
-    plans = [
-        (log, without_run(split(log, None if segments is None or whole else segments, whole)))
-        for log in runs[:1]
-    ]
+    with _python_names():
+        plans = [
+            (log, without_run(split(log, None if segments is None or whole else segments, whole)))
+            for log in runs[:1]
+        ]
     pooled, anees = monte_carlo_plan(runs, plans, config.alpha)
     results = diagnose_plans(pooled, config, seed, runs=len(runs))
     return MonteCarloResults(results, anees)
@@ -233,19 +295,23 @@ def diagnose(
     errors: np.ndarray,
     cov: np.ndarray,
     config: DiagnosisConfig | None = None,
+    seed: RngLike = None,
+    *,
     rng: RngLike = None,
 ) -> Diagnosis:
     """Diagnose one segment of errors e_k = x_k − x̂_k (N, d) with claimed covariances
-    (N, d, d) (or (d, d), shared by every epoch).
+    ``cov``: (N, d, d), one (d, d) for every epoch, or variances (N, d).
+
+    ``seed`` (an int or a numpy Generator; ``rng`` is its older name) fixes the sign flips
+    of the location test: the same seed, the same diagnosis.
 
     >>> import numpy as np, credcli
     >>> e = np.random.default_rng(0).standard_normal((400, 2)) * 2.0
-    >>> d = credcli.diagnose(e, np.eye(2), rng=0)
-    >>> d.label.value, round(d.scale.scale_factor, 1)
+    >>> d = credcli.diagnose(e, np.eye(2), seed=0)
+    >>> str(d.label), round(d.scale.scale_factor, 1)
     ('optimism', 4.0)
     """
-    errors = np.asarray(errors, dtype=float)
-    cov = np.asarray(cov, dtype=float)
-    if errors.ndim == 2 and cov.ndim == 2 and cov.shape == (errors.shape[1],) * 2:
-        cov = np.broadcast_to(cov, (errors.shape[0], *cov.shape))
-    return diagnose_errors(errors, cov, config, rng)
+    if seed is not None and rng is not None:
+        raise CredcliError("give `seed` or its older name `rng`, not both")
+    errors, cov = error_arrays(errors, cov)
+    return diagnose_errors(errors, cov, config, seed if seed is not None else rng)

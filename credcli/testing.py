@@ -7,10 +7,11 @@ covariance it reports can be trusted::
 
     def test_my_ekf_is_credible():
         truth, estimate, cov = run_my_ekf(seed=1)
+        assert_credible(truth - estimate, cov)        # as np.testing: actual first
         assert_credible(truth=truth, estimate=estimate, cov=cov)
 
     def test_a_bias_is_seen_as_a_model_mismatch():
-        assert_label("smm", errors=biased_errors, cov=cov)
+        assert_label("bias", biased_errors, cov)
 
 Each call diagnoses with the calibrated rule at a stated level (``alpha``, 0.05 by default:
 a correctly tuned filter fails at most about 5 % of seeds per segment) and a fixed ``seed``
@@ -33,16 +34,25 @@ from credcli.report.render import diagnose_report, to_text
 __all__ = ["assert_credible", "assert_label", "diagnosis_text"]
 
 
-def _results(log, segments, alpha: float, seed: int, arrays: dict) -> Results:
-    if log is None:
-        cov = arrays.pop("cov", None)
+def _results(log, cov, segments, alpha: float, seed: int, arrays: dict) -> Results:
+    """``log`` is an EstimatorLog, or the errors (N, d) when ``cov`` is given beside it."""
+    if log is not None and not isinstance(log, EstimatorLog):
         if cov is None:
-            raise TypeError("give a log, or arrays with cov=")
-        log = log_from_arrays(cov, **arrays)
+            raise TypeError(
+                f"log: expected an EstimatorLog, or errors (N, d) with cov; got "
+                f"{type(log).__name__} and no cov"
+            )
+        if "errors" in arrays:
+            raise TypeError("errors: given twice (first argument and errors=)")
+        log, arrays["errors"] = None, log
+    if cov is not None:
+        arrays["cov"] = cov
+    if log is None:
+        if "cov" not in arrays:
+            raise TypeError("give a log, or arrays with cov")
+        log = log_from_arrays(**arrays)
     elif arrays:
         raise TypeError(f"give a log or arrays, not both (got {', '.join(sorted(arrays))})")
-    if not isinstance(log, EstimatorLog):
-        raise TypeError(f"log: expected an EstimatorLog; got {type(log).__name__}")
     return diagnose_log(log, segments, DiagnosisConfig(alpha=alpha), seed)
 
 
@@ -54,7 +64,8 @@ def diagnosis_text(results: Results, alpha: float) -> str:
 
 
 def assert_credible(
-    log: EstimatorLog | None = None,
+    log=None,
+    cov=None,
     *,
     segments: str | Sequence | None = None,
     alpha: float = 0.05,
@@ -64,9 +75,11 @@ def assert_credible(
 ) -> Results:
     """Assert that every segment is credible at level ``alpha``; return the results.
 
-    Give a log (:func:`credcli.read_log`, :func:`credcli.log_from_arrays`, an adapter's),
-    or the arrays of :func:`credcli.log_from_arrays` as keywords (``cov=`` with
-    ``truth=``/``estimate=`` or ``errors=``, and optionally ``time=``, ``segment=``).
+    Give a log (:func:`credcli.read_log`, :func:`credcli.log_from_arrays`, an adapter's);
+    or errors and covariances, ``assert_credible(errors, cov)`` as ``np.testing`` takes the
+    actual value first; or the arrays of :func:`credcli.log_from_arrays` as keywords
+    (``cov=`` with ``truth=``/``estimate=`` or ``errors=``, and optionally ``time=``,
+    ``segment=``).
     ``segments`` as in :func:`credcli.diagnose_log` ("whole", "5s", …).
 
     A segment passes when its label is credible with both questions answered. With
@@ -79,7 +92,7 @@ def assert_credible(
     AssertionError
         With the diagnosis table and advice lines, naming the failing segments.
     """
-    results = _results(log, segments, alpha, seed, dict(arrays))
+    results = _results(log, cov, segments, alpha, seed, dict(arrays))
     failing = []
     for r in results:
         d = r.diagnosis
@@ -98,7 +111,8 @@ def assert_credible(
 
 def assert_label(
     expected: str | Label,
-    log: EstimatorLog | None = None,
+    log=None,
+    cov=None,
     *,
     segments: str | Sequence | None = None,
     alpha: float = 0.05,
@@ -109,7 +123,8 @@ def assert_label(
     "pessimism+asymmetric", …; a :class:`credcli.Label` too), e.g. that a planted fault is
     seen as what it is. A label in the paper's terms ("smm", "optimism+smm") accepts any
     location condition in its place (bias, asymmetric or smm; :attr:`Label.paper`).
-    Arguments as for :func:`assert_credible`; return the results.
+    Arguments as for :func:`assert_credible` (``assert_label("bias", errors, cov)``);
+    return the results.
 
     Raises
     ------
@@ -119,7 +134,7 @@ def assert_label(
         If ``expected`` is not a label.
     """
     label = Label(expected)
-    results = _results(log, segments, alpha, seed, dict(arrays))
+    results = _results(log, cov, segments, alpha, seed, dict(arrays))
 
     def right(got: Label) -> bool:
         return got is label or (label.location == SMM_CONDITION and got.paper is label)

@@ -79,3 +79,81 @@ def test_the_command_line_starts_without_the_numeric_stack():
         [sys.executable, "-m", "credcli", "--help"], capture_output=True, text=True, check=True
     ).stdout
     assert "diagnose" in help_text and "--debug" in help_text
+
+
+def _errors(n=300, d=2, seed=1, scale=1.0):
+    return np.random.default_rng(seed).standard_normal((n, d)) * scale
+
+
+def test_one_obvious_api():
+    """Issue 33 item 2: labels read as text, arrays taken positionally as np.testing takes
+    them, variances (N, d), one seed name."""
+    from credcli.testing import assert_credible, assert_label
+
+    assert str(credcli.Label.CREDIBLE) == "credible" and f"{credcli.Label.OPTIMISM}" == "optimism"
+    e = _errors()
+    truth, estimate = np.zeros_like(e), -e
+    by_position = credcli.log_from_arrays(truth, estimate, np.eye(2))
+    assert np.array_equal(
+        by_position.errors, credcli.log_from_arrays(errors=e, cov=np.eye(2)).errors
+    )
+    variances = credcli.log_from_arrays(errors=e, cov=np.tile([1.0, 4.0], (300, 1)))
+    assert np.array_equal(variances.cov[5], np.diag([1.0, 4.0]))
+    assert credcli.log_from_arrays(np.eye(2), errors=e).n == 300  # credcli 0.1's form
+    results = credcli.diagnose_log(credcli.log_from_arrays(errors=e * 2, cov=np.eye(2)))
+    assert results.labels == ["optimism"] and results.labels[0] is credcli.Label.OPTIMISM
+    assert assert_credible(e, np.eye(2)).labels == ["credible"]
+    assert assert_label("optimism", e * 2, np.eye(2)).labels == ["optimism"]
+    try:
+        assert_credible(e * 2, np.eye(2))
+    except AssertionError as failure:
+        assert "optimism" in str(failure) and "credcli diagnose" in str(failure)
+    else:
+        raise AssertionError("a 4x optimistic covariance passed")
+    a, b = credcli.diagnose(e, np.eye(2), seed=3), credcli.diagnose(e, np.eye(2), rng=3)
+    assert a.elt_pvalue == b.elt_pvalue
+
+
+def test_python_errors_name_python_arguments():
+    """Issue 33 item 2: a transposed array is named as such (it was blamed on cov); a
+    non-log is a TypeError naming `log`; the segmenter names `segments`, not `window`."""
+    import pytest
+
+    e = _errors()
+    with pytest.raises(credcli.CredcliError, match=r"truth: shape \(2, 300\) is transposed"):
+        credcli.log_from_arrays(np.zeros((2, 300)), -e, np.eye(2))
+    with pytest.raises(credcli.CredcliError, match=r"errors: shape \(2, 300\) is transposed"):
+        credcli.diagnose(e.T, np.eye(2))
+    with pytest.raises(credcli.CredcliError, match=r"estimate: shape \(2, 300\) is transposed"):
+        credcli.log_from_arrays(np.zeros((300, 2)), e.T, np.broadcast_to(np.eye(2), (300, 2, 2)))
+    with pytest.raises(TypeError, match="log: expected an EstimatorLog .* got ndarray"):
+        credcli.diagnose_log(np.zeros((10, 2)))
+    log = credcli.log_from_arrays(errors=e, cov=np.eye(2))
+    with pytest.raises(credcli.CredcliError, match="`segments` 5s needs a time column") as info:
+        credcli.diagnose_log(log, segments="5s")
+    assert "window" not in str(info.value) and info.value.parameter == "segments"
+
+
+def test_near_symmetric_covariances_are_symmetrised_with_a_note(tmp_path):
+    """Issue 33 item 6: a filter's covariance that drifts from symmetric by the relative
+    4.6e-4 measured on Stone Soup's default updater is made symmetric with one note; past
+    1e-3 it is refused, from Python and from a file."""
+    import pytest
+
+    e = _errors()
+    cov = np.broadcast_to([[2.0, 0.5], [0.5, 1.0]], (300, 2, 2)).copy()
+    cov[::3, 0, 1] += 4.6e-4 * 2.0
+    log = credcli.log_from_arrays(errors=e, cov=cov)
+    (note,) = log.notes
+    assert "100 of 300 covariances were not symmetric" in note and "0.00046" in note
+    assert np.array_equal(log.cov, log.cov.transpose(0, 2, 1))
+    assert log.cov[0, 0, 1] == pytest.approx(0.5 + 2.3e-4 * 2.0)
+    path = credcli.write_log(log, tmp_path / "drift.csv")
+    frame = __import__("pandas").read_csv(path)
+    frame["cov_1_0"] = frame["cov_0_1"] + 4.6e-4 * 2.0 * (np.arange(300) % 3 == 0)
+    frame["cov_0_1"] = frame["cov_0_1"].where(np.arange(300) % 3 != 0, 0.5)
+    frame.to_csv(path, index=False)
+    assert any("covariances were not symmetric" in n for n in credcli.read_log(path).notes)
+    cov[7, 0, 1] += 2e-3 * 2.0
+    with pytest.raises(credcli.CredcliError, match=r"cov\[7\]: .*asymmetry 0.002, above 0.001"):
+        credcli.log_from_arrays(errors=e, cov=cov)

@@ -253,7 +253,7 @@ def _circle_log(seed, lag=0.0, noise=0.5, claimed=0.5, n=600):
     gen = np.random.default_rng(seed)
     estimate = path(t - lag) + noise * gen.standard_normal((n, 2))
     cov = np.broadcast_to(claimed**2 * np.eye(2), (n, 2, 2))
-    return log_from_arrays(cov, truth=path(t), estimate=estimate, time=t)
+    return log_from_arrays(path(t), estimate, cov, time=t)
 
 
 def test_a_late_estimate_is_a_time_offset_named_first(tmp_path, capsys):

@@ -51,9 +51,9 @@ def test_arrays_give_the_cli_records(tmp_path, arrays):
     """truth/estimate and errors alone give the same diagnosis; the log written by
     write_log, read by `credcli diagnose`, gives the same JSON records."""
     both = credcli.log_from_arrays(
+        arrays["truth"],
+        arrays["estimate"],
         arrays["cov"],
-        truth=arrays["truth"],
-        estimate=arrays["estimate"],
         time=arrays["time"],
         segment=arrays["segment"],
     )
@@ -161,7 +161,18 @@ def test_log_from_frame_with_named_columns(arrays):
         ({"errors": "nan", "cov": np.eye(2)}, r"errors\[5, 1\] is nan"),
         ({"errors": "e", "cov": "asym"}, r"cov\[3\]: covariance is not symmetric"),
         ({"errors": "e", "cov": "npd"}, r"cov\[0\]: covariance is not positive definite"),
-        ({"errors": "e", "cov": np.eye(3)}, r"cov: expected shape \(N, d, d\) = \(10, 2, 2\)"),
+        ({"errors": "e", "cov": np.eye(3)}, r"errors: d = 2, but cov is 3 × 3"),
+        ({"errors": "e", "cov": np.ones((10, 3))}, "errors: d = 2, but cov is 3 × 3"),
+        (
+            {"truth": "e", "estimate": "e", "cov": np.ones((4, 2, 2))},
+            "truth: 10 epochs, expected 4",
+        ),
+        ({"errors": "e", "cov": np.ones((10, 2, 3))}, r"cov: expected shape \(N, d, d\)"),
+        ({"errors": "e", "cov": np.ones((10, 3, 3))}, r"errors: d = 2, but cov is 3 × 3"),
+        (
+            {"truth": "e", "estimate": "e", "cov": np.ones((4, 2, 2))},
+            r"truth: 10 epochs, expected 4",
+        ),
         ({"truth": "e", "estimate": "short", "cov": np.eye(2)}, "estimate: 4 epochs"),
         ({"errors": "e", "cov": np.eye(2), "time": "short"}, r"time: expected shape \(10,\)"),
     ],
@@ -320,7 +331,7 @@ def test_run_ids_pool_monte_carlo_runs_in_python_and_on_the_command_line(tmp_pat
     [
         (lambda e, c: credcli.nees(e, c), "cov", r"cov\[2\] is not positive definite"),
         (lambda e, c: credcli.nci(e, c), "cov", r"cov\[2\] is not positive definite"),
-        (lambda e, c: credcli.diagnose(e, c, rng=0), "cov", r"cov\[2\] is not positive definite"),
+        (lambda e, c: credcli.diagnose(e, c, seed=0), "cov", r"cov\[2\]: covariance is not pos"),
     ],
 )
 def test_public_entries_name_the_bad_argument(call, parameter, message):
@@ -339,7 +350,7 @@ def test_an_asymmetric_covariance_and_bad_flips_are_refused():
 
     e = np.random.default_rng(46).standard_normal((40, 2))
     asym = np.array([[1.0, 0.5], [0.0, 1.0]])
-    with pytest.raises(CredcliError, match=r"cov\[0\] is not symmetric"):
+    with pytest.raises(CredcliError, match=r"cov\[0\]: covariance is not symmetric"):
         credcli.diagnose(e, asym, rng=0)
     with pytest.raises(CredcliError, match=r"errors\[3, 1\] is not finite"):
         credcli.nees(

@@ -98,9 +98,9 @@ def log_from_batch(
             f"for the chosen states; got {truth.shape}"
         )
     return log_from_arrays(
+        truth,
+        means[:, index],
         covariances[:, index[:, None], index[None, :]],
-        truth=truth,
-        estimate=means[:, index],
         time=time,
         segment=segment,
         source=source,

@@ -99,9 +99,9 @@ def log_from_track(
             "pass tolerance= to pair with the nearest truth state"
         )
     return log_from_arrays(
+        true[j][:, index],
+        estimate[i][:, index],
         covs[i][:, index[:, None], index[None, :]],
-        truth=true[j][:, index],
-        estimate=estimate[i][:, index],
         time=t_track[i],
         source=source,
     )
@@ -160,9 +160,9 @@ def log_from_tracks(
     index = _selected(states, parts[0][3].shape[1])
     cat = np.concatenate
     return log_from_arrays(
+        cat([p[2] for p in parts])[:, index],
+        cat([p[3] for p in parts])[:, index],
         cat([p[4] for p in parts])[:, index[:, None], index[None, :]],
-        truth=cat([p[2] for p in parts])[:, index],
-        estimate=cat([p[3] for p in parts])[:, index],
         time=cat([p[1] for p in parts]),
         segment=cat([[p[0]] * len(p[1]) for p in parts]),
         source=source,

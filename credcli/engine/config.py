@@ -63,6 +63,12 @@ class Label(str, enum.Enum):
     PESSIMISM_ASYMMETRIC = "pessimism+asymmetric"
     INSUFFICIENT = "insufficient-data"
 
+    def __str__(self) -> str:
+        """The label as every output spells it: ``str(Label.CREDIBLE) == "credible"``."""
+        return self.value
+
+    __format__ = str.__format__
+
     @classmethod
     def compose(cls, noise: str | None, location: str | bool | None) -> Label:
         """The label of a noise condition ("optimism", "pessimism" or None) and a location

@@ -23,8 +23,10 @@ from credcli.io.text import time_seconds
 from credcli.segments import Segment
 
 
-def _matrix(name: str, value, n: int | None) -> np.ndarray:
-    """An (N, d) float array from ``value`` ((N,) is d = 1), or an error naming ``name``."""
+def _matrix(name: str, value, n: int | None, d: int | None = None) -> np.ndarray:
+    """An (N, d) float array from ``value`` ((N,) is d = 1), or an error naming ``name``;
+    ``n`` and ``d``, where known, are what the other arguments say (a transposed array is
+    named as such)."""
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -33,8 +35,22 @@ def _matrix(name: str, value, n: int | None) -> np.ndarray:
         array = array[:, None]
     if array.ndim != 2 or array.shape[0] == 0 or array.shape[1] == 0:
         raise CredcliError(f"{name}: expected shape (N, d) with N, d >= 1; got {array.shape}")
+
+    def fits(shape) -> bool:
+        return (n is None or shape[0] == n) and (d is None or shape[1] == d)
+
+    if not fits(array.shape) and fits(array.shape[::-1]):
+        raise CredcliError(
+            f"{name}: shape {array.shape} is transposed: expected (N, d) = "
+            f"({n if n is not None else 'N'}, {d if d is not None else 'd'}), one row per "
+            f"epoch; pass {name}.T"
+        )
     if n is not None and array.shape[0] != n:
         raise CredcliError(f"{name}: {array.shape[0]} epochs, expected {n} as in the others")
+    if d is not None and array.shape[1] != d:
+        raise CredcliError(
+            f"{name}: d = {array.shape[1]}, but cov is {d} × {d}: the dimensions must match"
+        )
     bad = ~np.isfinite(array)
     if bad.any():
         k, i = np.argwhere(bad)[0]
@@ -42,33 +58,70 @@ def _matrix(name: str, value, n: int | None) -> np.ndarray:
     return array
 
 
-def _covariances(cov, n: int, d: int) -> np.ndarray:
-    """(N, d, d) claimed covariances from (N, d, d), one shared (d, d), or (N,) for d = 1."""
+def _cov_array(cov) -> np.ndarray:
     try:
-        array = np.asarray(cov, dtype=float)
+        return np.asarray(cov, dtype=float)
     except (TypeError, ValueError) as exc:
         raise CredcliError(f"cov: expected numbers, shape (N, d, d); {exc}") from None
+
+
+def _cov_shape(array: np.ndarray) -> tuple[int | None, int]:
+    """(N, d) as the claimed covariances tell them (None where they do not): (N, d, d);
+    one (d, d) matrix; (N, d) variances; (N,) variances of d = 1."""
+    if array.ndim not in (1, 2, 3) or (array.ndim == 3 and array.shape[1] != array.shape[2]):
+        raise CredcliError(
+            f"cov: expected shape (N, d, d), one (d, d) matrix for every epoch, or variances "
+            f"(N, d); got {array.shape}"
+        )
+    if array.ndim == 3:
+        return array.shape[0], array.shape[2]
+    if array.ndim == 2:
+        return (None, array.shape[0]) if array.shape[0] == array.shape[1] else array.shape
+    return array.shape[0], 1
+
+
+def _covariances(
+    array: np.ndarray, n: int, d: int, notes: list[str] | None = None
+) -> np.ndarray:
+    """(N, d, d) claimed covariances from (N, d, d), one shared (d, d), (N, d) variances
+    (d ≠ N), or (N,) variances for d = 1; a note on symmetrised ones goes to ``notes``."""
     if array.ndim == 1 and d == 1:
         array = array[:, None, None]
     if array.shape == (d, d):
         array = np.broadcast_to(array, (n, d, d))
+    elif array.shape == (n, d):  # variances, one row per epoch
+        array = array[:, :, None] * np.eye(d)
     if array.shape != (n, d, d):
         raise CredcliError(
-            f"cov: expected shape (N, d, d) = ({n}, {d}, {d}) or one ({d}, {d}) matrix for "
-            f"every epoch; got {array.shape}"
+            f"cov: expected shape (N, d, d) = ({n}, {d}, {d}), one ({d}, {d}) matrix for "
+            f"every epoch, or variances ({n}, {d}); got {array.shape}"
         )
     bad = ~np.isfinite(array).all(axis=(1, 2))
     if bad.any():
         k = int(np.argmax(bad))
         raise CredcliError(f"cov[{k}] has a NaN or Inf value: every value must be finite")
-    return validated_cov(np.array(array), np.arange(n), "cov", epoch=lambda k: f"cov[{k}]")
+    try:
+        return validated_cov(
+            np.array(array), np.arange(n), "cov", epoch=lambda k: f"cov[{k}]", notes=notes
+        )
+    except CredcliError as exc:
+        raise CredcliError(exc.message, exc.parameter or "cov") from exc
+
+
+def error_arrays(errors, cov) -> tuple[np.ndarray, np.ndarray]:
+    """``errors`` (N, d) and ``cov`` as :func:`log_from_arrays` takes them, checked and
+    given back as (N, d) and (N, d, d)."""
+    array = _cov_array(cov)
+    n, d = _cov_shape(array)
+    matrix = _matrix("errors", errors, n, d)
+    return matrix, _covariances(array, *matrix.shape)
 
 
 def log_from_arrays(
-    cov,
-    *,
     truth=None,
     estimate=None,
+    cov=None,
+    *,
     errors=None,
     time=None,
     segment=None,
@@ -76,42 +129,53 @@ def log_from_arrays(
     source: str = "<arrays>",
 ) -> EstimatorLog:
     """An estimator log from arrays: ``truth`` and ``estimate`` (N, d), or ``errors``
-    (N, d) alone, with claimed covariances ``cov`` (N, d, d) or one (d, d) for every epoch.
-    ``run`` (N,) gives the Monte Carlo run of each epoch when the arrays hold several runs
-    one after the other (:func:`credcli.diagnose_monte_carlo` pools them).
+    (N, d) alone, with claimed covariances ``cov``: (N, d, d), one (d, d) for every epoch,
+    or variances (N, d). ``run`` (N,) gives the Monte Carlo run of each epoch when the
+    arrays hold several runs one after the other (:func:`credcli.diagnose_monte_carlo`
+    pools them).
 
     ``errors`` is what a library's own error map gives (a Lie group's ⊖, a tracker's
     innovation): credcli uses it as it is. ``time`` (N,) is seconds, datetime64 or ISO-8601
     strings (converted once, with a note); ``segment`` (N,) names each epoch's segment.
-    Every array is checked here, and an error names the argument and the epoch.
+    Every array is checked here, and an error names the argument and the epoch (and a
+    transposed array as such). The form of credcli 0.1, ``log_from_arrays(cov,
+    errors=...)``, is still read.
 
     Examples
     --------
     >>> import numpy as np
-    >>> e = np.random.default_rng(0).standard_normal((300, 2))
-    >>> log = log_from_arrays(np.eye(2), errors=e, segment=["a"] * 150 + ["b"] * 150)
+    >>> truth = np.zeros((300, 2))
+    >>> estimate = np.random.default_rng(0).standard_normal((300, 2))
+    >>> log = log_from_arrays(truth, estimate, np.eye(2), segment=["a"] * 150 + ["b"] * 150)
     >>> log.n, log.dim, sorted(set(log.segment))
     (300, 2, ['a', 'b'])
+    >>> log_from_arrays(errors=estimate, cov=np.ones((300, 2))).dim  # variances (N, d)
+    2
     """
+    if errors is not None and truth is not None and estimate is None and cov is None:
+        truth, cov = None, truth  # credcli 0.1: log_from_arrays(cov, errors=...)
     if errors is not None and (truth is not None or estimate is not None):
         raise CredcliError("give errors, or truth and estimate, not both")
     if errors is None and (truth is None or estimate is None):
         raise CredcliError("give errors (N, d), or both truth and estimate (N, d)")
+    if cov is None:
+        raise CredcliError(
+            "cov: give the claimed covariances: (N, d, d), one (d, d) matrix for every "
+            "epoch, or variances (N, d)"
+        )
+    cov_array = _cov_array(cov)
+    n_cov, d_cov = _cov_shape(cov_array)
     if errors is not None:
-        state_errors = _matrix("errors", errors, None)
+        state_errors = _matrix("errors", errors, n_cov, d_cov)
         truth_arr = estimate_arr = None
         n, d = state_errors.shape
     else:
-        truth_arr = _matrix("truth", truth, None)
+        truth_arr = _matrix("truth", truth, n_cov, d_cov)
         n, d = truth_arr.shape
-        estimate_arr = _matrix("estimate", estimate, n)
-        if estimate_arr.shape[1] != d:
-            raise CredcliError(
-                f"estimate: d = {estimate_arr.shape[1]}, but truth has d = {d}: the dimensions "
-                "must match"
-            )
+        estimate_arr = _matrix("estimate", estimate, n, d)
         state_errors = None
-    covariances = _covariances(cov, n, d)
+    cov_notes: list[str] = []
+    covariances = _covariances(cov_array, n, d, cov_notes)
     notes: tuple[str, ...] = ()
     seconds = None
     if time is not None:
@@ -122,6 +186,7 @@ def log_from_arrays(
             k = int(np.argmax(~np.isfinite(seconds)))
             raise CredcliError(f"time[{k}] is missing or not finite")
         notes = (note,) if note else ()
+    notes = (*notes, *cov_notes)
     labels = _labels("segment", segment, n)
     runs = _labels("run", run, n)
     return EstimatorLog(

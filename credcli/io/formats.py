@@ -323,8 +323,10 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
     if bad.any():
         i = int(np.argmax(bad))
         raise CredcliError(f"{path}: row {rows[i]}: NaN, Inf or empty value; fix or remove the row")
+    cov_notes: list[str] = []
     if cov_cols:
-        cov = logs.validated_cov(logs.build_cov(values[:, 1 + d :], kind, d), rows, source, kind)
+        cov_values = logs.build_cov(values[:, 1 + d :], kind, d)
+        cov = logs.validated_cov(cov_values, rows, source, kind, notes=cov_notes)
     time, note = seconds(values[:, 0], unit, None, source)
     return Trajectory(
         time=time,
@@ -335,7 +337,7 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
         source=source,
         format=InputFormat.CREDCLI,
         pose=False,
-        notes=(note,) if note else (),
+        notes=(*((note,) if note else ()), *cov_notes),
     )
 
 

@@ -152,7 +152,8 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
     rows = estimate.rows[keep]
     states, errors, cov, convention = _state_errors(estimate, truth, pairing, reading)
     try:
-        cov = validated_cov(cov, rows, estimate.source, CovKind.FULL)
+        cov_notes: list[str] = []
+        cov = validated_cov(cov, rows, estimate.source, CovKind.FULL, notes=cov_notes)
     except CredcliError as exc:
         if states is States.PLANAR or not estimate.pose:
             raise
@@ -160,7 +161,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
             f"{exc.message} (the {states.value} block of the 6×6 pose covariance; a planar "
             "robot that leaves z, roll and pitch at 0 needs `states` planar)"
         ) from exc
-    notes = (*estimate.notes, *truth.notes, pairing.note, convention)
+    notes = (*estimate.notes, *truth.notes, pairing.note, convention, *cov_notes)
     return EstimatorLog(
         None,
         None,

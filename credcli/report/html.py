@@ -27,6 +27,18 @@ overflow-x: auto; font-size: 0.8em; } .note { color: #555; font-size: 0.9em; }
 """
 
 
+LABEL_COLOURS = {"credible": "#176f2c", "insufficient-data": "#666666"}
+"""A label's colour in HTML (every other label, a misfit: :data:`MISFIT_COLOUR`)."""
+MISFIT_COLOUR = "#a33a00"
+
+
+def label_style(value: str) -> str:
+    """The inline style of a label cell: its colour stays where a page's stylesheet is
+    dropped (a notebook viewer, a mail)."""
+    name = value.split(" (")[0]  # "credible (scale untested)" is coloured as credible
+    return f"color: {LABEL_COLOURS.get(name, MISFIT_COLOUR)}; font-weight: 600"
+
+
 def _table_html(table) -> str:
     table = table.shown()
     head = "".join(
@@ -39,10 +51,11 @@ def _table_html(table) -> str:
         for c in table.columns:
             value = row.get(c.key)
             text = html.escape(format_cell(c.value(row), c.digits))  # as the terminal shows it
-            cls = "text" if not c.digits else "num"
+            cls, style = "text" if not c.digits else "num", ""
             if c.key in ("label", "nees_label", "nci_label") and isinstance(value, str):
                 cls += " credible" if value == Label.CREDIBLE.value else " bad"
-            cells.append(f'<td class="{cls}">{text}</td>')
+                style = f' style="{label_style(value)}"'
+            cells.append(f'<td class="{cls}"{style}>{text}</td>')
         rows.append("<tr>" + "".join(cells) + "</tr>")
     caption = f'<p class="note">{html.escape(table.caption)}</p>' if table.caption else ""
     return (
@@ -51,13 +64,14 @@ def _table_html(table) -> str:
     )
 
 
-def records_table(records: list[dict]) -> str:
-    """Segment records as an HTML table with the advice lines below it (a notebook's view
-    of :class:`credcli.api.Results`): the columns and cells ``credcli diagnose`` shows."""
+def records_table(records: list[dict], notes: tuple[str, ...] = ()) -> str:
+    """Segment records as an HTML table with the advice lines and ``notes`` below it (a
+    notebook's view of :class:`credcli.api.Results`): the columns and cells ``credcli
+    diagnose`` shows, labels coloured inline."""
     body = _table_html(Table("credcli diagnose", SEGMENT_COLUMNS, records))
-    lines = [a for a in (advice(r) for r in records) if a]
-    notes = "".join(f'<p class="note">{html.escape(line)}</p>' for line in lines)
-    return f"<div>{body}{notes}</div>"
+    lines = [*notes, *(a for a in (advice(r) for r in records) if a)]
+    shown = "".join(f'<p class="note">{html.escape(line)}</p>' for line in lines)
+    return f"<div>{body}{shown}</div>"
 
 
 def build_html(title: str, report: Report, plots, subtitle: str = "") -> str:

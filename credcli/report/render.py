@@ -402,7 +402,11 @@ def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
     from rich.console import Console
 
     buf = io.StringIO()
-    console = Console(file=buf, width=width, color_system=None, force_terminal=False)
+    # never the notebook's display: in Jupyter, Rich would show the table there and leave
+    # the buffer empty
+    console = Console(
+        file=buf, width=width, color_system=None, force_terminal=False, force_jupyter=False
+    )
     for table in report.tables:
         console.print(rich_table(table, width))
     for note in report.notes:

@@ -80,9 +80,7 @@ def _cov_shape(array: np.ndarray) -> tuple[int | None, int]:
     return array.shape[0], 1
 
 
-def _covariances(
-    array: np.ndarray, n: int, d: int, notes: list[str] | None = None
-) -> np.ndarray:
+def _covariances(array: np.ndarray, n: int, d: int, notes: list[str] | None = None) -> np.ndarray:
     """(N, d, d) claimed covariances from (N, d, d), one shared (d, d), (N, d) variances
     (d ≠ N), or (N,) variances for d = 1; a note on symmetrised ones goes to ``notes``."""
     if array.ndim == 1 and d == 1:

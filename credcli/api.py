@@ -16,6 +16,7 @@ Examples
 from __future__ import annotations
 
 import contextlib
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -122,6 +123,28 @@ class MonteCarloResults(Results):
             f"{self.anees.runs} runs; per-epoch ANEES inside its {1 - self.anees.level:.0%} "
             f"interval at {inside:.1%} of epochs",
         )
+
+
+def _diagnosis_html(diagnosis: Diagnosis) -> str:
+    return records_table(
+        [segment_record(SegmentDiagnosis("<arrays>", "all", None, None, diagnosis))]
+    )
+
+
+def _register_notebook_views() -> None:
+    """In IPython or Jupyter, a Diagnosis and a SegmentDiagnosis display as the table
+    ``credcli diagnose`` prints (the engine's dataclasses know nothing of HTML: the view is
+    registered here, with the notebook's own formatter)."""
+    module = sys.modules.get("IPython")
+    shell = module.get_ipython() if module is not None else None
+    if shell is None:
+        return
+    formatter = shell.display_formatter.formatters["text/html"]
+    formatter.for_type(Diagnosis, _diagnosis_html)
+    formatter.for_type(SegmentDiagnosis, lambda r: records_table([segment_record(r)]))
+
+
+_register_notebook_views()
 
 
 def read_log(

@@ -335,6 +335,6 @@ def diagnose(
     ('optimism', 4.0)
     """
     if seed is not None and rng is not None:
-        raise CredcliError("give `seed` or its older name `rng`, not both")
+        raise CredcliError("give seed or its older name rng, not both")
     errors, cov = error_arrays(errors, cov)
     return diagnose_errors(errors, cov, config, seed if seed is not None else rng)

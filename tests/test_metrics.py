@@ -319,3 +319,39 @@ def test_energy_score_is_scale_free_at_extreme_scales(d):
     base = metrics.energy_score(e, cov)
     for c in (1e-120, 1e120):
         np.testing.assert_allclose(metrics.energy_score(c * e, c * c * cov), c * base, rtol=1e-12)
+
+
+def test_accuracy_is_evos_first_figures_per_component_and_of_the_norm(capsys, monkeypatch):
+    """Issue 33 item 4: RMSE, mean, median and max error beside credibility, against a
+    plain computation, and in every output (JSON, CSV, Markdown, the table)."""
+    import json
+    import math
+    import statistics
+
+    from credcli.cli import main
+    from credcli.engine.metrics import accuracy
+
+    e = np.random.default_rng(3).standard_normal((101, 3)) * [1.0, 2.0, 0.5] + [0.3, 0, 0]
+    a = accuracy(e)
+    rows = e.tolist()
+    norms = [math.sqrt(sum(x * x for x in r)) for r in rows]
+    for i in range(3):
+        column = [r[i] for r in rows]
+        assert a.rmse[i] == pytest.approx(math.sqrt(sum(x * x for x in column) / 101), rel=1e-12)
+        assert a.mean[i] == pytest.approx(statistics.fmean(column), rel=1e-12)
+        assert a.median[i] == pytest.approx(statistics.median(abs(x) for x in column))
+        assert a.max[i] == max(abs(x) for x in column)
+    assert a.rmse_norm == pytest.approx(math.sqrt(sum(n * n for n in norms) / 101), rel=1e-12)
+    assert a.rmse_norm == pytest.approx(math.sqrt((a.rmse**2).sum()), rel=1e-12)
+    assert (a.median_norm, a.max_norm) == (statistics.median(norms), max(norms))
+    assert a.mean_norm == pytest.approx(statistics.fmean(norms), rel=1e-12)
+    from conftest import ROOT
+
+    log = "sample_data/estimator_log.csv"
+    monkeypatch.chdir(ROOT)
+    assert main(["diagnose", log, "-f", "json"]) == 0
+    first = json.loads(capsys.readouterr().out)["segments"][0]
+    assert first["rmse"] == pytest.approx(math.sqrt(sum(v**2 for v in first["rmse_by_component"])))
+    for fmt, header in (("csv", "error_norm_max"), ("markdown", "RMSE"), ("table", "RMSE")):
+        assert main(["diagnose", log, "-f", fmt]) == 0
+        assert header in capsys.readouterr().out

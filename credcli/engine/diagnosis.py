@@ -87,6 +87,7 @@ class Diagnosis:
     time_scales: TimeScales | None = field(default=None, repr=False)  # variance by averaging time
     findings: tuple[str, ...] = ()  # what the data show beside the label (slow errors, ...)
     time_offset: TimeOffset | None = None  # a lag of the estimate that explains the misfit
+    accuracy: metrics.Accuracy | None = None  # RMSE, mean, median, max error (evo's figures)
 
     @property
     def partial(self) -> bool:
@@ -181,13 +182,20 @@ def _diagnose_variants(errors, cov, configs, gen, mse, runs=1, memory=None) -> l
     n, d = errors.shape
     chol = _cholesky(cov)
     if n < min(c.min_n(d) for c in configs):
-        return [_too_short(n, d, c) for c in configs]
-    try:
-        gathered = evidence.gather(errors, cov, chol, configs, gen, mse, runs, memory)
-    except evidence.Undecidable as exc:
-        return [Diagnosis(Label.INSUFFICIENT, n, d, reason=exc.reason, config=c) for c in configs]
-    del chol
-    return [_diagnosis(ev, config) for ev, config in zip(gathered, configs)]
+        found = [_too_short(n, d, c) for c in configs]
+    else:
+        try:
+            gathered = evidence.gather(errors, cov, chol, configs, gen, mse, runs, memory)
+        except evidence.Undecidable as exc:
+            gathered = None
+            found = [
+                Diagnosis(Label.INSUFFICIENT, n, d, reason=exc.reason, config=c) for c in configs
+            ]
+        del chol
+        if gathered is not None:
+            found = [_diagnosis(ev, config) for ev, config in zip(gathered, configs)]
+    accuracy = metrics.accuracy(errors) if n else None
+    return [replace(found_one, accuracy=accuracy) for found_one in found]
 
 
 def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:

@@ -254,6 +254,53 @@ def energy_score(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
 
 
 @dataclass(frozen=True)
+class Accuracy:
+    """How far the estimate is from the truth, beside whether its covariance says so: the
+    figures evo prints first for a trajectory's absolute error, per component i and of the
+    error's norm ‖e_k‖ (in the units of the states).
+
+    ``rmse`` √(mean e_i²); ``mean`` the signed mean of e_i (a bias shows here);
+    ``median`` and ``max`` of |e_i|. ``rmse_norm`` √(mean ‖e‖²) (= √(Σ_i rmse_i²)),
+    ``mean_norm``, ``median_norm``, ``max_norm`` of ‖e‖.
+    """
+
+    rmse: np.ndarray
+    mean: np.ndarray
+    median: np.ndarray
+    max: np.ndarray
+    rmse_norm: float
+    mean_norm: float
+    median_norm: float
+    max_norm: float
+
+
+def accuracy(errors: np.ndarray) -> Accuracy:
+    """The :class:`Accuracy` of errors (N, d), N ≥ 1.
+
+    >>> a = accuracy(np.array([[3.0, 4.0], [0.0, 0.0]]))
+    >>> a.rmse_norm, a.max_norm, a.mean.tolist()
+    (3.5355339059327378, 5.0, [1.5, 2.0])
+    """
+    with np.errstate(over="ignore"):  # errors past 1e154: inf, shown as null
+        return _accuracy(errors)
+
+
+def _accuracy(errors: np.ndarray) -> Accuracy:
+    absolute = np.abs(errors)
+    norms = np.sqrt(np.einsum("ij,ij->i", errors, errors))
+    return Accuracy(
+        rmse=np.sqrt(np.mean(errors**2, axis=0)),
+        mean=errors.mean(axis=0),
+        median=np.median(absolute, axis=0),
+        max=absolute.max(axis=0),
+        rmse_norm=float(np.sqrt(np.mean(norms**2))),
+        mean_norm=float(norms.mean()),
+        median_norm=float(np.median(norms)),
+        max_norm=float(norms.max()),
+    )
+
+
+@dataclass(frozen=True)
 class Probes:
     """Mean scores at covariance scales 1/c, 1 and c, the probes (18) and SRDs (19)."""
 

@@ -82,7 +82,10 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     the label (a slowly varying error across the windows of a run, a divergence, bursts,
     a time offset). ``time_offset``: the lag of the estimate behind the truth, in the time
     column's unit, where one explains the misfit (:mod:`credcli.engine.timing`), with
-    ``time_offset_stderr``.
+    ``time_offset_stderr``. Accuracy, as evo prints it first (:class:`credcli.engine.metrics.
+    Accuracy`): ``rmse`` and ``error_norm_mean``/``_median``/``_max`` of the error's norm;
+    per component ``rmse_by_component``, ``error_mean`` (signed), ``error_median`` and
+    ``error_max`` (of |e_i|), in the units of the states.
     """
     elt = diag.elt
     sc = diag.scale
@@ -152,6 +155,17 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "findings": list(diag.findings) or None,
         "time_offset": None if diag.time_offset is None else diag.time_offset.seconds,
         "time_offset_stderr": None if diag.time_offset is None else diag.time_offset.stderr,
+    }
+    acc = diag.accuracy
+    rec |= {
+        "rmse": None if acc is None else acc.rmse_norm,
+        "error_norm_mean": None if acc is None else acc.mean_norm,
+        "error_norm_median": None if acc is None else acc.median_norm,
+        "error_norm_max": None if acc is None else acc.max_norm,
+        "rmse_by_component": _floats(None if acc is None else acc.rmse),
+        "error_mean": _floats(None if acc is None else acc.mean),
+        "error_median": _floats(None if acc is None else acc.median),
+        "error_max": _floats(None if acc is None else acc.max),
     }
     return {k: json_value(v) for k, v in rec.items()}
 

@@ -106,7 +106,7 @@ def read_log(
     drop_invalid: bool = False,
     **reading,
 ) -> EstimatorLog:
-    """Read and validate an estimator log; see docs/formats.md.
+    """Read and validate an estimator log; see [Logs and options](formats.md).
 
     ``reading`` takes the fields of ``credcli.io.schema.ReadOptions`` (the command
     line's reading options): ``truth``, ``input_format``, ``truth_format``, ``topic``,

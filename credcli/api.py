@@ -82,7 +82,7 @@ class Results(Sequence):
 
     @property
     def labels(self) -> list[Label]:
-        """Each segment's label, in order (a :class:`Label` equals its text:
+        """Each segment's label, in order (a ``Label`` equals its text:
         ``results.labels == ["credible", "optimism"]``)."""
         return [r.diagnosis.label for r in self._items]
 
@@ -153,9 +153,9 @@ def read_log(
     drop_invalid: bool = False,
     **reading,
 ) -> EstimatorLog:
-    """Read and validate an estimator log; see docs/formats.md.
+    """Read and validate an estimator log; see [Logs and options](formats.md).
 
-    ``reading`` takes the fields of :class:`credcli.io.schema.ReadOptions` (the command
+    ``reading`` takes the fields of ``credcli.io.schema.ReadOptions`` (the command
     line's reading options): ``truth``, ``input_format``, ``truth_format``, ``topic``,
     ``truth_topic``, ``time_unit``, ``max_dt``, ``time_offset``, ``states``,
     ``perturbation``, ``innovations``. The decisions taken are in the log's ``notes``.
@@ -183,7 +183,7 @@ def diagnose_log(
     seed: int = 0,
 ) -> Results:
     """Diagnose every segment of ``log``. A log with Monte Carlo run ids is diagnosed as its
-    runs pooled (:func:`diagnose_monte_carlo`).
+    runs pooled ([diagnose_monte_carlo][credcli.api.diagnose_monte_carlo]).
 
     Parameters
     ----------
@@ -289,7 +289,7 @@ def diagnose_monte_carlo(
     each run in its own blocks), and ``anees`` is the per-epoch ANEES test over the runs
     (Bar-Shalom et al. 2001, Sec. 5.4.2). The runs must share one time base. ``runs`` is a
     list of logs, one per run, or one log with run ids (``run=`` of
-    :func:`log_from_arrays`, a ``run`` column).
+    [log_from_arrays][credcli.api.log_from_arrays], a ``run`` column).
 
     >>> import numpy as np
     >>> rng = np.random.default_rng(0)

@@ -1,5 +1,5 @@
 """What a command asks for, typed: every setting resolved (command line > config file >
-defaults, :mod:`credcli.cli.settings`) before any work starts. The workflows take these;
+defaults, ``credcli.cli.settings``) before any work starts. The workflows take these;
 the Python API may build them directly."""
 
 from __future__ import annotations

@@ -75,12 +75,13 @@ def assert_credible(
 ) -> Results:
     """Assert that every segment is credible at level ``alpha``; return the results.
 
-    Give a log (:func:`credcli.read_log`, :func:`credcli.log_from_arrays`, an adapter's);
-    or errors and covariances, ``assert_credible(errors, cov)`` as ``np.testing`` takes the
-    actual value first; or the arrays of :func:`credcli.log_from_arrays` as keywords
-    (``cov=`` with ``truth=``/``estimate=`` or ``errors=``, and optionally ``time=``,
-    ``segment=``).
-    ``segments`` as in :func:`credcli.diagnose_log` ("whole", "5s", …).
+    Give a log ([credcli.read_log][credcli.api.read_log],
+    [credcli.log_from_arrays][credcli.api.log_from_arrays], an adapter's); or errors and
+    covariances, ``assert_credible(errors, cov)`` as ``np.testing`` takes the actual value
+    first; or the arrays of [credcli.log_from_arrays][credcli.api.log_from_arrays] as
+    keywords (``cov=`` with ``truth=``/``estimate=`` or ``errors=``, and optionally
+    ``time=``, ``segment=``).
+    ``segments`` as in [credcli.diagnose_log][credcli.api.diagnose_log] ("whole", "5s", …).
 
     A segment passes when its label is credible with both questions answered. With
     ``allow_untested``, a segment the data cannot decide (``insufficient-data``, or
@@ -120,11 +121,12 @@ def assert_label(
     **arrays,
 ) -> Results:
     """Assert that every segment gets the label ``expected`` ("optimism", "bias",
-    "pessimism+asymmetric", …; a :class:`credcli.Label` too), e.g. that a planted fault is
+    "pessimism+asymmetric", …; a [credcli.Label][credcli.engine.config.Label] too), e.g. that a planted fault is
     seen as what it is. A label in the paper's terms ("smm", "optimism+smm") accepts any
-    location condition in its place (bias, asymmetric or smm; :attr:`Label.paper`).
-    Arguments as for :func:`assert_credible` (``assert_label("bias", errors, cov)``);
-    return the results.
+    location condition in its place (bias, asymmetric or smm;
+    [Label.paper][credcli.engine.config.Label.paper]). Arguments as for
+    [assert_credible][credcli.testing.assert_credible] (``assert_label("bias", errors,
+    cov)``); return the results.
 
     Raises
     ------

@@ -216,7 +216,8 @@ LAZY_IMPORTS = {
     "tomli": "Python < 3.11",
     "click": "the click package before typer vendored it",
     "typer._click": "typer >= 0.2x vendors click",
-    # start-up: `credcli --help` loads no numpy, Rich, tempfile or socket
+    # start-up: a command loads no numpy, Rich, tempfile or socket before it runs (`--help`
+    # loads Rich, through Typer, to draw its panels)
     "numpy": "start-up: studies/settings.py holds the defaults --help shows",
     "rich": "start-up: tables and progress bars load Rich when they print",
 }

@@ -109,3 +109,17 @@ def test_bag_comparison_sees_a_moved_quaternion(regenerated, tmp_path, monkeypat
     changed = pose_samples.write_bag(tmp_path / "moved.bag", 1, moved, truth)
     with pytest.raises(AssertionError):
         assert_bag_equivalent(changed, root / "formats" / "odom.bag")
+
+
+def test_errors_only_sample_is_read_as_errors_and_gets_its_planted_labels():
+    """sample_data/errors_only.csv: err_i and cov_i_j only; an honest segment, then one
+    whose covariance is 0.35 times the errors' (the README's errors-only example)."""
+    import credcli
+
+    log = credcli.read_log(SAMPLE / "errors_only.csv", errors_only=True)
+    assert log.truth is None and log.estimate is None and log.n == 200
+    results = credcli.diagnose_log(log)
+    assert [(r.segment, r.diagnosis.label.value) for r in results] == [
+        ("cruise", "credible"),
+        ("turn", "optimism"),
+    ]

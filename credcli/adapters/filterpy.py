@@ -44,7 +44,7 @@ def log_from_saver(
     ``to_array()``) and the true states (N, dim_x), or (N, len(states)).
 
     ``prior``: diagnose the predictions (``x_prior``/``P_prior``) instead of the
-    posteriors. ``time`` and ``segment`` as for :func:`credcli.log_from_arrays`.
+    posteriors. ``time`` and ``segment`` as for [credcli.log_from_arrays][credcli.api.log_from_arrays].
     """
     names = ("x_prior", "P_prior") if prior else ("x", "P")
     saved = []

@@ -32,7 +32,11 @@ from credcli.cli.emit import (
     write_plots,
 )
 from credcli.cli.options import (
+    INPUT,
     LOG_FORMATS,
+    OUTPUT,
+    SEGMENTS,
+    STUDY,
     ConfigOpt,
     LogOptions,
     LogsArg,
@@ -62,8 +66,13 @@ app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
-    rich_markup_mode=None,
+    rich_markup_mode="markdown",  # help panels; Markdown keeps '[default: …]' as text
 )
+
+
+def examples(*lines: tuple[str, str]) -> str:
+    """A command's epilog: example command lines, each with what it does (Markdown)."""
+    return "**Examples**\n\n" + "\n".join(f"- `{command}` — {what}" for command, what in lines)
 
 
 def _show_version(value: bool) -> None:
@@ -86,7 +95,19 @@ def _root(
     """Can you trust the covariance your estimator reports, and if not, why not?"""
 
 
-@app.command()
+@app.command(
+    epilog=examples(
+        (
+            "credcli diagnose sample_data/estimator_log.csv",
+            "the bundled sample, one row per segment",
+        ),
+        ("credcli diagnose log.csv --window 10s -f json -o out.json", "10 s windows, as JSON"),
+        (
+            "credcli diagnose est.txt --truth gt.txt --states pose --fail-on optimism",
+            "exit 1 on optimism (CI)",
+        ),
+    )
+)
 @declare
 def diagnose(
     logs: LogsArg,
@@ -123,7 +144,18 @@ def diagnose(
     return 0 if passed else 1
 
 
-@app.command()
+@app.command(
+    epilog=examples(
+        (
+            "credcli baseline sample_data/estimator_log.csv -o baseline.json",
+            "record today's verdicts",
+        ),
+        (
+            "credcli baseline log.csv --window 5s --variant paper -o baseline.json",
+            "with other settings, kept in the file",
+        ),
+    )
+)
 @declare
 def baseline(
     log_file: Annotated[
@@ -157,7 +189,18 @@ def baseline(
     return 0
 
 
-@app.command()
+@app.command(
+    epilog=examples(
+        (
+            "credcli gate sample_data/estimator_log_regressed.csv --baseline baseline.json",
+            "exit 1 on a regression",
+        ),
+        (
+            "credcli gate new.csv -b baseline.json --junit report.xml --summary report.md",
+            "CI reports",
+        ),
+    )
+)
 @declare
 def gate(
     log: Annotated[
@@ -178,6 +221,7 @@ def gate(
             metavar="FILE",
             help="Baseline JSON from `credcli baseline`.",
             show_default=False,
+            rich_help_panel=INPUT,
         ),
     ],
     thresholds: ThresholdOptions = ThresholdOptions(),
@@ -192,6 +236,7 @@ def gate(
             parser=file_name,
             metavar="FILE",
             help="Ground truth of LOG; needed when the baseline had one (a baseline names no files).",
+            rich_help_panel=INPUT,
         ),
     ] = None,
     segments: SegmentOptions = SegmentOptions(),
@@ -219,7 +264,12 @@ def gate(
     return 0 if passed else 1
 
 
-@app.command()
+@app.command(
+    epilog=examples(
+        ("credcli simulate --scenario pess+smm --trials 200", "one scenario of Table II"),
+        ("credcli simulate --sweep rho=0.1:10:20 -f csv -o sweep.csv", "a sweep, as CSV"),
+    )
+)
 @declare
 def simulate(
     scenario: Annotated[
@@ -229,6 +279,7 @@ def simulate(
             "-s",
             help="all, a label (credible, optimism, …) or alias (cred, opt, pess, opt+smm, "
             "pess+smm); comma-separated for several.",
+            rich_help_panel=STUDY,
         ),
     ] = "all",
     study: StudyOptions = StudyOptions(),
@@ -238,16 +289,22 @@ def simulate(
             "--sweep",
             help="Sweep one parameter: rho=0.1:10:20, bias=0:3:13, n=25,50,100, dim=…, B=…, "
             "tau=…, ar=0,0.5,0.9",
+            rich_help_panel=STUDY,
         ),
     ] = None,
     curves: Annotated[
         bool,
         typer.Option(
-            "--curves", help="Print the Fig. 1 curves (mean ES and NLL against ρ and γ) instead."
+            "--curves",
+            help="Print the Fig. 1 curves (mean ES and NLL against ρ and γ) instead.",
+            rich_help_panel=STUDY,
         ),
     ] = False,
     curve_runs: Annotated[
-        int, typer.Option("--curve-runs", help="Monte Carlo runs per curve point.")
+        int,
+        typer.Option(
+            "--curve-runs", help="Monte Carlo runs per curve point.", rich_help_panel=STUDY
+        ),
     ] = CURVE_RUNS,
     run: RunOptions = RunOptions(),
     plots: PlotsOpt = None,
@@ -283,7 +340,15 @@ def simulate(
     return 0
 
 
-@app.command()
+@app.command(
+    epilog=examples(
+        ("credcli uwb sample_data/starloc_grid_uwb.csv", "static periods, self-calibrated anchors"),
+        (
+            "credcli uwb uwb.csv --anchors markers.csv --std 0.1 --window 5s",
+            "known anchors, 5 s windows",
+        ),
+    )
+)
 @declare
 def uwb(
     file: Annotated[
@@ -299,14 +364,21 @@ def uwb(
             parser=file_name,
             metavar="FILE",
             help="Anchor positions (STAR-loc markers CSV); default: self-calibrate from the file.",
+            rich_help_panel=INPUT,
         ),
     ] = None,
     window: Annotated[
         str | None,
-        typer.Option("--window", "-w", help="Fixed windows (5s) instead of static periods."),
+        typer.Option(
+            "--window",
+            "-w",
+            help="Fixed windows (5s) instead of static periods.",
+            rich_help_panel=SEGMENTS,
+        ),
     ] = None,
     whole: Annotated[
-        bool | None, typer.Option("--whole", help="The whole run as one period.")
+        bool | None,
+        typer.Option("--whole", help="The whole run as one period.", rich_help_panel=SEGMENTS),
     ] = None,
     settings: UwbOptions = UwbOptions(),
     export_log: Annotated[
@@ -316,6 +388,7 @@ def uwb(
             parser=output_name,
             metavar="FILE",
             help="Write the fixes as a diagnose log (CSV).",
+            rich_help_panel=OUTPUT,
         ),
     ] = None,
     plots: PlotsOpt = None,
@@ -348,7 +421,15 @@ def uwb(
     return 0
 
 
-@app.command()
+@app.command(
+    epilog=examples(
+        (
+            "credcli report sample_data/estimator_log.csv -o report.html",
+            "table, parameters and figures",
+        ),
+        ("credcli report run_*.csv --monte-carlo --window 30s -o runs.html", "Monte Carlo runs"),
+    )
+)
 @declare
 def report(
     logs: LogsArg,
@@ -361,6 +442,7 @@ def report(
             metavar="FILE",
             help="The HTML file to write.",
             show_default=False,
+            rich_help_panel=OUTPUT,
         ),
     ],
     config: ConfigOpt = None,

@@ -131,7 +131,9 @@ def _run(command, args: list[str], debug: bool) -> int:
     except _click_exception_types() as exc:
         ctx = getattr(exc, "ctx", None)
         if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
-            print(ctx.get_help())
+            help_text = exc.format_message()  # empty when Rich has printed the help panels
+            if help_text:
+                print(help_text)
             return 0
         hint = f" (see 'credcli {ctx.info_name} --help')" if ctx is not None and ctx.parent else ""
         print(f"credcli: error: {exc.format_message()}{hint}", file=sys.stderr)

@@ -36,6 +36,17 @@ FIELD_OPTIONS = {
 """Settings fields set by an option of another name (DiagnosisConfig.n_flips is --flips,
 LogSchema.time is --time-column); every other field is set by the option of its name."""
 
+# The panels of --help; each option names its panel where it is declared.
+INPUT = "Input"
+COLUMNS = "Columns"
+SEGMENTS = "Segments"
+RULE = "Rule"
+OUTPUT = "Output"
+CI = "CI"
+RUN = "Run"
+STUDY = "Study"
+UWB = "UWB"
+
 _D = DiagnosisConfig()
 _S = SimulationConfig()
 _U = UwbSettings()
@@ -71,11 +82,18 @@ def output_name(text: str) -> Path:
 ConfigOpt = Annotated[
     Path | None,
     typer.Option(
-        "--config", parser=file_name, metavar="FILE", help="TOML config file (see configs/)."
+        "--config",
+        parser=file_name,
+        metavar="FILE",
+        help="TOML config file (see configs/).",
+        rich_help_panel=INPUT,
     ),
 ]
 FormatOpt = Annotated[
-    OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
+    OutputFormat,
+    typer.Option(
+        "--format", "-f", help="Output format.", case_sensitive=False, rich_help_panel=OUTPUT
+    ),
 ]
 OutputOpt = Annotated[
     Path | None,
@@ -85,10 +103,14 @@ OutputOpt = Annotated[
         parser=output_name,
         metavar="FILE",
         help="Write the output to FILE (atomically).",
+        rich_help_panel=OUTPUT,
     ),
 ]
 SeedOpt = Annotated[
-    int | None, typer.Option("--seed", help=f"Seed of the ELT sign flips [default: {_S.seed}].")
+    int | None,
+    typer.Option(
+        "--seed", help=f"Seed of the ELT sign flips [default: {_S.seed}].", rich_help_panel=RULE
+    ),
 ]
 TauOpt = Annotated[
     float | None,
@@ -97,6 +119,7 @@ TauOpt = Annotated[
         help="calibrated (default): the smallest covariance misfit worth a label, "
         "|10 log10 κ̂| > τ dB; paper and ks: the NCI threshold of Algorithm 1 "
         f"[default: {_D.tau_nci}].",
+        rich_help_panel=RULE,
     ),
 ]
 AlphaOpt = Annotated[
@@ -106,13 +129,20 @@ AlphaOpt = Annotated[
         help="calibrated (default): the false-alarm level per segment, split by Šidák "
         "between the location and the scale test; paper and ks: the ELT's level "
         f"[default: {_D.alpha}].",
+        rich_help_panel=RULE,
     ),
 ]
 COpt = Annotated[
-    float | None, typer.Option("--probe-factor", "-c", help=f"Probe scale c > 1 [default: {_D.c}].")
+    float | None,
+    typer.Option(
+        "--probe-factor", "-c", help=f"Probe scale c > 1 [default: {_D.c}].", rich_help_panel=RULE
+    ),
 ]
 FlipsOpt = Annotated[
-    int | None, typer.Option("--flips", "-B", help=f"ELT sign flips B [default: {_D.n_flips}].")
+    int | None,
+    typer.Option(
+        "--flips", "-B", help=f"ELT sign flips B [default: {_D.n_flips}].", rich_help_panel=RULE
+    ),
 ]
 BlockOpt = Annotated[
     str | None,
@@ -120,6 +150,7 @@ BlockOpt = Annotated[
         "--block-length",
         help="Epochs per ELT sign block, or auto (estimated from the serial dependence in the "
         f"calibrated variant; 1 in paper and ks) [default: {_D.block_length}].",
+        rich_help_panel=RULE,
     ),
 ]
 VariantOpt = Annotated[
@@ -128,6 +159,7 @@ VariantOpt = Annotated[
         "--variant",
         help="Decision rule: calibrated (level-α tests, dependence-aware), ks (the authors' "
         f"code) or paper (Algorithm 1 as printed) [default: {_D.variant.value}].",
+        rich_help_panel=RULE,
     ),
 ]
 SrdOpt = Annotated[
@@ -135,6 +167,7 @@ SrdOpt = Annotated[
     typer.Option(
         "--srd-form",
         help=f"SRD of Eq. (19): printed or absolute [default: {_D.srd_form.value}].",
+        rich_help_panel=RULE,
     ),
 ]
 MetricsOpt = Annotated[
@@ -143,6 +176,7 @@ MetricsOpt = Annotated[
         "--metrics",
         help="needed: probes only where Algorithm 1 uses them; all: always "
         f"[default: {_D.metrics.value}].",
+        rich_help_panel=RULE,
     ),
 ]
 SchedulerOpt = Annotated[
@@ -152,6 +186,7 @@ SchedulerOpt = Annotated[
         help="Run on a Dask cluster: its scheduler's address (tcp://host:8786 on this "
         "machine, tls://host:8786 elsewhere), or local:N for N local workers (needs "
         "credcli[dask]; docs/scale.md). Default: $CREDCLI_SCHEDULER, announced on stderr.",
+        rich_help_panel=RUN,
     ),
 ]
 JobsOpt = Annotated[
@@ -161,6 +196,7 @@ JobsOpt = Annotated[
         "-j",
         help="Worker processes (same output for any value; a log is shared among them from "
         "50,000 epochs on) [default: the number of cores].",
+        rich_help_panel=RUN,
     ),
 ]
 ExactOpt = Annotated[
@@ -169,12 +205,15 @@ ExactOpt = Annotated[
         "--exact-pvalue",
         help="Evaluate all B sign flips (default: stop once the ELT cannot reject; the label "
         "is the same, the p-value then sequential).",
+        rich_help_panel=RULE,
     ),
 ]
 KsAlphaOpt = Annotated[
     float | None,
     typer.Option(
-        "--ks-alpha", help=f"Level of the KS check of the ks variant [default: {_D.ks_alpha}]."
+        "--ks-alpha",
+        help=f"Level of the KS check of the ks variant [default: {_D.ks_alpha}].",
+        rich_help_panel=RULE,
     ),
 ]
 NeesAlphaOpt = Annotated[
@@ -182,16 +221,23 @@ NeesAlphaOpt = Annotated[
     typer.Option(
         "--nees-alpha",
         help=f"Level of the NEES baseline's χ² test [default: {_D.nees_alpha}].",
+        rich_help_panel=RULE,
     ),
 ]
 MinEpochsOpt = Annotated[
     int | None,
-    typer.Option("--min-epochs", help=f"Smallest segment diagnosed [default: {_D.min_epochs}]."),
+    typer.Option(
+        "--min-epochs",
+        help=f"Smallest segment diagnosed [default: {_D.min_epochs}].",
+        rich_help_panel=RULE,
+    ),
 ]
 MaxEltOpt = Annotated[
     int | None,
     typer.Option(
-        "--max-elt-epochs", help=f"ELT memory budget in epochs [default: {_D.max_elt_epochs}]."
+        "--max-elt-epochs",
+        help=f"ELT memory budget in epochs [default: {_D.max_elt_epochs}].",
+        rich_help_panel=RULE,
     ),
 ]
 
@@ -204,6 +250,7 @@ FailOnOpt = Annotated[
         "(optimism, pessimism, smm: every label containing it), a combined label "
         "(optimism+smm: that label only), insufficient-data, untested (a partial verdict), "
         "or noncredible (all but a complete credible).",
+        rich_help_panel=CI,
     ),
 ]
 MonteCarloOpt = Annotated[
@@ -212,6 +259,7 @@ MonteCarloOpt = Annotated[
         "--monte-carlo",
         help="The logs are independent runs of one scenario: pool them, and test the "
         "per-epoch ANEES.",
+        rich_help_panel=SEGMENTS,
     ),
 ]
 LogsArg = Annotated[
@@ -226,35 +274,59 @@ LogsArg = Annotated[
 WindowOpt = Annotated[
     str | None,
     typer.Option(
-        "--window", "-w", help="Split into windows: a duration (5s, 250ms) or an epoch count (200)."
+        "--window",
+        "-w",
+        help="Split into windows: a duration (5s, 250ms) or an epoch count (200).",
+        rich_help_panel=SEGMENTS,
     ),
 ]
-WholeOpt = Annotated[bool | None, typer.Option("--whole", help="Diagnose each log as one segment.")]
+WholeOpt = Annotated[
+    bool | None,
+    typer.Option("--whole", help="Diagnose each log as one segment.", rich_help_panel=SEGMENTS),
+]
 TimeColOpt = Annotated[
-    str | None, typer.Option("--time-column", help=f"Time column [default: {_L.time}].")
+    str | None,
+    typer.Option(
+        "--time-column", help=f"Time column [default: {_L.time}].", rich_help_panel=COLUMNS
+    ),
 ]
 SegColOpt = Annotated[
     str | None,
-    typer.Option("--segment-column", help=f"Segment column [default: {_L.segment}]."),
+    typer.Option(
+        "--segment-column", help=f"Segment column [default: {_L.segment}].", rich_help_panel=COLUMNS
+    ),
 ]
 TruthColsOpt = Annotated[
-    str | None, typer.Option("--truth-columns", help="Truth columns, comma-separated.")
+    str | None,
+    typer.Option(
+        "--truth-columns", help="Truth columns, comma-separated.", rich_help_panel=COLUMNS
+    ),
 ]
 EstColsOpt = Annotated[
-    str | None, typer.Option("--estimate-columns", help="Estimate columns, comma-separated.")
+    str | None,
+    typer.Option(
+        "--estimate-columns", help="Estimate columns, comma-separated.", rich_help_panel=COLUMNS
+    ),
 ]
 CovColsOpt = Annotated[
     str | None,
     typer.Option(
         "--cov-columns",
         help="Covariance columns, comma-separated: d² (full), d(d+1)/2 (upper) or d.",
+        rich_help_panel=COLUMNS,
     ),
 ]
 CovKindOpt = Annotated[
-    CovKind | None, typer.Option("--cov-kind", help="How --cov-columns store the covariance.")
+    CovKind | None,
+    typer.Option(
+        "--cov-kind", help="How --cov-columns store the covariance.", rich_help_panel=COLUMNS
+    ),
 ]
 DropOpt = Annotated[
-    bool | None, typer.Option("--drop-invalid", help="Drop rows with NaN/Inf instead of failing.")
+    bool | None,
+    typer.Option(
+        "--drop-invalid", help="Drop rows with NaN/Inf instead of failing.", rich_help_panel=INPUT
+    ),
 ]
 TruthOpt = Annotated[
     Path | None,
@@ -263,48 +335,71 @@ TruthOpt = Annotated[
         parser=file_name,
         metavar="FILE",
         help="Ground truth in a separate file (or bag), paired by time.",
+        rich_help_panel=INPUT,
     ),
 ]
 InputFormatOpt = Annotated[
     InputFormat | None,
-    typer.Option("--input-format", help="Format of the logs [default: auto, from the file]."),
+    typer.Option(
+        "--input-format",
+        help="Format of the logs [default: auto, from the file].",
+        rich_help_panel=INPUT,
+    ),
 ]
 TruthFormatOpt = Annotated[
     InputFormat | None,
-    typer.Option("--truth-format", help="Format of --truth [default: auto, from the file]."),
+    typer.Option(
+        "--truth-format",
+        help="Format of --truth [default: auto, from the file].",
+        rich_help_panel=INPUT,
+    ),
 ]
 TopicOpt = Annotated[
     str | None,
     typer.Option(
-        "--topic", help="Bag topic of the estimate (Odometry or PoseWithCovarianceStamped)."
+        "--topic",
+        help="Bag topic of the estimate (Odometry or PoseWithCovarianceStamped).",
+        rich_help_panel=INPUT,
     ),
 ]
 TruthTopicOpt = Annotated[
     str | None,
     typer.Option(
-        "--truth-topic", help="Bag topic of the truth (PoseStamped, Odometry, TransformStamped)."
+        "--truth-topic",
+        help="Bag topic of the truth (PoseStamped, Odometry, TransformStamped).",
+        rich_help_panel=INPUT,
     ),
 ]
 TimeUnitOpt = Annotated[
     TimeUnit | None,
-    typer.Option("--time-unit", help="Unit of the stamps [default: auto, said in a note]."),
+    typer.Option(
+        "--time-unit",
+        help="Unit of the stamps [default: auto, said in a note].",
+        rich_help_panel=INPUT,
+    ),
 ]
 MaxDtOpt = Annotated[
     float | None,
     typer.Option(
         "--max-dt",
         help="Interpolate truth only across gaps up to this (s) [default: 2.5 × its median period].",
+        rich_help_panel=INPUT,
     ),
 ]
 TimeOffsetOpt = Annotated[
     float | None,
-    typer.Option("--time-offset", help="Seconds added to the estimate stamps [default: 0]."),
+    typer.Option(
+        "--time-offset",
+        help="Seconds added to the estimate stamps [default: 0].",
+        rich_help_panel=INPUT,
+    ),
 ]
 StatesOpt = Annotated[
     States | None,
     typer.Option(
         "--states",
         help="Errors of pose logs: position, orientation, pose or planar [default: position].",
+        rich_help_panel=INPUT,
     ),
 ]
 PerturbationOpt = Annotated[
@@ -312,6 +407,7 @@ PerturbationOpt = Annotated[
     typer.Option(
         "--perturbation",
         help="Orientation error convention (docs/formats.md: Conventions) [default: left].",
+        rich_help_panel=INPUT,
     ),
 ]
 ErrorsOnlyOpt = Annotated[
@@ -320,12 +416,15 @@ ErrorsOnlyOpt = Annotated[
         "--errors-only",
         help="The logs hold errors e_k (err_i, or the columns --truth-columns names) and "
         "their covariance, no truth or estimate (found by itself for err_i columns).",
+        rich_help_panel=INPUT,
     ),
 ]
 InnovationsOpt = Annotated[
     bool | None,
     typer.Option(
-        "--innovations", help="The logs hold innovations innov_i and innov_cov_i_j: NIS, no truth."
+        "--innovations",
+        help="The logs hold innovations innov_i and innov_cov_i_j: NIS, no truth.",
+        rich_help_panel=INPUT,
     ),
 ]
 JunitOpt = Annotated[
@@ -335,6 +434,7 @@ JunitOpt = Annotated[
         parser=output_name,
         metavar="FILE",
         help="Write a JUnit XML report (one case per segment).",
+        rich_help_panel=CI,
     ),
 ]
 PlotsOpt = Annotated[
@@ -344,6 +444,7 @@ PlotsOpt = Annotated[
         parser=file_name,
         metavar="DIR",
         help="Write PNG figures into this directory (needs credcli[plots]).",
+        rich_help_panel=OUTPUT,
     ),
 ]
 SummaryOpt = Annotated[
@@ -353,6 +454,7 @@ SummaryOpt = Annotated[
         parser=output_name,
         metavar="FILE",
         help="Write a Markdown summary (also appended to $GITHUB_STEP_SUMMARY when set).",
+        rich_help_panel=CI,
     ),
 ]
 
@@ -364,6 +466,7 @@ ReportOpt = Annotated[
         parser=output_name,
         metavar="FILE",
         help="Also write a self-contained HTML report.",
+        rich_help_panel=OUTPUT,
     ),
 ]
 
@@ -468,6 +571,7 @@ class ThresholdOptions:
             help="Fail when |NCI| grows by more than this (dB) "
             + _default(_T.max_nci_increase)
             + ".",
+            rich_help_panel=CI,
         ),
     ] = None
     max_anees_ratio: Annotated[
@@ -477,12 +581,15 @@ class ThresholdOptions:
             help="Fail when ANEES moves further from 1 by more than this factor "
             + _default(_T.max_anees_ratio)
             + ".",
+            rich_help_panel=CI,
         ),
     ] = None
     allow_new_segments: Annotated[
         bool | None,
         typer.Option(
-            "--allow-new-segments", help="New or missing segments are reported, not failures."
+            "--allow-new-segments",
+            help="New or missing segments are reported, not failures.",
+            rich_help_panel=CI,
         ),
     ] = None
 
@@ -492,17 +599,25 @@ class StudyOptions:
     """The Monte Carlo study's design: [simulate] of a config file."""
 
     trials: Annotated[
-        int | None, typer.Option("--trials", help=f"Trials per scenario {_default(_S.trials)}.")
+        int | None,
+        typer.Option(
+            "--trials", help=f"Trials per scenario {_default(_S.trials)}.", rich_help_panel=STUDY
+        ),
     ] = None
-    n: Annotated[int | None, typer.Option("--n", help=f"Epochs per trial {_default(_S.n)}.")] = None
+    n: Annotated[
+        int | None,
+        typer.Option("--n", help=f"Epochs per trial {_default(_S.n)}.", rich_help_panel=STUDY),
+    ] = None
     dim: Annotated[
-        int | None, typer.Option("--dim", help=f"State dimension d {_default(_S.dim)}.")
+        int | None,
+        typer.Option("--dim", help=f"State dimension d {_default(_S.dim)}.", rich_help_panel=STUDY),
     ] = None
     rho_optimism: Annotated[
         str | None,
         typer.Option(
             "--rho-optimism",
             help=f"ρ range of optimism, lo:hi {_default(range_text(_S.rho_optimism))}.",
+            rich_help_panel=STUDY,
         ),
     ] = None
     rho_pessimism: Annotated[
@@ -510,17 +625,23 @@ class StudyOptions:
         typer.Option(
             "--rho-pessimism",
             help=f"ρ range of pessimism, lo:hi {_default(range_text(_S.rho_pessimism))}.",
+            rich_help_panel=STUDY,
         ),
     ] = None
     bias: Annotated[
         str | None,
-        typer.Option("--bias", help=f"‖μ‖ range of SMM, lo:hi {_default(range_text(_S.bias))}."),
+        typer.Option(
+            "--bias",
+            help=f"‖μ‖ range of SMM, lo:hi {_default(range_text(_S.bias))}.",
+            rich_help_panel=STUDY,
+        ),
     ] = None
     eigenvalues: Annotated[
         str | None,
         typer.Option(
             "--eigenvalues",
             help=f"Range of the eigenvalues of Σ_true {_default(range_text(_S.eigenvalues))}.",
+            rich_help_panel=STUDY,
         ),
     ] = None
     ar: Annotated[
@@ -529,6 +650,7 @@ class StudyOptions:
             "--ar",
             help="AR(1) coefficient φ of the whitened errors in time (marginal covariance "
             f"unchanged) {_default(f'{_S.ar:g}')}.",
+            rich_help_panel=STUDY,
         ),
     ] = None
     noise: Annotated[
@@ -536,6 +658,7 @@ class StudyOptions:
         typer.Option(
             "--noise",
             help=f"Error distribution: gaussian or student-t:NU {_default(_S.noise)}.",
+            rich_help_panel=STUDY,
         ),
     ] = None
 
@@ -549,6 +672,7 @@ class UwbOptions:
         typer.Option(
             "--range-column",
             help=f"range_calib (calibrated) or range (raw) {_default(_U.range_column)}.",
+            rich_help_panel=UWB,
         ),
     ] = None
     std: Annotated[
@@ -558,6 +682,7 @@ class UwbOptions:
             help="Range std in m: one value (files without a std column, s5), per anchor "
             "(4=0.1,9=0.12, over the column), or 'estimate' (from the data; the verdict is then "
             "about the estimated model).",
+            rich_help_panel=UWB,
         ),
     ] = None
     screen: Annotated[
@@ -566,6 +691,7 @@ class UwbOptions:
             "--screen",
             help="Drop stale packets and packets failing the residual test (all), or nothing "
             f"(none) {_default(ScreenMode.ALL if _U.screen else ScreenMode.NONE)}.",
+            rich_help_panel=UWB,
         ),
     ] = None
     residual_level: Annotated[
@@ -573,6 +699,7 @@ class UwbOptions:
         typer.Option(
             "--residual-level",
             help=f"Level of the per-packet residual test {_default(_U.residual_level)}.",
+            rich_help_panel=UWB,
         ),
     ] = None
     robust: Annotated[
@@ -581,24 +708,31 @@ class UwbOptions:
             "--robust",
             help="Position solve: none (WLS) or huber (downweights outliers) "
             f"{_default(_U.robust)}.",
+            rich_help_panel=UWB,
         ),
     ] = None
     anchor_map: Annotated[
         str | None,
         typer.Option(
-            "--anchor-map", help="Map the log's anchor ids to the markers' ids: LOG_ID=MARKER_ID,…"
+            "--anchor-map",
+            help="Map the log's anchor ids to the markers' ids: LOG_ID=MARKER_ID,…",
+            rich_help_panel=UWB,
         ),
     ] = None
     max_speed: Annotated[
         float | None,
         typer.Option(
-            "--max-speed", help=f"Static: speed below this (m/s) {_default(_U.max_speed)}."
+            "--max-speed",
+            help=f"Static: speed below this (m/s) {_default(_U.max_speed)}.",
+            rich_help_panel=UWB,
         ),
     ] = None
     min_static: Annotated[
         float | None,
         typer.Option(
-            "--min-static", help=f"Static: for at least this long (s) {_default(_U.min_static)}."
+            "--min-static",
+            help=f"Static: for at least this long (s) {_default(_U.min_static)}.",
+            rich_help_panel=UWB,
         ),
     ] = None
     packet_window: Annotated[
@@ -606,11 +740,16 @@ class UwbOptions:
         typer.Option(
             "--packet-window",
             help=f"Packet: distinct anchors within this (s) {_default(_U.packet_window)}.",
+            rich_help_panel=UWB,
         ),
     ] = None
     min_anchors: Annotated[
         int | None,
-        typer.Option("--min-anchors", help=f"Anchors per 2-D fix {_default(_U.min_anchors)}."),
+        typer.Option(
+            "--min-anchors",
+            help=f"Anchors per 2-D fix {_default(_U.min_anchors)}.",
+            rich_help_panel=UWB,
+        ),
     ] = None
 
 

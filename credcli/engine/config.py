@@ -45,7 +45,7 @@ class Label(str, enum.Enum):
     symmetry while the mean test, run on the same segment, finds no mean (skewed errors,
     outliers on one side: non-line-of-sight ranges); ``smm``, the ELT rejects and no mean
     test could run, so the two cannot be told apart. The ``paper`` and ``ks`` variants
-    (Algorithm 1) say ``smm`` for any ELT rejection. :attr:`paper` maps every label to the
+    (Algorithm 1) say ``smm`` for any ELT rejection. [paper][credcli.engine.config.Label.paper] maps every label to the
     paper's six.
     """
 
@@ -72,7 +72,7 @@ class Label(str, enum.Enum):
     @classmethod
     def compose(cls, noise: str | None, location: str | bool | None) -> Label:
         """The label of a noise condition ("optimism", "pessimism" or None) and a location
-        condition (one of :data:`LOCATION_CONDITIONS`, or True for "smm")."""
+        condition (one of ``LOCATION_CONDITIONS``, or True for "smm")."""
         if location is True:
             location = SMM_CONDITION
         parts = (noise, location or None)
@@ -81,7 +81,7 @@ class Label(str, enum.Enum):
     @property
     def conditions(self) -> frozenset[str]:
         """The non-credibility conditions in the label: a noise condition and/or one of
-        :data:`LOCATION_CONDITIONS`."""
+        ``LOCATION_CONDITIONS``."""
         if self in (Label.CREDIBLE, Label.INSUFFICIENT):
             return frozenset()
         return frozenset(self.value.split("+"))
@@ -345,7 +345,7 @@ class DiagnosisConfig:
     def min_blocks(self) -> int:
         """Fewest sign blocks the ELT needs: 6 in ``paper``/``ks``; in the calibrated
         variant the fewest m whose smallest exact p-value, 2^{1−m}, is at most half the
-        ELT's level (its share of α_L, :attr:`elt_level`)."""
+        ELT's level (its share of α_L, [elt_level][credcli.engine.diagnosis.DiagnosisConfig.elt_level])."""
         if not self.calibrated:
             return 6
         return max(6, math.ceil(math.log2(4.0 / self.elt_level) - 1e-12))

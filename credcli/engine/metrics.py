@@ -148,7 +148,7 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
     ----------
     mse : array, optional
         The MSE matrix, shape ``(d, d)`` (one for the segment) or ``(N, d, d)``. Estimated
-        from the errors (:func:`mse_matrix`) when not given.
+        from the errors (``mse_matrix``) when not given.
     """
     errors, cov = check_errors_cov(errors, cov)
     mse = mse_matrix(errors) if mse is None else np.asarray(mse, dtype=float)
@@ -246,7 +246,7 @@ def energy_score(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
         \mathrm{ES}_k = \mathbb E\|Y-x_k\| - \tfrac12\mathbb E\|Y-Y'\|,
         \quad Y - x_k \sim \mathcal N(-e_k, s\hat\Sigma_k),\ Y-Y' \sim \mathcal N(0, 2s\hat\Sigma_k)
 
-    Both expectations are exact Gaussian norm moments (:func:`expected_norm`), so the
+    Both expectations are exact Gaussian norm moments (``expected_norm``), so the
     score carries no Monte Carlo noise. ``scale`` is ``s``.
     """
     errors, cov = check_errors_cov(errors, cov)
@@ -275,7 +275,7 @@ class Accuracy:
 
 
 def accuracy(errors: np.ndarray) -> Accuracy:
-    """The :class:`Accuracy` of errors (N, d), N ≥ 1.
+    """The ``Accuracy`` of errors (N, d), N ≥ 1.
 
     >>> a = accuracy(np.array([[3.0, 4.0], [0.0, 0.0]]))
     >>> a.rmse_norm, a.max_norm, a.mean.tolist()

@@ -129,8 +129,8 @@ def log_from_arrays(
     """An estimator log from arrays: ``truth`` and ``estimate`` (N, d), or ``errors``
     (N, d) alone, with claimed covariances ``cov``: (N, d, d), one (d, d) for every epoch,
     or variances (N, d). ``run`` (N,) gives the Monte Carlo run of each epoch when the
-    arrays hold several runs one after the other (:func:`credcli.diagnose_monte_carlo`
-    pools them).
+    arrays hold several runs one after the other
+    ([credcli.diagnose_monte_carlo][credcli.api.diagnose_monte_carlo] pools them).
 
     ``errors`` is what a library's own error map gives (a Lie group's ⊖, a tracker's
     innovation): credcli uses it as it is. ``time`` (N,) is seconds, datetime64 or ISO-8601
@@ -278,7 +278,7 @@ def log_table(log: EstimatorLog):
 
 
 def write_log(log: EstimatorLog, path: str | Path) -> Path:
-    """Write ``log`` as its canonical table (:func:`log_table`): Parquet for a ``.parquet``
+    """Write ``log`` as its canonical table (``log_table``): Parquet for a ``.parquet``
     or ``.pq`` name, else CSV; atomically (no half-written file)."""
     path = Path(path)
     table = log_table(log)

@@ -35,8 +35,8 @@ class EstimatorLog:
     are the decisions taken while reading (unit, format, pairing, convention);
     ``unpaired`` counts the estimate epochs dropped for want of truth. ``blocks`` names
     parts of the state whose scale is reported on its own (position and orientation of a
-    pose, :data:`credcli.engine.lie.STATE_BLOCKS`). ``run`` holds the Monte Carlo run of
-    each epoch when the log pools several (:func:`credcli.io.arrays.split_runs`).
+    pose, ``credcli.engine.lie.STATE_BLOCKS``). ``run`` holds the Monte Carlo run of
+    each epoch when the log pools several (``credcli.io.arrays.split_runs``).
     """
 
     truth: np.ndarray | None

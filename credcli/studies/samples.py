@@ -90,6 +90,21 @@ def estimator_log(
     return pd.concat(frames, ignore_index=True)
 
 
+ERRORS_SEGMENTS = (GOOD_SEGMENTS[0], GOOD_SEGMENTS[1])
+"""The errors-only sample's segments: an honest covariance, then one 0.35 times too small."""
+
+
+def errors_log(segments=ERRORS_SEGMENTS, epochs_per_segment: int = 100, seed: int = 2):
+    """The errors-only layout (``--errors-only``): time, segment, the errors ``err_i``
+    (e = x - x̂) and the claimed covariance, as a filter library that knows its own errors
+    would write them; the draws of ``estimator_log``, without truth or estimate."""
+    log = estimator_log(segments, epochs_per_segment, seed=seed)
+    errors = log[["truth_0", "truth_1"]].to_numpy() - log[["est_0", "est_1"]].to_numpy()
+    frame = log[["time", "segment"]].copy()
+    frame["err_0"], frame["err_1"] = errors[:, 0], errors[:, 1]
+    return frame.join(log[["cov_0_0", "cov_0_1", "cov_1_1"]])
+
+
 def write_samples(outdir: Path) -> list[Path]:
     """Write every sample file into ``outdir``; return their paths."""
     outdir.mkdir(parents=True, exist_ok=True)
@@ -99,6 +114,8 @@ def write_samples(outdir: Path) -> list[Path]:
     log.to_parquet(written[1], index=False)
     written.append(outdir / "estimator_log_regressed.csv")
     estimator_log(REGRESSED_SEGMENTS).to_csv(written[-1], index=False)
+    written.append(outdir / "errors_only.csv")
+    errors_log().to_csv(written[-1], index=False)
     written.append(outdir / "starloc_grid_uwb.csv")
     starloc_log().to_csv(written[-1], index=False)
 

@@ -65,6 +65,19 @@ def test_names_reach_the_terminal_escaped_and_one_verdict_line(evil_log, capsys,
     assert "#x1B" in junit.read_text()
 
 
+def test_markdown_and_the_summary_escape_control_characters(evil_log, capsys, tmp_path):
+    """A held-out case: segment names' ESC and BEL reached the Markdown output and the
+    --summary file raw."""
+    assert main(["diagnose", str(evil_log), "-f", "markdown"]) == 0
+    assert _controls(capsys.readouterr().out) == set()
+    summary = tmp_path / "s.md"
+    assert (
+        main(["diagnose", str(evil_log), "--fail-on", "optimism", "--summary", str(summary)]) == 1
+    )
+    capsys.readouterr()
+    assert _controls(summary.read_text()) == set() and "\\x1b" in summary.read_text()
+
+
 def test_csv_is_rfc4180_and_never_a_formula(evil_log, capsys, tmp_path):
     (tmp_path / "a[").mkdir()
     path = tmp_path / "a[" / "]b.csv"  # brackets in a path are not Rich markup

@@ -23,10 +23,18 @@ from credcli.io.text import time_seconds
 from credcli.segments import Segment
 
 
+def _refuse_complex(name: str, value) -> None:
+    """Complex numbers are refused: casting would drop their imaginary parts with only a
+    warning."""
+    if np.iscomplexobj(value):
+        raise CredcliError(f"{name}: complex numbers; expected real numbers")
+
+
 def _matrix(name: str, value, n: int | None, d: int | None = None) -> np.ndarray:
     """An (N, d) float array from ``value`` ((N,) is d = 1), or an error naming ``name``;
     ``n`` and ``d``, where known, are what the other arguments say (a transposed array is
     named as such)."""
+    _refuse_complex(name, value)
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -59,6 +67,7 @@ def _matrix(name: str, value, n: int | None, d: int | None = None) -> np.ndarray
 
 
 def _cov_array(cov) -> np.ndarray:
+    _refuse_complex("cov", cov)
     try:
         return np.asarray(cov, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -310,7 +319,9 @@ def check_npz_sizes(path: Path) -> None:
     for (a zip bomb: 4 MB of zeros inflating to 15 GB)."""
     try:
         archive = zipfile.ZipFile(path)
-    except (OSError, zipfile.BadZipFile):
+    except zipfile.BadZipFile as exc:  # np.load would leave its file open on this
+        raise CredcliError(f"{path}: not a readable .npz file ({exc})") from None
+    except OSError:
         return  # np.load reports it
     with archive:
         budget = memory_budget()
@@ -345,7 +356,7 @@ def load_npz(path: Path) -> EstimatorLog:
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise CredcliError(f"{path}: not a readable .npz file ({first})") from None
     known = {alias: arg for arg, aliases in NPZ_NAMES.items() for alias in aliases}

@@ -451,8 +451,8 @@ _MARKDOWN_SPECIAL = re.compile(r"([\\`*_\[\]<>|#~])")
 def markdown_text(text: str) -> str:
     """Text as Markdown shows it literally, on one line: ``|`` would end a table cell,
     ``*``, ``_``, ``[``, ``<`` and the rest would start markup (a segment named
-    ``run_1_*``)."""
-    return _MARKDOWN_SPECIAL.sub(r"\\\1", " ".join(str(text).splitlines()))
+    ``run_1_*``); a control character is escaped (:func:`credcli.errors.printable`)."""
+    return _MARKDOWN_SPECIAL.sub(r"\\\1", printable(" ".join(str(text).splitlines())))
 
 
 def _markdown(report: Report) -> str:

@@ -107,7 +107,15 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
             raise CredcliError(
                 "the time column is not sorted; sort the log by time to use `window`"
             )
-        k = np.floor((time - time[0]) / window.length).astype(np.int64)
+        with np.errstate(over="ignore", invalid="ignore"):
+            index = np.floor((time - time[0]) / window.length)
+        if not np.isfinite(index[-1]) or index[-1] >= MAX_WINDOW:
+            raise CredcliError(
+                f"`window` {window} cuts the time column's span ({time[-1] - time[0]:.3g} s) into "
+                f"more than {MAX_WINDOW:.0e} windows; check the time column's unit "
+                "(`time_unit`) or give a longer window"
+            )
+        k = index.astype(np.int64)
     else:
         k = np.arange(n) // int(window.length)
     bounds = np.flatnonzero(np.diff(k)) + 1

@@ -521,3 +521,51 @@ def test_a_log_is_read_without_mapping_it(tmp_path, monkeypatch):
     monkeypatch.setattr(mmap, "mmap", Refused)
     frame = read_table(path)
     assert frame.shape == (180_000, 4) and np.allclose(frame.to_numpy(), rows)
+
+
+def test_held_out_style_cases_are_usage_errors(tmp_path, capsys, monkeypatch):
+    """Cases of a 312-case adversarial corpus that were exit 0 (or unsafe): a column named
+    twice, two covariance layouts at once, --jobs past any machine, a window that cuts the
+    time span into more windows than int64 counts."""
+    from conftest import ROOT
+
+    monkeypatch.chdir(ROOT)
+    log = ROOT / SAMPLE_LOG
+    both = tmp_path / "both.csv"
+    lines = log.read_text().splitlines()
+    both.write_text("\n".join([lines[0] + ",var_0,var_1", *(x + ",100,100" for x in lines[1:])]))
+    huge = tmp_path / "huge.csv"
+    rows = [f"{1e300 * (1 + k / 1000)!r},0,0,{k % 3 - 1},{k % 5 - 2},1,1" for k in range(50)]
+    huge.write_text("\n".join(["time,truth_0,truth_1,est_0,est_1,var_0,var_1", *rows]) + "\n")
+    cases = (
+        (
+            ["--truth-columns", "truth_0,truth_0", "--estimate-columns", "est_0,est_1"],
+            log,
+            "--truth-columns names column 'truth_0' twice",
+        ),
+        ([], both, "both cov_i_j and var_0, var_1 columns"),
+        (["--jobs", "99999999999999999999999"], log, "at most 1,024"),
+        (["--window", "5s"], huge, "more than 1e+12 windows"),
+    )
+    for args, path, message in cases:
+        assert main(["diagnose", str(path), *args]) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1, err
+
+
+def test_a_library_warning_and_an_html_cell_never_carry_a_raw_control_character(capsys):
+    """matplotlib's "Glyph 27 (\\x1b) missing" warning quoted a segment name's ESC on
+    stderr; the HTML report's cells held it raw."""
+    import warnings
+
+    from credcli.cli.edge import note_warnings
+    from credcli.report.html import records_table
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warnings.warn("Glyph 27 (\x1b) missing from font(s)", UserWarning, stacklevel=1)
+    note_warnings(caught, debug=False)
+    err = capsys.readouterr().err
+    assert _controls(err) == set() and "\\x1b" in err
+    html = records_table([{"segment": "a\x1b]0;t\x07", "n": 1, "dim": 1, "label": "credible"}])
+    assert _controls(html) == set() and "\\x1b" in html

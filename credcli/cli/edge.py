@@ -117,8 +117,8 @@ def note_warnings(caught, debug: bool) -> None:
             "claimed covariances, so read the affected figures with care",
             file=sys.stderr,
         )
-    for text in seen:
-        print(f"credcli: note: {text}", file=sys.stderr)
+    for text in seen:  # a library's warning may quote the data (matplotlib: a name's glyph)
+        print(f"credcli: note: {printable(text)}", file=sys.stderr)
 
 
 def _run(command, args: list[str], debug: bool) -> int:
@@ -240,7 +240,9 @@ def one_line(message: str) -> str:
     return f"{text[: MAX_LINE - 160]} … {text[-120:]} ({len(text):,} characters)"
 
 
-MAX_LINE = 600
+MAX_LINE = 560
+"""Longest message of an error line, so that with its `credcli: error: ` prefix the line
+stays under 600 characters."""
 
 
 def _traceback(debug: bool) -> None:

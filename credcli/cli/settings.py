@@ -193,7 +193,16 @@ def jobs_value(jobs: int | None) -> int:
         return default_jobs()
     if jobs < 1:
         raise CredcliError(f"--jobs must be >= 1; got {jobs}")
+    if jobs > MAX_JOBS:
+        raise CredcliError(
+            f"--jobs {jobs} is more processes than credcli starts (at most {MAX_JOBS:,}; this "
+            f"machine has {default_jobs()} cores)"
+        )
     return jobs
+
+
+MAX_JOBS = 1024
+"""Most worker processes --jobs may ask for: each is a process, forked at once."""
 
 
 def rule_values(rule: RuleOptions) -> dict:

@@ -461,6 +461,16 @@ def cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind
                 f"{source}: column {pairs[bad[0]]} refers to index {max(i, j)} but the "
                 f"truth/estimate have d = {d}: dimensions do not match"
             )
+        others = [
+            c
+            for prefix in (schema.var_prefix, schema.std_prefix)
+            for c in _indexed(columns, prefix).values()
+        ]
+        if others:
+            raise CredcliError(
+                f"{source}: both {schema.cov_prefix}i_j and {', '.join(map(str, others[:4]))} "
+                "columns: which is the covariance? Name its columns with `cov_columns`"
+            )
         full = [(i, j) for i in range(d) for j in range(d)]
         upper = [(i, j) for i in range(d) for j in range(i, d)]
         if all(p in pairs for p in full):

@@ -46,6 +46,12 @@ class LogSchema:
         for key in ("truth_columns", "estimate_columns", "cov_columns"):
             if key in changes:
                 changes[key] = tuple(changes[key])
+                twice = sorted({c for c in changes[key] if changes[key].count(c) > 1})
+                if twice:
+                    raise CredcliError(
+                        f"`{key}` names column '{twice[0]}' twice; each column is one component",
+                        key,
+                    )
         if "cov_kind" in changes:
             changes["cov_kind"] = CovKind(changes["cov_kind"])
         return replace(self, **changes)

@@ -11,6 +11,7 @@ import html
 import json
 
 from credcli.engine.config import Label
+from credcli.errors import printable
 from credcli.report.render import SEGMENT_COLUMNS, Report, Table, advice, format_cell
 
 _STYLE = """
@@ -50,7 +51,8 @@ def _table_html(table) -> str:
         cells = []
         for c in table.columns:
             value = row.get(c.key)
-            text = html.escape(format_cell(c.value(row), c.digits))  # as the terminal shows it
+            # as the terminal shows it: control characters from the data escaped
+            text = html.escape(printable(format_cell(c.value(row), c.digits)))
             cls, style = "text" if not c.digits else "num", ""
             if c.key in ("label", "nees_label", "nci_label") and isinstance(value, str):
                 cls += " credible" if value == Label.CREDIBLE.value else " bad"

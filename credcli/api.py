@@ -158,7 +158,9 @@ def read_log(
     ``reading`` takes the fields of ``credcli.io.schema.ReadOptions`` (the command
     line's reading options): ``truth``, ``input_format``, ``truth_format``, ``topic``,
     ``truth_topic``, ``time_unit``, ``max_dt``, ``time_offset``, ``states``,
-    ``perturbation``, ``innovations``. The decisions taken are in the log's ``notes``.
+    ``perturbation``, ``align``, ``innovations``, ``errors_only``. The decisions taken
+    are in the log's ``notes``. ``align`` (``"origin"``, ``"se3"``, ``"sim3"``) moves an
+    estimate kept in its own world frame onto the truth's first, with its covariance.
 
     >>> log = read_log("sample_data/formats/odom_ros.csv", perturbation="right",
     ...                truth="sample_data/formats/euroc_groundtruth.csv")

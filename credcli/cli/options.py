@@ -22,7 +22,15 @@ import typer
 
 from credcli.ci.thresholds import Thresholds
 from credcli.engine.config import DiagnosisConfig, MetricsLevel, SrdForm, Variant
-from credcli.io.schema import CovKind, InputFormat, LogSchema, Perturbation, States, TimeUnit
+from credcli.io.schema import (
+    Alignment,
+    CovKind,
+    InputFormat,
+    LogSchema,
+    Perturbation,
+    States,
+    TimeUnit,
+)
 from credcli.report.formats import OutputFormat
 from credcli.studies.settings import RobustLoss, SimulationConfig, UwbSettings
 
@@ -410,6 +418,16 @@ PerturbationOpt = Annotated[
         rich_help_panel=INPUT,
     ),
 ]
+AlignOpt = Annotated[
+    Alignment | None,
+    typer.Option(
+        "--align",
+        help="Move an estimate in its own world frame (VIO, SLAM) onto the truth's: origin "
+        "(first pose), se3 or sim3 (Umeyama fit; fitting removes error, docs/formats.md: "
+        "Aligning frames) [default: none].",
+        rich_help_panel=INPUT,
+    ),
+]
 ErrorsOnlyOpt = Annotated[
     bool | None,
     typer.Option(
@@ -508,6 +526,7 @@ class LogOptions:
     time_offset: TimeOffsetOpt = None
     states: StatesOpt = None
     perturbation: PerturbationOpt = None
+    align: AlignOpt = None
     innovations: InnovationsOpt = None
     errors_only: ErrorsOnlyOpt = None
 

@@ -14,9 +14,11 @@ from pathlib import Path
 import numpy as np
 
 from credcli.engine import lie
+from credcli.engine.align import Alignment
 from credcli.engine.config import Perturbation, States
 from credcli.engine.scale import gls_residuals
 from credcli.errors import CredcliError
+from credcli.io.aligning import align_log, align_trajectory
 from credcli.io.arrays import load_npz
 from credcli.io.formats import read_bag_pair, read_trajectory, sniff_format
 from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log, validated_cov
@@ -68,7 +70,7 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
         _only_credcli(path, reading.input_format, "`innovations`")
         return load_log(path, schema, drop_invalid, reading.time_unit, innovations=True)
     if not reading.paired and Path(path).suffix.lower() == ".npz":
-        return load_npz(Path(path))
+        return align_log(load_npz(Path(path)), reading.align)
     if reading.errors_only:
         if reading.paired:
             raise CredcliError("`errors_only` needs no ground truth: drop `truth`/`truth_topic`")
@@ -90,12 +92,19 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
                 f"{path}: `states` {reading.states.value} needs orientations, which a credcli "
                 "log does not have; read a pose log (tum, euroc, ros-csv, rosbag) with `truth`"
             )
-        return load_log(path, schema, drop_invalid, reading.time_unit)
+        return align_log(load_log(path, schema, drop_invalid, reading.time_unit), reading.align)
     return paired_log(path, schema, reading)
 
 
 def _check_options(reading: ReadOptions) -> None:
     """Options that would be silently ignored are errors."""
+    if reading.align is not Alignment.NONE and (reading.innovations or reading.errors_only):
+        kind = "an innovations" if reading.innovations else "an errors-only"
+        raise CredcliError(
+            f"`align` {reading.align.value} moves an estimate onto its truth; {kind} log has "
+            "neither (its errors are given): drop `align`",
+            "align",
+        )
     if not reading.paired:
         unused = [
             flag
@@ -148,6 +157,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
         both[1] if both else read("truth", truth_path, reading.truth_format, reading.truth_topic)
     )
     pairing = pair(estimate, truth, reading.max_dt, reading.time_offset)
+    estimate, align_notes = align_trajectory(estimate, truth, pairing, reading)
     keep = pairing.keep
     rows = estimate.rows[keep]
     states, errors, cov, convention = _state_errors(estimate, truth, pairing, reading)
@@ -161,7 +171,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
             f"{exc.message} (the {states.value} block of the 6×6 pose covariance; a planar "
             "robot that leaves z, roll and pitch at 0 needs `states` planar)"
         ) from exc
-    notes = (*estimate.notes, *truth.notes, pairing.note, convention, *cov_notes)
+    notes = (*estimate.notes, *truth.notes, pairing.note, *align_notes, convention, *cov_notes)
     return EstimatorLog(
         None,
         None,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, replace
 
+from credcli.engine.align import Alignment
 from credcli.engine.config import Perturbation, States
 from credcli.errors import CredcliError
 
@@ -88,7 +89,9 @@ class ReadOptions:
 
     ``max_dt`` None: 2.5 × the median truth period. ``time_offset`` (s) is added to the
     estimate stamps. ``states`` None: ``position`` for pose data, the vector itself for a
-    credcli log.
+    credcli log. ``align``: how the estimate's world frame is moved onto the truth's
+    before errors are taken (:mod:`credcli.engine.align`; docs/formats.md, "Aligning
+    frames").
     """
 
     truth: str | None = None
@@ -103,6 +106,7 @@ class ReadOptions:
     perturbation: Perturbation = Perturbation.LEFT
     innovations: bool = False
     errors_only: bool = False  # the log holds errors (err_i or the truth columns named)
+    align: Alignment = Alignment.NONE
 
     def __post_init__(self) -> None:
         for name, kind in (
@@ -110,6 +114,7 @@ class ReadOptions:
             ("truth_format", InputFormat),
             ("time_unit", TimeUnit),
             ("perturbation", Perturbation),
+            ("align", Alignment),
         ):
             object.__setattr__(self, name, kind(getattr(self, name)))
         if self.states is not None:

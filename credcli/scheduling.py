@@ -51,7 +51,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     source, items, config, seed, innovations, runs, blocks = task
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
-    for name, t0, t1, e, c, memory, findings, declined, velocity in items:
+    for name, t0, t1, e, c, memory, findings, declined, velocity, fitted in items:
         white = innovation_whiteness(e, c, level) if innovations else None
         # innovations are tested under their white null unless the whiteness test rejects;
         # correlated innovations are then a finding, and the two questions are answered
@@ -62,7 +62,19 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             else replace(config, alpha=white_null.alpha)
         )
         diag = diagnose_segment(
-            e, c, chosen, seed, name, source, runs, blocks, memory, findings, declined, velocity
+            e,
+            c,
+            chosen,
+            seed,
+            name,
+            source,
+            runs,
+            blocks,
+            memory,
+            findings,
+            declined,
+            velocity,
+            fitted,
         )
         out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
     return out
@@ -79,12 +91,17 @@ def _as_slice(index: np.ndarray):
 
 
 def _item(
-    segment: seg.Segment, errors: np.ndarray, cov: np.ndarray, run=None, velocity=None
+    segment: seg.Segment, log, run=None, velocity=None, errors: np.ndarray | None = None
 ) -> tuple:
-    """A segment as a task item: (name, t_start, t_end, errors, covariances, the run's
-    dependence model for a window, the run's findings for the run's own segment, why a
-    window gets no verdict of its own, the truth's velocity or None), the arrays as views
-    when the segment is contiguous."""
+    """A segment of ``log`` as a task item: (name, t_start, t_end, errors, covariances, the
+    run's dependence model for a window, the run's findings for the run's own segment, why a
+    window gets no verdict of its own, the truth's velocity or None, why its mean is no
+    evidence or None), the arrays as views when the segment is contiguous. ``errors``: the
+    log's, when already taken."""
+    errors = log.errors if errors is None else errors
+    cov = log.cov
+    whole = segment.index.size == log.n
+    fitted = log.fitted_mean if whole else None
     index = _as_slice(segment.index)
     window = run is not None and segment.window
     memory = run.memory if window else None
@@ -92,7 +109,7 @@ def _item(
     findings = run.findings if run is not None and not segment.window else ()  # the run's
     item = (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
     moving = None if velocity is None else velocity[index]
-    return (*item, memory, findings, declined, moving)
+    return (*item, memory, findings, declined, moving, fitted)
 
 
 def _run_model(log, segments, config: DiagnosisConfig):
@@ -117,7 +134,7 @@ def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovat
                 yield (source, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
             source, blocks = log.source, log.blocks
-            items.append(_item(segment, errors, log.cov, model, velocity))
+            items.append(_item(segment, log, model, velocity, errors))
             size += len(segment.index)
     if items:
         yield (source, items, config, seed, innovations, runs, blocks)
@@ -204,7 +221,7 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
     if "velocity" not in models:  # the truth's, once per worker
         models["velocity"] = truth_velocity(log.truth, log.time)
     velocity = None if innovations else models["velocity"]
-    items = [_item(segment, errors, log.cov, model, velocity) for segment in segments[first:stop]]
+    items = [_item(segment, log, model, velocity, errors) for segment in segments[first:stop]]
     return _diagnose_chunk((log.source, items, config, seed, innovations, 1, log.blocks))
 
 

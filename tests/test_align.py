@@ -200,7 +200,9 @@ def test_a_moved_log_is_credible_only_once_aligned(tmp_path, align, scale):
     unaligned, _, _ = labels(path)
     assert unaligned[0] != "credible"  # tens of metres of bias against a 0.3 m σ
     aligned, err, doc = labels(path, "--align", align)
-    assert aligned == ["credible"]
+    # the fit made the whole log's mean error 0: its location question stays open
+    assert aligned == ["credible (location untested)"]
+    assert "fitted the mean of these errors to 0" in doc["segments"][0]["reason"]
     assert f"credcli: note: --align {align}:" in err
     assert f"{7 if align == 'sim3' else 6} degrees of freedom" in err
     assert doc["parameters"]["input"]["align"] == align
@@ -218,7 +220,7 @@ def test_se3_cannot_absorb_a_scale(tmp_path):
     path = tmp_path / "scaled.csv"
     moved_log(path, 0.8)
     assert labels(path, "--align", "se3")[0] != ["credible"]
-    assert labels(path, "--align", "sim3")[0] == ["credible"]
+    assert labels(path, "--align", "sim3")[0] == ["credible (location untested)"]
 
 
 def test_origin_translates_a_position_log_onto_its_first_epoch(tmp_path):
@@ -258,7 +260,7 @@ def test_a_rotated_openvins_estimate_is_credible_again_after_se3(tmp_path):
     assert labels(ESTIMATE, "--truth", TRUTH)[0] == ["credible"]  # the planted sample
     assert labels(path, "--truth", TRUTH)[0] != ["credible"]
     aligned, err, _ = labels(path, "--truth", TRUTH, "--align", "se3")
-    assert aligned == ["credible"] and "SE(3) transform of Umeyama" in err
+    assert aligned == ["credible (location untested)"] and "SE(3) transform of Umeyama" in err
     # the errors are truth − the fitted transform of the file's positions, exactly
     plain = read_log(path, truth=str(TRUTH))
     p_hat = np.loadtxt(path)[:, 1:4]
@@ -343,3 +345,30 @@ def test_the_gate_names_a_differing_align(tmp_path):
     line = error_line(*run("gate", path, "-b", base, "--config", config)[::2])
     assert "[input] align: baseline 'se3', now 'none'" in line
     assert run("gate", path, "-b", base)[0] == 0  # read as the baseline was: aligned
+
+
+def test_windows_of_an_aligned_log_still_answer_the_location_question(tmp_path):
+    """After se3 the mean of the whole log's errors is 0 by construction (Umeyama's
+    t = μ − s R μ̂), so the run's own verdict leaves the location open; its windows' means
+    are not fitted, and their location question is answered."""
+    path = tmp_path / "moved.csv"
+    moved_log(path, 1.0)
+    code, out, err = run("diagnose", path, "--align", "se3", "--window", "150", "-f", "json")
+    assert code == 0, err
+    segments = {s["segment"]: s for s in json.loads(out)["segments"]}
+    assert segments.pop("run")["label"] == "credible (location untested)"
+    assert [s["label"] for s in segments.values()] == ["credible"] * 4
+
+
+def test_without_location_keeps_the_noise_condition():
+    from credcli.engine.diagnosis import Diagnosis, Label, Question, without_location
+
+    found = without_location(Diagnosis(Label.OPTIMISM_BIAS, 100, 2, smm_detected=True), "fitted")
+    assert (found.label, found.untested, found.reason) == (
+        Label.OPTIMISM,
+        (Question.LOCATION,),
+        "fitted",
+    )
+    scale_open = Diagnosis(Label.BIAS, 100, 2, untested=(Question.SCALE,), reason="short")
+    assert without_location(scale_open, "fitted").label is Label.INSUFFICIENT
+    assert without_location(scale_open, "fitted").reason == "short; fitted"

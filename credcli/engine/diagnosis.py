@@ -15,6 +15,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
     DEFAULT_MAX_EPOCHS,
     DIAGNOSIS_LABELS,
     LABEL_ALIASES,
+    LOCATION_CONDITIONS,
     MAX_FLIPS,
     MIN_ELT_EPOCHS,
     DiagnosisConfig,
@@ -449,6 +450,7 @@ def diagnose_segment(
     findings: tuple[str, ...] = (),
     declined: str | None = None,
     velocity: np.ndarray | None = None,
+    fitted_mean: str | None = None,
 ) -> Diagnosis:
     """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
     the log and the segment. ``runs``: see :func:`diagnose_errors`; ``blocks``: named
@@ -458,7 +460,9 @@ def diagnose_segment(
     ``findings``: the run's, for the run's own segment; ``declined``: why a window of a
     run gets no label of its own (:attr:`RunModel.window_reason`); ``velocity``: the
     truth's (:func:`credcli.engine.timing.truth_velocity`), to look for a time offset
-    that explains a misfit (:func:`credcli.engine.timing.time_offset`), named first."""
+    that explains a misfit (:func:`credcli.engine.timing.time_offset`), named first;
+    ``fitted_mean``: why the errors' mean is no evidence (an alignment fitted it), which
+    leaves the location question open (:func:`without_location`)."""
     try:
         errors, cov = metrics.check_errors_cov(errors, cov)
         n, d = errors.shape
@@ -478,6 +482,8 @@ def diagnose_segment(
                 diag = replace(
                     diag, time_offset=offset, findings=(offset.describe(),) + diag.findings
                 )
+        if fitted_mean is not None:
+            diag = without_location(diag, fitted_mean)
         if declined is not None:  # the numbers stay; the label claims no misfit
             diag = replace(
                 diag, label=Label.INSUFFICIENT, reason=declined, untested=(), smm_detected=None
@@ -485,6 +491,20 @@ def diagnose_segment(
         return diag
     except CredcliError as exc:
         raise CredcliError(f"{source}: segment '{name}': {exc.message}") from exc
+
+
+def without_location(diag: Diagnosis, reason: str) -> Diagnosis:
+    """``diag`` with its location question left open, ``reason`` saying why (the errors'
+    mean was fitted away before they reached the test, so "no bias" would be a claim the
+    data cannot make). The noise condition stays; with the scale question open too, the
+    segment is insufficient-data."""
+    if diag.label is Label.INSUFFICIENT or Question.LOCATION in diag.untested:
+        return diag
+    noise = next(iter(diag.label.conditions - frozenset(LOCATION_CONDITIONS)), None)
+    untested = (*diag.untested, Question.LOCATION)
+    label = Label.INSUFFICIENT if Question.SCALE in untested else Label.compose(noise, None)
+    reason = "; ".join(r for r in (diag.reason, reason) if r)
+    return replace(diag, label=label, untested=untested, reason=reason, smm_detected=None)
 
 
 def memory_ratio(diag: Diagnosis) -> float:

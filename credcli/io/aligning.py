@@ -24,6 +24,19 @@ from credcli.io.schema import ReadOptions
 from credcli.io.trajectory import Trajectory
 
 
+def fitted_mean(alignment: Alignment) -> str | None:
+    """Why the whole log's location question cannot be answered after ``alignment``: the
+    least-squares fit of a translation (se3, sim3) makes the mean of the aligned errors 0
+    exactly (Umeyama's t = μ − s R μ̂), so no bias can show in the log as a whole; a window
+    of it still can. None for none and origin (which fixes the first epoch, not the mean)."""
+    if alignment in (Alignment.SE3, Alignment.SIM3):
+        return (
+            f"align {alignment.value} fitted the mean of these errors to 0, so a bias cannot "
+            "show in the whole log (windows of it still can)"
+        )
+    return None
+
+
 def align_log(log: EstimatorLog, alignment: Alignment) -> EstimatorLog:
     """A credcli log (truth and estimate in each row, d = 2 or 3 positions) with its
     estimate and covariance moved into the truth's frame: one transform for the whole
@@ -58,7 +71,11 @@ def align_log(log: EstimatorLog, alignment: Alignment) -> EstimatorLog:
     cov = transform_covariance(log.cov, covariance_map(transform, d))
     note = alignment_note(alignment, transform, d, log.n, False, "s² R Σ Rᵀ")
     return dataclasses.replace(
-        log, estimate=transform.apply(log.estimate), cov=cov, notes=(*log.notes, note)
+        log,
+        estimate=transform.apply(log.estimate),
+        cov=cov,
+        notes=(*log.notes, note),
+        fitted_mean=fitted_mean(alignment),
     )
 
 

@@ -18,7 +18,7 @@ from credcli.engine.align import Alignment
 from credcli.engine.config import Perturbation, States
 from credcli.engine.scale import gls_residuals
 from credcli.errors import CredcliError
-from credcli.io.aligning import align_log, align_trajectory
+from credcli.io.aligning import align_log, align_trajectory, fitted_mean
 from credcli.io.arrays import load_npz
 from credcli.io.formats import read_bag_pair, read_trajectory, sniff_format
 from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log, validated_cov
@@ -183,6 +183,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
         notes=notes,
         unpaired=pairing.dropped,
         blocks=lie.STATE_BLOCKS.get(states, ()),
+        fitted_mean=fitted_mean(reading.align),
     )
 
 

@@ -52,6 +52,8 @@ class EstimatorLog:
     unpaired: int = 0
     blocks: tuple[tuple[str, tuple[int, ...]], ...] = ()  # named blocks of the state
     run: np.ndarray | None = field(default=None, repr=False)  # Monte Carlo run id per epoch
+    # why the mean of the whole log's errors is no evidence (an alignment fitted it to 0)
+    fitted_mean: str | None = None
 
     def __post_init__(self) -> None:
         if self.rows is None:

@@ -287,7 +287,7 @@ def gate_fail_on(
         return passed, verdict
     shown = ", ".join(f"{c.segment} ({shown_label(c.new.label, c.new.untested)})" for c in bad[:5])
     more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
-    line = f"{len(bad)} segment(s) match --fail-on {fail_on}: {shown}{more}"
+    line = f"{len(bad)} segment(s) match `fail_on` {fail_on}: {shown}{more}"
     return False, (f"{verdict}; {line}" if not passed else f"FAIL: {line}")
 
 
@@ -307,7 +307,7 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
         more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
         return (
             False,
-            f"FAIL: {len(bad)} of {len(results)} segment(s) match --fail-on {listed}: {shown}{more}",
+            f"FAIL: {len(bad)} of {len(results)} segment(s) match `fail_on` {listed}: {shown}{more}",
             bad,
         )
-    return True, f"PASS: none of {len(results)} segment(s) match --fail-on {listed}", []
+    return True, f"PASS: none of {len(results)} segment(s) match `fail_on` {listed}", []

@@ -17,9 +17,11 @@ import warnings
 
 import typer
 
+from credcli.cli import flags
 from credcli.cli.app import app
+from credcli.cli.flags import flag_names
 from credcli.cli.options import FIELD_OPTIONS
-from credcli.errors import NAMED, CredcliError, printable
+from credcli.errors import CredcliError, printable
 
 
 def _click_exception_types() -> tuple[type, ...]:
@@ -209,14 +211,6 @@ def _internal_error(exc: BaseException, debug: bool) -> int:
     return 3
 
 
-def flag_names(message: str) -> str:
-    """A library message names parameters in backticks (```n_flips` 5 is too few``); on
-    the command line each is its flag (``--flips 5 is too few``). A name that is no
-    option of any command keeps its backticks."""
-    flags = _flags()
-    return NAMED.sub(lambda m: flags.get(m[1], m[0]), message)
-
-
 @functools.cache
 def _flags() -> dict[str, str]:
     """Parameter name -> flag, for every option of every command, and for the settings
@@ -227,6 +221,9 @@ def _flags() -> dict[str, str]:
             if getattr(param, "param_type_name", "") == "option":
                 flags.setdefault(param.name, next(o for o in param.opts if o.startswith("--")))
     return flags | {field: flags[option] for field, option in FIELD_OPTIONS.items()}
+
+
+flags.use(_flags)
 
 
 def one_line(message: str) -> str:

@@ -8,19 +8,23 @@ modules) and Dask load only when a command runs, so that ``credcli --help`` stay
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import sys
 from pathlib import Path
 
+from credcli.cli.flags import flag_names
 from credcli.errors import CredcliError, printable
 from credcli.report.formats import OutputFormat
 
 
 def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
-    """Print a report to stdout (Rich tables when a terminal) or write it to a file."""
+    """Print a report to stdout (Rich tables when a terminal) or write it to a file; its
+    notes name options as the command line does (:func:`credcli.cli.flags.flag_names`)."""
     from credcli.io.files import write_atomic
     from credcli.report.render import rich_table, to_text
 
+    report = dataclasses.replace(report, notes=[flag_names(n) for n in report.notes])
     if output is not None:
         write_atomic(output, to_text(report, fmt), inputs)
         stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
@@ -98,7 +102,7 @@ def print_notes(report) -> None:
     """The decisions taken while reading the logs, one ``credcli: note:`` line each."""
     for log in report.document.get("logs", []):
         for note in log.get("notes", []):
-            print(printable(f"credcli: note: {note}"), file=sys.stderr)
+            print(printable(f"credcli: note: {flag_names(note)}"), file=sys.stderr)
 
 
 SCHEDULER_ENV = "CREDCLI_SCHEDULER"
@@ -214,6 +218,7 @@ def emit_fail_on(run, conditions, ci, inputs) -> bool:
     from credcli.ci.reports import fail_on_cases, summary_markdown
 
     passed, verdict, failing = fail_on_verdict(run.results, conditions)
+    verdict = flag_names(verdict)
     write_ci_reports(
         ci.junit,
         ci.summary,
@@ -234,6 +239,7 @@ def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) 
     passed, verdict = run.passed, run.verdict
     if conditions is not None:
         passed, verdict = gate_fail_on(run.comparisons, conditions, passed, verdict)
+    verdict = flag_names(verdict)
     thresholds = request.thresholds
     context = f"Baseline `{baseline}`; {thresholds.describe()}."
     write_ci_reports(
@@ -255,7 +261,7 @@ def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inpu
     from credcli.workflows import export_log_text
 
     for warning in fixes.notes:  # anchors that disagree with the log's ground truth
-        print(printable(f"credcli: warning: {warning}"), file=sys.stderr)
+        print(printable(f"credcli: warning: {flag_names(warning)}"), file=sys.stderr)
     if export_log is not None:
         write_atomic(export_log, export_log_text(fixes.log), inputs)
         stderr_console().print(

@@ -185,14 +185,14 @@ def alignment_note(
     if alignment is Alignment.ORIGIN:
         what = "translation and rotation" if with_rotation else "translation only"
         return (
-            f"--align origin: moved the estimate's first paired pose onto the truth's "
+            f"`align` origin: moved the estimate's first paired pose onto the truth's "
             f"({what}; {moved}); its covariance moved with it ({covariance}); no parameter "
             "is fitted to the rest of the run, but the first epoch's error is 0 by "
             "construction, so errors near the start are smaller than the estimator's own"
         )
     fitted = alignment.fitted_parameters(dim)
     return (
-        f"--align {alignment.value}: moved the estimate into the truth's frame by the "
+        f"`align` {alignment.value}: moved the estimate into the truth's frame by the "
         f"{group[alignment, dim]} transform of Umeyama (1991) fitted to {epochs} paired "
         f"epochs ({moved}); its covariance moved with it ({covariance}); alignment removes "
         f"error: {fitted} degrees of freedom were fitted to these errors, so a credible "

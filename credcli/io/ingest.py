@@ -268,7 +268,7 @@ def _convention_hint(errors, swapped, cov, used: Perturbation, other: Perturbati
     if not np.isfinite(misfit) or misfit < np.log(CONVENTION_RATIO):
         return ""
     return (
-        f"; WARNING: --perturbation {other.value} fits the claimed covariance far better "
+        f"; WARNING: `perturbation` {other.value} fits the claimed covariance far better "
         f"(covariance factor {fit_other:.3g} against {fit_used:.3g} with {used.value}): "
         "check which convention the estimator's covariance uses"
     )
@@ -293,4 +293,4 @@ def _convention(states: States, perturbation: Perturbation, cross: bool = True) 
         States.PLANAR: f"planar x, y of {position} and yaw ψ_true − ψ_est wrapped to (−π, π]; "
         "covariance rows x, y, rz",
     }[states]
-    return f"errors (--states {states.value}, --perturbation {perturbation.value}): {parts}"
+    return f"errors (`states` {states.value}, `perturbation` {perturbation.value}): {parts}"

@@ -43,9 +43,9 @@ def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_off
     period = float(np.median(np.diff(t_true)))
     if max_dt is None:
         max_dt = MAX_DT_FACTOR * period
-        chosen = f"--max-dt {max_dt:.6g} s (2.5 × the median truth period {period:.6g} s)"
+        chosen = f"`max_dt` {max_dt:.6g} s (2.5 × the median truth period {period:.6g} s)"
     else:
-        chosen = f"--max-dt {max_dt:.6g} s"
+        chosen = f"`max_dt` {max_dt:.6g} s"
     lo, hi = float(t_true[0]), float(t_true[-1])
     if t_est[-1] < lo or t_est[0] > hi:
         raise CredcliError(
@@ -88,7 +88,7 @@ def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_off
     note = (
         f"paired {int(keep.sum())} of {t_est.size} estimate epochs with truth from "
         f"{truth.source} (linear/SLERP interpolation, {chosen}"
-        + (f", --time-offset {time_offset:g} s" if time_offset else "")
+        + (f", `time_offset` {time_offset:g} s" if time_offset else "")
         + f"); {dropped} without truth dropped"
     )
     return Pairing(keep, position, rotation, float(max_dt), dropped, note)

@@ -160,7 +160,7 @@ def _trajectory(path, reader, topic, msgtype, records, note, time_unit) -> Traje
             "receive times instead"
         )
     if TimeUnit(time_unit) not in (TimeUnit.AUTO, TimeUnit.NS, TimeUnit.S):
-        notes.append(f"{path}: --time-unit does not apply to bag stamps (sec, nanosec)")
+        notes.append(f"{path}: `time_unit` does not apply to bag stamps (sec, nanosec)")
     time = sec.astype(float) + 1e-9 * nsec.astype(float)
     return Trajectory(
         time=time,

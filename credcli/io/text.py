@@ -132,7 +132,7 @@ def decide_unit(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: 
             if peak >= bound:
                 return candidate.seconds, (
                     f"{what}: integer stamps near {peak:.3g} read as epoch {candidate.value} "
-                    f"(--time-unit auto; give --time-unit to override)"
+                    "(`time_unit` auto; give `time_unit` to override)"
                 )
     return 1.0, None
 

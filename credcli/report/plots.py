@@ -89,7 +89,7 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
             raise CredcliError(
                 f"`plots`: two figures would both be {directory / plot.name}.png (two logs "
                 "with one file stem, or segment names that map to one file name); give "
-                "each log its own --plots directory or rename the segments",
+                "each log its own `plots` directory or rename the segments",
                 "plots",
             )
         seen.add(plot.name)

@@ -79,8 +79,8 @@ class Table:
         if len(self.rows) <= SHOWN_ROWS:
             return self
         more = (
-            f"the first {SHOWN_ROWS:,} of {len(self.rows):,} rows; every row is in "
-            "--format csv or json"
+            f"the first {SHOWN_ROWS:,} of {len(self.rows):,} rows; every row is in the CSV "
+            "and JSON outputs"
         )
         caption = f"{self.caption}; {more}" if self.caption else more
         return Table(self.title, self.columns, self.rows[:SHOWN_ROWS], caption)
@@ -345,7 +345,7 @@ def rich_table(table: Table, width: int | None = None):
     if len(shown) < len(table.columns):
         hidden = ", ".join(c.header for k, c in enumerate(table.columns) if k not in shown)
         caption = (caption + "; " if caption else "") + (
-            f"not shown at this width: {hidden} (see --format json or csv)"
+            f"not shown at this width: {hidden} (see the JSON or CSV output)"
         )
     columns = [table.columns[k] for k in shown]
     texts = [[t[k] for k in shown] for t in texts]
@@ -495,7 +495,7 @@ def diagnose_report(
     if sub:
         notes.append(
             f"ELT ran on a random subsample of {config.max_elt_epochs} epochs in "
-            f"segment(s) {', '.join(sub)} (memory budget; see --max-elt-epochs)."
+            f"segment(s) {', '.join(sub)} (memory budget; see `max_elt_epochs`)."
         )
     for info in logs:
         if info["dropped_rows"]:
@@ -528,7 +528,9 @@ def diagnose_report(
 def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
     lines = [a for a in (advice(r) for r in records) if a]
     if len(lines) > limit:
-        lines = lines[:limit] + [f"... and {len(lines) - limit} more segment(s); see --format json"]
+        lines = lines[:limit] + [
+            f"... and {len(lines) - limit} more segment(s); see the JSON output"
+        ]
     found = {record_label(r).location for r in records}
     lines += [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in found]
     return lines
@@ -538,7 +540,9 @@ def _finding_lines(records: list[dict], limit: int = 10) -> list[str]:
     """The findings the engine reports beside the labels (a slowly varying error, ...)."""
     lines = [f"{r['segment']}: {f}" for r in records for f in r.get("findings") or ()]
     if len(lines) > limit:
-        lines = lines[:limit] + [f"... and {len(lines) - limit} more finding(s); see --format json"]
+        lines = lines[:limit] + [
+            f"... and {len(lines) - limit} more finding(s); see the JSON output"
+        ]
     return lines
 
 

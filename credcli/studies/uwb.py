@@ -130,7 +130,7 @@ def anchor_warnings(anchors: list[Anchor], limit: float) -> list[str]:
     return [
         f"anchor {a.id}: the markers disagree with the log's gt_range by {1000 * a.rms:.0f} mm "
         f"RMS (more than {1000 * limit:.0f} mm): a wrong markers file or id map? Check "
-        "--anchor-map, or drop --anchors to self-calibrate from the log"
+        "`anchor_map`, or drop `anchors` to self-calibrate from the log"
         for a in bad
     ]
 
@@ -715,7 +715,7 @@ def screening_note(run: UwbRun, settings: UwbSettings) -> str:
     screen = (
         f"screening on (stale packets; residual test at {settings.residual_level:g}{scale})"
         if settings.screen
-        else "screening off (--screen none)"
+        else "screening off (`screen` none)"
     )
     moved = f"; {f.moved} fix(es) moved to the global minimum" if f.moved else ""
     return (

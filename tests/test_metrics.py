@@ -355,3 +355,29 @@ def test_accuracy_is_evos_first_figures_per_component_and_of_the_norm(capsys, mo
     for fmt, header in (("csv", "error_norm_max"), ("markdown", "RMSE"), ("table", "RMSE")):
         assert main(["diagnose", log, "-f", fmt]) == 0
         assert header in capsys.readouterr().out
+
+
+def test_logs_are_compared_by_their_accuracy(tmp_path, capsys, monkeypatch):
+    """Issue 33 item 4, across runs as evo_res: each log's entry carries the accuracy of all
+    its epochs, and two or more logs get a table side by side."""
+    import json
+
+    import pandas as pd
+
+    from conftest import ROOT
+    from credcli.cli import main
+
+    monkeypatch.chdir(ROOT)
+    logs = ["sample_data/estimator_log.csv", "sample_data/estimator_log_regressed.csv"]
+    assert main(["diagnose", *logs, "-f", "json"]) == 0
+    entries = json.loads(capsys.readouterr().out)["logs"]
+    for path, entry in zip(logs, entries):
+        frame = pd.read_csv(path)
+        e = frame[["truth_0", "truth_1"]].to_numpy() - frame[["est_0", "est_1"]].to_numpy()
+        norms = np.linalg.norm(e, axis=1)
+        assert entry["rmse"] == pytest.approx(np.sqrt(np.mean(norms**2)), rel=1e-12)
+        assert entry["error_norm_max"] == pytest.approx(norms.max(), rel=1e-12)
+        assert entry["error_mean"] == pytest.approx(e.mean(axis=0).tolist(), rel=1e-12)
+    assert main(["diagnose", *logs, "-f", "markdown"]) == 0
+    markdown = capsys.readouterr().out
+    assert "### logs compared" in markdown and "| 1800 | 1 of 6 |" in markdown

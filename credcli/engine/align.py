@@ -20,30 +20,12 @@ s² R Σ Rᵀ (:func:`covariance_map`).
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass
 
 import numpy as np
 
+from credcli.engine.config import Alignment  # noqa: F401 (re-exported)
 from credcli.errors import CredcliError
-
-
-class Alignment(str, enum.Enum):
-    """How an estimate's world frame is aligned with the truth's before errors are taken."""
-
-    NONE = "none"  # the estimate is in the truth's frame already
-    ORIGIN = "origin"  # its first pose onto the truth's first pose
-    SE3 = "se3"  # Umeyama's rotation and translation (SE(2) in the plane)
-    SIM3 = "sim3"  # Umeyama's rotation, translation and scale (Sim(2) in the plane)
-
-    def fitted_parameters(self, dim: int) -> int:
-        """Parameters fitted to the whole run in ``dim`` dimensions: the degrees of freedom
-        the alignment takes out of the errors (``origin`` fits none: it uses the first
-        pose alone)."""
-        if self in (Alignment.NONE, Alignment.ORIGIN):
-            return 0
-        rigid = dim * (dim + 1) // 2  # d translations and d(d − 1)/2 rotation angles
-        return rigid + (self is Alignment.SIM3)
 
 
 @dataclass(frozen=True)

@@ -102,6 +102,24 @@ class Label(str, enum.Enum):
         return Label.compose(noise, SMM_CONDITION)
 
 
+class Alignment(str, enum.Enum):
+    """How an estimate's world frame is aligned with the truth's before errors are taken."""
+
+    NONE = "none"  # the estimate is in the truth's frame already
+    ORIGIN = "origin"  # its first pose onto the truth's first pose
+    SE3 = "se3"  # Umeyama's rotation and translation (SE(2) in the plane)
+    SIM3 = "sim3"  # Umeyama's rotation, translation and scale (Sim(2) in the plane)
+
+    def fitted_parameters(self, dim: int) -> int:
+        """Parameters fitted to the whole run in ``dim`` dimensions: the degrees of freedom
+        the alignment takes out of the errors (``origin`` fits none: it uses the first
+        pose alone)."""
+        if self in (Alignment.NONE, Alignment.ORIGIN):
+            return 0
+        rigid = dim * (dim + 1) // 2  # d translations and d(d − 1)/2 rotation angles
+        return rigid + (self is Alignment.SIM3)
+
+
 SMM_CONDITION = "smm"
 LOCATION_CONDITIONS = (SMM_CONDITION, "bias", "asymmetric")
 """The location conditions; ``smm`` (the paper's) covers the other two (:attr:`Label.paper`)."""

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from credcli.engine.config import DiagnosisConfig
 from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
+from credcli.engine.metrics import accuracy
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
@@ -156,8 +157,14 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "time_offset": None if diag.time_offset is None else diag.time_offset.seconds,
         "time_offset_stderr": None if diag.time_offset is None else diag.time_offset.stderr,
     }
-    acc = diag.accuracy
-    rec |= {
+    rec |= accuracy_record(diag.accuracy)
+    return {k: json_value(v) for k, v in rec.items()}
+
+
+def accuracy_record(acc) -> dict:
+    """The accuracy keys (:class:`credcli.engine.metrics.Accuracy`, or None: all null), of
+    a segment's record and of a log's entry."""
+    return {
         "rmse": None if acc is None else acc.rmse_norm,
         "error_norm_mean": None if acc is None else acc.mean_norm,
         "error_norm_median": None if acc is None else acc.median_norm,
@@ -167,7 +174,6 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "error_median": _floats(None if acc is None else acc.median),
         "error_max": _floats(None if acc is None else acc.max),
     }
-    return {k: json_value(v) for k, v in rec.items()}
 
 
 def config_record(config: DiagnosisConfig) -> dict:
@@ -281,8 +287,9 @@ def segment_record(result: SegmentDiagnosis) -> dict:
 
 
 def log_info(log, segments) -> dict:
-    """The report's entry for one log."""
-    return {
+    """The report's entry for one log, with the accuracy of all its epochs (evo's figures
+    for the whole trajectory, to compare logs as ``evo_res`` does)."""
+    info = {
         "path": log.source,
         "epochs": log.n,
         "dim": log.dim,
@@ -291,6 +298,8 @@ def log_info(log, segments) -> dict:
         "segments": len(segments),
         "notes": list(log.notes),
     }
+    info |= accuracy_record(accuracy(log.errors) if log.n else None)
+    return {k: json_value(v) for k, v in info.items()}
 
 
 def monte_carlo_record(mc) -> dict:

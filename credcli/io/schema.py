@@ -5,8 +5,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, replace
 
-from credcli.engine.align import Alignment
-from credcli.engine.config import Perturbation, States
+from credcli.engine.config import Alignment, Perturbation, States
 from credcli.errors import CredcliError
 
 

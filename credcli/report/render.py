@@ -513,6 +513,7 @@ def diagnose_report(
             + ", ".join(f"{k} {100 * v:.1f}%" for k, v in mc["segments"].items())
         )
     table = Table("credcli diagnose", columns, records, caption=_level_caption(config))
+    tables = [table, _logs_table(logs, records)] if multi else [table]
     document = {
         "version": __version__,
         "command": "diagnose",
@@ -522,7 +523,29 @@ def diagnose_report(
     }
     if monte_carlo is not None:
         document["monte_carlo"] = monte_carlo
-    return Report([table], document, notes)
+    return Report(tables, document, notes)
+
+
+LOG_COLUMNS = (
+    Column("path", "log", 0, limit=NAME_LIMIT, rank=0),
+    Column("epochs", "N", 0, keep=True, rank=0),
+    Column("credible", "credible", 0, keep=True, rank=0),
+    Column("rmse", "RMSE", 4, rank=1),
+    Column("error_norm_mean", "mean ‖e‖", 4, rank=2),
+    Column("error_norm_median", "median ‖e‖", 4, rank=2),
+    Column("error_norm_max", "max ‖e‖", 4, rank=2),
+)
+"""The logs side by side (as evo_res compares results): accuracy over all epochs of each
+log, and how many of its segments are credible."""
+
+
+def _logs_table(logs: list[dict], records: list[dict]) -> Table:
+    rows = []
+    for info in logs:
+        mine = [r for r in records if r["log"] == info["path"]]
+        good = sum(r["label"] == Label.CREDIBLE.value for r in mine)
+        rows.append(info | {"credible": f"{good} of {len(mine)}"})
+    return Table("logs compared", LOG_COLUMNS, rows, caption="accuracy over all epochs of each log")
 
 
 def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:

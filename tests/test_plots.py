@@ -103,9 +103,16 @@ def test_whitened_plot_other_dimensions():
 
 def test_diagnose_plots_option_writes_files(tmp_path, capsys):
     code, _, err = _run(capsys, "diagnose", LOG, "--plots", tmp_path / "figs")
-    assert code == 0 and "wrote 24 figure(s)" in err
+    assert code == 0 and "wrote 28 figure(s)" in err  # 4 per segment, 4 of the whole log
     files = sorted((tmp_path / "figs").glob("*.png"))
-    assert len(files) == 24 and {f.name for f in files} >= {"cruise_nees.png", "urban_scores.png"}
+    assert len(files) == 28 and {f.name for f in files} >= {
+        "cruise_nees.png",
+        "urban_scores.png",
+        "timeline.png",
+        "errors.png",
+        "nees_running.png",
+        "whitened_errors.png",
+    }
     for f in files:
         _check_png(f.read_bytes())
 
@@ -178,12 +185,12 @@ def test_uwb_plots_and_report(tmp_path, capsys):
 def test_report_is_self_contained(tmp_path, capsys):
     out = tmp_path / "report.html"
     code, _, err = _run(capsys, "report", LOG, "-o", out)
-    assert code == 0 and "24 figures" in err
+    assert code == 0 and "28 figures" in err
     html = out.read_text()
     assert html.startswith("<!DOCTYPE html>")
     assert not re.search(r'(src|href)="(https?:)?//', html)  # nothing fetched from a network
     assert "<script" not in html
-    assert html.count('src="data:image/png;base64,') == 24
+    assert html.count('src="data:image/png;base64,') == 28
     assert "optimism+bias" in html and "&quot;n_flips&quot;: 1000" in html
 
 
@@ -232,7 +239,7 @@ def test_report_renders_in_a_headless_browser(tmp_path, capsys):
         check=False,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert 'data-images="18/18"' in proc.stdout
+    assert 'data-images="28/28"' in proc.stdout
     assert "credcli report" in proc.stdout
 
 

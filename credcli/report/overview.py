@@ -93,15 +93,17 @@ class Source:
 
 
 def spans(source: Source) -> list[figs.Span]:
-    """Each diagnosed segment on the time axis (its first and last epoch's time), label, κ̂
-    and ANEES."""
+    """Each diagnosed segment on the time axis, label, κ̂ and ANEES. A segment spans from
+    its first epoch to one sampling step (the median) past its last, so that consecutive
+    segments meet."""
     x = source.x
+    step = float(np.median(np.diff(x))) if x.size > 1 else 1.0
     out = []
     for segment, result in zip(source.segments, source.results, strict=True):
         diag = result.diagnosis
         index = np.asarray(segment.index)
         kappa = None if diag.scale is None else float(diag.scale.scale_factor)
-        start, end = (float(x[index[0]]), float(x[index[-1]])) if index.size else (0.0, 0.0)
+        start, end = (float(x[index[0]]), float(x[index[-1]]) + step) if index.size else (0, 0)
         out.append(figs.Span(result.segment, start, end, diag.label.value, kappa, diag.anees))
     return out
 
@@ -132,21 +134,14 @@ def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple
     pairs = _shaded(source)
     shaded = [span for span, _ in pairs]
     if kind is PlotKind.ERRORS:
-        if m == 1:
-            errors = runs[0].errors
-            sigma = np.sqrt(np.diagonal(runs[0].cov, axis1=1, axis2=2))
-            xs = x
-            what = ""
-        else:  # the runs one after another on the same axis, broken by NaN between them
-            gap = np.full((1, dim), np.nan)
-            errors = np.concatenate([np.r_[r.errors, gap] for r in runs])
-            sigma = np.concatenate(
-                [np.r_[np.sqrt(np.diagonal(r.cov, axis1=1, axis2=2)), gap] for r in runs]
-            )
-            xs = np.concatenate([np.r_[x, np.nan] for _ in runs])
-            what = f" ({m} runs)"
+        errors = np.stack([r.errors for r in runs])
+        sigma = np.stack([np.sqrt(np.diagonal(r.cov, axis1=1, axis2=2)) for r in runs])
+        band = k * np.sqrt(np.mean(sigma**2, axis=0))  # kσ for one run
+        outside = np.mean(np.abs(errors) > k * sigma, axis=(0, 1))
+        what = "" if m == 1 else f" ({m} runs)"
         title = f"{name}: errors and the claimed ±{k:g}σ{what}"
-        return figs.draw_errors(xs, errors, sigma, shaded, k, xlabel, None, title)
+        shown = errors[0] if m == 1 else errors
+        return figs.draw_errors(x, shown, band, outside, shaded, k, xlabel, None, title)
     if kind is PlotKind.NEES:
         values = np.mean([nees(r.errors, r.cov) for r in runs], axis=0)
         w = default_window(values.size) if window is None else int(window)

@@ -600,41 +600,46 @@ def _shade_spans(ax, spans: list[Span], name_them: bool) -> None:
 def draw_errors(
     x: np.ndarray,
     errors: np.ndarray,
-    sigma: np.ndarray,
+    band: np.ndarray,
+    outside: np.ndarray,
     spans: list[Span],
     k: float = 3.0,
     xlabel: str = "time [s]",
     components: list[str] | None = None,
     title: str = "",
 ):
-    """Each error component e_k,i against time with the ±kσ band of the claimed covariance
-    (σ_k,i = √Σ_k,ii), one subplot per component, the segments shaded in their label's
-    colour. Returns the figure and the numbers drawn."""
-    n, d = errors.shape
+    """Each error component e_k,i against time (``errors``: (N, d), or (M, N, d) for M
+    Monte Carlo runs, one thin line each) with the claimed ±kσ band (``band``: (N, d), kσ_k,i
+    with σ_k,i = √Σ_k,ii; for runs, the root mean square over them), one subplot per
+    component, the segments shaded in their label's colour. ``outside``: the share of
+    epochs outside their own band, per component. Returns the figure and the numbers drawn."""
+    runs = errors if errors.ndim == 3 else errors[None]
+    m, n, d = runs.shape
     names = components or [f"e_{i + 1}" for i in range(d)]
     fig, axes = _figure(nrows=d, ncols=1, sharex=True, figsize=(10, 1.2 + 1.9 * d), squeeze=False)
-    band = k * sigma
-    outside = (np.abs(errors) > band).mean(axis=0)
     expected = math.erfc(k / math.sqrt(2.0))  # P(|z| > k), z ~ N(0, 1)
-    dense = n > MAX_SCATTER  # a dense line is a blot: drawn light, under the band's edges
+    dense = m * n > MAX_SCATTER  # a dense line is a blot: drawn light, under the band's edges
+    sigma_text = "claimed" if m == 1 else f"claimed (RMS over {m} runs)"
     for i, ax in enumerate(axes[:, 0]):
         _shade_spans(ax, spans, name_them=i == 0)
         ax.fill_between(x, -band[:, i], band[:, i], color="tab:blue", alpha=0.15, lw=0)
         (upper,) = ax.plot(x, band[:, i], color="tab:blue", lw=1, gid=f"band_upper_{i}", zorder=4)
-        (lower,) = ax.plot(x, -band[:, i], color="tab:blue", lw=1, gid=f"band_lower_{i}", zorder=4)
+        ax.plot(x, -band[:, i], color="tab:blue", lw=1, gid=f"band_lower_{i}", zorder=4)
         upper.set_label(
-            f"±{k:g}σ claimed ({100 * outside[i]:.2g} % outside; {100 * expected:.2g} % expected)"
+            f"±{k:g}σ {sigma_text}: {100 * outside[i]:.2g} % outside, "
+            f"{100 * expected:.2g} % expected"
         )
-        ax.plot(
-            x,
-            errors[:, i],
-            color="#444" if dense else "black",
-            lw=0.3 if dense else 0.8,
-            alpha=0.6 if dense else 1.0,
-            gid=f"error_{i}",
-            label=names[i],
-            zorder=3,
-        )
+        for r in range(m):
+            ax.plot(
+                x,
+                runs[r, :, i],
+                color="#444" if dense else "black",
+                lw=0.3 if dense else 0.8,
+                alpha=0.6 if dense else 1.0,
+                gid=f"error_{i}" if m == 1 else f"error_{i}_run_{r}",
+                label=(names[i] if m == 1 else f"{names[i]}, {m} runs") if r == 0 else None,
+                zorder=3,
+            )
         ax.axhline(0, color="grey", lw=0.5)
         ax.set_ylabel(f"{names[i]} [state units]")
         ax.legend(loc="upper right", fontsize=7, framealpha=0.85)
@@ -683,6 +688,7 @@ def draw_nees(
     ax.axhline(dim, color="grey", lw=0.8, ls=":", label=f"expected value d = {dim}")
     ax.axhspan(
         *bounds,
+        gid="running_interval",
         color="tab:green",
         alpha=0.18,
         lw=0,
@@ -723,8 +729,11 @@ def draw_nees(
                 fontsize=7,
                 color=label_colour(span.label),
                 bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8},
+                zorder=5,
             )
-    ax.set_yscale("log")
+    low, high = np.quantile(positive, [0.01, 0.99])
+    if high > 30 * low:  # NEES of single epochs spans decades; averages over runs do not
+        ax.set_yscale("log")
     ax.set_xlabel(xlabel)
     ax.set_ylabel("NEES")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=7, frameon=False, ncol=3)

@@ -46,7 +46,7 @@ from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
 from credcli.io.schema import ReadOptions
 from credcli.report.html import records_table
-from credcli.report.overview import Source
+from credcli.report.overview import DRAWN, PlotKind, Source, draw
 from credcli.scheduling import diagnose_plans
 from credcli.segments import split, without_run
 
@@ -67,7 +67,7 @@ class Results(Sequence):
     """The diagnoses of a log's segments, in order; ``to_dict`` and ``to_frame`` give the
     same records as ``credcli diagnose --format json`` / ``csv``; ``plot`` draws them.
 
-    Results made by :func:`diagnose_log` keep a reference to the log and its segments (no
+    Results made by [diagnose_log][credcli.api.diagnose_log] keep a reference to the log and its segments (no
     copy) for ``plot``."""
 
     def __init__(self, items: list[SegmentDiagnosis], source: Source | None = None) -> None:
@@ -126,8 +126,6 @@ class Results(Sequence):
         >>> sorted(results.plot("all"))
         ['errors', 'nees', 'timeline', 'whitened']
         """
-        from credcli.report.overview import DRAWN, PlotKind, draw
-
         kind = PlotKind.parse(kind)
         if self._source is None:
             raise ValueError(

@@ -122,7 +122,7 @@ def nees_plot(name: str, time, nees: np.ndarray, dim: int, title: str) -> Plot:
     mean = float(nees.mean())
     fig, ax = plt.subplots(figsize=(8, 3.6))
     ax.plot(x, nees, ".", ms=3, color="tab:blue", label="NEES ε_k")
-    ax.axhline(upper, color="tab:red", ls="--", lw=1, label=f"95% bounds of χ²_{dim}")
+    ax.axhline(upper, color="tab:red", ls="--", lw=1, label=f"95% bounds of χ²({dim})")
     ax.axhline(lower, color="tab:red", ls="--", lw=1)
     ax.axhline(
         mean, color="black", lw=1.5, label=f"mean NEES = {mean:.3g} (ANEES {mean / dim:.3g})"
@@ -167,6 +167,12 @@ def time_scales_plot(name: str, scales, rate_hz: float | None, title: str) -> Pl
     ax.set_yscale("log")
     ax.set_xlabel("averaging time [s]" if rate_hz else "averaging time [epochs]")
     ax.set_ylabel("m · Var(mean of m epochs)")
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter  # 0.6, not 6×10⁻¹
+
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(NullFormatter())  # labelled minors of a decade collide
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.legend(loc="best", fontsize=8, framealpha=0.9)
     data = {
         "epochs": m,

@@ -539,11 +539,19 @@ PLOT_LABEL_COLOURS = {"credible": "#2ca02c", "insufficient-data": "#9e9e9e", "pe
 """A label's colour in figures: credible green, insufficient grey, pessimism (a covariance
 too large: safe but wasteful) orange, every other misfit red (:data:`PLOT_MISFIT_COLOUR`)."""
 PLOT_MISFIT_COLOUR = "#d62728"
+_COLOUR_ORDER = [
+    *(PLOT_LABEL_COLOURS[k] for k in ("credible", "pessimism")),
+    PLOT_MISFIT_COLOUR,
+    PLOT_LABEL_COLOURS["insufficient-data"],
+]
+"""The order of the colours in a legend: the good news first."""
 
 MAX_SCATTER = 3000
 """Above this many points a scatter saturates: the figures draw a 2-D histogram instead."""
 MAX_SPAN_TEXT = 12
 """Segments named in a figure at most (more would overlap: the timeline names them)."""
+MAX_SPAN_LINES = 40
+"""Segments whose boundaries and mean NEES a figure marks at most (more are clutter)."""
 
 
 def label_colour(label: str) -> str:
@@ -583,11 +591,19 @@ def _figure(**kwargs):
 
 
 def _shade_spans(ax, spans: list[Span], name_them: bool) -> None:
-    """Each segment shaded faintly in its label's colour, boundaries marked; named on top
-    when there are few."""
-    for span in spans:
-        ax.axvspan(span.start, span.end, color=label_colour(span.label), alpha=0.08, lw=0)
-        ax.axvline(span.start, color="grey", lw=0.4, alpha=0.6)
+    """Each segment shaded faintly in its label's colour (neighbours of one colour as one
+    stretch); boundaries marked and segments named on top when there are few."""
+    stretch = None
+    for span in [*spans, None]:
+        colour = None if span is None else label_colour(span.label)
+        if stretch and (span is None or colour != stretch[2] or span.start != stretch[1]):
+            ax.axvspan(stretch[0], stretch[1], color=stretch[2], alpha=0.08, lw=0)
+            stretch = None
+        if span is not None:
+            stretch = (stretch[0] if stretch else span.start, span.end, colour)
+    if len(spans) <= MAX_SPAN_LINES:
+        for span in spans:
+            ax.axvline(span.start, color="grey", lw=0.4, alpha=0.6)
     if name_them and len(spans) <= MAX_SPAN_TEXT:
         for span in spans:
             ax.text(
@@ -713,7 +729,7 @@ def draw_nees(
     )
     named = len(spans) <= MAX_SPAN_TEXT
     for j, span in enumerate(spans):
-        if span.anees is None:
+        if span.anees is None or len(spans) > MAX_SPAN_LINES:  # many: the running mean tells
             continue
         ax.plot(
             [span.start, span.end],
@@ -886,7 +902,7 @@ def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
         height=0.7,
         color=colours,
         edgecolor="white",
-        lw=0.8,
+        lw=0.8 if len(spans) <= MAX_SPAN_LINES else 0,  # many: edges would stripe the row
         gid="timeline",
     )
     for span, lane, width in zip(spans, lanes, widths):
@@ -909,10 +925,17 @@ def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
             fontsize=7,
             color="white" if span.label != "insufficient-data" else "black",
         )
-    counts: dict[str, int] = {}
-    for span in spans:
-        counts[span.label] = counts.get(span.label, 0) + 1
-    handles = [Patch(color=label_colour(lab), label=f"{lab} ({c})") for lab, c in counts.items()]
+    counts: dict[str, dict[str, int]] = {}  # colour -> label -> segments: one entry a colour
+    for span in sorted(spans, key=lambda s: _COLOUR_ORDER.index(label_colour(s.label))):
+        mine = counts.setdefault(label_colour(span.label), {})
+        mine[span.label] = mine.get(span.label, 0) + 1
+    handles = [
+        Patch(
+            color=colour,
+            label=", ".join(short_title(lab, 24) for lab in labels) + f" ({sum(labels.values())})",
+        )
+        for colour, labels in counts.items()
+    ]
     ax.legend(
         handles=handles, loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8, frameon=False
     )

@@ -46,6 +46,7 @@ from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
 from credcli.io.schema import ReadOptions
 from credcli.report.html import records_table
+from credcli.report.overview import DRAWN, PlotKind, Source, draw
 from credcli.scheduling import diagnose_plans
 from credcli.segments import split, without_run
 
@@ -64,10 +65,14 @@ __all__ = [
 
 class Results(Sequence):
     """The diagnoses of a log's segments, in order; ``to_dict`` and ``to_frame`` give the
-    same records as ``credcli diagnose --format json`` / ``csv``."""
+    same records as ``credcli diagnose --format json`` / ``csv``; ``plot`` draws them.
 
-    def __init__(self, items: list[SegmentDiagnosis]) -> None:
+    Results made by [diagnose_log][credcli.api.diagnose_log] keep a reference to the log and its segments (no
+    copy) for ``plot``."""
+
+    def __init__(self, items: list[SegmentDiagnosis], source: Source | None = None) -> None:
         self._items = list(items)
+        self._source = source
 
     def __getitem__(self, index):
         return self._items[index]
@@ -96,6 +101,42 @@ class Results(Sequence):
 
         return pd.DataFrame(self.to_dict())
 
+    def plot(self, kind: str = "errors", *, k: float = 3.0, window: int | None = None):
+        """Figures of the whole log (matplotlib Figures; ``kind="all"``: a dict of them by
+        kind).
+
+        Parameters
+        ----------
+        kind : "errors", "nees", "whitened", "timeline" or "all"
+            ``errors``: each component of e_k against time with the claimed ±kσ band
+            (σ = √Σ_k,ii), one subplot per component, segments shaded in their label's
+            colour. ``nees``: NEES per epoch (a 2-D histogram above 3,000 epochs), its
+            running mean over ``window`` epochs with the 1 − α interval of that mean
+            (χ²_{wd}/w, assuming independent epochs) and each segment's mean NEES
+            (d · ANEES). ``whitened``: whitened errors Σ_k^{-1/2} e_k (first two
+            components) with the unit circle and the 95 % and 99 % circles of χ²₂.
+            ``timeline``: one bar per segment coloured by its label, with κ̂.
+        k : float
+            The band's width in standard deviations (``errors``).
+        window : int, optional
+            The running mean's length in epochs (``nees``); N/50, from 10 to 500, if None.
+
+        >>> results = diagnose_log(read_log("sample_data/estimator_log.csv"))
+        >>> fig = results.plot("timeline")
+        >>> sorted(results.plot("all"))
+        ['errors', 'nees', 'timeline', 'whitened']
+        """
+        kind = PlotKind.parse(kind)
+        if self._source is None:
+            raise ValueError(
+                "plot: these results hold no log (made by hand); use credcli.diagnose_log"
+            )
+        if not (isinstance(k, int | float) and np.isfinite(k) and k > 0):
+            raise ValueError(f"k must be a positive number; got {k!r}")
+        if kind is PlotKind.ALL:
+            return {str(one): draw(self._source, one, k, window)[0] for one in DRAWN}
+        return draw(self._source, kind, k, window)[0]
+
     def _repr_html_(self) -> str:
         """The diagnosis table in a notebook: the columns ``credcli diagnose`` shows, the
         labels coloured, the advice lines below."""
@@ -110,8 +151,8 @@ class MonteCarloResults(Results):
     that segment of every run), and ``anees``: the per-epoch ANEES test over the runs
     (``credcli diagnose --monte-carlo``)."""
 
-    def __init__(self, items: list[SegmentDiagnosis], anees) -> None:
-        super().__init__(items)
+    def __init__(self, items: list[SegmentDiagnosis], anees, source: Source | None = None) -> None:
+        super().__init__(items, source)
         self.anees = anees
 
     def __repr__(self) -> str:
@@ -209,7 +250,9 @@ def diagnose_log(
             plan = split(log, None if segments is None or whole else segments, whole)
     else:
         plan = list(segments)
-    return Results(_diagnose_segments(log, plan, config, seed))
+    items = _diagnose_segments(log, plan, config, seed)
+    alpha = (config or DiagnosisConfig()).nees_alpha
+    return Results(items, Source.of([log], plan, items, alpha))
 
 
 def _check_log(log) -> None:
@@ -313,7 +356,8 @@ def diagnose_monte_carlo(
         ]
     pooled, anees = monte_carlo_plan(runs, plans, config.alpha)
     results = diagnose_plans(pooled, config, seed, runs=len(runs))
-    return MonteCarloResults(results, anees)
+    source = Source.of(runs, plans[0][1], results, config.nees_alpha)
+    return MonteCarloResults(results, anees, source)
 
 
 def diagnose(

@@ -33,6 +33,7 @@ from credcli.io.records import (
 from credcli.io.streams import display_name, is_stream
 from credcli.parallel import WorkerPool
 from credcli.report import plots as figs
+from credcli.report.overview import Source, overview_plots, segments_to_draw
 from credcli.report.render import (
     Report,
     curves_report,
@@ -62,6 +63,7 @@ class Run:
     report: Report
     plots: list = field(default_factory=list)
     results: list = field(default_factory=list)  # SegmentDiagnosis, in report order
+    notes: tuple[str, ...] = ()  # about the figures: the windows whose figures were skipped
 
 
 def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
@@ -102,7 +104,7 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     show_all = config.metrics is MetricsLevel.ALL
     mc_record = mc and monte_carlo_record(mc)
     report = diagnose_report(results, config, parameters, logs, show_all, mc_record)
-    figures = []
+    figures, notes = [], []
     plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here
         loaded = [open_log(p, schema, options, drop_invalid) for p in paths]
@@ -110,18 +112,31 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
     if plots and mc is not None:
-        figures.append(figs.anees_plot("monte_carlo_anees", mc))
+        group = "Monte Carlo runs: overview"
+        figures.append(dataclasses.replace(figs.anees_plot("monte_carlo_anees", mc), group=group))
+        source = Source.of([log for log, _ in plans], plans[0][1], results, config.nees_alpha)
+        figures.extend(overview_plots(source, "", "Monte Carlo runs"))
     elif plots:
         k = 0
         for log, segments in plans:
             mine = results[k : k + len(segments)]
             k += len(segments)
-            prefix = f"{Path(log.source).stem}_" if len(plans) > 1 else ""
-            figures.extend(segment_figures(log, mine, segments, prefix))
-    return Run(report, figures, results)
+            several = len(plans) > 1
+            prefix = f"{Path(log.source).stem}_" if several else ""
+            log_name = Path(log.source).name if several else ""
+            source = Source.of([log], segments, mine, config.nees_alpha)
+            figures.extend(overview_plots(source, prefix, log_name))
+            drawn, note = segments_to_draw(source.segments, source.results)
+            if note:
+                notes.append(f"{log_name}: {note}" if several else note)
+            chosen = [result for _, result in drawn]
+            figures.extend(segment_figures(log, chosen, segments, prefix, log_name))
+    return Run(report, figures, results, tuple(notes))
 
 
-def segment_figures(log: EstimatorLog, results, segments, prefix: str = "") -> list:
+def segment_figures(
+    log: EstimatorLog, results, segments, prefix: str = "", log_name: str = ""
+) -> list:
     """The figures of a log's diagnosed segments, from the curves the engine computes."""
     by_name = {s.name: s for s in segments}
     errors = log.errors  # computed once: a property
@@ -132,7 +147,7 @@ def segment_figures(log: EstimatorLog, results, segments, prefix: str = "") -> l
         c = result.diagnosis.config.c if decided else None
         curves.append(segment_curves(errors[index], log.cov[index], c))
         times.append(None if log.time is None else log.time[index])
-    return figs.segment_plots(results, curves, times, log.dim, prefix)
+    return figs.segment_plots(results, curves, times, log.dim, prefix, log_name)
 
 
 def _diagnose_here(request: DiagnoseRequest, progress):

@@ -103,9 +103,16 @@ def test_whitened_plot_other_dimensions():
 
 def test_diagnose_plots_option_writes_files(tmp_path, capsys):
     code, _, err = _run(capsys, "diagnose", LOG, "--plots", tmp_path / "figs")
-    assert code == 0 and "wrote 24 figure(s)" in err
+    assert code == 0 and "wrote 28 figure(s)" in err  # 4 per segment, 4 of the whole log
     files = sorted((tmp_path / "figs").glob("*.png"))
-    assert len(files) == 24 and {f.name for f in files} >= {"cruise_nees.png", "urban_scores.png"}
+    assert len(files) == 28 and {f.name for f in files} >= {
+        "cruise_nees.png",
+        "urban_scores.png",
+        "timeline.png",
+        "errors.png",
+        "nees_running.png",
+        "whitened_errors.png",
+    }
     for f in files:
         _check_png(f.read_bytes())
 
@@ -178,12 +185,12 @@ def test_uwb_plots_and_report(tmp_path, capsys):
 def test_report_is_self_contained(tmp_path, capsys):
     out = tmp_path / "report.html"
     code, _, err = _run(capsys, "report", LOG, "-o", out)
-    assert code == 0 and "24 figures" in err
+    assert code == 0 and "28 figures" in err
     html = out.read_text()
     assert html.startswith("<!DOCTYPE html>")
     assert not re.search(r'(src|href)="(https?:)?//', html)  # nothing fetched from a network
     assert "<script" not in html
-    assert html.count('src="data:image/png;base64,') == 24
+    assert html.count('src="data:image/png;base64,') == 28
     assert "optimism+bias" in html and "&quot;n_flips&quot;: 1000" in html
 
 
@@ -232,7 +239,7 @@ def test_report_renders_in_a_headless_browser(tmp_path, capsys):
         check=False,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert 'data-images="18/18"' in proc.stdout
+    assert 'data-images="28/28"' in proc.stdout
     assert "credcli report" in proc.stdout
 
 
@@ -247,3 +254,191 @@ def test_without_matplotlib_a_one_line_hint(tmp_path):
     assert proc.stderr.count("\n") == 1
     assert "pip install 'credcli[plots]'" in proc.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+# --- Results.plot, the overview figures, the report's overview ------------------------
+
+
+def _small_log(n=240, d=2, seed=3):
+    """A log with time, varying claimed covariances and an optimistic stretch."""
+    import credcli
+
+    gen = np.random.default_rng(seed)
+    scales = np.linspace(0.5, 2.0, n)
+    cov = np.eye(d)[None] * scales[:, None, None]
+    cov[:, 0, 1] = cov[:, 1, 0] = 0.2 * scales
+    errors = np.einsum("nij,nj->ni", np.linalg.cholesky(cov), gen.normal(size=(n, d)))
+    errors[n // 2 :] *= 2.0  # the covariance claims too little here
+    return credcli.log_from_arrays(cov, errors=errors, time=0.1 * np.arange(n))
+
+
+@pytest.fixture(scope="module")
+def small():
+    import credcli
+
+    log = _small_log()
+    return log, credcli.diagnose_log(log, "60")  # four windows and the run
+
+
+def _by_gid(fig, gid):
+    found = [a for ax in fig.axes for a in [*ax.lines, *ax.patches] if a.get_gid() == gid]
+    assert found, gid
+    return found
+
+
+def _close(*figures):
+    import matplotlib.pyplot as plt
+
+    for fig in figures:
+        plt.close(fig)
+
+
+def test_plot_errors_band_is_k_root_diagonal(small):
+    log, results = small
+    fig = results.plot("errors", k=2.5)
+    assert len(fig.axes) == log.dim  # one subplot per component
+    for i in range(log.dim):
+        (upper,) = _by_gid(fig, f"band_upper_{i}")
+        (lower,) = _by_gid(fig, f"band_lower_{i}")
+        (error,) = _by_gid(fig, f"error_{i}")
+        np.testing.assert_allclose(upper.get_ydata(), 2.5 * np.sqrt(log.cov[:, i, i]))
+        np.testing.assert_allclose(lower.get_ydata(), -2.5 * np.sqrt(log.cov[:, i, i]))
+        np.testing.assert_array_equal(error.get_ydata(), log.errors[:, i])
+        np.testing.assert_array_equal(error.get_xdata(), log.time)
+    _close(fig)
+
+
+def test_plot_nees_running_mean_and_its_chi2_interval(small):
+    import pandas as pd
+
+    log, results = small
+    fig = results.plot("nees", window=7)
+    (line,) = _by_gid(fig, "running_mean")
+    expected = pd.Series(metrics.nees(log.errors, log.cov)).rolling(7).mean().dropna()
+    np.testing.assert_allclose(line.get_ydata(), expected.to_numpy())
+    np.testing.assert_array_equal(line.get_xdata(), log.time[6:])  # at each window's end
+    (band,) = _by_gid(fig, "running_interval")  # χ²_{wd}/w at α = nees_alpha = 0.05
+    assert band.get_y() == pytest.approx(stats.chi2.ppf(0.025, 14) / 7)
+    assert band.get_y() + band.get_height() == pytest.approx(stats.chi2.ppf(0.975, 14) / 7)
+    windows = [r for r in results if r.segment != "run"]  # the run is not drawn over them
+    for j, r in enumerate(windows):
+        (mean,) = _by_gid(fig, f"segment_mean_{j}")
+        np.testing.assert_allclose(mean.get_ydata(), log.dim * r.diagnosis.anees)
+    _close(fig)
+
+
+def test_plot_timeline_one_bar_per_segment_in_its_label_colour(small):
+    from matplotlib.colors import to_rgba
+
+    log, results = small
+    fig = results.plot("timeline")
+    bars = _by_gid(fig, "timeline")
+    assert len(bars) == len(results)
+    for bar, r in zip(bars, results):
+        assert bar.get_facecolor() == to_rgba(plots.label_colour(r.diagnosis.label))
+    assert plots.label_colour("credible") == "#2ca02c"
+    assert plots.label_colour("insufficient-data") == "#9e9e9e"
+    assert plots.label_colour("optimism+bias") == plots.PLOT_MISFIT_COLOUR
+    run, first = bars[-1], bars[0]
+    assert run.get_y() != first.get_y()  # the run overlaps its windows: a row of its own
+    assert run.get_x() == 0.0 and run.get_width() == pytest.approx(0.1 * log.n)
+    _close(fig)
+
+
+def test_plot_whitened_errors_and_chi2_circles(small):
+    log, results = small
+    fig = results.plot("whitened")
+    points = fig.axes[0].collections[0].get_offsets()
+    np.testing.assert_allclose(points, whiten(log.errors, log.cov))
+    for p in plots.WHITENED_CONTOURS:
+        (circle,) = _by_gid(fig, f"contour_{p:g}")
+        radius = np.hypot(circle.get_xdata(), circle.get_ydata())
+        np.testing.assert_allclose(radius, np.sqrt(stats.chi2.ppf(p, 2)), rtol=1e-3)
+    _close(fig)
+
+
+def test_plot_kinds_all_and_bad(small):
+    from matplotlib.figure import Figure
+
+    _, results = small
+    every = results.plot("all")
+    assert list(every) == ["timeline", "errors", "nees", "whitened"]
+    assert all(isinstance(f, Figure) for f in every.values())
+    _close(*every.values())
+    with pytest.raises(ValueError, match="kind must be one of .*'timeline'.*got 'bad'"):
+        results.plot(kind="bad")
+    with pytest.raises(ValueError, match="window"):
+        results.plot("nees", window=0)
+
+
+def test_plot_monte_carlo_runs_average_nees():
+    import pandas as pd
+
+    import credcli
+
+    runs = [_small_log(n=60, seed=s) for s in range(4)]
+    mc = credcli.diagnose_monte_carlo(runs)
+    fig = mc.plot("nees", window=5)
+    (line,) = _by_gid(fig, "running_mean")
+    expected = pd.Series(mc.anees.anees).rolling(5).mean().dropna()
+    np.testing.assert_allclose(line.get_ydata(), expected.to_numpy())
+    (band,) = _by_gid(fig, "running_interval")  # χ²_{wMd}/(wM)
+    assert band.get_y() == pytest.approx(stats.chi2.ppf(0.025, 5 * 4 * 2) / 20)
+    errors = mc.plot("errors")
+    (upper,) = _by_gid(errors, "band_upper_0")  # 3 × the RMS of the runs' σ
+    rms = np.sqrt(np.mean([r.cov[:, 0, 0] for r in runs], axis=0))
+    np.testing.assert_allclose(upper.get_ydata(), 3 * rms)
+    assert len([ln for ln in errors.axes[0].lines if "_run_" in str(ln.get_gid())]) == 4
+    _close(fig, errors)
+
+
+def test_overview_file_names_never_meet_segment_figure_names():
+    from credcli.report.overview import FILE_STEMS
+
+    for stem in FILE_STEMS.values():
+        assert not stem.endswith(("_nees", "_whitened", "_timescales", "_scores"))
+
+
+def test_window_figures_capped_with_a_note():
+    from credcli.engine.config import Label
+    from credcli.engine.diagnosis import SegmentDiagnosis
+    from credcli.report.overview import segments_to_draw
+    from credcli.segments import Segment
+
+    def result(name, label):
+        diag = type("D", (), {"label": Label(label)})()
+        return SegmentDiagnosis("log", name, None, None, diag)
+
+    labels = ["credible", "insufficient-data", "optimism", "credible", "bias", "pessimism"]
+    segments = [Segment(f"w{i}", np.arange(i, i + 1), window=True) for i in range(6)]
+    segments.append(Segment("run", np.arange(6)))
+    results = [result(s.name, lab) for s, lab in zip(segments, [*labels, "optimism"])]
+    kept, note = segments_to_draw(segments, results, limit=3)
+    assert [s.name for s, _ in kept] == ["w2", "w4", "w5", "run"]  # misfits first, in order
+    assert note.startswith("figures of 3 of 6 windows") and "3 skipped" in note
+    kept, note = segments_to_draw(segments[-1:], results[-1:])
+    assert note is None and len(kept) == 1
+
+
+def test_report_overview_contents_and_capped_windows(tmp_path, capsys):
+    import credcli
+
+    log = _small_log(n=300)
+    csv = tmp_path / "windows.csv"
+    credcli.write_log(log, csv)
+    out = tmp_path / "report.html"
+    code, _, err = _run(capsys, "report", csv, "--window", "30", "-o", out)
+    assert code == 0, err
+    html = out.read_text()
+    assert '<section id="overview"><h2>Overview</h2>' in html
+    assert html.index('id="overview"') < html.index('id="table-')  # the overview comes first
+    overview = html[html.index('id="overview"') : html.index("</section>")]
+    assert "timeline.png" in overview and "11 segments" in overview
+    anchors = re.findall(r'href="#([^"]+)"', html)
+    ids = set(re.findall(r'id="([^"]+)"', html))
+    assert len(anchors) > 4 and set(anchors) <= ids  # every link of the contents lands
+    results = credcli.diagnose_log(credcli.read_log(csv), "30")  # as the command, seed 0
+    windows = [r for r in results if r.segment != "run"]
+    drawn = [r for r in windows if r.diagnosis.label != "credible"][:6]
+    assert f"figures of {len(drawn)} of {len(windows)} windows" in html
+    assert html.count("<h3 id=") == 1 + len(drawn) + 1  # overview, drawn windows, the run

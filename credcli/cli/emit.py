@@ -133,7 +133,7 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html
 
-    html = build_html(title, run.report, run.plots, ", ".join(map(str, sources)))
+    html = build_html(title, run.report, run.plots, ", ".join(map(str, sources)), run.notes)
     write_atomic(path, html, inputs)
     stderr_console().print(
         printable(f"wrote {path} ({len(run.plots)} figures)"), highlight=False, markup=False
@@ -172,6 +172,8 @@ def write_plots(run, directory: Path | None) -> None:
     stderr_console().print(
         printable(f"wrote {len(paths)} figure(s) to {directory}"), highlight=False, markup=False
     )
+    for note in () if isinstance(run, list) else getattr(run, "notes", ()):
+        print(printable(f"credcli: note: {note}"), file=sys.stderr)
 
 
 def write_ci_reports(

@@ -9,10 +9,21 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
+import re
+from pathlib import Path
 
 from credcli.engine.config import Label
 from credcli.errors import printable
-from credcli.report.render import SEGMENT_COLUMNS, Report, Table, advice, format_cell
+from credcli.report.overview import FILE_STEMS, PlotKind
+from credcli.report.render import (
+    SEGMENT_COLUMNS,
+    Report,
+    Table,
+    advice,
+    format_cell,
+    scale_interval,
+)
 
 _STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
@@ -25,7 +36,18 @@ th { background: #f3f3f3; } td.text, th.text { text-align: left; }
 figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: 0.85em; color: #555; } pre { background: #f7f7f7; padding: 0.8em;
 overflow-x: auto; font-size: 0.8em; } .note { color: #555; font-size: 0.9em; }
+h3 { font-size: 1.05em; margin-top: 1.5em; }
+.figs { display: grid; grid-template-columns: repeat(auto-fill, minmax(460px, 1fr));
+        gap: 0 1.2em; }
+nav ul { margin: 0.3em 0; } nav li { margin: 0.1em 0; } nav ul ul { font-size: 0.92em; }
+.counts span { display: inline-block; margin: 0 1em 0.3em 0; }
 """
+
+
+def _escape(text) -> str:
+    """Text for HTML: markup characters escaped, and control characters from the data
+    (a segment name's ESC or BEL) shown as their backslash escapes."""
+    return html.escape(printable(str(text)))
 
 
 LABEL_COLOURS = {"credible": "#176f2c", "insufficient-data": "#666666"}
@@ -40,10 +62,10 @@ def label_style(value: str) -> str:
     return f"color: {LABEL_COLOURS.get(name, MISFIT_COLOUR)}; font-weight: 600"
 
 
-def _table_html(table) -> str:
+def _table_html(table, anchor: str = "") -> str:
     table = table.shown()
     head = "".join(
-        f'<th class="{"text" if not c.digits else "num"}">{html.escape(c.header)}</th>'
+        f'<th class="{"text" if not c.digits else "num"}">{_escape(c.header)}</th>'
         for c in table.columns
     )
     rows = []
@@ -52,16 +74,16 @@ def _table_html(table) -> str:
         for c in table.columns:
             value = row.get(c.key)
             # as the terminal shows it: control characters from the data escaped
-            text = html.escape(printable(format_cell(c.value(row), c.digits)))
+            text = _escape(format_cell(c.value(row), c.digits))
             cls, style = "text" if not c.digits else "num", ""
             if c.key in ("label", "nees_label", "nci_label") and isinstance(value, str):
                 cls += " credible" if value == Label.CREDIBLE.value else " bad"
                 style = f' style="{label_style(value)}"'
             cells.append(f'<td class="{cls}"{style}>{text}</td>')
         rows.append("<tr>" + "".join(cells) + "</tr>")
-    caption = f'<p class="note">{html.escape(table.caption)}</p>' if table.caption else ""
+    caption = f'<p class="note">{_escape(table.caption)}</p>' if table.caption else ""
     return (
-        f"<h2>{html.escape(table.title)}</h2>\n<table><thead><tr>{head}</tr></thead>"
+        f"<h2{_id(anchor)}>{_escape(table.title)}</h2>\n<table><thead><tr>{head}</tr></thead>"
         f"<tbody>{''.join(rows)}</tbody></table>{caption}"
     )
 
@@ -72,36 +94,160 @@ def records_table(records: list[dict], notes: tuple[str, ...] = ()) -> str:
     diagnose`` shows, labels coloured inline."""
     body = _table_html(Table("credcli diagnose", SEGMENT_COLUMNS, records))
     lines = [*notes, *(a for a in (advice(r) for r in records) if a)]
-    shown = "".join(f'<p class="note">{html.escape(line)}</p>' for line in lines)
+    shown = "".join(f'<p class="note">{_escape(line)}</p>' for line in lines)
     return f"<div>{body}{shown}</div>"
 
 
-def build_html(title: str, report: Report, plots, subtitle: str = "") -> str:
-    """The report as one HTML document."""
+def _id(anchor: str) -> str:
+    return f' id="{anchor}"' if anchor else ""
+
+
+class _Anchors:
+    """Unique HTML ids made of a text's safe characters."""
+
+    def __init__(self) -> None:
+        self.taken: set[str] = set()
+
+    def __call__(self, text: str) -> str:
+        stem = re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-").lower()[:60] or "section"
+        anchor, k = stem, 1
+        while anchor in self.taken:
+            k += 1
+            anchor = f"{stem}-{k}"
+        self.taken.add(anchor)
+        return anchor
+
+
+WORST_SHOWN = 5
+"""The segments listed as the worst in a report's overview."""
+
+
+def _severity(rec: dict) -> float:
+    kappa = rec.get("scale_factor")
+    return abs(math.log(kappa)) if kappa and kappa > 0 else 0.0
+
+
+def _summary_html(records: list[dict], figure_of: dict) -> str:
+    """Counts per label and the worst segments: the misfits whose κ̂ is farthest from 1."""
+    counts: dict[str, int] = {}
+    for rec in records:
+        counts[str(rec["label"])] = counts.get(str(rec["label"]), 0) + 1
+    shown = "".join(
+        f'<span style="{label_style(label)}">{_escape(label)}: {n}</span>'
+        for label, n in sorted(counts.items(), key=lambda item: -item[1])
+    )
+    parts = [f'<p class="counts">{len(records)} segments — {shown}</p>']
+    misfits = [
+        r
+        for r in records
+        if r.get("label_answered", r["label"])
+        not in (Label.CREDIBLE.value, Label.INSUFFICIENT.value)
+    ]
+    if not misfits:
+        parts.append('<p class="note">No segment is a misfit.</p>')
+        return "".join(parts)
+    worst = sorted(misfits, key=_severity, reverse=True)[:WORST_SHOWN]
+    several = len({r.get("log") for r in records}) > 1
+    rows = []
+    for rec in worst:
+        name = _escape(str(rec["segment"]))
+        if several:
+            name = f"{_escape(str(rec.get('log')))}: {name}"
+        anchor = figure_of.get((str(rec.get("log")), str(rec["segment"])))
+        if anchor:
+            name = f'<a href="#{anchor}">{name}</a>'
+        label = str(rec["label"])
+        rows.append(
+            f'<tr><td class="text">{name}</td><td class="text" style="{label_style(label)}">'
+            f"{_escape(label)}</td>"
+            f"<td>{_escape(scale_interval(rec) or '–')}</td>"
+            f"<td>{_escape(format_cell(rec.get('bias_mahalanobis'), 3))}</td>"
+            f"<td>{rec.get('n', '')}</td></tr>"
+        )
+    parts.append(
+        f"<p>The worst segments ({len(worst)} of {len(misfits)} misfits, by how far κ̂ is from "
+        '1):</p><table><thead><tr><th class="text">segment</th><th class="text">label</th>'
+        "<th>cov × (interval)</th><th>|bias| [σ]</th><th>N</th></tr></thead>"
+        f"<tbody>{''.join(rows)}</tbody></table>"
+    )
+    return "".join(parts)
+
+
+def _figure_html(plot) -> str:
+    uri = "data:image/png;base64," + base64.b64encode(plot.png).decode("ascii")
+    return (
+        f'<figure><img src="{uri}" alt="{_escape(plot.title)}">'
+        f"<figcaption>{_escape(plot.name)}.png: {_escape(plot.title)}</figcaption>"
+        "</figure>"
+    )
+
+
+def build_html(title: str, report: Report, plots, subtitle: str = "", notes=()) -> str:
+    """The report as one HTML document: a table of contents, an overview (the label
+    timeline, counts per label, the worst segments), the tables, the figures grouped by
+    log and segment (``Plot.group``), ``notes`` about the figures, and the parameters."""
+    anchors = _Anchors()
+    records = report.document.get("segments", [])
+    timeline_stem = FILE_STEMS[PlotKind.TIMELINE]
+    timelines = [p for p in plots if p.name.endswith(timeline_stem) and "overview" in p.group]
+    others = [p for p in plots if p not in timelines]
+    groups: dict[str, list] = {}
+    for plot in others:
+        groups.setdefault(plot.group or "figures", []).append(plot)
+    group_ids = {group: anchors(f"fig-{group}") for group in groups}
+    figure_of = {}  # (log, segment) -> the anchor of its figures (Plot.group as plots names it)
+    several = len({rec.get("log") for rec in records}) > 1
+    for rec in records:
+        log, segment = str(rec.get("log")), str(rec["segment"])
+        group = f"{Path(log).name}: segment {segment}" if several else f"segment {segment}"
+        if group in group_ids:
+            figure_of[(log, segment)] = group_ids[group]
+    table_ids = [anchors(f"table-{t.title}") for t in report.tables]
+    toc = []
+    if records or timelines:
+        toc.append('<li><a href="#overview">Overview</a></li>')
+    for table, anchor in zip(report.tables, table_ids):
+        toc.append(f'<li><a href="#{anchor}">{_escape(table.title)}</a></li>')
+    if groups:
+        items = "".join(
+            f'<li><a href="#{group_ids[g]}">{_escape(g)}</a> ({len(groups[g])})</li>'
+            for g in groups
+        )
+        toc.append(f'<li><a href="#figures">Figures</a><ul>{items}</ul></li>')
+    toc.append('<li><a href="#parameters">Parameters</a></li>')
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head><body>",
-        f"<h1>{html.escape(title)}</h1>",
+        f"<title>{_escape(title)}</title><style>{_STYLE}</style></head><body>",
+        f"<h1>{_escape(title)}</h1>",
     ]
     if subtitle:
-        parts.append(f'<p class="note">{html.escape(subtitle)}</p>')
-    for table in report.tables:
-        parts.append(_table_html(table))
+        parts.append(f'<p class="note">{_escape(subtitle)}</p>')
+    parts.append(f'<nav id="contents"><h2>Contents</h2><ul>{"".join(toc)}</ul></nav>')
+    if records or timelines:
+        parts.append('<section id="overview"><h2>Overview</h2>')
+        if records:
+            parts.append(_summary_html(records, figure_of))
+        parts.extend(_figure_html(p) for p in timelines)
+        parts.append("</section>")
+    for table, anchor in zip(report.tables, table_ids):
+        parts.append(_table_html(table, anchor))
     for note in report.notes:
-        parts.append(f'<p class="note">{html.escape(note)}</p>')
-    if plots:
-        parts.append("<h2>Figures</h2>")
-    for plot in plots:
-        uri = "data:image/png;base64," + base64.b64encode(plot.png).decode("ascii")
-        parts.append(
-            f'<figure><img src="{uri}" alt="{html.escape(plot.title)}">'
-            f"<figcaption>{html.escape(plot.name)}.png: {html.escape(plot.title)}</figcaption></figure>"
-        )
+        parts.append(f'<p class="note">{_escape(note)}</p>')
+    if groups:
+        parts.append('<h2 id="figures">Figures</h2>')
+    for note in notes:
+        parts.append(f'<p class="note">{_escape(note)}</p>')
+    for group, members in groups.items():
+        parts.append(f'<section><h3 id="{group_ids[group]}">{_escape(group)}</h3>')
+        wide = "overview" in group  # whole-run figures: one to a row
+        parts.append(f'<div class="{"wide" if wide else "figs"}">')
+        parts.extend(_figure_html(p) for p in members)
+        parts.append("</div></section>")
     params = report.document.get("parameters", {})
-    parts.append("<h2>Parameters</h2>")
-    parts.append(f"<pre>{html.escape(json.dumps(params, indent=2))}</pre>")
+    parts.append('<h2 id="parameters">Parameters</h2>')
+    parts.append(f"<pre>{_escape(json.dumps(params, indent=2))}</pre>")
     version = report.document.get("version", "")
-    parts.append(f'<p class="note">credcli {html.escape(str(version))}</p></body></html>')
+    parts.append(f'<p class="note">credcli {_escape(str(version))}</p></body></html>')
     return "\n".join(parts) + "\n"

@@ -6,7 +6,9 @@ can check a figure against the numbers it claims to show.
 
 from __future__ import annotations
 
+import dataclasses
 import io
+import math
 import re
 import zlib
 from dataclasses import dataclass, field
@@ -28,6 +30,7 @@ class Plot:
     title: str
     png: bytes
     data: dict = field(repr=False)
+    group: str = ""  # the section of a report it belongs to: a log's overview, a segment
 
 
 def _pyplot():
@@ -48,14 +51,14 @@ def require_plotting() -> None:
     _pyplot()
 
 
-def _finish(fig, name: str, title: str, data: dict) -> Plot:
+def _finish(fig, name: str, title: str, data: dict, group: str = "") -> Plot:
     plt = _pyplot()
     fig.suptitle(title)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
     plt.close(fig)
-    return Plot(name, title, buf.getvalue(), data)
+    return Plot(name, title, buf.getvalue(), data, group)
 
 
 MAX_STEM = 80
@@ -119,7 +122,7 @@ def nees_plot(name: str, time, nees: np.ndarray, dim: int, title: str) -> Plot:
     mean = float(nees.mean())
     fig, ax = plt.subplots(figsize=(8, 3.6))
     ax.plot(x, nees, ".", ms=3, color="tab:blue", label="NEES ε_k")
-    ax.axhline(upper, color="tab:red", ls="--", lw=1, label=f"95% bounds of χ²_{dim}")
+    ax.axhline(upper, color="tab:red", ls="--", lw=1, label=f"95% bounds of χ²({dim})")
     ax.axhline(lower, color="tab:red", ls="--", lw=1)
     ax.axhline(
         mean, color="black", lw=1.5, label=f"mean NEES = {mean:.3g} (ANEES {mean / dim:.3g})"
@@ -164,6 +167,12 @@ def time_scales_plot(name: str, scales, rate_hz: float | None, title: str) -> Pl
     ax.set_yscale("log")
     ax.set_xlabel("averaging time [s]" if rate_hz else "averaging time [epochs]")
     ax.set_ylabel("m · Var(mean of m epochs)")
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter  # 0.6, not 6×10⁻¹
+
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(NullFormatter())  # labelled minors of a decade collide
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.legend(loc="best", fontsize=8, framealpha=0.9)
     data = {
         "epochs": m,
@@ -271,13 +280,16 @@ def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str
     return _finish(fig, name, title, data)
 
 
-def segment_plots(results, curves, times, dim: int, prefix: str = "") -> list[Plot]:
+def segment_plots(
+    results, curves, times, dim: int, prefix: str = "", log_name: str = ""
+) -> list[Plot]:
     """The pictures of every diagnosed segment (NEES, whitened errors, the variance at every
     averaging time where the memory model was read, the scores): ``curves`` (the engine's
     :class:`credcli.engine.curves.SegmentCurves`) and ``times`` (stamps or None) in the
-    order of ``results``."""
+    order of ``results``. Each plot's ``group`` names its segment (after ``log_name``)."""
     plots = []
     for res, numbers, time in zip(results, curves, times, strict=True):
+        start = len(plots)
         diag = res.diagnosis
         stem = safe_name(f"{prefix}{res.segment}")
         head = f"{short_title(res.segment)}: {diag.label.value} (N = {diag.n})"
@@ -294,6 +306,8 @@ def segment_plots(results, curves, times, dim: int, prefix: str = "") -> list[Pl
             plots.append(
                 scale_plot(f"{stem}_scores", scores.scales, curves_by_kind, diag.config.c, head)
             )
+        group = f"{log_name}: segment {res.segment}" if log_name else f"segment {res.segment}"
+        plots[start:] = [dataclasses.replace(p, group=group) for p in plots[start:]]
     return plots
 
 
@@ -517,3 +531,439 @@ def uwb_plots(run) -> list[Plot]:
         )
     )
     return plots
+
+
+# --- the whole run: overview figures ---------------------------------------------------
+
+PLOT_LABEL_COLOURS = {"credible": "#2ca02c", "insufficient-data": "#9e9e9e", "pessimism": "#ff7f0e"}
+"""A label's colour in figures: credible green, insufficient grey, pessimism (a covariance
+too large: safe but wasteful) orange, every other misfit red (:data:`PLOT_MISFIT_COLOUR`)."""
+PLOT_MISFIT_COLOUR = "#d62728"
+_COLOUR_ORDER = [
+    *(PLOT_LABEL_COLOURS[k] for k in ("credible", "pessimism")),
+    PLOT_MISFIT_COLOUR,
+    PLOT_LABEL_COLOURS["insufficient-data"],
+]
+"""The order of the colours in a legend: the good news first."""
+
+MAX_SCATTER = 3000
+"""Above this many points a scatter saturates: the figures draw a 2-D histogram instead."""
+MAX_SPAN_TEXT = 12
+"""Segments named in a figure at most (more would overlap: the timeline names them)."""
+MAX_SPAN_LINES = 40
+"""Segments whose boundaries and mean NEES a figure marks at most (more are clutter)."""
+
+
+def label_colour(label: str) -> str:
+    """The figure colour of a label (its text, or a Label)."""
+    return PLOT_LABEL_COLOURS.get(str(label).split(" (")[0], PLOT_MISFIT_COLOUR)
+
+
+@dataclass(frozen=True)
+class Span:
+    """A diagnosed segment on the time axis: its name, first and last time (or epoch),
+    label, κ̂ (None when not estimated) and ANEES (None when not computed)."""
+
+    name: str
+    start: float
+    end: float
+    label: str
+    kappa: float | None = None
+    anees: float | None = None
+
+
+def _titled(fig, title: str):
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def _figure(**kwargs):
+    """A new figure and its axes, on the backend already chosen (a notebook's inline one
+    for ``Results.plot``; Agg for the command line, which chose it first)."""
+    try:
+        import matplotlib.pyplot as plt
+    except ModuleNotFoundError as exc:
+        raise CredcliError(
+            f"figures need matplotlib, which is not installed: {INSTALL_HINT}"
+        ) from exc
+    return plt.subplots(**kwargs)
+
+
+def _shade_spans(ax, spans: list[Span], name_them: bool) -> None:
+    """Each segment shaded faintly in its label's colour (neighbours of one colour as one
+    stretch); boundaries marked and segments named on top when there are few."""
+    stretch = None
+    for span in [*spans, None]:
+        colour = None if span is None else label_colour(span.label)
+        if stretch and (span is None or colour != stretch[2] or span.start != stretch[1]):
+            ax.axvspan(stretch[0], stretch[1], color=stretch[2], alpha=0.08, lw=0)
+            stretch = None
+        if span is not None:
+            stretch = (stretch[0] if stretch else span.start, span.end, colour)
+    if len(spans) <= MAX_SPAN_LINES:
+        for span in spans:
+            ax.axvline(span.start, color="grey", lw=0.4, alpha=0.6)
+    if name_them and len(spans) <= MAX_SPAN_TEXT:
+        for span in spans:
+            ax.text(
+                (span.start + span.end) / 2,
+                1.0,
+                short_title(span.name, 16),
+                transform=ax.get_xaxis_transform(),
+                ha="center",
+                va="bottom",
+                fontsize=7,
+                color="#444",
+                clip_on=False,
+            )
+
+
+def draw_errors(
+    x: np.ndarray,
+    errors: np.ndarray,
+    band: np.ndarray,
+    outside: np.ndarray,
+    spans: list[Span],
+    k: float = 3.0,
+    xlabel: str = "time [s]",
+    components: list[str] | None = None,
+    title: str = "",
+):
+    """Each error component e_k,i against time (``errors``: (N, d), or (M, N, d) for M
+    Monte Carlo runs, one thin line each) with the claimed ±kσ band (``band``: (N, d), kσ_k,i
+    with σ_k,i = √Σ_k,ii; for runs, the root mean square over them), one subplot per
+    component, the segments shaded in their label's colour. ``outside``: the share of
+    epochs outside their own band, per component. Returns the figure and the numbers drawn."""
+    runs = errors if errors.ndim == 3 else errors[None]
+    m, n, d = runs.shape
+    names = components or [f"e_{i + 1}" for i in range(d)]
+    fig, axes = _figure(nrows=d, ncols=1, sharex=True, figsize=(10, 1.2 + 1.9 * d), squeeze=False)
+    expected = math.erfc(k / math.sqrt(2.0))  # P(|z| > k), z ~ N(0, 1)
+    dense = m * n > MAX_SCATTER  # a dense line is a blot: drawn light, under the band's edges
+    sigma_text = "claimed" if m == 1 else f"claimed (RMS over {m} runs)"
+    for i, ax in enumerate(axes[:, 0]):
+        _shade_spans(ax, spans, name_them=i == 0)
+        ax.fill_between(x, -band[:, i], band[:, i], color="tab:blue", alpha=0.15, lw=0)
+        (upper,) = ax.plot(x, band[:, i], color="tab:blue", lw=1, gid=f"band_upper_{i}", zorder=4)
+        ax.plot(x, -band[:, i], color="tab:blue", lw=1, gid=f"band_lower_{i}", zorder=4)
+        upper.set_label(
+            f"±{k:g}σ {sigma_text}: {100 * outside[i]:.2g} % outside, "
+            f"{100 * expected:.2g} % expected"
+        )
+        for r in range(m):
+            ax.plot(
+                x,
+                runs[r, :, i],
+                color="#444" if dense else "black",
+                lw=0.3 if dense else 0.8,
+                alpha=0.6 if dense else 1.0,
+                gid=f"error_{i}" if m == 1 else f"error_{i}_run_{r}",
+                label=(names[i] if m == 1 else f"{names[i]}, {m} runs") if r == 0 else None,
+                zorder=3,
+            )
+        ax.axhline(0, color="grey", lw=0.5)
+        ax.set_ylabel(f"{names[i]} [state units]")
+        ax.legend(loc="upper right", fontsize=7, framealpha=0.85)
+    axes[-1, 0].set_xlabel(xlabel)
+    data = {"x": x, "errors": errors, "band": band, "k": k, "outside": outside}
+    return _titled(fig, title), data
+
+
+def draw_nees(
+    x: np.ndarray,
+    nees: np.ndarray,
+    dim: int,
+    running: np.ndarray,
+    window: int,
+    bounds: tuple[float, float],
+    alpha: float,
+    spans: list[Span],
+    runs: int = 1,
+    xlabel: str = "time [s]",
+    title: str = "",
+):
+    """NEES per epoch (points; a 2-D histogram when there are more than MAX_SCATTER), its
+    running mean over ``window`` epochs (drawn at each window's last epoch) with the 1 − α
+    interval ``bounds`` of that mean (χ²_{wd}/w under independent epochs), the expected
+    value d and each segment's mean NEES (d · ANEES). With ``runs`` > 1 the per-epoch
+    values are averages over Monte Carlo runs (χ²_{Md}/M each)."""
+    n = nees.size
+    fig, ax = _figure(figsize=(10, 4.2))
+    _shade_spans(ax, spans, name_them=True)
+    what = "NEES ε_k" if runs == 1 else f"NEES averaged over {runs} runs"
+    positive = np.maximum(nees, 1e-12)  # a log axis: an exact zero is drawn at its floor
+    if n > MAX_SCATTER:
+        hb = ax.hexbin(
+            x,
+            positive,
+            yscale="log",
+            bins="log",
+            gridsize=(90, 30),
+            cmap="Blues",
+            mincnt=1,
+            linewidths=0,
+        )
+        fig.colorbar(hb, ax=ax, label=f"epochs per cell ({what})", pad=0.01)
+    else:
+        ax.plot(x, positive, ".", ms=2.5, color="tab:blue", alpha=0.45, label=what)
+    ax.axhline(dim, color="grey", lw=0.8, ls=":", label=f"expected value d = {dim}")
+    ax.axhspan(
+        *bounds,
+        gid="running_interval",
+        color="tab:green",
+        alpha=0.18,
+        lw=0,
+        label=f"{100 * (1 - alpha):g} % interval of the running mean "
+        f"(χ²({window * runs * dim})/{window * runs}, independent epochs)",
+    )
+    xr = x[window - 1 :]
+    ax.plot(
+        xr,
+        running,
+        color="black",
+        lw=1.2,
+        gid="running_mean",
+        zorder=4,
+        label=f"running mean over {window} epochs",
+    )
+    named = len(spans) <= MAX_SPAN_TEXT
+    for j, span in enumerate(spans):
+        if span.anees is None or len(spans) > MAX_SPAN_LINES:  # many: the running mean tells
+            continue
+        ax.plot(
+            [span.start, span.end],
+            [dim * span.anees] * 2,
+            color=label_colour(span.label),
+            lw=1.8,
+            ls="--",
+            gid=f"segment_mean_{j}",
+            zorder=3,
+            label="segment mean NEES = d · ANEES" if j == 0 else None,
+        )
+        if named:
+            ax.annotate(
+                f"ANEES {span.anees:.3g}",
+                ((span.start + span.end) / 2, dim * span.anees),
+                textcoords="offset points",
+                xytext=(0, 7),
+                ha="center",
+                fontsize=7,
+                color=label_colour(span.label),
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8},
+                zorder=5,
+            )
+    low, high = np.quantile(positive, [0.01, 0.99])
+    if high > 30 * low:  # NEES of single epochs spans decades; averages over runs do not
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("NEES")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=7, frameon=False, ncol=3)
+    running_inside = float(np.mean((running >= bounds[0]) & (running <= bounds[1])))
+    data = {
+        "x": x,
+        "nees": nees,
+        "running": running,
+        "running_x": xr,
+        "window": window,
+        "bounds": bounds,
+        "segment_mean": [None if s.anees is None else dim * s.anees for s in spans],
+        "running_inside": running_inside,
+    }
+    return _titled(fig, title), data
+
+
+WHITENED_CONTOURS = (0.3935, 0.95, 0.99)
+"""The χ²₂ probabilities of the circles drawn on whitened errors (the first is the unit
+circle)."""
+
+
+def draw_whitened_errors(
+    s: np.ndarray, colours: list[str] | None = None, title: str = "", labels: dict | None = None
+):
+    """Whitened errors s_k = Σ_k^{-1/2} e_k, first two components, with circles holding
+    39 % (the unit circle), 95 % and 99 % of N(0, I₂) and the share observed inside each
+    (for d = 1: a histogram against the N(0, 1) density). A 2-D histogram replaces the
+    points above MAX_SCATTER; points beyond the axes are counted."""
+    n, d = s.shape
+    fig, ax = _figure(figsize=(7, 6.6) if d > 1 else (7, 4))
+    data: dict = {"s": s[:, : min(d, 2)]}
+    if d == 1:
+        lim = max(4.0, float(np.quantile(np.abs(s[:, 0]), 0.995)) * 1.05)
+        bins = np.linspace(-lim, lim, 61)
+        ax.hist(
+            np.clip(s[:, 0], -lim, lim),
+            bins=bins,
+            density=True,
+            color="tab:blue",
+            alpha=0.6,
+            label="whitened error s_k",
+        )
+        grid = np.linspace(-lim, lim, 400)
+        ax.plot(
+            grid,
+            np.exp(-(grid**2) / 2) / np.sqrt(2 * np.pi),
+            color="black",
+            lw=1.2,
+            label="N(0, 1)",
+        )
+        ax.set_xlabel("s_k (whitened, unitless)")
+        ax.set_ylabel("density")
+        ax.legend(fontsize=8)
+        return _titled(fig, title), data
+    pair = s[:, :2]
+    radius2 = np.einsum("ni,ni->n", pair, pair)
+    lim = max(4.0, float(np.quantile(np.abs(pair), 0.995)) * 1.05)
+    beyond = int(np.sum(np.any(np.abs(pair) > lim, axis=1)))
+    if n > MAX_SCATTER:
+        hb = ax.hexbin(
+            pair[:, 0],
+            pair[:, 1],
+            bins="log",
+            gridsize=60,
+            cmap="Blues",
+            mincnt=1,
+            extent=(-lim, lim, -lim, lim),
+            linewidths=0,
+        )
+        fig.colorbar(hb, ax=ax, label="epochs per cell", shrink=0.8)
+    else:
+        ax.scatter(pair[:, 0], pair[:, 1], s=5, c=colours or "tab:blue", alpha=0.45, lw=0)
+        for label, colour in (labels or {}).items():  # the colours' meaning
+            ax.scatter([], [], s=12, c=colour, label=f"epochs of {label} segments")
+    theta = np.linspace(0, 2 * np.pi, 361)
+    radii, shares = [], []
+    for p, style in zip(WHITENED_CONTOURS, (":", "--", "-")):
+        r = float(np.sqrt(-2 * np.log1p(-p)))  # the χ²₂ quantile: 1 − exp(−r²/2) = p
+        inside = float(np.mean(radius2 <= r * r))
+        ax.plot(
+            r * np.cos(theta),
+            r * np.sin(theta),
+            color="black",
+            ls=style,
+            lw=1,
+            gid=f"contour_{p:g}",
+            label=f"{100 * p:.3g} % of χ²₂ (r = {r:.2f}): {100 * inside:.1f} % inside",
+        )
+        radii.append(r)
+        shares.append(inside)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_aspect("equal")
+    ax.axhline(0, color="grey", lw=0.5)
+    ax.axvline(0, color="grey", lw=0.5)
+    ax.set_xlabel("s_k,1 (whitened, unitless)")
+    ax.set_ylabel("s_k,2 (whitened, unitless)")
+    notes = []
+    if d > 2:
+        notes.append(f"first two of d = {d} components")
+    if beyond:
+        notes.append(f"{beyond} of {n} epochs beyond the axes")
+    if notes:
+        ax.text(0.02, 0.02, "; ".join(notes), transform=ax.transAxes, fontsize=8)
+    ax.legend(loc="upper right", fontsize=7, framealpha=0.85)
+    data.update(radii=radii, inside=shares, beyond=beyond)
+    return _titled(fig, title), data
+
+
+def _lanes(spans: list[Span]) -> list[int]:
+    """A row for each span: the first row where it overlaps no span already placed (the
+    windows of a run share a row; the run itself gets its own)."""
+    ends: list[float] = []
+    lanes = []
+    for span in spans:
+        for row, end in enumerate(ends):
+            if span.start >= end:
+                ends[row] = span.end
+                lanes.append(row)
+                break
+        else:
+            ends.append(span.end)
+            lanes.append(len(ends) - 1)
+    return lanes
+
+
+def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
+    """One bar per segment over its time, coloured by its label, with κ̂ written in bars
+    wide enough to hold it; overlapping segments (windows and their run) on separate rows."""
+    from matplotlib.patches import Patch
+
+    lanes = _lanes(spans)
+    rows = max(lanes) + 1 if lanes else 1
+    fig, ax = _figure(figsize=(11, 1.9 + 0.55 * max(rows, len(set(s.label for s in spans)) / 3)))
+    total = (max(s.end for s in spans) - min(s.start for s in spans)) if spans else 1.0
+    total = total or 1.0
+    colours = [label_colour(s.label) for s in spans]
+    widths = [max(s.end - s.start, total * 1e-3) for s in spans]
+    bars = ax.barh(
+        lanes,
+        widths,
+        left=[s.start for s in spans],
+        height=0.7,
+        color=colours,
+        edgecolor="white",
+        lw=0.8 if len(spans) <= MAX_SPAN_LINES else 0,  # many: edges would stripe the row
+        gid="timeline",
+    )
+    for span, lane, width in zip(spans, lanes, widths):
+        kappa = (
+            "κ̂ –" if span.kappa is None or not np.isfinite(span.kappa) else (f"κ̂ {span.kappa:.2g}")
+        )
+        room = width / total
+        if room > 0.09:
+            text = f"{short_title(span.name, 18)}\n{kappa}"
+        elif room > 0.035:
+            text = kappa.replace("κ̂ ", "")
+        else:
+            continue
+        ax.text(
+            span.start + width / 2,
+            lane,
+            text,
+            ha="center",
+            va="center",
+            fontsize=7,
+            color="white" if span.label != "insufficient-data" else "black",
+        )
+    counts: dict[str, dict[str, int]] = {}  # colour -> label -> segments: one entry a colour
+    for span in sorted(spans, key=lambda s: _COLOUR_ORDER.index(label_colour(s.label))):
+        mine = counts.setdefault(label_colour(span.label), {})
+        mine[span.label] = mine.get(span.label, 0) + 1
+    handles = [
+        Patch(
+            color=colour,
+            label=", ".join(short_title(lab, 24) for lab in labels) + f" ({sum(labels.values())})",
+        )
+        for colour, labels in counts.items()
+    ]
+    ax.legend(
+        handles=handles, loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8, frameon=False
+    )
+    names = []
+    for row in range(rows):
+        mine = [s for s, lane in zip(spans, lanes) if lane == row]
+        names.append(short_title(mine[0].name, 14) if len(mine) == 1 else f"{len(mine)} segments")
+    ax.set_yticks(range(rows), names, fontsize=8)
+    ax.set_ylim(rows - 0.5, -0.5)
+    ax.set_xlabel(xlabel)
+    data = {
+        "starts": [s.start for s in spans],
+        "ends": [s.end for s in spans],
+        "lanes": lanes,
+        "colours": colours,
+        "labels": [s.label for s in spans],
+        "kappa": [s.kappa for s in spans],
+        "bars": len(bars.patches),
+    }
+    return _titled(fig, title), data
+
+
+def figure_plot(name: str, title: str, drawn, group: str = "") -> Plot:
+    """A drawn figure (the figure and its numbers, as the ``draw_*`` functions return
+    them) as a Plot: its PNG bytes; the figure is closed."""
+    fig, data = drawn
+    plt = _pyplot()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
+    plt.close(fig)
+    return Plot(name, title, buf.getvalue(), data, group)

@@ -1,0 +1,224 @@
+"""The overview figures of a whole log: the numbers gathered from the log, its segments and
+their diagnoses, and drawn by :mod:`credcli.report.plots`.
+
+``Results.plot`` returns these figures; ``--plots`` and ``credcli report`` write them (and
+the per-segment figures, capped for windows: :func:`segments_to_draw`).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from credcli.engine.config import Label
+from credcli.engine.curves import default_window, running_mean, running_mean_bounds
+from credcli.engine.elt import whiten
+from credcli.engine.metrics import nees
+from credcli.report import plots as figs
+
+
+class PlotKind(str, enum.Enum):
+    """The figures of ``Results.plot(kind=...)``."""
+
+    ERRORS = "errors"
+    NEES = "nees"
+    WHITENED = "whitened"
+    TIMELINE = "timeline"
+    ALL = "all"
+
+    def __str__(self) -> str:
+        return self.value
+
+    @classmethod
+    def parse(cls, kind) -> PlotKind:
+        try:
+            return cls(kind)
+        except ValueError:
+            choices = ", ".join(repr(k.value) for k in cls)
+            raise ValueError(f"kind must be one of {choices}; got {kind!r}") from None
+
+
+DRAWN = (PlotKind.TIMELINE, PlotKind.ERRORS, PlotKind.NEES, PlotKind.WHITENED)
+"""Every kind of ``"all"``, in the order a report shows them."""
+
+FILE_STEMS = {
+    PlotKind.TIMELINE: "timeline",
+    PlotKind.ERRORS: "errors",
+    PlotKind.NEES: "nees_running",
+    PlotKind.WHITENED: "whitened_errors",
+}
+"""The file names of the overview figures (after the log's prefix). A segment's figures end
+in ``_nees``, ``_whitened``, ``_timescales`` or ``_scores``, which none of these does: the
+names of the two never meet."""
+
+MAX_WINDOW_FIGURES = 6
+"""With windows, the per-window figures are drawn for at most this many windows that are
+not credible (the overview figures cover the whole run)."""
+
+
+@dataclass(frozen=True)
+class Source:
+    """What the overview draws from: the runs of one scenario (one log, or M Monte Carlo
+    runs on one time base), the segments of the first run and their diagnoses (pooled over
+    the runs, in the order of ``segments``)."""
+
+    runs: tuple
+    segments: tuple
+    results: tuple
+    alpha: float = 0.05
+
+    @classmethod
+    def of(cls, runs, segments, results, alpha: float = 0.05) -> Source:
+        """The source of ``results`` (SegmentDiagnosis, matched to ``segments`` by name)."""
+        by_name = {segment.name: segment for segment in segments}
+        chosen = tuple(by_name[result.segment] for result in results)
+        return cls(tuple(runs), chosen, tuple(results), alpha)
+
+    @property
+    def time(self) -> np.ndarray | None:
+        return self.runs[0].time
+
+    @property
+    def x(self) -> np.ndarray:
+        time = self.time
+        return np.arange(self.runs[0].n, dtype=float) if time is None else np.asarray(time)
+
+    @property
+    def xlabel(self) -> str:
+        return "epoch" if self.time is None else "time [s]"
+
+
+def spans(source: Source) -> list[figs.Span]:
+    """Each diagnosed segment on the time axis, label, κ̂ and ANEES. A segment spans from
+    its first epoch to one sampling step (the median) past its last, so that consecutive
+    segments meet."""
+    x = source.x
+    step = float(np.median(np.diff(x))) if x.size > 1 else 1.0
+    out = []
+    for segment, result in zip(source.segments, source.results, strict=True):
+        diag = result.diagnosis
+        index = np.asarray(segment.index)
+        kappa = None if diag.scale is None else float(diag.scale.scale_factor)
+        start, end = (float(x[index[0]]), float(x[index[-1]]) + step) if index.size else (0, 0)
+        out.append(figs.Span(result.segment, start, end, diag.label.value, kappa, diag.anees))
+    return out
+
+
+def _shaded(source: Source) -> list[tuple]:
+    """The (span, segment) pairs to shade behind curves: without a segment holding the
+    whole log when there are others (the run after its windows)."""
+    n = source.runs[0].n
+    pairs = list(zip(spans(source), source.segments))
+    whole = [len(segment.index) == n for segment in source.segments]
+    if len(pairs) > 1 and any(whole) and not all(whole):
+        return [pair for pair, w in zip(pairs, whole) if not w]
+    return pairs
+
+
+def draw(source: Source, kind: PlotKind, k: float = 3.0, window: int | None = None) -> tuple:
+    """One overview figure: (the matplotlib Figure, the numbers drawn, its title)."""
+    fig, data = _draw(source, kind, k, window)
+    return fig, data, fig.get_suptitle()
+
+
+def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple:
+    runs, x, xlabel = source.runs, source.x, source.xlabel
+    m, dim = len(runs), runs[0].dim
+    name = short_source(runs)
+    if kind is PlotKind.TIMELINE:
+        return figs.draw_timeline(spans(source), xlabel, f"{name}: label per segment")
+    pairs = _shaded(source)
+    shaded = [span for span, _ in pairs]
+    if kind is PlotKind.ERRORS:
+        errors = np.stack([r.errors for r in runs])
+        sigma = np.stack([np.sqrt(np.diagonal(r.cov, axis1=1, axis2=2)) for r in runs])
+        band = k * np.sqrt(np.mean(sigma**2, axis=0))  # kσ for one run
+        outside = np.mean(np.abs(errors) > k * sigma, axis=(0, 1))
+        what = "" if m == 1 else f" ({m} runs)"
+        title = f"{name}: errors and the claimed ±{k:g}σ{what}"
+        shown = errors[0] if m == 1 else errors
+        return figs.draw_errors(x, shown, band, outside, shaded, k, xlabel, None, title)
+    if kind is PlotKind.NEES:
+        values = np.mean([nees(r.errors, r.cov) for r in runs], axis=0)
+        w = default_window(values.size) if window is None else int(window)
+        if not 1 <= w <= values.size:
+            raise ValueError(f"window must be between 1 and {values.size} epochs; got {w}")
+        bounds = running_mean_bounds(dim, w, source.alpha, m)
+        title = f"{name}: NEES and its running mean"
+        return figs.draw_nees(
+            x,
+            values,
+            dim,
+            running_mean(values, w),
+            w,
+            bounds,
+            source.alpha,
+            shaded,
+            m,
+            xlabel,
+            title,
+        )
+    if kind is PlotKind.WHITENED:
+        white = np.concatenate([whiten(r.errors, r.cov) for r in runs])
+        colours, labels = None, None
+        if white.shape[0] <= figs.MAX_SCATTER:
+            per_epoch = np.full(runs[0].n, "#1f77b4", dtype=object)
+            by_colour: dict[str, list[str]] = {}
+            for span, segment in pairs:
+                per_epoch[np.asarray(segment.index)] = figs.label_colour(span.label)
+                names = by_colour.setdefault(figs.label_colour(span.label), [])
+                if span.label not in names:
+                    names.append(span.label)
+            labels = {figs.short_title(", ".join(v), 40): c for c, v in by_colour.items()}
+            colours = list(np.tile(per_epoch, m))
+        title = f"{name}: whitened errors Σ^(-1/2) e"
+        return figs.draw_whitened_errors(white, colours, title, labels)
+    raise ValueError(f"kind must be one of {', '.join(repr(k.value) for k in DRAWN)}")
+
+
+def short_source(runs: Sequence) -> str:
+    name = figs.short_title(Path(str(runs[0].source)).name, 50)
+    return name if len(runs) == 1 else f"{name} and {len(runs) - 1} more runs"
+
+
+def overview_plots(source: Source, prefix: str = "", log_name: str = "") -> list[figs.Plot]:
+    """The overview figures as files: ``<prefix>timeline``, ``<prefix>errors``,
+    ``<prefix>nees_running``, ``<prefix>whitened_errors`` (see :data:`FILE_STEMS`)."""
+    stem = figs.safe_name(prefix.rstrip("_")) + "_" if prefix else ""
+    group = f"{log_name}: overview" if log_name else "overview"
+    out = []
+    for kind in DRAWN:
+        fig, data, title = draw(source, kind)
+        out.append(figs.figure_plot(f"{stem}{FILE_STEMS[kind]}", title, (fig, data), group))
+    return out
+
+
+def segments_to_draw(segments, results, limit: int = MAX_WINDOW_FIGURES):
+    """The (segment, result) pairs whose own figures are drawn, in their order, and a note
+    on those left out (None when none is): every segment that is not a window; of the
+    windows, up to ``limit`` that are not credible, misfits before windows without a
+    verdict (the overview figures show the whole run)."""
+    pairs = list(zip(segments, results, strict=True))
+    windows = [i for i, (segment, _) in enumerate(pairs) if segment.window]
+    if not windows:
+        return pairs, None
+
+    def rank(i: int) -> int:
+        label = pairs[i][1].diagnosis.label
+        return 0 if label not in (Label.CREDIBLE, Label.INSUFFICIENT) else 1
+
+    candidates = [i for i in windows if pairs[i][1].diagnosis.label is not Label.CREDIBLE]
+    chosen = set(sorted(candidates, key=lambda i: (rank(i), i))[:limit])
+    keep = [pair for i, pair in enumerate(pairs) if i not in windows or i in chosen]
+    if len(chosen) == len(windows):
+        return keep, None
+    note = (
+        f"figures of {len(chosen)} of {len(windows)} windows (those not credible, misfits "
+        f"first, at most {limit}); {len(windows) - len(chosen)} skipped: the overview "
+        "figures show the whole run"
+    )
+    return keep, note

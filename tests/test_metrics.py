@@ -363,8 +363,8 @@ def test_logs_are_compared_by_their_accuracy(tmp_path, capsys, monkeypatch):
     import json
 
     import pandas as pd
-
     from conftest import ROOT
+
     from credcli.cli import main
 
     monkeypatch.chdir(ROOT)

@@ -172,7 +172,10 @@ def test_plot_names_are_unique_and_short(tmp_path, frame):
     path = tmp_path / "log.csv"
     frame.to_csv(path, index=False)
     assert run("diagnose", path, "--plots", tmp_path / "figs")[0] == 0
-    names = sorted(p.name for p in (tmp_path / "figs").iterdir())
+    from credcli.report.overview import FILE_STEMS
+
+    overview = {f"{stem}.png" for stem in FILE_STEMS.values()}
+    names = sorted(p.name for p in (tmp_path / "figs").iterdir() if p.name not in overview)
     # nees and whitened for each segment, and the ELT's null where the ELT ran
     assert {n.rsplit("_", 1)[1] for n in names} >= {"nees.png", "whitened.png"}
     assert len(names) >= 4 and len({n.split("_", 1)[0] for n in names}) == 1
@@ -626,7 +629,7 @@ def test_gate_takes_config_and_plots(tmp_path):
         "gate", LOG, "--baseline", base, "--config", config, "--plots", tmp_path / "f"
     )
     assert code == 0, err
-    assert len(list((tmp_path / "f").glob("*.png"))) == 24
+    assert len(list((tmp_path / "f").glob("*.png"))) == 28  # 24 of segments, 4 of the log
 
 
 def test_fail_on_accepts_label_aliases():
@@ -640,7 +643,7 @@ def test_diagnose_writes_an_html_report(tmp_path):
     code, _, err = run("diagnose", LOG, "--report", path)
     assert code == 0, err
     html = path.read_text()
-    assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 24
+    assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 28
 
 
 def test_ks_and_nees_alpha_flags_reach_the_settings():

@@ -910,8 +910,8 @@ def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
             "κ̂ –" if span.kappa is None or not np.isfinite(span.kappa) else (f"κ̂ {span.kappa:.2g}")
         )
         room = width / total
-        if room > 0.09:
-            text = f"{short_title(span.name, 18)}\n{kappa}"
+        if room > 0.09:  # the name, the label (the colour merges misfits) and κ̂
+            text = f"{short_title(span.name, 18)}\n{short_title(span.label, 18)}\n{kappa}"
         elif room > 0.035:
             text = kappa.replace("κ̂ ", "")
         else:

@@ -107,7 +107,7 @@ class Results(Sequence):
 
         Parameters
         ----------
-        kind : "errors", "nees", "whitened", "timeline" or "all"
+        kind : "errors", "nees", "whitened", "timeline", "timescales" or "all"
             ``errors``: each component of e_k against time with the claimed ±kσ band
             (σ = √Σ_k,ii), one subplot per component, segments shaded in their label's
             colour. ``nees``: NEES per epoch (a 2-D histogram above 3,000 epochs), its
@@ -116,6 +116,10 @@ class Results(Sequence):
             (d · ANEES). ``whitened``: whitened errors Σ_k^{-1/2} e_k (first two
             components) with the unit circle and the 95 % and 99 % circles of χ²₂.
             ``timeline``: one bar per segment coloured by its label, with κ̂.
+            ``timescales``: credibility at every time scale: m times the variance of
+            m-epoch means of the whitened errors against the memory model's prediction
+            and interval, for the longest segment with a fitted memory (where the points
+            leave the band, the claim stops holding at that averaging time).
         k : float
             The band's width in standard deviations (``errors``).
         window : int, optional

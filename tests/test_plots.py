@@ -442,3 +442,22 @@ def test_report_overview_contents_and_capped_windows(tmp_path, capsys):
     drawn = [r for r in windows if r.diagnosis.label != "credible"][:6]
     assert f"figures of {len(drawn)} of {len(windows)} windows" in html
     assert html.count("<h3 id=") == 1 + len(drawn) + 1  # overview, drawn windows, the run
+
+
+def test_results_plot_credibility_at_every_time_scale():
+    """Issue 33 item 3: κ̂ against averaging time from Python: the observed and predicted
+    curves are the longest fitted segment's TimeScales; without a fitted memory, a
+    ValueError naming the kind."""
+    import credcli
+    from credcli.engine.diagnosis import Variant
+
+    log = credcli.read_log(LOG)
+    results = credcli.diagnose_log(log, segments="whole")
+    scales = results[0].diagnosis.time_scales
+    fig = results.plot("timescales")
+    lines = {line.get_label(): line for line in fig.axes[0].get_lines()}
+    np.testing.assert_array_equal(lines["observed"].get_ydata(), scales.observed)
+    np.testing.assert_array_equal(lines["memory model v_m"].get_ydata(), scales.predicted)
+    paper = credcli.diagnose_log(log, config=DiagnosisConfig(variant=Variant.PAPER))
+    with pytest.raises(ValueError, match="kind 'timescales': no segment has a fitted memory"):
+        paper.plot("timescales")

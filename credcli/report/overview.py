@@ -28,6 +28,7 @@ class PlotKind(str, enum.Enum):
     NEES = "nees"
     WHITENED = "whitened"
     TIMELINE = "timeline"
+    TIMESCALES = "timescales"
     ALL = "all"
 
     def __str__(self) -> str:
@@ -131,6 +132,8 @@ def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple
     name = short_source(runs)
     if kind is PlotKind.TIMELINE:
         return figs.draw_timeline(spans(source), xlabel, f"{name}: label per segment")
+    if kind is PlotKind.TIMESCALES:
+        return _time_scales(source, name)
     pairs = _shaded(source)
     shaded = [span for span, _ in pairs]
     if kind is PlotKind.ERRORS:
@@ -178,6 +181,32 @@ def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple
         title = f"{name}: whitened errors Σ^(-1/2) e"
         return figs.draw_whitened_errors(white, colours, title, labels)
     raise ValueError(f"kind must be one of {', '.join(repr(k.value) for k in DRAWN)}")
+
+
+def _time_scales(source: Source, name: str) -> tuple:
+    """κ̂ against averaging time of the longest segment whose memory was fitted (the run's
+    own, beside its windows): the variance of m-epoch means of the whitened errors against
+    the memory model's prediction and interval."""
+    fitted = [
+        (len(segment.index), segment, result)
+        for segment, result in zip(source.segments, source.results, strict=True)
+        if result.diagnosis.time_scales is not None and result.diagnosis.time_scales.epochs.size > 1
+    ]
+    if not fitted:
+        raise ValueError(
+            "kind 'timescales': no segment has a fitted memory (the calibrated rule fits one "
+            "on segments long enough for it)"
+        )
+    _, segment, result = max(fitted, key=lambda item: item[0])
+    time = source.runs[0].time
+    rate = None
+    if time is not None and len(segment.index) > 1:
+        span = float(np.ptp(time[np.asarray(segment.index)]))
+        rate = (len(segment.index) - 1) / span if span > 0 else None
+    fig, data = figs.draw_time_scales(result.diagnosis.time_scales, rate)
+    fig.suptitle(f"{name}: variance against averaging time, segment {result.segment}")
+    fig.tight_layout()
+    return fig, data
 
 
 def short_source(runs: Sequence) -> str:

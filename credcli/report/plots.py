@@ -150,6 +150,12 @@ def time_scales_plot(name: str, scales, rate_hz: float | None, title: str) -> Pl
     of m-epoch means, per direction in its own units) against the dependence model's
     prediction and its interval (:class:`credcli.engine.memory.TimeScales`): where the
     points leave the band, the errors vary more slowly than the model explains."""
+    fig, data = draw_time_scales(scales, rate_hz)
+    return _finish(fig, name, title, data)
+
+
+def draw_time_scales(scales, rate_hz: float | None) -> tuple:
+    """The figure of :func:`time_scales_plot` and its numbers, without a title."""
     plt = _pyplot()
     m = np.asarray(scales.epochs, dtype=float)
     x = m / rate_hz if rate_hz else m
@@ -181,7 +187,7 @@ def time_scales_plot(name: str, scales, rate_hz: float | None, title: str) -> Pl
         "low": np.asarray(scales.low),
         "high": np.asarray(scales.high),
     }
-    return _finish(fig, name, title, data)
+    return fig, data
 
 
 def anees_plot(name: str, mc) -> Plot:

@@ -97,7 +97,7 @@ def test_unreachable_scheduler_and_bad_address(monkeypatch):
 
 
 def test_a_worker_killed_mid_run_leaves_the_result_complete_and_identical(tmp_path):
-    paths = _logs(tmp_path, 6, per_segment=600)
+    paths = _logs(tmp_path, 3, per_segment=600)
     local = run_diagnose(DiagnoseRequest(tuple(paths), LogReading(window="10s")))
     with DaskRunner("local:2") as r:
         pids = r.client.run(os.getpid)
@@ -212,6 +212,7 @@ def test_a_tls_cluster_end_to_end(tmp_path):
     with LocalCluster(
         n_workers=1,
         threads_per_worker=1,
+        processes=False,  # the comms are TLS sockets all the same; a worker starts at once
         protocol="tls",
         host="127.0.0.1",
         security=security,

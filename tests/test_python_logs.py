@@ -274,7 +274,8 @@ def test_assert_credible_refuses_an_undecided_segment_unless_allowed():
 
 def test_assert_credible_fails_a_right_filter_at_about_alpha():
     """Its level: 300 seeds of a correct covariance (N = 200, d = 2, independent): failures
-    at most α + 1 % + 2 s.e.; with the covariance 2× too small, nearly always."""
+    at most α + 1 % + 2 s.e.; with the covariance 2× too small, nearly always (100 seeds:
+    each failure renders its table, the costly part)."""
     rng = np.random.default_rng(43)
     cov = np.eye(2)
     fails = too_small = 0
@@ -284,12 +285,14 @@ def test_assert_credible_fails_a_right_filter_at_about_alpha():
             assert_credible(errors=e, cov=cov, seed=k)
         except AssertionError:
             fails += 1
+        if k >= 100:
+            continue
         try:
             assert_credible(errors=e * math.sqrt(2), cov=cov, seed=k)
         except AssertionError:
             too_small += 1
     assert fails / 300 <= 0.06 + 2 * math.sqrt(0.05 * 0.95 / 300), fails
-    assert too_small / 300 >= 0.9, too_small
+    assert too_small / 100 >= 0.9, too_small
 
 
 def test_run_ids_pool_monte_carlo_runs_in_python_and_on_the_command_line(tmp_path):

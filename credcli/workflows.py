@@ -6,7 +6,6 @@ Each function is what one command does, minus option parsing and printing.
 from __future__ import annotations
 
 import dataclasses
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -245,22 +244,6 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
         f"{100 * mean:.1f}% correct on average"
     )
     return Run(simulate_report(study, parameters, paper_protocol), figures), summary
-
-
-def export_log_text(log: EstimatorLog) -> str:
-    """An EstimatorLog in diagnose's default CSV format (upper-triangle covariance)."""
-    import pandas as pd
-
-    d = log.dim
-    columns = {"time": log.time} if log.time is not None else {}
-    if log.segment is not None:
-        columns["segment"] = log.segment
-    columns |= {f"truth_{i}": log.truth[:, i] for i in range(d)}
-    columns |= {f"est_{i}": log.estimate[:, i] for i in range(d)}
-    columns |= {f"cov_{i}_{j}": log.cov[:, i, j] for i in range(d) for j in range(i, d)}
-    buf = io.StringIO()
-    pd.DataFrame(columns).to_csv(buf, index=False)
-    return buf.getvalue()
 
 
 def run_uwb(request: UwbRequest, progress=None):

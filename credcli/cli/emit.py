@@ -258,14 +258,14 @@ def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) 
 def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inputs) -> None:
     """What `uwb` shows: warnings about the anchors, the fixes as a diagnose log
     (``export_log``), the report, the figures and an HTML report."""
+    from credcli.io.arrays import log_csv
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html
-    from credcli.workflows import export_log_text
 
     for warning in fixes.notes:  # anchors that disagree with the log's ground truth
         print(printable(f"credcli: warning: {flag_names(warning)}"), file=sys.stderr)
     if export_log is not None:
-        write_atomic(export_log, export_log_text(fixes.log), inputs)
+        write_atomic(export_log, log_csv(fixes.log), inputs)
         stderr_console().print(
             printable(f"wrote {export_log} ({fixes.log.n} fixes)"), highlight=False, markup=False
         )

@@ -286,17 +286,23 @@ def log_table(log: EstimatorLog):
     return pd.DataFrame(columns)
 
 
-def write_log(log: EstimatorLog, path: str | Path) -> Path:
+def log_csv(log: EstimatorLog) -> str:
+    """``log`` as the CSV text of its canonical table (``log_table``): every float as its
+    shortest exact representation (it reads back to the same bits)."""
+    return log_table(log).to_csv(index=False)
+
+
+def write_log(log: EstimatorLog, path: str | Path, inputs=()) -> Path:
     """Write ``log`` as its canonical table (``log_table``): Parquet for a ``.parquet``
-    or ``.pq`` name, else CSV; atomically (no half-written file)."""
+    or ``.pq`` name, else CSV (:func:`log_csv`); atomically (no half-written file), never
+    over one of ``inputs``."""
     path = Path(path)
-    table = log_table(log)
     if path.suffix.lower() in (".parquet", ".pq"):
         buffer = io.BytesIO()
-        table.to_parquet(buffer, index=False)
-        write_atomic(path, buffer.getvalue())
+        log_table(log).to_parquet(buffer, index=False)
+        write_atomic(path, buffer.getvalue(), inputs)
     else:
-        write_atomic(path, table.to_csv(index=False, float_format="%.17g"))
+        write_atomic(path, log_csv(log), inputs)
     return path
 
 

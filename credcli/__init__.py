@@ -43,7 +43,6 @@ _EXPORTS = {
     "SegmentDiagnosis": "credcli.engine.diagnosis",
     "SrdForm": "credcli.engine.diagnosis",
     "Variant": "credcli.engine.diagnosis",
-    "diagnose_errors": "credcli.engine.diagnosis",
     "diagnose_variants": "credcli.engine.diagnosis",
     "nci_baseline": "credcli.engine.diagnosis",
     "nees_baseline": "credcli.engine.diagnosis",
@@ -63,7 +62,6 @@ _EXPORTS = {
     "CovKind": "credcli.io.logs",
     "EstimatorLog": "credcli.io.logs",
     "LogSchema": "credcli.io.logs",
-    "load_log": "credcli.io.logs",
 }
 
 __all__ = sorted([*_EXPORTS, "__version__"])

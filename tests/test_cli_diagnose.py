@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from conftest import SAMPLE
 
-from credcli import DiagnosisConfig, load_log
+from credcli import DiagnosisConfig
 from credcli.cli import main
 from credcli.engine.diagnosis import diagnose_log
+from credcli.io.logs import load_log
 from credcli.segments import split
 
 LOG = SAMPLE / "estimator_log.csv"

@@ -7,11 +7,10 @@ import pandas as pd
 import pytest
 from conftest import ROOT
 
-from credcli import load_log
 from credcli.cli import main
 from credcli.cli.settings import build_schema, load_config
 from credcli.errors import CredcliError
-from credcli.io.logs import LogSchema
+from credcli.io.logs import LogSchema, load_log
 
 
 def _frame(n=30, d=2, seed=0):

@@ -17,11 +17,12 @@ pytest.importorskip("matplotlib", reason="matplotlib (credcli[plots]) not instal
 
 from conftest import SAMPLE  # noqa: E402
 
-from credcli import DiagnosisConfig, load_log  # noqa: E402
+from credcli import DiagnosisConfig  # noqa: E402
 from credcli.cli import main  # noqa: E402
 from credcli.engine import metrics  # noqa: E402
 from credcli.engine.diagnosis import diagnose_log  # noqa: E402
 from credcli.engine.elt import whiten  # noqa: E402
+from credcli.io.logs import load_log  # noqa: E402
 from credcli.report import plots  # noqa: E402
 from credcli.segments import split  # noqa: E402
 from credcli.studies import simulate as sim  # noqa: E402

@@ -294,7 +294,7 @@ def log_csv(log: EstimatorLog) -> str:
 
 def write_log(log: EstimatorLog, path: str | Path, inputs=()) -> Path:
     """Write ``log`` as its canonical table (``log_table``): Parquet for a ``.parquet``
-    or ``.pq`` name, else CSV (:func:`log_csv`); atomically (no half-written file), never
+    or ``.pq`` name, else CSV (``log_csv``); atomically (no half-written file), never
     over one of ``inputs``."""
     path = Path(path)
     if path.suffix.lower() in (".parquet", ".pq"):

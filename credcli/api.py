@@ -29,8 +29,8 @@ from credcli.engine.diagnosis import (
     Label,
     SegmentDiagnosis,
     diagnose_errors,
+    diagnose_segments,
 )
-from credcli.engine.diagnosis import diagnose_log as _diagnose_segments
 from credcli.engine.rng import RngLike
 from credcli.errors import CredcliError
 from credcli.io import logs
@@ -254,7 +254,7 @@ def diagnose_log(
             plan = split(log, None if segments is None or whole else segments, whole)
     else:
         plan = list(segments)
-    items = _diagnose_segments(log, plan, config, seed)
+    items = diagnose_segments(log, plan, config, seed)
     alpha = (config or DiagnosisConfig()).nees_alpha
     return Results(items, Source.of([log], plan, items, alpha))
 

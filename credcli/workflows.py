@@ -15,7 +15,7 @@ from credcli import scheduling
 from credcli import segments as seg
 from credcli.ci.gate import compare, verdict_line
 from credcli.engine.curves import segment_curves
-from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_log
+from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_segments
 from credcli.errors import CredcliError
 from credcli.io.arrays import monte_carlo_plan, split_runs
 from credcli.io.ingest import open_log
@@ -258,7 +258,7 @@ def run_uwb(request: UwbRequest, progress=None):
     run = uwb.run_pipeline(path, settings, anchors, window, whole)
     if not run.segments:
         raise CredcliError(f"{path}: no fix falls in any period; try `window` 5s or `whole`")
-    results = diagnose_log(run.log, run.segments, config, seed, progress)
+    results = diagnose_segments(run.log, run.segments, config, seed, progress)
     parameters = (
         config_record(config)
         | {

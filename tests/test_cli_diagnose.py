@@ -14,7 +14,7 @@ from conftest import SAMPLE
 
 from credcli import DiagnosisConfig
 from credcli.cli import main
-from credcli.engine.diagnosis import diagnose_log
+from credcli.engine.diagnosis import diagnose_segments
 from credcli.io.logs import load_log
 from credcli.segments import split
 
@@ -56,7 +56,7 @@ def test_json_equals_library_result(capsys):
     assert set(doc) >= {"parameters", "version", "segments"}
     assert doc["parameters"]["seed"] == 3 and doc["parameters"]["n_flips"] == 1000
     log = load_log(LOG)
-    results = diagnose_log(log, split(log), DiagnosisConfig(metrics="all"), seed=3)
+    results = diagnose_segments(log, split(log), DiagnosisConfig(metrics="all"), seed=3)
     assert [s["segment"] for s in doc["segments"]] == [r.segment for r in results]
     for rec, res in zip(doc["segments"], results):
         assert REQUIRED <= set(rec)

@@ -20,7 +20,7 @@ from conftest import SAMPLE  # noqa: E402
 from credcli import DiagnosisConfig  # noqa: E402
 from credcli.cli import main  # noqa: E402
 from credcli.engine import metrics  # noqa: E402
-from credcli.engine.diagnosis import diagnose_log  # noqa: E402
+from credcli.engine.diagnosis import diagnose_segments  # noqa: E402
 from credcli.engine.elt import whiten  # noqa: E402
 from credcli.io.logs import load_log  # noqa: E402
 from credcli.report import plots  # noqa: E402
@@ -55,7 +55,7 @@ def _run(capsys, *args):
 def sample_plots():
     log = load_log(LOG)
     segments = split(log)
-    results = diagnose_log(log, segments, DiagnosisConfig(metrics="all"), seed=0)
+    results = diagnose_segments(log, segments, DiagnosisConfig(metrics="all"), seed=0)
     return log, segments, results, segment_figures(log, results, segments)
 
 

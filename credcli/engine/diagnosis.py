@@ -283,7 +283,7 @@ class SegmentDiagnosis:
     whiteness: Whiteness | None = None  # of innovations (--innovations)
 
 
-def diagnose_log(
+def diagnose_segments(
     log,
     segments,
     config: DiagnosisConfig | None = None,

@@ -10,12 +10,12 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import ROOT, error_line, run
 from scipy.spatial.transform import Rotation
 
 from credcli import read_log
 from credcli.engine.align import Alignment, Transform, covariance_map, origin, umeyama
 from credcli.errors import CredcliError
-from tests.test_edges import ROOT, error_line, run
 
 FORMATS = ROOT / "sample_data" / "formats"
 ESTIMATE, TRUTH = FORMATS / "openvins_estimate.txt", FORMATS / "tum_groundtruth.txt"

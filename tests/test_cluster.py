@@ -13,12 +13,13 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
+from conftest import ROOT, error_line, run  # noqa: E402
+
 from credcli.cluster import DaskRunner  # noqa: E402
 from credcli.io.schema import LogReading  # noqa: E402
 from credcli.requests import DiagnoseRequest, SimulateRequest  # noqa: E402
 from credcli.studies.samples import GOOD_SEGMENTS, estimator_log  # noqa: E402
 from credcli.workflows import run_diagnose, run_simulate  # noqa: E402
-from tests.test_edges import ROOT, error_line, run  # noqa: E402
 
 
 def _logs(tmp_path, count: int, per_segment: int = 300):

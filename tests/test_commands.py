@@ -12,13 +12,12 @@ from typing import Annotated
 
 import pytest
 import typer
-from conftest import SAMPLE
+from conftest import SAMPLE, error_line, run
 
 from credcli.cli.app import app
 from credcli.cli.edge import _flags, flag_names
 from credcli.cli.options import GROUPS, RuleOptions, SegmentOptions, declare
 from credcli.errors import NAMED, CredcliError, plain
-from tests.test_edges import error_line, run
 
 ROOT = Path(__file__).resolve().parents[1]
 LOG = SAMPLE / "estimator_log.csv"

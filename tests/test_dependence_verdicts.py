@@ -11,8 +11,8 @@ from collections import Counter
 
 import numpy as np
 import pytest
+from conftest import error_line, run
 from scipy import stats
-from test_edges import error_line, run
 
 from credcli.engine import batches
 from credcli.engine.config import DiagnosisConfig, Label, Question
@@ -583,7 +583,7 @@ def test_block_intervals_cover_jointly():
 def test_pose_log_reports_position_and_orientation_factors():
     """The OpenVINS sample plants a right position covariance and an orientation
     covariance 4× too small: the JSON and the advice line say so per block."""
-    from test_edges import ROOT
+    from conftest import ROOT
 
     formats = ROOT / "sample_data" / "formats"
     args = ("diagnose", formats / "openvins_estimate.txt", "--truth")

@@ -3,7 +3,6 @@ make a test powerless. Every case of the issue has a test; Hypothesis looks for 
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import os
@@ -13,31 +12,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import LOG, UWB, error_line, run
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from credcli.cli import main
-
-ROOT = Path(__file__).resolve().parents[1]
-LOG = ROOT / "sample_data" / "estimator_log.csv"
-UWB = ROOT / "sample_data" / "starloc_grid_uwb.csv"
-
-
-def run(*args) -> tuple[int, str, str]:
-    """credcli in-process: (exit code, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in args])
-    return code, out.getvalue(), err.getvalue()
-
-
-def error_line(code: int, err: str, expected_code: int = 2) -> str:
-    """The run failed with ``expected_code`` and one line on stderr, without a traceback."""
-    assert code == expected_code, err
-    assert "Traceback" not in err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1, err
-    return lines[0]
 
 
 @pytest.fixture

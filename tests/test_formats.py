@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import ROOT, error_line, run
 from scipy.spatial.transform import Rotation
 
 from credcli.engine import elt, lie
@@ -16,7 +17,6 @@ from credcli.engine.whiteness import portmanteau
 from credcli.io.formats import Trajectory, read_trajectory, sniff_format
 from credcli.io.pairing import pair
 from credcli.io.schema import InputFormat, TimeUnit
-from tests.test_edges import ROOT, error_line, run
 
 FORMATS = ROOT / "sample_data" / "formats"
 

@@ -8,11 +8,10 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import SAMPLE, SHARED
+from conftest import SAMPLE, SHARED, error_line, run
 
 from credcli.studies import uwb
 from credcli.studies.settings import RobustLoss, UwbSettings
-from tests.test_edges import error_line, run
 
 S5 = SHARED / "data" / "starloc" / "loop-2d_s5_uwb.csv"
 MARKERS = SHARED / "data" / "starloc"

@@ -10,9 +10,9 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 from credcli.engine.diagnosis import Label, diagnose_errors
-from tests.test_edges import ROOT
 
 
 def _zoo():

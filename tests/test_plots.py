@@ -419,6 +419,16 @@ def test_window_figures_capped_with_a_note():
     assert note.startswith("figures of 3 of 6 windows") and "3 skipped" in note
     kept, note = segments_to_draw(segments[-1:], results[-1:])
     assert note is None and len(kept) == 1
+    # a segment column: every segment up to MAX_SEGMENT_FIGURES, then the misfits only
+    from credcli.report.overview import MAX_SEGMENT_FIGURES
+
+    many = [Segment(f"s{i}", np.arange(i, i + 1)) for i in range(MAX_SEGMENT_FIGURES + 6)]
+    labels = ["optimism" if i % 10 == 3 else "credible" for i in range(len(many))]
+    kept, note = segments_to_draw(many, [result(s.name, lab) for s, lab in zip(many, labels)])
+    assert [s.name for s, _ in kept] == ["s3", "s13", "s23"]
+    assert note.startswith(f"figures of 3 of {len(many)} segments") and "whole log" in note
+    kept, note = segments_to_draw(many[:MAX_SEGMENT_FIGURES], [result("x", "credible")] * 24)
+    assert note is None and len(kept) == MAX_SEGMENT_FIGURES
 
 
 def test_report_overview_contents_and_capped_windows(tmp_path, capsys):

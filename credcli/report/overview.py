@@ -60,6 +60,10 @@ MAX_WINDOW_FIGURES = 6
 """With windows, the per-window figures are drawn for at most this many windows that are
 not credible (the overview figures cover the whole run)."""
 
+MAX_SEGMENT_FIGURES = 24
+"""Without windows, every segment's figures up to this many segments; past it, this many
+segments that are not credible (the overview figures cover the whole log)."""
+
 
 @dataclass(frozen=True)
 class Source:
@@ -228,26 +232,33 @@ def overview_plots(source: Source, prefix: str = "", log_name: str = "") -> list
 
 def segments_to_draw(segments, results, limit: int = MAX_WINDOW_FIGURES):
     """The (segment, result) pairs whose own figures are drawn, in their order, and a note
-    on those left out (None when none is): every segment that is not a window; of the
-    windows, up to ``limit`` that are not credible, misfits before windows without a
-    verdict (the overview figures show the whole run)."""
+    on those left out (None when none is). With windows: every segment that is not a
+    window and, of the windows, up to ``limit`` that are not credible, misfits before
+    windows without a verdict (the overview figures show the whole run). Without windows
+    (a segment column), every segment up to :data:`MAX_SEGMENT_FIGURES`; past it, that
+    many that are not credible, chosen alike (a log of a thousand segments gave four
+    thousand figures)."""
     pairs = list(zip(segments, results, strict=True))
-    windows = [i for i, (segment, _) in enumerate(pairs) if segment.window]
-    if not windows:
-        return pairs, None
+    capped = [i for i, (segment, _) in enumerate(pairs) if segment.window]
+    what = "windows"
+    if not capped:
+        if len(pairs) <= MAX_SEGMENT_FIGURES:
+            return pairs, None
+        capped, what, limit = list(range(len(pairs))), "segments", MAX_SEGMENT_FIGURES
 
     def rank(i: int) -> int:
         label = pairs[i][1].diagnosis.label
         return 0 if label not in (Label.CREDIBLE, Label.INSUFFICIENT) else 1
 
-    candidates = [i for i in windows if pairs[i][1].diagnosis.label is not Label.CREDIBLE]
+    candidates = [i for i in capped if pairs[i][1].diagnosis.label is not Label.CREDIBLE]
     chosen = set(sorted(candidates, key=lambda i: (rank(i), i))[:limit])
-    keep = [pair for i, pair in enumerate(pairs) if i not in windows or i in chosen]
-    if len(chosen) == len(windows):
+    keep = [pair for i, pair in enumerate(pairs) if i not in capped or i in chosen]
+    if len(chosen) == len(capped):
         return keep, None
+    whole = "the whole run" if what == "windows" else "the whole log"
     note = (
-        f"figures of {len(chosen)} of {len(windows)} windows (those not credible, misfits "
-        f"first, at most {limit}); {len(windows) - len(chosen)} skipped: the overview "
-        "figures show the whole run"
+        f"figures of {len(chosen)} of {len(capped)} {what} (those not credible, misfits "
+        f"first, at most {limit}); {len(capped) - len(chosen)} skipped: the overview "
+        f"figures show {whole}"
     )
     return keep, note

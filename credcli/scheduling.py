@@ -18,8 +18,10 @@ from credcli.engine.diagnosis import (
     innovation_config,
     innovation_whiteness,
     run_model,
+    too_short_batch,
 )
 from credcli.engine.timing import truth_velocity
+from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.io.records import log_info
 from credcli.parallel import ordered_map, prepare_worker
@@ -121,15 +123,42 @@ def _run_model(log, segments, config: DiagnosisConfig):
     return run_model(log.errors, log.cov, windows, config)
 
 
-def _chunk_tasks(plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1):
+def _short_results(log, segments, config: DiagnosisConfig) -> dict[int, SegmentDiagnosis]:
+    """The segments of ``log`` too short for a verdict, by their index, diagnosed together
+    in this process (:func:`credcli.engine.diagnosis.too_short_batch`): no task, no
+    transfer. Where their covariances fail the check, none: each is then diagnosed alone,
+    so that the error names its segment."""
+    smallest = config.min_n(log.dim)
+    short = [i for i, segment in enumerate(segments) if len(segment.index) < smallest]
+    if not short:
+        return {}
+    index = np.concatenate([np.asarray(segments[i].index) for i in short])
+    lengths = np.array([len(segments[i].index) for i in short])
+    try:
+        found = too_short_batch(log.errors[index], log.cov[index], lengths, config)
+    except CredcliError:
+        return {}
+    return {
+        i: SegmentDiagnosis(log.source, segments[i].name, segments[i].t_start, segments[i].t_end, d)
+        for i, d in zip(short, found, strict=True)
+    }
+
+
+def _chunk_tasks(
+    plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1, done=None
+):
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
-    epochs (one segment per task for target 0); made as they are consumed."""
+    epochs (one segment per task for target 0); made as they are consumed. ``done``: the
+    (plan, segment) indices diagnosed already, left out."""
     items, size, source, blocks = [], 0, None, ()
-    for log, segments in plans:
+    done = done or {}
+    for p, (log, segments) in enumerate(plans):
         errors = log.errors
         model = None if innovations else _run_model(log, segments, config)
         velocity = None if innovations else truth_velocity(log.truth, log.time)
-        for segment in segments:
+        for i, segment in enumerate(segments):
+            if (p, i) in done:
+                continue
             if items and (size >= target or source != log.source):
                 yield (source, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
@@ -161,20 +190,31 @@ def diagnose_plans(
         pool.close()
         pool = None
     target = max(1, total_epochs // (TASKS_PER_JOB * jobs)) if parallel else 0
-    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs)
+    done = {}  # segments too short for a verdict: diagnosed here, together
+    if not innovations:
+        for p, (log, segments) in enumerate(plans):
+            done |= {(p, i): r for i, r in _short_results(log, segments, config).items()}
+    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs, done)
     if pool is not None:
         outputs = pool.map(_diagnose_chunk, list(tasks))
     else:
         outputs = ordered_map(_diagnose_chunk, tasks, jobs if parallel else 1)
-    results = []
+    diagnosed = []
     try:
         for out in outputs:
-            results.extend(out)
+            diagnosed.extend(out)
             if progress is not None:
-                progress(len(results), total_segments)
+                progress(len(diagnosed) + len(done), total_segments)
     finally:
         outputs.close()
-    return results
+    if not done:
+        return diagnosed
+    rest = iter(diagnosed)
+    return [
+        done[(p, i)] if (p, i) in done else next(rest)
+        for p, (_, segments) in enumerate(plans)
+        for i in range(len(segments))
+    ]
 
 
 # --- on a Dask cluster: the workers read the logs ----------------------------------------

@@ -201,3 +201,32 @@ def test_weak_bias_does_not_build_the_bound(monkeypatch):
     s = s + [1.0, 0.0]
     res = whitened_location_test(s, 1000, np.random.default_rng(0), stop_level=0.05)
     assert res.flips_bounded > 0 and built == [1]
+
+
+def test_segments_too_short_for_a_verdict_are_diagnosed_together():
+    """Issue 32 item 7: short segments (a log of one-epoch segments) are diagnosed in one
+    vectorised pass; each is what diagnosing it alone gives, accuracy included (|e| for
+    one epoch), in the log's order among the long segments."""
+    from credcli import log_from_arrays
+    from credcli.engine.diagnosis import diagnose_segment
+    from credcli.scheduling import diagnose_plans
+    from credcli.segments import split
+
+    rng = np.random.default_rng(5)
+    names = ["a"] * 40 + [f"s{i}" for i in range(7)] + ["b"] * 3 + ["c"] * 60
+    e = rng.standard_normal((len(names), 2))
+    log = log_from_arrays(errors=e, cov=np.eye(2), segment=names)
+    plan = split(log)
+    config = DiagnosisConfig()
+    together = diagnose_plans([(log, plan)], config, seed=3)
+    assert [r.segment for r in together] == [s.name for s in plan]
+    for result, segment in zip(together, plan, strict=True):
+        alone = diagnose_segment(e[segment.index], log.cov[segment.index], config, 3, segment.name)
+        assert result.diagnosis.label == alone.label and result.diagnosis.reason == alone.reason
+        for field in ("rmse", "mean", "median", "max"):
+            got = getattr(result.diagnosis.accuracy, field)
+            np.testing.assert_array_equal(got, getattr(alone.accuracy, field))
+    one = together[1].diagnosis  # s0: one epoch
+    assert one.label.value == "insufficient-data" and one.n == 1
+    np.testing.assert_array_equal(one.accuracy.max, np.abs(e[40]))
+    assert one.accuracy.rmse_norm == pytest.approx(np.linalg.norm(e[40]), rel=1e-15)

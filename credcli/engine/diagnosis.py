@@ -257,17 +257,34 @@ def episode_findings(ev: evidence.Evidence, verdict, config: DiagnosisConfig) ->
     return tuple(out)
 
 
-def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
-    smallest = config.min_n(d)
+def too_short_batch(
+    errors: np.ndarray, cov: np.ndarray, lengths: np.ndarray, config: DiagnosisConfig
+) -> list[Diagnosis]:
+    """The diagnoses of consecutive segments too short for a verdict (``lengths`` epochs
+    each, all below ``config.min_n(d)``), checked and measured together: insufficient-data
+    with the reason, and their accuracy (:func:`credcli.engine.metrics.grouped_accuracy`).
+    A log of 10⁶ one-epoch segments is a few numpy calls, not 10⁶ diagnoses."""
+    errors, cov = metrics.check_errors_cov(errors, cov)
+    _cholesky(cov)
+    d = errors.shape[1]
+    accuracies = metrics.grouped_accuracy(errors, lengths)
+    reasons = {int(n): _too_short_reason(int(n), d, config) for n in np.unique(lengths)}
+    return [
+        Diagnosis(Label.INSUFFICIENT, n, d, reason=reasons[n], config=config, accuracy=accuracy)
+        for n, accuracy in zip(lengths.tolist(), accuracies, strict=True)
+    ]
+
+
+def _too_short_reason(n: int, d: int, config: DiagnosisConfig) -> str:
     needs = f"min_epochs {config.min_epochs} and d + 2"
     if not config.calibrated:
         needs = f"min_epochs {config.min_epochs}, d + 2, and {config.min_blocks} sign blocks"
+    return f"{n} epochs; at least {config.min_n(d)} are needed ({needs})"
+
+
+def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
     return Diagnosis(
-        label=Label.INSUFFICIENT,
-        n=n,
-        dim=d,
-        reason=f"{n} epochs; at least {smallest} are needed ({needs})",
-        config=config,
+        label=Label.INSUFFICIENT, n=n, dim=d, reason=_too_short_reason(n, d, config), config=config
     )
 
 
@@ -467,8 +484,7 @@ def diagnose_segment(
         errors, cov = metrics.check_errors_cov(errors, cov)
         n, d = errors.shape
         if n < config.min_n(d):  # checked as diagnose_errors checks, without a random stream
-            _cholesky(cov)
-            return _too_short(n, d, config)
+            return too_short_batch(errors, cov, np.array([n]), config)[0]
         diag = diagnose_errors(
             errors, cov, config, segment_seed(seed, name), runs=runs, memory=memory
         )

@@ -67,7 +67,7 @@ def range_text(pair) -> str:
 
 
 LOG_FORMATS = (
-    "credcli CSV/Parquet (also .gz), TUM, OpenVINS, EuRoC, ros-csv, ROS1 bag, ROS2 bag "
+    "credcli CSV/Parquet (also gzip, bzip2, xz), TUM, OpenVINS, EuRoC, ros-csv, ROS1 bag, ROS2 bag "
     "(with --truth for a separate ground truth), or innovations (--innovations)"
 )
 

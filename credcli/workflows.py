@@ -268,11 +268,19 @@ def run_uwb(request: UwbRequest, progress=None):
         | {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
         | {"anchors": str(anchors) if anchors else "self-calibrated"}
     )
-    figures = []
-    if request.figures:
-        figures = figs.uwb_plots(run) + segment_figures(run.log, results, run.segments)
+    figures, notes = [], ()
+    if request.figures:  # the fixes' overview (timeline, errors, NEES) as diagnose draws it
+        source = Source.of([run.log], run.segments, results, config.nees_alpha)
+        drawn, note = segments_to_draw(source.segments, source.results)
+        chosen = [result for _, result in drawn]
+        figures = [
+            *figs.uwb_plots(run),
+            *overview_plots(source),
+            *segment_figures(run.log, chosen, run.segments),
+        ]
+        notes = (note,) if note else ()
     checks = uwb.range_checks(run, results, config.tau_nci)
-    return Run(uwb_report(run, results, checks, parameters), figures), run
+    return Run(uwb_report(run, results, checks, parameters), figures, results, notes), run
 
 
 def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report:

@@ -169,6 +169,9 @@ def test_uwb_plots_and_report(tmp_path, capsys):
         "uwb_range_errors.png",
         "uwb_reported_std.png",
         "P1_nees.png",
+        "timeline.png",  # the fixes' overview, as diagnose draws it
+        "errors.png",
+        "nees_running.png",
     } <= names
     ranges = json.loads(out)["ranges"]
     from credcli.studies import uwb

@@ -158,7 +158,14 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "time_offset_stderr": None if diag.time_offset is None else diag.time_offset.stderr,
     }
     rec |= accuracy_record(diag.accuracy)
-    return {k: json_value(v) for k, v in rec.items()}
+    for key, value in rec.items():  # most values are None, ints, text or lists already
+        if value is not None and value.__class__ not in _JSON_READY:
+            rec[key] = json_value(value)
+    return rec
+
+
+_JSON_READY = frozenset({int, str, bool, list})
+"""Values a record holds as they are (a float may be NaN, an enum is its value)."""
 
 
 def accuracy_record(acc) -> dict:

@@ -97,6 +97,8 @@ def test_one_obvious_api():
     assert np.array_equal(
         by_position.errors, credcli.log_from_arrays(errors=e, cov=np.eye(2)).errors
     )
+    columns = credcli.log_from_arrays(truth[:, :, None], estimate[:, :, None], np.eye(2))
+    assert np.array_equal(columns.errors, by_position.errors)  # filterpy's (N, d, 1) means
     variances = credcli.log_from_arrays(errors=e, cov=np.tile([1.0, 4.0], (300, 1)))
     assert np.array_equal(variances.cov[5], np.diag([1.0, 4.0]))
     assert credcli.log_from_arrays(np.eye(2), errors=e).n == 300  # credcli 0.1's form

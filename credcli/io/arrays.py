@@ -31,7 +31,9 @@ def _refuse_complex(name: str, value) -> None:
 
 
 def _matrix(name: str, value, n: int | None, d: int | None = None) -> np.ndarray:
-    """An (N, d) float array from ``value`` ((N,) is d = 1), or an error naming ``name``;
+    """An (N, d) float array from ``value`` ((N,) is d = 1; (N, d, 1) column vectors, as
+    filterpy's ``batch_filter`` returns its means, are taken as (N, d)), or an error naming
+    ``name``;
     ``n`` and ``d``, where known, are what the other arguments say (a transposed array is
     named as such)."""
     _refuse_complex(name, value)
@@ -41,8 +43,13 @@ def _matrix(name: str, value, n: int | None, d: int | None = None) -> np.ndarray
         raise CredcliError(f"{name}: expected numbers, shape (N, d); {exc}") from None
     if array.ndim == 1:
         array = array[:, None]
+    if array.ndim == 3 and array.shape[2] == 1:  # column vectors, as filterpy keeps x
+        array = array[:, :, 0]
     if array.ndim != 2 or array.shape[0] == 0 or array.shape[1] == 0:
-        raise CredcliError(f"{name}: expected shape (N, d) with N, d >= 1; got {array.shape}")
+        raise CredcliError(
+            f"{name}: expected shape (N, d) (or (N, d, 1) column vectors) with N, d >= 1; "
+            f"got {array.shape}"
+        )
 
     def fits(shape) -> bool:
         return (n is None or shape[0] == n) and (d is None or shape[1] == d)

@@ -223,10 +223,22 @@ class WorkerPool:
         self.executor.shutdown(cancel_futures=True)
 
     def stop(self) -> None:
-        """End the workers now, without waiting for their current tasks."""
-        for process in list(getattr(self.executor, "_processes", {}).values()):
+        """End the workers now, without waiting for their current tasks.
+
+        A worker killed while it sends a result leaves half a message in the result pipe,
+        and the executor's thread that reads it would wait for the rest for ever (this
+        process holds the pipe's write end too), so that SIGTERM hung the run. Once the
+        workers are dead, this process's own write end is closed: the reader then meets
+        the end of the pipe, the executor sees a broken pool, and the shutdown returns."""
+        processes = list(getattr(self.executor, "_processes", {}).values())
+        for process in processes:
             if process.is_alive():
                 process.kill()
+        for process in processes:
+            process.join(timeout=10)
+        writer = getattr(getattr(self.executor, "_result_queue", None), "_writer", None)
+        if writer is not None:
+            writer.close()
         self.executor.shutdown(wait=True, cancel_futures=True)
 
 

@@ -685,10 +685,9 @@ def _bytes(n: int) -> bytes:
 
 
 def test_stopping_workers_killed_mid_result_returns():
-    """A worker killed while it sends a result left half a message in the result pipe; the
-    executor's reader waited for the rest for ever, so SIGTERM hung a run (seen in 1 of
-    ~15 runs of the signal test under load). Killed mid-send of 64 MB results, the pool
-    now stops at once."""
+    """A worker killed while it sent a result left half a message in the result pipe, and
+    the executor's reader waited for the rest for ever: SIGTERM hung a run (1 in ~15 signal
+    tests under load). Killed while sending 64 MB results, the pool now stops at once."""
     import threading
 
     from credcli.parallel import WorkerPool

@@ -22,11 +22,11 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
     """Print a report to stdout (Rich tables when a terminal) or write it to a file; its
     notes name options as the command line does (:func:`credcli.cli.flags.flag_names`)."""
     from credcli.io.files import write_atomic
-    from credcli.report.render import rich_table, to_text
+    from credcli.report.render import rich_table, text_pieces
 
     report = dataclasses.replace(report, notes=[flag_names(n) for n in report.notes])
     if output is not None:
-        write_atomic(output, to_text(report, fmt), inputs)
+        write_atomic(output, text_pieces(report, fmt), inputs)
         stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
         return
     if fmt is OutputFormat.TABLE:
@@ -42,7 +42,8 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
         for note in report.notes:
             console.print(printable(note), markup=False, highlight=False)
         return
-    sys.stdout.write(to_text(report, fmt))
+    for piece in text_pieces(report, fmt):
+        sys.stdout.write(piece)
 
 
 UNLIMITED_WIDTH = 10_000

@@ -16,6 +16,7 @@ import errno
 import os
 import secrets
 import stat
+from collections.abc import Iterable
 from pathlib import Path
 
 from credcli.errors import CredcliError
@@ -101,9 +102,10 @@ def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
                 )
 
 
-def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
+def write_atomic(path: str | Path, text: str | bytes | Iterable[str], inputs=()) -> None:
     """Write ``text`` to ``path``: atomically for a regular file, directly for a device,
-    FIFO or /dev/stdout; refuse to overwrite ``inputs``.
+    FIFO or /dev/stdout; refuse to overwrite ``inputs``. ``text`` may be pieces of text
+    (an iterable of str), written as they come: a large output is never held whole.
 
     A regular file is written unnamed first (Linux's ``O_TMPFILE``), given a name only when
     it is complete and at once renamed over the target, so that even SIGKILL leaves no
@@ -116,7 +118,12 @@ def write_atomic(path: str | Path, text: str | bytes, inputs=()) -> None:
     check_outputs({"output": path}, inputs)
     # a name that is not valid UTF-8 (a file name's bytes, held as surrogates) is written
     # as its backslash escape rather than failing the whole output
-    data = text.encode("utf-8", "backslashreplace") if isinstance(text, str) else text
+    if isinstance(text, str):
+        data: bytes | Iterable[bytes] = text.encode("utf-8", "backslashreplace")
+    elif isinstance(text, bytes):
+        data = text
+    else:
+        data = (piece.encode("utf-8", "backslashreplace") for piece in text)
     try:
         if _is_stream(path):
             _write_stream(path, data)
@@ -190,14 +197,23 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
 
-def _write_stream(path: Path, data: bytes) -> None:
+def _write_data(fh, data) -> None:
+    """``data``: bytes, or pieces of bytes written one after another."""
+    if isinstance(data, bytes):
+        fh.write(data)
+        return
+    for piece in data:
+        fh.write(piece)
+
+
+def _write_stream(path: Path, data) -> None:
     """A device, FIFO or terminal. A FIFO with no reader is refused at once (opening it
     for writing would wait for one forever)."""
     fd = os.open(path, os.O_WRONLY | getattr(os, "O_NONBLOCK", 0))
     try:
         os.set_blocking(fd, True)
         with os.fdopen(fd, "wb", closefd=False) as fh:
-            fh.write(data)
+            _write_data(fh, data)
     finally:
         os.close(fd)
 
@@ -219,7 +235,7 @@ def _mode(name: str, directory: int) -> int:
     return 0o666 & ~_umask()
 
 
-def _write_unnamed(directory: int, name: str, data: bytes, mode: int) -> bool:
+def _write_unnamed(directory: int, name: str, data, mode: int) -> bool:
     """Write through an unnamed ``O_TMPFILE`` in the open ``directory``, linked to a
     temporary name and renamed over ``name`` once complete. False where the platform or file
     system has no such files (the caller then uses a named temporary file)."""
@@ -235,7 +251,7 @@ def _write_unnamed(directory: int, name: str, data: bytes, mode: int) -> bool:
         raise
     try:
         with os.fdopen(fd, "wb", closefd=False) as fh:
-            fh.write(data)
+            _write_data(fh, data)
         temporary = _temporary_name(name)
         try:  # a dir_fd makes CPython call linkat(), which follows the /proc link
             os.link(f"/proc/self/fd/{fd}", temporary, dst_dir_fd=directory)
@@ -255,7 +271,7 @@ def _temporary_name(name: str) -> str:
     return f".{name[:200]}.{secrets.token_hex(4)}.tmp"
 
 
-def _write_named(directory: int, path: Path, data: bytes, mode: int) -> None:
+def _write_named(directory: int, path: Path, data, mode: int) -> None:
     """A named temporary file in the open ``directory``, created exclusively (a name that
     is already there, a link included, is never opened), renamed over ``path``'s name."""
     temporary = _temporary_name(path.name)
@@ -269,7 +285,7 @@ def _write_named(directory: int, path: Path, data: bytes, mode: int) -> None:
     try:
         os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            _write_data(fh, data)
         os.replace(temporary, path.name, src_dir_fd=directory, dst_dir_fd=directory)
     except BaseException:
         with contextlib.suppress(OSError):

@@ -11,7 +11,7 @@ import io
 import json
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 
 from credcli import __version__
@@ -387,6 +387,34 @@ def json_safe(value):
     if isinstance(value, (list, tuple)):
         return [json_safe(v) for v in value]
     return value
+
+
+TEXT_PIECE = 1 << 20
+"""Characters of a streamed output's pieces (:func:`text_pieces`)."""
+
+
+def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator[str]:
+    """:func:`to_text` in pieces of about :data:`TEXT_PIECE` characters: JSON streamed by
+    the encoder as it goes, so that a document of 10⁶ segments is never held as one string
+    (nor as the encoder's 10⁸ fragments); the other formats in one piece. The records are
+    JSON-safe as made (:func:`credcli.io.records.json_value`); the rest of the document is
+    made so here (:func:`json_safe`)."""
+    if fmt is not OutputFormat.JSON:
+        yield to_text(report, fmt, width)
+        return
+    document = {
+        key: value if key == "segments" else json_safe(value)
+        for key, value in report.document.items()
+    }
+    batch, size = [], 0
+    for fragment in json.JSONEncoder(indent=2, allow_nan=False).iterencode(document):
+        batch.append(fragment)
+        size += len(fragment)
+        if size >= TEXT_PIECE:
+            yield "".join(batch)
+            batch, size = [], 0
+    batch.append("\n")
+    yield "".join(batch)
 
 
 def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:

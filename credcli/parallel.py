@@ -252,7 +252,6 @@ def _quiet_cancelled_futures() -> None:
     """Do not show the InvalidStateError that Python 3.11's process-pool thread raises when
     it fails a future already cancelled (fixed in later Pythons, which ignore it); every
     other exception of any thread is shown as before."""
-    import threading
     from concurrent.futures import InvalidStateError
     from concurrent.futures.process import _ExecutorManagerThread
 

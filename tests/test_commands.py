@@ -78,22 +78,12 @@ def test_library_messages_name_only_parameters_the_command_line_has():
     """Every backticked name in a message outside cli/ becomes a flag on the command line
     (a name without an option would be shown in backticks)."""
     flags = _flags()
-    unknown = {}
-    for path in (ROOT / "credcli").rglob("*.py"):
-        if "cli" in path.parts:
-            continue
-        tree = ast.parse(path.read_text())
-        docstrings = {
-            id(node.value)
-            for node in ast.walk(tree)
-            if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
-        }
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Constant) and isinstance(node.value, str):
-                if id(node) not in docstrings:
-                    for m in NAMED.finditer(node.value):
-                        if m[1] not in flags:
-                            unknown[m[1]] = path.name
+    unknown = {
+        m[1]: module
+        for module, text in _message_strings()
+        for m in NAMED.finditer(text)
+        if m[1] not in flags
+    }
     assert unknown == {}
 
 

@@ -51,6 +51,17 @@ def require_plotting() -> None:
     _pyplot()
 
 
+def _whitened_axes(ax, lim: float) -> None:
+    """Square axes of ±``lim`` around 0 for whitened errors (unitless), with the axes drawn."""
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_aspect("equal")
+    ax.axhline(0, color="grey", lw=0.5)
+    ax.axvline(0, color="grey", lw=0.5)
+    ax.set_xlabel("s_k,1 (whitened, unitless)")
+    ax.set_ylabel("s_k,2 (whitened, unitless)")
+
+
 def _finish(fig, name: str, title: str, data: dict, group: str = "") -> Plot:
     plt = _pyplot()
     fig.suptitle(title)
@@ -236,13 +247,7 @@ def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) ->
         m = shown.mean(axis=0)
         ax.plot(*m, "k*", ms=14, label=f"mean ({m[0]:.2f}, {m[1]:.2f})")
         lim = float(np.abs(shown).max()) * 1.05 or 1.0
-        ax.set_xlim(-lim, lim)
-        ax.set_ylim(-lim, lim)
-        ax.set_aspect("equal")
-        ax.axhline(0, color="grey", lw=0.5)
-        ax.axvline(0, color="grey", lw=0.5)
-        ax.set_xlabel("s_k,1 (whitened, unitless)")
-        ax.set_ylabel("s_k,2 (whitened, unitless)")
+        _whitened_axes(ax, lim)
         if d > 2:
             ax.text(
                 0.02, 0.02, f"first two of d = {d} components", transform=ax.transAxes, fontsize=8
@@ -853,13 +858,7 @@ def draw_whitened_errors(
         )
         radii.append(r)
         shares.append(inside)
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(-lim, lim)
-    ax.set_aspect("equal")
-    ax.axhline(0, color="grey", lw=0.5)
-    ax.axvline(0, color="grey", lw=0.5)
-    ax.set_xlabel("s_k,1 (whitened, unitless)")
-    ax.set_ylabel("s_k,2 (whitened, unitless)")
+    _whitened_axes(ax, lim)
     notes = []
     if d > 2:
         notes.append(f"first two of d = {d} components")

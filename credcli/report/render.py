@@ -420,10 +420,7 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
 def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
     """The whole report as text in ``fmt`` (a plain table without colour for TABLE)."""
     if fmt is OutputFormat.JSON:
-        try:  # the records are JSON-safe already: walk the document only when it is not
-            return json.dumps(report.document, indent=2, allow_nan=False) + "\n"
-        except ValueError:
-            return json.dumps(json_safe(report.document), indent=2, allow_nan=False) + "\n"
+        return "".join(text_pieces(report, fmt, width))
     if fmt is OutputFormat.CSV:
         return _csv(report)
     if fmt is OutputFormat.MARKDOWN:

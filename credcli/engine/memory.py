@@ -274,6 +274,12 @@ MAX_BIAS_FACTOR = 3.0
 """Most the bootstrap's bias correction stretches the fitted correlations."""
 MAX_BURN_IN = 200_000
 """Longest burn-in of a bootstrap series (epochs); the model's own decay horizon below."""
+BOOTSTRAP_EPOCHS = 1 << 14
+"""Longest bootstrap series. Longer runs are bootstrapped at this length and the spread
+and bias scaled by its ratio to the run's length (both are O(1/N) for a fitted AR model,
+Berk 1974): a 2,000,000-epoch segment drew 40 series of 2,000,000 epochs per direction
+(26 s and 640 MB each) for degrees of freedom in the tens of thousands, which no critical
+value can tell from infinity."""
 
 
 def _log_tau(phi: np.ndarray, sigma2: float) -> float:
@@ -295,9 +301,12 @@ def bootstrap_spread(
     order selection included: a near-white model fitted by chance on a short window
     refits near τ = 1 and has a small spread, a persistent one a large spread and a bias
     towards less memory (Burg's and the sample mean's), which :func:`series_memory`
-    corrects."""
+    corrects. Beyond :data:`BOOTSTRAP_EPOCHS` the series are that long and the spread and
+    bias are scaled to ``n``."""
     gen = np.random.default_rng(np.random.SeedSequence([seed, n, p_max, len(phis)]))
     b = BOOTSTRAP_REPLICATES
+    shrink = min(1.0, BOOTSTRAP_EPOCHS / n)
+    n = min(n, BOOTSTRAP_EPOCHS)
     draws = np.empty((len(phis), b, n))
     for i, phi in enumerate(phis):
         burn = min(MAX_BURN_IN, _horizon(phi, 0)) if phi.size else 0
@@ -314,9 +323,9 @@ def bootstrap_spread(
     truths = np.array([_log_tau(phi, 1.0) for phi in phis])
     squares = np.log(_square_ratios(fit.reflection, orders)).reshape(len(phis), b)
     return (
-        np.var(logs, axis=1, ddof=1),
-        np.mean(logs, axis=1) - truths,
-        np.var(squares, axis=1, ddof=1),
+        np.var(logs, axis=1, ddof=1) * shrink,
+        (np.mean(logs, axis=1) - truths) * shrink,
+        np.var(squares, axis=1, ddof=1) * shrink,
     )
 
 

@@ -381,3 +381,21 @@ def test_logs_are_compared_by_their_accuracy(tmp_path, capsys, monkeypatch):
     assert main(["diagnose", *logs, "-f", "markdown"]) == 0
     markdown = capsys.readouterr().out
     assert "### logs compared" in markdown and "| 1800 | 1 of 6 |" in markdown
+
+
+@pytest.mark.parametrize(
+    "lengths", [[1, 2, 3, 4, 1, 2], [1, 2, 3, 4, 5, 1000, 999], [100_000], [5000, 4001, 1, 2]]
+)
+def test_grouped_accuracy_equals_numpy_per_group(lengths):
+    """Both ways of taking grouped medians (one sort for many short groups, a partition per
+    group for long ones) and the grouped sums give each group's numpy figures."""
+    lengths = np.array(lengths)
+    errors = np.random.default_rng(len(lengths)).standard_normal((lengths.sum(), 3))
+    starts = np.r_[0, np.cumsum(lengths)[:-1]]
+    for a, start, length in zip(metrics.grouped_accuracy(errors, lengths), starts, lengths):
+        e = errors[start : start + length]
+        norms = np.linalg.norm(e, axis=1)
+        np.testing.assert_array_equal(a.median, np.median(np.abs(e), axis=0))
+        assert a.median_norm == pytest.approx(np.median(norms), rel=1e-12)
+        np.testing.assert_allclose(a.rmse, np.sqrt(np.mean(e**2, axis=0)), rtol=1e-12)
+        assert a.max_norm == pytest.approx(norms.max(), rel=1e-12)

@@ -50,7 +50,7 @@ class BlockScale:
     high: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Diagnosis:
     """Result of Algorithm 1 on one segment, with every intermediate number.
 
@@ -288,7 +288,7 @@ def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SegmentDiagnosis:
     """A Diagnosis tied to its segment of a log."""
 

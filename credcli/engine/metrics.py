@@ -253,7 +253,7 @@ def energy_score(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     return EnergyScorer(cov).energy_scores(errors, (scale,))[0]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Accuracy:
     """How far the estimate is from the truth, beside whether its covariance says so: the
     figures evo prints first for a trajectory's absolute error, per component i and of the

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.1.0"
+from credcli.version import __version__  # noqa: F401 (the package's __version__)
 
 _EXPORTS = {
     "read_log": "credcli.api",

@@ -14,7 +14,6 @@ from typing import Annotated
 
 import typer
 
-from credcli import __version__
 from credcli.cli.emit import (
     Progress,
     check_plotting,
@@ -59,6 +58,7 @@ from credcli.cli.options import (
 )
 from credcli.report.formats import OutputFormat
 from credcli.studies.settings import CURVE_RUNS
+from credcli.version import __version__
 
 app = typer.Typer(
     name="credcli",

@@ -14,7 +14,6 @@ import re
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 
-from credcli import __version__
 from credcli.engine.config import (
     LOCATION_CONDITIONS,
     SMM_CONDITION,
@@ -39,6 +38,7 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
 )
 from credcli.studies.simulate import CONFUSION_LABELS
 from credcli.studies.uwb import screening_note
+from credcli.version import __version__
 
 
 @dataclass(frozen=True)

@@ -12,13 +12,14 @@ of processes.
 from __future__ import annotations
 
 import contextlib
-import functools
 import importlib
 import os
 import signal
 import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator
+
+from credcli.system import libc
 
 _BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -70,7 +71,7 @@ def follow_parent() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if sys.platform == "linux":
         try:
-            _libc().prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+            libc().prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
         except (OSError, AttributeError):
             pass
 
@@ -103,38 +104,11 @@ def keep_freed_memory() -> None:
     ``MALLOC_TRIM_THRESHOLD_``, which Dask's nannies set to 64 KiB (the diagnosis then ran
     1.6-1.7 times slower in Dask workers). Not glibc: nothing to do."""
     try:
-        libc = _libc()
-        libc.mallopt(-3, MMAP_THRESHOLD)  # M_MMAP_THRESHOLD
-        libc.mallopt(-1, 2 * MMAP_THRESHOLD)  # M_TRIM_THRESHOLD
+        c = libc()
+        c.mallopt(-3, MMAP_THRESHOLD)  # M_MMAP_THRESHOLD
+        c.mallopt(-1, 2 * MMAP_THRESHOLD)  # M_TRIM_THRESHOLD
     except (OSError, AttributeError):
         pass
-
-
-def release_free_memory() -> None:
-    """Give back to the system what reading a log freed: Arrow's allocator keeps freed
-    buffers for reuse, and glibc keeps freed heap chunks below its adaptive trim threshold,
-    where the diagnosis's large arrays (mapped afresh) cannot reuse them. One 2,000,000-epoch
-    Parquet log: the later peak falls by about 100 MiB (docs/performance.md)."""
-    if "pyarrow" in sys.modules:
-        sys.modules["pyarrow"].default_memory_pool().release_unused()
-    try:
-        _libc().malloc_trim(0)
-    except (OSError, AttributeError):  # not glibc
-        pass
-
-
-@functools.lru_cache(maxsize=1)
-def _libc():
-    """The C library (found once; ``find_library`` runs ``ldconfig``, so glibc's usual name
-    is tried first)."""
-    import ctypes
-
-    try:
-        return ctypes.CDLL("libc.so.6")
-    except OSError:
-        import ctypes.util
-
-        return ctypes.CDLL(ctypes.util.find_library("c"))
 
 
 def prepare_worker() -> None:

@@ -27,7 +27,7 @@ from credcli.io.rosbag import check_bag_path
 from credcli.io.schema import InputFormat, ReadOptions
 from credcli.io.streams import display_name, needs_copy, readable
 from credcli.io.trajectory import Trajectory
-from credcli.parallel import release_free_memory
+from credcli.system import release_free_memory
 
 COVARIANCE_FORMATS = (
     "credcli, ros-csv with field.pose.covariance0..35, a rosbag Odometry or "

@@ -107,9 +107,9 @@ def test_anchor_markers_are_checked_against_gt_range():
 
 @real_s5
 def test_std_per_anchor_and_estimated():
-    per = uwb.read_starloc(S5, UwbSettings(std=0.1, std_by_anchor=((4, 0.05),)))
+    per = uwb.read_starloc(S5, UwbSettings(std=0.1, std_by_anchor=((4, 0.05),)).reading)
     assert np.all(per.std[per.anchor == 4] == 0.05) and np.all(per.std[per.anchor != 4] == 0.1)
-    est = uwb.read_starloc(S5, UwbSettings(std_estimate=True))
+    est = uwb.read_starloc(S5, UwbSettings(std_estimate=True).reading)
     e = est.range_error[est.anchor == 9]
     assert est.std[est.anchor == 9][0] == pytest.approx(
         1.4826 * np.median(np.abs(e - np.median(e)))

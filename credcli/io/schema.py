@@ -1,4 +1,5 @@
-"""Column layouts of estimator logs (plain Python: the command line reads its defaults)."""
+"""Column layouts of estimator logs and how logs are read (plain Python: the command line
+reads its defaults)."""
 
 from __future__ import annotations
 
@@ -145,3 +146,16 @@ class LogReading:
     drop_invalid: bool = False
     window: str | None = None
     whole: bool = False
+
+
+@dataclass(frozen=True)
+class RangeReading:
+    """How a STAR-loc ``uwb.csv`` is read (the reader's part of the UWB settings,
+    :class:`credcli.studies.settings.UwbSettings`): the ``range_column``; ``std``, a fixed
+    range std (m) for files without a ``std`` column; ``std_by_anchor``, one per anchor id
+    (over ``std`` and the column); ``std_estimate``: each anchor's estimated from the data."""
+
+    range_column: str = "range_calib"
+    std: float | None = None
+    std_by_anchor: tuple[tuple[int, float], ...] = ()
+    std_estimate: bool = False

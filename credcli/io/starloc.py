@@ -13,7 +13,7 @@ import numpy as np
 
 from credcli.errors import CredcliError
 from credcli.io.logs import numeric_columns, read_table
-from credcli.studies.settings import UwbSettings
+from credcli.io.schema import RangeReading
 
 
 @dataclass(frozen=True)
@@ -41,10 +41,11 @@ MAX_ID = 2.0**53
 """Anchor, tag and marker ids are whole numbers no larger than this (exact as float64 and
 as int64); a larger one was cast to a wrong id without a word."""
 
+
 _REQUIRED = ("time_s", "from_id", "to_id", "tag_pos_x", "tag_pos_y", "tag_pos_z", "gt_range")
 
 
-def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> RangeLog:
+def read_starloc(path: str | Path, settings: RangeReading = RangeReading()) -> RangeLog:
     """Read and validate a STAR-loc ``uwb.csv``.
 
     Without ``range_calib`` (setup s5) the raw ``range`` column is used, with a note.
@@ -64,7 +65,7 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     notes = []
     range_column = settings.range_column
     if range_column not in columns:
-        if range_column == UwbSettings.range_column and "range" in columns:
+        if range_column == RangeReading.range_column and "range" in columns:
             notes.append(f"{source}: no '{range_column}' column (setup s5?): using raw 'range'")
             range_column = "range"
         else:
@@ -123,7 +124,7 @@ def read_starloc(path: str | Path, settings: UwbSettings = UwbSettings()) -> Ran
     )
 
 
-def _range_std(col: dict, settings: UwbSettings, source: str, range_column: str):
+def _range_std(col: dict, settings: RangeReading, source: str, range_column: str):
     """The claimed std of every range row: the ``std`` column or ``--std``, overridden per
     anchor by ``std_by_anchor``, or estimated per anchor (``std_estimate``: 1.4826 × the
     median absolute deviation of range − gt_range, robust to stale packets and outliers)."""

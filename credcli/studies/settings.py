@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 from credcli.engine.config import DiagnosisConfig, Label
 from credcli.errors import CredcliError
+from credcli.io.schema import RangeReading
 
 CURVE_RUNS = 5000
 """Monte Carlo runs per point of the Fig. 1 curves (``simulate --curves``)."""
@@ -194,20 +195,25 @@ class UwbSettings:
     gt_range by more than this RMS (m).
     """
 
-    range_column: str = "range_calib"
-    std: float | None = None  # fixed range std (m) for files without a `std` column
+    range_column: str = RangeReading.range_column
+    std: float | None = RangeReading.std  # fixed range std (m) for files without a `std` column
     packet_window: float = 0.03  # s: ranges from distinct anchors within this window
     min_anchors: int = 3  # for a 2-D fix
     max_speed: float = 0.1  # m/s: static if the rig's 3-D speed stays below ...
     min_static: float = 4.0  # s: ... for at least this long
     wls_iterations: int = 20
-    std_by_anchor: tuple[tuple[int, float], ...] = ()
-    std_estimate: bool = False
+    std_by_anchor: tuple[tuple[int, float], ...] = RangeReading.std_by_anchor
+    std_estimate: bool = RangeReading.std_estimate
     screen: bool = True
     residual_level: float = 1e-6
     robust: RobustLoss = RobustLoss.NONE
     anchor_map: tuple[tuple[int, int], ...] = ()
     anchor_rms_warn: float = 0.02
+
+    @property
+    def reading(self) -> RangeReading:
+        """What the STAR-loc reader takes of these settings."""
+        return RangeReading(self.range_column, self.std, self.std_by_anchor, self.std_estimate)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "robust", RobustLoss(self.robust))

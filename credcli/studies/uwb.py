@@ -670,7 +670,7 @@ def run_pipeline(
     whole: bool = False,
 ) -> UwbRun:
     """Read, calibrate or read anchors, packetise, solve, screen and segment (no diagnosis)."""
-    ranges = read_starloc(path, settings)
+    ranges = read_starloc(path, settings.reading)
     notes = []
     if anchors_path is not None:
         anchors = anchors_from_markers(

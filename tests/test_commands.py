@@ -304,6 +304,60 @@ def _module_imports() -> dict[str, set[str]]:
     return graph
 
 
+LAYERS = (
+    ("credcli.errors", "credcli.version", "credcli.system"),
+    ("credcli.engine",),
+    ("credcli.io", "credcli.segments", "credcli.adapters"),
+    ("credcli.parallel", "credcli.scheduling", "credcli.cluster"),  # where work runs
+    ("credcli.studies",),
+    ("credcli.report", "credcli.ci", "credcli.requests"),
+    ("credcli.workflows",),
+    ("credcli.cli", "credcli.api", "credcli.testing"),
+    ("credcli", "credcli.__main__"),
+)
+"""The house's floors, lowest first (issue 34): a module imports only from its own floor
+or below, so data flows one way: cli → workflows → report/ci → studies → where work runs
+→ io/segments → engine → errors."""
+
+
+def _floor(module: str) -> int:
+    owner = max(
+        (
+            name
+            for floor in LAYERS
+            for name in floor
+            if module == name or module.startswith(name + ".")
+        ),
+        key=len,
+    )
+    return next(i for i, floor in enumerate(LAYERS) if owner in floor)
+
+
+def test_imports_go_down_the_layers():
+    """Every import of a credcli module, at the top, inside a function or under
+    TYPE_CHECKING, goes to the importer's floor of :data:`LAYERS` or one below."""
+    upward = []
+    for path in (ROOT / "credcli").rglob("*.py"):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("credcli"):
+                targets = [node.module]
+                if node.module == "credcli":  # from credcli import x: the module x
+                    targets = [f"credcli.{alias.name}" for alias in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names if a.name.startswith("credcli")]
+            else:
+                continue
+            upward += [
+                f"{name}:{node.lineno} -> {target}"
+                for target in targets
+                if _floor(target) > _floor(name)
+            ]
+    assert upward == []
+    assert _floor("credcli.io.starloc") < _floor("credcli.studies.settings")  # read as meant
+
+
 def test_no_import_cycles():
     graph = _module_imports()
     state: dict[str, int] = {}  # 1: on the path, 2: done

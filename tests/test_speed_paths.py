@@ -230,3 +230,20 @@ def test_segments_too_short_for_a_verdict_are_diagnosed_together():
     assert one.label.value == "insufficient-data" and one.n == 1
     np.testing.assert_array_equal(one.accuracy.max, np.abs(e[40]))
     assert one.accuracy.rmse_norm == pytest.approx(np.linalg.norm(e[40]), rel=1e-15)
+
+
+def test_gls_residuals_from_given_inverses_are_those_computed_in_chunks():
+    """The diagnosis inverts the Cholesky factors once and hands them to the GLS residuals;
+    over several epoch chunks (per-epoch 3 × 3 covariances) that gives what the residuals
+    compute themselves, to the bit (the same LAPACK inverse of each matrix)."""
+    from credcli.engine.config import EPOCH_CHUNK
+    from credcli.engine.scale import gls_residuals
+
+    rng = np.random.default_rng(1)
+    n = 2 * EPOCH_CHUNK + 17
+    a = rng.standard_normal((n, 3, 3))
+    chol = np.linalg.cholesky(a @ a.transpose(0, 2, 1) + np.eye(3))
+    e = rng.standard_normal((n, 3))
+    own, given = gls_residuals(e, chol), gls_residuals(e, chol, np.linalg.inv(chol))
+    for name in ("mean", "whitened", "precision_sum", "scores"):
+        np.testing.assert_array_equal(getattr(own, name), getattr(given, name))

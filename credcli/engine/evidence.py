@@ -123,10 +123,11 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     anees = float(np.mean(eps) / d)
     centred = errors - errors.mean(axis=0)
     nci_centred = metrics.nci_factored(centred, chol, mse_cholesky(metrics.mse_matrix(centred)))
-    gls = gls_residuals(errors, chol)
+    modelled = [c for c in configs if reads_memory(c, runs)]
+    inverse = np.linalg.inv(chol) if modelled else None  # one factorisation's inverse
+    gls = gls_residuals(errors, chol, inverse if chol.ndim == 3 else None)
     s = whiten(errors, cov)
     r1 = correlation.autocorrelation(s)
-    modelled = [c for c in configs if reads_memory(c, runs)]
     if len(modelled) < len(configs):  # the lag-1 screening of paper, ks and fixed blocks
         dep = dependence.serial_dependence(s, gls.q, r1)
         located, tau_location = dependence.location_dependence(s, r1, dep)
@@ -139,7 +140,6 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     effective_n = float(n / max(1.0, float(np.max(tau_point))))
     source = "run" if memory is not None else "segment"
     scales_check = None
-    inverse = np.linalg.inv(chol) if modelled else None  # one factorisation's inverse
     if modelled and memory is None:
         memory, scales_check = segment_memory(gls, inverse, s, r1)
     model_evidence = {

@@ -117,10 +117,14 @@ class GlsResiduals:
         return float(np.sqrt(max(0.0, self.mean @ (self.precision_sum / n) @ self.mean)))
 
 
-def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
+def gls_residuals(
+    errors: np.ndarray, chol: np.ndarray, inverse: np.ndarray | None = None
+) -> GlsResiduals:
     """μ̂ = (Σ W_k)⁻¹ Σ W_k e_k and the whitened residuals, by triangular solves.
 
-    ``chol`` holds the Cholesky factors L_k of Σ̂_k (N, d, d), or one shared factor (d, d).
+    ``chol`` holds the Cholesky factors L_k of Σ̂_k (N, d, d), or one shared factor (d, d);
+    ``inverse``, their inverses L_k⁻¹ (N, d, d) where the caller has them already (the
+    same matrices, so the same result), else they are computed here chunk by chunk.
     """
     n, d = errors.shape
     if chol.ndim == 2:
@@ -137,14 +141,17 @@ def gls_residuals(errors: np.ndarray, chol: np.ndarray) -> GlsResiduals:
     weighted = np.zeros(d)
     single = n <= EPOCH_CHUNK  # then the one chunk's L_k⁻¹ is kept for the second pass
     for sl in epoch_chunks(n):  # chunks of epochs: bounded temporaries
-        inv = np.linalg.inv(chol[sl])  # batched L_k⁻¹
+        inv = np.linalg.inv(chol[sl]) if inverse is None else inverse[sl]  # batched L_k⁻¹
         z[sl] = np.einsum("nij,nj->ni", inv, errors[sl])
         precision_sum += np.einsum("nki,nkj->ij", inv, inv)
         scores[sl] = np.einsum("nki,nk->ni", inv, z[sl])
         weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
     for sl in epoch_chunks(n):
-        inv = inv if single else np.linalg.inv(chol[sl])
+        if inverse is not None:
+            inv = inverse[sl]
+        elif not single:
+            inv = np.linalg.inv(chol[sl])
         z[sl] -= np.einsum("nij,j->ni", inv, mean)
     return GlsResiduals(mean, z, precision_sum, scores)
 

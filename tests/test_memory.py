@@ -174,3 +174,16 @@ def test_max_order_follows_schwert():
     assert mem.max_order(20) == 5  # at most N/4
     assert mem.max_order(10_000) == 38
     assert mem.max_order(10**9) == mem.MAX_ORDER_CAP
+
+
+def test_burg_in_chunks_equals_burg_in_one_pass(monkeypatch):
+    """Burg's in-place update runs in chunks of epochs on long runs; chunks of 7 epochs give
+    the reflection coefficients and variances of one chunk, to the bit (the same
+    operations on the same numbers, in the same order per epoch)."""
+    x = _ar([1, -1.2, 0.5], 300, np.random.default_rng(4)).T.reshape(1, 3, 100)
+    x = x - x.mean(axis=2, keepdims=True)
+    whole = mem.burg(x, 12)
+    monkeypatch.setattr(mem, "BURG_CHUNK", 7)
+    chunked = mem.burg(x, 12)
+    np.testing.assert_array_equal(whole.reflection, chunked.reflection)
+    np.testing.assert_array_equal(whole.variance, chunked.variance)

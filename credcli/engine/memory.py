@@ -89,6 +89,10 @@ class BurgFit:
         return -a
 
 
+BURG_CHUNK = 1 << 16
+"""Epochs per chunk of Burg's in-place update (bounded temporaries on long runs)."""
+
+
 def burg(x: np.ndarray, order: int) -> BurgFit:
     """Burg's recursion up to ``order`` on each of k series x (k, m, T), each pooled over
     its m segments (the forward and backward prediction errors of every segment enter one
@@ -111,10 +115,16 @@ def burg(x: np.ndarray, order: int) -> BurgFit:
         kappa = np.clip(kappa, -1.0 + 1e-12, 1.0 - 1e-12)
         reflection[:, p - 1] = kappa
         variance[:, p] = variance[:, p - 1] * (1.0 - kappa**2)
-        f_new = fp + kappa[:, None, None] * bp
-        b_new = bp + kappa[:, None, None] * fp
-        f[:, :, p:] = f_new
-        b[:, :, p:] = b_new
+        k3 = kappa[:, None, None]
+        # f_t += κ b_{t−1} and b_t = b_{t−1} + κ f_t (old f_t) in place, in chunks of
+        # epochs from the end: a chunk reads b one epoch before it, which no later (that
+        # is, earlier) chunk has written yet; temporaries stay at a chunk's size
+        for stop in range(t, p, -BURG_CHUNK):
+            start = max(p, stop - BURG_CHUNK)
+            f_old = f[:, :, start:stop].copy()
+            b_old = b[:, :, start - 1 : stop - 1]
+            f[:, :, start:stop] += k3 * b_old
+            b[:, :, start:stop] = b_old + k3 * f_old
     variance = np.maximum(variance, np.finfo(float).tiny)
     return BurgFit(reflection, variance, m * t, m)
 

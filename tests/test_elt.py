@@ -310,3 +310,20 @@ def test_block_sums_made_by_bands_equal_those_of_the_whole_pair_matrix(sizes):
         np.testing.assert_array_equal(banded, whole)
     np.testing.assert_allclose(banded, whole, rtol=1e-12, atol=1e-11)
     assert not np.any(np.tril(banded, -1))
+
+
+@pytest.mark.parametrize("upper", [True, False])
+def test_blocked_float32_forms_are_within_their_bound(upper):
+    """The second look at flips near T_obs sums Uᵀξ 64 rows of U at a time in float32 and
+    adds the parts in float64: every such form is within ``fine_bound`` of the float64
+    form, and that bound is far tighter than the one-pass float32 product's."""
+    n = 700
+    s = np.random.default_rng(5).standard_normal((n, 2))
+    u = flips.pair_upper(s)
+    a = u if upper else u + u.T
+    stats = flips._FlippedStatistics.of_matrix(a, float(a.sum()), upper)
+    signs = np.random.default_rng(6).integers(0, 2, size=(200, n), dtype=np.int8) * 2 - 1
+    blocked = stats._blocked(np.asfortranarray(signs.T.astype(np.float32)))
+    exact = np.einsum("bi,bi->b", signs @ (u + u.T), signs)
+    assert np.max(np.abs(blocked - exact)) <= stats.fine_bound
+    assert stats.fine_bound * 5 < stats.bound

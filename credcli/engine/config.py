@@ -339,10 +339,10 @@ class DiagnosisConfig:
     >>> config = DiagnosisConfig(alpha=0.01)
     >>> round(config.scale_level, 5), config.min_blocks, config.min_n(2)
     (0.00501, 11, 10)
-    >>> DiagnosisConfig(n_flips=5)
+    >>> DiagnosisConfig(n_flips=5)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    credcli.errors.CredcliError: invalid setting: `n_flips` 5 is too few: the ELT's p-value (1 + count)/(B + 1) can only fall below its level 0.0127 with B >= 78
+    credcli.errors.CredcliError: invalid setting: `n_flips` 5 is too few: ... with B >= 78
     """
 
     tau_nci: float = 0.5

@@ -237,7 +237,8 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite, naming the argument and the epoch. ``mse`` too must be positive definite.
+        not symmetric positive definite, naming the argument and the epoch; ``mse`` too
+        must be positive definite.
 
     References
     ----------
@@ -619,7 +620,8 @@ def probes(
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite, naming the argument and the epoch. Also if ``c`` is not > 1.
+        not symmetric positive definite, naming the argument and the epoch; also if ``c``
+        is not > 1.
 
     References
     ----------

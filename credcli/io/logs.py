@@ -30,10 +30,10 @@ class EstimatorLog:
     """One log: truth and estimate (N, d), claimed covariance (N, d, d), optional time and
     segment (N,), and the file row number of each epoch (1-based data rows).
 
-    Frozen, and made validated by [credcli.read_log][credcli.api.read_log],
-    [credcli.log_from_arrays][credcli.api.log_from_arrays] or
-    [credcli.log_from_frame][credcli.api.log_from_frame] (the constructor itself checks
-    nothing).
+    Frozen. [credcli.read_log][credcli.api.read_log],
+    [credcli.log_from_arrays][credcli.api.log_from_arrays] and
+    [credcli.log_from_frame][credcli.api.log_from_frame] make it validated; the
+    constructor itself checks nothing.
 
     Attributes
     ----------

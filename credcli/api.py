@@ -64,11 +64,29 @@ __all__ = [
 
 
 class Results(Sequence):
-    """The diagnoses of a log's segments, in order; ``to_dict`` and ``to_frame`` give the
+    """The diagnoses of a log's segments, in order.
+
+    A sequence of ``SegmentDiagnosis`` (``results[i].diagnosis`` is a
+    [Diagnosis][credcli.engine.diagnosis.Diagnosis]); ``to_dict`` and ``to_frame`` give the
     same records as ``credcli diagnose --format json`` / ``csv``; ``plot`` draws them.
 
-    Results made by [diagnose_log][credcli.api.diagnose_log] keep a reference to the log and its segments (no
-    copy) for ``plot``."""
+    Results made by [diagnose_log][credcli.api.diagnose_log] keep a reference to the log
+    and its segments (no copy) for ``plot``.
+
+    Parameters
+    ----------
+    items : list of SegmentDiagnosis
+        The segments' diagnoses, in order.
+    source : Source, optional
+        The log, its segments and their diagnoses, for ``plot``; None for results made by
+        hand (``plot`` then raises).
+
+    Examples
+    --------
+    >>> results = diagnose_log(read_log("sample_data/estimator_log.csv"))
+    >>> len(results), results[1].segment, str(results[1].diagnosis.label)
+    (6, 'turn', 'optimism')
+    """
 
     def __init__(self, items: list[SegmentDiagnosis], source: Source | None = None) -> None:
         self._items = list(items)
@@ -87,23 +105,51 @@ class Results(Sequence):
 
     @property
     def labels(self) -> list[Label]:
-        """Each segment's label, in order (a ``Label`` equals its text:
-        ``results.labels == ["credible", "optimism"]``)."""
+        """Each segment's label, in order.
+
+        A [Label][credcli.engine.config.Label] equals its text:
+        ``results.labels == ["credible", "optimism"]``.
+        """
         return [r.diagnosis.label for r in self._items]
 
     def to_dict(self) -> list[dict]:
-        """One JSON-safe record per segment."""
+        """One JSON-safe record per segment.
+
+        Returns
+        -------
+        list of dict
+            The records of ``credcli diagnose --format json``, one per segment, in order.
+
+        Examples
+        --------
+        >>> results = diagnose_log(read_log("sample_data/estimator_log.csv"))
+        >>> record = results.to_dict()[1]
+        >>> record["segment"], record["label"], round(record["scale_factor"], 2)
+        ('turn', 'optimism', 3.08)
+        """
         return [segment_record(r) for r in self._items]
 
     def to_frame(self):
-        """A pandas DataFrame with one row per segment and one column per record key."""
+        """The records as a pandas DataFrame.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per segment and one column per record key (the records of
+            [to_dict][credcli.api.Results.to_dict], as ``credcli diagnose --format csv``).
+
+        Examples
+        --------
+        >>> frame = diagnose_log(read_log("sample_data/estimator_log.csv")).to_frame()
+        >>> frame.loc[5, ["segment", "label"]].tolist()
+        ['urban', 'optimism+bias']
+        """
         import pandas as pd
 
         return pd.DataFrame(self.to_dict())
 
     def plot(self, kind: str = "errors", *, k: float = 3.0, window: int | None = None):
-        """Figures of the whole log (matplotlib Figures; ``kind="all"``: a dict of them by
-        kind).
+        """Figures of the whole log.
 
         Parameters
         ----------
@@ -125,6 +171,23 @@ class Results(Sequence):
         window : int, optional
             The running mean's length in epochs (``nees``); N/50, from 10 to 500, if None.
 
+        Returns
+        -------
+        matplotlib.figure.Figure or dict of str to matplotlib.figure.Figure
+            The figure of ``kind``; for ``kind="all"``, a dict of the figures by kind
+            (``errors``, ``nees``, ``timeline`` and ``whitened``: ``timescales`` is drawn
+            only when asked for).
+
+        Raises
+        ------
+        ValueError
+            If ``kind`` is not one of the kinds above, ``k`` is not a positive number,
+            ``window`` is not between 1 and N, the results hold no log (made by hand, not
+            by [diagnose_log][credcli.api.diagnose_log]), or, for ``timescales``, no
+            segment has a fitted memory.
+
+        Examples
+        --------
         >>> results = diagnose_log(read_log("sample_data/estimator_log.csv"))
         >>> fig = results.plot("timeline")
         >>> sorted(results.plot("all"))
@@ -151,9 +214,35 @@ class Results(Sequence):
 
 
 class MonteCarloResults(Results):
-    """The diagnoses of M pooled Monte Carlo runs, segment by segment (each segment holds
-    that segment of every run), and ``anees``: the per-epoch ANEES test over the runs
-    (``credcli diagnose --monte-carlo``)."""
+    """The diagnoses of M pooled Monte Carlo runs, segment by segment.
+
+    Each segment holds that segment of every run (``credcli diagnose --monte-carlo``);
+    made by [diagnose_monte_carlo][credcli.api.diagnose_monte_carlo]. A
+    [Results][credcli.api.Results] otherwise.
+
+    Parameters
+    ----------
+    items : list of SegmentDiagnosis
+        The pooled segments' diagnoses, in order.
+    anees : MonteCarlo
+        The per-epoch ANEES test over the runs.
+    source : Source, optional
+        The runs, their segments and the diagnoses, for ``plot``.
+
+    Attributes
+    ----------
+    anees : MonteCarlo
+        The per-epoch ANEES test over the runs (Bar-Shalom et al. 2001, Sec. 5.4.2,
+        ``credcli.engine.montecarlo.anees_test``): ``runs`` (M), ``anees`` (the mean NEES
+        of the M runs at each epoch), its two-sided χ² bounds ``lower`` and ``upper`` at
+        ``level``, ``inside`` (each epoch's mean NEES within them) and ``segments`` (the
+        fraction of each segment's epochs inside).
+
+    References
+    ----------
+    Y. Bar-Shalom, X. R. Li and T. Kirubarajan, *Estimation with Applications to Tracking
+    and Navigation*, Wiley, 2001, Sec. 5.4.2.
+    """
 
     def __init__(self, items: list[SegmentDiagnosis], anees, source: Source | None = None) -> None:
         super().__init__(items, source)
@@ -200,13 +289,41 @@ def read_log(
 ) -> EstimatorLog:
     """Read and validate an estimator log; see [Logs and options](formats.md).
 
-    ``reading`` takes the fields of ``credcli.io.schema.ReadOptions`` (the command
-    line's reading options): ``truth``, ``input_format``, ``truth_format``, ``topic``,
-    ``truth_topic``, ``time_unit``, ``max_dt``, ``time_offset``, ``states``,
-    ``perturbation``, ``align``, ``innovations``, ``errors_only``. The decisions taken
-    are in the log's ``notes``. ``align`` (``"origin"``, ``"se3"``, ``"sim3"``) moves an
-    estimate kept in its own world frame onto the truth's first, with its covariance.
+    The decisions taken while reading (unit, format, pairing, convention) are in the log's
+    ``notes``.
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The log: CSV, whitespace-separated text, Parquet, a credcli ``.npz``, or the other
+        formats of [Logs and options](formats.md); ``-`` for standard input.
+    columns : LogSchema, optional
+        The column layout, for logs that do not follow credcli's column names.
+    drop_invalid : bool
+        Drop the rows with NaN or Inf instead of refusing the log.
+    **reading
+        The fields of ``credcli.io.schema.ReadOptions`` (the command line's reading
+        options): ``truth``, ``input_format``, ``truth_format``, ``topic``,
+        ``truth_topic``, ``time_unit``, ``max_dt``, ``time_offset``, ``states``,
+        ``perturbation``, ``align``, ``innovations``, ``errors_only``. ``align``
+        (``"origin"``, ``"se3"``, ``"sim3"``) moves an estimate kept in its own world
+        frame onto the truth's first, with its covariance.
+
+    Returns
+    -------
+    EstimatorLog
+        The validated log.
+
+    Raises
+    ------
+    CredcliError
+        For an unknown or invalid reading option, and for a problem with the file, named
+        by file, row and column: a missing or empty file, missing columns, a non-numeric
+        cell, NaN/Inf (unless ``drop_invalid``), an asymmetric or non-positive-definite
+        covariance, mismatched dimensions.
+
+    Examples
+    --------
     >>> log = read_log("sample_data/formats/odom_ros.csv", perturbation="right",
     ...                truth="sample_data/formats/euroc_groundtruth.csv")
     >>> log.n, log.dim, log.unpaired
@@ -229,17 +346,46 @@ def diagnose_log(
     config: DiagnosisConfig | None = None,
     seed: int = 0,
 ) -> Results:
-    """Diagnose every segment of ``log``. A log with Monte Carlo run ids is diagnosed as its
-    runs pooled ([diagnose_monte_carlo][credcli.api.diagnose_monte_carlo]).
+    """Diagnose every segment of ``log``.
+
+    A log with Monte Carlo run ids is diagnosed as its runs pooled
+    ([diagnose_monte_carlo][credcli.api.diagnose_monte_carlo]).
 
     Parameters
     ----------
+    log : EstimatorLog
+        From [read_log][credcli.api.read_log], [log_from_arrays][credcli.api.log_from_arrays]
+        or [log_from_frame][credcli.api.log_from_frame].
     segments : None, "whole", a window such as "5s" or "200", or a list of Segment
-        None: the log's segment column (the whole log when it has none).
+        None: the log's segment column (the whole log when it has none). A log of Monte
+        Carlo runs takes None, "whole" or a window.
     config : DiagnosisConfig, optional
         The calibrated rule with its defaults when not given.
     seed : int
         Each segment's sign flips come from (seed, segment name): the same as the CLI's.
+
+    Returns
+    -------
+    Results
+        One diagnosis per segment, in order ([MonteCarloResults][credcli.api.MonteCarloResults]
+        for a log of Monte Carlo runs).
+
+    Raises
+    ------
+    TypeError
+        If ``log`` is not an EstimatorLog (arrays go to [diagnose][credcli.api.diagnose]).
+    CredcliError
+        For a window that cannot be read, a list of segments given with a log of Monte
+        Carlo runs, or a segment whose arrays are invalid (the error names the log and the
+        segment).
+
+    Examples
+    --------
+    >>> results = diagnose_log(read_log("sample_data/estimator_log.csv"))
+    >>> results.labels[:3] == ["credible", "optimism", "pessimism"]
+    True
+    >>> len(diagnose_log(read_log("sample_data/estimator_log.csv"), segments="whole"))
+    1
     """
     _check_log(log)
     if log.run is not None:
@@ -308,11 +454,41 @@ def log_from_frame(
 
     By default the columns are found by their names as in a credcli log (``truth_i``,
     ``est_i`` or ``err_i``; ``cov_i_j``, ``var_i`` or ``std_i``; ``time``; ``segment``).
-    Name them instead with ``truth`` and ``estimate`` (or ``errors``), ``cov`` (d² entries
-    row-major, d(d+1)/2 the upper triangle, or d variances), ``time`` (seconds, datetime64
-    or ISO-8601 strings), ``segment`` and ``run`` (Monte Carlo run ids). A problem names
-    the column and the row.
+    Name them instead with the keywords below.
 
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The log, one row per epoch (not modified).
+    truth, estimate : sequence of str, optional
+        The columns of the true and estimated states, one per component.
+    errors : sequence of str, optional
+        The columns of the errors, instead of ``truth`` and ``estimate``.
+    cov : sequence of str, optional
+        The covariance columns: d² entries row-major, d(d+1)/2 the upper triangle, or d
+        variances.
+    time : str, optional
+        The time column: seconds, datetime64 or ISO-8601 strings.
+    segment : str, optional
+        The segment column.
+    run : str, optional
+        The column of Monte Carlo run ids.
+    source : str
+        The log's name in messages and records.
+
+    Returns
+    -------
+    EstimatorLog
+        The validated log.
+
+    Raises
+    ------
+    CredcliError
+        If ``errors`` is given with ``truth`` or ``estimate``, a column named twice, and
+        for a problem in the data, named by column and row.
+
+    Examples
+    --------
     >>> import numpy as np, pandas as pd
     >>> e = np.random.default_rng(0).standard_normal((200, 2))
     >>> df = pd.DataFrame({"ex": e[:, 0], "ey": e[:, 1], "vx": 1.0, "vy": 1.0})
@@ -334,12 +510,45 @@ def diagnose_monte_carlo(
     seed: int = 0,
 ) -> MonteCarloResults:
     """Diagnose M Monte Carlo runs of one scenario together, as ``credcli diagnose
-    --monte-carlo``: segment k of the result pools segment k of every run (the ELT flips
-    each run in its own blocks), and ``anees`` is the per-epoch ANEES test over the runs
-    (Bar-Shalom et al. 2001, Sec. 5.4.2). The runs must share one time base. ``runs`` is a
-    list of logs, one per run, or one log with run ids (``run=`` of
-    [log_from_arrays][credcli.api.log_from_arrays], a ``run`` column).
+    --monte-carlo``.
 
+    Segment k of the result pools segment k of every run (the ELT flips each run in its
+    own blocks), and ``anees`` is the per-epoch ANEES test over the runs (Bar-Shalom et
+    al. 2001, Sec. 5.4.2). The runs must share one time base.
+
+    Parameters
+    ----------
+    runs : sequence of EstimatorLog, or EstimatorLog
+        A list of logs, one per run, or one log with run ids (``run=`` of
+        [log_from_arrays][credcli.api.log_from_arrays], a ``run`` column).
+    segments : None, "whole" or a window such as "5s" or "200"
+        As for [diagnose_log][credcli.api.diagnose_log], applied to the first run.
+    config : DiagnosisConfig, optional
+        The calibrated rule with its defaults when not given; its ``alpha`` is also the
+        level of the ANEES test.
+    seed : int
+        As for [diagnose_log][credcli.api.diagnose_log].
+
+    Returns
+    -------
+    MonteCarloResults
+        The pooled segments' diagnoses and the ANEES test (``anees``).
+
+    Raises
+    ------
+    TypeError
+        If a run is not an EstimatorLog.
+    CredcliError
+        For fewer than two runs, runs of different lengths, dimensions or time stamps, or
+        a window that cannot be read.
+
+    References
+    ----------
+    Y. Bar-Shalom, X. R. Li and T. Kirubarajan, *Estimation with Applications to Tracking
+    and Navigation*, Wiley, 2001, Sec. 5.4.2.
+
+    Examples
+    --------
     >>> import numpy as np
     >>> rng = np.random.default_rng(0)
     >>> runs = [log_from_arrays(np.eye(2), errors=rng.standard_normal((100, 2)))
@@ -372,12 +581,35 @@ def diagnose(
     *,
     rng: RngLike = None,
 ) -> Diagnosis:
-    """Diagnose one segment of errors e_k = x_k − x̂_k (N, d) with claimed covariances
-    ``cov``: (N, d, d), one (d, d) for every epoch, or variances (N, d).
+    """Diagnose one segment of errors with their claimed covariances.
 
-    ``seed`` (an int or a numpy Generator; ``rng`` is its older name) fixes the sign flips
-    of the location test: the same seed, the same diagnosis.
+    Parameters
+    ----------
+    errors : array_like, shape (N, d)
+        The errors e_k = x_k − x̂_k.
+    cov : array_like, shape (N, d, d), (d, d) or (N, d)
+        The claimed covariances: one per epoch, one (d, d) for every epoch, or variances.
+    config : DiagnosisConfig, optional
+        The calibrated rule with its defaults when not given.
+    seed : int, numpy.random.Generator or None
+        Fixes the sign flips of the location test: the same seed, the same diagnosis.
+    rng : int, numpy.random.Generator or None
+        The older name of ``seed``.
 
+    Returns
+    -------
+    Diagnosis
+        The label and every number behind it.
+
+    Raises
+    ------
+    CredcliError
+        If both ``seed`` and ``rng`` are given, or for invalid arrays (shapes, non-finite
+        values, a covariance that is not symmetric positive definite), naming the argument
+        and the epoch.
+
+    Examples
+    --------
     >>> import numpy as np, credcli
     >>> e = np.random.default_rng(0).standard_normal((400, 2)) * 2.0
     >>> d = credcli.diagnose(e, np.eye(2), seed=0)

@@ -9,14 +9,36 @@ NAMED = re.compile(r"`([a-z][a-z0-9_]*)`")
 
 
 class CredcliError(ValueError):
-    """A user-facing error: bad input or a bad setting. A ``ValueError``, so that Python
-    callers can catch it as the bad value it reports.
+    """A user-facing error: bad input or a bad setting.
 
-    ``parameter`` names the argument or setting at fault (``"cov"``, ``"n_flips"``) when
-    there is one. The message names parameters in backticks (```n_flips` 5 is too few``);
-    the command line shows each as its flag (``--flips``), a config file's table as its
-    key. Library code raises it and never prints; exit codes exist only at the command
-    line's edge (2 for this error).
+    A ``ValueError``, so that Python callers can catch it as the bad value it reports.
+    Library code raises it and never prints; exit codes exist only at the command line's
+    edge (2 for this error).
+
+    Parameters
+    ----------
+    message : str
+        What was wrong and where. It names parameters in backticks (```n_flips` 5 is too
+        few``); the command line shows each as its flag (``--flips``), a config file's
+        table as its key.
+    parameter : str, optional
+        The argument or setting at fault (``"cov"``, ``"n_flips"``) when there is one.
+
+    Attributes
+    ----------
+    message : str
+        The message, as given.
+    parameter : str or None
+        The argument or setting at fault, or None.
+
+    Examples
+    --------
+    >>> from credcli import DiagnosisConfig
+    >>> try:
+    ...     DiagnosisConfig(alpha=2)
+    ... except CredcliError as error:
+    ...     print(error.parameter, "|", error)
+    alpha | invalid setting: `alpha` must be in (0, 1)
     """
 
     def __init__(self, message: str, parameter: str | None = None) -> None:

@@ -57,7 +57,20 @@ def _results(log, cov, segments, alpha: float, seed: int, arrays: dict) -> Resul
 
 
 def diagnosis_text(results: Results, alpha: float) -> str:
-    """The diagnosis table and its advice lines, as ``credcli diagnose`` prints them."""
+    """The diagnosis table and its advice lines, as ``credcli diagnose`` prints them.
+
+    Parameters
+    ----------
+    results : Results
+        The diagnoses, as [credcli.diagnose_log][credcli.api.diagnose_log] gives them.
+    alpha : float
+        The level they were diagnosed at (the calibrated rule's ``alpha``).
+
+    Returns
+    -------
+    str
+        The table and the advice lines: what an assertion's failure message holds.
+    """
     config = DiagnosisConfig(alpha=alpha)
     report = diagnose_report(list(results), config, config_record(config), [], show_all=False)
     return to_text(report, OutputFormat.TABLE)
@@ -75,23 +88,62 @@ def assert_credible(
 ) -> Results:
     """Assert that every segment is credible at level ``alpha``; return the results.
 
-    Give a log ([credcli.read_log][credcli.api.read_log],
-    [credcli.log_from_arrays][credcli.api.log_from_arrays], an adapter's); or errors and
-    covariances, ``assert_credible(errors, cov)`` as ``np.testing`` takes the actual value
-    first; or the arrays of [credcli.log_from_arrays][credcli.api.log_from_arrays] as
-    keywords (``cov=`` with ``truth=``/``estimate=`` or ``errors=``, and optionally
-    ``time=``, ``segment=``).
-    ``segments`` as in [credcli.diagnose_log][credcli.api.diagnose_log] ("whole", "5s", …).
+    The calibrated rule decides, with a fixed ``seed`` for the sign flips, so the test is
+    deterministic. A segment passes when its label is credible with both questions
+    answered.
 
-    A segment passes when its label is credible with both questions answered. With
-    ``allow_untested``, a segment the data cannot decide (``insufficient-data``, or
-    credible with one question untested) passes too; by default it fails, because a test
-    that cannot see a misfit is not evidence of its absence.
+    Parameters
+    ----------
+    log : EstimatorLog or array_like, optional
+        A log ([credcli.read_log][credcli.api.read_log],
+        [credcli.log_from_arrays][credcli.api.log_from_arrays], an adapter's); or the
+        errors (N, d) with ``cov``, ``assert_credible(errors, cov)`` as ``np.testing``
+        takes the actual value first.
+    cov : array_like, optional
+        The claimed covariances, beside errors: (N, d, d), (d, d) or variances (N, d).
+    segments : None, "whole", a window such as "5s", or a list of Segment
+        As in [credcli.diagnose_log][credcli.api.diagnose_log].
+    alpha : float
+        The calibrated rule's overall false-alarm level: a correctly tuned filter fails at
+        most about this fraction of seeds per segment.
+    seed : int
+        The seed of the sign flips.
+    allow_untested : bool
+        Let a segment the data cannot decide (``insufficient-data``, or credible with one
+        question untested) pass too; by default it fails, because a test that cannot see a
+        misfit is not evidence of its absence.
+    **arrays
+        The arrays of [credcli.log_from_arrays][credcli.api.log_from_arrays] as keywords
+        (``cov=`` with ``truth=``/``estimate=`` or ``errors=``, and optionally ``time=``,
+        ``segment=``), instead of ``log``.
+
+    Returns
+    -------
+    Results
+        The diagnoses, when every segment passes.
 
     Raises
     ------
     AssertionError
         With the diagnosis table and advice lines, naming the failing segments.
+    TypeError
+        If the log or the arrays are given wrongly: arrays without ``cov``, errors given
+        twice, a log and arrays both.
+    CredcliError
+        For invalid arrays or settings (from [credcli.log_from_arrays][credcli.api.log_from_arrays]
+        and [credcli.diagnose_log][credcli.api.diagnose_log]).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> errors = np.random.default_rng(0).standard_normal((500, 2))
+    >>> assert_credible(errors, np.eye(2))
+    Results([all: credible])
+    >>> assert_credible(2.0 * errors, np.eye(2))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    AssertionError: not credible at α = 0.05: all: optimism
+    ...
     """
     results = _results(log, cov, segments, alpha, seed, dict(arrays))
     failing = []
@@ -120,13 +172,25 @@ def assert_label(
     seed: int = 0,
     **arrays,
 ) -> Results:
-    """Assert that every segment gets the label ``expected`` ("optimism", "bias",
-    "pessimism+asymmetric", …; a [credcli.Label][credcli.engine.config.Label] too), e.g. that a planted fault is
-    seen as what it is. A label in the paper's terms ("smm", "optimism+smm") accepts any
-    location condition in its place (bias, asymmetric or smm;
-    [Label.paper][credcli.engine.config.Label.paper]). Arguments as for
-    [assert_credible][credcli.testing.assert_credible] (``assert_label("bias", errors,
-    cov)``); return the results.
+    """Assert that every segment gets the label ``expected``; return the results.
+
+    E.g. that a planted fault is seen as what it is. A label in the paper's terms
+    ("smm", "optimism+smm") accepts any location condition in its place (bias, asymmetric
+    or smm; [Label.paper][credcli.engine.config.Label.paper]).
+
+    Parameters
+    ----------
+    expected : str or Label
+        "optimism", "bias", "pessimism+asymmetric", …; a
+        [credcli.Label][credcli.engine.config.Label] too.
+    log, cov, segments, alpha, seed, **arrays
+        As for [assert_credible][credcli.testing.assert_credible]
+        (``assert_label("bias", errors, cov)``).
+
+    Returns
+    -------
+    Results
+        The diagnoses, when every segment has the label.
 
     Raises
     ------
@@ -134,6 +198,19 @@ def assert_label(
         With the diagnosis table and advice lines.
     ValueError
         If ``expected`` is not a label.
+    TypeError
+        If the log or the arrays are given wrongly (as for ``assert_credible``).
+    CredcliError
+        For invalid arrays or settings.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> errors = np.random.default_rng(0).standard_normal((500, 2))
+    >>> assert_label("optimism", 2.0 * errors, np.eye(2))
+    Results([all: optimism])
+    >>> assert_label("smm", errors + 0.5, np.eye(2))  # a bias is the paper's SMM
+    Results([all: bias])
     """
     label = Label(expected)
     results = _results(log, cov, segments, alpha, seed, dict(arrays))

@@ -40,11 +40,50 @@ def log_from_saver(
     segment=None,
     source: str = "filterpy Saver",
 ) -> EstimatorLog:
-    """A log from a ``filterpy.common.Saver`` of a Kalman filter (before or after its
-    ``to_array()``) and the true states (N, dim_x), or (N, len(states)).
+    """A log from a ``filterpy.common.Saver`` of a Kalman filter and the true states.
 
-    ``prior``: diagnose the predictions (``x_prior``/``P_prior``) instead of the
-    posteriors. ``time`` and ``segment`` as for [credcli.log_from_arrays][credcli.api.log_from_arrays].
+    Parameters
+    ----------
+    saver : filterpy.common.Saver
+        The filter's Saver, before or after its ``to_array()``, with ``save()`` called
+        after each step.
+    truth : array_like, shape (N, dim_x) or (N, len(states))
+        The true states ((N, dim_x, 1) columns too).
+    states : sequence of int, optional
+        The indices of the states to diagnose; all by default.
+    prior : bool
+        Diagnose the predictions (``x_prior``/``P_prior``) instead of the posteriors.
+    time, segment : array_like, shape (N,), optional
+        As for [credcli.log_from_arrays][credcli.api.log_from_arrays].
+    source : str
+        The log's name in messages and records.
+
+    Returns
+    -------
+    EstimatorLog
+        The chosen states of the estimates against the truth, with their block of ``P``.
+
+    Raises
+    ------
+    CredcliError
+        If the Saver holds no ``x``/``P`` (or ``x_prior``/``P_prior``), and as
+        [log_from_batch][credcli.adapters.filterpy.log_from_batch] for the arrays.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from filterpy.kalman import KalmanFilter
+    >>> from filterpy.common import Saver
+    >>> kf = KalmanFilter(dim_x=2, dim_z=1)
+    >>> kf.F, kf.H = np.array([[1.0, 1.0], [0.0, 1.0]]), np.array([[1.0, 0.0]])
+    >>> kf.R, kf.Q = 1.0, 0.01 * np.eye(2)
+    >>> saver = Saver(kf)
+    >>> for z in np.arange(30.0):
+    ...     kf.predict(); kf.update(z); saver.save()
+    >>> truth = np.c_[np.arange(30.0), np.ones(30)]
+    >>> log = log_from_saver(saver, truth, prior=True)
+    >>> log.n, log.dim
+    (30, 2)
     """
     names = ("x_prior", "P_prior") if prior else ("x", "P")
     saved = []
@@ -69,9 +108,50 @@ def log_from_batch(
     segment=None,
     source: str = "filterpy batch_filter",
 ) -> EstimatorLog:
-    """A log from filterpy's arrays: ``means`` (N, dim_x, 1) or (N, dim_x), ``covariances``
-    (N, dim_x, dim_x) (``batch_filter``'s first two results, or an RTS smoother's), and the
-    true states (N, dim_x), or (N, len(states))."""
+    """A log from filterpy's arrays: ``batch_filter``'s first two results, or an RTS
+    smoother's, and the true states.
+
+    Parameters
+    ----------
+    means : array_like, shape (N, dim_x, 1) or (N, dim_x)
+        The state estimates.
+    covariances : array_like, shape (N, dim_x, dim_x)
+        Their covariances ``P``.
+    truth : array_like, shape (N, dim_x) or (N, len(states))
+        The true states ((N, dim_x, 1) or (N,) too).
+    states : sequence of int, optional
+        The indices of the states to diagnose; all by default.
+    time, segment : array_like, shape (N,), optional
+        As for [credcli.log_from_arrays][credcli.api.log_from_arrays].
+    source : str
+        The log's name in messages and records.
+
+    Returns
+    -------
+    EstimatorLog
+        The chosen states of the estimates against the truth, with their block of the
+        covariances.
+
+    Raises
+    ------
+    CredcliError
+        If the shapes of ``means`` and ``covariances`` do not match, ``states`` are not
+        indices into the state, ``truth`` has neither shape, and as
+        [credcli.log_from_arrays][credcli.api.log_from_arrays] for the values.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from filterpy.kalman import KalmanFilter
+    >>> kf = KalmanFilter(dim_x=2, dim_z=1)
+    >>> kf.F, kf.H = np.array([[1.0, 1.0], [0.0, 1.0]]), np.array([[1.0, 0.0]])
+    >>> kf.R, kf.Q = 1.0, 0.01 * np.eye(2)
+    >>> means, covariances, _, _ = kf.batch_filter(np.arange(30.0))
+    >>> truth = np.c_[np.arange(30.0), np.ones(30)]
+    >>> log = log_from_batch(means, covariances, truth, states=[1])  # the velocity
+    >>> log.n, log.dim, log.source
+    (30, 1, 'filterpy batch_filter')
+    """
     means = np.asarray(means, dtype=float)
     if means.ndim == 3 and means.shape[2] == 1:
         means = means[:, :, 0]

@@ -72,6 +72,39 @@ def log_from_track(
 ) -> EstimatorLog:
     """A log of one track's states against its ground-truth path, paired by timestamp.
 
+    Pairs exactly by default, or each track state with the nearest truth state within
+    ``tolerance``; track states without a truth state are left out. Times become seconds
+    since 1970 UTC.
+
+    Parameters
+    ----------
+    track : stonesoup.types.track.Track
+        Gaussian states (``state_vector``, ``covar``, ``timestamp``).
+    truth : stonesoup.types.groundtruth.GroundTruthPath
+        The true states (``state_vector``, ``timestamp``).
+    states : sequence of int, optional
+        The components to diagnose, e.g. (0, 2) for the positions of a 2-D
+        constant-velocity state (x, vx, y, vy); all by default.
+    tolerance : datetime.timedelta, optional
+        Pair with the nearest truth state within this; None: equal timestamps only.
+    source : str
+        The log's name in messages and records.
+
+    Returns
+    -------
+    EstimatorLog
+        The paired states, with time.
+
+    Raises
+    ------
+    CredcliError
+        If the track or the path has no states, a state lacks ``state_vector``,
+        ``covar`` (track) or ``timestamp``, the two differ in their number of components,
+        ``states`` are not indices into the state, or no track state has a truth state
+        at its timestamp (within ``tolerance``).
+
+    Examples
+    --------
     >>> import datetime, numpy as np
     >>> from stonesoup.types.groundtruth import GroundTruthPath, GroundTruthState
     >>> from stonesoup.types.state import GaussianState
@@ -123,14 +156,60 @@ def log_from_tracks(
     tolerance: _dt.timedelta | None = None,
     source: str = "Stone Soup tracks",
 ) -> EstimatorLog:
-    """A log of a tracker's tracks, one segment per track (``track 1``, ``track 2``, … in the
-    order of their first timestamps, then the longer first), each paired with the ground-truth path it follows: the
-    path nearest to it (the mean distance over ``states`` at their common timestamps).
+    """A log of a tracker's tracks, one segment per track, each paired with the ground-truth
+    path it follows.
 
-    Tracks that share no timestamp with any path are left out; if none is left, an error.
-    A tracker without data association ambiguity (a single-target or well-separated
+    The segments are ``track 1``, ``track 2``, … in the order of their first timestamps,
+    then the longer first. Each track is paired with the path nearest to it (the mean
+    distance over ``states`` at their common timestamps), state by state as in
+    [log_from_track][credcli.adapters.stonesoup.log_from_track]. Tracks that share no
+    timestamp with a path of as many components (or have no states) are left out. A
+    tracker without data association ambiguity (a single-target or well-separated
     scenario) is what this pairing assumes; it does not solve assignment between crossing
     targets.
+
+    Parameters
+    ----------
+    tracks : iterable of stonesoup.types.track.Track
+        The tracker's tracks (a set, as trackers give them).
+    truths : iterable of stonesoup.types.groundtruth.GroundTruthPath
+        The ground-truth paths.
+    states : sequence of int, optional
+        The components to diagnose; all by default.
+    tolerance : datetime.timedelta, optional
+        As for [log_from_track][credcli.adapters.stonesoup.log_from_track].
+    source : str
+        The log's name in messages and records.
+
+    Returns
+    -------
+    EstimatorLog
+        The paired states of every track kept, one segment per track, with time.
+
+    Raises
+    ------
+    CredcliError
+        If there is no ground-truth path, no track shares a timestamp with a path, a
+        state lacks what [log_from_track][credcli.adapters.stonesoup.log_from_track]
+        reads, or ``states`` are not indices into the state.
+
+    Examples
+    --------
+    >>> import datetime, numpy as np
+    >>> from stonesoup.types.groundtruth import GroundTruthPath, GroundTruthState
+    >>> from stonesoup.types.state import GaussianState
+    >>> from stonesoup.types.track import Track
+    >>> t0 = datetime.datetime(2024, 5, 1)
+    >>> times = [t0 + datetime.timedelta(seconds=k) for k in range(10)]
+    >>> def path(x0):
+    ...     return GroundTruthPath([GroundTruthState([x0 + k, 1.0], timestamp=t)
+    ...                             for k, t in enumerate(times)])
+    >>> def track(x0):
+    ...     return Track([GaussianState([x0 + k + 0.1, 1.0], np.eye(2), timestamp=t)
+    ...                   for k, t in enumerate(times)])
+    >>> log = log_from_tracks({track(100.0), track(0.0)}, [path(0.0), path(100.0)], states=[0])
+    >>> log.n, sorted(set(log.segment)), np.unique(np.round(log.errors[:, 0], 3)).tolist()
+    (20, ['track 1', 'track 2'], [-0.1])
     """
     track_list = sorted((t for t in tracks if len(t)), key=_track_order)
 

@@ -36,8 +36,12 @@ tested on a seeded random subsample of this many epochs."""
 
 
 class Label(str, enum.Enum):
-    """Diagnosis labels. A label is a set of conditions joined by '+': a noise condition
-    (optimism, pessimism) and a location condition.
+    """Diagnosis labels.
+
+    A label is a set of conditions joined by '+': a noise condition (optimism, pessimism)
+    and a location condition. A label is a ``str`` and equals its text
+    (``Label.CREDIBLE == "credible"``); ``insufficient-data`` says the data could answer
+    neither question.
 
     The location conditions split the paper's SMM (Section III-C: the ELT rejects) by its
     cause, where the calibrated rule can tell it: ``bias``, the GLS mean test finds a mean
@@ -45,8 +49,15 @@ class Label(str, enum.Enum):
     symmetry while the mean test, run on the same segment, finds no mean (skewed errors,
     outliers on one side: non-line-of-sight ranges); ``smm``, the ELT rejects and no mean
     test could run, so the two cannot be told apart. The ``paper`` and ``ks`` variants
-    (Algorithm 1) say ``smm`` for any ELT rejection. [paper][credcli.engine.config.Label.paper] maps every label to the
-    paper's six.
+    (Algorithm 1) say ``smm`` for any ELT rejection.
+    [paper][credcli.engine.config.Label.paper] maps every label to the paper's six.
+
+    Examples
+    --------
+    >>> Label("optimism+bias").conditions == {"optimism", "bias"}
+    True
+    >>> str(Label.OPTIMISM_BIAS.paper), Label.OPTIMISM_BIAS.location
+    ('optimism+smm', 'bias')
     """
 
     CREDIBLE = "credible"
@@ -71,8 +82,30 @@ class Label(str, enum.Enum):
 
     @classmethod
     def compose(cls, noise: str | None, location: str | bool | None) -> Label:
-        """The label of a noise condition ("optimism", "pessimism" or None) and a location
-        condition (one of ``LOCATION_CONDITIONS``, or True for "smm")."""
+        """The label of a noise condition and a location condition.
+
+        Parameters
+        ----------
+        noise : {"optimism", "pessimism"} or None
+            The noise condition.
+        location : {"smm", "bias", "asymmetric"}, True or None
+            The location condition (one of ``LOCATION_CONDITIONS``); True for "smm".
+
+        Returns
+        -------
+        Label
+            The conditions joined by '+'; ``credible`` when there is neither.
+
+        Raises
+        ------
+        ValueError
+            If the conditions make no label.
+
+        Examples
+        --------
+        >>> str(Label.compose("optimism", True)), str(Label.compose(None, None))
+        ('optimism+smm', 'credible')
+        """
         if location is True:
             location = SMM_CONDITION
         parts = (noise, location or None)
@@ -80,8 +113,11 @@ class Label(str, enum.Enum):
 
     @property
     def conditions(self) -> frozenset[str]:
-        """The non-credibility conditions in the label: a noise condition and/or one of
-        ``LOCATION_CONDITIONS``."""
+        """The non-credibility conditions in the label.
+
+        A noise condition and/or one of ``LOCATION_CONDITIONS``; empty for ``credible``
+        and ``insufficient-data``.
+        """
         if self in (Label.CREDIBLE, Label.INSUFFICIENT):
             return frozenset()
         return frozenset(self.value.split("+"))
@@ -94,8 +130,10 @@ class Label(str, enum.Enum):
 
     @property
     def paper(self) -> Label:
-        """The paper's label (Table III's six and insufficient-data): a bias or an
-        asymmetry is the paper's SMM."""
+        """The paper's label (Table III's six and insufficient-data).
+
+        A bias or an asymmetry is the paper's SMM.
+        """
         noise = next(iter(self.conditions - frozenset(LOCATION_CONDITIONS)), None)
         if self.location is None:
             return self
@@ -156,14 +194,24 @@ def parse_label(text: str) -> Label | None:
 
 
 class Variant(str, enum.Enum):
-    """The decision rule.
+    """The decision rule (``DiagnosisConfig.variant``).
 
-    CALIBRATED (default): α is the overall false-alarm level, split by Šidák between the
-    ELT (SMM) and a χ² scale test on GLS-centred errors (optimism / pessimism), both
-    adjusted for serial dependence; see :func:`diagnose_errors`.
-    PAPER: Algorithm 1 as printed (NCI against ±τ).
-    KS: the authors' public code: `credible` also when a Kolmogorov–Smirnov test of the
-    NEES values against χ²_d does not reject at ``ks_alpha``; otherwise NCI against ±τ.
+    Attributes
+    ----------
+    CALIBRATED : "calibrated"
+        The default: α is the overall false-alarm level, split by Šidák between the ELT
+        (SMM) and a χ² scale test on GLS-centred errors (optimism / pessimism), both
+        adjusted for serial dependence; see ``credcli.engine.diagnosis.diagnose_errors``.
+    PAPER : "paper"
+        Algorithm 1 as printed (NCI against ±τ).
+    KS : "ks"
+        The authors' public code: `credible` also when a Kolmogorov–Smirnov test of the
+        NEES values against χ²_d does not reject at ``ks_alpha``; otherwise NCI against ±τ.
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Algorithm 1.
     """
 
     CALIBRATED = "calibrated"
@@ -194,14 +242,30 @@ class Question(str, enum.Enum):
 
 
 class SrdForm(str, enum.Enum):
-    """Form of the SRD of Eq. (19): as printed, or the absolute value of the whole ratio."""
+    """Form of the SRD of Eq. (19) (``DiagnosisConfig.srd_form``).
+
+    Attributes
+    ----------
+    PRINTED : "printed"
+        As printed: (c|Δ⁻| − |Δ⁺|)/|Δ⁺|.
+    ABSOLUTE : "absolute"
+        The absolute value of the whole ratio (the form in the authors' public code).
+    """
 
     PRINTED = "printed"
     ABSOLUTE = "absolute"
 
 
 class MetricsLevel(str, enum.Enum):
-    """NEEDED computes the NLL/ES probes only where Algorithm 1 reaches them; ALL always."""
+    """Which NLL/ES probes are computed (``DiagnosisConfig.metrics``).
+
+    Attributes
+    ----------
+    NEEDED : "needed"
+        The NLL/ES probes only where Algorithm 1 reaches them.
+    ALL : "all"
+        Always.
+    """
 
     NEEDED = "needed"
     ALL = "all"
@@ -209,21 +273,76 @@ class MetricsLevel(str, enum.Enum):
 
 @dataclass(frozen=True)
 class DiagnosisConfig:
-    """Every setting of the diagnosis. τ, α, c and B are the paper's (Section IV-A).
+    """Every setting of the diagnosis.
 
-    ``alpha``: in the calibrated variant, the overall false-alarm level on credible data,
-    split as α_L = α_S = 1 − √(1 − α); in ``paper`` and ``ks``, the ELT's level α_sig.
-    ``tau_nci``: the NCI threshold of ``paper`` and ``ks``; in the calibrated variant the
-    relevance floor of the scale label, |10 log₁₀ κ̂| > τ.
-    ``block_length``: epochs per ELT sign block, or ``"auto"`` (estimated from the data
-    in the calibrated variant, 1 in ``paper`` and ``ks``). A fixed 1 in the calibrated
-    variant declares the epochs independent: the scale test is then the exact χ²_{(N−1)d}.
-    ``exact_pvalue``: evaluate all B sign flips. By default flipping stops once the ELT can
-    no longer reject at its level (the decision is the exhaustive test's; the p-value is
-    then the sequential one, and ``elt_flips_used`` says how many flips were evaluated).
-    ``min_epochs``: segments with fewer epochs (or fewer than ``d + 2``, or too few sign
-    blocks) get ``insufficient-data``: with 5 independent signs the sign-flip null has
-    16 distinct values, so p < 0.05 is impossible, and the MSE matrix needs N > d errors.
+    Frozen, and checked when made. τ, α and c are the paper's (Section IV-A: τ_NCI =
+    0.5 dB, α_sig = 0.05, c = 2); B the number of sign flips of its Section III-A
+    (B >= 1000).
+
+    Parameters
+    ----------
+    tau_nci : float
+        τ (dB): the NCI threshold of ``paper`` and ``ks``; in the calibrated variant the
+        relevance floor of the scale label, |10 log₁₀ κ̂| > τ.
+    alpha : float
+        In the calibrated variant, the overall false-alarm level on credible data, split
+        as α_L = α_S = 1 − √(1 − α); in ``paper`` and ``ks``, the ELT's level α_sig.
+    c : float
+        The probe factor of Eq. (18), > 1.
+    n_flips : int
+        B, the number of sign flips of the ELT (at most ``MAX_FLIPS``).
+    block_length : int or "auto"
+        Epochs per ELT sign block, or ``"auto"`` (estimated from the data in the
+        calibrated variant, 1 in ``paper`` and ``ks``). A fixed 1 in the calibrated
+        variant declares the epochs independent: the scale test is then the exact
+        χ²_{(N−1)d}.
+    variant : Variant or str
+        The decision rule: ``"calibrated"``, ``"paper"`` or ``"ks"``.
+    srd_form : SrdForm or str
+        The form of the SRD of Eq. (19): ``"printed"`` or ``"absolute"``.
+    ks_alpha : float
+        The level of the Kolmogorov–Smirnov test of the ``ks`` variant.
+    nees_alpha : float
+        The level of the NEES baseline's two-sided χ² test (and of the NEES plot's
+        interval).
+    min_epochs : int
+        Segments with fewer epochs (or fewer than ``d + 2``, or too few sign blocks) get
+        ``insufficient-data``: with 5 independent signs the sign-flip null has 16
+        distinct values, so p < 0.05 is impossible, and the MSE matrix needs N > d
+        errors. At least 2.
+    max_elt_epochs : int
+        The ELT's memory budget: larger segments are tested on a seeded random subsample
+        of this many epochs (at least ``MIN_ELT_EPOCHS``, 100).
+    metrics : MetricsLevel or str
+        ``"needed"``: the NLL/ES probes only where Algorithm 1 reaches them; ``"all"``.
+    exact_pvalue : bool
+        Evaluate all B sign flips. By default flipping stops once the ELT can no longer
+        reject at its level (the decision is the exhaustive test's; the p-value is then
+        the sequential one, and ``elt_flips_used`` says how many flips were evaluated).
+
+    Raises
+    ------
+    CredcliError
+        For a setting of the wrong type or out of its range, naming it (``parameter``);
+        for an ``alpha`` too small to test with ``MAX_FLIPS`` sign flips, or ``n_flips``
+        too few for the ELT's p-value to reach its level.
+    ValueError
+        For an ``srd_form`` or ``metrics`` that is not one of its names.
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Sections III-A and IV-A.
+
+    Examples
+    --------
+    >>> config = DiagnosisConfig(alpha=0.01)
+    >>> round(config.scale_level, 5), config.min_blocks, config.min_n(2)
+    (0.00501, 11, 10)
+    >>> DiagnosisConfig(n_flips=5)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    credcli.errors.CredcliError: invalid setting: `n_flips` 5 is too few: ... with B >= 78
     """
 
     tau_nci: float = 0.5
@@ -325,6 +444,7 @@ class DiagnosisConfig:
 
     @property
     def calibrated(self) -> bool:
+        """Whether the variant is the calibrated rule."""
         return self.variant is Variant.CALIBRATED
 
     @property
@@ -369,10 +489,23 @@ class DiagnosisConfig:
         return max(6, math.ceil(math.log2(4.0 / self.elt_level) - 1e-12))
 
     def min_n(self, dim: int) -> int:
-        """Smallest segment size that is diagnosed: min_epochs and d + 2; in ``paper`` and
-        ``ks`` also the fewest epochs that make min_blocks sign blocks of the fixed block
-        length (or 1), (m − 1)L + 1, since the ELT alone answers their location question.
-        (The calibrated rule answers it with the GLS mean test when the ELT cannot run.)"""
+        """Smallest segment size that is diagnosed.
+
+        At least min_epochs and d + 2; in ``paper`` and ``ks`` also the fewest epochs that
+        make min_blocks sign blocks of the fixed block length (or 1), (m − 1)L + 1, since
+        the ELT alone answers their location question. (The calibrated rule answers it
+        with the GLS mean test when the ELT cannot run.)
+
+        Parameters
+        ----------
+        dim : int
+            The state dimension d.
+
+        Returns
+        -------
+        int
+            The fewest epochs N of a segment that gets a verdict.
+        """
         if self.calibrated:
             return max(self.min_epochs, dim + 2)
         length = self.fixed_block_length or 1

@@ -54,9 +54,78 @@ class BlockScale:
 class Diagnosis:
     """Result of Algorithm 1 on one segment, with every intermediate number.
 
-    ``scores`` are the mean NLL/ES of the claimed predictive N(x̂, sΣ̂) at s = 1/c, 1, c;
-    ``probes`` are those of the centred predictive F̃ (Eq. (18)) with the SRDs (19).
-    Either is None when not computed.
+    Frozen; made by [credcli.diagnose][credcli.api.diagnose] and, per segment, by
+    [credcli.diagnose_log][credcli.api.diagnose_log]. A number that was not computed is
+    None.
+
+    Attributes
+    ----------
+    label : Label
+        The verdict ([Label][credcli.engine.config.Label]).
+    n, dim : int
+        Epochs N and state dimension d of the segment.
+    elt : ELTResult or None
+        The empirical location test (Section III-A); unpacks as ``statistic, pvalue``.
+    smm_detected : bool or None
+        Whether the location question found a misfit (the paper's SMM).
+    nci, nci_centered : float or None
+        NCI (Eq. (4)) of the errors, and of the errors less their mean (Section III-C).
+    anees : float or None
+        Mean NEES / d.
+    ks_pvalue : float or None
+        Two-sided Kolmogorov–Smirnov p-value of the NEES values against χ²_d (the ``ks``
+        variant).
+    nees_label, nci_label : Label or None
+        The single-metric baselines of Table II (``credcli.nees_baseline``,
+        ``credcli.nci_baseline``).
+    scores : Probes or None
+        The mean NLL/ES of the claimed predictive N(x̂, sΣ̂) at s = 1/c, 1, c.
+    probes : Probes or None
+        Those of the centred predictive F̃ (Eq. (18)) with the SRDs (19).
+    scale : ScaleTest or None
+        The scale test: κ̂ (``scale_factor``), its interval, the GLS mean ``bias``.
+    block_length : int or None
+        Epochs per ELT sign block.
+    effective_n : float or None
+        N over the largest variance ratio of the whitened errors (their memory).
+    autocorrelation : float or None
+        The largest lag-1 autocorrelation of the whitened error components.
+    reason : str or None
+        Why a question was left unanswered, or why the data are insufficient.
+    config : DiagnosisConfig
+        The settings of the diagnosis.
+    mean_test : MeanTest or None
+        The GLS mean test (calibrated rule).
+    untested : tuple of Question
+        The questions (scale, location) the data could not answer.
+    directions : DirectionScales or None
+        The scale factor per principal direction (calibrated, d > 1).
+    by_direction : bool
+        Whether the noise label comes from the directions (mixed, anisotropic).
+    blocks : tuple of BlockScale
+        The scale factor per named block of the state (pose: position, orientation).
+    memory : Memory or None
+        The dependence model used.
+    memory_source : str or None
+        ``"segment"`` (fitted here) or ``"run"`` (the whole run's).
+    time_scales : TimeScales or None
+        The variance by averaging time.
+    findings : tuple of str
+        What the data show beside the label (slow errors, bursts, a divergence, ...).
+    time_offset : TimeOffset or None
+        A lag of the estimate that explains the misfit.
+    accuracy : Accuracy or None
+        RMSE, mean, median and max error (evo's figures), beside the credibility.
+
+    Examples
+    --------
+    >>> from credcli import diagnose
+    >>> e = np.random.default_rng(0).standard_normal((400, 2)) * 2.0
+    >>> d = diagnose(e, np.eye(2), seed=0)
+    >>> d
+    Diagnosis(label='optimism', n=400, dim=2, scale_factor=4.004)
+    >>> str(d.label), d.partial, round(d.cov_scale, 2)
+    ('optimism', False, 4.01)
     """
 
     label: Label
@@ -92,7 +161,10 @@ class Diagnosis:
 
     @property
     def partial(self) -> bool:
-        """Whether one of the two questions was answered and the other was not."""
+        """Whether one of the two questions was answered and the other was not.
+
+        False for an insufficient-data label (neither was answered).
+        """
         return bool(self.untested) and self.label is not Label.INSUFFICIENT
 
     def __repr__(self) -> str:
@@ -101,15 +173,21 @@ class Diagnosis:
 
     @property
     def cov_scale(self) -> float | None:
-        """Factor k such that kΣ̂ gives ANEES = 1 on this segment (mean NEES / d)."""
+        """Factor k such that kΣ̂ gives ANEES = 1 on this segment (mean NEES / d).
+
+        The same number as ``anees``; unlike ``scale.scale_factor`` (κ̂), it is not
+        centred on the errors' mean.
+        """
         return self.anees
 
     @property
     def elt_statistic(self) -> float | None:
+        """T_obs of the ELT, Eq. (13) (``elt.statistic``), or None when it did not run."""
         return None if self.elt is None else self.elt.statistic
 
     @property
     def elt_pvalue(self) -> float | None:
+        """The ELT's p-value, Eq. (16) (``elt.pvalue``), or None when it did not run."""
         return None if self.elt is None else self.elt.pvalue
 
 
@@ -161,7 +239,42 @@ def diagnose_variants(
 
     The variants' configurations are ``config`` with only the variant changed. ELTs with
     the same block length and pair set are run once, in the order the variants are listed,
-    so a variant listed first draws its sign flips exactly as :func:`diagnose_errors` does.
+    so a variant listed first draws its sign flips exactly as ``diagnose_errors`` (the core
+    of [credcli.diagnose][credcli.api.diagnose]) does.
+
+    Parameters
+    ----------
+    errors : array_like, shape (N, d)
+        The errors e_k = x_k − x̂_k ((N,) is d = 1).
+    cov : array_like, shape (N, d, d)
+        The claimed covariances, one per epoch.
+    variants : list of Variant or str
+        The decision rules: ``"calibrated"``, ``"paper"``, ``"ks"``.
+    config : DiagnosisConfig, optional
+        The other settings; the defaults when not given.
+    rng : int, numpy.random.Generator, numpy.random.SeedSequence or None
+        Source of the ELT's sign flips.
+
+    Returns
+    -------
+    dict of Variant to Diagnosis
+        One diagnosis per variant.
+
+    Raises
+    ------
+    CredcliError
+        For invalid arrays (shapes, non-finite values, a covariance that is not symmetric
+        positive definite), naming the argument and the epoch.
+    ValueError
+        If a variant is not one of the names of ``Variant``.
+
+    Examples
+    --------
+    >>> e = np.random.default_rng(1).standard_normal((500, 2)) * 0.5
+    >>> cov = np.broadcast_to(np.eye(2), (500, 2, 2))
+    >>> found = diagnose_variants(e, cov, ["calibrated", "paper"], rng=0)
+    >>> {v.value: d.label.value for v, d in found.items()}
+    {'calibrated': 'pessimism', 'paper': 'pessimism'}
     """
     errors, cov = metrics.check_errors_cov(errors, cov)
     configs = _variant_configs(config or DiagnosisConfig(), tuple(Variant(v) for v in variants))
@@ -290,7 +403,29 @@ def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
 
 @dataclass(frozen=True, slots=True)
 class SegmentDiagnosis:
-    """A Diagnosis tied to its segment of a log."""
+    """A Diagnosis tied to its segment of a log: one item of a
+    [Results][credcli.api.Results].
+
+    Attributes
+    ----------
+    log : str
+        The log's name (its file, or ``source``).
+    segment : str
+        The segment's name.
+    t_start, t_end : float or None
+        The segment's first and last time stamps (None for a log without time).
+    diagnosis : Diagnosis
+        The segment's [Diagnosis][credcli.engine.diagnosis.Diagnosis].
+    whiteness : Whiteness or None
+        The portmanteau test of the innovations (``credcli diagnose --innovations``).
+
+    Examples
+    --------
+    >>> from credcli import diagnose_log, read_log
+    >>> item = diagnose_log(read_log("sample_data/estimator_log.csv"))[0]
+    >>> item.segment, str(item.diagnosis.label)
+    ('cruise', 'credible')
+    """
 
     log: str
     segment: str

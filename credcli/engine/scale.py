@@ -39,6 +39,12 @@ from credcli.engine.units import power_of_two_unit
 class ScaleTest:
     """Outcome of the scale test on one segment.
 
+    Is the claimed covariance too small (optimism) or too large (pessimism)? T, the NEES
+    of Eq. (1) on GLS-centred errors, is referred to χ²_ν, ν = (N − 1)d, for independent
+    Gaussian errors (Cochran's theorem), and to a Satterthwaite-scaled χ² when the errors
+    are dependent or heavy-tailed; see the module ``credcli.engine.scale``. A
+    [Diagnosis][credcli.engine.diagnosis.Diagnosis] holds it as ``scale``.
+
     Attributes
     ----------
     statistic : float
@@ -60,11 +66,26 @@ class ScaleTest:
     bias_mahalanobis : float
         ‖μ̂‖ in whitened units, √(μ̂ᵀ W̄ μ̂) with W̄ the mean of W_k.
     batches : int
-        K when the reference is batch means (:mod:`credcli.engine.batches`: serially
+        K when the reference is batch means (``credcli.engine.batches``: serially
         dependent errors; ``dof`` is then K − 1 of Student's t); 0 for the χ² reference.
     model_dof : float
         ν_Ω, the degrees of freedom of the dependence model behind the reference
-        (:func:`memory_scale_test`); inf when the reference assumes no estimated memory.
+        (``memory_scale_test``); inf when the reference assumes no estimated memory.
+
+    References
+    ----------
+    F. E. Satterthwaite, "An approximate distribution of estimates of variance
+    components", *Biometrics Bulletin* 2(6), 1946.
+
+    Examples
+    --------
+    >>> from credcli import diagnose
+    >>> e = np.random.default_rng(0).standard_normal((400, 2)) * 2.0  # 2σ errors, Σ̂ = I
+    >>> test = diagnose(e, np.eye(2), seed=0).scale
+    >>> round(test.scale_factor, 1), bool(test.scale_factor_low < 4 < test.scale_factor_high)
+    (4.0, True)
+    >>> test.pvalue < 0.001
+    True
     """
 
     statistic: float
@@ -83,7 +104,10 @@ class ScaleTest:
 
     @property
     def pvalue(self) -> float:
-        """Two-sided p-value, 2 min(upper, lower), at most 1 (NaN when untested)."""
+        """Two-sided p-value, 2 min(upper, lower), at most 1 (NaN when untested).
+
+        Small for optimism (``pvalue_upper`` small) and for pessimism (``pvalue_lower``).
+        """
         if np.isnan(self.pvalue_upper) or np.isnan(self.pvalue_lower):
             return float("nan")
         return min(1.0, 2.0 * min(self.pvalue_upper, self.pvalue_lower))

@@ -142,18 +142,45 @@ def log_from_arrays(
     run=None,
     source: str = "<arrays>",
 ) -> EstimatorLog:
-    """An estimator log from arrays: ``truth`` and ``estimate`` (N, d), or ``errors``
-    (N, d) alone, with claimed covariances ``cov``: (N, d, d), one (d, d) for every epoch,
-    or variances (N, d). ``run`` (N,) gives the Monte Carlo run of each epoch when the
-    arrays hold several runs one after the other
-    ([credcli.diagnose_monte_carlo][credcli.api.diagnose_monte_carlo] pools them).
+    """An estimator log from arrays.
 
-    ``errors`` is what a library's own error map gives (a Lie group's ⊖, a tracker's
-    innovation): credcli uses it as it is. ``time`` (N,) is seconds, datetime64 or ISO-8601
-    strings (converted once, with a note); ``segment`` (N,) names each epoch's segment.
-    Every array is checked here, and an error names the argument and the epoch (and a
-    transposed array as such). The form of credcli 0.1, ``log_from_arrays(cov,
+    Give ``truth`` and ``estimate``, or ``errors`` alone, with the claimed covariances
+    ``cov``. Every array is checked here, and an error names the argument and the epoch
+    (and a transposed array as such). The form of credcli 0.1, ``log_from_arrays(cov,
     errors=...)``, is still read.
+
+    Parameters
+    ----------
+    truth, estimate : array_like, shape (N, d), optional
+        The true and estimated states; the errors are e_k = x_k − x̂_k.
+    cov : array_like, shape (N, d, d), (d, d) or (N, d)
+        The claimed covariances: one per epoch, one (d, d) for every epoch, or variances.
+    errors : array_like, shape (N, d), optional
+        The errors, instead of ``truth`` and ``estimate``: what a library's own error map
+        gives (a Lie group's ⊖, a tracker's innovation); credcli uses it as it is.
+    time : array_like, shape (N,), optional
+        Seconds, datetime64 or ISO-8601 strings (converted once, with a note).
+    segment : array_like, shape (N,), optional
+        Each epoch's segment name.
+    run : array_like, shape (N,), optional
+        The Monte Carlo run of each epoch when the arrays hold several runs one after the
+        other ([credcli.diagnose_monte_carlo][credcli.api.diagnose_monte_carlo] pools
+        them).
+    source : str
+        The log's name in messages and records.
+
+    Returns
+    -------
+    EstimatorLog
+        The validated log.
+
+    Raises
+    ------
+    CredcliError
+        If ``errors`` is given with ``truth`` or ``estimate``, if neither ``errors`` nor
+        both ``truth`` and ``estimate`` are given, if ``cov`` is missing, or for an array
+        of the wrong shape or with a value that is not finite (naming the argument and the
+        epoch).
 
     Examples
     --------
@@ -300,9 +327,44 @@ def log_csv(log: EstimatorLog) -> str:
 
 
 def write_log(log: EstimatorLog, path: str | Path, inputs=()) -> Path:
-    """Write ``log`` as its canonical table (``log_table``): Parquet for a ``.parquet``
-    or ``.pq`` name, else CSV (``log_csv``); atomically (no half-written file), never
-    over one of ``inputs``."""
+    """Write ``log`` as its canonical table, for ``credcli diagnose`` and ``credcli gate``.
+
+    The table (``log_table``) holds ``time`` and ``segment`` when the log has them,
+    ``truth_i``/``est_i`` (or ``err_i`` for an errors-only log), the upper triangle
+    ``cov_i_j``, i <= j, and ``run`` for a log of Monte Carlo runs, to full precision.
+    It is written atomically (no half-written file).
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        The log to write.
+    path : str or pathlib.Path
+        Parquet for a ``.parquet`` or ``.pq`` name, else CSV (``log_csv``).
+    inputs : sequence of paths
+        Files that must not be overwritten (the log's own inputs).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is one of ``inputs``, a directory, or cannot be written.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from credcli import read_log
+    >>> log = log_from_arrays(errors=np.ones((20, 2)), cov=np.eye(2), segment=["a"] * 20)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_log(log, Path(folder) / "log.csv")
+    ...     back = read_log(path)
+    >>> back.n, back.dim, float(back.errors[0, 1]), back.segment[0]
+    (20, 2, 1.0, 'a')
+    """
     path = Path(path)
     if path.suffix.lower() in (".parquet", ".pq"):
         buffer = io.BytesIO()

@@ -30,13 +30,50 @@ class EstimatorLog:
     """One log: truth and estimate (N, d), claimed covariance (N, d, d), optional time and
     segment (N,), and the file row number of each epoch (1-based data rows).
 
-    Logs whose errors are not a difference of vectors (orientations on SO(3), a filter's
-    innovations) carry them in ``state_errors`` and have no truth or estimate. ``notes``
-    are the decisions taken while reading (unit, format, pairing, convention);
-    ``unpaired`` counts the estimate epochs dropped for want of truth. ``blocks`` names
-    parts of the state whose scale is reported on its own (position and orientation of a
-    pose, ``credcli.engine.lie.STATE_BLOCKS``). ``run`` holds the Monte Carlo run of
-    each epoch when the log pools several (``credcli.io.arrays.split_runs``).
+    Frozen. [credcli.read_log][credcli.api.read_log],
+    [credcli.log_from_arrays][credcli.api.log_from_arrays] and
+    [credcli.log_from_frame][credcli.api.log_from_frame] make it validated; the
+    constructor itself checks nothing.
+
+    Attributes
+    ----------
+    truth, estimate : numpy.ndarray, shape (N, d), or None
+        The true and estimated states; None for a log of errors.
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances.
+    time : numpy.ndarray, shape (N,), or None
+        Time stamps in seconds.
+    segment : numpy.ndarray, shape (N,), or None
+        Each epoch's segment name.
+    rows : numpy.ndarray, shape (N,)
+        The file row number of each epoch (1-based data rows; 1 … N when not given).
+    source : str
+        The log's name (its file) in messages and records.
+    dropped_rows : int
+        Rows dropped as invalid (``drop_invalid``).
+    state_errors : numpy.ndarray, shape (N, d), or None
+        Errors that are not a difference of vectors (orientations on SO(3), a filter's
+        innovations): such logs have no truth or estimate.
+    notes : tuple of str
+        The decisions taken while reading (unit, format, pairing, convention).
+    unpaired : int
+        The estimate epochs dropped for want of truth.
+    blocks : tuple of (str, tuple of int)
+        Named parts of the state whose scale is reported on its own (position and
+        orientation of a pose, ``credcli.engine.lie.STATE_BLOCKS``).
+    run : numpy.ndarray, shape (N,), or None
+        The Monte Carlo run of each epoch when the log pools several
+        (``credcli.io.arrays.split_runs``).
+    fitted_mean : str or None
+        Why the mean of the whole log's errors is no evidence (an alignment fitted it to
+        0), or None.
+
+    Examples
+    --------
+    >>> from credcli import log_from_arrays
+    >>> log = log_from_arrays(np.zeros((5, 2)), np.ones((5, 2)), np.eye(2), time=np.arange(5.0))
+    >>> log.n, log.dim, log.errors[0].tolist(), log.rows.tolist()
+    (5, 2, [-1.0, -1.0], [1, 2, 3, 4, 5])
     """
 
     truth: np.ndarray | None
@@ -61,17 +98,19 @@ class EstimatorLog:
 
     @property
     def errors(self) -> np.ndarray:
-        """e_k = x_k − x̂_k (or the state errors given)."""
+        """The errors e_k = x_k − x̂_k, (N, d) (or the state errors given)."""
         if self.state_errors is not None:
             return self.state_errors
         return self.truth - self.estimate
 
     @property
     def n(self) -> int:
+        """The number of epochs N."""
         return self.cov.shape[0]
 
     @property
     def dim(self) -> int:
+        """The state dimension d."""
         return self.cov.shape[1]
 
 

@@ -11,7 +11,19 @@ from credcli.errors import CredcliError
 
 
 class CovKind(str, enum.Enum):
-    """How the claimed covariance is stored."""
+    """How the claimed covariance is stored (``LogSchema.cov_kind``).
+
+    Attributes
+    ----------
+    FULL : "full"
+        ``cov_i_j`` for every i, j.
+    UPPER : "upper"
+        ``cov_i_j`` for i <= j.
+    VAR : "var"
+        ``var_i``, a diagonal covariance.
+    STD : "std"
+        ``std_i``, a diagonal covariance.
+    """
 
     FULL = "full"  # cov_i_j for every i, j
     UPPER = "upper"  # cov_i_j for i <= j
@@ -23,9 +35,30 @@ class CovKind(str, enum.Enum):
 class LogSchema:
     """Column names of a log. Explicit column lists win over prefixes.
 
-    ``cov_columns`` is read by its length: d² entries are the full matrix in row-major
-    order, d(d+1)/2 the upper triangle in row-major order, d the diagonal (variances, or
-    standard deviations when ``cov_kind`` is ``std``).
+    Frozen; pass it as ``columns=`` of [credcli.read_log][credcli.api.read_log].
+
+    Parameters
+    ----------
+    time, segment, run : str
+        The time column, the segment column and the column of Monte Carlo run ids.
+    truth_prefix, estimate_prefix : str
+        The prefixes of the state columns (``truth_0``, ``est_0``, …).
+    cov_prefix, var_prefix, std_prefix : str
+        The prefixes of the covariance columns: ``cov_i_j``, ``var_i`` or ``std_i``.
+    truth_columns, estimate_columns : tuple of str
+        The state columns by name, one per component, in place of the prefixes.
+    cov_columns : tuple of str
+        The covariance columns by name, read by their length: d² entries are the full
+        matrix in row-major order, d(d+1)/2 the upper triangle in row-major order, d the
+        diagonal (variances, or standard deviations when ``cov_kind`` is ``std``).
+    cov_kind : CovKind or None
+        How the covariance is stored; None: from the columns found.
+
+    Examples
+    --------
+    >>> schema = LogSchema().updated(time="t", cov_columns=["vx", "vy"], segment=None)
+    >>> schema.time, schema.cov_columns, schema.segment
+    ('t', ('vx', 'vy'), 'segment')
     """
 
     time: str = "time"
@@ -42,7 +75,27 @@ class LogSchema:
     cov_kind: CovKind | None = None
 
     def updated(self, **changes) -> LogSchema:
-        """A copy with the given non-None fields changed (for CLI > config > defaults)."""
+        """A copy with the given non-None fields changed (for CLI > config > defaults).
+
+        Parameters
+        ----------
+        **changes
+            Fields and their new values; None leaves a field as it is.
+
+        Returns
+        -------
+        LogSchema
+            The changed copy.
+
+        Raises
+        ------
+        CredcliError
+            If a column list names one column twice.
+        ValueError
+            If ``cov_kind`` is not one of the names of ``CovKind``.
+        TypeError
+            If a name is not a field of LogSchema.
+        """
         changes = {k: v for k, v in changes.items() if v is not None}
         for key in ("truth_columns", "estimate_columns", "cov_columns"):
             if key in changes:

@@ -327,3 +327,19 @@ def test_blocked_float32_forms_are_within_their_bound(upper):
     exact = np.einsum("bi,bi->b", signs @ (u + u.T), signs)
     assert np.max(np.abs(blocked - exact)) <= stats.fine_bound
     assert stats.fine_bound * 5 < stats.bound
+
+
+@pytest.mark.parametrize(
+    ("cov", "words"),
+    [
+        (-np.eye(2), "cov[0] is not positive definite"),
+        (np.array([[1.0, 2.0], [2.0, 1.0]]), "cov[0] is not positive definite"),
+        (np.eye(3), "cov must have shape"),
+    ],
+)
+def test_location_test_validates_its_inputs(cov, words):
+    """A covariance that is not positive definite gave NaN statistics and p = 1/(B + 1),
+    which reads as a rejection (a false SMM); now it is an error naming the epoch."""
+    e = np.random.default_rng(0).standard_normal((50, 2))
+    with pytest.raises(CredcliError, match=words.replace("[", r"\[").replace("]", r"\]")):
+        elt.location_test(e, np.broadcast_to(cov, (50, *cov.shape)), n_flips=99, rng=0)

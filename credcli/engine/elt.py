@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from credcli.engine import metrics
 from credcli.engine.config import DEFAULT_MAX_EPOCHS, epoch_chunks
 from credcli.engine.flips import FlipOutcome, pair_upper, sign_flip_test
 from credcli.engine.rng import RngLike, as_generator
@@ -115,8 +116,8 @@ def location_test(
 
     Tests the central symmetry of the whitened errors s_k = Σ̂_k^{-1/2} e_k (H0 of
     Eq. (12)) with the energy distance between {s_k} and {-s_k} (α = 1, Eq. (13)) and a
-    sign-flip randomisation null (Eqs. (14)–(15)). The errors and covariances are taken
-    as they are (not validated here: [credcli.diagnose][credcli.api.diagnose] checks them).
+    sign-flip randomisation null (Eqs. (14)–(15)). The errors and covariances are
+    validated as :func:`credcli.engine.metrics.nees` validates them.
 
     Parameters
     ----------
@@ -146,8 +147,9 @@ def location_test(
     Raises
     ------
     CredcliError
-        If ``n_flips`` or ``block_length`` is not a positive integer, or ``max_epochs``
-        is below 2.
+        If ``n_flips`` or ``block_length`` is not a positive integer, ``max_epochs``
+        is below 2, the shapes do not match, a value is not finite, or a covariance is
+        not symmetric positive definite (named with its epoch, ``cov[k]``).
 
     References
     ----------
@@ -164,7 +166,9 @@ def location_test(
     True
     """
     _check_flips(n_flips, block_length, max_epochs)
-    s = whiten(np.asarray(errors, float), np.asarray(cov, float))
+    errors, cov = metrics.check_errors_cov(errors, cov)
+    metrics.cholesky(cov)  # positive definite, or an error naming the epoch
+    s = whiten(errors, cov)
     return whitened_location_test(s, n_flips, as_generator(rng), block_length, max_epochs)
 
 

@@ -187,3 +187,12 @@ def test_shared_covariance_api_equals_per_epoch_covariances(rng):
     assert a.label is b.label
     assert a.nci == pytest.approx(b.nci, rel=1e-12)
     assert a.elt_pvalue == b.elt_pvalue
+
+
+@pytest.mark.parametrize("name", ["variant", "srd_form", "metrics"])
+def test_a_setting_that_is_no_choice_is_named(name):
+    """Every choice of DiagnosisConfig refuses an unknown value the same way: a CredcliError
+    naming the setting and its choices (srd_form and metrics raised a bare ValueError)."""
+    with pytest.raises(CredcliError, match=f"`{name}` must be one of") as info:
+        DiagnosisConfig(**{name: "nonsense"})
+    assert info.value.parameter == name

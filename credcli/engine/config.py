@@ -323,11 +323,10 @@ class DiagnosisConfig:
     Raises
     ------
     CredcliError
-        For a setting of the wrong type or out of its range, naming it (``parameter``);
-        for an ``alpha`` too small to test with ``MAX_FLIPS`` sign flips, or ``n_flips``
-        too few for the ELT's p-value to reach its level.
-    ValueError
-        For an ``srd_form`` or ``metrics`` that is not one of its names.
+        For a setting of the wrong type or out of its range, or a ``variant``,
+        ``srd_form`` or ``metrics`` that is not one of its names, naming it
+        (``parameter``); for an ``alpha`` too small to test with ``MAX_FLIPS`` sign
+        flips, or ``n_flips`` too few for the ELT's p-value to reach its level.
 
     References
     ----------
@@ -379,16 +378,15 @@ class DiagnosisConfig:
                 f"invalid setting: `exact_pvalue` must be true or false; got {self.exact_pvalue!r}",
                 "exact_pvalue",
             )
-        try:
-            object.__setattr__(self, "variant", Variant(self.variant))
-        except ValueError:
-            names = ", ".join(v.value for v in Variant)
-            raise CredcliError(
-                f"invalid setting: `variant` must be one of {names}; got {self.variant!r}",
-                "variant",
-            ) from None
-        object.__setattr__(self, "srd_form", SrdForm(self.srd_form))
-        object.__setattr__(self, "metrics", MetricsLevel(self.metrics))
+        for name, kind in (("variant", Variant), ("srd_form", SrdForm), ("metrics", MetricsLevel)):
+            value = getattr(self, name)
+            try:
+                object.__setattr__(self, name, kind(value))
+            except ValueError:
+                names = ", ".join(v.value for v in kind)
+                raise CredcliError(
+                    f"invalid setting: `{name}` must be one of {names}; got {value!r}", name
+                ) from None
         checks = [
             (0 < self.tau_nci < math.inf, "tau_nci", "must be finite and > 0 (dB)"),
             (0 < self.alpha < 1, "alpha", "must be in (0, 1)"),

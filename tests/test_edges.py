@@ -675,3 +675,16 @@ def test_segments_by_column_equal_a_direct_grouping(labels, run, as_object):
         expected = np.flatnonzero(values == name)
         np.testing.assert_array_equal(segment.index, expected)
         assert (segment.t_start, segment.t_end) == (time[expected[0]], time[expected[-1]])
+
+
+def test_json_of_segments_without_a_mean_test_has_no_nan(tmp_path):
+    """Batches of 76 epochs leave 300-epoch segments without a mean test, so the bias's
+    standard errors are NaN: the JSON writes them as null (it ended in exit 3, 'Out of
+    range float values are not JSON compliant', found by the random-config test)."""
+    config = tmp_path / "c.toml"
+    config.write_text("[diagnosis]\nblock_length = 76\n")
+    out = tmp_path / "out.json"
+    code, _, err = run("diagnose", LOG, "--config", config, "-f", "json", "-o", out)
+    assert code == 0, err
+    segments = json.loads(out.read_text())["segments"]
+    assert all(r["bias_stderr"] == [None, None] for r in segments)

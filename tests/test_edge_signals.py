@@ -25,14 +25,16 @@ CREDCLI = [sys.executable, "-m", "credcli"]
 
 @pytest.fixture(scope="module")
 def long_log(tmp_path_factory) -> Path:
-    """400,000 credible epochs in 400 segments: long enough for worker processes."""
+    """1,600,000 credible epochs in 1,600 segments: a run of many seconds, with worker
+    processes, however fast the diagnosis becomes (400 segments ended within the tests'
+    waits once the ELT's rechecks got cheaper)."""
     rng = np.random.default_rng(0)
-    n = 400_000
+    n = 1_600_000
     errors = rng.standard_normal((n, 2))
     frame = pd.DataFrame(
         {
             "time": np.arange(n) * 0.1,
-            "segment": np.repeat(np.arange(400), 1000).astype(str),
+            "segment": np.repeat(np.arange(n // 1000), 1000).astype(str),
             "truth_0": errors[:, 0],
             "truth_1": errors[:, 1],
             "est_0": 0.0,

@@ -117,7 +117,7 @@ def location_test(
     Tests the central symmetry of the whitened errors s_k = Σ̂_k^{-1/2} e_k (H0 of
     Eq. (12)) with the energy distance between {s_k} and {-s_k} (α = 1, Eq. (13)) and a
     sign-flip randomisation null (Eqs. (14)–(15)). The errors and covariances are
-    validated as :func:`credcli.engine.metrics.nees` validates them.
+    validated as [nees][credcli.engine.metrics.nees] validates them.
 
     Parameters
     ----------

@@ -48,6 +48,7 @@ LANDMARKS = np.array(
     [[6.0, 4.0, 1.0], [-6.0, 6.0, -1.0], [0.0, -2.0, 2.0], [1.0, 10.0, -2.0]]
 )  # m, world frame, around the circle the trajectory drives (centre near (0, 4, 0))
 FILTERS = ("ekf", "iekf", "ukf")
+NAVLIE_FILTERS = ("ekf", "iekf", "iterated", "ukf")
 
 
 # --------------------------------------------------------------------------- SE(3)
@@ -186,6 +187,17 @@ def _sigma_offsets(p: np.ndarray, spread: float) -> np.ndarray:
     return np.concatenate([zero, cols, -cols], axis=1)
 
 
+def _draws(rng: np.random.Generator, steps: int, m: int):
+    """The initial errors (M, 6), input noise (steps, M, 6) and landmark noise
+    (steps/10 + 1, M, L, 3), drawn in a fixed order so that every filter and tuning sees the
+    same noise from the same seed."""
+    sigma_w = np.r_[np.full(3, SIGMA_GYRO), np.full(3, SIGMA_VEL)]
+    eps0 = rng.standard_normal((m, 6)) * P0_SIGMAS
+    w = rng.standard_normal((steps, m, 6)) * sigma_w
+    v = rng.standard_normal((steps // UPDATE_EVERY + 1, m, LANDMARKS.shape[0], 3)) * SIGMA_Y
+    return eps0, w, v
+
+
 def run(
     filt: str,
     steps: int,
@@ -208,10 +220,7 @@ def run(
     n_lm = LANDMARKS.shape[0]
     bias = np.asarray(tuning.bias, float)
 
-    # draws, in a fixed order so that every filter and tuning sees the same noise
-    eps0 = rng.standard_normal((m, 6)) * P0_SIGMAS
-    w = rng.standard_normal((steps, m, 6)) * sigma_w
-    v = rng.standard_normal((steps // UPDATE_EVERY + 1, m, n_lm, 3)) * SIGMA_Y
+    eps0, w, v = _draws(rng, steps, m)
 
     c_hat, r_hat = compose(c_true[0], r_true[0], *exp(-eps0))
     p_body0 = np.broadcast_to(p0_true * tuning.p0, (m, 6, 6))
@@ -305,3 +314,76 @@ def anees(errors: np.ndarray, covs: np.ndarray) -> np.ndarray:
     """NEES/d per run and epoch, (…, steps)."""
     sol = np.linalg.solve(covs, errors[..., None])[..., 0]
     return np.einsum("...i,...i->...", errors, sol) / errors.shape[-1]
+
+
+# --------------------------------------------------------------------------- navlie
+def navlie_available() -> bool:
+    try:
+        import navlie  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def run_navlie(
+    filt: str,
+    steps: int,
+    rng: np.random.Generator,
+    runs: int = 1,
+    tuning: Tuning = Tuning(),
+) -> tuple[np.ndarray, np.ndarray]:
+    """As :func:`run` (the same truth, draws and reported convention), with navlie's
+    filters: ``SE3State`` propagated by ``BodyFrameVelocity`` (input covariance
+    diag(σ_ω², σ_v²)·q), one ``PointRelativePosition`` measurement per landmark fused in
+    turn. "ekf": ``ExtendedKalmanFilter`` on the right (body-frame) perturbation;
+    "iterated": ``IteratedKalmanFilter`` (right); "ukf": ``UnscentedKalmanFilter`` (right);
+    "iekf": the invariant EKF as navlie builds it, ``ExtendedKalmanFilter`` on the left
+    perturbation with ``InvariantMeasurement`` (a right-invariant innovation), whose
+    world-frame covariance is reported as Ad_{T̂⁻¹} P Ad_{T̂⁻¹}ᵀ."""
+    import navlie as nav
+    from navlie.lib import SE3State, VectorInput
+    from navlie.lib.models import BodyFrameVelocity, InvariantMeasurement, PointRelativePosition
+
+    if filt not in NAVLIE_FILTERS:
+        raise ValueError(f"filt must be one of {NAVLIE_FILTERS}")
+    dt = 1.0 / RATE_HZ
+    twist = true_twist(steps)
+    c_true, r_true = true_poses(twist)
+    sigma_w = np.r_[np.full(3, SIGMA_GYRO), np.full(3, SIGMA_VEL)]
+    q_input = np.diag(sigma_w**2) * tuning.q
+    models = [PointRelativePosition(lm, SIGMA_Y**2 * tuning.r * np.eye(3)) for lm in LANDMARKS]
+    process = BodyFrameVelocity(q_input)
+    kinds = {
+        "ekf": nav.ExtendedKalmanFilter,
+        "iekf": nav.ExtendedKalmanFilter,
+        "iterated": nav.IteratedKalmanFilter,
+        "ukf": nav.UnscentedKalmanFilter,
+    }
+    direction = "left" if filt == "iekf" else "right"
+    bias = np.asarray(tuning.bias, float)
+    eps0, w, v = _draws(rng, steps, runs)
+    errors, covs = np.empty((runs, steps, 6)), np.empty((runs, steps, 6, 6))
+    for j in range(runs):
+        c_hat, r_hat = compose(c_true[0], r_true[0], *exp(-eps0[j]))
+        value = np.eye(4)
+        value[:3, :3], value[:3, 3] = c_hat, r_hat
+        p0 = np.diag(P0_SIGMAS**2) * tuning.p0
+        if direction == "left":
+            p0 = _sandwich(adjoint(c_hat, r_hat), p0)
+        x = nav.StateWithCovariance(SE3State(value, stamp=0.0, direction=direction), p0)
+        kf = kinds[filt](process)
+        for k in range(steps):
+            u = VectorInput(twist[k] + w[k, j], stamp=k * dt, covariance=q_input)
+            x = kf.predict(x, u, dt)
+            if (k + 1) % UPDATE_EVERY == 0:
+                ys = (LANDMARKS - r_true[k + 1]) @ c_true[k + 1] + v[(k + 1) // UPDATE_EVERY, j]
+                for y, model in zip(ys + bias, models):
+                    meas = nav.Measurement(y, stamp=x.state.stamp, model=model)
+                    if filt == "iekf":
+                        meas = InvariantMeasurement(meas)
+                    x = kf.correct(x, meas, None)
+            ci, ri = inverse(x.state.value[:3, :3], x.state.value[:3, 3])
+            errors[j, k] = log(*compose(ci, ri, c_true[k + 1], r_true[k + 1]))
+            p = x.covariance
+            covs[j, k] = _sandwich(adjoint(ci, ri), p) if direction == "left" else p
+    return errors, covs

@@ -60,6 +60,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/filters.py
 	$(BIN)/python benchmarks/libraries.py
 	$(BIN)/python benchmarks/memory.py --quick
+	$(BIN)/python benchmarks/se3.py
 	$(BIN)/python benchmarks/findings.py
 
 ## bench-dask: only the Dask rows of make bench (issue 13)

@@ -61,6 +61,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/libraries.py
 	$(BIN)/python benchmarks/memory.py --quick
 	$(BIN)/python benchmarks/memory.py --quick --windows 13 --lengths 50,300
+	$(BIN)/python benchmarks/se3.py
 	$(BIN)/python benchmarks/findings.py
 
 ## bench-dask: only the Dask rows of make bench (issue 13)

@@ -41,25 +41,31 @@ Conventions
   truth_factor = trace(P_true)/trace(P_claimed) over the reported components (constant over
   epochs at steady state).
 - Library families (filterpy UKF/EKF, Stone Soup EKF, a bootstrap particle filter, a GTSAM
-  smoother) are run as their users run them, right-tuned, after a burn-in; they are only
+  smoother, the SE(3) EKF, invariant EKF and UKF of ``se3_filters.py`` and navlie's) are run as their users run them, right-tuned, after a burn-in; they are only
   approximately credible, so truth_factor is NaN for "none" and "bias1", and 4 / 0.25
   *relative to the right-tuned filter* for "small4" / "large4" (claimed P rescaled). Their τ
   is a constant measured once by batch means (see ``LIBRARY_TAU``). Runs are cached in the
   process by (family, n, seed), so the four misfits of one draw reuse one filter run.
 
-numpy and scipy only at import; filterpy, stonesoup and gtsam are imported inside their
-families.
+numpy, scipy and the sibling ``se3_filters`` (numpy and scipy) at import; filterpy,
+stonesoup, gtsam and navlie are imported inside their families.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import os
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg, signal
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # as memory.py: se3_filters
+
+import se3_filters  # noqa: E402
 
 MISFITS = ("none", "small4", "large4", "bias1")
 FIXED_COV = np.array([[4.0, 1.2], [1.2, 1.0]])
@@ -410,6 +416,13 @@ LIBRARY_TAU = {
     "stonesoup-ekf-radar": 25.0,  # 23.1 / 27.1 / 24.7 / 25.7
     "pf-1d": 1.0,  # 1.0 / 1.0 / 1.0 / 0.9 (whitened variance 15: rare collapses, see below)
     "gtsam-pose2-smoother": 48.0,  # 31.7 / 42.3 / 48.5 / 48.4
+    # the SE(3) filters agree to millimetres, so their τ do (max |whitened cov − I| ≤ 0.046):
+    "se3-ekf": 21.5,  # 17.7 / 20.7 / 21.7 / 21.3
+    "se3-iekf": 21.5,  # 17.7 / 20.7 / 21.7 / 21.3
+    "se3-ukf": 21.5,  # 17.7 / 20.7 / 21.7 / 21.3
+    "navlie-se3-ekf": 21.5,  # 17.7 / 20.7 / 21.6 / 21.3
+    "navlie-se3-iekf": 21.5,  # 17.7 / 20.7 / 21.6 / 21.3
+    "navlie-se3-ukf": 21.5,  # 17.7 / 20.7 / 21.7 / 21.3
 }
 LIBRARY_RATE = {
     "filterpy-ukf-pendulum": 20.0,
@@ -417,6 +430,8 @@ LIBRARY_RATE = {
     "stonesoup-ekf-radar": 1.0,
     "pf-1d": 1.0,
     "gtsam-pose2-smoother": 10.0,
+    **{f: 100.0 for f in ("se3-ekf", "se3-iekf", "se3-ukf")},
+    **{f: 100.0 for f in ("navlie-se3-ekf", "navlie-se3-iekf", "navlie-se3-ukf")},
 }
 BURN_IN = {
     "filterpy-ukf-pendulum": 200,
@@ -424,6 +439,8 @@ BURN_IN = {
     "stonesoup-ekf-radar": 50,
     "pf-1d": 20,
     "gtsam-pose2-smoother": 0,
+    **{f: 100 for f in ("se3-ekf", "se3-iekf", "se3-ukf")},  # 1 s: ten updates
+    **{f: 100 for f in ("navlie-se3-ekf", "navlie-se3-iekf", "navlie-se3-ukf")},
 }
 
 
@@ -668,18 +685,40 @@ def _run_gtsam_pose2(
     return err, cov
 
 
+NAVLIE_SE3 = ("ekf", "iekf", "ukf")
+
+
+def _run_se3(steps: int, rng: np.random.Generator, filt: str, navlie: bool):
+    """One run of an SE(3) filter of ``se3_filters.py`` (``navlie``: navlie's): pose from a
+    noisy body-frame twist at 100 Hz, four landmarks' body-frame positions at 10 Hz (σ = 5 cm).
+    Errors: the body-frame error Log(T̂⁻¹T), rotation then translation (d = 6), with the
+    claimed covariance in the same convention (the invariant EKF's world-frame covariance
+    moved by the adjoint)."""
+    run = se3_filters.run_navlie if navlie else se3_filters.run
+    err, cov = run(filt, steps, rng)
+    return err[0], cov[0]
+
+
 LIBRARY_RUNS = {
     "filterpy-ukf-pendulum": _run_ukf_pendulum,
     "filterpy-ekf-range": _run_ekf_range,
     "stonesoup-ekf-radar": _run_stonesoup_radar,
     "pf-1d": _run_pf_1d,
     "gtsam-pose2-smoother": _run_gtsam_pose2,
+    **{f"se3-{f}": functools.partial(_run_se3, filt=f, navlie=False) for f in se3_filters.FILTERS},
+    **{f"navlie-se3-{f}": functools.partial(_run_se3, filt=f, navlie=True) for f in NAVLIE_SE3},
 }
+OPTIONAL = {
+    "gtsam-pose2-smoother": "gtsam",
+    **{f"navlie-se3-{f}": "navlie" for f in NAVLIE_SE3},
+}
+"""Families that run only where their library imports."""
 
 
-def _gtsam_available() -> bool:
+@functools.cache
+def _available(module: str) -> bool:
     try:
-        import gtsam  # noqa: F401
+        __import__(module)
     except ImportError:
         return False
     return True
@@ -699,7 +738,7 @@ def library_run(family: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]
 
 # --------------------------------------------------------------------------- public
 def families() -> list[str]:
-    libs = [f for f in LIBRARY_RUNS if f != "gtsam-pose2-smoother" or _gtsam_available()]
+    libs = [f for f in LIBRARY_RUNS if f not in OPTIONAL or _available(OPTIONAL[f])]
     return [*SYNTHETIC, *KF_MODELS, *libs]
 
 

@@ -43,7 +43,7 @@ demo: $(STAMP)
 
 ## test: install, then run the whole test suite (on every core: pytest-xdist)
 test: $(STAMP)
-	$(BIN)/python -m pytest -n auto
+	$(BIN)/python -m pytest -n auto --dist worksteal  # long tests do not wait behind a queue
 
 lint: $(STAMP)
 	$(BIN)/ruff check credcli tests

@@ -341,6 +341,8 @@ def bootstrap_spread(
 
 SPECTRUM_POINTS = 4096
 """Frequencies on which :func:`_square_ratios` integrates the AR spectra."""
+_HALF_CIRCLE = np.r_[1.0, np.full(SPECTRUM_POINTS // 2 - 1, 2.0), 1.0] / SPECTRUM_POINTS
+"""Weights of the rfft's frequencies 0 … π for a mean over the whole circle."""
 
 
 def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
@@ -355,8 +357,11 @@ def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
     for j in range(1, p_max + 1):
         step = np.where(j <= orders, reflection[:, j - 1], 0.0)
         a[:, 1 : j + 1] += step[:, None] * a[:, j - 1 :: -1].copy()
-    spectrum = 1.0 / np.abs(np.fft.fft(a, SPECTRUM_POINTS, axis=1)) ** 2
-    return np.mean(spectrum**2, axis=1) / np.mean(spectrum, axis=1) ** 2
+    # the coefficients are real, so the spectrum is even: its half from rfft, the inner
+    # frequencies counted twice, is the whole circle's mean at half the cost
+    spectrum = 1.0 / np.abs(np.fft.rfft(a, SPECTRUM_POINTS, axis=1)) ** 2
+    weights = _HALF_CIRCLE
+    return (spectrum**2 @ weights) / (spectrum @ weights) ** 2
 
 
 def series_memory(

@@ -411,7 +411,11 @@ def test_pooled_runs_hold_the_level_and_find_a_bias():
     """20 pooled runs of 300 epochs, AR(1) φ = 0.98 (three correlation times a run),
     runs as batches: correct covariances are not credible in 5.0 % of 1,000 pooled
     studies, and a 0.5σ bias is found in 89 % of 300 (with 600-epoch runs of φ = 0.99
-    against 12 batches across run boundaries: 5.5 / 4.4 % and 95 / 86 %). Here 40 of each."""
+    against 12 batches across run boundaries: 5.5 / 4.4 % and 95 / 86 %). Here 40 of each:
+    at most 6 not credible is the nominal 5 % (2 of 40) plus three binomial standard errors
+    (1.4 each): a right rule fails it with P = 0.003, a rule at 15 % passes it with P = 0.6,
+    so it catches a broken level, not a drift of a point (that takes the 1,000 studies
+    above); at least 30 found is 89 % less 2.9 standard errors (2.0 each), P = 0.003."""
     rng = np.random.default_rng(5)
     wrong = sum(
         diagnose_errors(*_pooled_runs(rng, 20, 300, 0.98), rng=k, runs=20).label

@@ -319,6 +319,22 @@ def test_numpy_warnings_are_one_note_without_source_paths(capsys):
     assert "overflow encountered in matmul; invalid value encountered in divide" in err[0]
 
 
+def test_resource_warnings_are_for_debug_only(capsys):
+    """An unclosed file (a signal that arrived while a module was imported) is Python's
+    notice to developers, hidden by default: no note without --debug, so a terminated run
+    still says one line."""
+    from credcli.cli.edge import note_warnings
+
+    class W:
+        message, category = "unclosed file <_io.BufferedReader name='x.pyc'>", ResourceWarning
+        filename, lineno = "x.py", 1
+
+    note_warnings([W()], False)
+    assert capsys.readouterr().err == ""
+    note_warnings([W()], True)
+    assert "ResourceWarning: unclosed file" in capsys.readouterr().err
+
+
 # --- messages --------------------------------------------------------------------------------
 
 

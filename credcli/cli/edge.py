@@ -94,7 +94,10 @@ def app_commands() -> set[str]:
     return {c.name or c.callback.__name__ for c in app.registered_commands}
 
 
-_LIBRARY_CHATTER = (DeprecationWarning, PendingDeprecationWarning, FutureWarning)
+_LIBRARY_CHATTER = (DeprecationWarning, PendingDeprecationWarning, FutureWarning, ResourceWarning)
+"""Warnings meant for a library's own callers or developers, shown only under --debug:
+Python hides ResourceWarning by default (a signal during an import left an unclosed
+.pyc file, and its warning made a second stderr line after 'credcli: terminated')."""
 
 
 def note_warnings(caught, debug: bool) -> None:

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import ROOT, error_line, run
+from helpers import ROOT, error_line, run
 from scipy.spatial.transform import Rotation
 
 from credcli import read_log

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import SAMPLE
+from helpers import SAMPLE
 
 from credcli import DiagnosisConfig
 from credcli.cli import main

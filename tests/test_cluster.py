@@ -13,7 +13,7 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from conftest import ROOT, error_line, run  # noqa: E402
+from helpers import ROOT, error_line, run  # noqa: E402
 
 from credcli.cluster import DaskRunner  # noqa: E402
 from credcli.io.schema import LogReading  # noqa: E402

@@ -12,7 +12,7 @@ from typing import Annotated
 
 import pytest
 import typer
-from conftest import SAMPLE, error_line, run
+from helpers import SAMPLE, error_line, run
 
 from credcli.cli.app import app
 from credcli.cli.edge import _flags, flag_names

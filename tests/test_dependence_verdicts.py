@@ -11,7 +11,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from conftest import error_line, run
+from helpers import error_line, run
 from scipy import stats
 
 from credcli.engine import batches
@@ -587,7 +587,7 @@ def test_block_intervals_cover_jointly():
 def test_pose_log_reports_position_and_orientation_factors():
     """The OpenVINS sample plants a right position covariance and an orientation
     covariance 4× too small: the JSON and the advice line say so per block."""
-    from conftest import ROOT
+    from helpers import ROOT
 
     formats = ROOT / "sample_data" / "formats"
     args = ("diagnose", formats / "openvins_estimate.txt", "--truth")

@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import gaussian_segment
+from helpers import gaussian_segment
 from scipy import stats
 
 from credcli.engine import diagnosis as dg

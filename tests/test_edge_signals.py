@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import LOG, error_line, run
+from helpers import LOG, error_line, run
 
 ROOT = Path(__file__).resolve().parents[1]
 FORMATS = ROOT / "sample_data" / "formats"

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import LOG, UWB, error_line, run
+from helpers import LOG, UWB, error_line, run
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 

@@ -11,7 +11,7 @@ import sys
 import xml.etree.ElementTree as ET
 
 import pytest
-from conftest import SAMPLE
+from helpers import SAMPLE
 
 from credcli.ci import gate
 from credcli.cli import main

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import gaussian_segment
+from helpers import gaussian_segment
 from scipy import integrate, special, stats
 
 from credcli.engine import metrics, quadrature
@@ -345,7 +345,7 @@ def test_accuracy_is_evos_first_figures_per_component_and_of_the_norm(capsys, mo
     assert a.rmse_norm == pytest.approx(math.sqrt((a.rmse**2).sum()), rel=1e-12)
     assert (a.median_norm, a.max_norm) == (statistics.median(norms), max(norms))
     assert a.mean_norm == pytest.approx(statistics.fmean(norms), rel=1e-12)
-    from conftest import ROOT
+    from helpers import ROOT
 
     log = "sample_data/estimator_log.csv"
     monkeypatch.chdir(ROOT)
@@ -363,7 +363,7 @@ def test_logs_are_compared_by_their_accuracy(tmp_path, capsys, monkeypatch):
     import json
 
     import pandas as pd
-    from conftest import ROOT
+    from helpers import ROOT
 
     from credcli.cli import main
 

@@ -15,7 +15,7 @@ from scipy import stats
 
 pytest.importorskip("matplotlib", reason="matplotlib (credcli[plots]) not installed")
 
-from conftest import SAMPLE  # noqa: E402
+from helpers import SAMPLE  # noqa: E402
 
 from credcli import DiagnosisConfig  # noqa: E402
 from credcli.cli import main  # noqa: E402

@@ -11,7 +11,7 @@ from html.parser import HTMLParser
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import error_line, run
+from helpers import error_line, run
 
 import credcli
 from credcli.errors import CredcliError

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import SAMPLE
+from helpers import SAMPLE
 
 from credcli.io.rosbag import read_bag
 from credcli.studies.samples import write_samples

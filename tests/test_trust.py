@@ -104,7 +104,7 @@ SAMPLE_LOG = "sample_data/estimator_log.csv"
 )
 def test_extreme_settings_are_usage_errors(args, capsys, monkeypatch):
     """Issue 32 item 8: exit 2 with one line, not an internal error (exit 3)."""
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     code = main(["diagnose", SAMPLE_LOG, *args])
@@ -114,7 +114,7 @@ def test_extreme_settings_are_usage_errors(args, capsys, monkeypatch):
 
 
 def test_deeply_nested_baseline_and_config_are_usage_errors(tmp_path, capsys, monkeypatch):
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     deep = tmp_path / "deep.json"
@@ -133,7 +133,7 @@ def test_file_names_that_are_not_utf8(tmp_path, capsys, monkeypatch):
     import os
     import shutil
 
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     base = os.fsencode(tmp_path)
@@ -153,7 +153,7 @@ def test_a_baseline_never_names_the_files_credcli_reads(tmp_path, capsys, monkey
     line names, and says so."""
     import json
 
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     formats = ROOT / "sample_data" / "formats"
@@ -175,7 +175,7 @@ def test_a_baseline_never_names_the_files_credcli_reads(tmp_path, capsys, monkey
 def test_the_gate_names_a_reading_setting_that_differs_from_the_baseline(tmp_path, capsys):
     """Issue 32 item 2: the gate reads the new log as the baseline's was; a config whose
     [input] or [columns] says otherwise is named, not silently overridden."""
-    from conftest import ROOT
+    from helpers import ROOT
 
     log, base = str(ROOT / SAMPLE_LOG), tmp_path / "base.json"
     assert main(["baseline", log, "-o", str(base)]) == 0
@@ -196,7 +196,7 @@ def test_a_plain_tcp_scheduler_off_this_machine_is_refused(capsys, monkeypatch):
     """Issue 32 item 1: results come back by pickle, so an unauthenticated remote scheduler
     could run code in credcli; refused before any connection (exit 2) unless opted in."""
     pytest.importorskip("distributed")
-    from conftest import ROOT
+    from helpers import ROOT
 
     from credcli.cluster import REMOTE_OPT_IN
 
@@ -209,7 +209,7 @@ def test_a_plain_tcp_scheduler_off_this_machine_is_refused(capsys, monkeypatch):
 
 def test_the_scheduler_from_the_environment_is_announced(capsys, monkeypatch):
     pytest.importorskip("distributed")
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     monkeypatch.setenv("CREDCLI_SCHEDULER", "tcp://127.0.0.1:1")  # nothing listens there
@@ -228,7 +228,7 @@ def test_outputs_never_follow_a_symlink_and_keep_a_files_mode(
     import os
     import stat
 
-    from conftest import ROOT
+    from helpers import ROOT
 
     from credcli.io import files
 
@@ -350,7 +350,7 @@ def test_the_step_summary_is_checked_before_any_work(tmp_path, capsys, monkeypat
     input named there would have been appended to."""
     import os
 
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     fifo = tmp_path / "summary"
@@ -396,7 +396,7 @@ def test_a_figure_name_collision_is_an_error_and_overwrites_nothing(tmp_path, ca
 
 def test_huge_anchor_and_marker_ids_are_usage_errors(tmp_path, capsys):
     """An id past 2**53 was cast to a wrong id (exit 0, a note on a cast) or crashed."""
-    from conftest import ROOT
+    from helpers import ROOT
 
     grid = (ROOT / "sample_data" / "starloc_grid_uwb.csv").read_text().splitlines()
     header = grid[0].split(",")
@@ -428,7 +428,7 @@ def test_a_peer_that_is_no_scheduler_is_a_usage_error(frame, capsys, monkeypatch
     import threading
 
     pytest.importorskip("distributed")
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     server = socket.socket()
@@ -465,7 +465,7 @@ def test_compressed_logs_read_as_their_text(tmp_path, capsys, monkeypatch):
     import json
     import lzma
 
-    from conftest import ROOT
+    from helpers import ROOT
 
     plain = (ROOT / SAMPLE_LOG).read_bytes()
 
@@ -527,7 +527,7 @@ def test_held_out_style_cases_are_usage_errors(tmp_path, capsys, monkeypatch):
     """Cases of a 312-case adversarial corpus that were exit 0 (or unsafe): a column named
     twice, two covariance layouts at once, --jobs past any machine, a window that cuts the
     time span into more windows than int64 counts."""
-    from conftest import ROOT
+    from helpers import ROOT
 
     monkeypatch.chdir(ROOT)
     log = ROOT / SAMPLE_LOG

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import SAMPLE, SHARED
+from helpers import SAMPLE, SHARED
 
 from credcli.cli import main
 from credcli.segments import static_periods

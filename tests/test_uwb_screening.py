@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import SAMPLE, SHARED, error_line, run
+from helpers import SAMPLE, SHARED, error_line, run
 
 from credcli.studies import uwb
 from credcli.studies.settings import RobustLoss, UwbSettings

@@ -615,9 +615,8 @@ def test_fail_on_accepts_label_aliases():
     assert run("diagnose", LOG, "--fail-on", "pess")[0] == 1
 
 
-def test_diagnose_writes_an_html_report(tmp_path):
-    path = tmp_path / "r.html"
-    code, _, err = run("diagnose", LOG, "--report", path)
+def test_diagnose_writes_an_html_report(sample_html_report):
+    code, err, path = sample_html_report
     assert code == 0, err
     html = path.read_text()
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 28

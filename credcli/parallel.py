@@ -12,6 +12,7 @@ of processes.
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -205,8 +206,8 @@ class WorkerPool:
         process holds the other end of both pipes, and SIGTERM hung a run (1 in ~15 signal
         tests under load). Once the workers are dead, this process's own ends are closed,
         so the reader meets the end of the pipe and the writer a broken pipe, and the
-        shutdown returns. Python 3.11's executor then fails the futures already cancelled
-        (InvalidStateError in its thread): that one error is not shown."""
+        shutdown returns. The executor's thread may then fail the futures already cancelled
+        or close a pipe end twice: those errors are not shown (:func:`_quiet_cancelled_futures`)."""
         _quiet_cancelled_futures()
         processes = list(getattr(self.executor, "_processes", {}).values())
         for process in processes:
@@ -223,9 +224,12 @@ class WorkerPool:
 
 
 def _quiet_cancelled_futures() -> None:
-    """Do not show the InvalidStateError that Python 3.11's process-pool thread raises when
-    it fails a future already cancelled (fixed in later Pythons, which ignore it); every
-    other exception of any thread is shown as before."""
+    """Do not show the two errors the process pool's thread may raise after
+    :meth:`WorkerPool.stop`: the InvalidStateError of Python 3.11 when it fails a future
+    already cancelled (fixed in later Pythons, which ignore it), and EBADF when it closes
+    the call pipe's end that ``stop`` is closing at the same moment (seen once in a full
+    test run, as a thread traceback). Every other exception of any thread is shown as
+    before."""
     from concurrent.futures import InvalidStateError
     from concurrent.futures.process import _ExecutorManagerThread
 
@@ -234,7 +238,10 @@ def _quiet_cancelled_futures() -> None:
         return
 
     def hook(args) -> None:
-        if isinstance(args.thread, _ExecutorManagerThread) and args.exc_type is InvalidStateError:
+        if isinstance(args.thread, _ExecutorManagerThread) and (
+            args.exc_type is InvalidStateError
+            or (isinstance(args.exc_value, OSError) and args.exc_value.errno == errno.EBADF)
+        ):
             return
         shown(args)
 

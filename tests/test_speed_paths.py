@@ -247,3 +247,32 @@ def test_gls_residuals_from_given_inverses_are_those_computed_in_chunks():
     own, given = gls_residuals(e, chol), gls_residuals(e, chol, np.linalg.inv(chol))
     for name in ("mean", "whitened", "precision_sum", "scores"):
         np.testing.assert_array_equal(getattr(own, name), getattr(given, name))
+
+
+def test_the_pool_threads_errors_after_a_stop_are_quiet_and_others_shown(monkeypatch):
+    """After WorkerPool.stop the executor's thread may fail a cancelled future
+    (InvalidStateError) or close a pipe end that stop closes at the same moment (EBADF):
+    neither is shown; any other error of that thread, or of another thread, still is."""
+    import errno
+    import threading
+    from concurrent.futures import InvalidStateError
+    from concurrent.futures.process import _ExecutorManagerThread
+
+    from credcli import parallel
+
+    shown = []
+    monkeypatch.setattr(threading, "excepthook", shown.append)
+    parallel._quiet_cancelled_futures()
+    pool_thread = object.__new__(_ExecutorManagerThread)
+
+    class Args:
+        def __init__(self, error, thread):
+            self.exc_type, self.exc_value, self.thread = type(error), error, thread
+
+    quiet = [InvalidStateError("cancelled"), OSError(errno.EBADF, "Bad file descriptor")]
+    loud = [OSError(errno.EPIPE, "Broken pipe"), ValueError("x")]
+    for error in quiet + loud:
+        threading.excepthook(Args(error, pool_thread))
+    threading.excepthook(Args(InvalidStateError("x"), threading.current_thread()))
+    assert [a.exc_value for a in shown] == [*loud, shown[-1].exc_value]
+    assert len(shown) == 3

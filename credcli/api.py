@@ -180,7 +180,7 @@ class Results(Sequence):
 
         Raises
         ------
-        ValueError
+        CredcliError
             If ``kind`` is not one of the kinds above, ``k`` is not a positive number,
             ``window`` is not between 1 and N, the results hold no log (made by hand, not
             by [diagnose_log][credcli.api.diagnose_log]), or, for ``timescales``, no
@@ -195,11 +195,11 @@ class Results(Sequence):
         """
         kind = PlotKind.parse(kind)
         if self._source is None:
-            raise ValueError(
+            raise CredcliError(
                 "plot: these results hold no log (made by hand); use credcli.diagnose_log"
             )
         if not (isinstance(k, int | float) and np.isfinite(k) and k > 0):
-            raise ValueError(f"k must be a positive number; got {k!r}")
+            raise CredcliError(f"`k` must be a positive number; got {k!r}", "k")
         if kind is PlotKind.ALL:
             return {str(one): draw(self._source, one, k, window)[0] for one in DRAWN}
         return draw(self._source, kind, k, window)[0]

@@ -26,6 +26,7 @@ from collections.abc import Sequence
 from credcli.api import Results, diagnose_log, log_from_arrays
 from credcli.engine.config import SMM_CONDITION
 from credcli.engine.diagnosis import DiagnosisConfig, Label
+from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
 from credcli.io.records import config_record
 from credcli.report.formats import OutputFormat
@@ -196,8 +197,8 @@ def assert_label(
     ------
     AssertionError
         With the diagnosis table and advice lines.
-    ValueError
-        If ``expected`` is not a label.
+    CredcliError
+        If ``expected`` is not a label (naming ``expected``).
     TypeError
         If the log or the arrays are given wrongly (as for ``assert_credible``).
     CredcliError
@@ -212,7 +213,13 @@ def assert_label(
     >>> assert_label("smm", errors + 0.5, np.eye(2))  # a bias is the paper's SMM
     Results([all: bias])
     """
-    label = Label(expected)
+    try:
+        label = Label(expected)
+    except ValueError:
+        names = ", ".join(v.value for v in Label)
+        raise CredcliError(
+            f"`expected` {expected!r} is not a label; one of {names}", "expected"
+        ) from None
     results = _results(log, cov, segments, alpha, seed, dict(arrays))
 
     def right(got: Label) -> bool:

@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import credcli
 from credcli.cli import main
@@ -159,3 +160,25 @@ def test_near_symmetric_covariances_are_symmetrised_with_a_note(tmp_path):
     cov[7, 0, 1] += 2e-3 * 2.0
     with pytest.raises(credcli.CredcliError, match=r"cov\[7\]: .*asymmetry 0.002, above 0.001"):
         credcli.log_from_arrays(errors=e, cov=cov)
+
+
+def test_bad_choices_in_the_python_api_name_their_parameter():
+    """assert_label's expected label, diagnose_variants' variants and probes' c are
+    CredcliErrors naming the parameter (they were bare ValueErrors or named nothing)."""
+    import numpy as np
+
+    from credcli.engine.diagnosis import diagnose_variants
+    from credcli.engine.metrics import probes
+    from credcli.errors import CredcliError
+    from credcli.testing import assert_label
+
+    e = np.random.default_rng(0).standard_normal((50, 2))
+    cov = np.broadcast_to(np.eye(2), (50, 2, 2))
+    for call, name in (
+        (lambda: assert_label("nonsense", e, np.eye(2)), "expected"),
+        (lambda: diagnose_variants(e, cov, ["calibrated", "nonsense"]), "variants"),
+        (lambda: probes(e, cov, c=0.5), "c"),
+    ):
+        with pytest.raises(CredcliError, match=f"`{name}`") as info:
+            call()
+        assert info.value.parameter == name

@@ -369,10 +369,13 @@ def test_plot_kinds_all_and_bad(small):
     assert list(every) == ["timeline", "errors", "nees", "whitened"]
     assert all(isinstance(f, Figure) for f in every.values())
     _close(*every.values())
-    with pytest.raises(ValueError, match="kind must be one of .*'timeline'.*got 'bad'"):
-        results.plot(kind="bad")
-    with pytest.raises(ValueError, match="window"):
-        results.plot("nees", window=0)
+    from credcli.errors import CredcliError
+
+    for kwargs, name in (({"kind": "bad"}, "kind"), ({"kind": "nees", "window": 0}, "window")):
+        with pytest.raises(CredcliError, match=f"`{name}` must be") as info:
+            results.plot(**kwargs)
+        assert info.value.parameter == name  # named as errors are: `kind`, `window`
+    assert "'timeline'" in str(pytest.raises(CredcliError, results.plot, "bad").value)
 
 
 def test_plot_monte_carlo_runs_average_nees():
@@ -473,5 +476,5 @@ def test_results_plot_credibility_at_every_time_scale():
     np.testing.assert_array_equal(lines["observed"].get_ydata(), scales.observed)
     np.testing.assert_array_equal(lines["memory model v_m"].get_ydata(), scales.predicted)
     paper = credcli.diagnose_log(log, config=DiagnosisConfig(variant=Variant.PAPER))
-    with pytest.raises(ValueError, match="kind 'timescales': no segment has a fitted memory"):
+    with pytest.raises(ValueError, match="`kind` 'timescales': no segment has a fitted memory"):
         paper.plot("timescales")

@@ -264,9 +264,8 @@ def diagnose_variants(
     ------
     CredcliError
         For invalid arrays (shapes, non-finite values, a covariance that is not symmetric
-        positive definite), naming the argument and the epoch.
-    ValueError
-        If a variant is not one of the names of ``Variant``.
+        positive definite), naming the argument and the epoch; for a variant that is not
+        one of the names of ``Variant`` (naming ``variants``).
 
     Examples
     --------
@@ -277,7 +276,14 @@ def diagnose_variants(
     {'calibrated': 'pessimism', 'paper': 'pessimism'}
     """
     errors, cov = metrics.check_errors_cov(errors, cov)
-    configs = _variant_configs(config or DiagnosisConfig(), tuple(Variant(v) for v in variants))
+    try:
+        chosen = tuple(Variant(v) for v in variants)
+    except ValueError:
+        names = ", ".join(v.value for v in Variant)
+        raise CredcliError(
+            f"`variants` must name variants among {names}; got {list(variants)!r}", "variants"
+        ) from None
+    configs = _variant_configs(config or DiagnosisConfig(), chosen)
     results = _diagnose_variants(errors, cov, configs, as_generator(rng), None)
     return {c.variant: r for c, r in zip(configs, results)}
 

@@ -637,7 +637,7 @@ def probes(
     """
     errors, cov = check_errors_cov(errors, cov)
     if not c > 1:
-        raise CredcliError(f"the probe factor c must be > 1; got {c}")
+        raise CredcliError(f"the probe factor `c` must be > 1; got {c}", "c")
     chol = cholesky(cov)
     return probes_scored(errors, EnergyScorer(cov), chol, c, srd_absolute)
 

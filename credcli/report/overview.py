@@ -18,6 +18,7 @@ from credcli.engine.config import Label
 from credcli.engine.curves import default_window, running_mean, running_mean_bounds
 from credcli.engine.elt import whiten
 from credcli.engine.metrics import nees
+from credcli.errors import CredcliError
 from credcli.report import plots as figs
 
 
@@ -40,7 +41,7 @@ class PlotKind(str, enum.Enum):
             return cls(kind)
         except ValueError:
             choices = ", ".join(repr(k.value) for k in cls)
-            raise ValueError(f"kind must be one of {choices}; got {kind!r}") from None
+            raise CredcliError(f"`kind` must be one of {choices}; got {kind!r}", "kind") from None
 
 
 DRAWN = (PlotKind.TIMELINE, PlotKind.ERRORS, PlotKind.NEES, PlotKind.WHITENED)
@@ -153,7 +154,9 @@ def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple
         values = np.mean([nees(r.errors, r.cov) for r in runs], axis=0)
         w = default_window(values.size) if window is None else int(window)
         if not 1 <= w <= values.size:
-            raise ValueError(f"window must be between 1 and {values.size} epochs; got {w}")
+            raise CredcliError(
+                f"`window` must be between 1 and {values.size} epochs; got {w}", "window"
+            )
         bounds = running_mean_bounds(dim, w, source.alpha, m)
         title = f"{name}: NEES and its running mean"
         return figs.draw_nees(
@@ -184,7 +187,7 @@ def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple
             colours = list(np.tile(per_epoch, m))
         title = f"{name}: whitened errors Σ^(-1/2) e"
         return figs.draw_whitened_errors(white, colours, title, labels)
-    raise ValueError(f"kind must be one of {', '.join(repr(k.value) for k in DRAWN)}")
+    raise CredcliError(f"`kind` must be one of {', '.join(repr(k.value) for k in DRAWN)}", "kind")
 
 
 def _time_scales(source: Source, name: str) -> tuple:
@@ -197,9 +200,10 @@ def _time_scales(source: Source, name: str) -> tuple:
         if result.diagnosis.time_scales is not None and result.diagnosis.time_scales.epochs.size > 1
     ]
     if not fitted:
-        raise ValueError(
-            "kind 'timescales': no segment has a fitted memory (the calibrated rule fits one "
-            "on segments long enough for it)"
+        raise CredcliError(
+            "`kind` 'timescales': no segment has a fitted memory (the calibrated rule fits "
+            "one on segments long enough for it)",
+            "kind",
         )
     _, segment, result = max(fitted, key=lambda item: item[0])
     time = source.runs[0].time

@@ -199,7 +199,7 @@ class Results(Sequence):
                 "plot: these results hold no log (made by hand); use credcli.diagnose_log"
             )
         if not (isinstance(k, int | float) and np.isfinite(k) and k > 0):
-            raise CredcliError(f"`k` must be a positive number; got {k!r}", "k")
+            raise CredcliError(f"k must be a positive number; got {k!r}", "k")
         if kind is PlotKind.ALL:
             return {str(one): draw(self._source, one, k, window)[0] for one in DRAWN}
         return draw(self._source, kind, k, window)[0]

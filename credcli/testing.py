@@ -218,7 +218,7 @@ def assert_label(
     except ValueError:
         names = ", ".join(v.value for v in Label)
         raise CredcliError(
-            f"`expected` {expected!r} is not a label; one of {names}", "expected"
+            f"expected {expected!r} is not a label; one of {names}", "expected"
         ) from None
     results = _results(log, cov, segments, alpha, seed, dict(arrays))
 

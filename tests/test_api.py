@@ -164,7 +164,8 @@ def test_near_symmetric_covariances_are_symmetrised_with_a_note(tmp_path):
 
 def test_bad_choices_in_the_python_api_name_their_parameter():
     """assert_label's expected label, diagnose_variants' variants and probes' c are
-    CredcliErrors naming the parameter (they were bare ValueErrors or named nothing)."""
+    CredcliErrors naming the parameter (they were bare ValueErrors or named nothing); a
+    name in backticks is one the command line turns into a flag, so only c has them."""
     import numpy as np
 
     from credcli.engine.diagnosis import diagnose_variants
@@ -179,6 +180,6 @@ def test_bad_choices_in_the_python_api_name_their_parameter():
         (lambda: diagnose_variants(e, cov, ["calibrated", "nonsense"]), "variants"),
         (lambda: probes(e, cov, c=0.5), "c"),
     ):
-        with pytest.raises(CredcliError, match=f"`{name}`") as info:
+        with pytest.raises(CredcliError, match=rf"\b{name}\b") as info:
             call()
         assert info.value.parameter == name

@@ -281,7 +281,7 @@ def diagnose_variants(
     except ValueError:
         names = ", ".join(v.value for v in Variant)
         raise CredcliError(
-            f"`variants` must name variants among {names}; got {list(variants)!r}", "variants"
+            f"variants must name variants among {names}; got {list(variants)!r}", "variants"
         ) from None
     configs = _variant_configs(config or DiagnosisConfig(), chosen)
     results = _diagnose_variants(errors, cov, configs, as_generator(rng), None)

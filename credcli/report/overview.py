@@ -41,7 +41,7 @@ class PlotKind(str, enum.Enum):
             return cls(kind)
         except ValueError:
             choices = ", ".join(repr(k.value) for k in cls)
-            raise CredcliError(f"`kind` must be one of {choices}; got {kind!r}", "kind") from None
+            raise CredcliError(f"kind must be one of {choices}; got {kind!r}", "kind") from None
 
 
 DRAWN = (PlotKind.TIMELINE, PlotKind.ERRORS, PlotKind.NEES, PlotKind.WHITENED)
@@ -155,7 +155,7 @@ def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple
         w = default_window(values.size) if window is None else int(window)
         if not 1 <= w <= values.size:
             raise CredcliError(
-                f"`window` must be between 1 and {values.size} epochs; got {w}", "window"
+                f"window must be between 1 and {values.size} epochs; got {w}", "window"
             )
         bounds = running_mean_bounds(dim, w, source.alpha, m)
         title = f"{name}: NEES and its running mean"
@@ -187,7 +187,7 @@ def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple
             colours = list(np.tile(per_epoch, m))
         title = f"{name}: whitened errors Σ^(-1/2) e"
         return figs.draw_whitened_errors(white, colours, title, labels)
-    raise CredcliError(f"`kind` must be one of {', '.join(repr(k.value) for k in DRAWN)}", "kind")
+    raise CredcliError(f"kind must be one of {', '.join(repr(k.value) for k in DRAWN)}", "kind")
 
 
 def _time_scales(source: Source, name: str) -> tuple:
@@ -201,7 +201,7 @@ def _time_scales(source: Source, name: str) -> tuple:
     ]
     if not fitted:
         raise CredcliError(
-            "`kind` 'timescales': no segment has a fitted memory (the calibrated rule fits "
+            "kind 'timescales': no segment has a fitted memory (the calibrated rule fits "
             "one on segments long enough for it)",
             "kind",
         )

@@ -211,7 +211,8 @@ def _run_lines(rows: list[dict]) -> list[str]:
         what = "false alarms" if m == "none" else f"power ({EXPECTED[m]})"
         k, dec = sum(r[key] for r in sub), sum(r["run_decided"] for r in sub)
         out.append(
-            f"- the runs' own labels, misfit {m}: {what} {_pct(k, runs)} %, decided {_pct(dec, runs)} % ({runs} runs)"
+            f"- the runs' own labels, misfit {m}: {what} {_pct(k, runs)} %, "
+            f"decided {_pct(dec, runs)} % ({runs} runs)"
         )
     return out
 

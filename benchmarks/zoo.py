@@ -41,7 +41,8 @@ Conventions
   truth_factor = trace(P_true)/trace(P_claimed) over the reported components (constant over
   epochs at steady state).
 - Library families (filterpy UKF/EKF, Stone Soup EKF, a bootstrap particle filter, a GTSAM
-  smoother, the SE(3) EKF, invariant EKF and UKF of ``se3_filters.py`` and navlie's) are run as their users run them, right-tuned, after a burn-in; they are only
+  smoother, the SE(3) EKF, invariant EKF and UKF of ``se3_filters.py`` and navlie's) are
+  run as their users run them, right-tuned, after a burn-in; they are only
   approximately credible, so truth_factor is NaN for "none" and "bias1", and 4 / 0.25
   *relative to the right-tuned filter* for "small4" / "large4" (claimed P rescaled). Their τ
   is a constant measured once by batch means (see ``LIBRARY_TAU``). Runs are cached in the

@@ -60,6 +60,39 @@ def _seeds(family: str, n: int, rep: int, seed: int) -> tuple[np.random.SeedSequ
     return ss, int(ss.generate_state(1)[0])
 
 
+COUNTS = ("decided", "credible", "flagged", "power", "insufficient", "partial")
+"""What a cell counts over its cases (see the module doc)."""
+
+
+def _tally(counts: dict, d, misfit: str) -> None:
+    """Count one diagnosis ``d`` of a case with ``misfit`` into ``counts`` (:data:`COUNTS`)."""
+    insufficient = d.label is Label.INSUFFICIENT
+    counts["insufficient"] += insufficient
+    counts["decided"] += (not insufficient) and not d.untested
+    counts["partial"] += (not insufficient) and bool(d.untested)
+    counts["credible"] += d.label is Label.CREDIBLE
+    counts["flagged"] += bool(d.label.conditions)
+    counts["power"] += misfit in EXPECTED and EXPECTED[misfit] in d.label.conditions
+
+
+def _row(family: str, n: int, misfit: str, case, seconds: float, counts: dict, **extra) -> dict:
+    """One row of a cell: the family, N, the misfit's case's τ and truth, and the counts."""
+    kind = zoo.kind(family)
+    return dict(
+        family=family,
+        kind=kind,
+        n=n,
+        misfit=misfit,
+        tau=case.tau,
+        n_over_tau=n / case.tau if case.tau > 0 else float("nan"),
+        truth_factor=case.truth_factor,
+        library=kind == "library",
+        seconds=seconds,
+        **extra,
+        **counts,
+    )
+
+
 def run(
     families: Iterable[str],
     lengths: Iterable[int],
@@ -73,13 +106,9 @@ def run(
     misfits = list(misfits)
     rows = []
     for family in families:
-        kind = zoo.kind(family)
         for n in lengths:
             r = reps_for(n, reps)
-            acc = {
-                m: dict(decided=0, credible=0, flagged=0, power=0, insufficient=0, partial=0)
-                for m in misfits
-            }
+            acc = {m: dict.fromkeys(COUNTS, 0) for m in misfits}
             info: dict[str, zoo.Case] = {}
             t0 = time.process_time()
             for rep in range(r):
@@ -87,33 +116,11 @@ def run(
                 for m in misfits:
                     case = zoo.make(family, n, np.random.default_rng(ss), m)
                     info.setdefault(m, case)
-                    d = diagnose(case.errors, case.cov, rng=diag_seed)
-                    a = acc[m]
-                    insufficient = d.label is Label.INSUFFICIENT
-                    a["insufficient"] += insufficient
-                    a["decided"] += (not insufficient) and not d.untested
-                    a["partial"] += (not insufficient) and bool(d.untested)
-                    a["credible"] += d.label is Label.CREDIBLE
-                    a["flagged"] += bool(d.label.conditions)
-                    a["power"] += m in EXPECTED and EXPECTED[m] in d.label.conditions
+                    _tally(acc[m], diagnose(case.errors, case.cov, rng=diag_seed), m)
             seconds = time.process_time() - t0
-            for m in misfits:
-                case = info[m]
-                rows.append(
-                    dict(
-                        family=family,
-                        kind=kind,
-                        n=n,
-                        misfit=m,
-                        reps=r,
-                        tau=case.tau,
-                        n_over_tau=n / case.tau if case.tau > 0 else float("nan"),
-                        truth_factor=case.truth_factor,
-                        library=kind == "library",
-                        seconds=seconds / len(misfits),
-                        **acc[m],
-                    )
-                )
+            rows += [
+                _row(family, n, m, info[m], seconds / len(misfits), acc[m], reps=r) for m in misfits
+            ]
             if progress:
                 print(f"  {family} N={n} R={r}: {seconds:.1f}s", file=sys.stderr, flush=True)
     return rows
@@ -139,14 +146,10 @@ def run_windows(
     misfits = list(misfits)
     rows = []
     for family in families:
-        kind = zoo.kind(family)
         for n in lengths:
             r = max(1, reps_for(n * windows, reps))
-            keys = ("decided", "credible", "flagged", "power", "insufficient", "partial")
-            acc = {
-                m: dict.fromkeys(keys + ("run_flagged", "run_power", "run_decided"), 0)
-                for m in misfits
-            }
+            acc = {m: dict.fromkeys(COUNTS, 0) for m in misfits}
+            whole = {m: dict.fromkeys(COUNTS, 0) for m in misfits}  # the runs' own labels
             info: dict[str, zoo.Case] = {}
             t0 = time.process_time()
             for rep in range(r):
@@ -156,42 +159,25 @@ def run_windows(
                     info.setdefault(m, case)
                     log = log_from_arrays(errors=case.errors, cov=case.cov)
                     plan = split(log, str(n), False)
-                    a = acc[m]
                     for segment, result in zip(plan, diagnose_segments(log, plan, seed=diag_seed)):
-                        d = result.diagnosis
-                        insufficient = d.label is Label.INSUFFICIENT
-                        decided = (not insufficient) and not d.untested
-                        right = m in EXPECTED and EXPECTED[m] in d.label.conditions
-                        if not segment.window:
-                            a["run_flagged"] += bool(d.label.conditions)
-                            a["run_power"] += right
-                            a["run_decided"] += decided
-                            continue
-                        a["insufficient"] += insufficient
-                        a["decided"] += decided
-                        a["partial"] += (not insufficient) and bool(d.untested)
-                        a["credible"] += d.label is Label.CREDIBLE
-                        a["flagged"] += bool(d.label.conditions)
-                        a["power"] += right
+                        _tally((acc if segment.window else whole)[m], result.diagnosis, m)
             seconds = time.process_time() - t0
-            for m in misfits:
-                case = info[m]
-                rows.append(
-                    dict(
-                        family=family,
-                        kind=kind,
-                        n=n,
-                        misfit=m,
-                        reps=r * windows,
-                        runs=r,
-                        tau=case.tau,
-                        n_over_tau=n / case.tau if case.tau > 0 else float("nan"),
-                        truth_factor=case.truth_factor,
-                        library=kind == "library",
-                        seconds=seconds / len(misfits),
-                        **acc[m],
-                    )
+            rows += [
+                _row(
+                    family,
+                    n,
+                    m,
+                    info[m],
+                    seconds / len(misfits),
+                    acc[m],
+                    reps=r * windows,
+                    runs=r,
+                    run_flagged=whole[m]["flagged"],
+                    run_power=whole[m]["power"],
+                    run_decided=whole[m]["decided"],
                 )
+                for m in misfits
+            ]
             if progress:
                 print(
                     f"  {family} N={n} × {windows} windows, R={r}: {seconds:.1f}s",

@@ -317,14 +317,6 @@ def anees(errors: np.ndarray, covs: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- navlie
-def navlie_available() -> bool:
-    try:
-        import navlie  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def run_navlie(
     filt: str,
     steps: int,

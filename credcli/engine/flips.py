@@ -275,10 +275,7 @@ class _FlippedStatistics:
         float64 recheck of those within the rounding bound of the observed value."""
         # U's C-ordered buffer read in Fortran order is Uᵀ, lower triangular: Uᵀξ per column
         product = blas.strmm(1.0, self.upper32.T, xi, side=0, lower=1)
-        product *= xi  # exact: a sign change
-        values = product.sum(axis=0, dtype=np.float64)
-        values *= 2.0
-        values += self.trace
+        values = self._forms(product, xi)
         close = np.flatnonzero(np.abs(values - self.observed) <= self.bound)
         if close.size and self.fine_bound < self.bound:  # a second, tighter look
             values[close] = self._blocked(np.asfortranarray(xi[:, close]))
@@ -296,8 +293,13 @@ class _FlippedStatistics:
         for start in range(0, n, PRODUCT_ROWS):
             stop = min(n, start + PRODUCT_ROWS)
             product[start:] += upper[start:stop, start:].T @ xi[start:stop]
+        return self._forms(product, xi)
+
+    def _forms(self, product: np.ndarray, xi: np.ndarray) -> np.ndarray:
+        """2ξᵀUξ + tr A of each column from Uᵀξ (``product``, overwritten) and ξ; the sum
+        over epochs in float64."""
         product *= xi  # exact: a sign change
-        values = product.sum(axis=0)
+        values = product.sum(axis=0, dtype=np.float64)
         values *= 2.0
         values += self.trace
         return values

@@ -564,18 +564,29 @@ def memory_residuals(gls, inverse) -> np.ndarray:
 
 
 def _slow_memory(scales: TimeScales | None, memory: Memory) -> str | None:
-    """The finding of errors slower than the fitted memory explains, or None."""
-    if scales is None or scales.failed_at is None:
+    """The finding of errors slower than the fitted memory explains, or None: at a tested
+    averaging time, or over the whole segment (its lowest frequency)."""
+    if scales is None:
         return None
-    m = scales.failed_at
-    i = int(np.flatnonzero(scales.epochs == m)[0])
-    return (
-        f"slowly varying errors: averaged over {m} epochs they vary "
-        f"{scales.observed[i] / scales.predicted[i]:.3g}× as much as the memory fitted on "
-        f"this segment explains (p {scales.pvalue:.2g}); errors slower than the segment can "
-        "resolve may be read as a bias or a wrong scale, so neither question is answered "
-        "(a longer segment, or windows of one run, can decide)"
+    consequence = (
+        "errors slower than the segment can resolve may be read as a bias or a wrong scale, "
+        "so neither question is answered (a longer segment, or windows of one run, can decide)"
     )
+    if scales.failed_at is not None:
+        m = scales.failed_at
+        i = int(np.flatnonzero(scales.epochs == m)[0])
+        return (
+            f"slowly varying errors: averaged over {m} epochs they vary "
+            f"{scales.observed[i] / scales.predicted[i]:.3g}× as much as the memory fitted on "
+            f"this segment explains (p {scales.pvalue:.2g}); {consequence}"
+        )
+    if scales.lowest_failed:
+        return (
+            f"slowly varying errors: over the whole segment (its lowest frequency) they vary "
+            f"{scales.lowest_ratio:.3g}× as much as the memory fitted on this segment explains "
+            f"(p {scales.lowest_pvalue:.2g}), as long memory does; {consequence}"
+        )
+    return None
 
 
 MIN_RESOLUTION = 8.0

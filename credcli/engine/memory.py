@@ -571,6 +571,13 @@ class TimeScales:
     (a χ² with d(K − 1) degrees of freedom for K blocks). ``pvalues``: upper-tail p-value
     at each scale; ``tested``: the scales long enough against the fitted correlation time
     (m >= 2τ̂) to enter the check; ``pvalue``: Bonferroni over those (None: none tested).
+
+    The longest scales hold too few blocks for that check, and long memory (ARFIMA) shows
+    there first. ``lowest_ratio`` and ``lowest_pvalue`` check the whole segment: the
+    periodogram of the whitened residuals at the lowest Fourier frequency 2π/N, summed
+    over the directions in units of what the model predicts there, against its Gamma(d, 1)
+    distribution under the model (:func:`lowest_frequency_check`); None on segments too
+    short for any block.
     """
 
     epochs: np.ndarray
@@ -581,6 +588,14 @@ class TimeScales:
     pvalues: np.ndarray
     tested: np.ndarray
     pvalue: float | None
+    lowest_ratio: float | None = None
+    lowest_pvalue: float | None = None
+
+    @property
+    def lowest_failed(self) -> bool:
+        """Whether the whole segment varies more than the model explains, at the check's
+        level (:data:`SCALE_CHECK_LEVEL`, a check of its own beside the scales')."""
+        return self.lowest_pvalue is not None and self.lowest_pvalue < SCALE_CHECK_LEVEL
 
     @property
     def failed_at(self) -> int | None:
@@ -626,6 +641,7 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     if not rows:
         empty = np.zeros(0)
         return TimeScales(empty, empty, empty, empty, empty, empty, np.zeros(0, bool), None)
+    lowest_ratio, lowest_pvalue = lowest_frequency_check(rotated, memory, variances)
     table = np.array(rows)
     epochs = table[:, 0].astype(int)
     tested = epochs >= max(2.0, 2.0 * tau)
@@ -634,5 +650,42 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     if tested.any():
         pvalue = float(min(1.0, pvalues[tested].min() * tested.sum()))
     return TimeScales(
-        epochs, table[:, 1], table[:, 2], table[:, 3], table[:, 4], pvalues, tested, pvalue
+        epochs,
+        table[:, 1],
+        table[:, 2],
+        table[:, 3],
+        table[:, 4],
+        pvalues,
+        tested,
+        pvalue,
+        lowest_ratio,
+        lowest_pvalue,
     )
+
+
+def lowest_frequency_check(
+    rotated: np.ndarray, memory: Memory, variances: np.ndarray
+) -> tuple[float, float]:
+    r"""The whole segment against the model: the periodogram of each direction's series
+    x (N epochs, in the model's frame, variance γ̂₀ = ``variances``) at the lowest Fourier
+    frequency ω₁ = 2π/N, I = |Σ_t x_t e^{−iω₁t}|²/N, over its expectation under the model,
+
+    .. math:: E\,I(ω_1) = γ_0 \Big[1 + 2\sum_{h=1}^{N-1} (1 - h/N)\,ρ(h) \cos(ω_1 h)\Big]
+
+    (exact for a stationary series; the mean does not enter at a Fourier frequency). Under
+    the model each ratio is about Exp(1) and the directions are independent, so their sum
+    S is Gamma(d, 1) (Brockwell & Davis 1991, Thm 10.3.2: periodogram ordinates are
+    asymptotically independent exponentials with the spectral density as mean). Returns
+    (S/d, P(Gamma(d, 1) ≥ S)). An AR sieve cannot follow long memory (spectral density
+    unbounded at frequency zero, ARFIMA d > 0): the variance it leaves unexplained is
+    largest at the lowest frequency, where the block scales of :func:`time_scales` hold
+    too few blocks to see it."""
+    n, d = rotated.shape
+    h = np.arange(n)
+    phase = np.exp(-2j * np.pi * h / n)
+    ordinate = np.abs(phase @ rotated) ** 2 / n
+    weights = (1.0 - h[1:] / n) * np.cos(2.0 * np.pi * h[1:] / n)
+    expected = np.array([1.0 + 2.0 * float(weights @ m.window(n)[1:]) for m in memory.series])
+    expected = variances * np.maximum(expected, np.finfo(float).tiny)
+    total = float(np.sum(ordinate / expected))
+    return total / d, float(special.gammaincc(d, total))

@@ -153,6 +153,8 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "time_scale_low": _floats(None if scales is None else scales.low),
         "time_scale_high": _floats(None if scales is None else scales.high),
         "time_scale_pvalue": None if scales is None else scales.pvalue,
+        "time_scale_lowest_ratio": None if scales is None else scales.lowest_ratio,
+        "time_scale_lowest_pvalue": None if scales is None else scales.lowest_pvalue,
         "findings": list(diag.findings) or None,
         "time_offset": None if diag.time_offset is None else diag.time_offset.seconds,
         "time_offset_stderr": None if diag.time_offset is None else diag.time_offset.stderr,

@@ -10,11 +10,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from credcli.engine import elt, flips
 from credcli.engine.diagnosis import DiagnosisConfig, diagnose_errors
 from credcli.engine.elt import whiten, whitened_location_test
+from credcli.engine.config import Label
 from credcli.engine.rng import rademacher
+from credcli.report import jsontext
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -276,3 +280,46 @@ def test_the_pool_threads_errors_after_a_stop_are_quiet_and_others_shown(monkeyp
     threading.excepthook(Args(InvalidStateError("x"), threading.current_thread()))
     assert [a.exc_value for a in shown] == [*loud, shown[-1].exc_value]
     assert len(shown) == 3
+
+
+_SCALARS = (
+    st.none()
+    | st.booleans()
+    | st.integers(min_value=-(10**20), max_value=10**20)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(max_size=8)
+    | st.sampled_from(list(Label))  # str enums, as records may hold
+)
+_DOCUMENTS = st.recursive(
+    _SCALARS,
+    lambda inner: st.lists(inner, max_size=4)
+    | st.tuples(inner, inner)
+    | st.dictionaries(st.text(max_size=6), inner, max_size=4),
+    max_leaves=30,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    head=st.dictionaries(st.text(max_size=6), _DOCUMENTS, max_size=3),
+    records=st.lists(_DOCUMENTS, max_size=6),
+    piece=st.integers(min_value=1, max_value=200),
+)
+def test_the_streamed_json_is_the_standard_encoders_text(head, records, piece):
+    """jsontext writes json.JSONEncoder(indent=2, allow_nan=False)'s bytes for any JSON
+    document of the types records hold, its records list streamed in pieces of any size."""
+    document = {**head, "segments": records}
+    expected = json.JSONEncoder(indent=2, allow_nan=False).encode(document)
+    assert "".join(jsontext.iterencode(document, "segments", piece)) == expected
+    assert jsontext.encode(records, 3) == json.dumps(records, indent=2).replace("\n", "\n      ")
+
+
+def test_the_streamed_json_refuses_what_json_refuses():
+    for bad in (float("nan"), [1.0, float("inf")], {"a": -float("inf")}):
+        with pytest.raises(ValueError, match="not JSON compliant"):
+            "".join(jsontext.iterencode({"segments": [bad]}, "segments", 10))
+    with pytest.raises(TypeError, match="not JSON serializable"):
+        jsontext.encode({"a": {1, 2}})
+    assert jsontext.encode({1: 2, 2.5: None, True: "x", None: []}) == json.dumps(
+        {1: 2, 2.5: None, True: "x", None: []}, indent=2
+    )

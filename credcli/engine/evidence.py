@@ -470,9 +470,9 @@ def ks_chi2_pvalue(eps: np.ndarray, dim: int) -> float:
 
 SMIRNOV_SCIPY_MAX = 10_000
 """Up to this many epochs the one-sided Smirnov tail is scipy's ``smirnov``; beyond, the
-Birnbaum–Tingey sum vectorised (:func:`smirnov_tail`), 10–25× faster at 10⁵–10⁶ epochs
-(scipy sums it term by term: 0.8–1.3 s at 10⁶ on a credible segment, whose statistic is
-small and every term counts)."""
+Birnbaum–Tingey sum as one array (:func:`smirnov_tail`), which scipy evaluates term by
+term: on a credible segment the statistic is small and all N terms count
+(docs/performance.md has the costs)."""
 
 
 def smirnov_tail(n: int, d: float) -> float:

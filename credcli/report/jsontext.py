@@ -2,11 +2,10 @@
 streamed a record at a time.
 
 The standard library encodes an indented document in pure Python, one generator frame per
-value: 7–8.5 s for the 100,000 records (82 keys each) of one-epoch segments, more than
-diagnosing them took. Here a record is one string made by joins, its strings escaped by
-:mod:`json`'s C escaper and its numbers spelled by their own ``__repr__`` as :mod:`json`
-spells them: 3.6–4.6 s for the same records, measured side by side (issue 35, item 3: "the
-JSON written by a streaming encoder")."""
+value. Here a record is one string made by joins, its strings escaped by :mod:`json`'s C
+escaper and its numbers spelled by their own ``__repr__`` as :mod:`json` spells them, at
+about half the cost (issue 35, item 3: "the JSON written by a streaming encoder";
+measurements in docs/performance.md)."""
 
 from __future__ import annotations
 

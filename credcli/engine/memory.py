@@ -551,8 +551,8 @@ def mean_free(s: np.ndarray, inverse: np.ndarray) -> np.ndarray:
 
 SCALE_CHECK_LEVEL = 0.01
 """Level of the check that the fitted memory explains the variance at long averaging times
-(:func:`time_scales`), Bonferroni over the scales it tests: a correct model loses 1 % of
-its verdicts to it."""
+(:func:`time_scales`), Bonferroni over the scales it tests and the whole segment's lowest
+frequency: a correct model loses at most 1 % of its verdicts to it."""
 MIN_SCALE_BLOCKS = 8
 """Fewest blocks at an averaging time (the χ² of the check then has d·7 degrees of freedom)."""
 
@@ -570,14 +570,16 @@ class TimeScales:
     [``low``, ``high``] the central 1 − level interval of ``observed`` under the model
     (a χ² with d(K − 1) degrees of freedom for K blocks). ``pvalues``: upper-tail p-value
     at each scale; ``tested``: the scales long enough against the fitted correlation time
-    (m >= 2τ̂) to enter the check; ``pvalue``: Bonferroni over those (None: none tested).
+    (m >= 2τ̂) to enter the check; ``pvalue``: Bonferroni over those and the lowest
+    frequency below (one family at :data:`SCALE_CHECK_LEVEL`).
 
     The longest scales hold too few blocks for that check, and long memory (ARFIMA) shows
     there first. ``lowest_ratio`` and ``lowest_pvalue`` check the whole segment: the
     periodogram of the whitened residuals at the lowest Fourier frequency 2π/N, summed
     over the directions in units of what the model predicts there, against its Gamma(d, 1)
     distribution under the model (:func:`lowest_frequency_check`); None on segments too
-    short for any block.
+    short for any block. One check at one level: a check of each of K scales and of the
+    lowest frequency at level/(K + 1).
     """
 
     epochs: np.ndarray
@@ -593,9 +595,10 @@ class TimeScales:
 
     @property
     def lowest_failed(self) -> bool:
-        """Whether the whole segment varies more than the model explains, at the check's
-        level (:data:`SCALE_CHECK_LEVEL`, a check of its own beside the scales')."""
-        return self.lowest_pvalue is not None and self.lowest_pvalue < SCALE_CHECK_LEVEL
+        """Whether the whole segment varies more than the model explains, at its share of
+        :data:`SCALE_CHECK_LEVEL` (Bonferroni with the tested scales)."""
+        count = int(self.tested.sum()) + 1
+        return self.lowest_pvalue is not None and self.lowest_pvalue * count < SCALE_CHECK_LEVEL
 
     @property
     def failed_at(self) -> int | None:
@@ -603,9 +606,9 @@ class TimeScales:
         the check's level, or None."""
         if self.pvalue is None or self.pvalue >= SCALE_CHECK_LEVEL:
             return None
-        count = max(int(self.tested.sum()), 1)
+        count = int(self.tested.sum()) + (self.lowest_pvalue is not None)
         bad = self.tested & (self.pvalues * count < SCALE_CHECK_LEVEL)
-        return int(self.epochs[np.flatnonzero(bad)[0]])
+        return int(self.epochs[np.flatnonzero(bad)[0]]) if bad.any() else None
 
 
 def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL) -> TimeScales:
@@ -641,14 +644,13 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     if not rows:
         empty = np.zeros(0)
         return TimeScales(empty, empty, empty, empty, empty, empty, np.zeros(0, bool), None)
-    lowest_ratio, lowest_pvalue = lowest_frequency_check(rotated, memory, variances)
     table = np.array(rows)
     epochs = table[:, 0].astype(int)
     tested = epochs >= max(2.0, 2.0 * tau)
     pvalues = table[:, 5]
-    pvalue = None
-    if tested.any():
-        pvalue = float(min(1.0, pvalues[tested].min() * tested.sum()))
+    lowest_ratio, lowest_pvalue = lowest_frequency_check(rotated, memory, variances)
+    family = np.append(pvalues[tested], lowest_pvalue)
+    pvalue = float(min(1.0, family.min() * family.size))
     return TimeScales(
         epochs,
         table[:, 1],

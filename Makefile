@@ -56,6 +56,7 @@ format: $(STAMP)
 ## bench: measured wall time and peak memory of the main jobs (not a test)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
+	$(BIN)/python benchmarks/speed.py
 	$(BIN)/python benchmarks/calibrated_rule.py
 	$(BIN)/python benchmarks/filters.py
 	$(BIN)/python benchmarks/libraries.py

@@ -1,0 +1,183 @@
+"""Issue 35's speed targets in plain-pass units: each workload timed side by side with the
+least work the method needs, in one run, interleaved.
+
+    python benchmarks/speed.py [--rounds R] [--only NAME,...]
+
+The plain pass (:func:`plain_pass`) reads the same Parquet log, forms the errors, factors
+every claimed covariance (Cholesky), whitens and sums the NEES per segment: what a
+hand-written NEES loop over the log costs, with nothing of the rule. It runs in its own
+subprocess with compiled bytecode, as credcli does (an installed package is compiled);
+credcli runs as ``python -m credcli diagnose LOG -f json -o OUT``. Rounds alternate
+plain, credcli, plain, credcli, … so that a machine whose speed drifts (shared machines
+vary 2–3× within minutes) drifts for both. Each row prints the median wall and CPU (user +
+system of the child) of both, their ratios ("units"), credcli's peak RSS, and the target.
+Measurements, not tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).parent))
+
+import bench  # noqa: E402  (log builders, bytecode)
+
+
+def plain_pass(path: str) -> None:
+    """Read the log, whiten the errors by the Cholesky factors of their covariances and
+    sum the NEES per segment (one vectorised pass; the reference unit)."""
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    names = table.column_names
+    d = sum(1 for c in names if c.startswith("truth_"))
+    truth = np.column_stack([table.column(f"truth_{i}").to_numpy() for i in range(d)])
+    est = np.column_stack([table.column(f"est_{i}").to_numpy() for i in range(d)])
+    e = truth - est
+    cov = np.empty((e.shape[0], d, d))
+    for i in range(d):
+        for j in range(i, d):
+            cov[:, i, j] = cov[:, j, i] = table.column(f"cov_{i}_{j}").to_numpy()
+    chol = np.linalg.cholesky(cov)
+    z = np.linalg.solve(chol, e[..., None])[..., 0]
+    nees = np.einsum("ni,ni->n", z, z)
+    if "segment" in names:
+        codes = table.column("segment").to_pandas().factorize()[0]
+        sums = np.bincount(codes, weights=nees)
+    else:
+        sums = np.array([nees.sum()])
+    print(f"{sums.size} segments, mean NEES {float(sums.sum()) / e.shape[0]:.4f}")
+
+
+def _child(argv: list[str]) -> tuple[float, float, float]:
+    """(wall s, CPU s, peak RSS MiB) of one subprocess."""
+    start = time.perf_counter()
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - start
+    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+    if os.waitstatus_to_exitcode(status) not in (0, 1):
+        raise SystemExit(f"speed: {' '.join(argv)} failed: {err.strip()[-300:]}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
+
+
+def _ten_epoch_segments(path, segments: int = 100_000) -> Path:
+    """``segments`` segments of 10 epochs, d = 2, credible (issue 35: per-segment cost)."""
+    import pandas as pd
+
+    n = segments * 10
+    e = np.random.default_rng(1).standard_normal((n, 2))
+    frame = pd.DataFrame({"time": np.arange(n) * 0.1, "segment": np.arange(n) // 10})
+    frame = frame.assign(truth_0=e[:, 0], truth_1=e[:, 1], est_0=0.0, est_1=0.0)
+    frame.assign(cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_parquet(path)
+    return Path(path)
+
+
+def _wide(path, d: int, n: int = 100_000, segments: int = 10) -> Path:
+    """``n`` credible epochs of dimension ``d`` in ``segments`` segments, identity-scaled
+    covariances with a fixed random shape (issue 35: the cost's growth with d)."""
+    import pandas as pd
+
+    rng = np.random.default_rng(d)
+    a = rng.standard_normal((d, d))
+    shape = a @ a.T / d + np.eye(d)
+    e = rng.standard_normal((n, d)) @ np.linalg.cholesky(shape).T
+    columns = {"time": np.arange(n) * 0.01, "segment": np.arange(n) * segments // n}
+    columns |= {f"truth_{i}": e[:, i] for i in range(d)}
+    columns |= {f"est_{i}": np.zeros(n) for i in range(d)}
+    columns |= {f"cov_{i}_{j}": np.full(n, shape[i, j]) for i in range(d) for j in range(i, d)}
+    pd.DataFrame(columns).to_parquet(path)
+    return Path(path)
+
+
+@dataclass(frozen=True)
+class Workload:
+    name: str
+    build: str  # a call of this module or bench's, run in a child, returning the path
+    target: str
+
+
+WORKLOADS = (
+    Workload(
+        "1M epochs, 1,000 segments, d = 2",
+        "bench._parquet_log({tmp!r} + '/million.parquet', 1000, 1000)",
+        "<= 8 units wall, <= 12 CPU",
+    ),
+    Workload(
+        "one 2M-epoch segment, d = 2",
+        "bench._one_segment({tmp!r} + '/one.parquet')",
+        "<= 3 units, <= 500 MB",
+    ),
+    Workload(
+        "100,000 ten-epoch segments, d = 2",
+        "speed._ten_epoch_segments({tmp!r} + '/ten.parquet')",
+        "<= 30 s CPU, <= 1 GB",
+    ),
+    Workload("100,000 epochs, d = 3", "speed._wide({tmp!r} + '/d3.parquet', 3)", "d growth"),
+    Workload("100,000 epochs, d = 15", "speed._wide({tmp!r} + '/d15.parquet', 15)", "d^1.5"),
+)
+
+
+def _build(call: str) -> str:
+    code = (
+        f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+        f"import bench, speed; print(str({call}))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+    return out.stdout.decode().strip().splitlines()[-1]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rounds", type=int, default=2, help="interleaved pairs per workload")
+    ap.add_argument("--only", help="comma-separated workload names (substrings)")
+    args = ap.parse_args(argv)
+    bench._compile_bytecode()
+    chosen = [
+        w for w in WORKLOADS if not args.only or any(s in w.name for s in args.only.split(","))
+    ]
+    print(f"credcli speed in plain-pass units, {os.cpu_count()} CPU(s), {args.rounds} rounds")
+    header = "| workload | plain wall / CPU | credcli wall / CPU | units wall / CPU | peak RSS | target |"
+    print(header + "\n|---|---|---|---|---|---|", flush=True)
+    plain = [sys.executable, "-c", "import sys, speed; speed.plain_pass(sys.argv[1])"]
+    env_path = str(Path(__file__).parent)
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        filter(None, [env_path, os.environ.get("PYTHONPATH")])
+    )
+    for work in chosen:
+        with tempfile.TemporaryDirectory() as tmp:
+            log = _build(work.build.format(tmp=tmp))
+            out = str(Path(tmp) / "out.json")
+            runs: dict[str, list[tuple[float, float, float]]] = {"plain": [], "credcli": []}
+            for _ in range(args.rounds):
+                runs["plain"].append(_child([*plain, log]))
+                cmd = [sys.executable, "-m", "credcli", "diagnose", log, "-f", "json", "-o", out]
+                runs["credcli"].append(_child(cmd))
+                os.unlink(out)
+            med = {
+                k: (statistics.median(r[0] for r in v), statistics.median(r[1] for r in v))
+                for k, v in runs.items()
+            }
+            peak = max(r[2] for r in runs["credcli"])
+            (pw, pc), (cw, cc) = med["plain"], med["credcli"]
+            print(
+                f"| {work.name} | {pw:.2f} s / {pc:.2f} s | {cw:.2f} s / {cc:.2f} s | "
+                f"{cw / pw:.1f} / {cc / pc:.1f} | {peak:.0f} MiB | {work.target} |",
+                flush=True,
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

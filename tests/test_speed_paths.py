@@ -14,9 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from credcli.engine import elt, flips
+from credcli.engine.config import Label
 from credcli.engine.diagnosis import DiagnosisConfig, diagnose_errors
 from credcli.engine.elt import whiten, whitened_location_test
-from credcli.engine.config import Label
 from credcli.engine.rng import rademacher
 from credcli.report import jsontext
 
@@ -320,6 +320,6 @@ def test_the_streamed_json_refuses_what_json_refuses():
             "".join(jsontext.iterencode({"segments": [bad]}, "segments", 10))
     with pytest.raises(TypeError, match="not JSON serializable"):
         jsontext.encode({"a": {1, 2}})
-    assert jsontext.encode({1: 2, 2.5: None, True: "x", None: []}) == json.dumps(
-        {1: 2, 2.5: None, True: "x", None: []}, indent=2
+    assert jsontext.encode({3: 2, 2.5: None, True: "x", None: []}) == json.dumps(
+        {3: 2, 2.5: None, True: "x", None: []}, indent=2
     )

@@ -219,6 +219,12 @@ def diagnose_errors(
     """
     config = config or DiagnosisConfig()
     errors, cov = metrics.check_errors_cov(errors, cov)
+    return _diagnose_checked(errors, cov, config, rng, mse, runs, memory)
+
+
+def _diagnose_checked(errors, cov, config, rng, mse=None, runs=1, memory=None) -> Diagnosis:
+    """:func:`diagnose_errors` on errors and covariances already validated (once: the
+    check is a pass over every covariance)."""
     return _diagnose_variants(errors, cov, [config], as_generator(rng), mse, runs, memory)[0]
 
 
@@ -626,7 +632,7 @@ def diagnose_segment(
         n, d = errors.shape
         if n < config.min_n(d):  # checked as diagnose_errors checks, without a random stream
             return too_short_batch(errors, cov, np.array([n]), config)[0]
-        diag = diagnose_errors(
+        diag = _diagnose_checked(
             errors, cov, config, segment_seed(seed, name), runs=runs, memory=memory
         )
         if blocks and config.calibrated:

@@ -166,16 +166,18 @@ def _ar1(rng, n, d, phi):
 @pytest.mark.slow
 def test_false_alarms_on_ar1_errors_are_controlled():
     """AR(1) φ = 0.9, N = 2000, correct covariance: of 150 stored seeds at most 10 % are not
-    credible (credcli 0.1 labelled 88 % smm), and none is insufficient-data. At the
-    measured rate (6.5 % over 400 trials, docs/measured.md) 150 trials exceed 10 % with probability
-    about 5 %; these seeds are fixed, so the test is deterministic."""
+    credible (credcli 0.1 labelled 88 % smm), and at most 4 are insufficient-data (the model
+    check at every time scale, 1 %: 1.5 expected, s.e. 1.2; one of these seeds is declined
+    at the lowest frequency). At the measured rate (6.5 % over 400 trials,
+    docs/measured.md) 150 trials exceed 10 % with probability about 5 %; these seeds are
+    fixed, so the test is deterministic."""
     labels = []
     for seed in range(150):
         rng = np.random.default_rng([7, seed])
         e = _ar1(rng, 2000, 2, 0.9) @ np.array([[1.0, 0.0], [0.5, 2.0]]).T
         cov = np.broadcast_to(np.array([[1.0, 0.5], [0.5, 4.25]]), (2000, 2, 2))
         labels.append(diagnose_errors(e, cov, rng=seed).label)
-    assert Label.INSUFFICIENT not in labels
+    assert labels.count(Label.INSUFFICIENT) <= 4
     assert np.mean([lab is not Label.CREDIBLE for lab in labels]) <= 0.10
 
 

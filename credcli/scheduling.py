@@ -49,8 +49,9 @@ def file_size(path) -> int:
 
 
 def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
-    """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
-    source, items, config, seed, innovations, runs, blocks = task
+    """Worker: diagnose a chunk of segments of the log ``log_id`` (top level, so processes
+    can import it)."""
+    log_id, items, config, seed, innovations, runs, blocks = task
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
     for name, t0, t1, e, c, memory, findings, declined, velocity, fitted in items:
@@ -69,7 +70,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             chosen,
             seed,
             name,
-            source,
+            log_id,
             runs,
             blocks,
             memory,
@@ -78,7 +79,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             velocity,
             fitted,
         )
-        out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
+        out.append(SegmentDiagnosis(log_id, name, t0, t1, diag, white))
     return out
 
 
@@ -139,7 +140,7 @@ def _short_results(log, segments, config: DiagnosisConfig) -> dict[int, SegmentD
     except CredcliError:
         return {}
     return {
-        i: SegmentDiagnosis(log.source, segments[i].name, segments[i].t_start, segments[i].t_end, d)
+        i: SegmentDiagnosis(log.id, segments[i].name, segments[i].t_start, segments[i].t_end, d)
         for i, d in zip(short, found, strict=True)
     }
 
@@ -150,7 +151,7 @@ def _chunk_tasks(
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
     epochs (one segment per task for target 0); made as they are consumed. ``done``: the
     (plan, segment) indices diagnosed already, left out."""
-    items, size, source, blocks = [], 0, None, ()
+    items, size, log_id, blocks = [], 0, None, ()
     done = done or {}
     for p, (log, segments) in enumerate(plans):
         errors = log.errors
@@ -159,14 +160,14 @@ def _chunk_tasks(
         for i, segment in enumerate(segments):
             if (p, i) in done:
                 continue
-            if items and (size >= target or source != log.source):
-                yield (source, items, config, seed, innovations, runs, blocks)
+            if items and (size >= target or log_id != log.id):
+                yield (log_id, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
-            source, blocks = log.source, log.blocks
+            log_id, blocks = log.id, log.blocks
             items.append(_item(segment, log, model, velocity, errors))
             size += len(segment.index)
     if items:
-        yield (source, items, config, seed, innovations, runs, blocks)
+        yield (log_id, items, config, seed, innovations, runs, blocks)
 
 
 def diagnose_plans(
@@ -262,7 +263,7 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
         models["velocity"] = truth_velocity(log.truth, log.time)
     velocity = None if innovations else models["velocity"]
     items = [_item(segment, log, model, velocity, errors) for segment in segments[first:stop]]
-    return _diagnose_chunk((log.source, items, config, seed, innovations, 1, log.blocks))
+    return _diagnose_chunk((log.id, items, config, seed, innovations, 1, log.blocks))
 
 
 def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=None):

@@ -161,7 +161,7 @@ def test_workers_read_fsspec_urls(tmp_path, runner):
     with fsspec.open(url, "wb") as fh:  # the client's memory filesystem: local run only
         fh.write(path.read_bytes())
     local = run_diagnose(DiagnoseRequest((url,)))
-    assert local.results[0].log == url
+    assert str(local.results[0].log) == url
     file_url = f"file://{path}"
     here = run_diagnose(DiagnoseRequest((file_url,)))
     there = run_diagnose(DiagnoseRequest((file_url,)), runner=runner)

@@ -118,7 +118,7 @@ def fail_on_cases(results, failing: list[int], fail_on) -> list[Case]:
         cases.append(
             Case(
                 result.segment,
-                f"credcli.diagnose.{_classname(result.log)}",
+                f"credcli.diagnose.{_classname(str(result.log))}",
                 f"label {label} matches --fail-on {listed}" if k in bad else None,
                 f"label {label}, ELT p {_cell(d.elt_pvalue)}, NCI {_cell(d.nci)} dB, "
                 f"ANEES {_cell(d.anees)}",

@@ -23,7 +23,7 @@ from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 from credcli.io.streams import TEXT_HEAD, is_compressed, readable
 from credcli.io.text import read_csv_unmapped, read_text_table, seconds, time_seconds
-from credcli.logid import LogId
+from credcli.logid import LogId, unique_ids
 
 
 @dataclass(frozen=True)
@@ -119,6 +119,24 @@ class EstimatorLog:
     def dim(self) -> int:
         """The state dimension d."""
         return self.cov.shape[1]
+
+
+def with_unique_ids(logs: list[EstimatorLog]) -> list[EstimatorLog]:
+    """The logs of one command with ids no two share (:func:`credcli.logid.unique_ids`:
+    stems, and so figure names, told apart by parent directories, else numbered).
+
+    Parameters
+    ----------
+    logs : list of EstimatorLog
+        The logs, in the order the command was given them.
+
+    Returns
+    -------
+    list of EstimatorLog
+        The same logs (their arrays not copied), each with its id made unique.
+    """
+    ids = unique_ids([log.id for log in logs])
+    return [log if log.id == i else replace(log, id=i) for log, i in zip(logs, ids, strict=True)]
 
 
 def load_log(

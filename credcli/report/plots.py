@@ -101,9 +101,10 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
     for plot in plots:  # before any is written: a collision never overwrites a figure
         if plot.name in seen:
             raise CredcliError(
-                f"`plots`: two figures would both be {directory / plot.name}.png (two logs "
-                "with one file stem, or segment names that map to one file name); give "
-                "each log its own `plots` directory or rename the segments",
+                f"`plots`: two figures would both be {directory / plot.name}.png (segment "
+                "names that map to one file name, or a log's stem and segment name that read "
+                "as another log's: x + y_z, x_y + z); give each log its own `plots` "
+                "directory or rename the segments",
                 "plots",
             )
         seen.add(plot.name)

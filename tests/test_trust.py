@@ -376,10 +376,11 @@ def test_a_bad_time_is_named_from_one_vectorised_pass():
         time_seconds(stamps, "time")
 
 
-def _short_log(path: Path, gen, segment: str | None = None) -> Path:
-    """A log of one short segment (few figures to draw), named ``segment`` if given."""
+def _short_log(path: Path, gen, segment: str | None = None, scale: float = 1.0) -> Path:
+    """A log of one short segment (few figures to draw), named ``segment`` if given, its
+    errors ``scale`` times what its covariance claims."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    e = gen.standard_normal((60, 2))
+    e = gen.standard_normal((60, 2)) * scale
     head, cell = ("segment,", f"{segment},") if segment is not None else ("", "")
     rows = "".join(f"{cell}{k / 10},0,0,{-a},{-b},1,1\n" for k, (a, b) in enumerate(e))
     path.write_text(f"{head}time,truth_0,truth_1,est_0,est_1,std_0,std_1\n" + rows)
@@ -413,6 +414,23 @@ def test_two_logs_with_one_stem_get_figure_names_of_their_own(tmp_path):
     assert {p.group for p in run.plots} >= {"a/run.csv: overview", "b/run.csv: overview"}
     assert [str(r.log) for r in run.results] == logs  # messages and records: the paths
     assert len({r.log for r in run.results}) == 2
+
+
+def test_the_html_report_links_each_log_with_one_stem_to_its_own_figures(tmp_path):
+    """The report's worst segments link to their figures: two logs with one stem were
+    one section (their figures mixed), and then, told apart by label, were not linked."""
+    pytest.importorskip("matplotlib")
+    import re
+
+    gen = np.random.default_rng(5)
+    logs = [str(_short_log(tmp_path / p / "run.csv", gen, "s", 3.0)) for p in ("a", "b")]
+    html = tmp_path / "report.html"
+    assert main(["report", *logs, "-o", str(html)]) == 0
+    links = re.findall(r'<td class="text"><a href="#([^"]+)">([^<]+)</a></td>', html.read_text())
+    assert sorted(links) == [
+        ("fig-a-run-csv-segment-s", f"{logs[0]}: s"),
+        ("fig-b-run-csv-segment-s", f"{logs[1]}: s"),
+    ]
 
 
 def test_a_figure_name_collision_is_an_error_and_overwrites_nothing(tmp_path, capsys):

@@ -1,8 +1,8 @@
 """A log's identity: where it was read from, the name messages show, and the stem and
 label its figures are named and titled by.
 
-:class:`LogId` sits on the lowest floor, beside :mod:`credcli.errors`, because two floors
-carry it: the readers (:mod:`credcli.io`), which make a log, and the engine, whose
+``LogId`` sits on the lowest floor, beside ``credcli.errors``, because two floors
+carry it: the readers (``credcli.io``), which make a log, and the engine, whose
 ``SegmentDiagnosis`` says which log a segment belongs to and which imports nothing above
 ``errors``. It knows a path as text only: it opens nothing and asks the file system
 nothing, so the engine still knows nothing about files.
@@ -23,9 +23,9 @@ class LogId:
     stem and label of its figures.
 
     Two logs are one log only when all four agree; a command makes the stems (and so the
-    ids) of its logs unique (:func:`unique_ids`), so results are grouped by their
-    ``LogId``, not by a name that two logs may share. ``str(log_id)`` is the name, so a
-    message written as ``f"{log_id}: …"`` reads as it always did.
+    ids) of its logs unique ([unique_ids][credcli.logid.unique_ids]), so results are
+    grouped by their ``LogId``, not by a name that two logs may share. ``str(log_id)`` is
+    the name, so a message written as ``f"{log_id}: …"`` reads as it always did.
 
     Attributes
     ----------
@@ -37,8 +37,9 @@ class LogId:
         name a caller chose (``"<arrays>"``, ``"filterpy Saver"``).
     stem : str
         The start of its figures' file names: the name's stem (``run`` for ``a/run.csv``),
-        unless another log of the same command has it too (:func:`unique_ids`). It is not
-        yet a safe file name: ``credcli.report.plots.safe_name`` makes it one.
+        unless another log of the same command has it too
+        ([unique_ids][credcli.logid.unique_ids]). It is not yet a safe file name:
+        ``credcli.report.plots.safe_name`` makes it one.
     label : str
         The short name its figures are titled and grouped by: the name's last part
         (``run.csv``), made unique with the stem.
@@ -70,7 +71,8 @@ class LogId:
         Returns
         -------
         LogId
-            Its stem and label not yet checked against other logs (:func:`unique_ids`).
+            Its stem and label not yet checked against other logs'
+            ([unique_ids][credcli.logid.unique_ids]).
 
         Examples
         --------

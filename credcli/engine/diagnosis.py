@@ -416,7 +416,7 @@ class SegmentDiagnosis:
     Attributes
     ----------
     log : LogId
-        Which log (:class:`credcli.logid.LogId`); ``str(item.log)`` is its name (its
+        Which log ([LogId][credcli.logid.LogId]); ``str(item.log)`` is its name (its
         file, or ``source``), as in messages and records.
     segment : str
         The segment's name.

@@ -49,7 +49,7 @@ class EstimatorLog:
     rows : numpy.ndarray, shape (N,)
         The file row number of each epoch (1-based data rows; 1 … N when not given).
     id : LogId
-        Which log this is (:class:`credcli.logid.LogId`): the file it was read from, its
+        Which log this is ([LogId][credcli.logid.LogId]): the file it was read from, its
         name in messages and records, and the stem and label of its figures.
     dropped_rows : int
         Rows dropped as invalid (``drop_invalid``).

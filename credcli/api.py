@@ -45,6 +45,7 @@ from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
 from credcli.io.schema import ReadOptions
+from credcli.logid import LogId
 from credcli.report.html import records_table
 from credcli.report.overview import DRAWN, PlotKind, Source, draw
 from credcli.scheduling import diagnose_plans
@@ -261,7 +262,7 @@ class MonteCarloResults(Results):
 
 def _diagnosis_html(diagnosis: Diagnosis) -> str:
     return records_table(
-        [segment_record(SegmentDiagnosis("<arrays>", "all", None, None, diagnosis))]
+        [segment_record(SegmentDiagnosis(LogId.of("<arrays>"), "all", None, None, diagnosis))]
     )
 
 

@@ -24,6 +24,7 @@ from credcli.engine.timing import truth_velocity
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.io.records import log_info
+from credcli.logid import LogId, unique_ids
 from credcli.parallel import ordered_map, prepare_worker
 from credcli.segments import split
 
@@ -49,8 +50,9 @@ def file_size(path) -> int:
 
 
 def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
-    """Worker: diagnose a chunk of segments (top level, so processes can import it)."""
-    source, items, config, seed, innovations, runs, blocks = task
+    """Worker: diagnose a chunk of segments of the log ``log_id`` (top level, so processes
+    can import it)."""
+    log_id, items, config, seed, innovations, runs, blocks = task
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
     for name, t0, t1, e, c, memory, findings, declined, velocity, fitted in items:
@@ -69,7 +71,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             chosen,
             seed,
             name,
-            source,
+            log_id,
             runs,
             blocks,
             memory,
@@ -78,7 +80,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             velocity,
             fitted,
         )
-        out.append(SegmentDiagnosis(source, name, t0, t1, diag, white))
+        out.append(SegmentDiagnosis(log_id, name, t0, t1, diag, white))
     return out
 
 
@@ -139,7 +141,7 @@ def _short_results(log, segments, config: DiagnosisConfig) -> dict[int, SegmentD
     except CredcliError:
         return {}
     return {
-        i: SegmentDiagnosis(log.source, segments[i].name, segments[i].t_start, segments[i].t_end, d)
+        i: SegmentDiagnosis(log.id, segments[i].name, segments[i].t_start, segments[i].t_end, d)
         for i, d in zip(short, found, strict=True)
     }
 
@@ -150,7 +152,7 @@ def _chunk_tasks(
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
     epochs (one segment per task for target 0); made as they are consumed. ``done``: the
     (plan, segment) indices diagnosed already, left out."""
-    items, size, source, blocks = [], 0, None, ()
+    items, size, log_id, blocks = [], 0, None, ()
     done = done or {}
     for p, (log, segments) in enumerate(plans):
         errors = log.errors
@@ -159,14 +161,14 @@ def _chunk_tasks(
         for i, segment in enumerate(segments):
             if (p, i) in done:
                 continue
-            if items and (size >= target or source != log.source):
-                yield (source, items, config, seed, innovations, runs, blocks)
+            if items and (size >= target or log_id != log.id):
+                yield (log_id, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
-            source, blocks = log.source, log.blocks
+            log_id, blocks = log.id, log.blocks
             items.append(_item(segment, log, model, velocity, errors))
             size += len(segment.index)
     if items:
-        yield (source, items, config, seed, innovations, runs, blocks)
+        yield (log_id, items, config, seed, innovations, runs, blocks)
 
 
 def diagnose_plans(
@@ -245,15 +247,16 @@ def _worker_log(source):
     return _WORKER_LOGS[key]
 
 
-def _plan_task(source) -> tuple[dict, list[int]]:
-    """Worker: the report entry of a log and the epochs of each of its segments."""
+def _plan_task(source) -> tuple[LogId, dict, list[int]]:
+    """Worker: the id of a log, its report entry and the epochs of each of its segments."""
     log, segments, _, _ = _worker_log(source)
-    return log_info(log, segments), [len(s.index) for s in segments]
+    return log.id, log_info(log, segments), [len(s.index) for s in segments]
 
 
 def _segments_task(task) -> list[SegmentDiagnosis]:
-    """Worker: diagnose segments [first, stop) of a log."""
-    source, first, stop, config, seed, innovations = task
+    """Worker: diagnose segments [first, stop) of a log, their results tied to ``log_id``
+    (the id the client made unique among the command's logs)."""
+    source, log_id, first, stop, config, seed, innovations = task
     log, segments, errors, models = _worker_log(source)
     if config not in models:  # the run's model, once per worker and configuration
         models[config] = None if innovations else _run_model(log, segments, config)
@@ -262,22 +265,26 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
         models["velocity"] = truth_velocity(log.truth, log.time)
     velocity = None if innovations else models["velocity"]
     items = [_item(segment, log, model, velocity, errors) for segment in segments[first:stop]]
-    return _diagnose_chunk((log.source, items, config, seed, innovations, 1, log.blocks))
+    return _diagnose_chunk((log_id, items, config, seed, innovations, 1, log.blocks))
 
 
 def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=None):
     """Every segment of every log, diagnosed by the cluster's workers: one task per log
     to plan its segments, then one task per run of consecutive segments of about
-    CLUSTER_TASK_EPOCHS epochs. Returns (results in log and segment order, log entries)."""
+    CLUSTER_TASK_EPOCHS epochs. Returns (results in log and segment order, each log's entry
+    by its id), the ids made unique here as :func:`credcli.io.logs.with_unique_ids` makes
+    them for logs read in this process."""
     planned = runner.map(_plan_task, sources)
+    ids = unique_ids([log_id for log_id, _, _ in planned])
     tasks = []
-    for source, (_, sizes) in zip(sources, planned):
+    for source, log_id, (_, _, sizes) in zip(sources, ids, planned, strict=True):
         first, held = 0, 0
         for k, size in enumerate(sizes):
             held += size
             if held >= CLUSTER_TASK_EPOCHS or k == len(sizes) - 1:
-                tasks.append((source, first, k + 1, config, seed, innovations))
+                tasks.append((source, log_id, first, k + 1, config, seed, innovations))
                 first, held = k + 1, 0
-    counts = [task[2] - task[1] for task in tasks]  # segments per task
+    counts = [task[3] - task[2] for task in tasks]  # segments per task
     outputs = runner.map(_segments_task, tasks, progress, counts)
-    return [r for out in outputs for r in out], [info for info, _ in planned]
+    entries = {log_id: info for log_id, (_, info, _) in zip(ids, planned, strict=True)}
+    return [r for out in outputs for r in out], entries

@@ -188,7 +188,7 @@ def split(
     concatenated (:func:`monte_carlo_plan`)."""
     if log.run is not None and len(set(log.run)) > 1:
         raise CredcliError(
-            f"{log.source}: holds {len(set(log.run))} Monte Carlo runs (a run column); "
+            f"{log.id}: holds {len(set(log.run))} Monte Carlo runs (a run column); "
             "diagnose them pooled with `monte_carlo` (credcli.diagnose_monte_carlo in Python)"
         )
     if whole:
@@ -200,14 +200,14 @@ def split(
         if parsed.seconds and largest < min_epochs and log.n >= min_epochs:
             step = float(np.median(np.diff(log.time))) if log.n > 1 else float("nan")
             raise CredcliError(
-                f"{log.source}: `window` {parsed} gives {len(out)} windows of at most "
+                f"{log.id}: `window` {parsed} gives {len(out)} windows of at most "
                 f"{largest} epoch(s), fewer than `min_epochs` {min_epochs}; the median time "
                 f"step is {step:.6g} s: if the stamps are not seconds, give `time_unit` "
                 "(ms, us or ns), else use a longer window"
             )
         if not parsed.seconds and largest < min_epochs and log.n >= min_epochs:
             raise CredcliError(
-                f"{log.source}: `window` {parsed} was read as {parsed} epochs per window "
+                f"{log.id}: `window` {parsed} was read as {parsed} epochs per window "
                 f"(a number without a unit counts epochs), fewer than `min_epochs` "
                 f"{min_epochs}; write a duration such as {parsed}s, or at least {min_epochs} "
                 "epochs"

@@ -73,7 +73,7 @@ def diagnosis_text(results: Results, alpha: float) -> str:
         The table and the advice lines: what an assertion's failure message holds.
     """
     config = DiagnosisConfig(alpha=alpha)
-    report = diagnose_report(list(results), config, config_record(config), [], show_all=False)
+    report = diagnose_report(list(results), config, config_record(config), {}, show_all=False)
     return to_text(report, OutputFormat.TABLE)
 
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -19,7 +18,7 @@ from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_segments
 from credcli.errors import CredcliError
 from credcli.io.arrays import monte_carlo_plan, split_runs
 from credcli.io.ingest import open_log
-from credcli.io.logs import EstimatorLog
+from credcli.io.logs import EstimatorLog, with_unique_ids
 from credcli.io.records import (
     BASELINE_KIND,
     BASELINE_SCHEMA_VERSION,
@@ -106,7 +105,7 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     figures, notes = [], []
     plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here
-        loaded = [open_log(p, schema, options, drop_invalid) for p in paths]
+        loaded = with_unique_ids([open_log(p, schema, options, drop_invalid) for p in paths])
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
@@ -121,8 +120,8 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
             mine = results[k : k + len(segments)]
             k += len(segments)
             several = len(plans) > 1
-            prefix = f"{Path(log.source).stem}_" if several else ""
-            log_name = Path(log.source).name if several else ""
+            prefix = f"{log.id.stem}_" if several else ""
+            log_name = log.id.label if several else ""
             source = Source.of([log], segments, mine, config.nees_alpha)
             figures.extend(overview_plots(source, prefix, log_name))
             drawn, note = segments_to_draw(source.segments, source.results)
@@ -159,6 +158,7 @@ def _diagnose_here(request: DiagnoseRequest, progress):
         pool = WorkerPool(jobs, warm=scheduling.__name__)  # workers import while the logs are read
     try:
         loaded = [open_log(p, reading.schema, reading.options, reading.drop_invalid) for p in paths]
+        loaded = with_unique_ids(loaded)
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
@@ -168,7 +168,7 @@ def _diagnose_here(request: DiagnoseRequest, progress):
         if pool is not None:
             pool.stop()
         raise
-    logs = [log_info(log, segments) for log, segments in plans]
+    logs = {log.id: log_info(log, segments) for log, segments in plans}
     runs, mc, diagnosed = 1, None, plans
     if monte_carlo:
         diagnosed, mc = monte_carlo_plan(loaded, plans, config.alpha)

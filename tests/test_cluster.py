@@ -52,6 +52,21 @@ def test_diagnose_on_the_cluster_equals_the_local_run(tmp_path, runner):
     assert len(remote.results) == 3 * 37  # 36 windows of 10 s and the run, per log
 
 
+def test_logs_with_one_stem_get_the_local_ids_on_the_cluster(tmp_path, runner):
+    """The client makes the logs' ids unique (issue 34) and the workers tie their results
+    to those ids: the cluster groups and names the logs as the local run does."""
+    paths = _logs(tmp_path, 2, per_segment=40)
+    for path, part in zip(paths, "ab"):
+        (tmp_path / part).mkdir()
+        path.rename(tmp_path / part / "run.csv")
+    request = DiagnoseRequest(tuple(str(tmp_path / part / "run.csv") for part in "ab"))
+    local = run_diagnose(request)
+    remote = run_diagnose(request, runner=runner)
+    assert [r.log for r in remote.results] == [r.log for r in local.results]
+    assert [r.log.stem for r in local.results[:: len(local.results) // 2]] == ["a_run", "b_run"]
+    assert _document(remote) == _document(local)
+
+
 def test_a_sweep_on_the_cluster_equals_the_local_run(runner):
     from credcli.studies.settings import SimulationConfig
 
@@ -161,7 +176,7 @@ def test_workers_read_fsspec_urls(tmp_path, runner):
     with fsspec.open(url, "wb") as fh:  # the client's memory filesystem: local run only
         fh.write(path.read_bytes())
     local = run_diagnose(DiagnoseRequest((url,)))
-    assert local.results[0].log == url
+    assert str(local.results[0].log) == url
     file_url = f"file://{path}"
     here = run_diagnose(DiagnoseRequest((file_url,)))
     there = run_diagnose(DiagnoseRequest((file_url,)), runner=runner)

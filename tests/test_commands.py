@@ -305,7 +305,7 @@ def _module_imports() -> dict[str, set[str]]:
 
 
 LAYERS = (
-    ("credcli.errors", "credcli.version", "credcli.system"),
+    ("credcli.errors", "credcli.version", "credcli.system", "credcli.logid"),
     ("credcli.engine",),
     ("credcli.io", "credcli.segments", "credcli.adapters"),
     ("credcli.parallel", "credcli.scheduling", "credcli.cluster"),  # where work runs

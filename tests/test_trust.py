@@ -376,18 +376,69 @@ def test_a_bad_time_is_named_from_one_vectorised_pass():
         time_seconds(stamps, "time")
 
 
+def _short_log(path: Path, gen, segment: str | None = None, scale: float = 1.0) -> Path:
+    """A log of one short segment (few figures to draw), named ``segment`` if given, its
+    errors ``scale`` times what its covariance claims."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    e = gen.standard_normal((60, 2)) * scale
+    head, cell = ("segment,", f"{segment},") if segment is not None else ("", "")
+    rows = "".join(f"{cell}{k / 10},0,0,{-a},{-b},1,1\n" for k, (a, b) in enumerate(e))
+    path.write_text(f"{head}time,truth_0,truth_1,est_0,est_1,std_0,std_1\n" + rows)
+    return path
+
+
+def test_two_logs_with_one_stem_get_figure_names_of_their_own(tmp_path):
+    """Two logs with one stem (a/run.csv, b/run.csv) wrote one set of figures over the
+    other, then stopped with a collision (issue 32): each log's figures, titles, groups
+    and JUnit cases are now named by the parent directory that tells them apart (issue
+    34, LogId)."""
+    pytest.importorskip("matplotlib")
+    from credcli.report.overview import FILE_STEMS
+    from credcli.requests import DiagnoseRequest
+    from credcli.workflows import run_diagnose
+
+    gen = np.random.default_rng(5)
+    logs = [str(_short_log(tmp_path / part / "run.csv", gen)) for part in ("a", "b")]
+    figures, junit = tmp_path / "figs", tmp_path / "junit.xml"
+    args = ["diagnose", *logs, "--plots", str(figures), "--fail-on", "smm"]
+    assert main([*args, "--junit", str(junit)]) == 0
+    names = sorted(p.stem for p in figures.iterdir())
+    mine = {part: [n for n in names if n.startswith(f"{part}_run_")] for part in "ab"}
+    assert len(mine["a"]) + len(mine["b"]) == len(names)
+    for kind in FILE_STEMS.values():  # the overview of each log, side by side
+        assert {f"a_run_{kind}", f"b_run_{kind}"} <= set(names)
+    assert [n[2:] for n in mine["a"]] == [n[2:] for n in mine["b"]]  # the same figures
+    classes = {case.get("classname") for case in ET.parse(junit).getroot().iter("testcase")}
+    assert classes == {"credcli.diagnose.a_run", "credcli.diagnose.b_run"}
+    run = run_diagnose(DiagnoseRequest(tuple(logs), figures=True))
+    assert {p.group for p in run.plots} >= {"a/run.csv: overview", "b/run.csv: overview"}
+    assert [str(r.log) for r in run.results] == logs  # messages and records: the paths
+    assert len({r.log for r in run.results}) == 2
+
+
+def test_the_html_report_links_each_log_with_one_stem_to_its_own_figures(tmp_path):
+    """The report's worst segments link to their figures: two logs with one stem were
+    one section (their figures mixed), and then, told apart by label, were not linked."""
+    pytest.importorskip("matplotlib")
+    import re
+
+    gen = np.random.default_rng(5)
+    logs = [str(_short_log(tmp_path / p / "run.csv", gen, "s", 3.0)) for p in ("a", "b")]
+    html = tmp_path / "report.html"
+    assert main(["report", *logs, "-o", str(html)]) == 0
+    links = re.findall(r'<td class="text"><a href="#([^"]+)">([^<]+)</a></td>', html.read_text())
+    assert sorted(links) == [
+        ("fig-a-run-csv-segment-s", f"{logs[0]}: s"),
+        ("fig-b-run-csv-segment-s", f"{logs[1]}: s"),
+    ]
+
+
 def test_a_figure_name_collision_is_an_error_and_overwrites_nothing(tmp_path, capsys):
-    """Two logs with one stem wrote one set of figures over the other, while stderr
-    reported every figure written."""
+    """Names that still meet (log x.csv's segment y_z and log x_y.csv's segment z both
+    give x_y_z) are an error before any figure is written: nothing is overwritten."""
     pytest.importorskip("matplotlib")
     gen = np.random.default_rng(5)
-    logs = []
-    for part in ("a", "b"):  # one short segment each: few figures to draw
-        (tmp_path / part).mkdir()
-        logs.append(tmp_path / part / "run.csv")
-        e = gen.standard_normal((60, 2))
-        rows = "".join(f"{k / 10},0,0,{-a},{-b},1,1\n" for k, (a, b) in enumerate(e))
-        logs[-1].write_text("time,truth_0,truth_1,est_0,est_1,std_0,std_1\n" + rows)
+    logs = [_short_log(tmp_path / "x.csv", gen, "y_z"), _short_log(tmp_path / "x_y.csv", gen, "z")]
     figures = tmp_path / "figs"
     assert main(["diagnose", *map(str, logs), "--plots", str(figures)]) == 2
     assert "two figures would both be" in capsys.readouterr().err

@@ -98,7 +98,7 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
         cases.append(
             Case(
                 c.segment,
-                f"credcli.ci.gate.{_classname(log)}",
+                f"credcli.ci.gate.{_classname(os.path.splitext(os.path.basename(log))[0])}",
                 "; ".join(c.reasons) if failed else None,
                 details,
             )
@@ -118,7 +118,7 @@ def fail_on_cases(results, failing: list[int], fail_on) -> list[Case]:
         cases.append(
             Case(
                 result.segment,
-                f"credcli.diagnose.{_classname(result.log)}",
+                f"credcli.diagnose.{_classname(result.log.stem)}",
                 f"label {label} matches --fail-on {listed}" if k in bad else None,
                 f"label {label}, ELT p {_cell(d.elt_pvalue)}, NCI {_cell(d.nci)} dB, "
                 f"ANEES {_cell(d.anees)}",
@@ -131,8 +131,8 @@ def _cell(value) -> str:
     return format_cell(json_value(value), 3)
 
 
-def _classname(path: str) -> str:
-    stem = os.path.splitext(os.path.basename(path))[0]
+def _classname(stem: str) -> str:
+    """A JUnit class name from a log's stem (unique among the logs of one command)."""
     return "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in stem) or "log"
 
 

@@ -134,7 +134,8 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html
 
-    html = build_html(title, run.report, run.plots, ", ".join(map(str, sources)), run.notes)
+    subtitle = ", ".join(map(str, sources))
+    html = build_html(title, run.report, run.plots, subtitle, run.notes, run.results)
     write_atomic(path, html, inputs)
     stderr_console().print(
         printable(f"wrote {path} ({len(run.plots)} figures)"), highlight=False, markup=False
@@ -274,5 +275,6 @@ def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inpu
     write_plots(run, plots)
     if report_file is not None:
         title = f"credcli uwb: {source.name}"
-        write_atomic(report_file, build_html(title, run.report, run.plots, str(source)), inputs)
+        html = build_html(title, run.report, run.plots, str(source), results=run.results)
+        write_atomic(report_file, html, inputs)
         stderr_console().print(printable(f"wrote {report_file}"), highlight=False, markup=False)

@@ -35,6 +35,7 @@ from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals
 from credcli.engine.timing import TimeOffset
 from credcli.engine.whiteness import Whiteness, innovation_levels, portmanteau
 from credcli.errors import CredcliError
+from credcli.logid import LogId
 
 
 @dataclass(frozen=True)
@@ -420,8 +421,9 @@ class SegmentDiagnosis:
 
     Attributes
     ----------
-    log : str
-        The log's name (its file, or ``source``).
+    log : LogId
+        Which log ([LogId][credcli.logid.LogId]); ``str(item.log)`` is its name (its
+        file, or ``source``), as in messages and records.
     segment : str
         The segment's name.
     t_start, t_end : float or None
@@ -439,7 +441,7 @@ class SegmentDiagnosis:
     ('cruise', 'credible')
     """
 
-    log: str
+    log: LogId
     segment: str
     t_start: float | None
     t_end: float | None
@@ -476,14 +478,14 @@ def diagnose_segments(
             config,
             seed,
             seg.name,
-            log.source,
+            log.id,
             blocks=getattr(log, "blocks", ()),
             memory=run.memory if window else None,
             findings=run.findings if windows and not window else (),  # the run's own
             declined=run.window_reason if window else None,
             velocity=None if velocity is None else velocity[seg.index],
         )
-        out.append(SegmentDiagnosis(log.source, seg.name, seg.t_start, seg.t_end, diag))
+        out.append(SegmentDiagnosis(log.id, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
             progress(done, len(segments))
     return out
@@ -607,7 +609,7 @@ def diagnose_segment(
     config: DiagnosisConfig,
     seed: int | None,
     name: str,
-    source: str = "<memory>",
+    source: LogId | str = "<memory>",
     runs: int = 1,
     blocks: tuple = (),
     memory: Memory | None = None,

@@ -47,20 +47,20 @@ def align_log(log: EstimatorLog, alignment: Alignment) -> EstimatorLog:
         return log
     if log.truth is None or log.estimate is None:
         raise CredcliError(
-            f"{log.source}: `align` {alignment.value} moves an estimate onto its truth; this "
+            f"{log.id}: `align` {alignment.value} moves an estimate onto its truth; this "
             "log holds errors only: drop `align`",
             "align",
         )
     if log.run is not None:
         raise CredcliError(
-            f"{log.source}: `align` fits one frame to the whole log, but it holds several "
+            f"{log.id}: `align` fits one frame to the whole log, but it holds several "
             "Monte Carlo runs, each in a frame of its own: align each run's log by itself",
             "align",
         )
     d = log.truth.shape[1]
     if d not in (2, 3):
         raise CredcliError(
-            f"{log.source}: `align` moves 2-D or 3-D positions; the log's state has {d} "
+            f"{log.id}: `align` moves 2-D or 3-D positions; the log's state has {d} "
             "components (read a pose file with `truth` for poses)",
             "align",
         )

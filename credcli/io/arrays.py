@@ -20,6 +20,7 @@ from credcli.errors import CredcliError
 from credcli.io.files import memory_budget, write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
 from credcli.io.text import time_seconds
+from credcli.logid import LogId
 from credcli.segments import Segment
 
 
@@ -236,7 +237,7 @@ def log_from_arrays(
         covariances,
         time=seconds,
         segment=labels,
-        source=source,
+        id=LogId.of(source),
         state_errors=state_errors,
         notes=notes,
         run=runs,
@@ -271,7 +272,7 @@ def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
                 time=None if log.time is None else log.time[index],
                 segment=None if log.segment is None else log.segment[index],
                 rows=log.rows[index],
-                source=f"{log.source} (run {name})",
+                id=log.id.run(name),
                 state_errors=None if log.state_errors is None else log.state_errors[index],
                 notes=log.notes,
                 blocks=log.blocks,
@@ -288,7 +289,9 @@ def pool_runs(runs: list[EstimatorLog], segments) -> tuple[EstimatorLog, list]:
     order = np.concatenate([run * n + s.index for s in segments for run in range(m)])
     errors = np.concatenate([log.errors for log in runs])[order]
     cov = np.concatenate([log.cov for log in runs])[order]
-    pooled = EstimatorLog(None, None, cov, source=f"monte-carlo ({m} runs)", state_errors=errors)
+    pooled = EstimatorLog(
+        None, None, cov, id=LogId.of(f"monte-carlo ({m} runs)"), state_errors=errors
+    )
     starts = np.cumsum([0] + [m * len(s.index) for s in segments])
     pooled_segments = [
         Segment(s.name, np.arange(a, b), s.t_start, s.t_end)
@@ -464,8 +467,8 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
         )
         if log.n != base.n or log.dim != base.dim or not same_time:
             raise CredcliError(
-                f"{log.source}: `monte_carlo` runs need one time base: {log.n} epochs of "
-                f"d = {log.dim} against {base.n} of d = {base.dim} in {base.source}"
+                f"{log.id}: `monte_carlo` runs need one time base: {log.n} epochs of "
+                f"d = {log.dim} against {base.n} of d = {base.dim} in {base.id}"
                 + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
             )
     segments = plans[0][1]

@@ -27,6 +27,7 @@ from credcli.io.rosbag import check_bag_path
 from credcli.io.schema import InputFormat, ReadOptions
 from credcli.io.streams import display_name, needs_copy, readable
 from credcli.io.trajectory import Trajectory
+from credcli.logid import LogId
 from credcli.system import release_free_memory
 
 COVARIANCE_FORMATS = (
@@ -44,7 +45,8 @@ def open_log(
     """The log at ``path`` read as ``reading`` says (a credcli log with truth and estimate
     in each row when no truth is named). ``path`` (or the truth) may be a stream: ``-`` for
     standard input, a pipe or a FIFO (:mod:`credcli.io.streams`). What reading it freed
-    goes back to the system."""
+    goes back to the system. The log's id (:class:`credcli.logid.LogId`) keeps ``path``
+    as given."""
     reading = reading or ReadOptions()
     with contextlib.ExitStack() as stack:
         local = stack.enter_context(readable(path))
@@ -52,10 +54,12 @@ def open_log(
             truth = stack.enter_context(readable(reading.truth))
             reading = dataclasses.replace(reading, truth=str(truth))
         log = _read_log(local, schema, reading, drop_invalid)
+        notes = log.notes
+        name = log.id.name
         if local != Path(path):
             name = display_name(path)
             notes = tuple(note.replace(str(local), name) for note in log.notes)
-            log = dataclasses.replace(log, source=name, notes=notes)
+        log = dataclasses.replace(log, id=LogId.of(name, path), notes=notes)
     release_free_memory()
     return log
 
@@ -178,7 +182,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
         cov,
         time=estimate.time[keep],
         rows=rows,
-        source=str(path),
+        id=LogId.of(str(path), path),
         state_errors=errors,
         notes=notes,
         unpaired=pairing.dropped,

@@ -23,6 +23,7 @@ from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 from credcli.io.streams import TEXT_HEAD, is_compressed, readable
 from credcli.io.text import read_csv_unmapped, read_text_table, seconds, time_seconds
+from credcli.logid import LogId, unique_ids
 
 
 @dataclass(frozen=True)
@@ -47,8 +48,9 @@ class EstimatorLog:
         Each epoch's segment name.
     rows : numpy.ndarray, shape (N,)
         The file row number of each epoch (1-based data rows; 1 … N when not given).
-    source : str
-        The log's name (its file) in messages and records.
+    id : LogId
+        Which log this is ([LogId][credcli.logid.LogId]): the file it was read from, its
+        name in messages and records, and the stem and label of its figures.
     dropped_rows : int
         Rows dropped as invalid (``drop_invalid``).
     state_errors : numpy.ndarray, shape (N, d), or None
@@ -82,7 +84,7 @@ class EstimatorLog:
     time: np.ndarray | None = None
     segment: np.ndarray | None = None
     rows: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
-    source: str = "<memory>"
+    id: LogId = LogId.of("<memory>")
     dropped_rows: int = 0
     state_errors: np.ndarray | None = field(default=None, repr=False)
     notes: tuple[str, ...] = ()
@@ -95,6 +97,11 @@ class EstimatorLog:
     def __post_init__(self) -> None:
         if self.rows is None:
             object.__setattr__(self, "rows", np.arange(1, self.cov.shape[0] + 1))
+
+    @property
+    def source(self) -> str:
+        """The log's name in messages and records (``str(log.id)``)."""
+        return self.id.name
 
     @property
     def errors(self) -> np.ndarray:
@@ -112,6 +119,24 @@ class EstimatorLog:
     def dim(self) -> int:
         """The state dimension d."""
         return self.cov.shape[1]
+
+
+def with_unique_ids(logs: list[EstimatorLog]) -> list[EstimatorLog]:
+    """The logs of one command with ids no two share (:func:`credcli.logid.unique_ids`:
+    stems, and so figure names, told apart by parent directories, else numbered).
+
+    Parameters
+    ----------
+    logs : list of EstimatorLog
+        The logs, in the order the command was given them.
+
+    Returns
+    -------
+    list of EstimatorLog
+        The same logs (their arrays not copied), each with its id made unique.
+    """
+    ids = unique_ids([log.id for log in logs])
+    return [log if log.id == i else replace(log, id=i) for log, i in zip(logs, ids, strict=True)]
 
 
 def load_log(
@@ -135,15 +160,11 @@ def load_log(
     url = as_url(path)
     path = Path(path)
     frame = read_table(path, columnwise=True)
-    return log_from_frame(
-        frame,
-        schema or LogSchema(),
-        url or str(path),
-        drop_invalid,
-        time_unit,
-        innovations,
-        errors_only,
+    name = url or str(path)
+    log = log_from_frame(
+        frame, schema or LogSchema(), name, drop_invalid, time_unit, innovations, errors_only
     )
+    return replace(log, id=LogId.of(name, name))
 
 
 ERRORS_SCHEMA = {"truth_prefix": "err_"}
@@ -711,7 +732,7 @@ def log_from_frame(
         time,
         segment,
         rows,
-        source,
+        LogId.of(source),
         dropped,
         state_errors=errors,
         notes=notes,

@@ -278,7 +278,7 @@ def segment_record(result: SegmentDiagnosis) -> dict:
     """The record of a segment: where it is, then :func:`diagnosis_record`, then the
     innovations' whiteness test when there is one."""
     rec = {
-        "log": result.log,
+        "log": str(result.log),
         "segment": result.segment,
         "t_start": result.t_start,
         "t_end": result.t_end,
@@ -299,7 +299,7 @@ def log_info(log, segments) -> dict:
     """The report's entry for one log, with the accuracy of all its epochs (evo's figures
     for the whole trajectory, to compare logs as ``evo_res`` does)."""
     info = {
-        "path": log.source,
+        "path": log.id.name,
         "epochs": log.n,
         "dim": log.dim,
         "dropped_rows": log.dropped_rows,

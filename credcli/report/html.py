@@ -11,11 +11,11 @@ import html
 import json
 import math
 import re
-from pathlib import Path
 
 from credcli.engine.config import Label
 from credcli.errors import printable
 from credcli.report.overview import FILE_STEMS, PlotKind
+from credcli.report.plots import segment_group
 from credcli.report.render import (
     SEGMENT_COLUMNS,
     Report,
@@ -127,8 +127,10 @@ def _severity(rec: dict) -> float:
     return abs(math.log(kappa)) if kappa and kappa > 0 else 0.0
 
 
-def _summary_html(records: list[dict], figure_of: dict) -> str:
-    """Counts per label and the worst segments: the misfits whose κ̂ is farthest from 1."""
+def _summary_html(records: list[dict], figure_of: dict, several: bool) -> str:
+    """Counts per label and the worst segments: the misfits whose κ̂ is farthest from 1,
+    each linked to its figures (``figure_of``: a record's position -> their anchor), named
+    after its log too when the report holds ``several``."""
     counts: dict[str, int] = {}
     for rec in records:
         counts[str(rec["label"])] = counts.get(str(rec["label"]), 0) + 1
@@ -138,22 +140,21 @@ def _summary_html(records: list[dict], figure_of: dict) -> str:
     )
     parts = [f'<p class="counts">{len(records)} segments — {shown}</p>']
     misfits = [
-        r
-        for r in records
+        (k, r)
+        for k, r in enumerate(records)
         if r.get("label_answered", r["label"])
         not in (Label.CREDIBLE.value, Label.INSUFFICIENT.value)
     ]
     if not misfits:
         parts.append('<p class="note">No segment is a misfit.</p>')
         return "".join(parts)
-    worst = sorted(misfits, key=_severity, reverse=True)[:WORST_SHOWN]
-    several = len({r.get("log") for r in records}) > 1
+    worst = sorted(misfits, key=lambda pair: _severity(pair[1]), reverse=True)[:WORST_SHOWN]
     rows = []
-    for rec in worst:
+    for k, rec in worst:
         name = _escape(str(rec["segment"]))
         if several:
             name = f"{_escape(str(rec.get('log')))}: {name}"
-        anchor = figure_of.get((str(rec.get("log")), str(rec["segment"])))
+        anchor = figure_of.get(k)
         if anchor:
             name = f'<a href="#{anchor}">{name}</a>'
         label = str(rec["label"])
@@ -182,10 +183,13 @@ def _figure_html(plot) -> str:
     )
 
 
-def build_html(title: str, report: Report, plots, subtitle: str = "", notes=()) -> str:
+def build_html(title: str, report: Report, plots, subtitle: str = "", notes=(), results=()) -> str:
     """The report as one HTML document: a table of contents, an overview (the label
     timeline, counts per label, the worst segments), the tables, the figures grouped by
-    log and segment (``Plot.group``), ``notes`` about the figures, and the parameters."""
+    log and segment (``Plot.group``), ``notes`` about the figures, and the parameters.
+    ``results``: the SegmentDiagnosis of the report's segment records, in their order,
+    whose logs' ids (:class:`credcli.logid.LogId`) link each worst segment to its
+    figures."""
     anchors = _Anchors()
     records = report.document.get("segments", [])
     timeline_stem = FILE_STEMS[PlotKind.TIMELINE]
@@ -195,13 +199,12 @@ def build_html(title: str, report: Report, plots, subtitle: str = "", notes=()) 
     for plot in others:
         groups.setdefault(plot.group or "figures", []).append(plot)
     group_ids = {group: anchors(f"fig-{group}") for group in groups}
-    figure_of = {}  # (log, segment) -> the anchor of its figures (Plot.group as plots names it)
-    several = len({rec.get("log") for rec in records}) > 1
-    for rec in records:
-        log, segment = str(rec.get("log")), str(rec["segment"])
-        group = f"{Path(log).name}: segment {segment}" if several else f"segment {segment}"
+    figure_of = {}  # a record's position -> the anchor of its segment's figures
+    several = len({result.log for result in results}) > 1
+    for k, result in enumerate(results):
+        group = segment_group(result.segment, result.log.label if several else "")
         if group in group_ids:
-            figure_of[(log, segment)] = group_ids[group]
+            figure_of[k] = group_ids[group]
     table_ids = [anchors(f"table-{t.title}") for t in report.tables]
     toc = []
     if records or timelines:
@@ -228,7 +231,7 @@ def build_html(title: str, report: Report, plots, subtitle: str = "", notes=()) 
     if records or timelines:
         parts.append('<section id="overview"><h2>Overview</h2>')
         if records:
-            parts.append(_summary_html(records, figure_of))
+            parts.append(_summary_html(records, figure_of, several))
         parts.extend(_figure_html(p) for p in timelines)
         parts.append("</section>")
     for table, anchor in zip(report.tables, table_ids):

@@ -10,7 +10,6 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -218,7 +217,7 @@ def _time_scales(source: Source, name: str) -> tuple:
 
 
 def short_source(runs: Sequence) -> str:
-    name = figs.short_title(Path(str(runs[0].source)).name, 50)
+    name = figs.short_title(runs[0].id.label, 50)
     return name if len(runs) == 1 else f"{name} and {len(runs) - 1} more runs"
 
 

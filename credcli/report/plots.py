@@ -101,9 +101,10 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
     for plot in plots:  # before any is written: a collision never overwrites a figure
         if plot.name in seen:
             raise CredcliError(
-                f"`plots`: two figures would both be {directory / plot.name}.png (two logs "
-                "with one file stem, or segment names that map to one file name); give "
-                "each log its own `plots` directory or rename the segments",
+                f"`plots`: two figures would both be {directory / plot.name}.png (segment "
+                "names that map to one file name, or a log's stem and segment name that read "
+                "as another log's: x + y_z, x_y + z); give each log its own `plots` "
+                "directory or rename the segments",
                 "plots",
             )
         seen.add(plot.name)
@@ -291,6 +292,12 @@ def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str
     return _finish(fig, name, title, data)
 
 
+def segment_group(segment: str, log_name: str = "") -> str:
+    """The report section of a segment's figures: ``segment NAME``, after its log's label
+    (``LogId.label``) when a report holds several logs."""
+    return f"{log_name}: segment {segment}" if log_name else f"segment {segment}"
+
+
 def segment_plots(
     results, curves, times, dim: int, prefix: str = "", log_name: str = ""
 ) -> list[Plot]:
@@ -317,7 +324,7 @@ def segment_plots(
             plots.append(
                 scale_plot(f"{stem}_scores", scores.scales, curves_by_kind, diag.config.c, head)
             )
-        group = f"{log_name}: segment {res.segment}" if log_name else f"segment {res.segment}"
+        group = segment_group(res.segment, log_name)
         plots[start:] = [dataclasses.replace(p, group=group) for p in plots[start:]]
     return plots
 

@@ -10,7 +10,7 @@ import csv
 import io
 import math
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 
 from credcli.engine.config import (
@@ -30,6 +30,7 @@ from credcli.io.records import (
     segment_record,
     uwb_segment_record,
 )
+from credcli.logid import LogId
 from credcli.report import jsontext
 from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR re-exported)
     PVALUE_FLOOR,
@@ -499,15 +500,17 @@ def diagnose_report(
     results: list[SegmentDiagnosis],
     config: DiagnosisConfig,
     parameters: dict,
-    logs: list[dict],
+    logs: Mapping[LogId, dict],
     show_all: bool,
     monte_carlo: dict | None = None,
 ) -> Report:
     """The `credcli diagnose` report: one row per segment, and the JSON document (with
     the per-epoch ANEES test of Monte Carlo runs, when given). ``config`` is the rule the
-    results were decided with; ``parameters`` its record, shown in the document."""
+    results were decided with; ``parameters`` its record, shown in the document;
+    ``logs`` each log's entry (:func:`credcli.io.records.log_info`) by its id, in order.
+    Results are matched to their log by id (``SegmentDiagnosis.log``), never by name."""
     records = [segment_record(r) for r in results]
-    multi = len({r["log"] for r in records}) > 1
+    multi = len({r.log for r in results}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
     if any("whiteness_pvalue" in r for r in records):
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
@@ -520,7 +523,7 @@ def diagnose_report(
             f"ELT ran on a random subsample of {config.max_elt_epochs} epochs in "
             f"segment(s) {', '.join(sub)} (memory budget; see `max_elt_epochs`)."
         )
-    for info in logs:
+    for info in logs.values():
         if info["dropped_rows"]:
             notes.append(f"{info['path']}: dropped {info['dropped_rows']} row(s) with NaN/Inf.")
     notes.extend(_advice_lines(records))
@@ -536,12 +539,12 @@ def diagnose_report(
             + ", ".join(f"{k} {100 * v:.1f}%" for k, v in mc["segments"].items())
         )
     table = Table("credcli diagnose", columns, records, caption=_level_caption(config))
-    tables = [table, _logs_table(logs, records)] if multi else [table]
+    tables = [table, _logs_table(logs, results, records)] if multi else [table]
     document = {
         "version": __version__,
         "command": "diagnose",
         "parameters": parameters,
-        "logs": logs,
+        "logs": list(logs.values()),
         "segments": records,
     }
     if monte_carlo is not None:
@@ -562,10 +565,10 @@ LOG_COLUMNS = (
 log, and how many of its segments are credible."""
 
 
-def _logs_table(logs: list[dict], records: list[dict]) -> Table:
+def _logs_table(logs: Mapping[LogId, dict], results, records: list[dict]) -> Table:
     rows = []
-    for info in logs:
-        mine = [r for r in records if r["log"] == info["path"]]
+    for log_id, info in logs.items():
+        mine = [rec for r, rec in zip(results, records, strict=True) if r.log == log_id]
         good = sum(r["label"] == Label.CREDIBLE.value for r in mine)
         rows.append(info | {"credible": f"{good} of {len(mine)}"})
     return Table("logs compared", LOG_COLUMNS, rows, caption="accuracy over all epochs of each log")

@@ -17,6 +17,7 @@ from credcli.engine.config import Label, Question
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
 from credcli.io.starloc import RangeLog, read_markers, read_starloc  # noqa: F401 (re-exported)
+from credcli.logid import LogId
 from credcli.studies.settings import (
     RobustLoss,
     UwbSettings,  # noqa: F401 (re-exported)
@@ -627,7 +628,7 @@ def position_log(
             fixes.cov,
             fixes.time,
             names.astype(str),
-            source=ranges.source,
+            id=LogId.of(ranges.source, ranges.source),
         )
         return log, segments, [(s.name, s.t_start, s.t_end) for s in segments]
     periods, _ = seg.static_periods(
@@ -650,7 +651,7 @@ def position_log(
         fixes.cov[inside],
         fixes.time[inside],
         names,
-        source=ranges.source,
+        id=LogId.of(ranges.source, ranges.source),
     )
     segments = seg.by_column(names, log.time)
     by_name = {p.name: p for p in periods}

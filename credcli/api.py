@@ -34,13 +34,7 @@ from credcli.engine.diagnosis import (
 from credcli.engine.rng import RngLike
 from credcli.errors import CredcliError
 from credcli.io import logs
-from credcli.io.arrays import (
-    error_arrays,
-    log_from_arrays,
-    monte_carlo_plan,
-    split_runs,
-    write_log,
-)
+from credcli.io.arrays import error_arrays, log_from_arrays, write_log
 from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.records import segment_record
@@ -49,7 +43,7 @@ from credcli.logid import LogId
 from credcli.report.html import records_table
 from credcli.report.overview import DRAWN, PlotKind, Source, draw
 from credcli.scheduling import diagnose_plans
-from credcli.segments import split, without_run
+from credcli.segments import monte_carlo_plan, split, split_runs, without_run
 
 __all__ = [
     "MonteCarloResults",

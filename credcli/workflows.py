@@ -16,7 +16,6 @@ from credcli.ci.gate import compare, verdict_line
 from credcli.engine.curves import segment_curves
 from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_segments
 from credcli.errors import CredcliError
-from credcli.io.arrays import monte_carlo_plan, split_runs
 from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, with_unique_ids
 from credcli.io.records import (
@@ -43,7 +42,7 @@ from credcli.report.render import (
 )
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
 from credcli.scheduling import PARALLEL_MIN_BYTES, diagnose_on_cluster, diagnose_plans, file_size
-from credcli.segments import split
+from credcli.segments import monte_carlo_plan, split, split_runs
 from credcli.studies import simulate as sim
 from credcli.studies import uwb
 

@@ -86,9 +86,8 @@ def test_monte_carlo_runs(tmp_path):
 
 
 def test_monte_carlo_anees_is_the_mean_nees_over_runs(tmp_path):
-    from credcli.io.arrays import monte_carlo_plan
     from credcli.io.logs import load_log
-    from credcli.segments import split
+    from credcli.segments import monte_carlo_plan, split
 
     runs = sorted(FORMATS.glob("mc_run_*.csv"))
     logs = [load_log(p) for p in runs]

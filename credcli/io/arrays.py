@@ -15,13 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
 from credcli.io.files import memory_budget, write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
 from credcli.io.text import time_seconds
 from credcli.logid import LogId
-from credcli.segments import Segment
 
 
 def _refuse_complex(name: str, value) -> None:
@@ -254,52 +252,6 @@ def _labels(name: str, values, n: int) -> np.ndarray | None:
     return labels
 
 
-def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
-    """The Monte Carlo runs of a log with run ids, in the order they first appear; each
-    keeps its epochs in order (time, segments, rows, notes). A log without run ids is one
-    run."""
-    if log.run is None:
-        return [log]
-    names, first = np.unique(log.run, return_index=True)
-    out = []
-    for name in names[np.argsort(first)]:
-        index = np.flatnonzero(log.run == name)
-        out.append(
-            EstimatorLog(
-                None if log.truth is None else log.truth[index],
-                None if log.estimate is None else log.estimate[index],
-                log.cov[index],
-                time=None if log.time is None else log.time[index],
-                segment=None if log.segment is None else log.segment[index],
-                rows=log.rows[index],
-                id=log.id.run(name),
-                state_errors=None if log.state_errors is None else log.state_errors[index],
-                notes=log.notes,
-                blocks=log.blocks,
-            )
-        )
-    return out
-
-
-def pool_runs(runs: list[EstimatorLog], segments) -> tuple[EstimatorLog, list]:
-    """M runs on one time base as one log whose segment k holds the epochs of segment k of
-    every run, run after run (so that the ELT flips each run in its own blocks), and those
-    pooled segments."""
-    m, n = len(runs), runs[0].n
-    order = np.concatenate([run * n + s.index for s in segments for run in range(m)])
-    errors = np.concatenate([log.errors for log in runs])[order]
-    cov = np.concatenate([log.cov for log in runs])[order]
-    pooled = EstimatorLog(
-        None, None, cov, id=LogId.of(f"monte-carlo ({m} runs)"), state_errors=errors
-    )
-    starts = np.cumsum([0] + [m * len(s.index) for s in segments])
-    pooled_segments = [
-        Segment(s.name, np.arange(a, b), s.t_start, s.t_end)
-        for s, a, b in zip(segments, starts[:-1], starts[1:])
-    ]
-    return pooled, pooled_segments
-
-
 def log_table(log: EstimatorLog):
     """A log as the canonical table ``credcli diagnose`` reads: ``time`` and ``segment``
     when the log has them, ``truth_i``/``est_i`` (or ``err_i`` for an errors-only log) and
@@ -451,28 +403,3 @@ def load_npz(path: Path) -> EstimatorLog:
         return log_from_arrays(source=str(path), **kwargs)
     except CredcliError as exc:
         raise CredcliError(f"{path}: {exc.message}") from exc
-
-
-def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
-    """Pool M runs of one scenario: one plan whose segment k holds the epochs of segment k
-    of every run, run after run (so that the ELT flips each run in its own blocks), and
-    the per-epoch ANEES test (:func:`credcli.engine.montecarlo.anees_test`)."""
-    if len(loaded) < 2:
-        raise CredcliError("`monte_carlo` needs at least two runs (logs) of the scenario")
-    base = loaded[0]
-    for log in loaded[1:]:
-        same_time = (log.time is None) == (base.time is None) and (
-            log.time is None
-            or (log.n == base.n and np.allclose(log.time, base.time, rtol=0, atol=1e-6))
-        )
-        if log.n != base.n or log.dim != base.dim or not same_time:
-            raise CredcliError(
-                f"{log.id}: `monte_carlo` runs need one time base: {log.n} epochs of "
-                f"d = {log.dim} against {base.n} of d = {base.dim} in {base.id}"
-                + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
-            )
-    segments = plans[0][1]
-    mc = anees_test(
-        [log.errors for log in loaded], [log.cov for log in loaded], alpha, base.time, segments
-    )
-    return [pool_runs(loaded, segments)], mc

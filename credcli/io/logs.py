@@ -65,7 +65,7 @@ class EstimatorLog:
         orientation of a pose, ``credcli.engine.lie.STATE_BLOCKS``).
     run : numpy.ndarray, shape (N,), or None
         The Monte Carlo run of each epoch when the log pools several
-        (``credcli.io.arrays.split_runs``).
+        (``credcli.segments.split_runs``).
     fitted_mean : str or None
         Why the mean of the whole log's errors is no evidence (an alignment fitted it to
         0), or None.

@@ -167,7 +167,7 @@ def test_result_carries_every_intermediate_number(rng):
     with pytest.raises(dataclasses.FrozenInstanceError):
         d.label = Label.CREDIBLE
     assert d.n == 200 and d.dim == 2
-    assert d.cov_scale == pytest.approx(
+    assert d.anees == pytest.approx(
         np.mean(np.einsum("ni,nij,nj->n", errors, np.linalg.inv(cov), errors)) / 2
     )
     assert d.probes is not None and d.scores is not None

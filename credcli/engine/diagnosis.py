@@ -125,7 +125,7 @@ class Diagnosis:
     >>> d = diagnose(e, np.eye(2), seed=0)
     >>> d
     Diagnosis(label='optimism', n=400, dim=2, scale_factor=4.004)
-    >>> str(d.label), d.partial, round(d.cov_scale, 2)
+    >>> str(d.label), d.partial, round(d.anees, 2)
     ('optimism', False, 4.01)
     """
 
@@ -171,15 +171,6 @@ class Diagnosis:
     def __repr__(self) -> str:
         kappa = "" if self.scale is None else f", scale_factor={self.scale.scale_factor:.4g}"
         return f"Diagnosis(label={self.label.value!r}, n={self.n}, dim={self.dim}{kappa})"
-
-    @property
-    def cov_scale(self) -> float | None:
-        """Factor k such that kΣ̂ gives ANEES = 1 on this segment (mean NEES / d).
-
-        The same number as ``anees``; unlike ``scale.scale_factor`` (κ̂), it is not
-        centred on the errors' mean.
-        """
-        return self.anees
 
     @property
     def elt_statistic(self) -> float | None:

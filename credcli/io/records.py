@@ -110,7 +110,6 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "nci": diag.nci,
         "nci_centered": diag.nci_centered,
         "anees": diag.anees,
-        "cov_scale": diag.cov_scale,
         "ks_pvalue": diag.ks_pvalue,
         "nees_label": diag.nees_label,
         "nci_label": diag.nci_label,

@@ -285,9 +285,13 @@ def run_uwb(request: UwbRequest, progress=None):
 def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report:
     """`diagnose` on one log, marked as a baseline of the current schema version."""
     report = run_diagnose(request, progress, runner).report
-    report.document.update(kind=BASELINE_KIND, schema_version=BASELINE_SCHEMA_VERSION)
-    report.document["command"] = "baseline"
-    return report
+    marked = {
+        **report.document,
+        "command": "baseline",
+        "kind": BASELINE_KIND,
+        "schema_version": BASELINE_SCHEMA_VERSION,
+    }
+    return dataclasses.replace(report, document=marked)
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
     format_pvalue,
 )
 from credcli.studies.simulate import CONFUSION_LABELS
-from credcli.studies.uwb import screening_note
+from credcli.studies.uwb import dropped_text
 from credcli.version import __version__
 
 
@@ -790,6 +790,28 @@ UWB_COLUMNS = (
     Column("nci", "NCI [dB]", 3, rank=6),
     Column("anees", "ANEES", 4, rank=6),
 )
+
+
+def screening_note(run, settings) -> str:
+    """One line: packets, fixes, and every packet dropped with its reason."""
+    f = run.fixes
+    scale = (
+        f", residual scale {f.residual_scale:.3g} of the claimed variance"
+        if f.residual_scale is not None
+        else ""
+    )
+    screen = (
+        f"screening on (stale packets; residual test at {settings.residual_level:g}{scale})"
+        if settings.screen
+        else "screening off (`screen` none)"
+    )
+    moved = f"; {f.moved} fix(es) moved to the global minimum" if f.moved else ""
+    return (
+        f"{run.packets} packets of >= {settings.min_anchors} anchors within "
+        f"{settings.packet_window:g} s; {f.time.size} fixes; dropped: {dropped_text(f)}"
+        f"{moved}; {screen}; solve: {settings.robust.value}; {run.log.n} fixes in "
+        f"{len(run.segments)} period(s)."
+    )
 
 
 def uwb_report(run, results, checks, parameters: dict) -> Report:

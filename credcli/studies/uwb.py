@@ -691,7 +691,7 @@ def run_pipeline(
     fixes = solve_packets(ranges, packets, anchors, settings)
     if fixes.time.size == 0:
         raise CredcliError(
-            f"{ranges.source}: every packet was dropped ({_dropped_text(fixes)}); try "
+            f"{ranges.source}: every packet was dropped ({dropped_text(fixes)}); try "
             "`screen` none or a longer `packet_window`"
         )
     log, segments, spans = position_log(ranges, fixes, window, whole, settings)
@@ -701,27 +701,6 @@ def run_pipeline(
     )
 
 
-def _dropped_text(fixes: Fixes) -> str:
+def dropped_text(fixes: Fixes) -> str:
+    """The packets dropped, by reason ("3 stale, 1 residual"), or "none"."""
     return ", ".join(f"{v} {k}" for k, v in fixes.dropped.items() if v) or "none"
-
-
-def screening_note(run: UwbRun, settings: UwbSettings) -> str:
-    """One line: packets, fixes, and every packet dropped with its reason."""
-    f = run.fixes
-    scale = (
-        f", residual scale {f.residual_scale:.3g} of the claimed variance"
-        if f.residual_scale is not None
-        else ""
-    )
-    screen = (
-        f"screening on (stale packets; residual test at {settings.residual_level:g}{scale})"
-        if settings.screen
-        else "screening off (`screen` none)"
-    )
-    moved = f"; {f.moved} fix(es) moved to the global minimum" if f.moved else ""
-    return (
-        f"{run.packets} packets of >= {settings.min_anchors} anchors within "
-        f"{settings.packet_window:g} s; {f.time.size} fixes; dropped: {_dropped_text(f)}"
-        f"{moved}; {screen}; solve: {settings.robust.value}; {run.log.n} fixes in "
-        f"{len(run.segments)} period(s)."
-    )

@@ -23,10 +23,9 @@ from credcli.engine.diagnosis import (
 from credcli.engine.timing import truth_velocity
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
-from credcli.io.records import log_info
 from credcli.logid import LogId, unique_ids
 from credcli.parallel import ordered_map, prepare_worker
-from credcli.segments import split
+from credcli.segments import LogSummary, log_summary, split
 
 PARALLEL_MIN_EPOCHS = 50_000
 """Below this many epochs in all, segments are diagnosed in this process: starting worker
@@ -247,10 +246,10 @@ def _worker_log(source):
     return _WORKER_LOGS[key]
 
 
-def _plan_task(source) -> tuple[LogId, dict, list[int]]:
-    """Worker: the id of a log, its report entry and the epochs of each of its segments."""
+def _plan_task(source) -> tuple[LogId, LogSummary, list[int]]:
+    """Worker: the id of a log, its summary and the epochs of each of its segments."""
     log, segments, _, _ = _worker_log(source)
-    return log.id, log_info(log, segments), [len(s.index) for s in segments]
+    return log.id, log_summary(log, segments), [len(s.index) for s in segments]
 
 
 def _segments_task(task) -> list[SegmentDiagnosis]:
@@ -286,5 +285,8 @@ def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=Non
                 first, held = k + 1, 0
     counts = [task[3] - task[2] for task in tasks]  # segments per task
     outputs = runner.map(_segments_task, tasks, progress, counts)
-    entries = {log_id: info for log_id, (_, info, _) in zip(ids, planned, strict=True)}
+    entries = {
+        log_id: replace(summary, id=log_id)
+        for log_id, (_, summary, _) in zip(ids, planned, strict=True)
+    }
     return [r for out in outputs for r in out], entries

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from credcli.engine.metrics import Accuracy, accuracy
 from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
@@ -293,3 +294,34 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
         [log.errors for log in loaded], [log.cov for log in loaded], alpha, base.time, segments
     )
     return [pool_runs(loaded, segments)], mc
+
+
+@dataclass(frozen=True)
+class LogSummary:
+    """What a report says of one whole log beside its segments: its id, size, what reading
+    it dropped, its notes, and the accuracy over all its epochs (evo's figures for the
+    whole trajectory, to compare logs as ``evo_res`` does). Typed until the report writes
+    it (:func:`credcli.io.records.log_record`)."""
+
+    id: LogId
+    epochs: int
+    dim: int
+    dropped_rows: int
+    unpaired_epochs: int | None
+    segments: int
+    notes: tuple[str, ...]
+    accuracy: Accuracy | None
+
+
+def log_summary(log: EstimatorLog, segments) -> LogSummary:
+    """The :class:`LogSummary` of ``log`` cut into ``segments``."""
+    return LogSummary(
+        log.id,
+        log.n,
+        log.dim,
+        log.dropped_rows,
+        log.unpaired,
+        len(segments),
+        tuple(log.notes),
+        accuracy(log.errors) if log.n else None,
+    )

@@ -24,7 +24,6 @@ from credcli.io.records import (
     Snapshot,
     config_record,
     diagnose_parameters,
-    log_info,
     monte_carlo_record,
 )
 from credcli.io.streams import display_name, is_stream
@@ -42,7 +41,7 @@ from credcli.report.render import (
 )
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
 from credcli.scheduling import PARALLEL_MIN_BYTES, diagnose_on_cluster, diagnose_plans, file_size
-from credcli.segments import monte_carlo_plan, split, split_runs
+from credcli.segments import log_summary, monte_carlo_plan, split, split_runs
 from credcli.studies import simulate as sim
 from credcli.studies import uwb
 
@@ -167,7 +166,7 @@ def _diagnose_here(request: DiagnoseRequest, progress):
         if pool is not None:
             pool.stop()
         raise
-    logs = {log.id: log_info(log, segments) for log, segments in plans}
+    logs = {log.id: log_summary(log, segments) for log, segments in plans}
     runs, mc, diagnosed = 1, None, plans
     if monte_carlo:
         diagnosed, mc = monte_carlo_plan(loaded, plans, config.alpha)

@@ -15,7 +15,6 @@ from pathlib import Path
 
 from credcli.engine.config import DiagnosisConfig
 from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
-from credcli.engine.metrics import accuracy
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
@@ -294,19 +293,19 @@ def segment_record(result: SegmentDiagnosis) -> dict:
     return rec
 
 
-def log_info(log, segments) -> dict:
-    """The report's entry for one log, with the accuracy of all its epochs (evo's figures
-    for the whole trajectory, to compare logs as ``evo_res`` does)."""
+def log_record(summary) -> dict:
+    """The report's entry for one log (:class:`credcli.segments.LogSummary`): its path, size,
+    dropped rows, notes and the accuracy keys over all its epochs."""
     info = {
-        "path": log.id.name,
-        "epochs": log.n,
-        "dim": log.dim,
-        "dropped_rows": log.dropped_rows,
-        "unpaired_epochs": log.unpaired,
-        "segments": len(segments),
-        "notes": list(log.notes),
+        "path": summary.id.name,
+        "epochs": summary.epochs,
+        "dim": summary.dim,
+        "dropped_rows": summary.dropped_rows,
+        "unpaired_epochs": summary.unpaired_epochs,
+        "segments": summary.segments,
+        "notes": list(summary.notes),
     }
-    info |= accuracy_record(accuracy(log.errors) if log.n else None)
+    info |= accuracy_record(summary.accuracy)
     return {k: json_value(v) for k, v in info.items()}
 
 

@@ -25,6 +25,7 @@ from credcli.errors import printable
 from credcli.io.records import (
     anchor_record,
     comparison_record,
+    log_record,
     range_record,
     record_label,
     segment_record,
@@ -37,6 +38,7 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
     OutputFormat,
     format_pvalue,
 )
+from credcli.segments import LogSummary
 from credcli.studies.simulate import CONFUSION_LABELS
 from credcli.studies.uwb import dropped_text
 from credcli.version import __version__
@@ -500,16 +502,18 @@ def diagnose_report(
     results: list[SegmentDiagnosis],
     config: DiagnosisConfig,
     parameters: dict,
-    logs: Mapping[LogId, dict],
+    logs: Mapping[LogId, LogSummary],
     show_all: bool,
     monte_carlo: dict | None = None,
 ) -> Report:
     """The `credcli diagnose` report: one row per segment, and the JSON document (with
     the per-epoch ANEES test of Monte Carlo runs, when given). ``config`` is the rule the
     results were decided with; ``parameters`` its record, shown in the document;
-    ``logs`` each log's entry (:func:`credcli.io.records.log_info`) by its id, in order.
+    ``logs`` each log's summary by its id, in order, written here
+    (:func:`credcli.io.records.log_record`).
     Results are matched to their log by id (``SegmentDiagnosis.log``), never by name."""
     records = [segment_record(r) for r in results]
+    logs = {log_id: log_record(summary) for log_id, summary in logs.items()}
     multi = len({r.log for r in results}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
     if any("whiteness_pvalue" in r for r in records):

@@ -37,11 +37,11 @@ from credcli.io import logs
 from credcli.io.arrays import error_arrays, log_from_arrays, write_log
 from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, LogSchema
-from credcli.io.records import segment_record
 from credcli.io.schema import ReadOptions
 from credcli.logid import LogId
 from credcli.report.html import records_table
 from credcli.report.overview import DRAWN, PlotKind, Source, draw
+from credcli.report.records import segment_record
 from credcli.scheduling import diagnose_plans
 from credcli.segments import monte_carlo_plan, split, split_runs, without_run
 

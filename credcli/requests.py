@@ -9,8 +9,8 @@ from pathlib import Path
 
 from credcli.ci.thresholds import Thresholds
 from credcli.engine.config import DiagnosisConfig
-from credcli.io.records import Baseline
 from credcli.io.schema import LogReading
+from credcli.report.records import Baseline
 from credcli.studies.settings import CURVE_RUNS, SimulationConfig, UwbSettings
 
 

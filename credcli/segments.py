@@ -301,7 +301,7 @@ class LogSummary:
     """What a report says of one whole log beside its segments: its id, size, what reading
     it dropped, its notes, and the accuracy over all its epochs (evo's figures for the
     whole trajectory, to compare logs as ``evo_res`` does). Typed until the report writes
-    it (:func:`credcli.io.records.log_record`)."""
+    it (:func:`credcli.report.records.log_record`)."""
 
     id: LogId
     epochs: int

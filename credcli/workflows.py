@@ -18,7 +18,11 @@ from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_segments
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, with_unique_ids
-from credcli.io.records import (
+from credcli.io.streams import display_name, is_stream
+from credcli.parallel import WorkerPool
+from credcli.report import plots as figs
+from credcli.report.overview import Source, overview_plots, segments_to_draw
+from credcli.report.records import (
     BASELINE_KIND,
     BASELINE_SCHEMA_VERSION,
     Snapshot,
@@ -26,10 +30,6 @@ from credcli.io.records import (
     diagnose_parameters,
     monte_carlo_record,
 )
-from credcli.io.streams import display_name, is_stream
-from credcli.parallel import WorkerPool
-from credcli.report import plots as figs
-from credcli.report.overview import Source, overview_plots, segments_to_draw
 from credcli.report.render import (
     Report,
     curves_report,

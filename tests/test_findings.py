@@ -171,7 +171,7 @@ def test_a_partial_credible_does_not_read_as_a_pass_in_json():
     """Issue 31 item 8: ``label`` carries the open question, as the table shows it; the
     answered half is ``label_answered``."""
     from credcli.engine.config import Label, Question
-    from credcli.io.records import diagnosis_record
+    from credcli.report.records import diagnosis_record
 
     e = np.random.default_rng(0).standard_normal((20, 2))  # scale interval past [½, 2]
     d = diagnose_errors(e, np.broadcast_to(np.eye(2), (20, 2, 2)), rng=0)

@@ -17,7 +17,7 @@ from credcli.ci import gate
 from credcli.cli import main
 from credcli.engine.diagnosis import Label
 from credcli.errors import CredcliError
-from credcli.io import records
+from credcli.report import records
 
 GOOD = SAMPLE / "estimator_log.csv"
 REGRESSED = SAMPLE / "estimator_log_regressed.csv"

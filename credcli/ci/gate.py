@@ -9,8 +9,8 @@ from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
 from credcli.engine.config import LOCATION_CONDITIONS, SMM_CONDITION
 from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
 from credcli.errors import CredcliError
-from credcli.io.records import Baseline, Snapshot, json_value, shown_label
 from credcli.report.formats import format_pvalue
+from credcli.report.records import Baseline, Snapshot, json_value, shown_label
 
 _CONDITIONS = ("optimism", "pessimism") + LOCATION_CONDITIONS
 NONCREDIBLE = "noncredible"

@@ -9,7 +9,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from credcli.errors import CredcliError
-from credcli.io.records import json_value, shown_label
+from credcli.report.records import json_value, shown_label
 from credcli.report.render import OutputFormat, format_cell, markdown_text, to_text
 
 

@@ -22,7 +22,14 @@ from credcli.engine.config import (
 )
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.errors import printable
-from credcli.io.records import (
+from credcli.logid import LogId
+from credcli.report import jsontext
+from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR re-exported)
+    PVALUE_FLOOR,
+    OutputFormat,
+    format_pvalue,
+)
+from credcli.report.records import (
     anchor_record,
     comparison_record,
     log_record,
@@ -30,13 +37,6 @@ from credcli.io.records import (
     record_label,
     segment_record,
     uwb_segment_record,
-)
-from credcli.logid import LogId
-from credcli.report import jsontext
-from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR re-exported)
-    PVALUE_FLOOR,
-    OutputFormat,
-    format_pvalue,
 )
 from credcli.segments import LogSummary
 from credcli.studies.simulate import CONFUSION_LABELS
@@ -99,7 +99,7 @@ class Report:
 
 
 def label_text(rec: dict) -> str:
-    """The label as tables show it (:func:`credcli.io.records.shown_label`)."""
+    """The label as tables show it (:func:`credcli.report.records.shown_label`)."""
     return str(rec["label"])
 
 
@@ -401,7 +401,7 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
     record at a time (:func:`credcli.report.jsontext.iterencode`, the bytes of
     ``json.JSONEncoder(indent=2, allow_nan=False)`` at half its cost), so that a document of
     10⁶ segments is never held as one string; the other formats in one piece. The records are
-    JSON-safe as made (:func:`credcli.io.records.json_value`); the rest of the document is
+    JSON-safe as made (:func:`credcli.report.records.json_value`); the rest of the document is
     made so here (:func:`json_safe`)."""
     if fmt is not OutputFormat.JSON:
         yield to_text(report, fmt, width)
@@ -510,7 +510,7 @@ def diagnose_report(
     the per-epoch ANEES test of Monte Carlo runs, when given). ``config`` is the rule the
     results were decided with; ``parameters`` its record, shown in the document;
     ``logs`` each log's summary by its id, in order, written here
-    (:func:`credcli.io.records.log_record`).
+    (:func:`credcli.report.records.log_record`).
     Results are matched to their log by id (``SegmentDiagnosis.log``), never by name."""
     records = [segment_record(r) for r in results]
     logs = {log_id: log_record(summary) for log_id, summary in logs.items()}

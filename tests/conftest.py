@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import NamedTuple
+
 import numpy as np
 import pytest
 from helpers import LOG, run
@@ -28,10 +31,21 @@ def one_process_without_jobs(monkeypatch):
     monkeypatch.setattr(settings, "jobs_value", lambda jobs: 1 if jobs is None else given(jobs))
 
 
+class SampleRun(NamedTuple):
+    """A run of ``credcli diagnose`` on the sample log, with what it wrote."""
+
+    code: int
+    err: str
+    report: Path  # the HTML report (--report)
+    plots: Path  # the directory of its figures (--plots)
+
+
 @pytest.fixture(scope="session")
-def sample_html_report(tmp_path_factory):
-    """(exit code, stderr, path) of ``credcli diagnose LOG --report``: the sample log's
-    28-figure HTML report, built once per test process for the tests that read it."""
-    path = tmp_path_factory.mktemp("report") / "r.html"
-    code, _, err = run("diagnose", LOG, "--report", path)
-    return code, err, path
+def sample_figures(tmp_path_factory) -> SampleRun:
+    """``credcli diagnose LOG --plots DIR --report FILE``: the sample log's 28 figures, as
+    PNG files and in its HTML report. Drawn once per test process (about 8 s) for every
+    test that reads them; the figures are drawn once for both outputs."""
+    where = tmp_path_factory.mktemp("sample")
+    report, plots = where / "r.html", where / "figs"
+    code, _, err = run("diagnose", LOG, "--plots", plots, "--report", report)
+    return SampleRun(code, err, report, plots)

@@ -588,8 +588,8 @@ def test_an_http_answer_is_not_a_scheduler():
         thread.join(5)
 
 
-def test_html_cells_are_formatted_as_the_terminal_shows_them(sample_html_report):
-    code, err, report = sample_html_report
+def test_html_cells_are_formatted_as_the_terminal_shows_them(sample_figures):
+    code, err, report = sample_figures.code, sample_figures.err, sample_figures.report
     assert code == 0, err
     html = report.read_text()
     cruise = json.loads(run("diagnose", LOG, "-f", "json")[1])["segments"][0]

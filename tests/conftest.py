@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import fcntl
+import json
+import os
 from pathlib import Path
 from typing import NamedTuple
 
@@ -40,12 +43,33 @@ class SampleRun(NamedTuple):
     plots: Path  # the directory of its figures (--plots)
 
 
+def once_per_run(tmp_path_factory, name: str, make) -> dict:
+    """``make(directory)`` (a JSON-able dict) once per test run: the first test process
+    (pytest-xdist worker) to ask makes it under a lock, the others wait for it and read
+    it. ``directory`` is the run's own, shared by its workers (xdist's documented way)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:  # one process: nothing to share
+        return make(tmp_path_factory.mktemp(name))
+    directory = tmp_path_factory.getbasetemp().parent / name
+    with open(f"{directory}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        made = directory / "made.json"
+        if not made.exists():
+            directory.mkdir(exist_ok=True)
+            made.write_text(json.dumps(make(directory)))
+        return json.loads(made.read_text())
+
+
 @pytest.fixture(scope="session")
 def sample_figures(tmp_path_factory) -> SampleRun:
     """``credcli diagnose LOG --plots DIR --report FILE``: the sample log's 28 figures, as
-    PNG files and in its HTML report. Drawn once per test process (about 8 s) for every
-    test that reads them; the figures are drawn once for both outputs."""
-    where = tmp_path_factory.mktemp("sample")
-    report, plots = where / "r.html", where / "figs"
-    code, _, err = run("diagnose", LOG, "--plots", plots, "--report", report)
-    return SampleRun(code, err, report, plots)
+    PNG files and in its HTML report. Drawn once per test run (about 8 s; see
+    :func:`once_per_run`) for every test that reads them; the figures are drawn once for
+    both outputs."""
+
+    def make(where: Path) -> dict:
+        report, plots = where / "r.html", where / "figs"
+        code, _, err = run("diagnose", LOG, "--plots", plots, "--report", report)
+        return {"code": code, "err": err, "report": str(report), "plots": str(plots)}
+
+    made = once_per_run(tmp_path_factory, "sample_figures", make)
+    return SampleRun(made["code"], made["err"], Path(made["report"]), Path(made["plots"]))

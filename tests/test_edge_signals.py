@@ -21,6 +21,17 @@ from helpers import LOG, error_line, run
 ROOT = Path(__file__).resolve().parents[1]
 FORMATS = ROOT / "sample_data" / "formats"
 CREDCLI = [sys.executable, "-m", "credcli"]
+IN_A_TERMINAL = [
+    sys.executable,
+    "-c",
+    "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+    "os.execv(sys.executable, [sys.executable, '-m', 'credcli', *sys.argv[1:]])",
+]
+"""``credcli`` as a terminal starts it in the foreground, where Ctrl-C reaches it: SIGINT
+not ignored. A background job of a non-interactive shell (``pytest ... &`` in a script)
+starts with SIGINT ignored, every process it starts inherits that, and a Python started
+so keeps it ignored: the Ctrl-C tests would then wait for a whole run and fail with exit
+0, whatever credcli does. The same process after ``exec`` (the same pid)."""
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +83,7 @@ def _alive(pid: int) -> bool:
 def test_a_signal_stops_workers_and_leaves_nothing(tmp_path, long_log, signum):
     out = tmp_path / "out.json"
     proc = subprocess.Popen(
-        [*CREDCLI, "diagnose", long_log, "-f", "json", "-o", out, "--jobs", "2"],
+        [*IN_A_TERMINAL, "diagnose", long_log, "-f", "json", "-o", out, "--jobs", "2"],
         stderr=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
@@ -699,7 +710,7 @@ def test_ctrl_c_on_a_local_dask_cluster_is_one_line_and_leaves_nothing(tmp_path,
     env = {**os.environ, "TMPDIR": str(scratch)}
     proc = subprocess.Popen(
         [
-            *CREDCLI,
+            *IN_A_TERMINAL,
             "diagnose",
             long_log,
             "--scheduler",

@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import fcntl
+import json
+import os
+from pathlib import Path
+from typing import NamedTuple
+
 import numpy as np
 import pytest
 from helpers import LOG, run
@@ -12,10 +18,58 @@ def rng():
     return np.random.default_rng(12345)
 
 
+@pytest.fixture(autouse=True)
+def one_process_without_jobs(monkeypatch):
+    """A command run in a test's process without ``--jobs`` stays in that process.
+
+    The command line's default is a worker per core; ``make test`` already runs a test
+    process per core, and a worker spawned from a test process (pyarrow is loaded, so it
+    is spawned, not forked) imports numpy, scipy and credcli again: about 3 s of a 2-core
+    machine for each in-process ``simulate``, for nothing the test checks. Only the
+    default changes: a test about workers gives ``--jobs`` (test_speed_paths.py,
+    test_simulate.py), and a command run as a subprocess keeps the real default."""
+    from credcli.cli import settings
+
+    given = settings.jobs_value
+    monkeypatch.setattr(settings, "jobs_value", lambda jobs: 1 if jobs is None else given(jobs))
+
+
+class SampleRun(NamedTuple):
+    """A run of ``credcli diagnose`` on the sample log, with what it wrote."""
+
+    code: int
+    err: str
+    report: Path  # the HTML report (--report)
+    plots: Path  # the directory of its figures (--plots)
+
+
+def once_per_run(tmp_path_factory, name: str, make) -> dict:
+    """``make(directory)`` (a JSON-able dict) once per test run: the first test process
+    (pytest-xdist worker) to ask makes it under a lock, the others wait for it and read
+    it. ``directory`` is the run's own, shared by its workers (xdist's documented way)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:  # one process: nothing to share
+        return make(tmp_path_factory.mktemp(name))
+    directory = tmp_path_factory.getbasetemp().parent / name
+    with open(f"{directory}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        made = directory / "made.json"
+        if not made.exists():
+            directory.mkdir(exist_ok=True)
+            made.write_text(json.dumps(make(directory)))
+        return json.loads(made.read_text())
+
+
 @pytest.fixture(scope="session")
-def sample_html_report(tmp_path_factory):
-    """(exit code, stderr, path) of ``credcli diagnose LOG --report``: the sample log's
-    28-figure HTML report, built once per test process for the tests that read it."""
-    path = tmp_path_factory.mktemp("report") / "r.html"
-    code, _, err = run("diagnose", LOG, "--report", path)
-    return code, err, path
+def sample_figures(tmp_path_factory) -> SampleRun:
+    """``credcli diagnose LOG --plots DIR --report FILE``: the sample log's 28 figures, as
+    PNG files and in its HTML report. Drawn once per test run (about 8 s; see
+    :func:`once_per_run`) for every test that reads them; the figures are drawn once for
+    both outputs."""
+
+    def make(where: Path) -> dict:
+        report, plots = where / "r.html", where / "figs"
+        code, _, err = run("diagnose", LOG, "--plots", plots, "--report", report)
+        return {"code": code, "err": err, "report": str(report), "plots": str(plots)}
+
+    made = once_per_run(tmp_path_factory, "sample_figures", make)
+    return SampleRun(made["code"], made["err"], Path(made["report"]), Path(made["plots"]))

@@ -594,19 +594,23 @@ def test_multi_table_csv_is_one_valid_csv():
     }
 
 
-def test_gate_takes_config_and_plots(tmp_path):
+def test_gate_takes_config_and_plots(tmp_path, frame):
+    log = tmp_path / "cruise.csv"  # one segment: 8 figures to draw, not the sample's 28
+    frame[frame["segment"] == "cruise"].to_csv(log, index=False)
     base = tmp_path / "b.json"
-    assert run("baseline", LOG, "-o", base)[0] == 0
+    assert run("baseline", log, "-o", base)[0] == 0
     config = tmp_path / "c.toml"
     config.write_text("[diagnosis]\ntau = 0.8\n")
-    line = error_line(*run("gate", LOG, "--baseline", base, "--config", config)[::2])
+    line = error_line(*run("gate", log, "--baseline", base, "--config", config)[::2])
     assert "tau_nci: baseline 0.5, now 0.8" in line
     config.write_text("[diagnosis]\ntau = 0.5\n")
     code, _, err = run(
-        "gate", LOG, "--baseline", base, "--config", config, "--plots", tmp_path / "f"
+        "gate", log, "--baseline", base, "--config", config, "--plots", tmp_path / "f"
     )
     assert code == 0, err
-    assert len(list((tmp_path / "f").glob("*.png"))) == 28  # 24 of segments, 4 of the log
+    names = sorted(p.name for p in (tmp_path / "f").glob("*.png"))
+    assert len(names) == 8  # 4 of the segment, 4 of the log
+    assert sum(n.startswith("cruise_") for n in names) == 4
 
 
 def test_fail_on_accepts_label_aliases():
@@ -615,8 +619,8 @@ def test_fail_on_accepts_label_aliases():
     assert run("diagnose", LOG, "--fail-on", "pess")[0] == 1
 
 
-def test_diagnose_writes_an_html_report(sample_html_report):
-    code, err, path = sample_html_report
+def test_diagnose_writes_an_html_report(sample_figures):
+    code, err, path = sample_figures.code, sample_figures.err, sample_figures.report
     assert code == 0, err
     html = path.read_text()
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 28

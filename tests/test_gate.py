@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-import functools
 import json
-import os
 import re
 import subprocess
-import sys
 import xml.etree.ElementTree as ET
 
 import pytest
-from helpers import SAMPLE
+from helpers import SAMPLE, run
 
 from credcli.ci import gate
-from credcli.cli import main
 from credcli.engine.diagnosis import Label
 from credcli.errors import CredcliError
 from credcli.report import records
@@ -23,29 +19,20 @@ GOOD = SAMPLE / "estimator_log.csv"
 REGRESSED = SAMPLE / "estimator_log_regressed.csv"
 
 
-def _main(capsys, *args):
-    """The command line in this process: the exit code, stdout and stderr of ``main``."""
-    code = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return subprocess.CompletedProcess(args, code, out, err)
+def _cli(*args):
+    """The command line (in this process): its exit code, stdout and stderr."""
+    return subprocess.CompletedProcess(args, *run(*args))
 
 
-def _cli(*args, env=None):
-    """The real command line, as a subprocess (as CI runs it)."""
-    full_env = {k: v for k, v in os.environ.items() if k != "GITHUB_STEP_SUMMARY"}
-    full_env.update(env or {})
-    return subprocess.run(
-        [sys.executable, "-m", "credcli", *map(str, args)],
-        capture_output=True,
-        text=True,
-        env=full_env,
-        check=False,
-    )
+@pytest.fixture(autouse=True)
+def no_step_summary(monkeypatch):
+    """No GitHub step summary unless a test sets one (a CI runner sets it for its job)."""
+    monkeypatch.delenv("GITHUB_STEP_SUMMARY", raising=False)
 
 
 @pytest.fixture(scope="module")
 def baseline(tmp_path_factory):
-    """A baseline of the good sample log, recorded once with the real command line."""
+    """A baseline of the good sample log, recorded once for the tests that gate on it."""
     path = tmp_path_factory.mktemp("baseline") / "baseline.json"
     proc = _cli("baseline", GOOD, "-o", path)
     assert proc.returncode == 0, proc.stderr
@@ -141,7 +128,7 @@ def test_improvements_are_reported():
     assert len(c.improvements) == 4
 
 
-def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
+def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline, monkeypatch):
     base = baseline
     doc = json.loads(base.read_text())
     assert (
@@ -151,6 +138,7 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
     assert doc["parameters"]["seed"] == 0 and len(doc["segments"]) == 6
 
     junit, summary, step = tmp_path / "ok.xml", tmp_path / "ok.md", tmp_path / "step.md"
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(step))
     proc = _cli(
         "gate",
         GOOD,
@@ -160,7 +148,6 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
         junit,
         "--summary",
         summary,
-        env={"GITHUB_STEP_SUMMARY": str(step)},
     )
     assert proc.returncode == 0, proc.stderr
     assert (
@@ -182,7 +169,6 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline):
         junit,
         "--summary",
         summary,
-        env={"GITHUB_STEP_SUMMARY": str(step)},
     )
     assert proc.returncode == 1
     verdict = proc.stderr.strip().splitlines()[-1]
@@ -235,9 +221,7 @@ def test_missing_and_new_segments(tmp_path, baseline):
     assert proc.returncode == 0 and "1 missing" in proc.stderr
 
 
-def test_different_parameters_or_schema_are_errors(tmp_path, capsys):
-    """In process (main), as the subprocess tests above run the same command line."""
-    _cli = functools.partial(_main, capsys)
+def test_different_parameters_or_schema_are_errors(tmp_path):
     base = tmp_path / "b.json"
     _cli("baseline", GOOD, "-o", base, "--tau", "0.8")
     proc = _cli("gate", GOOD, "--baseline", base, "--tau", "0.5")
@@ -260,20 +244,17 @@ def test_different_parameters_or_schema_are_errors(tmp_path, capsys):
     assert proc.returncode == 2 and "not a credcli baseline" in proc.stderr
 
 
-def test_diagnose_fail_on(tmp_path, capsys, monkeypatch):
-    """The first run as a subprocess (as CI runs it), the rest in process."""
-    monkeypatch.delenv("GITHUB_STEP_SUMMARY", raising=False)
+def test_diagnose_fail_on(tmp_path):
     proc = _cli("diagnose", GOOD, "--fail-on", "optimism,smm")
     assert proc.returncode == 1
     assert proc.stderr.strip().endswith(
         "gps-multipath (bias), tunnel (pessimism+bias), urban (optimism+bias)"
     )
     assert "FAIL: 4 of 6 segment(s) match --fail-on optimism,smm" in proc.stderr
-    inproc = functools.partial(_main, capsys)
-    proc = inproc("diagnose", GOOD, "--fail-on", "insufficient-data")
+    proc = _cli("diagnose", GOOD, "--fail-on", "insufficient-data")
     assert proc.returncode == 0 and "PASS" in proc.stderr
     junit, summary = tmp_path / "j.xml", tmp_path / "s.md"
-    proc = inproc(
+    proc = _cli(
         "diagnose", GOOD, "--fail-on", "noncredible", "--junit", junit, "--summary", summary
     )
     assert proc.returncode == 1
@@ -286,12 +267,11 @@ def test_diagnose_fail_on(tmp_path, capsys, monkeypatch):
         if tc.find("failure") is not None
     ]
     assert fails == ["turn", "hover", "gps-multipath", "tunnel", "urban"]
-    assert inproc("diagnose", GOOD, "--fail-on", "bogus").returncode == 2
-    assert inproc("diagnose", "missing.csv", "--fail-on", "smm").returncode == 2
+    assert _cli("diagnose", GOOD, "--fail-on", "bogus").returncode == 2
+    assert _cli("diagnose", "missing.csv", "--fail-on", "smm").returncode == 2
 
 
-def test_a_baseline_of_one_variant_is_not_gated_with_another(tmp_path, capsys):
-    _cli = functools.partial(_main, capsys)
+def test_a_baseline_of_one_variant_is_not_gated_with_another(tmp_path):
     base = tmp_path / "ks.json"
     assert _cli("baseline", GOOD, "-o", base, "--variant", "ks").returncode == 0
     assert json.loads(base.read_text())["parameters"]["variant"] == "ks"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import json
 import re
 import shutil
@@ -15,7 +16,7 @@ from scipy import stats
 
 pytest.importorskip("matplotlib", reason="matplotlib (credcli[plots]) not installed")
 
-from helpers import SAMPLE  # noqa: E402
+from helpers import SAMPLE, error_line, run  # noqa: E402
 
 from credcli import DiagnosisConfig  # noqa: E402
 from credcli.cli import main  # noqa: E402
@@ -51,21 +52,19 @@ def _run(capsys, *args):
     return code, out, err
 
 
-@pytest.fixture(scope="module")
-def sample_plots():
+def test_segment_plots_are_pngs_of_the_computed_numbers():
+    """The figures of one segment ("turn") hold its computed numbers; every segment's
+    figures are valid PNGs in test_diagnose_plots_option_writes_files."""
     log = load_log(LOG)
     segments = split(log)
     results = diagnose_segments(log, segments, DiagnosisConfig(metrics="all"), seed=0)
-    return log, segments, results, segment_figures(log, results, segments)
-
-
-def test_segment_plots_are_pngs_of_the_computed_numbers(sample_plots):
-    log, segments, results, figs = sample_plots
-    assert len(figs) == 4 * len(segments)  # nees, whitened, time scales, scores
+    seg, res = segments[1], results[1]
+    assert seg.name == res.segment == "turn"
+    figs = segment_figures(log, [res], segments)
+    assert len(figs) == 4  # nees, whitened, time scales, scores
     for fig in figs:
         _check_png(fig.png)
     by_name = {f.name: f for f in figs}
-    seg, res = segments[1], results[1]  # "turn"
     scales = by_name["turn_timescales"].data
     np.testing.assert_array_equal(scales["observed"], res.diagnosis.time_scales.observed)
     np.testing.assert_array_equal(scales["epochs"], res.diagnosis.time_scales.epochs)
@@ -102,10 +101,12 @@ def test_whitened_plot_other_dimensions():
     assert five.data["s"].shape == (50, 2)
 
 
-def test_diagnose_plots_option_writes_files(tmp_path, capsys):
-    code, _, err = _run(capsys, "diagnose", LOG, "--plots", tmp_path / "figs")
+def test_diagnose_plots_option_writes_files(sample_figures):
+    """``diagnose --plots DIR --report FILE`` (the shared run): the files are the report's
+    images."""
+    code, err = sample_figures.code, sample_figures.err
     assert code == 0 and "wrote 28 figure(s)" in err  # 4 per segment, 4 of the whole log
-    files = sorted((tmp_path / "figs").glob("*.png"))
+    files = sorted(sample_figures.plots.glob("*.png"))
     assert len(files) == 28 and {f.name for f in files} >= {
         "cruise_nees.png",
         "urban_scores.png",
@@ -116,9 +117,25 @@ def test_diagnose_plots_option_writes_files(tmp_path, capsys):
     }
     for f in files:
         _check_png(f.read_bytes())
+    html = sample_figures.report.read_text()
+    inline = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
+    assert sorted(base64.b64decode(i) for i in inline) == sorted(f.read_bytes() for f in files)
 
 
-def test_simulate_plots(tmp_path, capsys):
+def _keep_drawn(monkeypatch, name: str) -> list:
+    """The return values of ``plots.<name>`` while the test runs (the command's figures)."""
+    drawn, draw = [], getattr(plots, name)
+
+    def keep(*args, **kwargs):
+        drawn.append(draw(*args, **kwargs))
+        return drawn[-1]
+
+    monkeypatch.setattr(plots, name, keep)
+    return drawn
+
+
+def test_simulate_plots(tmp_path, capsys, monkeypatch):
+    drawn = _keep_drawn(monkeypatch, "confusion_plot")
     code, out, _ = _run(
         capsys,
         "simulate",
@@ -136,8 +153,8 @@ def test_simulate_plots(tmp_path, capsys):
         "confusion_matrix.png",
         "fig1_energy_score.png",
     ]
-    study = sim.run_study(sim.SimulationConfig(trials=8), sim.parse_scenarios("all"))
-    fig = plots.confusion_plot(study)
+    (fig,) = drawn  # the figure the command wrote, of the study its JSON reports
+    assert (tmp_path / "confusion_matrix.png").read_bytes() == fig.png
     confusion = json.loads(out)["confusion"]
     np.testing.assert_array_equal(
         fig.data["counts"], [list(row.values()) for row in confusion.values()]
@@ -156,7 +173,8 @@ def test_curves_plot_data():
     np.testing.assert_array_equal(fig.data["expected_es_rho"], [p.expected_es for p in by_rho])
 
 
-def test_uwb_plots_and_report(tmp_path, capsys):
+def test_uwb_plots_and_report(tmp_path, capsys, monkeypatch):
+    drawn = _keep_drawn(monkeypatch, "uwb_plots")
     report = tmp_path / "uwb.html"
     code, out, _ = _run(
         capsys, "uwb", GRID, "--plots", tmp_path / "figs", "--report", report, "-f", "json"
@@ -174,10 +192,9 @@ def test_uwb_plots_and_report(tmp_path, capsys):
         "nees_running.png",
     } <= names
     ranges = json.loads(out)["ranges"]
-    from credcli.studies import uwb
-
-    run = uwb.run_pipeline(GRID)
-    fig5 = next(p for p in plots.uwb_plots(run) if p.name == "uwb_reported_std")
+    (figures,) = drawn  # the command's figures of its pipeline run
+    fig5 = next(p for p in figures if p.name == "uwb_reported_std")
+    assert (tmp_path / "figs" / "uwb_reported_std.png").read_bytes() == fig5.png
     table = {(r["segment"], r["anchor"]): r["std_error"] for r in ranges}
     for period, values in fig5.data["std"].items():
         for anchor, empirical in zip(fig5.data["anchors"], values["empirical"]):
@@ -186,14 +203,20 @@ def test_uwb_plots_and_report(tmp_path, capsys):
     assert html.count('src="data:image/png;base64,') == len(names)
 
 
-def test_report_is_self_contained(tmp_path, capsys):
-    out = tmp_path / "report.html"
-    code, _, err = _run(capsys, "report", LOG, "-o", out)
-    assert code == 0 and "28 figures" in err
-    html = out.read_text()
+def _assert_self_contained(html: str) -> None:
     assert html.startswith("<!DOCTYPE html>")
     assert not re.search(r'(src|href)="(https?:)?//', html)  # nothing fetched from a network
     assert "<script" not in html
+    assert html.count("<img") == html.count('src="data:image/png;base64,')  # every image inline
+
+
+def test_report_is_self_contained(sample_figures):
+    """The sample log's report (the shared ``diagnose --report`` run; the `report` command
+    writes the same page: test_report_overview_contents_and_capped_windows)."""
+    code, err = sample_figures.code, sample_figures.err
+    assert code == 0 and "28 figures" in err
+    html = sample_figures.report.read_text()
+    _assert_self_contained(html)
     assert html.count('src="data:image/png;base64,') == 28
     assert "optimism+bias" in html and "&quot;n_flips&quot;: 1000" in html
 
@@ -210,9 +233,9 @@ def _find_browser():
     _find_browser() is None,
     reason="no headless browser: install Debian's chromium to run the HTML render test",
 )
-def test_report_renders_in_a_headless_browser(tmp_path, capsys):
-    out = tmp_path / "report.html"
-    assert _run(capsys, "report", LOG, "-o", out)[0] == 0
+def test_report_renders_in_a_headless_browser(tmp_path, sample_figures):
+    out = sample_figures.report
+    assert sample_figures.code == 0, sample_figures.err
     # a probe script (added to a copy only) records how many images decoded after load
     probe = (
         "<script>window.addEventListener('load',()=>{const i=[...document.images];"
@@ -244,19 +267,13 @@ def test_report_renders_in_a_headless_browser(tmp_path, capsys):
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert 'data-images="28/28"' in proc.stdout
-    assert "credcli report" in proc.stdout
+    assert "credcli diagnose" in proc.stdout
 
 
-def test_without_matplotlib_a_one_line_hint(tmp_path):
-    code = (
-        "import sys; sys.modules['matplotlib'] = None\n"
-        "from credcli.cli import main\n"
-        f"sys.exit(main(['diagnose', {str(LOG)!r}, '--plots', {str(tmp_path)!r}]))\n"
-    )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
-    assert proc.returncode == 2
-    assert proc.stderr.count("\n") == 1
-    assert "pip install 'credcli[plots]'" in proc.stderr
+def test_without_matplotlib_a_one_line_hint(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # `import matplotlib` fails
+    line = error_line(*run("diagnose", LOG, "--plots", tmp_path)[::2])
+    assert "pip install 'credcli[plots]'" in line
     assert list(tmp_path.iterdir()) == []
 
 
@@ -447,6 +464,7 @@ def test_report_overview_contents_and_capped_windows(tmp_path, capsys):
     code, _, err = _run(capsys, "report", csv, "--window", "30", "-o", out)
     assert code == 0, err
     html = out.read_text()
+    _assert_self_contained(html)
     assert '<section id="overview"><h2>Overview</h2>' in html
     assert html.index('id="overview"') < html.index('id="table-')  # the overview comes first
     overview = html[html.index('id="overview"') : html.index("</section>")]

@@ -91,20 +91,36 @@ def test_blocked_pair_matrix_equals_the_direct_formula(n):
     assert np.array_equal(a, a.T)
 
 
-def test_jobs_do_not_change_the_output(tmp_path):
+def test_jobs_do_not_change_the_output(tmp_path, monkeypatch):
+    """Two worker processes write the same bytes as one process. The size limits of the
+    parallel path are lowered for the test (they are costs, not results): 5,400 epochs in
+    18 segments take it, as 50,000 epochs and 2 MB would, and the workers get the tasks."""
+    from credcli import scheduling, workflows
     from credcli.cli import main
 
-    frame = pd.concat([pd.read_csv(ROOT / "sample_data" / "estimator_log.csv")] * 30)
+    monkeypatch.setattr(scheduling, "PARALLEL_MIN_EPOCHS", 5_000)
+    monkeypatch.setattr(workflows, "PARALLEL_MIN_BYTES", 500_000)
+    mapped = []  # the tasks each pool was given
+
+    class Pool(workflows.WorkerPool):
+        def map(self, func, tasks):
+            mapped.append(len(tasks))
+            return super().map(func, tasks)
+
+    monkeypatch.setattr(workflows, "WorkerPool", Pool)
+    frame = pd.concat([pd.read_csv(ROOT / "sample_data" / "estimator_log.csv")] * 3)
     frame["segment"] = frame["segment"] + "-" + (np.arange(len(frame)) // 1800).astype(str)
     path = tmp_path / "big.csv"
-    frame.to_csv(path, index=False)  # 54,000 epochs in 180 segments: parallel from 50,000
+    frame.to_csv(path, index=False)
+    assert path.stat().st_size >= workflows.PARALLEL_MIN_BYTES
     outs = []
     for jobs in ("1", "2"):
         out = tmp_path / f"j{jobs}.json"
         assert main(["diagnose", str(path), "-f", "json", "--jobs", jobs, "-o", str(out)]) == 0
         outs.append(out.read_bytes())
+    assert len(mapped) == 1 and mapped[0] > 2  # --jobs 2: the segments went to the workers
     assert outs[0] == outs[1]
-    assert len(json.loads(outs[0])["segments"]) == 180
+    assert len(json.loads(outs[0])["segments"]) == 18
 
 
 def _integer_matrix(n: int, rank: int, noise: int, upper: bool, seed: int):

@@ -24,19 +24,12 @@ def _float(value: float) -> str:
 
 
 def _key(key) -> str:
-    """A dict key as :mod:`json` writes it (strings; numbers, booleans and None as text)."""
+    """A dict key as :mod:`json` writes it: a string, or a number, boolean or None as the
+    text of its JSON value (:func:`encode`)."""
     if isinstance(key, str):
         return encode_basestring_ascii(key)
-    if isinstance(key, float):
-        return encode_basestring_ascii(_float(key))
-    if key is True:
-        return '"true"'
-    if key is False:
-        return '"false"'
-    if key is None:
-        return '"null"'
-    if isinstance(key, int):
-        return encode_basestring_ascii(int.__repr__(key))
+    if key is None or isinstance(key, (int, float)):  # bool is an int
+        return encode_basestring_ascii(encode(key))
     raise TypeError(f"keys must be str, int, float, bool or None, not {key.__class__.__name__}")
 
 

@@ -117,29 +117,41 @@ def test_a_homogeneous_run_has_no_finding():
     assert run.memory.series[0].variance_ratio == pytest.approx(3.0, rel=0.25)
 
 
+def _white_model(n: int) -> mem.Memory:
+    """Independent errors in two directions, as a fitted model (known, order 0)."""
+    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf)
+    return mem.Memory(np.eye(2), (white, white), white, n)
+
+
+def _walk(rng, n: int, step: float) -> np.ndarray:
+    """A random walk plus white noise (2 directions), mean-free: slower than any white
+    model says."""
+    y = np.cumsum(rng.standard_normal((n, 2)), axis=0) * step + rng.standard_normal((n, 2))
+    return y - y.mean(axis=0)
+
+
 def test_the_time_scale_check_is_exact_for_white_errors_and_sees_long_memory():
     """White errors: the observed variance at every averaging time is inside the model's
     interval at about the nominal rate. A random walk plus white noise fitted by a white
     model (its sieve at order 0 forced): the check fails at long averaging times."""
     rng = np.random.default_rng(3)
-    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf)
-    model = mem.Memory(np.eye(2), (white, white), white, 2000)
+    model = _white_model(2000)
     outside = 0
     for _ in range(100):
         y = rng.standard_normal((2000, 2))
         ts = mem.time_scales(y - y.mean(axis=0), model)
         outside += ts.failed_at is not None
     assert outside <= 6  # 1 % nominal, Bonferroni over 8 scales: s.e. 1 %
-    walk = np.cumsum(rng.standard_normal((2000, 2)), axis=0) * 0.05 + rng.standard_normal((2000, 2))
-    ts = mem.time_scales(walk - walk.mean(axis=0), model)
+    ts = mem.time_scales(_walk(rng, 2000, 0.05), model)
     assert ts.failed_at is not None and ts.observed[-1] > ts.high[-1]
 
 
 def test_the_lowest_frequency_check_has_the_exact_mean_and_level_and_sees_long_memory():
     """The expected periodogram at 2π/N under an AR(1) model equals the double sum
     Σ_s Σ_t γ(s − t) e^{−iω(s − t)}/N (an independent O(N²) computation); on white errors
-    under a white model the check rejects at its nominal 1 % (Monte Carlo, 400 draws: s.e.
-    0.5 %); a random walk under a white model fails it."""
+    under a white model its Gamma(2, 1) p-value falls below 1 % at the nominal rate
+    (Monte Carlo, 400 draws: 4 expected, s.e. 2); a random walk under a white model fails
+    the check at its Bonferroni share of the time scales' 1 %."""
     n, phi = 64, 0.7
     rho = phi ** np.arange(n)
     series = mem.SeriesMemory(np.array([phi]), rho, math.inf)
@@ -153,15 +165,14 @@ def test_the_lowest_frequency_check_has_the_exact_mean_and_level_and_sees_long_m
     assert 1.0 / (n * ratio) == pytest.approx(direct, rel=1e-12)
 
     rng = np.random.default_rng(4)
-    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf)
-    model = mem.Memory(np.eye(2), (white, white), white, 500)
+    model = _white_model(500)
     rejected = 0
     for _ in range(400):
         y = rng.standard_normal((500, 2))
-        rejected += mem.time_scales(y - y.mean(axis=0), model).lowest_failed
-    assert rejected <= 12  # 1 % nominal: 4 expected, s.e. 2
-    walk = np.cumsum(rng.standard_normal((500, 2)), axis=0) * 0.2 + rng.standard_normal((500, 2))
-    assert mem.time_scales(walk - walk.mean(axis=0), model).lowest_failed
+        _, p = mem.lowest_frequency_check(y - y.mean(axis=0), model, np.ones(2))
+        rejected += p < 0.01
+    assert 0 < rejected <= 12
+    assert mem.time_scales(_walk(rng, 500, 0.2), model).lowest_failed
 
 
 def test_innovations_split_alpha_in_three_and_test_white():

@@ -1,5 +1,6 @@
 """The documentation renders: no raw Sphinx roles in the API reference, no dead relative
-link in docs/ or the README, and every command's --help in panels with examples.
+link in docs/ or the README, every command's --help in panels with examples, and every
+public docstring in numpydoc form.
 
 Nothing is built: the docstrings are read as mkdocstrings reads them (griffe), the links
 against the files and headings they name, the help in-process.
@@ -7,6 +8,7 @@ against the files and headings they name, the help in-process.
 
 from __future__ import annotations
 
+import ast
 import re
 import unicodedata
 from pathlib import Path
@@ -132,3 +134,150 @@ def test_every_command_help_has_panels_and_examples(command, capsys):
     panels = set(PANEL.findall(text)) - {"Arguments", "Options"}
     assert len(panels) >= 2, f"credcli {command} --help: panels {sorted(panels)}"
     assert "Example" in text
+
+
+SECTION = re.compile(r"^(\w[\w ]*)\n-{3,}$", re.M)
+ITEM = re.compile(r"^\*{0,2}(\w+(?:\s*,\s*\*{0,2}\w+)*)\s*(?::|$)")
+FIELDS = ("Attributes", "Parameters")  # a dataclass documents its fields in either
+
+
+def sections(doc: str) -> dict[str, set[str]]:
+    """A numpydoc docstring's sections, each with the names its items give at the
+    section's own indent ('a, b : int' gives both)."""
+    heads = list(SECTION.finditer(doc))
+    out = {}
+    for head, nxt in zip(heads, [*heads[1:], None], strict=False):
+        body = doc[head.end() : nxt.start() if nxt else len(doc)]
+        names = set()
+        for line in body.splitlines():
+            item = ITEM.match(line) if line and not line[0].isspace() else None
+            if item:
+                names |= {n.strip().lstrip("*") for n in item.group(1).split(",")}
+        out[head.group(1)] = names
+    return out
+
+
+def _decorators(node) -> set[str]:
+    return {ast.unparse(d).split("(")[0].split(".")[-1] for d in node.decorator_list}
+
+
+def _function_gaps(fn, where: str) -> list[str]:
+    if {"property", "cached_property", "overload"} & _decorators(fn):
+        return []
+    doc = ast.get_docstring(fn)
+    if not doc:
+        return [f"{where}: no docstring"]
+    found = sections(doc)
+    args = fn.args
+    names = [a.arg for a in args.posonlyargs + args.args + args.kwonlyargs]
+    names += [a.arg for a in (args.vararg, args.kwarg) if a is not None]
+    names = [n for n in names if n not in ("self", "cls")]
+    gaps = []
+    if names:
+        missing = [n for n in names if n not in found.get("Parameters", set())]
+        if missing:
+            gaps.append(f"{where}: Parameters lacks {', '.join(missing)}")
+    returns = fn.returns is not None and ast.unparse(fn.returns) not in ("None", "NoReturn")
+    if returns and not {"Returns", "Yields"} & found.keys():
+        gaps.append(f"{where}: no Returns section")
+    return gaps
+
+
+def _class_gaps(cls, where: str) -> list[str]:
+    doc = ast.get_docstring(cls)
+    if not doc:
+        return [f"{where}: no docstring"]
+    if not ({"dataclass", "NamedTuple"} & (_decorators(cls) | {ast.unparse(b) for b in cls.bases})):
+        return []
+    fields = [
+        s.target.id
+        for s in cls.body
+        if isinstance(s, ast.AnnAssign)
+        and isinstance(s.target, ast.Name)
+        and not s.target.id.startswith("_")
+        and "ClassVar" not in ast.unparse(s.annotation)
+    ]
+    documented = set().union(*(sections(doc).get(k, set()) for k in FIELDS))
+    missing = [f for f in fields if f not in documented]
+    return [f"{where}: Attributes lacks {', '.join(missing)}"] if missing else []
+
+
+def numpydoc_gaps(paths, root: Path = ROOT) -> list[str]:
+    """'file:line name: what is missing' for each public definition in ``paths`` whose
+    docstring is not in numpydoc form: a public function names every parameter under
+    Parameters and, if it returns a value, has Returns (or Yields); a public dataclass or
+    NamedTuple names every field under Attributes (or Parameters). Properties, overloads
+    and the CLI's command functions (their docstrings are --help text) are exempt."""
+    gaps = []
+    for path in paths:
+        tree = ast.parse(path.read_text())
+        rel = path.relative_to(root)
+        for node in tree.body:
+            if getattr(node, "name", "_").startswith("_"):
+                continue
+            where = f"{rel}:{node.lineno} {node.name}"
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                if path.parent.name != "cli" or "declare" not in _decorators(node):
+                    gaps += _function_gaps(node, where)
+            elif isinstance(node, ast.ClassDef):
+                gaps += _class_gaps(node, where)
+                for member in node.body:
+                    if isinstance(member, ast.FunctionDef) and not member.name.startswith("_"):
+                        gaps += _function_gaps(member, f"{where}.{member.name}")
+    return gaps
+
+
+def test_public_docstrings_are_numpydoc():
+    gaps = numpydoc_gaps(sorted((ROOT / "credcli").rglob("*.py")))
+    assert not gaps, f"{len(gaps)} public docstrings not in numpydoc form:\n" + "\n".join(gaps)
+
+
+def test_a_docstring_gap_is_found(tmp_path):
+    module = tmp_path / "credcli" / "m.py"
+    module.parent.mkdir()
+    module.write_text(
+        '''
+from dataclasses import dataclass
+
+def good(a, b=1):
+    """Sum.
+
+    Parameters
+    ----------
+    a, b : int
+        The terms.
+
+    Returns
+    -------
+    int
+    """
+    return a + b
+
+def bad(a, *, c) -> int:
+    """Sum.
+
+    Parameters
+    ----------
+    a : int
+        Only this one.
+    """
+
+@dataclass
+class Point:
+    """A point.
+
+    Attributes
+    ----------
+    x : float
+    """
+
+    x: float
+    y: float
+'''
+    )
+    gaps = [g.split(" ", 1)[1] for g in numpydoc_gaps([module], tmp_path)]
+    assert gaps == [
+        "bad: Parameters lacks c",
+        "bad: no Returns section",
+        "Point: Attributes lacks y",
+    ]

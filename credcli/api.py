@@ -332,7 +332,7 @@ def read_log(
         raise
     except (TypeError, ValueError) as exc:
         raise CredcliError(f"read_log: {exc}") from exc
-    return open_log(path, columns, options, drop_invalid)
+    return seg.checked_log(open_log(path, columns, options, drop_invalid))
 
 
 def diagnose_log(

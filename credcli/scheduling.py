@@ -25,7 +25,7 @@ from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.logid import LogId, unique_ids
 from credcli.parallel import ordered_map, prepare_worker
-from credcli.segments import LogSummary, log_summary, split
+from credcli.segments import LogSummary, checked_log, log_summary, split
 
 PARALLEL_MIN_EPOCHS = 50_000
 """Below this many epochs in all, segments are diagnosed in this process: starting worker
@@ -239,7 +239,7 @@ def _worker_log(source):
     except OSError:
         key = (source, None, None)
     if key not in _WORKER_LOGS:
-        log = open_log(path, schema, reading, drop_invalid)
+        log = checked_log(open_log(path, schema, reading, drop_invalid))
         while len(_WORKER_LOGS) >= _WORKER_LOGS_KEPT:
             _WORKER_LOGS.pop(next(iter(_WORKER_LOGS)))
         _WORKER_LOGS[key] = (log, split(log, window, whole, min_epochs), log.errors, {})

@@ -4,10 +4,11 @@ and Monte Carlo runs: split by their run ids, pooled segment by segment."""
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from credcli.engine.convention import convention_warning
 from credcli.engine.metrics import Accuracy, accuracy
 from credcli.engine.montecarlo import anees_test
 from credcli.errors import CredcliError
@@ -325,3 +326,27 @@ def log_summary(log: EstimatorLog, segments) -> LogSummary:
         tuple(log.notes),
         accuracy(log.errors) if log.n else None,
     )
+
+
+def checked_log(log: EstimatorLog) -> EstimatorLog:
+    """The log as read, with a warning note when the claimed covariance fits its errors
+    under the other perturbation convention far better
+    ([convention_warning][credcli.engine.convention.convention_warning]).
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        A log just read ([open_log][credcli.io.ingest.open_log]).
+
+    Returns
+    -------
+    EstimatorLog
+        The same log (its arrays not copied) without the other convention's errors, its
+        notes ending with the warning if there is one.
+    """
+    swap = log.other_convention
+    if swap is None:
+        return log
+    warning = convention_warning(log.errors, swap.errors, log.cov, swap.used, swap.other)
+    notes = (*log.notes, f"WARNING: {warning}") if warning else log.notes
+    return replace(log, notes=notes, other_convention=None)

@@ -103,7 +103,8 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     figures, notes = [], []
     plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here
-        loaded = with_unique_ids([open_log(p, schema, options, drop_invalid) for p in paths])
+        loaded = [seg.checked_log(open_log(p, schema, options, drop_invalid)) for p in paths]
+        loaded = with_unique_ids(loaded)
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]
         plans = [(log, split(log, window, whole, config.min_epochs)) for log in loaded]
@@ -155,7 +156,10 @@ def _diagnose_here(request: DiagnoseRequest, progress):
     if jobs > 1 and sum(file_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
         pool = WorkerPool(jobs, warm=scheduling.__name__)  # workers import while the logs are read
     try:
-        loaded = [open_log(p, reading.schema, reading.options, reading.drop_invalid) for p in paths]
+        loaded = [
+            seg.checked_log(open_log(p, reading.schema, reading.options, reading.drop_invalid))
+            for p in paths
+        ]
         loaded = with_unique_ids(loaded)
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]

@@ -16,12 +16,18 @@ import numpy as np
 from credcli.engine import lie
 from credcli.engine.align import Alignment
 from credcli.engine.config import Perturbation, States
-from credcli.engine.scale import gls_residuals
 from credcli.errors import CredcliError
 from credcli.io.aligning import align_log, align_trajectory, fitted_mean
 from credcli.io.arrays import load_npz
 from credcli.io.formats import read_bag_pair, read_trajectory, sniff_format
-from credcli.io.logs import CovKind, EstimatorLog, LogSchema, load_log, validated_cov
+from credcli.io.logs import (
+    CovKind,
+    EstimatorLog,
+    LogSchema,
+    OtherConvention,
+    load_log,
+    validated_cov,
+)
 from credcli.io.pairing import pair
 from credcli.io.rosbag import check_bag_path
 from credcli.io.schema import InputFormat, ReadOptions
@@ -164,7 +170,7 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
     estimate, align_notes = align_trajectory(estimate, truth, pairing, reading)
     keep = pairing.keep
     rows = estimate.rows[keep]
-    states, errors, cov, convention = _state_errors(estimate, truth, pairing, reading)
+    states, errors, cov, convention, other = _state_errors(estimate, truth, pairing, reading)
     try:
         cov_notes: list[str] = []
         cov = validated_cov(cov, rows, estimate.source, CovKind.FULL, notes=cov_notes)
@@ -188,11 +194,13 @@ def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> Estimator
         unpaired=pairing.dropped,
         blocks=lie.STATE_BLOCKS.get(states, ()),
         fitted_mean=fitted_mean(reading.align),
+        other_convention=other,
     )
 
 
 def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: ReadOptions):
-    """(states, errors, covariance, note on the convention) of the paired epochs."""
+    """(states, errors, covariance, note on the convention, the errors under the other
+    convention or None) of the paired epochs."""
     keep = pairing.keep
     if not (estimate.pose and truth.pose):
         if reading.states not in (None, States.POSITION):
@@ -215,6 +223,7 @@ def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: Rea
             np.ascontiguousarray(pairing.position - p_est),
             cov,
             "errors: truth − estimate of the position vector (world frame)",
+            None,
         )
     states = reading.states or States.POSITION
     right = reading.perturbation is Perturbation.RIGHT
@@ -236,46 +245,14 @@ def _state_errors(estimate: Trajectory, truth: Trajectory, pairing, reading: Rea
     )
     cov = lie.cov_block(estimate.cov[keep], states)
     note = _convention(states, reading.perturbation, estimate.cross_covariance)
+    swap = None
     if states is not States.POSITION:
         other = Perturbation.LEFT if right else Perturbation.RIGHT
         swapped = lie.state_errors(
             states, other, pairing.position, estimate.position[keep], r_true, r_est
         )
-        note += _convention_hint(errors, swapped, cov, reading.perturbation, other)
-    return states, errors, cov, note
-
-
-CONVENTION_RATIO = 1.25
-"""How much closer to 1 the other convention's covariance factor κ̂ must be (as a factor,
-on a log scale) before the convention note warns: noise moves ln κ̂ by about
-√(2/((N − 1)d)), 0.01 on a 2,000-epoch pose log, so 1.25 (0.22) is far beyond it."""
-
-
-def _centred_scale(errors: np.ndarray, cov: np.ndarray) -> float:
-    """κ̂ of the scale test (the NEES of GLS-centred errors over (N − 1)d): how far the
-    claimed covariance is from the errors once a constant mean is removed."""
-    residuals = gls_residuals(errors, np.linalg.cholesky(cov))
-    n, d = errors.shape
-    return float(residuals.q.sum() / max(1, (n - 1) * d))
-
-
-def _convention_hint(errors, swapped, cov, used: Perturbation, other: Perturbation) -> str:
-    """A warning, in the convention note, when the errors under the other perturbation fit
-    the claimed covariance far better than under the one used. A body-frame (right) error
-    read in the world frame (left) turns with the attitude: a constant bias no longer
-    looks constant, and the label is confidently wrong (optimism instead of smm)."""
-    try:
-        fit_used, fit_other = _centred_scale(errors, cov), _centred_scale(swapped, cov)
-    except (np.linalg.LinAlgError, ValueError):
-        return ""  # the covariance is checked, with its message, later
-    misfit = abs(np.log(fit_used)) - abs(np.log(fit_other))
-    if not np.isfinite(misfit) or misfit < np.log(CONVENTION_RATIO):
-        return ""
-    return (
-        f"; WARNING: `perturbation` {other.value} fits the claimed covariance far better "
-        f"(covariance factor {fit_other:.3g} against {fit_used:.3g} with {used.value}): "
-        "check which convention the estimator's covariance uses"
-    )
+        swap = OtherConvention(reading.perturbation, other, swapped)
+    return states, errors, cov, note, swap
 
 
 def _convention(states: States, perturbation: Perturbation, cross: bool = True) -> str:

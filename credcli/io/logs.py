@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from credcli.engine.config import epoch_chunks
+from credcli.engine.config import Perturbation, epoch_chunks
 from credcli.engine.metrics import SYMMETRY_RTOL
 from credcli.engine.quadrature import eigenvalues_2x2
 from credcli.errors import CredcliError
@@ -24,6 +24,26 @@ from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exp
 from credcli.io.streams import TEXT_HEAD, is_compressed, readable
 from credcli.io.text import read_csv_unmapped, read_text_table, seconds, time_seconds
 from credcli.logid import LogId, unique_ids
+
+
+@dataclass(frozen=True)
+class OtherConvention:
+    """The errors a pose log would have under the perturbation convention not used.
+
+    Reading takes them; whether they fit the claimed covariance better is the engine's
+    question ([convention_warning][credcli.engine.convention.convention_warning]).
+
+    Attributes
+    ----------
+    used, other : Perturbation
+        The convention the log's errors use, and the other one.
+    errors : numpy.ndarray, shape (N, d)
+        The same epochs' errors under ``other``.
+    """
+
+    used: Perturbation
+    other: Perturbation
+    errors: np.ndarray = field(repr=False)
 
 
 @dataclass(frozen=True)
@@ -69,6 +89,10 @@ class EstimatorLog:
     fitted_mean : str or None
         Why the mean of the whole log's errors is no evidence (an alignment fitted it to
         0), or None.
+    other_convention : OtherConvention or None
+        A pose log's errors under the other perturbation convention, kept from reading
+        until the convention check ([checked_log][credcli.segments.checked_log]) has
+        compared them; None otherwise.
 
     Examples
     --------
@@ -93,6 +117,7 @@ class EstimatorLog:
     run: np.ndarray | None = field(default=None, repr=False)  # Monte Carlo run id per epoch
     # why the mean of the whole log's errors is no evidence (an alignment fitted it to 0)
     fitted_mean: str | None = None
+    other_convention: OtherConvention | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.rows is None:

@@ -32,6 +32,21 @@ class FailOn:
       (scale or location) untested;
     - ``noncredible``: every segment but a complete ``credible`` one (a partial
       ``credible`` has a question open, so it fails too).
+
+    ``str(fail_on)`` lists the items again, comma-separated. Made by :func:`parse_fail_on`.
+
+    Attributes
+    ----------
+    conditions : frozenset of str
+        The single conditions that fail every label containing them (``optimism``,
+        ``pessimism``, ``bias``, ``asymmetric``, ``smm``).
+    labels : frozenset of Label
+        The combined labels that fail as themselves (or as their paper label), and
+        ``insufficient-data``.
+    noncredible : bool
+        Whether every segment but a complete ``credible`` one fails.
+    untested : bool
+        Whether a partial verdict (a question left untested) fails.
     """
 
     conditions: frozenset[str] = frozenset()
@@ -45,7 +60,21 @@ class FailOn:
         return ",".join(flags + items)
 
     def fails(self, label: Label, untested=()) -> bool:
-        """Whether a segment with ``label`` (and ``untested`` questions) fails."""
+        """Whether a segment with ``label`` (and ``untested`` questions) fails.
+
+        Parameters
+        ----------
+        label : Label
+            The segment's answered label.
+        untested : sequence of Question or str, default ()
+            The questions its verdict leaves open (scale, location); empty for a
+            complete verdict.
+
+        Returns
+        -------
+        bool
+            True when any item of ``--fail-on`` matches the segment.
+        """
         if self.noncredible:
             return label is not Label.CREDIBLE or bool(untested)
         if self.untested and untested and label is not Label.INSUFFICIENT:
@@ -58,8 +87,35 @@ class FailOn:
 
 
 def parse_fail_on(text: str) -> FailOn:
-    """``optimism,bias`` (any of), ``optimism+bias`` (that label), ``noncredible``,
-    ``insufficient-data`` or label aliases (``pess+smm``); see :class:`FailOn`."""
+    """The conditions of ``--fail-on``, parsed.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated items, case and spaces ignored: ``optimism,bias`` (any of),
+        ``optimism+bias`` (that label), ``noncredible``, ``untested``,
+        ``insufficient-data`` or label aliases (``pess+smm``); see ``FailOn``. A label
+        with one condition (``bias``) counts as that condition.
+
+    Returns
+    -------
+    FailOn
+        What the gate fails on.
+
+    Raises
+    ------
+    CredcliError
+        If an item is not a condition, a label or an alias (``credible`` is none), or if
+        ``text`` has no item at all.
+
+    Examples
+    --------
+    >>> fail_on = parse_fail_on("pessimism, optimism+bias")
+    >>> str(fail_on)
+    'pessimism,optimism+bias'
+    >>> fail_on.fails(Label.PESSIMISM_BIAS), fail_on.fails(Label.OPTIMISM)
+    (True, False)
+    """
     conditions: set[str] = set()
     labels: set[Label] = set()
     noncredible = untested = False
@@ -93,11 +149,42 @@ def parse_fail_on(text: str) -> FailOn:
 
 
 def fails(label: Label, fail_on: FailOn, untested=()) -> bool:
-    """Whether a segment's label fails ``fail_on`` (:meth:`FailOn.fails`)."""
+    """Whether a segment's label fails ``fail_on`` (``FailOn.fails``).
+
+    Parameters
+    ----------
+    label : Label
+        The segment's answered label.
+    fail_on : FailOn
+        The conditions of ``--fail-on``.
+    untested : sequence of Question or str, default ()
+        The questions the segment's verdict leaves open.
+
+    Returns
+    -------
+    bool
+        True when the segment fails.
+    """
     return fail_on.fails(label, untested)
 
 
 class Status(str, enum.Enum):
+    """What became of a baseline's segment in the current run.
+
+    Attributes
+    ----------
+    UNCHANGED : str
+        No rule fired either way.
+    IMPROVED : str
+        Something got better and nothing worse.
+    REGRESSED : str
+        At least one regression rule fired (it fails the gate).
+    NEW : str
+        The segment is not in the baseline.
+    MISSING : str
+        The baseline's segment is not in the log.
+    """
+
     UNCHANGED = "unchanged"
     IMPROVED = "improved"
     REGRESSED = "regressed"
@@ -107,7 +194,23 @@ class Status(str, enum.Enum):
 
 @dataclass(frozen=True)
 class SegmentComparison:
-    """One segment of the baseline against the same segment now."""
+    """One segment of the baseline against the same segment now.
+
+    Attributes
+    ----------
+    segment : str
+        The segment's name.
+    status : Status
+        Unchanged, improved, regressed, new or missing.
+    old : Snapshot or None
+        The baseline's segment (None for a new one).
+    new : Snapshot or None
+        The segment now (None for a missing one).
+    reasons : tuple of str
+        Why it regressed (or is new / missing); empty otherwise.
+    improvements : tuple of str
+        What got better.
+    """
 
     segment: str
     status: Status
@@ -121,6 +224,19 @@ class SegmentComparison:
         return self.status is Status.REGRESSED
 
     def failed_with(self, thresholds: Thresholds) -> bool:
+        """Whether the segment fails the gate under ``thresholds``.
+
+        Parameters
+        ----------
+        thresholds : Thresholds
+            The gate's thresholds; only ``allow_new_segments`` matters here.
+
+        Returns
+        -------
+        bool
+            A regressed segment fails; a new or missing one fails unless
+            ``thresholds.allow_new_segments``.
+        """
         if self.status in (Status.NEW, Status.MISSING):
             return not thresholds.allow_new_segments
         return self.failed
@@ -143,7 +259,38 @@ def _beyond(label: Label, other: Label) -> set[str]:
 def compare_segment(
     name: str, old: Snapshot, new: Snapshot, alpha: float, th: Thresholds
 ) -> SegmentComparison:
-    """The regression rules of the gate, for one matched segment."""
+    """The regression rules of the gate, for one matched segment.
+
+    A segment regresses when any of these holds (each a reason):
+
+    - its label was ``credible`` and is not, or it gained a condition (a location condition
+      where the baseline had one is the same finding, named more precisely);
+    - a question it answered is now untested (while it still has a verdict);
+    - |NCI| grew by more than ``th.max_nci_increase`` dB;
+    - ANEES moved further from 1 by more than the factor ``th.max_anees_ratio`` (measured
+      as max(ANEES, 1/ANEES));
+    - the ELT rejects at ``alpha`` where it did not.
+
+    The opposite changes are recorded as improvements (a better label only when nothing
+    regressed). A rule whose numbers are missing on either side is skipped.
+
+    Parameters
+    ----------
+    name : str
+        The segment's name.
+    old, new : Snapshot
+        The segment in the baseline and now.
+    alpha : float
+        The ELT's level (α_L in the calibrated variant).
+    th : Thresholds
+        The gate's thresholds.
+
+    Returns
+    -------
+    SegmentComparison
+        REGRESSED with its reasons, else IMPROVED when something got better, else
+        UNCHANGED.
+    """
     reasons, better = [], []
     old_label, new_label = old.label, new.label
     if old_label is Label.CREDIBLE and new_label is not Label.CREDIBLE:
@@ -199,9 +346,25 @@ def compare_segment(
 def compare(
     baseline: list[Snapshot], current: list[Snapshot], th: Thresholds, alpha: float
 ) -> list[SegmentComparison]:
-    """Every segment of the baseline and of the current run, matched by name, in the
-    baseline's order followed by new segments. ``alpha`` is the ELT's level (α_L in the
-    calibrated variant)."""
+    """Every segment of the baseline and of the current run, matched by name.
+
+    Parameters
+    ----------
+    baseline : list of Snapshot
+        The baseline's segments.
+    current : list of Snapshot
+        The segments of the current run.
+    th : Thresholds
+        The gate's thresholds (:func:`compare_segment`).
+    alpha : float
+        The ELT's level (α_L in the calibrated variant).
+
+    Returns
+    -------
+    list of SegmentComparison
+        One per segment, in the baseline's order followed by new segments; a baseline
+        segment absent now is MISSING, a segment absent from the baseline NEW.
+    """
     old = {s.segment: s for s in baseline}
     new = {s.segment: s for s in current}
     out = []
@@ -223,9 +386,23 @@ def compare(
 
 
 def check_same_parameters(baseline: Baseline, requested: dict) -> None:
-    """Settings given to the gate (command line or config file) must equal the baseline's;
-    ``requested`` maps a setting's name (a DiagnosisConfig field, ``seed``, ``window``,
-    ``whole``) to its value."""
+    """Check that the settings given to the gate (command line or config file) equal the
+    baseline's.
+
+    Parameters
+    ----------
+    baseline : Baseline
+        The baseline as read, with the settings it was made with.
+    requested : dict
+        A setting's name (a DiagnosisConfig field, ``seed``, ``window``, ``whole``) to
+        the value given; a value of None (not given) is not compared.
+
+    Raises
+    ------
+    CredcliError
+        If any given setting differs from the baseline's (compared as JSON values); the
+        message lists every difference.
+    """
     diff = []
     for name, value in requested.items():
         recorded, now = json_value(baseline.setting(name)), json_value(value)
@@ -239,10 +416,26 @@ def check_same_parameters(baseline: Baseline, requested: dict) -> None:
 
 
 def check_same_reading(baseline: Baseline, given: dict[str, tuple[object, list[str]]]) -> None:
-    """How the gate reads the new log is how the baseline's log was read: every reading
-    setting the gate is given (a config's [columns] and [input]) must equal the recorded
-    one. ``given`` maps a table name ("columns", "input") to the typed settings built from
-    it and the names the user set there; file names (``truth``) are not settings."""
+    """Check that the gate reads the new log as the baseline's log was read.
+
+    Every reading setting the gate is given (a config's [columns] and [input]) must equal
+    the recorded one.
+
+    Parameters
+    ----------
+    baseline : Baseline
+        The baseline as read, with how its log was read.
+    given : dict of str to (object, list of str)
+        A table name (``"columns"``, ``"input"``) to the typed settings built from it and
+        the names the user set there; file names (``truth``) are not settings and are
+        skipped.
+
+    Raises
+    ------
+    CredcliError
+        If any named setting differs from the recorded one (compared as JSON values);
+        the message lists every difference.
+    """
     recorded = {"columns": baseline.reading.schema, "input": baseline.reading.options}
     diff = []
     for table, (now, names) in given.items():
@@ -263,6 +456,23 @@ def check_same_reading(baseline: Baseline, given: dict[str, tuple[object, list[s
 
 
 def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[bool, str]:
+    """The gate's verdict in one line: PASS, or FAIL with the first failing segment.
+
+    Parameters
+    ----------
+    comparisons : list of SegmentComparison
+        Every segment, as :func:`compare` returns them.
+    th : Thresholds
+        The gate's thresholds (whether new or missing segments fail).
+
+    Returns
+    -------
+    passed : bool
+        Whether no segment fails.
+    line : str
+        ``"PASS: no regression in …"`` or ``"FAIL: k of n segment(s) regressed (…);
+        first: …"``, with the count of each status.
+    """
     failed = [c for c in comparisons if c.failed_with(th)]
     counts = {s: sum(c.status is s for c in comparisons) for s in Status}
     tally = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n)
@@ -279,7 +489,26 @@ def gate_fail_on(
     comparisons: list[SegmentComparison], fail_on: FailOn, passed: bool, verdict: str
 ) -> tuple[bool, str]:
     """`gate --fail-on`: the gate's verdict, failed also by a segment whose label now
-    fails ``fail_on`` (whatever the baseline said)."""
+    fails ``fail_on`` (whatever the baseline said).
+
+    Parameters
+    ----------
+    comparisons : list of SegmentComparison
+        Every segment, as :func:`compare` returns them.
+    fail_on : FailOn
+        The conditions of ``--fail-on``.
+    passed : bool
+        The gate's own verdict (:func:`verdict_line`).
+    verdict : str
+        The gate's verdict line.
+
+    Returns
+    -------
+    passed : bool
+        False when the gate failed or a current segment matches ``fail_on``.
+    line : str
+        The verdict line, with the matching segments appended (the first five named).
+    """
     bad = [
         c for c in comparisons if c.new is not None and fail_on.fails(c.new.label, c.new.untested)
     ]
@@ -292,8 +521,25 @@ def gate_fail_on(
 
 
 def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
-    """(passed, one-line verdict, indices of the failing segments) of `diagnose --fail-on`,
-    decided on the typed results (:class:`credcli.engine.diagnosis.SegmentDiagnosis`)."""
+    """The verdict of `diagnose --fail-on`, decided on the typed results.
+
+    Parameters
+    ----------
+    results : sequence of SegmentDiagnosis
+        The diagnosed segments (``credcli.engine.diagnosis.SegmentDiagnosis``).
+    fail_on : FailOn
+        The conditions of ``--fail-on``.
+
+    Returns
+    -------
+    passed : bool
+        Whether no segment matches ``fail_on``.
+    line : str
+        The one-line verdict, ``"PASS: …"`` or ``"FAIL: …"`` naming the first five
+        failing segments.
+    failing : list of int
+        The indices of the failing segments in ``results``.
+    """
     bad = [
         k for k, r in enumerate(results) if fail_on.fails(r.diagnosis.label, r.diagnosis.untested)
     ]

@@ -15,7 +15,20 @@ from credcli.report.render import OutputFormat, format_cell, markdown_text, to_t
 
 @dataclass(frozen=True)
 class Case:
-    """One JUnit test case: a segment, and why it failed (None when it passed)."""
+    """One JUnit test case: a segment, and why it failed (None when it passed).
+
+    Attributes
+    ----------
+    name : str
+        The test case's name: the segment's name.
+    classname : str
+        The test case's class: the command and the log's stem
+        (``credcli.diagnose.<stem>``, ``credcli.ci.gate.<stem>``).
+    failure : str or None
+        Why it failed, the failure's message; None when it passed.
+    details : str, default ""
+        More text: the failure's body, or the passing case's ``system-out``.
+    """
 
     name: str
     classname: str
@@ -27,14 +40,52 @@ _NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 
 
 def xml_text(text: str) -> str:
-    """``text`` with the characters XML 1.0 forbids (most C0 controls, lone surrogates,
-    U+FFFE/U+FFFF) written as #xNN, as pytest writes them, so the document stays valid."""
+    r"""``text`` with the characters XML 1.0 forbids written as ``#xNN``.
+
+    Those are most C0 controls, lone surrogates and U+FFFE/U+FFFF; pytest writes them
+    the same way, and the document stays valid.
+
+    Parameters
+    ----------
+    text : str
+        A name or message from the data.
+
+    Returns
+    -------
+    str
+        ``text`` with each forbidden character replaced.
+
+    Examples
+    --------
+    >>> xml_text("run\x07 1\tok")
+    'run#x07 1\tok'
+    """
     return _NOT_XML.sub(lambda m: f"#x{ord(m.group()):02X}", text)
 
 
 def junit_xml(suite: str, cases: list[Case]) -> str:
-    """A JUnit XML document with one <testsuite>; failures carry their reason. Names and
-    messages from the data pass through :func:`xml_text`."""
+    """A JUnit XML document with one <testsuite>; failures carry their reason.
+
+    Names and messages from the data pass through :func:`xml_text`.
+
+    Parameters
+    ----------
+    suite : str
+        The test suite's name.
+    cases : list of Case
+        The test cases, one per segment, in order.
+
+    Returns
+    -------
+    str
+        The indented XML document, with its declaration and a final newline.
+
+    Examples
+    --------
+    >>> cases = [Case("cruise", "credcli.diagnose.log", None), Case("urban", "x", "bias")]
+    >>> print(junit_xml("log", cases).splitlines()[1])
+    <testsuites name="credcli" tests="2" failures="1">
+    """
     failures = sum(c.failure is not None for c in cases)
     root = ET.Element("testsuites", name="credcli", tests=str(len(cases)), failures=str(failures))
     node = ET.SubElement(
@@ -60,8 +111,20 @@ def junit_xml(suite: str, cases: list[Case]) -> str:
 
 
 def check_step_summary(path: str) -> None:
-    """$GITHUB_STEP_SUMMARY must be a regular file or a new one (GitHub's always is): a
-    FIFO with no reader would block the run forever, a device is not a summary."""
+    """Check that $GITHUB_STEP_SUMMARY is a regular file or a new one (GitHub's always is).
+
+    A FIFO with no reader would block the run forever, a device is not a summary.
+
+    Parameters
+    ----------
+    path : str
+        The value of $GITHUB_STEP_SUMMARY.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` exists and is not a regular file, or cannot be examined.
+    """
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
@@ -76,7 +139,21 @@ def check_step_summary(path: str) -> None:
 
 
 def append_step_summary(markdown: str) -> None:
-    """Append to $GITHUB_STEP_SUMMARY when it is set (GitHub Actions' job summary)."""
+    """Append to $GITHUB_STEP_SUMMARY when it is set (GitHub Actions' job summary).
+
+    Nothing happens when the variable is unset or empty.
+
+    Parameters
+    ----------
+    markdown : str
+        The summary; a final newline is added when it has none.
+
+    Raises
+    ------
+    CredcliError
+        If the file is not a regular one (:func:`check_step_summary`) or cannot be
+        appended to.
+    """
     path = os.environ.get("GITHUB_STEP_SUMMARY")
     if not path:
         return
@@ -91,6 +168,24 @@ def append_step_summary(markdown: str) -> None:
 
 
 def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
+    """One JUnit case per segment the gate compared.
+
+    Parameters
+    ----------
+    comparisons : list of SegmentComparison
+        The gate's comparisons (``credcli.ci.gate.compare``).
+    thresholds : Thresholds
+        The gate's thresholds (whether new or missing segments fail).
+    log : str
+        The log's path or name; its stem names the cases' class
+        (``credcli.ci.gate.<stem>``).
+
+    Returns
+    -------
+    list of Case
+        In the order of ``comparisons``; a failing case's message is its reasons, every
+        case's details its reasons and improvements.
+    """
     cases = []
     for c in comparisons:
         failed = c.failed_with(thresholds)
@@ -107,8 +202,24 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
 
 
 def fail_on_cases(results, failing: list[int], fail_on) -> list[Case]:
-    """One JUnit case per diagnosed segment (:class:`credcli.engine.diagnosis.SegmentDiagnosis`);
-    ``failing``: the indices of the failing ones."""
+    """One JUnit case per diagnosed segment.
+
+    Parameters
+    ----------
+    results : sequence of SegmentDiagnosis
+        The diagnosed segments (``credcli.engine.diagnosis.SegmentDiagnosis``).
+    failing : list of int
+        The indices of the failing ones (``credcli.ci.gate.fail_on_verdict``).
+    fail_on : FailOn
+        The conditions of ``--fail-on``, named in the failure messages.
+
+    Returns
+    -------
+    list of Case
+        In the order of ``results``, classed by their log's stem
+        (``credcli.diagnose.<stem>``); the details give the label, ELT p-value, NCI and
+        ANEES.
+    """
     bad = set(failing)
     listed = str(fail_on)
     cases = []
@@ -137,8 +248,28 @@ def _classname(stem: str) -> str:
 
 
 def summary_markdown(heading: str, verdict: str, report, context: str = "") -> str:
-    """The Markdown summary of a CI run: a heading, the verdict, then the report's own
-    tables (the same ones the other output formats show)."""
+    """The Markdown summary of a CI run.
+
+    A heading, the verdict in bold, the context if any, then the report's own tables (the
+    same ones the other output formats show).
+
+    Parameters
+    ----------
+    heading : str
+        The section's heading (a level-2 Markdown heading).
+    verdict : str
+        The one-line verdict.
+    report : Report
+        The command's report, rendered as ``--format markdown`` renders it.
+    context : str, default ""
+        A line between the verdict and the tables (the baseline and thresholds); none
+        when empty.
+
+    Returns
+    -------
+    str
+        The Markdown text; every text from the data is escaped.
+    """
     parts = [f"## {markdown_text(heading)}", "", f"**{markdown_text(verdict)}**", ""]
     if context:
         parts += [markdown_text(context), ""]

@@ -57,7 +57,25 @@ MISFIT_COLOUR = "#a33a00"
 
 def label_style(value: str) -> str:
     """The inline style of a label cell: its colour stays where a page's stylesheet is
-    dropped (a notebook viewer, a mail)."""
+    dropped (a notebook viewer, a mail).
+
+    Parameters
+    ----------
+    value : str
+        The label as shown; a partial verdict (``"credible (scale untested)"``) is
+        coloured as its answered label.
+
+    Returns
+    -------
+    str
+        A CSS declaration: the colour of :data:`LABEL_COLOURS` (:data:`MISFIT_COLOUR` for
+        a misfit), in bold.
+
+    Examples
+    --------
+    >>> label_style("credible (scale untested)")
+    'color: #176f2c; font-weight: 600'
+    """
     name = value.split(" (")[0]  # "credible (scale untested)" is coloured as credible
     return f"color: {LABEL_COLOURS.get(name, MISFIT_COLOUR)}; font-weight: 600"
 
@@ -89,9 +107,23 @@ def _table_html(table, anchor: str = "") -> str:
 
 
 def records_table(records: list[dict], notes: tuple[str, ...] = ()) -> str:
-    """Segment records as an HTML table with the advice lines and ``notes`` below it (a
-    notebook's view of :class:`credcli.api.Results`): the columns and cells ``credcli
-    diagnose`` shows, labels coloured inline."""
+    """Segment records as an HTML table with the advice lines and ``notes`` below it.
+
+    A notebook's view of ``credcli.api.Results``: the columns and cells ``credcli
+    diagnose`` shows, labels coloured inline.
+
+    Parameters
+    ----------
+    records : list of dict
+        The segment records (``Results.to_dict()``).
+    notes : tuple of str, default ()
+        Lines shown below the table, before the advice.
+
+    Returns
+    -------
+    str
+        One ``<div>`` holding the table and the notes; text from the data is escaped.
+    """
     body = _table_html(Table("credcli diagnose", SEGMENT_COLUMNS, records))
     lines = [*notes, *(a for a in (advice(r) for r in records) if a)]
     shown = "".join(f'<p class="note">{_escape(line)}</p>' for line in lines)
@@ -184,12 +216,35 @@ def _figure_html(plot) -> str:
 
 
 def build_html(title: str, report: Report, plots, subtitle: str = "", notes=(), results=()) -> str:
-    """The report as one HTML document: a table of contents, an overview (the label
-    timeline, counts per label, the worst segments), the tables, the figures grouped by
-    log and segment (``Plot.group``), ``notes`` about the figures, and the parameters.
-    ``results``: the SegmentDiagnosis of the report's segment records, in their order,
-    whose logs' ids (:class:`credcli.logid.LogId`) link each worst segment to its
-    figures."""
+    """The report as one self-contained HTML document.
+
+    A table of contents, an overview (the label timeline, counts per label, the worst
+    segments), the tables, the figures grouped by log and segment (``Plot.group``) as
+    inline PNG data, ``notes`` about the figures, and the parameters.
+
+    Parameters
+    ----------
+    title : str
+        The page's title and first heading.
+    report : Report
+        The command's report: its tables, notes and document (whose ``segments``,
+        ``parameters`` and ``version`` are shown).
+    plots : list of Plot
+        The figures; those whose name ends in the timeline's stem and whose group is an
+        overview go to the overview.
+    subtitle : str, default ""
+        A line under the title; none when empty.
+    notes : sequence of str, default ()
+        Notes about the figures, shown above them.
+    results : sequence of SegmentDiagnosis, default ()
+        The SegmentDiagnosis of the report's segment records, in their order, whose logs'
+        ids (``credcli.logid.LogId``) link each worst segment to its figures.
+
+    Returns
+    -------
+    str
+        The HTML document, ending in a newline; text from the data is escaped.
+    """
     anchors = _Anchors()
     records = report.document.get("segments", [])
     timeline_stem = FILE_STEMS[PlotKind.TIMELINE]

@@ -22,7 +22,23 @@ from credcli.report import plots as figs
 
 
 class PlotKind(str, enum.Enum):
-    """The figures of ``Results.plot(kind=...)``."""
+    """The figures of ``Results.plot(kind=...)``.
+
+    Attributes
+    ----------
+    ERRORS : str
+        ``"errors"``: each error component against time with the claimed ±kσ band.
+    NEES : str
+        ``"nees"``: NEES per epoch and its running mean with the mean's interval.
+    WHITENED : str
+        ``"whitened"``: the whitened errors against N(0, I).
+    TIMELINE : str
+        ``"timeline"``: one bar per segment, coloured by its label.
+    TIMESCALES : str
+        ``"timescales"``: the variance at every averaging time against the memory model.
+    ALL : str
+        ``"all"``: every kind of :data:`DRAWN`.
+    """
 
     ERRORS = "errors"
     NEES = "nees"
@@ -36,6 +52,28 @@ class PlotKind(str, enum.Enum):
 
     @classmethod
     def parse(cls, kind) -> PlotKind:
+        """The kind named by ``kind``.
+
+        Parameters
+        ----------
+        kind : PlotKind or str
+            A kind, or its value (``"nees"``).
+
+        Returns
+        -------
+        PlotKind
+            The kind.
+
+        Raises
+        ------
+        CredcliError
+            If ``kind`` names no kind (the message lists them).
+
+        Examples
+        --------
+        >>> PlotKind.parse("nees") is PlotKind.NEES
+        True
+        """
         try:
             return cls(kind)
         except ValueError:
@@ -69,7 +107,19 @@ segments that are not credible (the overview figures cover the whole log)."""
 class Source:
     """What the overview draws from: the runs of one scenario (one log, or M Monte Carlo
     runs on one time base), the segments of the first run and their diagnoses (pooled over
-    the runs, in the order of ``segments``)."""
+    the runs, in the order of ``segments``).
+
+    Attributes
+    ----------
+    runs : tuple of EstimatorLog
+        The runs (one log, or M runs on one time base); the first gives the time axis.
+    segments : tuple of Segment
+        The diagnosed segments of the first run, in the order of ``results``.
+    results : tuple of SegmentDiagnosis
+        Their diagnoses.
+    alpha : float, default 0.05
+        The level of the NEES running mean's interval.
+    """
 
     runs: tuple
     segments: tuple
@@ -78,7 +128,29 @@ class Source:
 
     @classmethod
     def of(cls, runs, segments, results, alpha: float = 0.05) -> Source:
-        """The source of ``results`` (SegmentDiagnosis, matched to ``segments`` by name)."""
+        """The source of ``results``, each matched to its segment by name.
+
+        Parameters
+        ----------
+        runs : sequence of EstimatorLog
+            The runs (one log, or M runs on one time base).
+        segments : sequence of Segment
+            The segments of the first run; those without a result are left out.
+        results : sequence of SegmentDiagnosis
+            The diagnoses to draw; each segment name must be in ``segments``.
+        alpha : float, default 0.05
+            The level of the NEES running mean's interval.
+
+        Returns
+        -------
+        Source
+            The runs, the segments of ``results`` in their order, and ``results``.
+
+        Raises
+        ------
+        KeyError
+            If a result's segment is not in ``segments``.
+        """
         by_name = {segment.name: segment for segment in segments}
         chosen = tuple(by_name[result.segment] for result in results)
         return cls(tuple(runs), chosen, tuple(results), alpha)
@@ -98,9 +170,22 @@ class Source:
 
 
 def spans(source: Source) -> list[figs.Span]:
-    """Each diagnosed segment on the time axis, label, κ̂ and ANEES. A segment spans from
-    its first epoch to one sampling step (the median) past its last, so that consecutive
-    segments meet."""
+    """Each diagnosed segment on the time axis, with its label, κ̂ and ANEES.
+
+    A segment spans from its first epoch to one sampling step (the median) past its last,
+    so that consecutive segments meet.
+
+    Parameters
+    ----------
+    source : Source
+        The runs, segments and diagnoses.
+
+    Returns
+    -------
+    list of Span
+        One per segment, in the order of ``source.segments``; in seconds when the log has
+        time stamps, else in epochs.
+    """
     x = source.x
     step = float(np.median(np.diff(x))) if x.size > 1 else 1.0
     out = []
@@ -125,7 +210,35 @@ def _shaded(source: Source) -> list[tuple]:
 
 
 def draw(source: Source, kind: PlotKind, k: float = 3.0, window: int | None = None) -> tuple:
-    """One overview figure: (the matplotlib Figure, the numbers drawn, its title)."""
+    """One overview figure.
+
+    Parameters
+    ----------
+    source : Source
+        The runs, segments and diagnoses.
+    kind : PlotKind
+        The figure (not ``ALL``).
+    k : float, default 3.0
+        The half-width of the error band, in claimed standard deviations (``ERRORS``).
+    window : int or None, default None
+        The running mean's window in epochs (``NEES``); None for the default window of
+        the log's length.
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+        The figure, still open.
+    data : dict
+        The numbers drawn.
+    title : str
+        Its title.
+
+    Raises
+    ------
+    CredcliError
+        If ``window`` is not between 1 and the log's length, if ``kind`` is
+        ``TIMESCALES`` and no segment has a fitted memory, or if ``kind`` is ``ALL``.
+    """
     fig, data = _draw(source, kind, k, window)
     return fig, data, fig.get_suptitle()
 
@@ -133,7 +246,7 @@ def draw(source: Source, kind: PlotKind, k: float = 3.0, window: int | None = No
 def _draw(source: Source, kind: PlotKind, k: float, window: int | None) -> tuple:
     runs, x, xlabel = source.runs, source.x, source.xlabel
     m, dim = len(runs), runs[0].dim
-    name = short_source(runs)
+    name = _short_source(runs)
     if kind is PlotKind.TIMELINE:
         return figs.draw_timeline(spans(source), xlabel, f"{name}: label per segment")
     if kind is PlotKind.TIMESCALES:
@@ -216,14 +329,32 @@ def _time_scales(source: Source, name: str) -> tuple:
     return fig, data
 
 
-def short_source(runs: Sequence) -> str:
+def _short_source(runs: Sequence) -> str:
     name = figs.short_title(runs[0].id.label, 50)
     return name if len(runs) == 1 else f"{name} and {len(runs) - 1} more runs"
 
 
 def overview_plots(source: Source, prefix: str = "", log_name: str = "") -> list[figs.Plot]:
     """The overview figures as files: ``<prefix>timeline``, ``<prefix>errors``,
-    ``<prefix>nees_running``, ``<prefix>whitened_errors`` (see :data:`FILE_STEMS`)."""
+    ``<prefix>nees_running``, ``<prefix>whitened_errors`` (see :data:`FILE_STEMS`).
+
+    Parameters
+    ----------
+    source : Source
+        The runs, segments and diagnoses.
+    prefix : str, default ""
+        The start of every file name (a log's stem when there are several); made safe
+        for a file name, and joined to the stem by one ``_``.
+    log_name : str, default ""
+        The log's label, which names the figures' report section (``"<log_name>:
+        overview"``; ``"overview"`` when empty).
+
+    Returns
+    -------
+    list of Plot
+        The figures of :data:`DRAWN`, in that order, drawn with the default ``k`` and
+        window.
+    """
     stem = figs.safe_name(prefix.rstrip("_")) + "_" if prefix else ""
     group = f"{log_name}: overview" if log_name else "overview"
     out = []
@@ -239,8 +370,25 @@ def segments_to_draw(segments, results, limit: int = MAX_WINDOW_FIGURES):
     window and, of the windows, up to ``limit`` that are not credible, misfits before
     windows without a verdict (the overview figures show the whole run). Without windows
     (a segment column), every segment up to :data:`MAX_SEGMENT_FIGURES`; past it, that
-    many that are not credible, chosen alike (a log of a thousand segments gave four
-    thousand figures)."""
+    many that are not credible, chosen alike (each segment has up to four figures of its
+    own).
+
+    Parameters
+    ----------
+    segments : sequence of Segment
+        The diagnosed segments, in order.
+    results : sequence of SegmentDiagnosis
+        Their diagnoses, in the same order.
+    limit : int, default MAX_WINDOW_FIGURES
+        The most windows drawn (without windows, :data:`MAX_SEGMENT_FIGURES` applies).
+
+    Returns
+    -------
+    pairs : list of tuple
+        The (segment, result) pairs to draw, in their order.
+    note : str or None
+        What was left out and why; None when every pair is drawn.
+    """
     pairs = list(zip(segments, results, strict=True))
     capped = [i for i, (segment, _) in enumerate(pairs) if segment.window]
     what = "windows"

@@ -26,6 +26,23 @@ INSTALL_HINT = "pip install 'credcli[plots]' (or pip install matplotlib)"
 
 @dataclass(frozen=True)
 class Plot:
+    """A drawn figure: its PNG bytes and the numbers it shows.
+
+    Attributes
+    ----------
+    name : str
+        The file name without its extension (:func:`write_plots` adds ``.png``).
+    title : str
+        The figure's title.
+    png : bytes
+        The PNG image (100 dpi, without a ``Software`` entry).
+    data : dict
+        The numbers drawn, by name, so that a test can check the figure against them.
+    group : str, default ""
+        The section of a report it belongs to: a log's overview, a segment
+        (:func:`segment_group`).
+    """
+
     name: str  # file name without extension
     title: str
     png: bytes
@@ -77,9 +94,28 @@ MAX_STEM = 80
 
 
 def safe_name(text: str) -> str:
-    """A file-name stem for ``text``: itself when it is short and made of safe characters;
-    otherwise the safe characters, cut to MAX_STEM, and a checksum of the whole name, so
-    that names differing only in unsafe characters ('a b', 'a/b') stay apart."""
+    """A file-name stem for ``text``.
+
+    ``text`` itself when it is short and made of safe characters (letters, digits,
+    ``_.-``); otherwise the safe characters (each run of others as one ``_``), cut to
+    :data:`MAX_STEM`, and a CRC-32 of the whole name, so that names differing only in
+    unsafe characters ('a b', 'a/b') stay apart.
+
+    Parameters
+    ----------
+    text : str
+        A segment's or log's name (anything ``str`` accepts).
+
+    Returns
+    -------
+    str
+        The stem; ``"segment"`` (with the checksum) when no safe character is left.
+
+    Examples
+    --------
+    >>> safe_name("cruise"), safe_name("a b"), safe_name("a/b")
+    ('cruise', 'a_b-806c5cd3', 'a_b-07f4401c')
+    """
     text = str(text)
     stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text[: 4 * MAX_STEM]).strip("_.") or "segment"
     if stem == text and len(stem) <= MAX_STEM:
@@ -88,12 +124,53 @@ def safe_name(text: str) -> str:
 
 
 def short_title(text: str, limit: int = 80) -> str:
+    """``text`` cut to ``limit`` characters for a title or a legend, ending in "…" when cut.
+
+    Parameters
+    ----------
+    text : str
+        The text (anything ``str`` accepts).
+    limit : int, default 80
+        The most characters kept, the ellipsis included.
+
+    Returns
+    -------
+    str
+        ``text``, or its first ``limit - 1`` characters and "…".
+
+    Examples
+    --------
+    >>> short_title("a long segment name", 10)
+    'a long se…'
+    """
     text = str(text)
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
-    """Write each plot as DIR/<name>.png (atomically); create DIR if needed."""
+    """Write each plot as DIR/<name>.png (atomically); create DIR if needed.
+
+    The names are checked before any file is written, so that a collision never
+    overwrites a figure.
+
+    Parameters
+    ----------
+    plots : list of Plot
+        The figures.
+    directory : Path
+        The directory DIR (a str is accepted).
+
+    Returns
+    -------
+    list of Path
+        The files written, in the order of ``plots``.
+
+    Raises
+    ------
+    CredcliError
+        If ``directory`` exists and is not a directory, or if two plots have the same
+        name.
+    """
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
         raise CredcliError(f"`plots` {directory}: exists and is not a directory", "plots")
@@ -122,7 +199,37 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
 
 def nees_plot(name: str, time, nees: np.ndarray, dim: int, title: str) -> Plot:
     """NEES per epoch with the two-sided 95% χ²_d bounds, and the ANEES (mean NEES / d)
-    with the 95% bounds of the mean (χ²_{Nd} / N)."""
+    with the 95% bounds of the mean (χ²_{Nd} / N).
+
+    Parameters
+    ----------
+    name : str
+        The file name without extension.
+    time : array_like of shape (N,) or None
+        The epochs' time stamps in seconds; None to number the epochs.
+    nees : ndarray of shape (N,)
+        The NEES ε_k of each epoch.
+    dim : int
+        The state's dimension d.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Plot
+        The figure; its data holds ``x``, ``nees``, the bounds ``lower`` and ``upper``,
+        ``mean_nees``, ``anees`` and the mean's bounds ``mean_lower`` and ``mean_upper``.
+
+    Notes
+    -----
+    ε_k = e_kᵀ Σ̂_k⁻¹ e_k (Eq. (1)) is χ²_d when e_k ~ N(0, Σ̂_k), and the sum of N
+    independent ones χ²_{Nd}, so the mean NEES lies in the central 95 % of χ²_{Nd} / N.
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Eq. (1).
+    """
     from scipy import special
 
     plt = _pyplot()
@@ -158,16 +265,52 @@ def nees_plot(name: str, time, nees: np.ndarray, dim: int, title: str) -> Plot:
 
 
 def time_scales_plot(name: str, scales, rate_hz: float | None, title: str) -> Plot:
-    """The variance of the whitened errors at every averaging time (m times the variance
-    of m-epoch means, per direction in its own units) against the dependence model's
-    prediction and its interval (:class:`credcli.engine.memory.TimeScales`): where the
-    points leave the band, the errors vary more slowly than the model explains."""
+    """The variance of the whitened errors at every averaging time against the dependence
+    model's prediction and its interval.
+
+    The variance is m times the variance of m-epoch means, per direction in its own units
+    (``credcli.engine.memory.TimeScales``): where the points leave the band, the errors
+    vary more slowly than the model explains.
+
+    Parameters
+    ----------
+    name : str
+        The file name without extension.
+    scales : TimeScales
+        The observed and predicted variances at each averaging time.
+    rate_hz : float or None
+        The epochs per second, to show averaging times in seconds; None for epochs.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Plot
+        The figure; its data as :func:`draw_time_scales` gives it.
+    """
     fig, data = draw_time_scales(scales, rate_hz)
     return _finish(fig, name, title, data)
 
 
 def draw_time_scales(scales, rate_hz: float | None) -> tuple:
-    """The figure of :func:`time_scales_plot` and its numbers, without a title."""
+    """The figure of :func:`time_scales_plot` and its numbers, without a title.
+
+    Parameters
+    ----------
+    scales : TimeScales
+        The observed and predicted variances at each averaging time, the model's
+        interval and the scales that are checked.
+    rate_hz : float or None
+        The epochs per second, to show averaging times in seconds; None (or 0) for
+        epochs.
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+        The figure, still open.
+    data : dict
+        ``epochs``, ``observed``, ``predicted``, ``low`` and ``high``, as arrays.
+    """
     plt = _pyplot()
     m = np.asarray(scales.epochs, dtype=float)
     x = m / rate_hz if rate_hz else m
@@ -203,7 +346,21 @@ def draw_time_scales(scales, rate_hz: float | None) -> tuple:
 
 
 def anees_plot(name: str, mc) -> Plot:
-    """Per-epoch ANEES over Monte Carlo runs with its two-sided χ²_{Md}/M bounds."""
+    """Per-epoch ANEES over Monte Carlo runs with its two-sided χ²_{Md}/M bounds.
+
+    Parameters
+    ----------
+    name : str
+        The file name without extension.
+    mc : MonteCarlo
+        The ANEES test of the runs (``credcli.engine.montecarlo.MonteCarlo``).
+
+    Returns
+    -------
+    Plot
+        The figure, titled with the share of epochs inside the bounds; its data holds
+        ``x``, ``anees``, ``lower`` and ``upper``.
+    """
     plt = _pyplot()
     x = np.arange(mc.anees.size) if mc.time is None else np.asarray(mc.time)
     fig, ax = plt.subplots(figsize=(8, 3.6))
@@ -221,7 +378,38 @@ def anees_plot(name: str, mc) -> Plot:
 
 
 def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) -> Plot:
-    """The ELT's picture: whitened errors s_k and their mirror image −s_k (Eq. (12))."""
+    """The ELT's picture: whitened errors s_k and their mirror image −s_k (Eq. (12)).
+
+    For d = 1, histograms of s_k and −s_k; otherwise the first two components of both
+    as points, with their mean.
+
+    Parameters
+    ----------
+    name : str
+        The file name without extension.
+    s : ndarray of shape (N, d)
+        The whitened errors s_k.
+    pvalue : float or None
+        The ELT's p-value, shown above the axes; None when the test was not run.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Plot
+        The figure; its data holds ``s`` (the components shown), ``mirror`` and
+        ``pvalue``.
+
+    Notes
+    -----
+    The ELT tests H₀: the law of {s_k} equals the law of {−s_k} (Eq. (12)): errors free
+    of a system-model bias are symmetric about zero, so the two clouds overlap.
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Eqs. (12)-(16).
+    """
     plt = _pyplot()
     d = s.shape[1]
     fig, ax = plt.subplots(figsize=(5, 5))
@@ -260,8 +448,38 @@ def whitened_plot(name: str, s: np.ndarray, pvalue: float | None, title: str) ->
 
 def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str) -> Plot:
     """Mean NLL and mean ES against the covariance scale, for the claimed predictive and
-    the centred one F̃ (Section III-C), with the probes at 1/c, 1, c. ``curves`` maps
-    "claimed" and "centred" to (mean NLL, mean ES) arrays over ``scales``."""
+    the centred one F̃ (Section III-C), with the probes at 1/c, 1, c.
+
+    Parameters
+    ----------
+    name : str
+        The file name without extension.
+    scales : ndarray
+        The covariance scales s, increasing.
+    curves : dict
+        Maps ``"claimed"`` and ``"centred"`` to (mean NLL, mean ES) arrays over
+        ``scales``.
+    c : float
+        The probe factor (the probes are the scales nearest 1/c, 1 and c).
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Plot
+        The figure; its data holds ``scales``, ``nll``, ``es``, ``nll_centred``,
+        ``es_centred`` and ``probe_scales``.
+
+    Notes
+    -----
+    The probes are the differences Δ⁻ and Δ⁺ of the centred scores at 1/c and c from
+    their value at 1 (Eq. (18)), whose asymmetry (Eq. (19)) tells optimism from SMM.
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Section III-C, Eqs. (18)-(19).
+    """
     plt = _pyplot()
     probe_idx = [int(np.argmin(np.abs(scales - p))) for p in (1.0 / c, 1.0, c)]
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
@@ -294,17 +512,61 @@ def scale_plot(name: str, scales: np.ndarray, curves: dict, c: float, title: str
 
 def segment_group(segment: str, log_name: str = "") -> str:
     """The report section of a segment's figures: ``segment NAME``, after its log's label
-    (``LogId.label``) when a report holds several logs."""
+    (``LogId.label``) when a report holds several logs.
+
+    Parameters
+    ----------
+    segment : str
+        The segment's name.
+    log_name : str, default ""
+        The log's label; empty for a report of one log.
+
+    Returns
+    -------
+    str
+        The section's name.
+
+    Examples
+    --------
+    >>> segment_group("urban"), segment_group("urban", "run2")
+    ('segment urban', 'run2: segment urban')
+    """
     return f"{log_name}: segment {segment}" if log_name else f"segment {segment}"
 
 
 def segment_plots(
     results, curves, times, dim: int, prefix: str = "", log_name: str = ""
 ) -> list[Plot]:
-    """The pictures of every diagnosed segment (NEES, whitened errors, the variance at every
-    averaging time where the memory model was read, the scores): ``curves`` (the engine's
-    :class:`credcli.engine.curves.SegmentCurves`) and ``times`` (stamps or None) in the
-    order of ``results``. Each plot's ``group`` names its segment (after ``log_name``)."""
+    """The pictures of every diagnosed segment.
+
+    For each segment: NEES (:func:`nees_plot`), whitened errors (:func:`whitened_plot`),
+    the variance at every averaging time where the memory model was read
+    (:func:`time_scales_plot`) and the scores where it has a verdict (:func:`scale_plot`).
+    Each plot's ``group`` names its segment (after ``log_name``).
+
+    Parameters
+    ----------
+    results : sequence of SegmentDiagnosis
+        The diagnosed segments.
+    curves : sequence of SegmentCurves
+        The engine's curves of each (``credcli.engine.curves.SegmentCurves``), in the
+        order of ``results``.
+    times : sequence of (ndarray or None)
+        The time stamps of each segment's epochs (None for a log without time), in the
+        order of ``results``.
+    dim : int
+        The state's dimension d.
+    prefix : str, default ""
+        The start of every file name (a log's stem when there are several).
+    log_name : str, default ""
+        The log's label, for the plots' ``group``; empty for one log.
+
+    Returns
+    -------
+    list of Plot
+        Two to four figures per segment, named ``<prefix><segment>_nees``, ``_whitened``,
+        ``_timescales`` and ``_scores`` (made safe by :func:`safe_name`).
+    """
     plots = []
     for res, numbers, time in zip(results, curves, times, strict=True):
         start = len(plots)
@@ -333,7 +595,25 @@ def segment_plots(
 
 
 def confusion_plot(study) -> Plot:
+    """Table III as a picture: the trials of each true scenario by the label diagnosed.
 
+    Parameters
+    ----------
+    study : StudyResult
+        The simulation study (``credcli.studies.simulate.StudyResult``); its confusion
+        counts are those of ``study.variant``.
+
+    Returns
+    -------
+    Plot
+        ``confusion_matrix``; its data holds ``counts`` (scenarios × the labels of
+        ``CONFUSION_LABELS``) and ``rows`` (the scenarios).
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Table III.
+    """
     plt = _pyplot()
     rows = study.scenarios
     counts = np.array([[study.confusion[t][lab] for lab in CONFUSION_LABELS] for t in rows])
@@ -364,6 +644,27 @@ def confusion_plot(study) -> Plot:
 
 
 def curves_plot(by_rho, by_gamma) -> Plot:
+    """Fig. 1 of the paper: the mean energy score against the covariance scale ρ and
+    against the bias γ, the sample mean beside the exact expectation.
+
+    Parameters
+    ----------
+    by_rho : sequence of CurvePoint
+        The points of Fig. 1a (ES against ρ, γ = 0).
+    by_gamma : sequence of CurvePoint
+        The points of Fig. 1b (ES against γ, ρ = 1).
+
+    Returns
+    -------
+    Plot
+        ``fig1_energy_score``; its data holds ``rho``, ``es_rho``, ``expected_es_rho``,
+        ``gamma``, ``es_gamma`` and ``expected_es_gamma``.
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Eq. (10) and Fig. 1.
+    """
     plt = _pyplot()
     rho = np.array([p.rho for p in by_rho])
     gamma = np.array([p.gamma for p in by_gamma])
@@ -394,6 +695,23 @@ def curves_plot(by_rho, by_gamma) -> Plot:
 
 
 def sweep_plot(sweep, points) -> Plot:
+    """Diagnosis accuracy against a swept parameter, one line per true label.
+
+    Parameters
+    ----------
+    sweep : Sweep
+        The swept parameter and its values (a log axis for ``rho`` and ``B`` when every
+        value is positive).
+    points : sequence of SweepPoint
+        The accuracy at each value and true label; the first method of each point's
+        ``accuracy`` (the calibrated variant) is drawn.
+
+    Returns
+    -------
+    Plot
+        ``sweep_<parameter>``; its data maps each true label to its (values, accuracy
+        in %) arrays.
+    """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4))
     data = {}
@@ -424,7 +742,26 @@ def _period_colours(n: int):
 
 
 def uwb_plots(run) -> list[Plot]:
-    """Figs. 3a, 3b, 4 and 5 of the paper for a UWB run."""
+    """Figs. 3a, 3b, 4 and 5 of the paper for a UWB run.
+
+    Parameters
+    ----------
+    run : UwbRun
+        What the ``uwb`` command computed (``credcli.studies.uwb.UwbRun``).
+
+    Returns
+    -------
+    list of Plot
+        ``uwb_positions_over_time`` (Fig. 3a: the rig's position, periods shaded),
+        ``uwb_trajectory`` (Fig. 3b: fixes and truth per period), ``uwb_range_errors``
+        (Fig. 4: range errors per period and anchor) and ``uwb_reported_std`` (Fig. 5:
+        reported against empirical standard deviations).
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Section V, Figs. 3-5.
+    """
     plt = _pyplot()
     ranges, log = run.ranges, run.log
     spans = [(s.name, s.t_start, s.t_end) for s in run.segments]
@@ -573,14 +910,44 @@ MAX_SPAN_LINES = 40
 
 
 def label_colour(label: str) -> str:
-    """The figure colour of a label (its text, or a Label)."""
+    """The figure colour of a label (its text, or a Label).
+
+    Parameters
+    ----------
+    label : str or Label
+        The label; a partial verdict (``"credible (scale untested)"``) takes the colour
+        of its answered label.
+
+    Returns
+    -------
+    str
+        A colour of :data:`PLOT_LABEL_COLOURS`, or :data:`PLOT_MISFIT_COLOUR`.
+
+    Examples
+    --------
+    >>> label_colour("credible"), label_colour("optimism+bias") == PLOT_MISFIT_COLOUR
+    ('#2ca02c', True)
+    """
     return PLOT_LABEL_COLOURS.get(str(label).split(" (")[0], PLOT_MISFIT_COLOUR)
 
 
 @dataclass(frozen=True)
 class Span:
-    """A diagnosed segment on the time axis: its name, first and last time (or epoch),
-    label, κ̂ (None when not estimated) and ANEES (None when not computed)."""
+    """A diagnosed segment on the time axis.
+
+    Attributes
+    ----------
+    name : str
+        The segment's name.
+    start, end : float
+        Where it starts and ends on the time axis (seconds, or epochs).
+    label : str
+        Its label as shown.
+    kappa : float or None, default None
+        Its covariance scale estimate κ̂; None when not estimated.
+    anees : float or None, default None
+        Its ANEES; None when not computed.
+    """
 
     name: str
     start: float
@@ -648,11 +1015,39 @@ def draw_errors(
     components: list[str] | None = None,
     title: str = "",
 ):
-    """Each error component e_k,i against time (``errors``: (N, d), or (M, N, d) for M
-    Monte Carlo runs, one thin line each) with the claimed ±kσ band (``band``: (N, d), kσ_k,i
-    with σ_k,i = √Σ_k,ii; for runs, the root mean square over them), one subplot per
-    component, the segments shaded in their label's colour. ``outside``: the share of
-    epochs outside their own band, per component. Returns the figure and the numbers drawn."""
+    """Each error component e_k,i against time with the claimed ±kσ band, one subplot per
+    component, the segments shaded in their label's colour.
+
+    Parameters
+    ----------
+    x : ndarray of shape (N,)
+        The time axis (seconds, or epochs).
+    errors : ndarray of shape (N, d) or (M, N, d)
+        The errors; for M Monte Carlo runs, one thin line each.
+    band : ndarray of shape (N, d)
+        The band's half-width kσ_k,i with σ_k,i = √Σ_k,ii; for runs, the root mean square
+        over them.
+    outside : ndarray of shape (d,)
+        The share of epochs outside their own band, per component (shown in the legend
+        beside the share expected, P(|z| > k)).
+    spans : list of Span
+        The segments to shade.
+    k : float, default 3.0
+        The band's width in standard deviations.
+    xlabel : str, default "time [s]"
+        The x axis's label.
+    components : list of str or None, default None
+        The components' names; None for ``e_1``, ``e_2``, ….
+    title : str, default ""
+        The figure's title.
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+        The figure, still open.
+    data : dict
+        ``x``, ``errors``, ``band``, ``k`` and ``outside``.
+    """
     runs = errors if errors.ndim == 3 else errors[None]
     m, n, d = runs.shape
     names = components or [f"e_{i + 1}" for i in range(d)]
@@ -701,11 +1096,53 @@ def draw_nees(
     xlabel: str = "time [s]",
     title: str = "",
 ):
-    """NEES per epoch (points; a 2-D histogram when there are more than MAX_SCATTER), its
-    running mean over ``window`` epochs (drawn at each window's last epoch) with the 1 − α
-    interval ``bounds`` of that mean (χ²_{wd}/w under independent epochs), the expected
-    value d and each segment's mean NEES (d · ANEES). With ``runs`` > 1 the per-epoch
-    values are averages over Monte Carlo runs (χ²_{Md}/M each)."""
+    """NEES per epoch, its running mean with that mean's interval, the expected value d
+    and each segment's mean NEES.
+
+    The points become a 2-D histogram when there are more than :data:`MAX_SCATTER`.
+
+    Parameters
+    ----------
+    x : ndarray of shape (N,)
+        The time axis (seconds, or epochs).
+    nees : ndarray of shape (N,)
+        The NEES of each epoch; with ``runs`` > 1, averages over Monte Carlo runs
+        (χ²_{Md}/M each).
+    dim : int
+        The state's dimension d, the NEES's expected value.
+    running : ndarray of shape (N - window + 1,)
+        The running mean over ``window`` epochs, drawn at each window's last epoch.
+    window : int
+        The running mean's window in epochs.
+    bounds : tuple of float
+        The 1 − α interval (low, high) of the running mean (χ²_{wd}/w under independent
+        epochs).
+    alpha : float
+        The interval's level α, for its legend.
+    spans : list of Span
+        The segments to shade; each one's mean NEES d · ANEES is drawn (up to
+        :data:`MAX_SPAN_LINES` segments).
+    runs : int, default 1
+        The number of Monte Carlo runs averaged.
+    xlabel : str, default "time [s]"
+        The x axis's label.
+    title : str, default ""
+        The figure's title.
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+        The figure, still open.
+    data : dict
+        ``x``, ``nees``, ``running``, ``running_x``, ``window``, ``bounds``,
+        ``segment_mean`` (d · ANEES per span, or None) and ``running_inside`` (the share
+        of the running mean inside ``bounds``).
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Eqs. (1)-(2).
+    """
     n = nees.size
     fig, ax = _figure(figsize=(10, 4.2))
     _shade_spans(ax, spans, name_them=True)
@@ -800,9 +1237,35 @@ def draw_whitened_errors(
     s: np.ndarray, colours: list[str] | None = None, title: str = "", labels: dict | None = None
 ):
     """Whitened errors s_k = Σ_k^{-1/2} e_k, first two components, with circles holding
-    39 % (the unit circle), 95 % and 99 % of N(0, I₂) and the share observed inside each
-    (for d = 1: a histogram against the N(0, 1) density). A 2-D histogram replaces the
-    points above MAX_SCATTER; points beyond the axes are counted."""
+    39 % (the unit circle), 95 % and 99 % of N(0, I₂) and the share observed inside each.
+
+    For d = 1, a histogram against the N(0, 1) density. A 2-D histogram replaces the
+    points above :data:`MAX_SCATTER`; points beyond the axes are counted.
+
+    Parameters
+    ----------
+    s : ndarray of shape (N, d)
+        The whitened errors.
+    colours : list of str or None, default None
+        A colour per point (its segment's label colour); None for one colour.
+    title : str, default ""
+        The figure's title.
+    labels : dict or None, default None
+        The legend of ``colours``: a text (the labels of a colour) to its colour.
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+        The figure, still open.
+    data : dict
+        ``s`` (the components drawn); for d > 1 also ``radii`` and ``inside`` (each
+        circle's radius and observed share) and ``beyond`` (points outside the axes).
+
+    Notes
+    -----
+    When e_k ~ N(0, Σ_k), s_k ~ N(0, I), so |s_k|² of two components is χ²₂ and a
+    circle of radius r holds 1 − exp(−r²/2) of the points (:data:`WHITENED_CONTOURS`).
+    """
     n, d = s.shape
     fig, ax = _figure(figsize=(7, 6.6) if d > 1 else (7, 4))
     data: dict = {"s": s[:, : min(d, 2)]}
@@ -897,7 +1360,25 @@ def _lanes(spans: list[Span]) -> list[int]:
 
 def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
     """One bar per segment over its time, coloured by its label, with κ̂ written in bars
-    wide enough to hold it; overlapping segments (windows and their run) on separate rows."""
+    wide enough to hold it; overlapping segments (windows and their run) on separate rows.
+
+    Parameters
+    ----------
+    spans : list of Span
+        The segments.
+    xlabel : str, default "time [s]"
+        The x axis's label.
+    title : str, default ""
+        The figure's title.
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+        The figure, still open.
+    data : dict
+        Per span ``starts``, ``ends``, ``lanes`` (its row), ``colours``, ``labels`` and
+        ``kappa``, and ``bars`` (the number of bars drawn).
+    """
     from matplotlib.patches import Patch
 
     lanes = _lanes(spans)
@@ -971,8 +1452,24 @@ def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
 
 
 def figure_plot(name: str, title: str, drawn, group: str = "") -> Plot:
-    """A drawn figure (the figure and its numbers, as the ``draw_*`` functions return
-    them) as a Plot: its PNG bytes; the figure is closed."""
+    """A drawn figure as a Plot: its PNG bytes; the figure is closed.
+
+    Parameters
+    ----------
+    name : str
+        The file name without extension.
+    title : str
+        The figure's title (already drawn on it).
+    drawn : tuple
+        The figure and its numbers, as the ``draw_*`` functions return them.
+    group : str, default ""
+        The report section it belongs to.
+
+    Returns
+    -------
+    Plot
+        The PNG bytes (100 dpi) and the numbers.
+    """
     fig, data = drawn
     plt = _pyplot()
     buf = io.BytesIO()

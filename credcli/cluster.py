@@ -50,8 +50,9 @@ REMOTE_OPT_IN = "CREDCLI_ALLOW_PLAINTEXT_REMOTE_SCHEDULER"
 the path can then read the logs and run code in credcli (pickled results)."""
 
 
-def check_loopback(host: str, address: str) -> None:
-    """Refuse a plain-TCP scheduler host that is not loopback, unless opted in."""
+def _check_loopback(host: str, address: str) -> None:
+    """Refuse a plain-TCP scheduler ``host`` (of ``address``, for the message) that is not
+    loopback, unless opted in (`REMOTE_OPT_IN`)."""
     if os.environ.get(REMOTE_OPT_IN) == "1":
         return
     try:
@@ -75,17 +76,33 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
 
     A scheduler writes its handshake as soon as a connection opens (distributed's
     ``Listener.on_connection``), and a client waits for it without a time limit: an HTTP
-    server there never writes first (the client hung), or it answers the client's own
-    handshake with "HTTP/1.1 400" (which Dask read as a frame length and failed on with a
-    MemoryError). So the first bytes are read here, with a deadline. Only plain TCP
-    addresses are probed (tls://, ucx:// and others go to Dask as they are)."""
+    server there never writes first (the client would hang), or it answers the client's
+    own handshake with "HTTP/1.1 400" (which Dask reads as a frame length and fails on
+    with a MemoryError). So the first bytes are read here, with a deadline. Only plain TCP
+    addresses are probed (tls://, ucx:// and others go to Dask as they are).
+
+    Parameters
+    ----------
+    address : str
+        The scheduler's address, ``tcp://host:port`` or ``host:port`` (port 8786 by
+        default).
+    seconds : float, default `CONNECT_SECONDS`
+        How long to wait for the connection and for the first bytes.
+
+    Raises
+    ------
+    CredcliError
+        If the address is malformed, a plain tcp:// host is off the loopback interface
+        without `REMOTE_OPT_IN`, nothing answers in time, the connection fails or is
+        closed at once, or an HTTP server answers.
+    """
     m = _TCP.match(address.strip())
     if address.strip().count("://") and not address.strip().startswith("tcp://"):
         return
     if not m:
         raise CredcliError(f"`scheduler` {address}: expected tcp://host:port or local:N")
     host, port = m.group(1), int(m.group(2) or 8786)
-    check_loopback(host, address)
+    _check_loopback(host, address)
     try:
         with socket.create_connection((host, port), timeout=seconds) as sock:
             sock.settimeout(seconds)
@@ -117,7 +134,7 @@ TLS_SETTINGS = (
 )
 
 
-def check_tls(address: str) -> None:
+def _check_tls(address: str) -> None:
     """A ``tls://`` scheduler needs this client's certificates, which Dask reads from its
     configuration (``distributed.comm.tls``): the authority that signed the cluster's
     certificates, and a certificate and key for this client (Dask's TLS is mutual)."""
@@ -143,7 +160,7 @@ def check_tls(address: str) -> None:
 
 def _local_cluster(workers: int):
     """A LocalCluster whose processes leave Ctrl-C to this one (the terminal sends it to the
-    whole process group: each worker printed its own traceback), keep their scratch files
+    whole process group: each worker would print its own traceback), keep their scratch files
     in a directory removed on close, and whose semaphores the resource tracker does not
     warn about when a signal ends the run."""
     import dask
@@ -181,7 +198,25 @@ def _kind(exc: BaseException) -> str:
 
 
 class DaskRunner:
-    """A connection to a cluster that maps a top-level function over tasks, in order."""
+    """A connection to a cluster that maps a top-level function over tasks, in order.
+
+    A context manager: closed on exit.
+
+    Parameters
+    ----------
+    address : str
+        ``local:N`` for a LocalCluster of N single-threaded worker processes on the
+        loopback interface, or a scheduler's address (probed first, `probe_scheduler`).
+    announce : callable, optional
+        Called once with a line naming the workers and the dashboard.
+
+    Raises
+    ------
+    CredcliError
+        If Dask is not installed, ``local:N`` has N < 1 or is malformed, or the scheduler
+        cannot be reached, is not a Dask scheduler, or lacks this client's TLS
+        certificates.
+    """
 
     def __init__(self, address: str, announce: Callable[[str], None] | None = None) -> None:
         try:
@@ -201,7 +236,7 @@ class DaskRunner:
                 raise CredcliError(f"`scheduler` {address}: expected local:N, e.g. local:2")
             else:
                 probe_scheduler(address)
-                check_tls(address)
+                _check_tls(address)
                 self.client = Client(address, timeout=CONNECT_TIMEOUT)
         except CredcliError:
             self.close()
@@ -228,9 +263,31 @@ class DaskRunner:
     def map(
         self, func: Callable, tasks: list, progress: Callable | None = None, weights=None
     ) -> list:
-        """``[func(t) for t in tasks]`` on the cluster, in task order. ``progress(done,
-        total)`` is called as tasks finish, counting each task as its weight (default 1:
-        tasks; e.g. segments or trials per task)."""
+        """``[func(t) for t in tasks]`` on the cluster, in task order.
+
+        Parameters
+        ----------
+        func : callable
+            A top-level function (the workers import it).
+        tasks : list
+            Its arguments, one task each.
+        progress : callable, optional
+            Called as ``progress(done, total)`` as tasks finish, counting each task as its
+            weight.
+        weights : iterable of int, optional
+            Each task's weight (default 1: tasks; e.g. segments or trials per task).
+
+        Returns
+        -------
+        list
+            ``func(task)`` for each task, in task order.
+
+        Raises
+        ------
+        Exception
+            The first error a task raised, as it was raised there; the other tasks are
+            cancelled.
+        """
         from distributed import as_completed
 
         weights = [1] * len(tasks) if weights is None else list(weights)
@@ -252,6 +309,8 @@ class DaskRunner:
         return results
 
     def close(self) -> None:
+        """Close the client, and the LocalCluster with its scratch directory if this
+        runner started one."""
         client = getattr(self, "client", None)
         if client is not None:
             client.close()

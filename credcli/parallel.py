@@ -34,7 +34,14 @@ def single_threaded_blas() -> None:
 
 
 def default_jobs() -> int:
-    """The number of cores this process may use."""
+    """The number of cores this process may use.
+
+    Returns
+    -------
+    int
+        The cores in this process's affinity mask (Linux), else ``os.cpu_count()``; at
+        least 1.
+    """
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
@@ -98,12 +105,11 @@ def keep_freed_memory() -> None:
     By default glibc maps a fresh block for each array above a threshold it adapts, and
     gives the top of its heap back to the system once more than twice that is free: the
     diagnosis's temporaries (the pair matrix, its float32 copy, the flipped products: a
-    few MiB per segment, made and freed segment after segment) were mapped again each time,
-    and touching fresh pages costs here about as much as the arithmetic. Measured on 40
-    segments of 1,000 epochs: 22.5 ms per ELT before, 15 ms after. A larger array (a
-    2,000,000-epoch segment's) is still mapped and unmapped. This also undoes
-    ``MALLOC_TRIM_THRESHOLD_``, which Dask's nannies set to 64 KiB (the diagnosis then ran
-    1.6-1.7 times slower in Dask workers). Not glibc: nothing to do."""
+    few MiB per segment, made and freed segment after segment) would be mapped again each
+    time, and touching fresh pages costs about as much as the arithmetic
+    (docs/performance.md). A larger array (a 2,000,000-epoch segment's) is still mapped
+    and unmapped. This also undoes ``MALLOC_TRIM_THRESHOLD_``, which Dask's nannies set to
+    64 KiB (and which slows the diagnosis in Dask workers). Not glibc: nothing to do."""
     try:
         c = libc()
         c.mallopt(-3, MMAP_THRESHOLD)  # M_MMAP_THRESHOLD
@@ -138,11 +144,16 @@ def start_method() -> str:
     (whose C++ thread pools are invisible to ``threading``), else ``spawn``.
 
     A forked worker starts at once with every module of this process loaded; a spawned one
-    first imports numpy, scipy and the engine again: about 0.45 s of CPU per worker here,
-    which on two cores is taken from the work itself (``simulate``'s default protocol:
-    0.6 s of trials). Forking a process with other threads could copy a lock one of them
-    holds, so then the workers are spawned. Buffered output is flushed first, so that no
-    worker writes it a second time when it exits."""
+    first imports numpy, scipy and the engine again, CPU time taken from the work itself
+    on a machine of few cores (docs/performance.md). Forking a process with other threads
+    could copy a lock one of them holds, so then the workers are spawned. Buffered output
+    is flushed first, so that no worker writes it a second time when it exits.
+
+    Returns
+    -------
+    str
+        ``"fork"`` or ``"spawn"``, a multiprocessing start method.
+    """
     if sys.platform != "linux" or threading.active_count() != 1 or "pyarrow" in sys.modules:
         return "spawn"
     for stream in (sys.stdout, sys.stderr):
@@ -158,7 +169,15 @@ def _warm_up(module: str) -> None:
 
 class WorkerPool:
     """Worker processes with one BLAS thread each, started (and, when spawned, warmed up by
-    importing ``warm``) before the work is known, e.g. while the main process reads logs."""
+    importing ``warm``) before the work is known, e.g. while the main process reads logs.
+
+    Parameters
+    ----------
+    jobs : int
+        The number of worker processes.
+    warm : str or None, optional
+        A module each spawned worker imports at once (forked workers have it already).
+    """
 
     def __init__(self, jobs: int, warm: str | None = None) -> None:
         import multiprocessing as mp
@@ -185,7 +204,20 @@ class WorkerPool:
 
     def map(self, func: Callable, tasks: list) -> Iterator:
         """Results in task order; the workers are shut down at the end, and stopped at once
-        when the map ends early (an error, Ctrl-C, SIGTERM)."""
+        when the map ends early (an error, Ctrl-C, SIGTERM).
+
+        Parameters
+        ----------
+        func : callable
+            A top-level function (the workers import it).
+        tasks : list
+            Its arguments, one task each.
+
+        Yields
+        ------
+        object
+            ``func(task)`` for each task, in task order.
+        """
         try:
             yield from self.executor.map(func, tasks)
         except BaseException:
@@ -195,6 +227,8 @@ class WorkerPool:
             self.close()
 
     def close(self) -> None:
+        """Shut the workers down, waiting for their current tasks; tasks not yet started
+        are cancelled."""
         self.executor.shutdown(cancel_futures=True)
 
     def stop(self) -> None:
@@ -203,11 +237,11 @@ class WorkerPool:
         A worker killed while it sends a result leaves half a message in the result pipe,
         whose reader (the executor's thread) would wait for the rest for ever; a task being
         written to a worker killed before it read it blocks its writer for ever: this
-        process holds the other end of both pipes, and SIGTERM hung a run (1 in ~15 signal
-        tests under load). Once the workers are dead, this process's own ends are closed,
-        so the reader meets the end of the pipe and the writer a broken pipe, and the
-        shutdown returns. The executor's thread may then fail the futures already cancelled
-        or close a pipe end twice: those errors are not shown (:func:`_quiet_cancelled_futures`)."""
+        process holds the other end of both pipes, so a SIGTERM could hang a run. Once the
+        workers are dead, this process's own ends are closed, so the reader meets the end
+        of the pipe and the writer a broken pipe, and the shutdown returns. The executor's
+        thread may then fail the futures already cancelled or close a pipe end twice: those
+        errors are not shown (:func:`_quiet_cancelled_futures`)."""
         _quiet_cancelled_futures()
         processes = list(getattr(self.executor, "_processes", {}).values())
         for process in processes:
@@ -227,9 +261,8 @@ def _quiet_cancelled_futures() -> None:
     """Do not show the two errors the process pool's thread may raise after
     :meth:`WorkerPool.stop`: the InvalidStateError of Python 3.11 when it fails a future
     already cancelled (fixed in later Pythons, which ignore it), and EBADF when it closes
-    the call pipe's end that ``stop`` is closing at the same moment (seen once in a full
-    test run, as a thread traceback). Every other exception of any thread is shown as
-    before."""
+    the call pipe's end that ``stop`` is closing at the same moment; either would show as
+    a thread traceback. Every other exception of any thread is shown as before."""
     from concurrent.futures import InvalidStateError
     from concurrent.futures.process import _ExecutorManagerThread
 
@@ -255,6 +288,21 @@ def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
     ``func`` must be a top-level function (workers import it). Every task is submitted at
     once; the iterator yields results in task order and shuts the workers down at the end,
     or when it is closed early (an error, Ctrl-C).
+
+    Parameters
+    ----------
+    func : callable
+        A top-level function.
+    tasks : iterable
+        Its arguments, one task each; taken as they come when run in this process.
+    jobs : int
+        The number of worker processes; at most one per task is started. With
+        ``jobs <= 1`` or a single task, the tasks run here with BLAS on one thread.
+
+    Yields
+    ------
+    object
+        ``func(task)`` for each task, in task order.
     """
     if jobs > 1:
         tasks = list(tasks)

@@ -29,9 +29,9 @@ from credcli.segments import LogSummary, checked_log, log_summary, split
 
 PARALLEL_MIN_EPOCHS = 50_000
 """Below this many epochs in all, segments are diagnosed in this process: starting worker
-processes would cost more than it saves (a spawned worker imports numpy and scipy again,
-about 0.5 s; a forked one, see parallel.start_method, starts at once but still costs its
-set-up and the transfer of the segments)."""
+processes would cost more than it saves (a spawned worker imports numpy and scipy again; a
+forked one, see parallel.start_method, starts at once but still costs its set-up and the
+transfer of the segments)."""
 
 
 TASKS_PER_JOB = 32
@@ -42,6 +42,19 @@ PARALLEL_MIN_BYTES = 2_000_000
 
 
 def file_size(path) -> int:
+    """The size of a file in bytes, to decide whether to start worker processes early.
+
+    Parameters
+    ----------
+    path : str or Path
+        A log's path.
+
+    Returns
+    -------
+    int
+        Its size; 0 where ``stat`` fails (``-`` for standard input, a missing file: the
+        reader then says why).
+    """
     try:
         return Path(path).stat().st_size
     except OSError:
@@ -183,7 +196,37 @@ def diagnose_plans(
     """Every segment of every (log, segments) plan, in order. From PARALLEL_MIN_EPOCHS on,
     ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
     otherwise segments are diagnosed one by one in this process. Each segment's sign flips
-    depend on (seed, segment name) only, so the results are the same for any ``jobs``."""
+    depend on (seed, segment name) only, so the results are the same for any ``jobs``.
+
+    Segments too short for a verdict are diagnosed together in this process first (not
+    for innovations).
+
+    Parameters
+    ----------
+    plans : list of (EstimatorLog, list of Segment)
+        Each log with its segments.
+    config : DiagnosisConfig
+        The rule's settings.
+    seed : int
+        The seed of the sign flips.
+    jobs : int, default 1
+        Worker processes.
+    progress : callable, optional
+        Called as ``progress(done, total)`` in segments.
+    pool : WorkerPool, optional
+        Workers started already (while the logs were read); closed here when the work
+        stays in this process.
+    innovations : bool, default False
+        The logs hold innovations: each segment's whiteness is tested, and its errors are
+        tested under the white null unless that test rejects.
+    runs : int, default 1
+        The number of pooled Monte Carlo runs each segment holds.
+
+    Returns
+    -------
+    list of SegmentDiagnosis
+        One per segment, in plan and segment order.
+    """
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
     parallel = jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1
@@ -221,8 +264,8 @@ def diagnose_plans(
 # --- on a Dask cluster: the workers read the logs ----------------------------------------
 
 CLUSTER_TASK_EPOCHS = 5_000
-"""Epochs of consecutive segments per cluster task: about 50 ms of diagnosis (d = 2) on
-this machine, so that Dask's per-task cost (about 1 ms) stays small beside it."""
+"""Epochs of consecutive segments per cluster task: enough diagnosis per task that Dask's
+per-task cost stays small beside it (docs/performance.md, docs/scale.md)."""
 
 _WORKER_LOGS: dict = {}
 _WORKER_LOGS_KEPT = 2
@@ -270,9 +313,31 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
 def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=None):
     """Every segment of every log, diagnosed by the cluster's workers: one task per log
     to plan its segments, then one task per run of consecutive segments of about
-    CLUSTER_TASK_EPOCHS epochs. Returns (results in log and segment order, each log's entry
-    by its id), the ids made unique here as :func:`credcli.io.logs.with_unique_ids` makes
-    them for logs read in this process."""
+    CLUSTER_TASK_EPOCHS epochs. The logs' ids are made unique here as
+    :func:`credcli.io.logs.with_unique_ids` makes them for logs read in this process.
+
+    Parameters
+    ----------
+    runner : DaskRunner
+        The cluster (`credcli.cluster.DaskRunner`).
+    sources : list of tuple
+        One per log: (path, schema, reading options, drop_invalid, window, whole,
+        min_epochs), what a worker needs to read and cut it.
+    config : DiagnosisConfig
+        The rule's settings.
+    seed : int
+        The seed of the sign flips.
+    innovations : bool
+        The logs hold innovations (see `diagnose_plans`).
+    progress : callable, optional
+        Called as ``progress(done, total)`` in segments.
+
+    Returns
+    -------
+    tuple of (list of SegmentDiagnosis, dict)
+        The results in log and segment order, and each log's entry (LogSummary) by its
+        id.
+    """
     planned = runner.map(_plan_task, sources)
     ids = unique_ids([log_id for log_id, _, _ in planned])
     tasks = []

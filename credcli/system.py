@@ -10,8 +10,8 @@ import sys
 def release_free_memory() -> None:
     """Give back to the system what reading a log freed: Arrow's allocator keeps freed
     buffers for reuse, and glibc keeps freed heap chunks below its adaptive trim threshold,
-    where the diagnosis's large arrays (mapped afresh) cannot reuse them. One 2,000,000-epoch
-    Parquet log: the later peak falls by about 100 MiB (docs/performance.md)."""
+    where the diagnosis's large arrays (mapped afresh) cannot reuse them: the peak memory
+    that follows is lower (docs/performance.md)."""
     if "pyarrow" in sys.modules:
         sys.modules["pyarrow"].default_memory_pool().release_unused()
     try:

@@ -47,6 +47,20 @@ from credcli.studies import uwb
 
 
 def segmentation_name(window: str | None, whole: bool) -> str:
+    """How the logs were cut, as the report's parameters record it.
+
+    Parameters
+    ----------
+    window : str or None
+        The window (a duration or an epoch count), or None.
+    whole : bool
+        Each log one segment.
+
+    Returns
+    -------
+    str
+        ``"whole"``, ``"window:<the parsed window>"`` or ``"column"`` (the segment column).
+    """
     if whole:
         return "whole"
     return f"window:{seg.Window.parse(window)}" if window is not None else "column"
@@ -54,7 +68,19 @@ def segmentation_name(window: str | None, whole: bool) -> str:
 
 @dataclass(frozen=True)
 class Run:
-    """What a command produced: the report, and the plots when they were asked for."""
+    """What a command produced: the report, and the plots when they were asked for.
+
+    Attributes
+    ----------
+    report : Report
+        The command's tables and JSON document.
+    plots : list of Plot
+        The figures (empty unless asked for).
+    results : list of SegmentDiagnosis
+        The diagnosed segments, in report order (empty for `simulate`).
+    notes : tuple of str
+        About the figures: the windows whose figures were skipped.
+    """
 
     report: Report
     plots: list = field(default_factory=list)
@@ -67,8 +93,30 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     (and the figures, when asked for). Local worker processes share the segments; the
     output is the same for any number. Monte Carlo runs (``request.monte_carlo``) are
     pooled segment by segment (see :func:`monte_carlo_plan`) and the report adds
-    Bar-Shalom's per-epoch ANEES test. ``runner`` (a credcli.cluster.DaskRunner): the
-    segments are diagnosed on a Dask cluster whose workers read the logs themselves."""
+    Bar-Shalom's per-epoch ANEES test.
+
+    Parameters
+    ----------
+    request : DiagnoseRequest
+        The logs and every setting.
+    progress : callable, optional
+        Called as ``progress(done, total)`` as segments are diagnosed.
+    runner : DaskRunner, optional
+        A `credcli.cluster.DaskRunner`: the segments are diagnosed on a Dask cluster whose
+        workers read the logs themselves. None: in this process and local workers.
+
+    Returns
+    -------
+    Run
+        The report, the figures (when ``request.figures``), the results in report order
+        and the notes about the figures.
+
+    Raises
+    ------
+    CredcliError
+        If a log cannot be read or diagnosed; with ``runner``, also for Monte Carlo runs
+        or a log read from a stream.
+    """
     paths, config, seed = request.logs, request.config, request.seed
     reading = request.reading
     schema, options, drop_invalid = reading.schema, reading.options, reading.drop_invalid
@@ -134,7 +182,26 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
 def segment_figures(
     log: EstimatorLog, results, segments, prefix: str = "", log_name: str = ""
 ) -> list:
-    """The figures of a log's diagnosed segments, from the curves the engine computes."""
+    """The figures of a log's diagnosed segments, from the curves the engine computes.
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        The log the segments belong to.
+    results : list of SegmentDiagnosis
+        The segments to draw, in order.
+    segments : list of Segment
+        The log's segments (looked up by the results' names for their epochs).
+    prefix : str, default ""
+        Prefix of the figures' file names (a log's stem when there are several).
+    log_name : str, default ""
+        The log's name in the figures' groups ("" for one log).
+
+    Returns
+    -------
+    list of Plot
+        The figures of every segment in ``results``.
+    """
     by_name = {s.name: s for s in segments}
     errors = log.errors  # computed once: a property
     curves, times = [], []
@@ -182,8 +249,30 @@ def _diagnose_here(request: DiagnoseRequest, progress):
 
 
 def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[Run, str]:
-    """The `simulate` report (and plots) and a one-line summary; ``runner``: trials on a
-    Dask cluster (credcli.cluster.DaskRunner)."""
+    """The `simulate` report (and plots) and a one-line summary.
+
+    One of: the Fig. 1 curves (``request.curves``), a sweep of one parameter
+    (``request.sweep``), or the Monte Carlo study of Tables II and III.
+
+    Parameters
+    ----------
+    request : SimulateRequest
+        The study's design and every setting.
+    progress : callable, optional
+        Called as ``progress(done, total)`` as trials finish.
+    runner : DaskRunner, optional
+        Trials on a Dask cluster (`credcli.cluster.DaskRunner`); None: local processes.
+
+    Returns
+    -------
+    tuple of (Run, str)
+        The Run (report and figures) and the summary line.
+
+    Raises
+    ------
+    CredcliError
+        If a scenario or the sweep is invalid.
+    """
     config, sweep, curves, curve_runs = (
         request.config,
         request.sweep,
@@ -249,7 +338,26 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
 
 
 def run_uwb(request: UwbRequest, progress=None):
-    """The `uwb` pipeline: positioning, segmentation, diagnosis; returns (Run, UwbRun)."""
+    """The `uwb` pipeline: positioning, segmentation, diagnosis.
+
+    Parameters
+    ----------
+    request : UwbRequest
+        The ``uwb.csv`` and every setting.
+    progress : callable, optional
+        Called as ``progress(done, total)`` as periods are diagnosed.
+
+    Returns
+    -------
+    tuple of (Run, UwbRun)
+        The Run (report, figures when ``request.figures``, results, notes) and the
+        pipeline's fixes and anchors.
+
+    Raises
+    ------
+    CredcliError
+        If the file cannot be read or no fix falls in any period.
+    """
     path, settings, config, anchors = (
         request.file,
         request.settings,
@@ -286,7 +394,23 @@ def run_uwb(request: UwbRequest, progress=None):
 
 
 def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report:
-    """`diagnose` on one log, marked as a baseline of the current schema version."""
+    """`diagnose` on one log, marked as a baseline of the current schema version.
+
+    Parameters
+    ----------
+    request : DiagnoseRequest
+        The log and every setting.
+    progress : callable, optional
+        Called as ``progress(done, total)`` as segments are diagnosed.
+    runner : DaskRunner, optional
+        A Dask cluster to diagnose on (see `run_diagnose`).
+
+    Returns
+    -------
+    Report
+        The diagnose report, its document marked ``command: baseline`` with the baseline's
+        kind and schema version.
+    """
     report = run_diagnose(request, progress, runner).report
     marked = {
         **report.document,
@@ -299,7 +423,21 @@ def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report
 
 @dataclass(frozen=True)
 class GateRun:
-    """What `gate` produced: the report, the comparison of every segment, the verdict."""
+    """What `gate` produced: the report, the comparison of every segment, the verdict.
+
+    Attributes
+    ----------
+    report : Report
+        The gate's tables and JSON document.
+    comparisons : list of SegmentComparison
+        Each segment, baseline against new.
+    passed : bool
+        Whether the gate passed under the thresholds.
+    verdict : str
+        The one-line verdict.
+    plots : list of Plot
+        The new log's figures (empty unless asked for).
+    """
 
     report: Report
     comparisons: list
@@ -309,7 +447,22 @@ class GateRun:
 
 
 def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
-    """Diagnose the new log with the baseline's settings and compare segment by segment."""
+    """Diagnose the new log with the baseline's settings and compare segment by segment.
+
+    Parameters
+    ----------
+    request : GateRequest
+        The new log's diagnosis request, the baseline and the thresholds.
+    progress : callable, optional
+        Called as ``progress(done, total)`` as segments are diagnosed.
+    runner : DaskRunner, optional
+        A Dask cluster to diagnose on (see `run_diagnose`).
+
+    Returns
+    -------
+    GateRun
+        The report, the comparisons, the verdict and the figures.
+    """
     run = run_diagnose(request.diagnose, progress, runner)
     baseline, thresholds = request.baseline, request.thresholds
     comparisons = compare(

@@ -71,7 +71,25 @@ app = typer.Typer(
 
 
 def examples(*lines: tuple[str, str]) -> str:
-    """A command's epilog: example command lines, each with what it does (Markdown)."""
+    """A command's epilog: example command lines, each with what it does (Markdown).
+
+    Parameters
+    ----------
+    *lines : tuple of (str, str)
+        (command line, what it does), one per example.
+
+    Returns
+    -------
+    str
+        ``**Examples**`` and one Markdown list item per example.
+
+    Examples
+    --------
+    >>> print(examples(("credcli diagnose log.csv", "one row per segment")))
+    **Examples**
+    <BLANKLINE>
+    - `credcli diagnose log.csv` — one row per segment
+    """
     return "**Examples**\n\n" + "\n".join(f"- `{command}` — {what}" for command, what in lines)
 
 

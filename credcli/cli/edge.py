@@ -45,10 +45,20 @@ def _click_exception_types() -> tuple[type, ...]:
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app and turn every outcome into an exit code.
 
-    0 ok; 1 a regression verdict (gate, --fail-on); 2 bad input or usage, one line on
-    stderr; 3 an internal error, one line (the traceback with --debug); 130 interrupted.
     Warnings (numpy's among them) are never printed raw: each distinct one becomes a
     ``credcli: note:`` line on stderr at the end, with its source under --debug.
+
+    Parameters
+    ----------
+    argv : list of str or None, optional
+        The arguments after the program's name; None for ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        The exit code: 0 ok; 1 a regression verdict (gate, --fail-on); 2 bad input or
+        usage, one line on stderr; 3 an internal error, one line (the traceback with
+        --debug); 130 interrupted; 128 + N on signal N (SIGTERM, SIGHUP).
     """
     from credcli.parallel import keep_freed_memory, single_threaded_blas
 
@@ -91,19 +101,35 @@ def _terminate_on_signals() -> None:
 
 
 def app_commands() -> set[str]:
+    """The names of the app's commands.
+
+    Returns
+    -------
+    set of str
+        Each registered command's name (``diagnose``, ``gate``, …).
+    """
     return {c.name or c.callback.__name__ for c in app.registered_commands}
 
 
 _LIBRARY_CHATTER = (DeprecationWarning, PendingDeprecationWarning, FutureWarning, ResourceWarning)
 """Warnings meant for a library's own callers or developers, shown only under --debug:
-Python hides ResourceWarning by default (a signal during an import left an unclosed
-.pyc file, and its warning made a second stderr line after 'credcli: terminated')."""
+Python hides ResourceWarning by default (a signal during an import can leave an unclosed
+.pyc file, whose warning would be a second stderr line after 'credcli: terminated')."""
 
 
 def note_warnings(caught, debug: bool) -> None:
     """Each distinct warning once, as a ``credcli: note:`` line. numpy's floating-point
     warnings ("overflow encountered in matmul") are one line in the user's terms, with
-    numpy's words in brackets; where they came from only under --debug."""
+    numpy's words in brackets; where they came from only under --debug.
+
+    Parameters
+    ----------
+    caught : list of warnings.WarningMessage
+        The warnings recorded during the run.
+    debug : bool
+        ``--debug``: also show each warning's file and line, and the deprecation,
+        future and resource warnings meant for a library's developers.
+    """
     seen: dict[str, None] = {}
     floating: dict[str, None] = {}
     for w in caught:
@@ -233,7 +259,19 @@ def one_line(message: str) -> str:
     """A message as one line: a newline or any other control character in it (a file
     name's, a segment's, a library's) is escaped (:func:`credcli.errors.printable`), and
     past :data:`MAX_LINE` characters its middle is cut (an error line stays readable
-    whatever the input holds)."""
+    whatever the input holds).
+
+    Parameters
+    ----------
+    message : str
+        An error message.
+
+    Returns
+    -------
+    str
+        The escaped message; past `MAX_LINE` characters its first ``MAX_LINE - 160`` and
+        last 120 characters around `` … ``, with the full length in brackets.
+    """
     text = printable(message)
     if len(text) <= MAX_LINE:
         return text
@@ -260,4 +298,5 @@ def _silence_stdout() -> None:
 
 
 def entry() -> None:
+    """The ``credcli`` console script: `main` on ``sys.argv``, its code as the exit status."""
     sys.exit(main())

@@ -20,7 +20,21 @@ from credcli.report.formats import OutputFormat
 
 def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
     """Print a report to stdout (Rich tables when a terminal) or write it to a file; its
-    notes name options as the command line does (:func:`credcli.cli.flags.flag_names`)."""
+    notes name options as the command line does (:func:`credcli.cli.flags.flag_names`).
+
+    Off a terminal, tables are as wide as $COLUMNS if given, else keep every column.
+
+    Parameters
+    ----------
+    report : Report
+        The report to show.
+    fmt : OutputFormat
+        Its format (``--format``).
+    output : Path or None
+        The file to write it to (atomically, ``--output``); None for stdout.
+    inputs : iterable of Path, optional
+        The command's input files, which ``output`` may not overwrite.
+    """
     from credcli.io.files import write_atomic
     from credcli.report.render import rich_table, text_pieces
 
@@ -35,7 +49,7 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
         console = Console()
         fit: int | None = console.width  # a terminal: hide columns that do not fit
         if not console.is_terminal:  # a log or a pipe: $COLUMNS if given, else every column
-            fit = given_width()
+            fit = _given_width()
             console = Console(width=fit or UNLIMITED_WIDTH, soft_wrap=fit is None)
         for table in report.tables:
             console.print(rich_table(table, fit))
@@ -51,8 +65,8 @@ UNLIMITED_WIDTH = 10_000
 column (a CI log scrolls sideways, it does not lose the "why")."""
 
 
-def given_width() -> int | None:
-
+def _given_width() -> int | None:
+    """$COLUMNS as a positive integer, or None when it is unset or not one."""
     try:
         width = int(os.environ.get("COLUMNS", ""))
     except ValueError:
@@ -61,18 +75,34 @@ def given_width() -> int | None:
 
 
 def stderr_console():
-    """Messages on stderr, never wrapped off a terminal (a CI log keeps each on one line)."""
+    """Messages on stderr, never wrapped off a terminal (a CI log keeps each on one line).
+
+    Returns
+    -------
+    rich.console.Console
+        A console on stderr; off a terminal, soft-wrapped at $COLUMNS or
+        `UNLIMITED_WIDTH`.
+    """
     from rich.console import Console
 
     console = Console(stderr=True)
     if not console.is_terminal:
-        console = Console(stderr=True, soft_wrap=True, width=given_width() or UNLIMITED_WIDTH)
+        console = Console(stderr=True, soft_wrap=True, width=_given_width() or UNLIMITED_WIDTH)
     return console
 
 
 class Progress:
     """A Rich progress bar on stderr, shown only on a terminal and for runs of at least
-    ``min_total`` steps. Called as ``progress(done, total)``."""
+    ``min_total`` steps. Called as ``progress(done, total)``; a context manager, which
+    stops the bar on exit.
+
+    Parameters
+    ----------
+    description : str
+        The bar's text, e.g. ``"diagnosing segments"``.
+    min_total : int, default 10
+        The smallest number of steps that shows a bar.
+    """
 
     def __init__(self, description: str, min_total: int = 10) -> None:
         self.description = description
@@ -100,19 +130,45 @@ class Progress:
 
 
 def print_notes(report) -> None:
-    """The decisions taken while reading the logs, one ``credcli: note:`` line each."""
+    """The decisions taken while reading the logs, one ``credcli: note:`` line each.
+
+    Parameters
+    ----------
+    report : Report
+        A diagnose report; the notes of each entry of its document's ``logs`` go to
+        stderr, options named as flags.
+    """
     for log in report.document.get("logs", []):
         for note in log.get("notes", []):
             print(printable(f"credcli: note: {flag_names(note)}"), file=sys.stderr)
 
 
 SCHEDULER_ENV = "CREDCLI_SCHEDULER"
+"""The environment variable that gives --scheduler when the option is not given."""
 
 
 def cluster(scheduler: str | None):
     """A DaskRunner for --scheduler, or for ``CREDCLI_SCHEDULER`` when the option is not
     given (said in one line on stderr: never a silent redirection), closed on exit; or a
-    context of None."""
+    context of None.
+
+    Parameters
+    ----------
+    scheduler : str or None
+        ``--scheduler``: a scheduler's address or ``local:N``; None or empty for
+        $CREDCLI_SCHEDULER, else no cluster.
+
+    Returns
+    -------
+    DaskRunner or contextlib.nullcontext
+        A context manager that gives the runner (which announces the cluster on a
+        terminal), or None when no scheduler is named.
+
+    Raises
+    ------
+    CredcliError
+        If Dask is missing or the scheduler cannot be reached (`credcli.cluster`).
+    """
     if not scheduler:
         scheduler = os.environ.get(SCHEDULER_ENV) or None
         if scheduler is not None:
@@ -131,6 +187,21 @@ def cluster(scheduler: str | None):
 
 
 def write_html(path: Path, title: str, run, sources, inputs) -> None:
+    """Write a Run's self-contained HTML report and say so on stderr.
+
+    Parameters
+    ----------
+    path : Path
+        The HTML file (written atomically).
+    title : str
+        The page's title.
+    run : Run
+        A diagnosed Run: its report, figures, notes and results.
+    sources : iterable
+        The logs, shown comma-separated as the subtitle.
+    inputs : iterable of Path
+        The command's input files, which ``path`` may not overwrite.
+    """
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html
 
@@ -144,7 +215,24 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
 
 def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
     """Before any work: no output may be an input or another output, or a directory; the
-    --plots directory may not be an input file."""
+    --plots directory may not be an input file. $GITHUB_STEP_SUMMARY, when set, is checked
+    as an output too.
+
+    Parameters
+    ----------
+    outputs : dict
+        Option name (``"--output"``) -> the path it writes, or None.
+    inputs : iterable of Path or None
+        The command's input files (None entries are skipped).
+    plots : Path or None, optional
+        The ``--plots`` directory.
+
+    Raises
+    ------
+    CredcliError
+        If an output is an input, another output or a directory, or ``plots`` exists and
+        is not a directory.
+    """
     from credcli.ci.reports import check_step_summary
     from credcli.io.files import check_outputs
 
@@ -158,6 +246,20 @@ def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
 
 
 def check_plotting(*wanted) -> None:
+    """Before any work: fail with the install hint when figures are asked for and
+    matplotlib is missing.
+
+    Parameters
+    ----------
+    *wanted : Path or None
+        The options that write figures (``--plots``, ``--report``); figures are asked
+        for when any is not None.
+
+    Raises
+    ------
+    CredcliError
+        If figures are asked for and matplotlib is not installed.
+    """
     if any(w is not None for w in wanted):
         from credcli.report.plots import require_plotting
 
@@ -165,7 +267,17 @@ def check_plotting(*wanted) -> None:
 
 
 def write_plots(run, directory: Path | None) -> None:
-    """Write the figures of a Run (or a list of figures) into ``directory``, if given."""
+    """Write the figures of a Run (or a list of figures) into ``directory``, if given.
+
+    Says on stderr how many were written, and then the Run's notes about its figures.
+
+    Parameters
+    ----------
+    run : Run or list
+        A Run (its ``plots`` and ``notes``), or the figures themselves.
+    directory : Path or None
+        ``--plots``; None writes nothing.
+    """
     if directory is None:
         return
     from credcli.report.plots import write_plots as write_figures
@@ -178,9 +290,11 @@ def write_plots(run, directory: Path | None) -> None:
         print(printable(f"credcli: note: {note}"), file=sys.stderr)
 
 
-def write_ci_reports(
+def _write_ci_reports(
     junit: Path | None, summary: Path | None, cases, markdown: str, inputs
 ) -> None:
+    """The JUnit XML of ``cases`` to ``junit`` and ``markdown`` to ``summary`` (each if
+    given), and ``markdown`` appended to $GITHUB_STEP_SUMMARY when that is set."""
     from credcli.ci.reports import append_step_summary, junit_xml
     from credcli.io.files import write_atomic
 
@@ -193,7 +307,25 @@ def write_ci_reports(
 
 def emit_run(run, out, plots: Path | None, report_file: Path | None, title, sources, inputs):
     """What `diagnose` shows of a Run: the reading notes, the report (``out``: its format
-    and file), the figures into ``plots`` and an HTML report into ``report_file``."""
+    and file), the figures into ``plots`` and an HTML report into ``report_file``.
+
+    Parameters
+    ----------
+    run : Run
+        The diagnosed Run.
+    out : OutputOptions
+        ``--format`` and ``--output``.
+    plots : Path or None
+        ``--plots``.
+    report_file : Path or None
+        ``--report``.
+    title : str
+        The HTML report's title.
+    sources : iterable
+        The logs, the HTML report's subtitle.
+    inputs : iterable of Path
+        The command's input files, which no output may overwrite.
+    """
     print_notes(run.report)
     emit(run.report, out.fmt, out.output, inputs=inputs)
     write_plots(run, plots)
@@ -202,7 +334,24 @@ def emit_run(run, out, plots: Path | None, report_file: Path | None, title, sour
 
 
 def fail_on_conditions(ci):
-    """The --fail-on conditions (None without --fail-on), checked before any work."""
+    """The --fail-on conditions (None without --fail-on), checked before any work.
+
+    Parameters
+    ----------
+    ci : VerdictOptions
+        ``--fail-on``, ``--junit`` and ``--summary``.
+
+    Returns
+    -------
+    FailOn or None
+        The parsed conditions.
+
+    Raises
+    ------
+    CredcliError
+        If a condition is unknown, or ``--junit`` or ``--summary`` is given without
+        ``--fail-on``.
+    """
     from credcli.ci.gate import parse_fail_on
 
     conditions = parse_fail_on(ci.fail_on) if ci.fail_on is not None else None
@@ -215,7 +364,24 @@ def fail_on_conditions(ci):
 
 def emit_fail_on(run, conditions, ci, inputs) -> bool:
     """The --fail-on verdict of a diagnosed Run: JUnit and Markdown reports, one line on
-    stderr; whether it passed (True without --fail-on)."""
+    stderr; whether it passed (True without --fail-on).
+
+    Parameters
+    ----------
+    run : Run
+        The diagnosed Run.
+    conditions : FailOn or None
+        The --fail-on conditions (`fail_on_conditions`); None: nothing is checked.
+    ci : VerdictOptions
+        Where the JUnit and Markdown reports go.
+    inputs : iterable of Path
+        The command's input files, which no report may overwrite.
+
+    Returns
+    -------
+    bool
+        Whether no segment fails the conditions.
+    """
     if conditions is None:
         return True
     from credcli.ci.gate import fail_on_verdict
@@ -223,7 +389,7 @@ def emit_fail_on(run, conditions, ci, inputs) -> bool:
 
     passed, verdict, failing = fail_on_verdict(run.results, conditions)
     verdict = flag_names(verdict)
-    write_ci_reports(
+    _write_ci_reports(
         ci.junit,
         ci.summary,
         fail_on_cases(run.results, failing, conditions),
@@ -236,7 +402,30 @@ def emit_fail_on(run, conditions, ci, inputs) -> bool:
 
 def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) -> bool:
     """The verdict of `gate` (a GateRun), failed also by a label matching --fail-on:
-    JUnit and Markdown reports, one line on stderr; whether it passed."""
+    JUnit and Markdown reports, one line on stderr; whether it passed.
+
+    Parameters
+    ----------
+    run : GateRun
+        The gate's result.
+    request : GateRequest
+        The gate's request (its thresholds).
+    conditions : FailOn or None
+        The --fail-on conditions, or None.
+    ci : VerdictOptions
+        Where the JUnit and Markdown reports go.
+    log : str
+        The new log, as the reports name it.
+    baseline : Path
+        The baseline file, named in the Markdown summary.
+    inputs : iterable of Path
+        The command's input files, which no report may overwrite.
+
+    Returns
+    -------
+    bool
+        Whether the gate passed.
+    """
     from credcli.ci.gate import gate_fail_on
     from credcli.ci.reports import gate_cases, summary_markdown
 
@@ -246,7 +435,7 @@ def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) 
     verdict = flag_names(verdict)
     thresholds = request.thresholds
     context = f"Baseline `{baseline}`; {thresholds.describe()}."
-    write_ci_reports(
+    _write_ci_reports(
         ci.junit,
         ci.summary,
         gate_cases(run.comparisons, thresholds, log),
@@ -259,7 +448,27 @@ def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) 
 
 def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inputs) -> None:
     """What `uwb` shows: warnings about the anchors, the fixes as a diagnose log
-    (``export_log``), the report, the figures and an HTML report."""
+    (``export_log``), the report, the figures and an HTML report.
+
+    Parameters
+    ----------
+    run : Run
+        The diagnosed periods.
+    fixes : UwbRun
+        The pipeline's fixes: their log and the notes about the anchors.
+    out : OutputOptions
+        ``--format`` and ``--output``.
+    plots : Path or None
+        ``--plots``.
+    report_file : Path or None
+        ``--report``.
+    export_log : Path or None
+        ``--export-log``: the fixes as a diagnose log (CSV).
+    source : Path
+        The ``uwb.csv``, named in the HTML report.
+    inputs : iterable of Path
+        The command's input files, which no output may overwrite.
+    """
     from credcli.io.arrays import log_csv
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html

@@ -62,7 +62,8 @@ _T = Thresholds()
 _L = LogSchema()
 
 
-def range_text(pair) -> str:
+def _range_text(pair) -> str:
+    """A (lo, hi) range as the command line writes it, ``lo:hi``."""
     return f"{pair[0]:g}:{pair[1]:g}"
 
 
@@ -73,14 +74,46 @@ LOG_FORMATS = (
 
 
 def file_name(text: str) -> Path:
-    """A path typed on the command line; never empty (``Path("")`` would read ``.``)."""
+    """A path typed on the command line; never empty (``Path("")`` would read ``.``).
+
+    Parameters
+    ----------
+    text : str
+        The argument as typed.
+
+    Returns
+    -------
+    Path
+        The path.
+
+    Raises
+    ------
+    typer.BadParameter
+        If ``text`` is empty.
+    """
     if not text:
         raise typer.BadParameter("an empty file name; give a path")
     return Path(text)
 
 
 def output_name(text: str) -> Path:
-    """A file to write: not empty, and not a name ending in '/' (a directory)."""
+    """A file to write: not empty, and not a name ending in '/' (a directory).
+
+    Parameters
+    ----------
+    text : str
+        The argument as typed.
+
+    Returns
+    -------
+    Path
+        The path.
+
+    Raises
+    ------
+    typer.BadParameter
+        If ``text`` is empty or ends with '/'.
+    """
     if text.endswith("/"):
         raise typer.BadParameter(f"{text!r} ends with '/', a directory; give a file name")
     return file_name(text)
@@ -490,6 +523,9 @@ ReportOpt = Annotated[
 
 
 class ScreenMode(str, enum.Enum):
+    """``--screen``: drop stale packets and packets failing the residual test (``all``), or
+    nothing (``none``)."""
+
     ALL = "all"
     NONE = "none"
 
@@ -499,7 +535,15 @@ class ScreenMode(str, enum.Enum):
 
 @dataclass(frozen=True)
 class SegmentOptions:
-    """How a log is cut into segments: [segments] of a config file."""
+    """How a log is cut into segments: [segments] of a config file.
+
+    Attributes
+    ----------
+    window : str or None
+        ``--window``: windows of a duration (5s, 250ms) or an epoch count (200).
+    whole : bool or None
+        ``--whole``: each log one segment.
+    """
 
     window: WindowOpt = None
     whole: WholeOpt = None
@@ -507,7 +551,43 @@ class SegmentOptions:
 
 @dataclass(frozen=True)
 class LogOptions:
-    """How a log is read: [columns] and [input] of a config file, and --drop-invalid."""
+    """How a log is read: [columns] and [input] of a config file, and --drop-invalid.
+
+    Each field is its option (``time_column`` is ``--time-column``); None where not given.
+
+    Attributes
+    ----------
+    time_column, segment_column : str or None
+        The time and segment columns.
+    truth_columns, estimate_columns, cov_columns : str or None
+        The truth, estimate and covariance columns, comma-separated.
+    cov_kind : CovKind or None
+        How the covariance columns store the covariance.
+    drop_invalid : bool or None
+        Drop rows with NaN/Inf instead of failing.
+    truth : Path or None
+        Ground truth in a separate file (or bag), paired by time.
+    input_format, truth_format : InputFormat or None
+        The formats of the logs and of ``truth`` (default: from the file).
+    topic, truth_topic : str or None
+        The bag topics of the estimate and of the truth.
+    time_unit : TimeUnit or None
+        The unit of the stamps (default: detected, said in a note).
+    max_dt : float or None
+        The longest gap (s) across which truth is interpolated.
+    time_offset : float or None
+        Seconds added to the estimate stamps.
+    states : States or None
+        The errors of pose logs: position, orientation, pose or planar.
+    perturbation : Perturbation or None
+        The orientation error convention.
+    align : Alignment or None
+        How an estimate in its own world frame is moved onto the truth's.
+    innovations : bool or None
+        The logs hold innovations and their covariances (NIS, no truth).
+    errors_only : bool or None
+        The logs hold errors and their covariance, no truth or estimate.
+    """
 
     time_column: TimeColOpt = None
     segment_column: SegColOpt = None
@@ -533,7 +613,43 @@ class LogOptions:
 
 @dataclass(frozen=True)
 class RuleOptions:
-    """How a segment is judged: [diagnosis] of a config file (the seed is its own option)."""
+    """How a segment is judged: [diagnosis] of a config file (the seed is its own option).
+
+    Each field is its option (``probe_factor`` is ``--probe-factor``) and sets the
+    DiagnosisConfig field of its name, except ``tau`` (``tau_nci``), ``probe_factor``
+    (``c``) and ``flips`` (``n_flips``); None where not given.
+
+    Attributes
+    ----------
+    tau : float or None
+        The calibrated rule's smallest misfit worth a label (dB); the NCI threshold of
+        paper and ks.
+    alpha : float or None
+        The calibrated rule's false-alarm level per segment; the ELT's level in paper
+        and ks.
+    probe_factor : float or None
+        The probe scale c > 1.
+    flips : int or None
+        The ELT's sign flips B.
+    block_length : str or None
+        Epochs per ELT sign block, or ``auto``.
+    variant : Variant or None
+        The decision rule: calibrated, ks or paper.
+    srd_form : SrdForm or None
+        The SRD of Eq. (19): printed or absolute.
+    metrics : MetricsLevel or None
+        Probes only where Algorithm 1 uses them (needed), or always (all).
+    min_epochs : int or None
+        The smallest segment diagnosed.
+    max_elt_epochs : int or None
+        The ELT's memory budget in epochs.
+    ks_alpha : float or None
+        The level of the ks variant's KS check.
+    nees_alpha : float or None
+        The level of the NEES baseline's chi-squared test.
+    exact_pvalue : bool or None
+        Evaluate all B sign flips instead of stopping once the ELT cannot reject.
+    """
 
     tau: TauOpt = None
     alpha: AlphaOpt = None
@@ -552,7 +668,15 @@ class RuleOptions:
 
 @dataclass(frozen=True)
 class RunOptions:
-    """Where the work runs: local processes or a Dask cluster."""
+    """Where the work runs: local processes or a Dask cluster.
+
+    Attributes
+    ----------
+    jobs : int or None
+        ``--jobs``: worker processes (default: the number of cores).
+    scheduler : str or None
+        ``--scheduler``: a Dask scheduler's address, or ``local:N``.
+    """
 
     jobs: JobsOpt = None
     scheduler: SchedulerOpt = None
@@ -560,7 +684,15 @@ class RunOptions:
 
 @dataclass(frozen=True)
 class OutputOptions:
-    """What is printed or written, in which format."""
+    """What is printed or written, in which format.
+
+    Attributes
+    ----------
+    fmt : OutputFormat
+        ``--format`` (default: a table).
+    output : Path or None
+        ``--output``: the file to write (default: stdout).
+    """
 
     fmt: FormatOpt = OutputFormat.TABLE
     output: OutputOpt = None
@@ -568,7 +700,17 @@ class OutputOptions:
 
 @dataclass(frozen=True)
 class VerdictOptions:
-    """A CI verdict: exit 1 on the conditions of --fail-on, JUnit and Markdown reports."""
+    """A CI verdict: exit 1 on the conditions of --fail-on, JUnit and Markdown reports.
+
+    Attributes
+    ----------
+    fail_on : str or None
+        ``--fail-on``: the conditions, comma-separated.
+    junit : Path or None
+        ``--junit``: the JUnit XML report (one case per segment).
+    summary : Path or None
+        ``--summary``: the Markdown summary.
+    """
 
     fail_on: FailOnOpt = None
     junit: JunitOpt = None
@@ -581,7 +723,17 @@ def _default(value) -> str:
 
 @dataclass(frozen=True)
 class ThresholdOptions:
-    """When the gate fails: [gate] of a config file."""
+    """When the gate fails: [gate] of a config file.
+
+    Attributes
+    ----------
+    max_nci_increase : float or None
+        Fail when |NCI| grows by more than this (dB).
+    max_anees_ratio : float or None
+        Fail when ANEES moves further from 1 by more than this factor.
+    allow_new_segments : bool or None
+        New or missing segments are reported, not failures.
+    """
 
     max_nci_increase: Annotated[
         float | None,
@@ -615,7 +767,27 @@ class ThresholdOptions:
 
 @dataclass(frozen=True)
 class StudyOptions:
-    """The Monte Carlo study's design: [simulate] of a config file."""
+    """The Monte Carlo study's design: [simulate] of a config file.
+
+    Attributes
+    ----------
+    trials : int or None
+        Trials per scenario.
+    n : int or None
+        Epochs per trial.
+    dim : int or None
+        The state dimension d.
+    rho_optimism, rho_pessimism : str or None
+        The ranges of ρ for optimism and pessimism, ``lo:hi``.
+    bias : str or None
+        The range of the mean error's norm ‖μ‖ for SMM, ``lo:hi``.
+    eigenvalues : str or None
+        The range of the eigenvalues of Σ_true, ``lo:hi``.
+    ar : float or None
+        The AR(1) coefficient φ of the whitened errors in time.
+    noise : str or None
+        The error distribution: ``gaussian`` or ``student-t:NU``.
+    """
 
     trials: Annotated[
         int | None,
@@ -635,7 +807,7 @@ class StudyOptions:
         str | None,
         typer.Option(
             "--rho-optimism",
-            help=f"ρ range of optimism, lo:hi {_default(range_text(_S.rho_optimism))}.",
+            help=f"ρ range of optimism, lo:hi {_default(_range_text(_S.rho_optimism))}.",
             rich_help_panel=STUDY,
         ),
     ] = None
@@ -643,7 +815,7 @@ class StudyOptions:
         str | None,
         typer.Option(
             "--rho-pessimism",
-            help=f"ρ range of pessimism, lo:hi {_default(range_text(_S.rho_pessimism))}.",
+            help=f"ρ range of pessimism, lo:hi {_default(_range_text(_S.rho_pessimism))}.",
             rich_help_panel=STUDY,
         ),
     ] = None
@@ -651,7 +823,7 @@ class StudyOptions:
         str | None,
         typer.Option(
             "--bias",
-            help=f"‖μ‖ range of SMM, lo:hi {_default(range_text(_S.bias))}.",
+            help=f"‖μ‖ range of SMM, lo:hi {_default(_range_text(_S.bias))}.",
             rich_help_panel=STUDY,
         ),
     ] = None
@@ -659,7 +831,7 @@ class StudyOptions:
         str | None,
         typer.Option(
             "--eigenvalues",
-            help=f"Range of the eigenvalues of Σ_true {_default(range_text(_S.eigenvalues))}.",
+            help=f"Range of the eigenvalues of Σ_true {_default(_range_text(_S.eigenvalues))}.",
             rich_help_panel=STUDY,
         ),
     ] = None
@@ -684,7 +856,31 @@ class StudyOptions:
 
 @dataclass(frozen=True)
 class UwbOptions:
-    """The UWB pipeline's settings: [uwb] of a config file."""
+    """The UWB pipeline's settings: [uwb] of a config file.
+
+    Attributes
+    ----------
+    range_column : str or None
+        ``range_calib`` (calibrated) or ``range`` (raw).
+    std : str or None
+        The range std in m: one value, per-anchor ``ID=VALUE`` pairs, or ``estimate``.
+    screen : ScreenMode or None
+        Which packets are dropped.
+    residual_level : float or None
+        The level of the per-packet residual test.
+    robust : RobustLoss or None
+        The position solve: none (WLS) or huber.
+    anchor_map : str or None
+        The log's anchor ids mapped to the markers' ids, ``LOG_ID=MARKER_ID,…``.
+    max_speed : float or None
+        Static periods: speed below this (m/s).
+    min_static : float or None
+        Static periods: at least this long (s).
+    packet_window : float or None
+        A packet: distinct anchors within this (s).
+    min_anchors : int or None
+        Anchors per 2-D fix.
+    """
 
     range_column: Annotated[
         str | None,
@@ -792,6 +988,22 @@ def declare(command):
     Each parameter annotated with a group dataclass is replaced, in place, by the group's
     fields (their Typer options, in field order); when the command runs, those options are
     gathered back into one frozen instance of the group. Other parameters pass unchanged.
+
+    Parameters
+    ----------
+    command : callable
+        A command function; parameters annotated with a group dataclass are spread.
+
+    Returns
+    -------
+    callable
+        The wrapped command, whose signature lists every option as a keyword-only
+        parameter.
+
+    Raises
+    ------
+    TypeError
+        If two parameters or group fields share a name.
     """
     hints = typing.get_type_hints(command, include_extras=True)
     spread: list[inspect.Parameter] = []

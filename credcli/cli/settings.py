@@ -72,7 +72,26 @@ CONFIG_SECTIONS = tuple(CONFIG_TABLES)
 
 def load_config(path: str | Path | None) -> dict:
     """The config file's tables (empty when no file is given), every key and value
-    checked, whichever command reads them: a typo is an error, never ignored."""
+    checked, whichever command reads them: a typo is an error, never ignored.
+
+    Parameters
+    ----------
+    path : str, Path or None
+        The TOML config file (``--config``), or None for no file.
+
+    Returns
+    -------
+    dict
+        Table name -> {key: value} for each table the file holds (of `CONFIG_TABLES`);
+        [diagnosis] keys spelled as flags (``tau``, ``flips``, ``probe_factor``) are
+        renamed to their field names (`KEY_ALIASES`).
+
+    Raises
+    ------
+    CredcliError
+        If the file is missing, unreadable or not valid TOML, holds an unknown table or
+        key, a table that is not a table, or a value of the wrong type.
+    """
     if path is None:
         return {}
     data = read_toml(path)
@@ -104,7 +123,22 @@ def load_config(path: str | Path | None) -> dict:
 def merged(config: dict, section: str, cli: dict) -> dict:
     """The values of ``[section]`` of a loaded config, overridden by the command line's
     given (not None) values: command line > config file. The defaults are the settings
-    dataclass's own."""
+    dataclass's own.
+
+    Parameters
+    ----------
+    config : dict
+        A loaded config (`load_config`).
+    section : str
+        The table's name, e.g. ``"diagnosis"``.
+    cli : dict
+        The command line's values by field name; None means not given.
+
+    Returns
+    -------
+    dict
+        The table's values with every given command-line value over them.
+    """
     out = dict(config.get(section, {}))
     out.update({k: v for k, v in cli.items() if v is not None})
     return out
@@ -113,7 +147,33 @@ def merged(config: dict, section: str, cli: dict) -> dict:
 def built(cls, values: dict, config: dict, section: str, given: dict):
     """``cls(**values)``, the settings of ``[section]`` under the command line's ``given``
     values. A bad value names its source: a config file's table and key, or (through the
-    parameter in the message) the command line's flag."""
+    parameter in the message) the command line's flag.
+
+    Parameters
+    ----------
+    cls : type
+        The settings dataclass to build.
+    values : dict
+        Its keyword arguments (`merged` values).
+    config : dict
+        The loaded config, to tell whether a bad value came from the file.
+    section : str
+        The config table ``values`` came from.
+    given : dict
+        The command line's values by field name (None: not given).
+
+    Returns
+    -------
+    object
+        The ``cls`` instance.
+
+    Raises
+    ------
+    CredcliError
+        If ``cls`` refuses a value: prefixed with ``config [section]:`` when the value
+        came from the config file and not the command line; a TypeError or ValueError
+        of ``cls`` becomes ``invalid <section> setting: …``.
+    """
     try:
         return cls(**values)
     except CredcliError as exc:
@@ -127,7 +187,25 @@ def built(cls, values: dict, config: dict, section: str, given: dict):
 
 
 def build_schema(config: dict, cli: dict) -> LogSchema:
-    """The column layout: [columns] of the config, overridden by the command line."""
+    """The column layout: [columns] of the config, overridden by the command line.
+
+    Parameters
+    ----------
+    config : dict
+        A loaded config (`load_config`).
+    cli : dict
+        The command line's column settings by LogSchema field name (None: not given).
+
+    Returns
+    -------
+    LogSchema
+        The default layout updated with those values.
+
+    Raises
+    ------
+    CredcliError
+        If the layout is invalid (a ValueError is prefixed with ``config [columns]:``).
+    """
     values = merged(config, "columns", cli)
     try:
         return LogSchema().updated(**values)
@@ -138,7 +216,25 @@ def build_schema(config: dict, cli: dict) -> LogSchema:
 
 
 def build_reading(config: dict, cli: dict) -> ReadOptions:
-    """How logs are read: [input] of the config, overridden by the command line."""
+    """How logs are read: [input] of the config, overridden by the command line.
+
+    Parameters
+    ----------
+    config : dict
+        A loaded config (`load_config`).
+    cli : dict
+        The command line's values by ReadOptions field name (None: not given).
+
+    Returns
+    -------
+    ReadOptions
+        The reading options (``truth`` as a string).
+
+    Raises
+    ------
+    CredcliError
+        If a value is invalid (see `built`).
+    """
     values = merged(config, "input", cli)
     if values.get("truth") is not None:
         values["truth"] = str(values["truth"])
@@ -148,7 +244,22 @@ def build_reading(config: dict, cli: dict) -> ReadOptions:
 def segment_settings(
     config: dict, window: str | None, whole: bool | None
 ) -> tuple[str | None, bool]:
-    """``--window`` and ``--whole`` from the command line, else from [segments]."""
+    """``--window`` and ``--whole`` from the command line, else from [segments].
+
+    Parameters
+    ----------
+    config : dict
+        A loaded config (`load_config`).
+    window : str or None
+        ``--window`` (None: not given).
+    whole : bool or None
+        ``--whole`` (None: not given).
+
+    Returns
+    -------
+    tuple of (str or None, bool)
+        The window and whether each log is one segment (default False).
+    """
     values = merged(config, "segments", {"window": window, "whole": whole})
     return values.get("window"), bool(values.get("whole", False))
 
@@ -156,7 +267,27 @@ def segment_settings(
 def build_diagnosis_config(
     config: dict, cli: dict, seed: int | None = None
 ) -> tuple[DiagnosisConfig, int]:
-    """The DiagnosisConfig and the seed (default 0) from [diagnosis] and the CLI."""
+    """The DiagnosisConfig and the seed (default 0) from [diagnosis] and the CLI.
+
+    Parameters
+    ----------
+    config : dict
+        A loaded config (`load_config`).
+    cli : dict
+        The rule's values by DiagnosisConfig field name (`rule_values`; None: not given).
+    seed : int or None, optional
+        ``--seed`` (None: from [diagnosis], else 0).
+
+    Returns
+    -------
+    tuple of (DiagnosisConfig, int)
+        The configuration and the seed.
+
+    Raises
+    ------
+    CredcliError
+        If the seed is not a non-negative integer, or a rule setting is invalid.
+    """
     values = merged(config, "diagnosis", cli | {"seed": seed})
     seed_value = values.pop("seed", 0)
     if not isinstance(seed_value, int) or seed_value < 0:
@@ -165,7 +296,23 @@ def build_diagnosis_config(
 
 
 def split_list(text: str | None) -> tuple[str, ...] | None:
-    """'a,b, c' -> ('a', 'b', 'c'); None stays None."""
+    """'a,b, c' -> ('a', 'b', 'c'); None stays None.
+
+    Parameters
+    ----------
+    text : str or None
+        Comma-separated column names.
+
+    Returns
+    -------
+    tuple of str, or None
+        The names, stripped, empty items left out.
+
+    Raises
+    ------
+    CredcliError
+        If ``text`` holds no name.
+    """
     if text is None:
         return None
     items = tuple(t.strip() for t in text.split(",") if t.strip())
@@ -175,7 +322,23 @@ def split_list(text: str | None) -> tuple[str, ...] | None:
 
 
 def block_length_value(text: str | None) -> int | str | None:
-    """--block-length: 'auto' or a positive integer."""
+    """--block-length: 'auto' or a positive integer.
+
+    Parameters
+    ----------
+    text : str or None
+        The option's text (None: not given).
+
+    Returns
+    -------
+    int, str or None
+        The integer, ``"auto"`` (any case, spaces around it ignored), or None.
+
+    Raises
+    ------
+    CredcliError
+        If ``text`` is neither ``auto`` nor an integer >= 1.
+    """
     if text is None or text.strip().lower() == AUTO:
         return None if text is None else AUTO
     try:
@@ -188,7 +351,23 @@ def block_length_value(text: str | None) -> int | str | None:
 
 
 def jobs_value(jobs: int | None) -> int:
-    """--jobs: given, or the number of cores."""
+    """--jobs: given, or the number of cores.
+
+    Parameters
+    ----------
+    jobs : int or None
+        ``--jobs`` (None: not given).
+
+    Returns
+    -------
+    int
+        ``jobs``, or the number of cores this process may use (`default_jobs`).
+
+    Raises
+    ------
+    CredcliError
+        If ``jobs`` is below 1 or above `MAX_JOBS`.
+    """
     if jobs is None:
         return default_jobs()
     if jobs < 1:
@@ -206,14 +385,41 @@ MAX_JOBS = 1024
 
 
 def rule_values(rule: RuleOptions) -> dict:
-    """The rule options by DiagnosisConfig field name (None where not given)."""
+    """The rule options by DiagnosisConfig field name (None where not given).
+
+    Parameters
+    ----------
+    rule : RuleOptions
+        The rule's options from the command line.
+
+    Returns
+    -------
+    dict
+        Field name -> value, flags renamed to fields (``flips`` is ``n_flips``), the
+        block length parsed (`block_length_value`).
+    """
     values = {KEY_ALIASES.get(k, k): v for k, v in dataclasses.asdict(rule).items()}
     values["block_length"] = block_length_value(rule.block_length)
     return values
 
 
 def log_reading(config: dict, log: LogOptions, segments: SegmentOptions) -> LogReading:
-    """How logs are read and cut: [columns], [input] and [segments] under the command line."""
+    """How logs are read and cut: [columns], [input] and [segments] under the command line.
+
+    Parameters
+    ----------
+    config : dict
+        A loaded config (`load_config`).
+    log : LogOptions
+        The reading options from the command line.
+    segments : SegmentOptions
+        ``--window`` and ``--whole``.
+
+    Returns
+    -------
+    LogReading
+        The column layout, the reading options, ``drop_invalid`` and the segmentation.
+    """
     schema = build_schema(
         config,
         {
@@ -242,7 +448,39 @@ def diagnose_request(
     monte_carlo: bool = False,
     figures: bool = False,
 ) -> DiagnoseRequest:
-    """What `diagnose`, `baseline` and `report` ask for."""
+    """What `diagnose`, `baseline` and `report` ask for.
+
+    Parameters
+    ----------
+    logs : sequence of Path
+        The logs to diagnose.
+    config_file : Path or None
+        ``--config``.
+    log : LogOptions
+        How the logs are read.
+    segments : SegmentOptions
+        How they are cut.
+    rule : RuleOptions
+        How a segment is judged.
+    seed : int or None
+        ``--seed`` (None: from [diagnosis], else 0).
+    run : RunOptions
+        ``--jobs`` (the scheduler is the command's).
+    monte_carlo : bool, default False
+        The logs are runs of one scenario, pooled (``--monte-carlo``).
+    figures : bool, default False
+        Draw the figures too.
+
+    Returns
+    -------
+    DiagnoseRequest
+        Every setting resolved (command line > config file > defaults).
+
+    Raises
+    ------
+    CredcliError
+        If the config file or a setting is invalid.
+    """
     config = load_config(config_file)
     diagnosis, seed_value = build_diagnosis_config(config, rule_values(rule), seed)
     reading = log_reading(config, log, segments)
@@ -264,7 +502,43 @@ def gate_request(
     figures: bool = False,
 ) -> GateRequest:
     """What `gate` asks for: LOG diagnosed with the baseline's settings, which every
-    setting given (command line or [diagnosis] and [segments]) must equal."""
+    setting given (command line or [diagnosis] and [segments]) must equal.
+
+    Parameters
+    ----------
+    log : Path
+        The new log.
+    baseline_file : Path
+        The baseline JSON (``--baseline``).
+    config_file : Path or None
+        ``--config``.
+    thresholds : ThresholdOptions
+        When the gate fails (over [gate] of the config).
+    truth : Path or None
+        The new log's ground truth (``--truth``; else [input] truth of the config).
+    segments : SegmentOptions
+        ``--window`` and ``--whole``, which must equal the baseline's.
+    rule : RuleOptions
+        Rule settings, which must equal the baseline's.
+    seed : int or None
+        ``--seed``, which must equal the baseline's.
+    run : RunOptions
+        ``--jobs``.
+    figures : bool, default False
+        Draw the figures too.
+
+    Returns
+    -------
+    GateRequest
+        The diagnosis of ``log`` with the baseline's reading, configuration and seed, the
+        baseline, and the thresholds.
+
+    Raises
+    ------
+    CredcliError
+        If the baseline cannot be read, a given setting differs from the baseline's, or
+        the baseline had a separate ground truth and none is given.
+    """
     config = load_config(config_file)
     given = dataclasses.asdict(thresholds)
     limits = built(Thresholds, merged(config, "gate", given), config, "gate", given)
@@ -303,7 +577,25 @@ def gate_request(
 
 
 def parse_range(text, what: str) -> tuple[float, float] | None:
-    """'lo:hi' (or a 2-list from a config file) -> (lo, hi)."""
+    """'lo:hi' (or a 2-list from a config file) -> (lo, hi).
+
+    Parameters
+    ----------
+    text : str, list, tuple or None
+        The range.
+    what : str
+        Where it came from, for the error message (a parameter or a config key).
+
+    Returns
+    -------
+    tuple of (float, float), or None
+        ``(lo, hi)``; None for None.
+
+    Raises
+    ------
+    CredcliError
+        If ``text`` is not two numbers, or ``lo > hi``.
+    """
     if text is None:
         return None
     if isinstance(text, (list, tuple)):
@@ -332,7 +624,41 @@ def simulate_request(
     curve_runs: int,
     figures: bool = False,
 ) -> SimulateRequest:
-    """What `simulate` asks for: [simulate] and [diagnosis] under the command line."""
+    """What `simulate` asks for: [simulate] and [diagnosis] under the command line.
+
+    Parameters
+    ----------
+    config_file : Path or None
+        ``--config``.
+    study : StudyOptions
+        The study's design from the command line.
+    rule : RuleOptions
+        How a trial is judged.
+    seed : int or None
+        ``--seed`` (None: [simulate] seed, else [diagnosis] seed, else 0).
+    run : RunOptions
+        ``--jobs``.
+    scenario : str
+        ``--scenario``: all, labels or aliases, comma-separated.
+    sweep : str or None
+        ``--sweep``.
+    curves : bool
+        ``--curves``: the Fig. 1 curves instead.
+    curve_runs : int
+        ``--curve-runs``: Monte Carlo runs per curve point.
+    figures : bool, default False
+        Draw the figures too.
+
+    Returns
+    -------
+    SimulateRequest
+        Every setting resolved (command line > config file > defaults).
+
+    Raises
+    ------
+    CredcliError
+        If ``curve_runs`` is below 1, a range is not ``lo:hi``, or a setting is invalid.
+    """
     jobs = jobs_value(run.jobs)
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
@@ -352,7 +678,27 @@ def simulate_request(
 
 
 def id_pairs(text: str | None, flag: str, kind) -> tuple:
-    """'4=1,5=2' -> ((4, 1), (5, 2)) with values of ``kind``."""
+    """'4=1,5=2' -> ((4, 1), (5, 2)) with values of ``kind``.
+
+    Parameters
+    ----------
+    text : str or None
+        ``ID=VALUE`` pairs separated by commas.
+    flag : str
+        The option, for the error message.
+    kind : callable
+        Converts each value (``int``, ``float``).
+
+    Returns
+    -------
+    tuple of (int, object) pairs
+        Empty for None or an empty ``text``.
+
+    Raises
+    ------
+    CredcliError
+        If an item is not ``ID=VALUE`` with an integer ID and a value ``kind`` takes.
+    """
     if not text:
         return ()
     out = []
@@ -371,7 +717,24 @@ def id_pairs(text: str | None, flag: str, kind) -> tuple:
 
 def std_settings(text: str | None) -> dict:
     """--std: a value, ID=VALUE pairs (with an optional plain default among them), or
-    'estimate'; by UwbSettings field name."""
+    'estimate'; by UwbSettings field name.
+
+    Parameters
+    ----------
+    text : str or None
+        ``--std`` (None: not given).
+
+    Returns
+    -------
+    dict
+        ``{}`` for None; ``{"std_estimate": True}`` for 'estimate'; else ``std`` (the
+        plain value, or None) and ``std_by_anchor`` (the pairs).
+
+    Raises
+    ------
+    CredcliError
+        If the plain value is not a number, or more than one is given.
+    """
     if text is None:
         return {}
     if text.strip().lower() == STD_ESTIMATE:
@@ -400,7 +763,37 @@ def uwb_request(
     *,
     figures: bool = False,
 ) -> UwbRequest:
-    """What `uwb` asks for: [uwb], [segments] and [diagnosis] under the command line."""
+    """What `uwb` asks for: [uwb], [segments] and [diagnosis] under the command line.
+
+    Parameters
+    ----------
+    file : Path
+        The STAR-loc ``uwb.csv``.
+    config_file : Path or None
+        ``--config``.
+    uwb : UwbOptions
+        The pipeline's settings from the command line.
+    anchors : Path or None
+        ``--anchors`` (None: self-calibrated).
+    segments : SegmentOptions
+        ``--window`` and ``--whole`` (neither: static periods).
+    rule : RuleOptions
+        How a period is judged.
+    seed : int or None
+        ``--seed`` (None: from [diagnosis], else 0).
+    figures : bool, default False
+        Draw the figures too.
+
+    Returns
+    -------
+    UwbRequest
+        Every setting resolved (command line > config file > defaults).
+
+    Raises
+    ------
+    CredcliError
+        If the config file or a setting is invalid.
+    """
     config = load_config(config_file)
     diagnosis, seed_value = build_diagnosis_config(config, rule_values(rule), seed)
     given = {
@@ -453,7 +846,14 @@ def _section(name: str, values: dict[str, object], unset_examples: dict[str, str
 
 def default_config_text() -> str:
     """configs/default.toml: every setting a config file takes, at its default, made from
-    the settings dataclasses themselves (``make config`` writes it; a test checks it)."""
+    the settings dataclasses themselves (``make config`` writes it; a test checks it).
+
+    Returns
+    -------
+    str
+        The file's text: one table per settings class; a setting unset by default is a
+        comment with an example value.
+    """
 
     def defaults(cls, skip=()) -> dict:
         instance = cls()
@@ -496,7 +896,13 @@ def default_config_text() -> str:
 
 
 def main() -> int:
-    """``python -m credcli.cli.settings``: print configs/default.toml."""
+    """``python -m credcli.cli.settings``: print configs/default.toml.
+
+    Returns
+    -------
+    int
+        The exit code, 0.
+    """
     sys.stdout.write(default_config_text())
     return 0
 

@@ -41,7 +41,39 @@ P0 = np.diag([R_VARIANCE, 1.0, R_VARIANCE, 1.0])
 
 
 def cv_matrices(dt: float = DT, q: float = Q_DENSITY) -> tuple[np.ndarray, np.ndarray]:
-    """F and Q of a 2-D nearly-constant-velocity state (x, vx, y, vy)."""
+    r"""F and Q of a 2-D nearly-constant-velocity state (x, vx, y, vy).
+
+    Parameters
+    ----------
+    dt : float
+        Time step in s (default ``DT``, 1 s).
+    q : float
+        Spectral density of the white-noise acceleration per axis (default
+        ``Q_DENSITY``).
+
+    Returns
+    -------
+    F : numpy.ndarray, shape (4, 4)
+        The transition matrix, block diagonal in (x, vx) and (y, vy).
+    Q : numpy.ndarray, shape (4, 4)
+        The process noise covariance, block diagonal.
+
+    Notes
+    -----
+    Per axis (Bar-Shalom et al. 2001, Sec. 6.3.2)
+
+    .. math::
+
+        F_1 = \begin{pmatrix} 1 & \Delta t \\ 0 & 1 \end{pmatrix},\quad
+        Q_1 = q \begin{pmatrix} \Delta t^3/3 & \Delta t^2/2 \\
+        \Delta t^2/2 & \Delta t \end{pmatrix}.
+
+    Examples
+    --------
+    >>> f, q = cv_matrices(dt=1.0, q=3.0)
+    >>> f[:2, :2].tolist(), q[:2, :2].tolist()
+    ([[1.0, 1.0], [0.0, 1.0]], [[1.0, 1.5], [1.5, 3.0]])
+    """
     f1 = np.array([[1.0, dt], [0.0, 1.0]])
     q1 = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
     z = np.zeros((2, 2))
@@ -49,8 +81,30 @@ def cv_matrices(dt: float = DT, q: float = Q_DENSITY) -> tuple[np.ndarray, np.nd
 
 
 def cv_truth(steps: int, seed: RngLike = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(true states (steps, 4), position measurements (steps, 2) without bias, and the
-    filter's initial state: the first true state plus an error drawn from P0)."""
+    """A true nearly-constant-velocity path, its position measurements and the filter's
+    initial state.
+
+    The truth starts at (0, 1, 0, 1) and follows :func:`cv_matrices`' model; the
+    measurements are its positions plus N(0, ``R_VARIANCE`` I) noise.
+
+    Parameters
+    ----------
+    steps : int
+        Number of epochs (one per ``DT``).
+    seed : RngLike
+        Seed or generator of the process noise, the measurement noise and the initial
+        error (default 0).
+
+    Returns
+    -------
+    truth : numpy.ndarray, shape (steps, 4)
+        True states (x, vx, y, vy).
+    z : numpy.ndarray, shape (steps, 2)
+        Position measurements (x, y), without bias.
+    x0 : numpy.ndarray, shape (4,)
+        The filter's initial state: the first true state plus an error drawn from
+        N(0, ``P0``).
+    """
     rng = as_generator(seed)
     f, q = cv_matrices()
     chol = np.linalg.cholesky(q)
@@ -65,7 +119,27 @@ def cv_truth(steps: int, seed: RngLike = 0) -> tuple[np.ndarray, np.ndarray, np.
 
 
 def filterpy_run(tuning: FilterTuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
-    """filterpy's KalmanFilter with a Saver, as its documentation runs it."""
+    """filterpy's KalmanFilter with a Saver, as its documentation runs it.
+
+    An update at the first epoch, then a prediction and an update at each later one; the
+    log is made by :func:`credcli.adapters.filterpy.log_from_saver`.
+
+    Parameters
+    ----------
+    tuning : FilterTuning
+        The filter's factors on Q, R and P0, and the unmodelled offset added to the x
+        measurements in standard deviations of R (e.g. a value of :data:`LIBRARY_TUNINGS`).
+    seed : RngLike
+        Seed or generator of the truth and the measurements (:func:`cv_truth`) (default 0).
+    steps : int
+        Number of epochs, one per ``DT`` (default 300).
+
+    Returns
+    -------
+    EstimatorLog
+        The filter's posterior states (all four) and covariances against the truth, named
+        "filterpy".
+    """
     from filterpy.common import Saver
     from filterpy.kalman import KalmanFilter
 
@@ -91,7 +165,26 @@ def filterpy_run(tuning: FilterTuning, seed: RngLike = 0, steps: int = 300) -> E
 
 def stonesoup_run(tuning: FilterTuning, seed: RngLike = 0, steps: int = 300) -> EstimatorLog:
     """Stone Soup's KalmanPredictor and KalmanUpdater over its own models, the loop of its
-    Kalman filter tutorial; the truth and detections drawn as above."""
+    Kalman filter tutorial; the truth and detections drawn as for :func:`filterpy_run`.
+
+    The log is made by :func:`credcli.adapters.stonesoup.log_from_track`.
+
+    Parameters
+    ----------
+    tuning : FilterTuning
+        The filter's factors on Q, R and P0, and the unmodelled offset added to the x
+        measurements in standard deviations of R (e.g. a value of :data:`LIBRARY_TUNINGS`).
+    seed : RngLike
+        Seed or generator of the truth and the measurements (:func:`cv_truth`) (default 0).
+    steps : int
+        Number of epochs, one per ``DT`` (default 300).
+
+    Returns
+    -------
+    EstimatorLog
+        The filter's posterior states (all four) and covariances against the truth, named
+        "stonesoup".
+    """
     from stonesoup.models.measurement.linear import LinearGaussian
     from stonesoup.models.transition.linear import (
         CombinedLinearGaussianTransitionModel,
@@ -129,7 +222,22 @@ def stonesoup_run(tuning: FilterTuning, seed: RngLike = 0, steps: int = 300) -> 
 def stonesoup_tracker_run(seed: int = 0, steps: int = 300) -> EstimatorLog:
     """Stone Soup's SingleTargetTracker (nearest-neighbour association, measurement
     initiator, deleter) on its own single-target simulator, right tuning: the tracks and
-    ground-truth paths a tracker user has, paired by :func:`log_from_tracks`."""
+    ground-truth paths a tracker user has, paired by :func:`log_from_tracks`.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the simulator's transition model; the measurement model and the detection
+        simulator take ``seed + 1`` and ``seed + 2`` (default 0).
+    steps : int
+        Number of simulated epochs, one per ``DT`` (default 300).
+
+    Returns
+    -------
+    EstimatorLog
+        One segment per track, each against the ground-truth path it follows, named
+        "stonesoup tracker".
+    """
     from stonesoup.dataassociator.neighbour import NearestNeighbour
     from stonesoup.deleter.time import UpdateTimeStepsDeleter
     from stonesoup.hypothesiser.distance import DistanceHypothesiser

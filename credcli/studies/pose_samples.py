@@ -37,7 +37,15 @@ ORIENTATION_STD = np.array([0.010, 0.012, 0.020])  # rad
 
 
 def true_cov() -> np.ndarray:
-    """Σ of the planted pose error (ROS order), with a correlated x–y position block."""
+    """Σ of the planted pose error (ROS order), with a correlated x–y position block.
+
+    Returns
+    -------
+    numpy.ndarray, shape (6, 6)
+        The covariance of (δp, δθ) = (x, y, z, rotation x, y, z): stds ``POSITION_STD``
+        (m) and ``ORIENTATION_STD`` (rad), correlation 0.4 between x and y and −0.3
+        between the rotations about x and z.
+    """
     std = np.r_[POSITION_STD, ORIENTATION_STD]
     corr = np.eye(6)
     corr[0, 1] = corr[1, 0] = 0.4
@@ -47,7 +55,22 @@ def true_cov() -> np.ndarray:
 
 def trajectory(t: np.ndarray):
     """Positions (N, 3) and scipy Rotations of a smooth figure-of-eight with heading along
-    the velocity and small roll and pitch."""
+    the velocity and small roll and pitch.
+
+    Parameters
+    ----------
+    t : numpy.ndarray, shape (N,)
+        Times in s from the start of the run.
+
+    Returns
+    -------
+    p : numpy.ndarray, shape (N, 3)
+        Positions (m): x = 10 cos ωt, y = 6 sin 2ωt, z = 1.5 + 0.3 sin(ωt/2), with
+        ω = 2π/60 s (one loop a minute).
+    rotation : scipy.spatial.transform.Rotation
+        N orientations: yaw along the horizontal velocity, pitch 0.03 cos 0.3t and roll
+        0.05 sin 0.5t (rad).
+    """
     from scipy.spatial.transform import Rotation
 
     w = 2 * np.pi / 60.0
@@ -59,7 +82,36 @@ def trajectory(t: np.ndarray):
 
 
 def planted_estimate(t, cov, rho=1.0, mean=None, right=False, seed=0):
-    """Estimate positions, Rotations and claimed covariances (N, 6, 6) at stamps ``t``."""
+    """Estimate positions, Rotations and claimed covariances (N, 6, 6) at stamps ``t``.
+
+    A pose error δ = (δp, δθ) ~ N(``mean``, ``cov``) per stamp is applied to the true
+    pose of :func:`trajectory` in the chosen convention (see the module docstring).
+
+    Parameters
+    ----------
+    t : numpy.ndarray, shape (N,)
+        The estimate's stamps in s from the start of the run.
+    cov : numpy.ndarray, shape (6, 6)
+        The true covariance Σ of δ (ROS order).
+    rho : float
+        Claimed over true covariance scale: the claim is ρΣ (default 1.0).
+    mean : array_like, shape (6,), optional
+        The mean μ of δ (a planted bias); zero when None.
+    right : bool
+        Right perturbation (R_true = R_est Exp(δθ), p_true − p_est = R_est δp) instead of
+        left (R_true = Exp(δθ) R_est, p_true − p_est = δp) (default False).
+    seed : int
+        Seed of the errors (default 0).
+
+    Returns
+    -------
+    p_est : numpy.ndarray, shape (N, 3)
+        Estimated positions (m).
+    r_est : scipy.spatial.transform.Rotation
+        N estimated orientations.
+    claimed : numpy.ndarray, shape (N, 6, 6)
+        The claimed covariances ρΣ.
+    """
     from scipy.spatial.transform import Rotation
 
     rng = np.random.default_rng(seed)
@@ -80,7 +132,18 @@ def planted_estimate(t, cov, rho=1.0, mean=None, right=False, seed=0):
 
 def quaternions(rotation) -> np.ndarray:
     """x, y, z, w with w >= 0: q and −q are one rotation, and scipy releases differ in the
-    sign they return, so the samples fix it (the files are the same with any scipy)."""
+    sign they return, so the samples fix it (the files are the same with any scipy).
+
+    Parameters
+    ----------
+    rotation : scipy.spatial.transform.Rotation
+        N rotations (a stack, not a single one).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 4)
+        Unit quaternions (x, y, z, w), each with w >= 0.
+    """
     q = rotation.as_quat()
     return q * np.where(q[:, 3:] < 0, -1.0, 1.0)
 
@@ -90,6 +153,21 @@ def _stamps(duration: float, rate: float, start: float = 0.0) -> np.ndarray:
 
 
 def write_tum_openvins(outdir: Path) -> list[Path]:
+    """Write the TUM truth and the OpenVINS estimate: position credible, orientation
+    optimism (the true orientation covariance is 4× the claim), left perturbation.
+
+    Parameters
+    ----------
+    outdir : pathlib.Path
+        An existing directory; files in it are overwritten.
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``tum_groundtruth.txt`` (100 Hz for 120 s: timestamp tx ty tz qx qy qz qw) and
+        ``openvins_estimate.txt`` (20 Hz for 119 s: the pose, then the upper triangles of
+        the orientation and the position covariances, 20 columns).
+    """
     t_true = _stamps(120.0, 100.0)
     t_est = _stamps(119.0, 20.0, 0.0123)
     p, r = trajectory(t_true)
@@ -118,6 +196,21 @@ def write_tum_openvins(outdir: Path) -> list[Path]:
 
 
 def write_euroc_ros_csv(outdir: Path) -> list[Path]:
+    """Write the EuRoC truth and a ROS CSV Odometry estimate: position smm (a 1.5 σ bias
+    along x), orientation credible, right perturbation.
+
+    Parameters
+    ----------
+    outdir : pathlib.Path
+        An existing directory; files in it are overwritten.
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``euroc_groundtruth.csv`` (100 Hz for 120 s, ns stamps, quaternion w first) and
+        ``odom_ros.csv`` (20 Hz for 119 s: ``rostopic echo -p`` columns of
+        nav_msgs/Odometry, received 2 ms after each stamp).
+    """
     import pandas as pd
 
     t_true = _stamps(120.0, 100.0)
@@ -151,7 +244,28 @@ def write_euroc_ros_csv(outdir: Path) -> list[Path]:
 
 
 def bag_messages(duration=60.0, seed=33):
-    """Stamps, poses and covariances of the bag samples: estimate 20 Hz, truth 50 Hz."""
+    """Stamps, poses and covariances of the bag samples: estimate 20 Hz, truth 50 Hz.
+
+    The estimate's true error covariance is Σ/4 and its claim Σ (:func:`true_cov`):
+    pessimism, left perturbation.
+
+    Parameters
+    ----------
+    duration : float
+        Length of the truth in s; the estimate covers ``duration`` − 1 s from 0.011 s
+        (default 60).
+    seed : int
+        Seed of the estimate's errors (default 33).
+
+    Returns
+    -------
+    truth : tuple of numpy.ndarray
+        Stamps (s from the start, (N,)), positions (N, 3) and quaternions (N, 4)
+        (x, y, z, w) of the truth.
+    estimate : tuple of numpy.ndarray
+        Stamps (M,), positions (M, 3), quaternions (M, 4) and claimed covariances
+        (M, 6, 6) of the estimate.
+    """
     t_true = _stamps(duration, 50.0)
     t_est = _stamps(duration - 1.0, 20.0, 0.011)
     p_true, r_true = trajectory(t_true)
@@ -163,7 +277,29 @@ def bag_messages(duration=60.0, seed=33):
 
 def write_bag(path: Path, version: int, estimate, truth) -> Path:
     """A ROS1 .bag (version 1) or ROS2 bag directory (version 2) with /odom (Odometry)
-    and /ground_truth (PoseStamped), written with rosbags."""
+    and /ground_truth (PoseStamped), written with rosbags.
+
+    Stamps are ``EPOCH`` plus the given times; each Odometry message is recorded 1 ms
+    after its stamp, each PoseStamped at its stamp; frame ``map``, child frame
+    ``base_link``, zero twist.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The bag file (ROS1) or directory (ROS2); an existing one is replaced.
+    version : int
+        1 for ROS1 (Noetic types), 2 for ROS2 (Humble types, rosbag2 format version 8).
+    estimate : tuple of numpy.ndarray
+        Stamps, positions, quaternions (x, y, z, w) and covariances (M, 6, 6) of /odom,
+        as :func:`bag_messages` gives them.
+    truth : tuple of numpy.ndarray
+        Stamps, positions and quaternions of /ground_truth.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS1_NOETIC if version == 1 else Stores.ROS2_HUMBLE)
@@ -230,7 +366,27 @@ def write_bag(path: Path, version: int, estimate, truth) -> Path:
 
 
 def innovations_log(seed: int = 0, n: int = 600, rate: float = 10.0):
-    """A 2-D innovations log (credcli's innov_i, innov_cov_i_j) with four segments."""
+    """A 2-D innovations log (credcli's innov_i, innov_cov_i_j) with four segments.
+
+    The innovations are ν_k = L(z_k + μ) with L Lᵀ = S, S = [[0.5, 0.1], [0.1, 0.3]];
+    the segments are ``good`` (claim S), ``optimistic`` (claim 0.3 S), ``biased``
+    (μ = (0.9, −0.6)) and ``correlated`` (z_k AR(1) with φ = 0.6 and unit variance).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the innovations (default 0).
+    n : int
+        Epochs per segment (default 600).
+    rate : float
+        Epoch rate in Hz (default 10).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns time, segment, innov_0, innov_1, innov_cov_0_0, innov_cov_0_1,
+        innov_cov_1_1; the segments follow each other in time.
+    """
     import pandas as pd
 
     rng = np.random.default_rng(seed)
@@ -269,7 +425,25 @@ def innovations_log(seed: int = 0, n: int = 600, rate: float = 10.0):
 
 def monte_carlo_runs(runs: int = 3, seed: int = 1, duration: float = 60.0, rate: float = 20.0):
     """``runs`` credcli logs of one 2-D scenario on one time base: credible for the first
-    half, then the claimed covariance falls to 0.3× the true one."""
+    half, then the claimed covariance falls to 0.3× the true one.
+
+    Parameters
+    ----------
+    runs : int
+        Number of runs (default 3).
+    seed : int
+        Seed; run r draws from ``default_rng([seed, r])`` (default 1).
+    duration : float
+        Length of each run in s (default 60).
+    rate : float
+        Epoch rate in Hz (default 20).
+
+    Returns
+    -------
+    list of pandas.DataFrame
+        One log per run, columns time, truth_0, truth_1, est_0, est_1, cov_0_0, cov_0_1,
+        cov_1_1 (no segment column).
+    """
     import pandas as pd
 
     t = np.round(_stamps(duration, rate), 6)
@@ -299,7 +473,20 @@ def monte_carlo_runs(runs: int = 3, seed: int = 1, duration: float = 60.0, rate:
 
 
 def write_pose_samples(outdir: Path) -> list[Path]:
-    """Every pose-format sample in ``outdir``; returns their paths."""
+    """Every pose-format sample in ``outdir``; returns their paths.
+
+    Parameters
+    ----------
+    outdir : pathlib.Path
+        The directory (created with its parents if missing; files in it are
+        overwritten).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in order: the TUM/OpenVINS and EuRoC/ROS CSV pairs,
+        ``odom.bag``, ``odom_ros2``, ``innovations.csv``, ``mc_run_1.csv`` ….
+    """
     outdir.mkdir(parents=True, exist_ok=True)
     written = write_tum_openvins(outdir) + write_euroc_ros_csv(outdir)
     truth, estimate = bag_messages()

@@ -6,7 +6,7 @@ the error of each epoch is drawn from N(μ, Σ_k) and the claimed covariance is 
 
 The diagnosis is a statistical test, so a given draw can be a false alarm (about 5% per
 segment for the ELT). The default seed is one whose six segments all receive their planted
-label with the default settings (31 of the seeds 0–39 do); tests/test_samples.py checks it.
+label with the default settings; tests/test_samples.py checks it.
 """
 
 from __future__ import annotations
@@ -22,6 +22,19 @@ from credcli.studies.pose_samples import write_pose_samples
 
 @dataclass(frozen=True)
 class PlantedSegment:
+    """One segment of a sample log and the condition planted in it.
+
+    Attributes
+    ----------
+    name : str
+        The segment's name (the log's ``segment`` column).
+    rho : float
+        Claimed over true covariance scale ρ: below 1 optimism, above 1 pessimism.
+    bias : tuple of float
+        Mean error μ (2,), in units of the true std (added to the whitened errors); zero
+        for no bias.
+    """
+
     name: str
     rho: float  # claimed / true covariance scale
     bias: tuple[float, float]  # mean error μ in units of the true std
@@ -50,8 +63,41 @@ draws are the same as for GOOD_SEGMENTS, so the other segments are unchanged."""
 def estimator_log(
     segments=GOOD_SEGMENTS, epochs_per_segment: int = 300, rate_hz: float = 10.0, seed: int = 1
 ):
-    """A pandas DataFrame in credcli's default log format (time, segment, truth_*, est_*,
-    cov_i_j upper triangle)."""
+    """A 2-D tracking log with one segment per planted condition, in credcli's default
+    log format.
+
+    The truth moves on a circle of radius 50 m at 0.05 rad/s; the true error covariance
+    Σ_k has 1-σ axes of 1.5 m and 0.6 m turning with the heading. Each epoch's error is
+    e_k = L_k (z_k + μ), L_k L_kᵀ = Σ_k, z_k ~ N(0, I), and the claimed covariance is
+    ρ Σ_k. Segments follow each other in time, one epoch interval apart.
+
+    Parameters
+    ----------
+    segments : sequence of PlantedSegment
+        The segments, in order (default ``GOOD_SEGMENTS``).
+    epochs_per_segment : int
+        Epochs in each segment (default 300).
+    rate_hz : float
+        Epoch rate in Hz (default 10).
+    seed : int
+        Seed of the errors (default 1: every segment of ``GOOD_SEGMENTS`` gets its
+        planted label).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns time (s, rounded to the ms), segment, truth_0, truth_1, est_0, est_1 and
+        the claimed covariance's upper triangle cov_0_0, cov_0_1, cov_1_1; one row per
+        epoch.
+
+    Examples
+    --------
+    >>> log = estimator_log(GOOD_SEGMENTS[:2], epochs_per_segment=3)
+    >>> list(log.columns)
+    ['time', 'segment', 'truth_0', 'truth_1', 'est_0', 'est_1', 'cov_0_0', 'cov_0_1', 'cov_1_1']
+    >>> log["time"].tolist(), log["segment"].unique().tolist()
+    ([0.0, 0.1, 0.2, 0.3, 0.4, 0.5], ['cruise', 'turn'])
+    """
     import pandas as pd
 
     rng = np.random.default_rng(seed)
@@ -97,7 +143,23 @@ ERRORS_SEGMENTS = (GOOD_SEGMENTS[0], GOOD_SEGMENTS[1])
 def errors_log(segments=ERRORS_SEGMENTS, epochs_per_segment: int = 100, seed: int = 2):
     """The errors-only layout (``--errors-only``): time, segment, the errors ``err_i``
     (e = x - x̂) and the claimed covariance, as a filter library that knows its own errors
-    would write them; the draws of ``estimator_log``, without truth or estimate."""
+    would write them; the draws of ``estimator_log``, without truth or estimate.
+
+    Parameters
+    ----------
+    segments : sequence of PlantedSegment
+        The segments, in order (default ``ERRORS_SEGMENTS``).
+    epochs_per_segment : int
+        Epochs in each segment (default 100).
+    seed : int
+        Seed of the errors, as for :func:`estimator_log` (default 2).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns time, segment, err_0, err_1, cov_0_0, cov_0_1, cov_1_1; one row per epoch
+        (10 Hz).
+    """
     log = estimator_log(segments, epochs_per_segment, seed=seed)
     errors = log[["truth_0", "truth_1"]].to_numpy() - log[["est_0", "est_1"]].to_numpy()
     frame = log[["time", "segment"]].copy()
@@ -106,7 +168,23 @@ def errors_log(segments=ERRORS_SEGMENTS, epochs_per_segment: int = 100, seed: in
 
 
 def write_samples(outdir: Path) -> list[Path]:
-    """Write every sample file into ``outdir``; return their paths."""
+    """Write every sample file into ``outdir``; return their paths.
+
+    The files are estimator_log.csv and .parquet, estimator_log_regressed.csv (for
+    ``credcli gate``), errors_only.csv, starloc_grid_uwb.csv and, under ``formats/``, the
+    pose-format samples of :func:`credcli.studies.pose_samples.write_pose_samples`.
+
+    Parameters
+    ----------
+    outdir : pathlib.Path
+        The directory to write into (created with its parents if missing; files in it
+        are overwritten).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written (the ROS2 bag as its directory), in the order written.
+    """
     outdir.mkdir(parents=True, exist_ok=True)
     log = estimator_log()
     written = [outdir / "estimator_log.csv", outdir / "estimator_log.parquet"]
@@ -124,6 +202,22 @@ def write_samples(outdir: Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``python -m credcli.studies.samples [OUTDIR]`` (``make sample-data``).
+
+    Writes the samples with :func:`write_samples` and prints one ``wrote PATH`` line per
+    file.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments; the first, if any, is the output directory (default
+        ``sample_data``). ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        The exit status, 0.
+    """
     argv = sys.argv[1:] if argv is None else argv
     outdir = Path(argv[0] if argv else "sample_data")
     for path in write_samples(outdir):
@@ -163,6 +257,38 @@ def starloc_log(
     it differs per anchor and per stop, and shifts every fix the same way: SMM), and a small
     fixed bias per anchor drawn from ``bias_range``. The diagnosis of every stop should be
     pessimism+smm, as Table IV for the real grid_s3 run.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the time jitter, the biases and the noise (default 3).
+    stops : sequence of (float, float)
+        The rig's static stops (x, y) in m, visited in order along straight lines
+        (default: a 3 × 2 grid).
+    dwell_s : float
+        Time at each stop in s (default 6).
+    speed : float
+        The rig's speed between stops in m/s (default 0.4).
+    rate_hz : float
+        Range rows per second, over both tags (default 220).
+    noise_std : float
+        True std of the range noise in m (default 0.04).
+    std_factor : float
+        Reported std over ``noise_std`` (each row's ``std`` is that times U[0.9, 1.1])
+        (default 2: pessimism).
+    antenna_offset : tuple of float
+        Horizontal offset (x, y) in m of the UWB antenna from the tracked tag position
+        (default (0.15, −0.10)).
+    bias_range : tuple of float
+        Range (lo, hi) in m of the uniform fixed bias of each anchor (default (0, 0.03)).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The STAR-loc columns (time_s, range, from_id (tag), to_id (anchor), the rig pose
+        x … rot_z, tag_pos_*, bias, gt_range, range_calib, bias_calib, std), rounded to
+        6 decimals; ``range`` carries a further 0.08 m offset and 1 cm of noise that
+        ``range_calib`` does not. Anchor positions are ``STARLOC_ANCHORS``.
     """
     import pandas as pd
 

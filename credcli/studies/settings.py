@@ -16,6 +16,16 @@ CURVE_RUNS = 5000
 
 
 class Noise(str, enum.Enum):
+    """The law of the whitened errors of the Monte Carlo study (``simulate --noise``).
+
+    Attributes
+    ----------
+    GAUSSIAN : "gaussian"
+        Standard Gaussian, as in the paper.
+    STUDENT_T : "student-t"
+        Multivariate Student-t, scaled to unit covariance (``student-t:NU``).
+    """
+
     GAUSSIAN = "gaussian"
     STUDENT_T = "student-t"
 
@@ -25,7 +35,18 @@ class ErrorModel:
     """How whitened errors are drawn: Gaussian or multivariate Student-t with ``nu`` degrees
     of freedom (scaled to unit covariance), then an AR(1) filter of coefficient ``ar`` in
     time, x_k = φ x_{k−1} + √(1 − φ²) z_k with x_0 = z_0, which keeps the marginal
-    covariance unchanged."""
+    covariance unchanged.
+
+    Attributes
+    ----------
+    noise : Noise
+        The law of z_k (default Gaussian).
+    nu : float or None
+        Degrees of freedom ν > 2 of the Student-t; None for Gaussian.
+    ar : float
+        The AR(1) coefficient φ in (−1, 1); 0 (the default) for errors independent in
+        time.
+    """
 
     noise: Noise = Noise.GAUSSIAN
     nu: float | None = None
@@ -33,6 +54,33 @@ class ErrorModel:
 
     @classmethod
     def parse(cls, noise: str = "gaussian", ar: float = 0.0) -> ErrorModel:
+        """The model of a ``--noise`` text and an ``--ar`` coefficient.
+
+        Parameters
+        ----------
+        noise : str
+            ``gaussian`` or ``student-t:NU`` (case and surrounding blanks ignored)
+            (default ``gaussian``).
+        ar : float
+            The AR(1) coefficient φ (default 0).
+
+        Returns
+        -------
+        ErrorModel
+            The model; ``str()`` of it gives the noise text back.
+
+        Raises
+        ------
+        CredcliError
+            If ``noise`` is neither form, NU is not a number > 2, or ``ar`` is not in
+            (−1, 1).
+
+        Examples
+        --------
+        >>> model = ErrorModel.parse(" Student-T:5 ", ar=0.5)
+        >>> str(model), model.nu, model.ar
+        ('student-t:5', 5.0, 0.5)
+        """
         text = noise.strip().lower()
         if text == Noise.GAUSSIAN.value:
             model = cls(Noise.GAUSSIAN, None, ar)
@@ -60,7 +108,23 @@ class ErrorModel:
         return self.noise.value + (f":{self.nu:g}" if self.nu is not None else "")
 
     def draw(self, rng, n: int, dim: int):
-        """Whitened errors (n, dim) with unit marginal covariance (a numpy array)."""
+        """Whitened errors with unit marginal covariance.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The random stream.
+        n : int
+            Number of epochs.
+        dim : int
+            Dimension.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim)
+            The errors: z_k (Gaussian, or Gaussian over √(χ²_ν / (ν − 2)), one mixing
+            draw per epoch), then the AR(1) filter when ``ar`` is nonzero.
+        """
         import numpy as np
 
         z = rng.standard_normal((n, dim))
@@ -78,7 +142,15 @@ class ErrorModel:
 @dataclass(frozen=True)
 class ScenarioSpec:
     """How one group of trials is drawn; ``rho`` and ``bias`` are uniform ranges
-    (a bias range of (0, 0) means no bias)."""
+    (a bias range of (0, 0) means no bias).
+
+    Attributes
+    ----------
+    rho : tuple of float
+        Range (lo, hi) of the covariance scale ρ, Σ̂ = ρΣ; (1, 1) for no noise mismatch.
+    bias : tuple of float
+        Range (lo, hi) of the bias norm ‖μ‖ (its direction is uniform); (0, 0) for none.
+    """
 
     rho: tuple[float, float]
     bias: tuple[float, float]
@@ -98,7 +170,39 @@ class ScenarioSpec:
 
 @dataclass(frozen=True)
 class SimulationConfig:
-    """Every setting of the study. Defaults are the paper's Section IV-A."""
+    """Every setting of the study. Defaults are the paper's Section IV-A.
+
+    Attributes
+    ----------
+    trials : int
+        Trials per scenario, 1 … 1,000,000 (default 50).
+    n : int
+        Epochs per trial, 2 … 10,000,000 and at least the smallest segment that is
+        diagnosed (default 100).
+    dim : int
+        State dimension d, 1 … 64 (default 2).
+    rho_optimism : tuple of float
+        Range of ρ in the optimism scenarios, inside (0, 1) (default (0.1, 0.8)).
+    rho_pessimism : tuple of float
+        Range of ρ in the pessimism scenarios, above 1 (default (1.25, 10)).
+    bias : tuple of float
+        Range of the bias norm ‖μ‖ in the SMM scenarios, positive (default (1.6, 2.4)).
+    eigenvalues : tuple of float
+        Range of the eigenvalues λ_i of Σ_true, positive (default (0.5, 2)).
+    seed : int
+        Seed of every trial's random stream, >= 0 (default 0).
+    ar : float
+        AR(1) coefficient of the whitened errors in time, in (−1, 1) (default 0).
+    noise : str
+        ``gaussian`` or ``student-t:NU`` (see :class:`ErrorModel`) (default ``gaussian``).
+    diagnosis : DiagnosisConfig
+        The settings of the rule that labels each trial.
+
+    Raises
+    ------
+    CredcliError
+        On construction, if a setting is out of its range (named in the error).
+    """
 
     trials: int = 50
     n: int = 100
@@ -114,6 +218,7 @@ class SimulationConfig:
 
     @property
     def error_model(self) -> ErrorModel:
+        """The :class:`ErrorModel` of ``noise`` and ``ar``."""
         return ErrorModel.parse(self.noise, self.ar)
 
     def __post_init__(self) -> None:
@@ -160,6 +265,19 @@ class SimulationConfig:
             )
 
     def spec(self, scenario: Label) -> ScenarioSpec:
+        """How the trials of one of the paper's scenarios are drawn.
+
+        Parameters
+        ----------
+        scenario : Label
+            One of the paper's six labels (an SMM scenario names the condition ``smm``).
+
+        Returns
+        -------
+        ScenarioSpec
+            ``rho_optimism``, ``rho_pessimism`` or (1, 1) as ρ range, and ``bias`` or
+            (0, 0) as bias range, after the label's conditions.
+        """
         conditions = scenario.conditions
         rho = (
             self.rho_optimism
@@ -186,13 +304,48 @@ STD_ESTIMATE = "estimate"
 class UwbSettings:
     """Settings of the UWB pipeline (defaults are the paper's Section V-A, plus screening).
 
-    ``std``: a fixed range std (m) for files without a ``std`` column; ``std_by_anchor``
-    gives one per anchor id (over ``std`` and the column); ``std_estimate`` estimates each
-    anchor's from the data. ``screen``: drop stale packets and packets that fail the
-    residual test at ``residual_level`` (1e-6: a gross outlier against the run's own
-    residual spread; real radios have heavy tails, which are evidence, not noise to remove). ``anchor_map``: (log id, marker id) pairs for a
-    markers file. ``anchor_rms_warn``: warn when given anchors disagree with the log's
-    gt_range by more than this RMS (m).
+    Attributes
+    ----------
+    range_column : str
+        The column of ranges used (default ``range_calib``).
+    std : float or None
+        A fixed range std (m) for files without a ``std`` column (default None).
+    packet_window : float
+        Ranges from distinct anchors within this window (s) form a packet (default 0.03).
+    min_anchors : int
+        Fewest distinct anchors of a packet, >= 3 for a 2-D fix (default 3).
+    max_speed : float
+        A period is static while the rig's 3-D speed stays below this (m/s) (default
+        0.1) ...
+    min_static : float
+        ... for at least this long (s) (default 4).
+    wls_iterations : int
+        Most Gauss–Newton iterations of each start of a packet's solve (default 20).
+    std_by_anchor : tuple of (int, float)
+        A range std (m) per anchor id, over ``std`` and the column (default none).
+    std_estimate : bool
+        Estimate each anchor's range std from the data (MAD of range − gt_range)
+        (default False).
+    screen : bool
+        Drop stale packets and packets that fail the residual test (default True).
+    residual_level : float
+        Level of the residual test, in (0, 1) (default 1e-6: a gross outlier against the
+        run's own residual spread; real radios have heavy tails, which are evidence, not
+        noise to remove).
+    robust : RobustLoss
+        Loss of the per-packet solve (default none: weighted least squares).
+    anchor_map : tuple of (int, int)
+        (log id, marker id) pairs for a markers file (default none).
+    anchor_rms_warn : float
+        Warn when given anchors disagree with the log's gt_range by more than this RMS
+        (m) (default 0.02).
+
+    Raises
+    ------
+    CredcliError
+        On construction, if a std is not positive, ``packet_window``, ``max_speed`` or
+        ``min_static`` is not positive, ``min_anchors`` < 3, or ``residual_level`` is not
+        in (0, 1).
     """
 
     range_column: str = RangeReading.range_column

@@ -56,7 +56,30 @@ in credcli 0.1 and the paper's variants reproduce their earlier figures seed for
 
 
 def parse_scenarios(text: str) -> list[Label]:
-    """'all', a label name or a short alias, or a comma-separated list of them."""
+    """The scenarios of a ``--scenario`` text.
+
+    Parameters
+    ----------
+    text : str
+        'all', a label name or a short alias (``LABEL_ALIASES``), or a comma-separated
+        list of them (case-insensitive).
+
+    Returns
+    -------
+    list of Label
+        The paper's scenarios in the order given, each once (a ``bias`` is its SMM); all
+        six for 'all'.
+
+    Raises
+    ------
+    CredcliError
+        If an item is no diagnosis label or alias (``insufficient-data`` included).
+
+    Examples
+    --------
+    >>> [s.value for s in parse_scenarios("opt, bias, smm")]
+    ['optimism', 'smm']
+    """
     if text.strip().lower() == "all":
         return list(DIAGNOSIS_LABELS)
     out = []
@@ -86,6 +109,34 @@ def draw_trial(
     x_k ~ N(0, Σ), x̂_k ~ N(x_k + μ, Σ) gives e_k = x_k − x̂_k ~ N(−μ, Σ); every metric depends
     on x and x̂ only through e, so e is drawn directly. Σ̂_k = ρΣ. ``model`` replaces the
     Gaussian whitened errors (heavy tails, AR(1) in time) with the same covariance Σ.
+
+    Parameters
+    ----------
+    spec : ScenarioSpec
+        The ranges of ρ and of the bias norm ‖μ‖.
+    n : int
+        Number of epochs N.
+    dim : int
+        Dimension d.
+    eigenvalues : tuple of float
+        Range (lo, hi) of the uniform eigenvalues λ_i of Σ.
+    rng : numpy.random.Generator
+        The trial's random stream; drawn in the order Q, λ, ρ, μ (if biased), errors.
+    model : ErrorModel, optional
+        The law of the whitened errors; standard Gaussian when None.
+
+    Returns
+    -------
+    errors : numpy.ndarray, shape (n, dim)
+        The errors e_k.
+    cov : numpy.ndarray, shape (n, dim, dim)
+        The claimed covariances ρΣ (a read-only broadcast view).
+
+    Notes
+    -----
+    Section IV-A: Σ = Q diag(λ) Qᵀ with Q from the QR decomposition of a standard Gaussian
+    matrix, λ_i ~ U[eigenvalues], ρ ~ U[spec.rho], and, when ``spec.bias`` is not (0, 0),
+    μ in a uniform direction with ‖μ‖ ~ U[spec.bias].
     """
     q, _ = np.linalg.qr(rng.standard_normal((dim, dim)))
     lam = rng.uniform(*eigenvalues, size=dim)
@@ -102,12 +153,38 @@ def draw_trial(
 
 
 def trial_seed(seed: int, group: int, trial: int) -> np.random.SeedSequence:
+    """The random stream of one trial, keyed by the study's seed, its group and its number.
+
+    Parameters
+    ----------
+    seed : int
+        The study's seed (``SimulationConfig.seed``).
+    group : int
+        The group's stream key (a CRC-32 of its ρ and bias ranges).
+    trial : int
+        The trial's number in its group.
+
+    Returns
+    -------
+    numpy.random.SeedSequence
+        ``SeedSequence(entropy=seed, spawn_key=(group, trial))``.
+    """
     return np.random.SeedSequence(entropy=seed, spawn_key=(group, trial))
 
 
 @dataclass(frozen=True)
 class TrialResult:
-    """The label of each method on one trial (attributes named as Method values)."""
+    """The label of each method on one trial (attributes named as Method values).
+
+    Attributes
+    ----------
+    calibrated : Label
+        The calibrated variant's label, as the paper's (a bias or asymmetry is SMM).
+    ks, paper : Label
+        The labels of the ``ks`` and ``paper`` variants.
+    nees, nci : Label
+        The single-metric baselines' labels (from the ``ks`` diagnosis).
+    """
 
     calibrated: Label
     ks: Label
@@ -155,12 +232,32 @@ def run_groups(
     specs: list[ScenarioSpec], config: SimulationConfig, jobs: int = 1, progress=None, runner=None
 ) -> list[list[TrialResult]]:
     """Run ``config.trials`` trials of each spec; ``jobs`` processes (or the Dask
-    ``runner``) share the work."""
+    ``runner``) share the work.
+
+    Parameters
+    ----------
+    specs : list of ScenarioSpec
+        The groups.
+    config : SimulationConfig
+        Trials, epochs, dimension, error model, seed and diagnosis settings.
+    jobs : int
+        Worker processes (default 1: in this process); the results do not depend on it.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with counts of trials as tasks finish.
+    runner : DaskRunner, optional
+        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        of local processes (``jobs`` then only sets the trials per task).
+
+    Returns
+    -------
+    list of list of TrialResult
+        Per spec, the trial results in trial order.
+    """
     return run_group_sets([(specs, config)], jobs, progress, runner)[0]
 
 
 def _chunk_size(trials: int, jobs: int) -> int:
-    """Trials per task: about two tasks per process, at most 25 (about 40 ms of work)."""
+    """Trials per task: about two tasks per process, at most 25."""
     return max(1, min(25, math.ceil(trials / max(1, 2 * jobs))))
 
 
@@ -173,7 +270,25 @@ def run_group_sets(
     """The trials of every (specs, config) plan (e.g. every point of a sweep) as one set of
     tasks, so that processes or cluster workers share all of them; per plan, per spec, the
     trial results in trial order. Each trial's random stream comes from (seed, group,
-    trial), so the results do not depend on how the trials are split into tasks."""
+    trial), so the results do not depend on how the trials are split into tasks.
+
+    Parameters
+    ----------
+    plans : list of (list of ScenarioSpec, SimulationConfig)
+        The plans: groups and the configuration they are run with.
+    jobs : int
+        Worker processes (default 1: in this process); the results do not depend on it.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with counts of trials as tasks finish.
+    runner : DaskRunner, optional
+        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        of local processes (``jobs`` then only sets the trials per task).
+
+    Returns
+    -------
+    list of list of list of TrialResult
+        Per plan, per spec, the trial results in trial order.
+    """
     tasks, owners = [], []
     for p, (specs, config) in enumerate(plans):
         chunk = _chunk_size(config.trials, jobs)
@@ -209,7 +324,22 @@ CONFUSION_LABELS = DIAGNOSIS_LABELS + (Label.INSUFFICIENT,)
 
 @dataclass(frozen=True)
 class StudyResult:
-    """Tables II and III for a set of scenarios; Table III is of ``variant``."""
+    """Tables II and III for a set of scenarios; Table III is of ``variant``.
+
+    Attributes
+    ----------
+    scenarios : list of Label
+        The true label of each group, in order.
+    accuracy : dict of Method to dict of Label to float
+        Table II: per method and true label, the fraction of trials labelled correctly.
+    confusion : dict of Label to dict of Label to int
+        Table III: per true label, the count of each diagnosed label of
+        ``CONFUSION_LABELS`` (the six and insufficient-data).
+    trials : int
+        Trials per group (0 without groups).
+    variant : Variant
+        The variant whose labels ``confusion`` counts (default calibrated).
+    """
 
     scenarios: list[Label]
     accuracy: dict[Method, dict[Label, float]]
@@ -221,7 +351,22 @@ class StudyResult:
 def summarise(
     truths: list[Label], groups: list[list[TrialResult]], variant: Variant = Variant.CALIBRATED
 ) -> StudyResult:
-    """Accuracy of every method and the confusion counts of ``variant``, per group."""
+    """Accuracy of every method and the confusion counts of ``variant``, per group.
+
+    Parameters
+    ----------
+    truths : list of Label
+        The true label of each group.
+    groups : list of list of TrialResult
+        The trial results of each group, as :func:`run_groups` gives them.
+    variant : Variant
+        The variant whose confusion counts are kept (default calibrated).
+
+    Returns
+    -------
+    StudyResult
+        Tables II and III of the groups.
+    """
     variant = Variant(variant)
     accuracy = {
         m: {
@@ -239,7 +384,27 @@ def summarise(
 def run_study(
     config: SimulationConfig, scenarios: list[Label], jobs: int = 1, progress=None, runner=None
 ) -> StudyResult:
-    """Tables II and III: every listed scenario, ``config.trials`` trials each."""
+    """Tables II and III: every listed scenario, ``config.trials`` trials each.
+
+    Parameters
+    ----------
+    config : SimulationConfig
+        The study's settings (Section IV-A by default).
+    scenarios : list of Label
+        The paper's scenarios to run (see :func:`parse_scenarios`).
+    jobs : int
+        Worker processes (default 1: in this process); the results do not depend on it.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with counts of trials as tasks finish.
+    runner : DaskRunner, optional
+        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        of local processes (``jobs`` then only sets the trials per task).
+
+    Returns
+    -------
+    StudyResult
+        Accuracy per method and the confusion matrix of ``config.diagnosis.variant``.
+    """
     specs = [config.spec(s) for s in scenarios]
     groups = run_groups(specs, config, jobs, progress, runner)
     return summarise(scenarios, groups, config.diagnosis.variant)
@@ -250,6 +415,26 @@ MAX_SWEEP_VALUES = 1000
 
 
 class SweepParameter(str, enum.Enum):
+    """A parameter ``simulate --sweep`` varies.
+
+    Attributes
+    ----------
+    RHO : "rho"
+        The covariance scale ρ of every group (a fixed value).
+    BIAS : "bias"
+        The bias norm ‖μ‖ of every group (a fixed value).
+    N : "n"
+        Epochs per trial.
+    DIM : "dim"
+        Dimension.
+    B : "B"
+        Number of sign flips of the ELT (``n_flips``).
+    TAU : "tau"
+        The relevance floor τ_NCI in dB.
+    AR : "ar"
+        AR(1) coefficient of the whitened errors.
+    """
+
     RHO = "rho"
     BIAS = "bias"
     N = "n"
@@ -261,12 +446,45 @@ class SweepParameter(str, enum.Enum):
 
 @dataclass(frozen=True)
 class Sweep:
+    """One parameter and the values a sweep gives it.
+
+    Attributes
+    ----------
+    parameter : SweepParameter
+        The parameter varied.
+    values : tuple of float
+        Its values, in order.
+    """
+
     parameter: SweepParameter
     values: tuple[float, ...]
 
     @classmethod
     def parse(cls, text: str) -> Sweep:
-        """``name=start:stop:count`` (evenly spaced) or ``name=v1,v2,...``."""
+        """A sweep from ``name=start:stop:count`` (evenly spaced) or ``name=v1,v2,...``.
+
+        Parameters
+        ----------
+        text : str
+            The ``--sweep`` text; the name is case-insensitive.
+
+        Returns
+        -------
+        Sweep
+            The parameter and its values (a grid's rounded to 12 significant digits).
+
+        Raises
+        ------
+        CredcliError
+            If the text is malformed, the name unknown, there are no or more than
+            ``MAX_SWEEP_VALUES`` values, or a value is out of the parameter's range
+            (n, dim and B positive integers, rho and tau > 0, bias >= 0, ar in (−1, 1)).
+
+        Examples
+        --------
+        >>> Sweep.parse("RHO=0.5:2:4")
+        Sweep(parameter=<SweepParameter.RHO: 'rho'>, values=(0.5, 1.0, 1.5, 2.0))
+        """
         if "=" not in text:
             raise CredcliError(f"`sweep` '{text}': expected NAME=start:stop:count or NAME=v1,v2,…")
         name, spec = (t.strip() for t in text.split("=", 1))
@@ -315,6 +533,21 @@ class Sweep:
 
 @dataclass(frozen=True)
 class SweepPoint:
+    """The accuracy of every method at one sweep value, for one true label.
+
+    Attributes
+    ----------
+    value : float
+        The sweep value.
+    truth : Label
+        The true label of the group, from its actual parameters (ρ < 1 optimism, ρ > 1
+        pessimism, bias > 0 SMM).
+    accuracy : dict of Method to float
+        The fraction of the group's trials each method labelled ``truth``.
+    trials : int
+        Trials in the group.
+    """
+
     value: float
     truth: Label
     accuracy: dict[Method, float]
@@ -322,7 +555,33 @@ class SweepPoint:
 
 
 def sweep_specs(sweep: Sweep, value: float, config: SimulationConfig, scenarios: list[Label]):
-    """The groups and configuration of one sweep value (deduplicated by their parameters)."""
+    """The groups and configuration of one sweep value (deduplicated by their parameters).
+
+    Parameters
+    ----------
+    sweep : Sweep
+        The sweep.
+    value : float
+        One of its values.
+    config : SimulationConfig
+        The study's settings.
+    scenarios : list of Label
+        The scenarios whose groups the value changes.
+
+    Returns
+    -------
+    specs : list of ScenarioSpec
+        The scenarios' groups with ρ or the bias set to ``value`` (rho, bias), without
+        repeats (e.g. a fixed ρ makes the unbiased scenarios one group).
+    config : SimulationConfig
+        ``config`` with n, dim, B, ar or τ_NCI set to ``value`` (the others unchanged).
+
+    Raises
+    ------
+    CredcliError
+        If the changed configuration is invalid (e.g. n below the smallest diagnosed
+        segment).
+    """
     cfg = config
     specs = [config.spec(s) for s in scenarios]
     if sweep.parameter is SweepParameter.RHO:
@@ -363,7 +622,34 @@ def run_sweep(
     runner=None,
 ) -> list[SweepPoint]:
     """Accuracy of every method per sweep value and true label (every point's trials are
-    one set of tasks)."""
+    one set of tasks).
+
+    Parameters
+    ----------
+    sweep : Sweep
+        The parameter and its values.
+    config : SimulationConfig
+        The study's settings, which the sweep changes one value at a time.
+    scenarios : list of Label
+        The scenarios whose groups are run at each value.
+    jobs : int
+        Worker processes (default 1: in this process); the results do not depend on it.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with counts of trials as tasks finish.
+    runner : DaskRunner, optional
+        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        of local processes (``jobs`` then only sets the trials per task).
+
+    Returns
+    -------
+    list of SweepPoint
+        Per value in order, one point per distinct group, labelled by its true label.
+
+    Raises
+    ------
+    CredcliError
+        If a value makes an invalid configuration (named as the sweep's value).
+    """
     plans = [(v, *_checked_specs(sweep, v, config, scenarios)) for v in sweep.values]
     groups = run_group_sets([(specs, cfg) for _, specs, cfg in plans], jobs, progress, runner)
     points: list[SweepPoint] = []
@@ -379,7 +665,20 @@ def run_sweep(
 
 @dataclass(frozen=True)
 class CurvePoint:
-    """Fig. 1: scores of N(x̂, ρΣ) with x = 0, Σ = I_d, x̂ ~ N(μ, Σ), μ = γ·1."""
+    """Fig. 1: scores of N(x̂, ρΣ) with x = 0, Σ = I_d, x̂ ~ N(μ, Σ), μ = γ·1.
+
+    Attributes
+    ----------
+    rho : float
+        The covariance scale ρ.
+    gamma : float
+        The bias per component γ.
+    mean_es, expected_es : float
+        The energy score (Eq. (10)): sample mean over the runs, and exact expectation.
+    mean_nll, expected_nll : float
+        The negative log-likelihood (Eq. (6)): sample mean over the runs, and exact
+        expectation (Eq. (7)).
+    """
 
     rho: float
     gamma: float
@@ -397,6 +696,31 @@ def fig1_curves(
     The sample means follow the paper (``runs`` Monte Carlo runs per point); the exact
     expectations use Y − x ~ N(μ, (1 + ρ)Σ) and Y − Y′ ~ N(0, 2ρΣ):
     E[ES] = E‖N(μ, (1+ρ)I)‖ − ½√ρ·E‖N(0, 2I)‖ and E[NLL] from Eq. (7).
+
+    Parameters
+    ----------
+    rhos : iterable of float
+        The values of ρ of Fig. 1a.
+    gammas : iterable of float
+        The values of γ of Fig. 1b.
+    runs : int
+        Monte Carlo runs per point (default ``CURVE_RUNS``, the paper's 5,000); every
+        point uses the same draws.
+    dim : int
+        Dimension d (default 2, the paper's).
+    seed : int
+        Seed of the draws (default 0).
+
+    Returns
+    -------
+    by_rho : list of CurvePoint
+        Fig. 1a: one point per ρ, at γ = 0.
+    by_gamma : list of CurvePoint
+        Fig. 1b: one point per γ, at ρ = 1.
+
+    References
+    ----------
+    The paper, Section II-D (the energy score, Eq. (10)) and Fig. 1.
     """
     gen = np.random.default_rng(seed)
     z = gen.standard_normal((runs, dim))

@@ -26,7 +26,21 @@ from credcli.studies.settings import (
 
 @dataclass(frozen=True)
 class Anchor:
-    """An anchor's position and where it came from."""
+    """An anchor's position and where it came from.
+
+    Attributes
+    ----------
+    id : int
+        The anchor's id in the log (``to_id``).
+    position : numpy.ndarray, shape (3,)
+        Its position (m).
+    source : str
+        "markers" (from a markers file) or "self-calibrated" (fitted to the log).
+    rms : float
+        RMS of ‖tag_pos − a‖ − gt_range over the anchor's rows (m).
+    n : int
+        Rows of this anchor in the log.
+    """
 
     id: int
     position: np.ndarray  # (3,)
@@ -35,8 +49,20 @@ class Anchor:
     n: int  # rows of this anchor
 
     def disagrees(self, limit: float) -> bool:
-        """A markers position whose distances to the ground-truth tag positions disagree
-        with the log's gt_range by more than ``limit`` (m) RMS."""
+        """Whether this is a markers position whose distances to the ground-truth tag
+        positions disagree with the log's gt_range by more than ``limit`` (m) RMS.
+
+        Parameters
+        ----------
+        limit : float
+            The largest RMS disagreement accepted (m).
+
+        Returns
+        -------
+        bool
+            True for a markers anchor with ``rms`` above ``limit``; always False for a
+            self-calibrated one.
+        """
         return self.source == "markers" and self.rms > limit
 
 
@@ -77,6 +103,22 @@ def calibrate_anchors(ranges: RangeLog) -> list[Anchor]:
     For a nearly planar tag trajectory the height is ambiguous up to a mirror about the
     tag plane, so the fit starts from the linearised solution and from heights above and
     below the tags, and keeps the smallest residual.
+
+    Parameters
+    ----------
+    ranges : RangeLog
+        The log, with ground-truth tag positions and ranges.
+
+    Returns
+    -------
+    list of Anchor
+        One self-calibrated anchor per anchor id of the log, in id order.
+
+    Notes
+    -----
+    Each start is refined by Levenberg–Marquardt on
+    min_a Σ_k (‖p_k − a‖ − r_k)²; the linearised start solves 2 p_kᵀa − ‖a‖² = ‖p_k‖² − r_k²
+    by least squares in (a, ‖a‖²).
     """
     anchors = []
     for anchor_id in np.unique(ranges.anchor):
@@ -105,7 +147,29 @@ def anchors_from_markers(
     anchor_map: tuple[tuple[int, int], ...] = (),
 ) -> list[Anchor]:
     """Anchors from a markers file; ``anchor_map`` maps the log's anchor ids to marker ids
-    (ids not in it are looked up as they are)."""
+    (ids not in it are looked up as they are).
+
+    Parameters
+    ----------
+    ranges : RangeLog
+        The log; its ground truth gives each anchor's ``rms``.
+    markers : dict of int to numpy.ndarray
+        Marker id to position (3,) (m), as :func:`read_markers` gives them.
+    path : str
+        The markers file, for messages.
+    anchor_map : tuple of (int, int)
+        (log id, marker id) pairs (default none).
+
+    Returns
+    -------
+    list of Anchor
+        One "markers" anchor per anchor id of the log, in id order.
+
+    Raises
+    ------
+    CredcliError
+        If an anchor id of the log has no marker.
+    """
     mapping = dict(anchor_map)
     used = np.unique(ranges.anchor)
     missing = [int(a) for a in used if mapping.get(int(a), int(a)) not in markers]
@@ -126,7 +190,20 @@ def anchors_from_markers(
 
 def anchor_warnings(anchors: list[Anchor], limit: float) -> list[str]:
     """Given anchors whose distances to the ground-truth tag positions disagree with the
-    log's gt_range by more than ``limit`` (m) RMS: wrong markers or a wrong id map."""
+    log's gt_range by more than ``limit`` (m) RMS: wrong markers or a wrong id map.
+
+    Parameters
+    ----------
+    anchors : list of Anchor
+        The anchors.
+    limit : float
+        The largest RMS disagreement accepted (m) (``UwbSettings.anchor_rms_warn``).
+
+    Returns
+    -------
+    list of str
+        One warning per anchor that :meth:`Anchor.disagrees`; empty when none does.
+    """
     bad = [a for a in anchors if a.disagrees(limit)]
     return [
         f"anchor {a.id}: the markers disagree with the log's gt_range by {1000 * a.rms:.0f} mm "
@@ -138,7 +215,16 @@ def anchor_warnings(anchors: list[Anchor], limit: float) -> list[str]:
 
 @dataclass(frozen=True)
 class Packets:
-    """Groups of range rows: ``rows[k]`` are the row indices of packet k, padded with -1."""
+    """Groups of range rows: ``rows[k]`` are the row indices of packet k, padded with -1.
+
+    Attributes
+    ----------
+    rows : numpy.ndarray of int64, shape (M, K)
+        The range rows of each packet, one per anchor, in time order; K is the largest
+        packet's size.
+    tag : numpy.ndarray of int64, shape (M,)
+        The tag of each packet.
+    """
 
     rows: np.ndarray  # (M, K)
     tag: np.ndarray  # (M,)
@@ -149,6 +235,20 @@ def make_packets(ranges: RangeLog, window: float = 0.03, min_anchors: int = 3) -
     yet used and takes the later ranges of the same tag within ``window`` seconds, keeping
     the first range of each anchor. Packets with fewer than ``min_anchors`` distinct anchors
     are dropped. The loop is over packets (not range rows), each found by a binary search.
+
+    Parameters
+    ----------
+    ranges : RangeLog
+        The log, sorted by time.
+    window : float
+        Packet window in s (default 0.03, the paper's).
+    min_anchors : int
+        Fewest distinct anchors of a packet kept (default 3).
+
+    Returns
+    -------
+    Packets
+        The packets kept, per tag in tag order, then in time order.
     """
     groups = []
     tags = []
@@ -182,6 +282,30 @@ class Fixes:
     ``moved`` counts fixes where the Gauss–Newton solution was not the global minimum and
     the global one was kept. ``screened_rows`` marks the range rows of packets dropped as
     stale or by the residual test (left out of the range-level evidence too).
+
+    Attributes
+    ----------
+    time : numpy.ndarray, shape (M,)
+        Time of each fix: the mean time of its packet's ranges (s).
+    tag : numpy.ndarray, shape (M,)
+        The tag of each fix.
+    estimate : numpy.ndarray, shape (M, 2)
+        The solved 2-D position (m).
+    truth : numpy.ndarray, shape (M, 2)
+        The ground-truth 2-D tag position: the mean over the packet's rows (m).
+    cov : numpy.ndarray, shape (M, 2, 2)
+        The claimed covariance (HᵀWH)⁻¹ at the solution (m²).
+    dropped : dict of str to int
+        Packets dropped, by reason (see above).
+    moved : int
+        Fixes kept whose global minimum was not the Gauss–Newton solution of the first
+        start.
+    screened_rows : numpy.ndarray of bool or None
+        Per range row of the log, whether its packet was dropped as stale or by the
+        residual test.
+    residual_scale : float or None
+        The run's robust residual scale (median of RSS over its χ² median); None without
+        screening or without a packet to screen.
     """
 
     time: np.ndarray
@@ -196,6 +320,7 @@ class Fixes:
 
     @property
     def dropped_total(self) -> int:
+        """Packets dropped, for every reason."""
         return int(sum(self.dropped.values()))
 
 
@@ -219,7 +344,21 @@ STARTS = 5
 
 def repeated_packets(ranges: RangeLog, packets: Packets) -> np.ndarray:
     """Packets whose range vector (anchor ids and ranges, exactly, at the log's resolution:
-    the centimetre for STAR-loc s5 files) repeats an earlier packet of the same tag."""
+    the centimetre for STAR-loc s5 files) repeats an earlier packet of the same tag.
+
+    Parameters
+    ----------
+    ranges : RangeLog
+        The log.
+    packets : Packets
+        Its packets.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (M,)
+        True for a packet whose tag, anchors (in any order) and ranges equal those of a
+        packet that starts earlier.
+    """
     rows = packets.rows
     valid = rows >= 0
     safe = np.where(valid, rows, 0)
@@ -319,6 +458,23 @@ def solve_packets(
     median of RSS over its χ² median), so that a wrong claimed std does not decide which
     packets go. The claimed covariance is (HᵀWH)⁻¹ at the solution, with the claimed
     weights (also under ``--robust huber``, which only downweights outliers in the solve).
+
+    Parameters
+    ----------
+    ranges : RangeLog
+        The log: ranges, their stds, ground-truth tag positions and times.
+    packets : Packets
+        Its packets (:func:`make_packets`).
+    anchors : list of Anchor
+        The anchors; every anchor id of the packets must be among them.
+    settings : UwbSettings, optional
+        ``wls_iterations``, ``robust``, ``screen`` and ``residual_level``; the defaults
+        when None.
+
+    Returns
+    -------
+    Fixes
+        The fixes kept, sorted by time, with the counts of those dropped.
     """
     from scipy import special
 
@@ -463,7 +619,29 @@ def _linear_start(anchor_xy: np.ndarray, horiz2: np.ndarray, weight: np.ndarray)
 @dataclass(frozen=True)
 class RangeStats:
     """Range-level evidence of one period and anchor (Figs. 4 and 5 as numbers), on the
-    ranges left after screening: error e = range − gt_range."""
+    ranges left after screening: error e = range − gt_range.
+
+    Attributes
+    ----------
+    segment : str
+        The period's name.
+    anchor : int
+        The anchor id.
+    n : int
+        Ranges of this anchor in the period.
+    mean_error : float
+        The range bias: mean of e (m).
+    std_error : float
+        Classical empirical std of e (m; NaN for a single range).
+    median_std : float
+        Median reported std (m).
+    bias_stderr : float
+        Standard error of the mean, ``std_error`` / √n (m; NaN for a single range).
+    robust_std : float
+        1.4826 × median absolute deviation of e (m).
+    beyond_3sigma : float
+        Fraction of ranges with |e − mean| above 3 times their reported std.
+    """
 
     segment: str
     anchor: int
@@ -489,6 +667,23 @@ class RangeStats:
 def range_stats(
     ranges: RangeLog, spans: list[tuple[str, float, float]], screened: np.ndarray | None = None
 ) -> list[RangeStats]:
+    """The range-level evidence of every period, per anchor.
+
+    Parameters
+    ----------
+    ranges : RangeLog
+        The log.
+    spans : list of (str, float, float)
+        The periods: name, first and last time (s, both included).
+    screened : numpy.ndarray of bool, optional
+        Per range row, whether to leave it out (``Fixes.screened_rows``); none left out
+        when None.
+
+    Returns
+    -------
+    list of RangeStats
+        Per period in order, one item per anchor with ranges in it, in id order.
+    """
     out = []
     err = ranges.range_error
     kept = np.ones(err.size, bool) if screened is None else ~screened
@@ -523,7 +718,29 @@ def range_verdict(stats: list[RangeStats], tau_db: float) -> tuple[str, str]:
     """The label the range-level evidence of one period points to, and why: noise from the
     robust spread against the reported std (pooled over anchors, the same relevance floor
     τ dB on the variance as the position-level rule), SMM from any anchor's range bias
-    beyond RANGE_BIAS_Z standard errors."""
+    beyond RANGE_BIAS_Z standard errors.
+
+    Parameters
+    ----------
+    stats : list of RangeStats
+        The period's items, one per anchor (at least one).
+    tau_db : float
+        The relevance floor τ in dB on the variance (``DiagnosisConfig.tau_nci``).
+
+    Returns
+    -------
+    label : str
+        The label's text: optimism when the pooled spread ratio is above τ dB,
+        pessimism when below −τ dB, with smm when an anchor is biased.
+    why : str
+        The pooled spread ratio and the largest bias, for the report.
+
+    Notes
+    -----
+    The pooled ratio is the geometric mean of the anchors' ``robust_std / median_std``
+    weighted by their ``n``, r̄; its level is 20 log₁₀ r̄ dB (10 log₁₀ of the variance
+    ratio).
+    """
     n = np.array([s.n for s in stats], float)
     ratio = float(np.exp(np.sum(n * np.log([max(s.robust_ratio, 1e-12) for s in stats])) / n.sum()))
     db = 20.0 * np.log10(ratio)  # of the variance
@@ -539,7 +756,20 @@ def range_verdict(stats: list[RangeStats], tau_db: float) -> tuple[str, str]:
 class RangeCheck:
     """The range-level evidence of one period beside its position-level verdict:
     ``label`` the ranges point to (None: no ranges in the period), ``why``, and whether
-    the two agree (None: no range label, or no position-level verdict)."""
+    the two agree (None: no range label, or no position-level verdict).
+
+    Attributes
+    ----------
+    segment : str
+        The period's name.
+    label : str or None
+        The label the ranges point to (:func:`range_verdict`); None without ranges.
+    why : str
+        Why (empty without ranges).
+    agrees : bool or None
+        Whether the position-level label agrees (:func:`answers_agree`); None without a
+        range label or when the period was insufficient-data.
+    """
 
     segment: str
     label: str | None
@@ -550,7 +780,32 @@ class RangeCheck:
 def answers_agree(label, other: str, untested) -> bool:
     """Whether two labels agree on the questions the first one answered: its noise part
     unless the scale is untested, its location part unless the location is (in the
-    paper's terms: a bias or an asymmetry is SMM)."""
+    paper's terms: a bias or an asymmetry is SMM).
+
+    Parameters
+    ----------
+    label : Label or str
+        The first label (the position-level verdict).
+    other : str
+        The label it is compared with (the range-level one).
+    untested : collection of str
+        The values of the questions (``Question``) the first label left unanswered.
+
+    Returns
+    -------
+    bool
+        Whether the two labels, as the paper's, have the same conditions among those
+        asked.
+
+    Examples
+    --------
+    >>> answers_agree("pessimism+bias", "pessimism+smm", [])
+    True
+    >>> answers_agree("credible", "optimism+smm", ["scale"])
+    False
+    >>> answers_agree("smm", "optimism+smm", ["scale"])
+    True
+    """
     asked = set()
     if Question.SCALE.value not in untested:
         asked |= {Label.OPTIMISM.value, Label.PESSIMISM.value}
@@ -561,7 +816,22 @@ def answers_agree(label, other: str, untested) -> bool:
 
 def range_checks(run: UwbRun, results, tau_db: float) -> list[RangeCheck]:
     """The range-level evidence of each diagnosed period (:func:`range_verdict`) and
-    whether the position-level label agrees with it."""
+    whether the position-level label agrees with it.
+
+    Parameters
+    ----------
+    run : UwbRun
+        The pipeline's output, with its ``range_stats``.
+    results : list of SegmentDiagnosis
+        The position-level diagnosis of each period.
+    tau_db : float
+        The relevance floor τ in dB (``DiagnosisConfig.tau_nci``).
+
+    Returns
+    -------
+    list of RangeCheck
+        One per result, in order.
+    """
     checks = []
     for result in results:
         mine = [s for s in run.range_stats if s.segment == result.segment]
@@ -577,7 +847,29 @@ def range_checks(run: UwbRun, results, tau_db: float) -> list[RangeCheck]:
 
 @dataclass(frozen=True)
 class UwbRun:
-    """Everything the `uwb` command computed."""
+    """Everything the `uwb` command computed.
+
+    Attributes
+    ----------
+    ranges : RangeLog
+        The log as read.
+    anchors : list of Anchor
+        The anchors used.
+    fixes : Fixes
+        Every fix kept, and the packets dropped.
+    log : EstimatorLog
+        The fixes inside the segments, with the segment names.
+    segments : list of Segment
+        The segments (``credcli.segments.Segment``) over ``log``.
+    range_stats : list of RangeStats
+        The range-level evidence of each period and anchor.
+    packets : int
+        Packets formed (before any was dropped).
+    notes : tuple of str
+        Warnings for the report (e.g. anchors that disagree with the log).
+    settings : UwbSettings
+        The settings the pipeline ran with.
+    """
 
     ranges: RangeLog
     anchors: list[Anchor]
@@ -592,7 +884,21 @@ class UwbRun:
 
 def merge_short_tail(segments: list, window: str) -> list:
     """Windows with the last one merged into the one before when it is shorter than half a
-    window (in time, or in epochs for a count): a 1-fix tail is not a period."""
+    window (in time, or in epochs for a count): a 1-fix tail is not a period.
+
+    Parameters
+    ----------
+    segments : list of Segment
+        Consecutive windows, in time order.
+    window : str
+        The window length they were made with (``5s``, ``200``; see
+        ``credcli.segments.Window``).
+
+    Returns
+    -------
+    list of Segment
+        ``segments``, or with the last two as one segment under the first one's name.
+    """
     if len(segments) < 2:
         return segments
     w = seg.Window.parse(window)
@@ -611,7 +917,38 @@ def position_log(
     ranges: RangeLog, fixes: Fixes, window: str | None, whole: bool, settings: UwbSettings
 ):
     """Assign fixes to static periods (default), windows or the whole run; returns the
-    EstimatorLog of the fixes kept and its segments, and the segment time spans."""
+    EstimatorLog of the fixes kept and its segments, and the segment time spans.
+
+    Parameters
+    ----------
+    ranges : RangeLog
+        The log: the rig's positions give the static periods, its source the log's name.
+    fixes : Fixes
+        The fixes.
+    window : str or None
+        A window length (``5s``, ``200``): consecutive windows of the run, a short tail
+        merged (:func:`merge_short_tail`).
+    whole : bool
+        The whole run as one segment ``all`` (over ``window``).
+    settings : UwbSettings
+        ``max_speed`` and ``min_static`` of the static periods.
+
+    Returns
+    -------
+    log : EstimatorLog
+        The fixes in the segments (every fix with ``window`` or ``whole``; those inside a
+        static period otherwise), their segment names as the segment column.
+    segments : list of Segment
+        The segments over ``log``; a static period's segment spans the whole period,
+        not only its fixes.
+    spans : list of (str, float, float)
+        Each segment's or period's name, first and last time (for :func:`range_stats`).
+
+    Raises
+    ------
+    CredcliError
+        If static periods are asked for and there is none.
+    """
     if whole or window is not None:
         n = fixes.time.size
         segments = (
@@ -670,7 +1007,34 @@ def run_pipeline(
     window: str | None = None,
     whole: bool = False,
 ) -> UwbRun:
-    """Read, calibrate or read anchors, packetise, solve, screen and segment (no diagnosis)."""
+    """Read, calibrate or read anchors, packetise, solve, screen and segment (no diagnosis).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The STAR-loc ``uwb.csv``.
+    settings : UwbSettings
+        The pipeline's settings (default: the paper's Section V-A, with screening).
+    anchors_path : str or pathlib.Path, optional
+        A markers file with the anchor positions; without it the anchors are
+        self-calibrated from the log (:func:`calibrate_anchors`).
+    window : str, optional
+        Fixed windows (``5s``, ``200``) instead of the static periods.
+    whole : bool
+        The whole run as one segment (default False).
+
+    Returns
+    -------
+    UwbRun
+        Everything computed, ready to diagnose per segment.
+
+    Raises
+    ------
+    CredcliError
+        If the file or the markers cannot be read, ``anchor_map`` is given without
+        markers, a log's anchor has no marker, no packet has enough anchors, every packet
+        is dropped, or no static period is found.
+    """
     ranges = read_starloc(path, settings.reading)
     notes = []
     if anchors_path is not None:
@@ -702,5 +1066,25 @@ def run_pipeline(
 
 
 def dropped_text(fixes: Fixes) -> str:
-    """The packets dropped, by reason ("3 stale, 1 residual"), or "none"."""
+    """The packets dropped, by reason ("3 stale, 1 residual"), or "none".
+
+    Parameters
+    ----------
+    fixes : Fixes
+        The fixes and their ``dropped`` counts.
+
+    Returns
+    -------
+    str
+        The nonzero counts with their reasons, comma-separated, in ``dropped``'s order.
+
+    Examples
+    --------
+    >>> empty = np.zeros(0)
+    >>> dropped = {"stale": 3, "residual": 1, "ambiguous": 0}
+    >>> dropped_text(Fixes(empty, empty, empty, empty, empty, dropped))
+    '3 stale, 1 residual'
+    >>> dropped_text(Fixes(empty, empty, empty, empty, empty))
+    'none'
+    """
     return ", ".join(f"{v} {k}" for k, v in fixes.dropped.items() if v) or "none"

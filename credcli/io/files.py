@@ -162,8 +162,9 @@ def write_atomic(path: str | Path, text: str | bytes | Iterable[str], inputs=())
     path : str or pathlib.Path
         The output file.
     text : str, bytes or iterable of str
-        What to write: text (UTF-8; a name that is not valid UTF-8 is written as its
-        backslash escape), bytes, or pieces of text written one after another.
+        What to write: text (as UTF-8; a file name's undecodable bytes, held as
+        surrogates, are written as backslash escapes), bytes, or pieces of text written
+        one after another.
     inputs : iterable of paths
         Files that must not be overwritten (:func:`check_outputs`).
 
@@ -221,7 +222,8 @@ def shown(name: object, limit: int = 120) -> str:
     Returns
     -------
     str
-        The name with non-ASCII characters and control characters backslash-escaped.
+        The name with backslashes, control characters and non-ASCII characters
+        backslash-escaped (Python's ``unicode_escape``), shortened past ``limit``.
 
     Examples
     --------

@@ -34,7 +34,8 @@ class Pairing:
         The truth's orientations at the kept stamps (n of them); None for a truth without
         orientations.
     max_dt : float
-        The widest gap (s) between the two truth samples an epoch was interpolated from.
+        The widest gap (s) allowed between the two truth samples an epoch is
+        interpolated from: as given, or 2.5 × the median truth period.
     dropped : int
         The estimate epochs without truth.
     note : str

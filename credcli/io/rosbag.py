@@ -126,10 +126,10 @@ def read_bag_topics(
     Returns
     -------
     list of Trajectory
-        One per request, its epochs in bag order: stamps from ``header.stamp`` (the bag's receive
-        times, with a note, when every header stamp is zero), positions, quaternions
-        (x, y, z, w), and the 6×6 covariance where the message type has one; the source
-        is ``"<path>:<topic>"``.
+        One per request, its epochs in bag order: stamps from ``header.stamp`` (the
+        bag's receive times, with a note, when every header stamp is zero), positions,
+        quaternions (x, y, z, w), and the 6×6 covariance where the message type has one;
+        the source is ``"<path>:<topic>"``.
 
     Raises
     ------

@@ -191,9 +191,9 @@ def decide_unit(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: 
     """(seconds per stamp unit, note) for stamps ``raw``: the given unit, the format's own
     (``native``), or by magnitude for integer stamps.
 
-    With ``unit`` auto and no ``native`` unit, whole-number stamps as large as 1e17, 1e14
-    or 1e11 are epoch nanoseconds, microseconds or milliseconds (``_INTEGER_UNITS``); any
-    other stamps are seconds.
+    With ``unit`` auto and no ``native`` unit, whole-number stamps whose largest magnitude
+    is at least 1e17, 1e14 or 1e11 are epoch nanoseconds, microseconds or milliseconds
+    (``_INTEGER_UNITS``); any other stamps are seconds.
 
     Parameters
     ----------

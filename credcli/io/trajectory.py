@@ -27,7 +27,8 @@ class Trajectory:
     position : numpy.ndarray, shape (N, 3) or (N, d)
         The positions of a pose format, or the state vector of a credcli log.
     quaternion : numpy.ndarray, shape (N, 4), or None
-        The orientations as unit quaternions (x, y, z, w); None where the format has none.
+        The orientations as quaternions (x, y, z, w), normalised by the readers' checks;
+        None where the format has none.
     cov : numpy.ndarray, shape (N, 6, 6) or (N, d, d), or None
         The claimed covariance: ROS order (x, y, z, rotations about x, y, z) for pose
         formats; None where the file has none (a truth).

@@ -87,6 +87,17 @@ class LogId:
         """The id of Monte Carlo run ``run`` of this log (``log.csv (run 3)``): its path,
         and its name and label followed by the run.
 
+        Parameters
+        ----------
+        run : str
+            The run's id, as the log's run column gives it.
+
+        Returns
+        -------
+        LogId
+            The same path; name and label ``"<name> (run <run>)"``, stem
+            ``"<stem>_run<run>"``.
+
         Examples
         --------
         >>> LogId.of("mc.csv", "mc.csv").run("3")

@@ -18,7 +18,22 @@ from credcli.logid import LogId
 
 @dataclass(frozen=True)
 class Segment:
-    """A named set of epochs (indices into the log, in time order)."""
+    """A named set of epochs (indices into the log, in time order).
+
+    Attributes
+    ----------
+    name : str
+        The segment's name: a value of the segment column, ``w001``, ``w002``, … for
+        windows, ``run`` for the whole run beside its windows (``RUN_SEGMENT``), ``all``
+        for the whole log, ``P1``, ``P2``, … for static periods.
+    index : numpy.ndarray of int, shape (n,)
+        Its epochs' indices into the log, increasing.
+    t_start, t_end : float or None
+        The first and last time stamps of its epochs; None for a log without time.
+    window : bool
+        True for a window of a run (``window``): it is judged against the run's
+        dependence model, fitted on the whole run, rather than a model of its own.
+    """
 
     name: str
     index: np.ndarray
@@ -34,13 +49,45 @@ epoch count no longer fits the integers segmentation uses."""
 
 @dataclass(frozen=True)
 class Window:
-    """A window length: seconds (``5s``, ``250ms``) or a number of epochs (``200``)."""
+    """A window length: seconds (``5s``, ``250ms``) or a number of epochs (``200``).
+
+    Attributes
+    ----------
+    length : float
+        The length: seconds when ``seconds``, else a whole number of epochs.
+    seconds : bool
+        Whether ``length`` is a duration in seconds (else an epoch count).
+
+    Examples
+    --------
+    >>> Window.parse("2min"), str(Window.parse("200"))
+    (Window(length=120.0, seconds=True), '200')
+    """
 
     length: float
     seconds: bool
 
     @classmethod
     def parse(cls, text: str) -> Window:
+        """The window that ``text`` gives: a duration or an epoch count.
+
+        Parameters
+        ----------
+        text : str
+            A positive number followed by ``ms``, ``s`` or ``min`` (a duration), or a
+            whole number without a unit (an epoch count); blanks around it are allowed.
+
+        Returns
+        -------
+        Window
+            The duration in seconds, or the epoch count.
+
+        Raises
+        ------
+        CredcliError
+            If ``text`` is not of that form, is not positive, is ``MAX_WINDOW`` or more,
+            or is an epoch count that is not a whole number.
+        """
         m = re.fullmatch(r"\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|min)?\s*", str(text))
         if not m:
             raise CredcliError(
@@ -77,8 +124,27 @@ def by_column(values: np.ndarray, time: np.ndarray | None = None) -> list[Segmen
     """One segment per distinct value, in order of first appearance.
 
     A log's segments are usually runs of consecutive rows, so the runs of equal values are
-    found first and only each run's first value is sorted (a million rows in 1,000 runs:
-    about 20 ms, against 0.3-0.4 s for sorting every row's value)."""
+    found first and only each run's first value is sorted, not every row's value: O(N +
+    R log R) for R runs.
+
+    Parameters
+    ----------
+    values : numpy.ndarray, shape (N,)
+        Each epoch's segment value (a log's segment column).
+    time : numpy.ndarray, shape (N,), optional
+        The epochs' time stamps, for each segment's ``t_start`` and ``t_end``.
+
+    Returns
+    -------
+    list of Segment
+        One per distinct value, named ``str(value)``, its index the rows that hold the
+        value; in the order the values first appear.
+
+    Examples
+    --------
+    >>> [(s.name, s.index.tolist()) for s in by_column(np.array(["b", "b", "a", "b"]))]
+    [('b', [0, 1, 3]), ('a', [2])]
+    """
     n = len(values)
     if n == 0:
         return []
@@ -100,8 +166,36 @@ def by_column(values: np.ndarray, time: np.ndarray | None = None) -> list[Segmen
 def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
     """Consecutive windows of a fixed duration (from the first time) or epoch count.
 
-    Windows are named ``w001``, ``w002``, … in time order; empty duration windows are skipped
-    (their numbers are kept so names stay tied to the time span).
+    Windows are named ``w001``, ``w002``, … in time order (at least three digits); empty
+    duration windows are skipped (their numbers are kept so names stay tied to the time
+    span). The last window may be shorter than the others.
+
+    Parameters
+    ----------
+    n : int
+        The number of epochs N of the log.
+    window : Window
+        The windows' length, in seconds or epochs.
+    time : numpy.ndarray, shape (N,), or None
+        The time stamps in seconds, sorted; a duration window needs them.
+
+    Returns
+    -------
+    list of Segment
+        The windows in time order, each with ``window`` True.
+
+    Raises
+    ------
+    CredcliError
+        For a duration window: if ``time`` is None or not sorted, or if the window would
+        cut the time span into ``MAX_WINDOW`` windows or more.
+
+    Examples
+    --------
+    >>> [(s.name, s.index.tolist()) for s in by_window(5, Window.parse("2"), None)]
+    [('w001', [0, 1]), ('w002', [2, 3]), ('w003', [4])]
+    >>> [s.name for s in by_window(3, Window.parse("1s"), np.array([0.0, 0.5, 2.5]))]
+    ['w001', 'w003']
     """
     if window.seconds:
         if time is None:
@@ -135,7 +229,20 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
 
 
 def whole(n: int, time: np.ndarray | None) -> list[Segment]:
-    """The whole log as one segment, "all"."""
+    """The whole log as one segment, "all".
+
+    Parameters
+    ----------
+    n : int
+        The number of epochs N of the log.
+    time : numpy.ndarray, shape (N,), or None
+        The time stamps, for the segment's span.
+
+    Returns
+    -------
+    list of Segment
+        One segment, ``all``, holding epochs 0 … N − 1.
+    """
     idx = np.arange(n)
     return [Segment("all", idx, *_span(time, idx))]
 
@@ -154,8 +261,36 @@ def static_periods(
     """Static periods of Section V-A: the 3-D speed of ``position`` (N, 3), sorted by
     ``time``, stays below ``max_speed`` for at least ``min_duration`` s.
 
-    The speed is the centred difference over ±SPEED_LAG_S (positions interpolated in time).
-    Returns the periods, named P1, P2, … (index: the rows), and the speed of every row.
+    The speed is the centred difference over ±h, h = ``SPEED_LAG_S`` (positions
+    interpolated in time; the span is shortened at the ends of the log):
+
+        v_k = ‖p(t_k + h) − p(t_k − h)‖ / (min(t_k + h, t_N) − max(t_k − h, t_1)).
+
+    A period is a run of consecutive rows with v_k < ``max_speed`` whose first and last
+    stamps are at least ``min_duration`` apart.
+
+    Parameters
+    ----------
+    time : numpy.ndarray, shape (N,)
+        The stamps in seconds, sorted.
+    position : numpy.ndarray, shape (N, 3)
+        The positions (m), e.g. the ground-truth tag positions of a STAR-loc log.
+    max_speed : float
+        The speed (m/s) below which the tag is static; 0.1 as in the paper.
+    min_duration : float
+        The shortest static period (s); 4 as in the paper.
+
+    Returns
+    -------
+    periods : list of Segment
+        The static periods in time order, named ``P1``, ``P2``, … (index: their rows).
+    speed : numpy.ndarray, shape (N,)
+        The speed v_k of every row (m/s).
+
+    References
+    ----------
+    The paper, Section V-A: static periods are those "where the tag's three-dimensional
+    velocity remains below 0.1 m/s for a minimum duration of 4 seconds".
     """
     t = time
     ahead = np.stack([np.interp(t + SPEED_LAG_S, t, position[:, i]) for i in range(3)], axis=1)
@@ -173,7 +308,19 @@ def static_periods(
 
 def without_run(segments: list[Segment]) -> list[Segment]:
     """``segments`` without the whole-run segment that :func:`split` adds after windows
-    (Monte Carlo runs are the replicates; their windows are pooled across runs)."""
+    (Monte Carlo runs are the replicates; their windows are pooled across runs).
+
+    Parameters
+    ----------
+    segments : list of Segment
+        The segments of one log, as :func:`split` gives them.
+
+    Returns
+    -------
+    list of Segment
+        The same segments, in order, without the one named ``RUN_SEGMENT`` that is not a
+        window.
+    """
     return [s for s in segments if s.window or s.name != RUN_SEGMENT]
 
 
@@ -188,10 +335,39 @@ def split(
     """Segments of a log: the whole log, fixed windows, or the segment column (in that
     order of precedence); a log without a segment column is one segment.
 
-    Duration windows none of which holds ``min_epochs`` epochs are an error: that is
-    a unit mistake (nanosecond stamps read as seconds) or a window far too short. A log of
-    several Monte Carlo runs (a run column) is refused: its runs are pooled, not
-    concatenated (:func:`monte_carlo_plan`)."""
+    A log cut into more than one window also gets the whole run as its last segment
+    (``RUN_SEGMENT``), on which one dependence model is fitted for its windows. Windows
+    none of which holds ``min_epochs`` epochs are an error (when the log itself has that
+    many): for duration windows that is a unit mistake (nanosecond stamps read as seconds)
+    or a window far too short; for a number without a unit, an epoch count meant as a
+    duration. A log of several Monte Carlo runs (a run column) is refused: its runs are
+    pooled, not concatenated (:func:`monte_carlo_plan`).
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        The log to cut.
+    window : str or None
+        The windows' length, as :meth:`Window.parse` reads it (``5s``, ``250ms``,
+        ``200``); None for no windows.
+    whole : bool
+        Each log one segment, ``all``, whatever its segment column (wins over
+        ``window``).
+    min_epochs : int
+        The fewest epochs a segment is diagnosed with; 0 (the default) checks nothing.
+
+    Returns
+    -------
+    list of Segment
+        The log's segments.
+
+    Raises
+    ------
+    CredcliError
+        If the log holds several Monte Carlo runs, if ``window`` cannot be read or cut
+        (:meth:`Window.parse`, :func:`by_window`), or if no window holds ``min_epochs``
+        epochs.
+    """
     if log.run is not None and len(set(log.run)) > 1:
         raise CredcliError(
             f"{log.id}: holds {len(set(log.run))} Monte Carlo runs (a run column); "
@@ -229,7 +405,19 @@ def split(
 def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
     """The Monte Carlo runs of a log with run ids, in the order they first appear; each
     keeps its epochs in order (time, segments, rows, notes). A log without run ids is one
-    run."""
+    run.
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        A log whose ``run`` ids may name several runs.
+
+    Returns
+    -------
+    list of EstimatorLog
+        One log per run id, identified by ``log.id.run(id)`` (:meth:`LogId.run`); ``[log]``
+        itself for a log without run ids.
+    """
     if log.run is None:
         return [log]
     names, first = np.unique(log.run, return_index=True)
@@ -256,7 +444,25 @@ def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
 def pool_runs(runs: list[EstimatorLog], segments) -> tuple[EstimatorLog, list]:
     """M runs on one time base as one log whose segment k holds the epochs of segment k of
     every run, run after run (so that the ELT flips each run in its own blocks), and those
-    pooled segments."""
+    pooled segments.
+
+    Parameters
+    ----------
+    runs : list of EstimatorLog
+        The M runs, each of the same N epochs and dimension (:func:`monte_carlo_plan`
+        checks).
+    segments : list of Segment
+        The segments of one run; their indices hold for every run.
+
+    Returns
+    -------
+    pooled : EstimatorLog
+        A log of errors (``state_errors``) and covariances alone, named
+        ``monte-carlo (M runs)``: segment by segment, run after run.
+    pooled_segments : list of Segment
+        Segment k's M × n_k epochs in ``pooled``, with its name and time span (not
+        windows).
+    """
     m, n = len(runs), runs[0].n
     order = np.concatenate([run * n + s.index for s in segments for run in range(m)])
     errors = np.concatenate([log.errors for log in runs])[order]
@@ -275,7 +481,39 @@ def pool_runs(runs: list[EstimatorLog], segments) -> tuple[EstimatorLog, list]:
 def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
     """Pool M runs of one scenario: one plan whose segment k holds the epochs of segment k
     of every run, run after run (so that the ELT flips each run in its own blocks), and
-    the per-epoch ANEES test (:func:`credcli.engine.montecarlo.anees_test`)."""
+    the per-epoch ANEES test (:func:`credcli.engine.montecarlo.anees_test`).
+
+    Parameters
+    ----------
+    loaded : list of EstimatorLog
+        The M ≥ 2 runs, on one time base: the same number of epochs and dimension, and
+        stamps within 1e-6 s of the first run's (or no stamps in any).
+    plans : list of (EstimatorLog, list of Segment)
+        The runs' plans (a log and its segments); the first plan's segments are used for
+        every run.
+    alpha : float
+        The level of the ANEES test's two-sided bounds.
+
+    Returns
+    -------
+    plans : list of (EstimatorLog, list of Segment)
+        One plan: the pooled log and its pooled segments (:func:`pool_runs`).
+    anees : MonteCarlo
+        The ANEES test of the runs, with the fraction of each segment's epochs inside
+        the bounds.
+
+    Raises
+    ------
+    CredcliError
+        If there are fewer than two runs, or a run's number of epochs, dimension or
+        stamps differ from the first run's.
+
+    Notes
+    -----
+    With ε_{j,k} the NEES (eq. (1)) of run j at epoch k, ANEES_k = (1/M) Σ_j ε_{j,k} is
+    inside its bounds when χ²_{Md}(α/2)/M ≤ ANEES_k ≤ χ²_{Md}(1 − α/2)/M, χ²_{Md}(q) the
+    q-quantile of the chi-squared law with Md degrees of freedom (Bar-Shalom's test).
+    """
     if len(loaded) < 2:
         raise CredcliError("`monte_carlo` needs at least two runs (logs) of the scenario")
     base = loaded[0]
@@ -302,7 +540,28 @@ class LogSummary:
     """What a report says of one whole log beside its segments: its id, size, what reading
     it dropped, its notes, and the accuracy over all its epochs (evo's figures for the
     whole trajectory, to compare logs as ``evo_res`` does). Typed until the report writes
-    it (:func:`credcli.report.records.log_record`)."""
+    it (:func:`credcli.report.records.log_record`).
+
+    Attributes
+    ----------
+    id : LogId
+        Which log.
+    epochs : int
+        Its number of epochs N.
+    dim : int
+        The dimension d of its errors.
+    dropped_rows : int
+        The rows dropped as invalid while reading (``drop_invalid``).
+    unpaired_epochs : int or None
+        The estimate epochs dropped for want of truth (pairing with a separate truth).
+    segments : int
+        The number of segments it was cut into.
+    notes : tuple of str
+        The decisions taken while reading it (unit, format, pairing, convention).
+    accuracy : Accuracy or None
+        The accuracy of all its errors (RMSE, mean, median and maximum, per component and
+        of the norm); None for a log without epochs.
+    """
 
     id: LogId
     epochs: int
@@ -315,7 +574,20 @@ class LogSummary:
 
 
 def log_summary(log: EstimatorLog, segments) -> LogSummary:
-    """The :class:`LogSummary` of ``log`` cut into ``segments``."""
+    """The :class:`LogSummary` of ``log`` cut into ``segments``.
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        The whole log.
+    segments : list of Segment
+        Its segments (only their number is kept).
+
+    Returns
+    -------
+    LogSummary
+        Its id, size, what reading dropped, its notes and its accuracy.
+    """
     return LogSummary(
         log.id,
         log.n,

@@ -28,7 +28,18 @@ def fitted_mean(alignment: Alignment) -> str | None:
     """Why the whole log's location question cannot be answered after ``alignment``: the
     least-squares fit of a translation (se3, sim3) makes the mean of the aligned errors 0
     exactly (Umeyama's t = μ − s R μ̂), so no bias can show in the log as a whole; a window
-    of it still can. None for none and origin (which fixes the first epoch, not the mean)."""
+    of it still can. None for none and origin (which fixes the first epoch, not the mean).
+
+    Parameters
+    ----------
+    alignment : Alignment
+        The ``align`` option.
+
+    Returns
+    -------
+    str or None
+        The reason, as the report gives it; None for ``none`` and ``origin``.
+    """
     if alignment in (Alignment.SE3, Alignment.SIM3):
         return (
             f"align {alignment.value} fitted the mean of these errors to 0, so a bias cannot "
@@ -41,7 +52,35 @@ def align_log(log: EstimatorLog, alignment: Alignment) -> EstimatorLog:
     """A credcli log (truth and estimate in each row, d = 2 or 3 positions) with its
     estimate and covariance moved into the truth's frame: one transform for the whole
     log, every segment. Logs without an estimate (errors only) and logs of several Monte
-    Carlo runs (each its own frame) are refused."""
+    Carlo runs (each its own frame) are refused.
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        A log with truth and estimate, d = 2 or 3 positions, of one run.
+    alignment : Alignment
+        ``none`` (the log is given back as it is), ``origin`` (the first estimate onto the
+        first truth, translation only), ``se3`` or ``sim3`` (Umeyama's fit to every
+        epoch).
+
+    Returns
+    -------
+    EstimatorLog
+        The log with its estimate moved to s R x̂ + t and its covariance to s² R Σ Rᵀ, a
+        note saying what was fitted and what it costs the verdict, and for ``se3`` and
+        ``sim3`` its ``fitted_mean`` set (:func:`fitted_mean`).
+
+    Raises
+    ------
+    CredcliError
+        For a log without an estimate, a log of several Monte Carlo runs, or a state that
+        is not 2-D or 3-D.
+
+    References
+    ----------
+    S. Umeyama, "Least-squares estimation of transformation parameters between two point
+    patterns," IEEE Trans. Pattern Anal. Mach. Intell., vol. 13, no. 4, pp. 376–380, 1991.
+    """
     alignment = Alignment(alignment)
     if alignment is Alignment.NONE:
         return log
@@ -69,7 +108,7 @@ def align_log(log: EstimatorLog, alignment: Alignment) -> EstimatorLog:
     else:
         transform = umeyama(log.truth, log.estimate, alignment is Alignment.SIM3)
     cov = transform_covariance(log.cov, covariance_map(transform, d))
-    note = alignment_note(alignment, transform, d, log.n, False, "s² R Σ Rᵀ")
+    note = _alignment_note(alignment, transform, d, log.n, False, "s² R Σ Rᵀ")
     return dataclasses.replace(
         log,
         estimate=transform.apply(log.estimate),
@@ -90,6 +129,34 @@ def align_trajectory(
     diag(s I, I) for the right one (body-frame errors, which a change of world frame only
     scales); a position covariance s² R Σ Rᵀ. ``states`` planar fits a rotation about z
     and an x, y translation (SE(2), Sim(2)) to x, y, so that the heading stays a heading.
+    ``origin`` moves the first paired pose onto the truth's (its rotation too where both
+    have orientations) and fits nothing else.
+
+    Parameters
+    ----------
+    estimate : Trajectory
+        The estimate, with its covariance.
+    truth : Trajectory
+        The truth it is paired with.
+    pairing : Pairing
+        Which estimate epochs have truth, and the truth interpolated to them
+        (:func:`credcli.io.pairing.pair`); the transform is fitted to these epochs.
+    reading : ReadOptions
+        Its ``align``, ``states`` and ``perturbation`` are used.
+
+    Returns
+    -------
+    estimate : Trajectory
+        Every epoch of the estimate (paired or not) moved by the transform; the estimate
+        itself when ``align`` is none, or when the truth's positions have another dimension
+        (the errors' dimension check then reports it, naming both files).
+    notes : tuple of str
+        The note on the alignment, or none.
+
+    References
+    ----------
+    S. Umeyama, "Least-squares estimation of transformation parameters between two point
+    patterns," IEEE Trans. Pattern Anal. Mach. Intell., vol. 13, no. 4, pp. 376–380, 1991.
     """
     alignment = reading.align
     if alignment is Alignment.NONE:
@@ -146,7 +213,7 @@ def align_trajectory(
     else:
         how = "s² R Σ Rᵀ"
     with_rotation = planar or rotations is not None and pairing.rotation is not None
-    note = alignment_note(alignment, transform, fitted_dim, int(keep.sum()), with_rotation, how)
+    note = _alignment_note(alignment, transform, fitted_dim, int(keep.sum()), with_rotation, how)
     return moved, (note,)
 
 
@@ -161,7 +228,7 @@ def _embedded(plane: Transform, dim: int) -> Transform:
     return Transform(rotation, translation, plane.scale)
 
 
-def alignment_note(
+def _alignment_note(
     alignment: Alignment,
     transform: Transform,
     dim: int,

@@ -123,7 +123,35 @@ def _covariances(array: np.ndarray, n: int, d: int, notes: list[str] | None = No
 
 def error_arrays(errors, cov) -> tuple[np.ndarray, np.ndarray]:
     """``errors`` (N, d) and ``cov`` as :func:`log_from_arrays` takes them, checked and
-    given back as (N, d) and (N, d, d)."""
+    given back as (N, d) and (N, d, d).
+
+    Parameters
+    ----------
+    errors : array_like, shape (N, d)
+        The errors e_k ((N,) for d = 1; (N, d, 1) column vectors are taken as (N, d)).
+    cov : array_like, shape (N, d, d), (d, d) or (N, d)
+        The claimed covariances: one per epoch, one (d, d) for every epoch, or variances.
+
+    Returns
+    -------
+    errors : numpy.ndarray, shape (N, d)
+        The errors as floats.
+    cov : numpy.ndarray, shape (N, d, d)
+        The covariances, exactly symmetric, each checked symmetric and positive definite.
+
+    Raises
+    ------
+    CredcliError
+        For complex numbers, an array of the wrong shape (a transposed one named as such),
+        a value that is not finite, or a covariance that is not symmetric positive
+        definite, naming the argument and the epoch.
+
+    Examples
+    --------
+    >>> e, c = error_arrays(np.zeros((3, 2)), np.ones((3, 2)))
+    >>> e.shape, c.shape, c[0].tolist()
+    ((3, 2), (3, 2, 2), [[1.0, 0.0], [0.0, 1.0]])
+    """
     array = _cov_array(cov)
     n, d = _cov_shape(array)
     matrix = _matrix("errors", errors, n, d)
@@ -256,7 +284,24 @@ def log_table(log: EstimatorLog):
     """A log as the canonical table ``credcli diagnose`` reads: ``time`` and ``segment``
     when the log has them, ``truth_i``/``est_i`` (or ``err_i`` for an errors-only log) and
     the upper triangle ``cov_i_j``, i <= j; ``run`` for a log of Monte Carlo runs. Values
-    are written to full precision."""
+    are written to full precision.
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        The log.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per epoch, in the columns above (in that order).
+
+    Examples
+    --------
+    >>> log = log_from_arrays(errors=np.zeros((4, 2)), cov=np.eye(2))
+    >>> list(log_table(log).columns)
+    ['err_0', 'err_1', 'cov_0_0', 'cov_0_1', 'cov_1_1']
+    """
     import pandas as pd
 
     d = log.dim
@@ -277,7 +322,18 @@ def log_table(log: EstimatorLog):
 
 def log_csv(log: EstimatorLog) -> str:
     """``log`` as the CSV text of its canonical table (``log_table``): every float as its
-    shortest exact representation (it reads back to the same bits)."""
+    shortest exact representation (it reads back to the same bits).
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        The log.
+
+    Returns
+    -------
+    str
+        The CSV text: a header row, then one row per epoch.
+    """
     return log_table(log).to_csv(index=False)
 
 
@@ -343,10 +399,11 @@ NPZ_NAMES = {
 names each may have in the file."""
 
 
-def check_npz_sizes(path: Path) -> None:
+def _check_npz_sizes(path: Path) -> None:
     """Refuse, before anything is allocated, an ``.npz`` whose arrays declare more bytes
     than they hold (a 588-byte file declaring 10¹³ floats) or than this machine has memory
-    for (a zip bomb: 4 MB of zeros inflating to 15 GB)."""
+    for (a zip bomb: 4 MB of zeros inflating to 15 GB). Other faults are left for
+    ``np.load`` to report."""
     try:
         archive = zipfile.ZipFile(path)
     except zipfile.BadZipFile as exc:  # np.load would leave its file open on this
@@ -378,11 +435,33 @@ def check_npz_sizes(path: Path) -> None:
 
 def load_npz(path: Path) -> EstimatorLog:
     """A log from a NumPy ``.npz`` file of named arrays (:data:`NPZ_NAMES`): ``truth`` and
-    ``estimate`` or ``errors`` (N, d), ``cov`` (N, d, d) or (d, d), optional ``time`` and
-    ``segment`` (N,). Other names are an error, so that a typo is not silently ignored."""
+    ``estimate`` or ``errors`` (N, d), ``cov`` (N, d, d) or (d, d), optional ``time``,
+    ``segment`` and ``run`` (N,). Other names are an error, so that a typo is not silently
+    ignored.
+
+    The arrays are checked as :func:`log_from_arrays` checks its arguments; pickled arrays
+    are not read.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The ``.npz`` file.
+
+    Returns
+    -------
+    EstimatorLog
+        The log, named by ``path``.
+
+    Raises
+    ------
+    CredcliError
+        If the file is missing, is not a readable ``.npz``, declares more data than it
+        holds or than fits in memory, holds an unknown array or no ``cov``, or if its
+        arrays are not a valid log (the message names the file).
+    """
     if not path.exists():
         raise CredcliError(f"{path}: file not found")
-    check_npz_sizes(path)
+    _check_npz_sizes(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}

@@ -15,7 +15,13 @@ SEGMENT_HINTS = {"window": str, "whole": bool}
 
 
 def diagnosis_hints() -> dict:
-    """The keys of [diagnosis] (every DiagnosisConfig field, and the seed) with their types."""
+    """The keys of [diagnosis] (every DiagnosisConfig field, and the seed) with their types.
+
+    Returns
+    -------
+    dict of str to type
+        Each key's type hint, resolved (``typing.get_type_hints``), for :func:`check_types`.
+    """
     return typing.get_type_hints(DiagnosisConfig) | {"seed": int}
 
 
@@ -64,7 +70,33 @@ def _type_ok(value, hint) -> bool:
 
 
 def check_types(section: dict, hints: dict, where: str) -> None:
-    """Each config value against its field's type, naming the key and the expected type."""
+    """Each config value against its field's type, naming the key and the expected type.
+
+    An int is a number where a float is expected; a bool is neither. Keys without a hint
+    are not checked here.
+
+    Parameters
+    ----------
+    section : dict
+        The values read (one TOML table, or a baseline's parameters).
+    hints : dict of str to type
+        The type of each key (:func:`diagnosis_hints`, ``SEGMENT_HINTS``).
+    where : str
+        Where the values come from (the file and table), for the message.
+
+    Raises
+    ------
+    CredcliError
+        For the first value whose type does not match, naming the key, the expected type
+        and the value.
+
+    Examples
+    --------
+    >>> check_types({"window": 5}, SEGMENT_HINTS, "credcli.toml [segments]")
+    Traceback (most recent call last):
+      ...
+    credcli.errors.CredcliError: credcli.toml [segments]: window must be a string; got int 5
+    """
     for key, value in section.items():
         hint = hints.get(key)
         if hint is not None and not _type_ok(value, hint):

@@ -23,7 +23,24 @@ from credcli.errors import CredcliError
 
 
 def read_toml(path: str | Path) -> dict:
-    """A TOML file's tables; a missing, non-UTF-8 or invalid file is a CredcliError."""
+    """A TOML file's tables; a missing, non-UTF-8 or invalid file is a CredcliError.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The config file.
+
+    Returns
+    -------
+    dict
+        Its tables, as ``tomllib`` reads them.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a directory or not a file, cannot be read, is not UTF-8, is not
+        valid TOML, or is nested too deeply to parse.
+    """
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
@@ -52,7 +69,13 @@ def read_toml(path: str | Path) -> dict:
 
 
 def memory_budget() -> int:
-    """Bytes an input may take once read: half of the machine's physical memory."""
+    """Bytes an input may take once read: half of the machine's physical memory.
+
+    Returns
+    -------
+    int
+        Half the physical memory in bytes; 8 GiB where the system does not say.
+    """
     try:
         return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
     except (ValueError, OSError, AttributeError):
@@ -83,7 +106,25 @@ def _is_stream(path: Path) -> bool:
 
 def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
     """Refuse before any work: an output that is an input, two outputs on one path, or an
-    output that is a directory. ``outputs`` maps an option name to its path (or None)."""
+    output that is a directory. ``outputs`` maps an option name to its path (or None).
+
+    A device or FIFO (``/dev/stdout``, ``/dev/null``) may be given more than once, and may
+    be an input too.
+
+    Parameters
+    ----------
+    outputs : dict of str to pathlib.Path or None
+        Each output's option name (as messages name it) and its path; None for an output
+        not asked for.
+    inputs : iterable of paths
+        The command's input files (None items are skipped).
+
+    Raises
+    ------
+    CredcliError
+        If an output is a directory, is one of ``inputs``, or is the same file as another
+        output.
+    """
     given = [(name, Path(p)) for name, p in outputs.items() if p is not None]
     for name, path in given:
         if path.is_dir():
@@ -113,7 +154,26 @@ def write_atomic(path: str | Path, text: str | bytes | Iterable[str], inputs=())
     on any error or signal that Python sees. Every step after the directory is opened works
     relative to that open directory (``dir_fd``), and a symbolic link at the final name is
     refused, never followed: a link planted in an output directory, or a directory swapped
-    while credcli writes, cannot send the write to a file outside it."""
+    while credcli writes, cannot send the write to a file outside it. A file replaced keeps
+    its permission bits; a new one gets those ``open`` would give it.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The output file.
+    text : str, bytes or iterable of str
+        What to write: text (as UTF-8; a file name's undecodable bytes, held as
+        surrogates, are written as backslash escapes), bytes, or pieces of text written
+        one after another.
+    inputs : iterable of paths
+        Files that must not be overwritten (:func:`check_outputs`).
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a directory, one of ``inputs`` or a symbolic link, if its directory
+        does not exist, or if it cannot be written (an OSError, described).
+    """
     path = Path(path)
     check_outputs({"output": path}, inputs)
     # a name that is not valid UTF-8 (a file name's bytes, held as surrogates) is written
@@ -144,12 +204,32 @@ def write_atomic(path: str | Path, text: str | bytes | Iterable[str], inputs=())
         finally:
             os.close(directory)
     except OSError as exc:
-        raise CredcliError(f"{path}: cannot be written ({os_reason(exc)})") from exc
+        raise CredcliError(f"{path}: cannot be written ({_os_reason(exc)})") from exc
 
 
 def shown(name: object, limit: int = 120) -> str:
-    """A file name as a message shows it: on one line (a newline in it is escaped) and,
-    past ``limit`` characters, shortened in the middle."""
+    r"""A file name as a message shows it: on one line (a newline in it is escaped) and,
+    past ``limit`` characters, shortened in the middle.
+
+    Parameters
+    ----------
+    name : object
+        The name (a path, or anything ``str`` takes).
+    limit : int
+        The longest name shown whole (120 characters by default); a longer one keeps its
+        first ``limit`` − 40 and last 39 characters and says its length.
+
+    Returns
+    -------
+    str
+        The name with backslashes, control characters and non-ASCII characters
+        backslash-escaped (Python's ``unicode_escape``), shortened past ``limit``.
+
+    Examples
+    --------
+    >>> shown("out\nreport.json")
+    'out\\nreport.json'
+    """
     text = str(name).encode("unicode_escape", "backslashreplace").decode("ascii", "replace")
     if len(text) <= limit:
         return text
@@ -182,12 +262,26 @@ USER_ERRNOS = frozenset(
 
 
 def describe_os_error(exc: OSError) -> str:
-    """One line for an OSError about the user's files: which file, what happened."""
+    """One line for an OSError about the user's files: which file, what happened.
+
+    Parameters
+    ----------
+    exc : OSError
+        The error.
+
+    Returns
+    -------
+    str
+        ``"<file>: <reason>"``: the file as :func:`shown` shows it (``standard output``
+        when the error names none), and the reason, with what to do for a name too long,
+        a full device or a FIFO without a reader.
+    """
     where = shown(exc.filename) if exc.filename is not None else "standard output"
-    return f"{where}: {os_reason(exc)}"
+    return f"{where}: {_os_reason(exc)}"
 
 
-def os_reason(exc: OSError) -> str:
+def _os_reason(exc: OSError) -> str:
+    """Why an OSError happened, in words; what to do for a few common cases."""
     if exc.errno == errno.ENAMETOOLONG:
         return "the file name or path is too long for this system; choose a shorter one"
     if exc.errno == errno.ENOSPC:
@@ -280,7 +374,7 @@ def _write_named(directory: int, path: Path, data, mode: int) -> None:
         fd = os.open(temporary, flags, 0o600, dir_fd=directory)
     except OSError as exc:
         raise CredcliError(
-            f"{path}: cannot write in {path.parent} ({os_reason(exc)}); choose another place"
+            f"{path}: cannot write in {path.parent} ({_os_reason(exc)}); choose another place"
         ) from exc
     try:
         os.fchmod(fd, mode)

@@ -42,7 +42,29 @@ BAG_SUFFIXES = (".bag", ".db3", ".mcap")
 
 
 def sniff_format(path: Path) -> InputFormat:
-    """The format of ``path`` from its extension and its first lines."""
+    """The format of ``path`` from its extension and its first lines.
+
+    In order: a directory or a ``.bag``, ``.db3`` or ``.mcap`` file is a ROS bag; Parquet
+    and ``.npz`` are credcli logs; then the first 64 KiB of text decide: ``p_RS_R_x``
+    (EuRoC), a ROS field name such as ``field.header.stamp`` (ROS CSV), credcli's
+    ``truth_``/``est_``/``innov_``/``err_`` columns, a first data line of 8 or 20 numbers
+    (TUM); anything else is read as a credcli log.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file or bag directory; it must exist.
+
+    Returns
+    -------
+    InputFormat
+        The format, never ``auto``.
+
+    Raises
+    ------
+    CredcliError
+        If a text file cannot be read.
+    """
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
         return InputFormat.ROSBAG
     if path.suffix.lower() in (".parquet", ".pq", ".npz"):
@@ -77,7 +99,40 @@ def read_trajectory(
     topic: str | None = None,
 ) -> Trajectory:
     """One trajectory: the estimate (``role`` "estimate", with its covariance) or the
-    truth (``role`` "truth") of a log in format ``fmt`` (``auto``: sniffed, and said)."""
+    truth (``role`` "truth") of a log in format ``fmt`` (``auto``: sniffed, and said).
+
+    The trajectory is checked: finite values, non-zero quaternions (normalised), epochs
+    sorted by time (a note says when they were not) and, for a truth, distinct stamps.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file, or a ROS2 bag directory.
+    fmt : InputFormat
+        Its format; ``auto`` to sniff it (:func:`sniff_format`).
+    role : str
+        ``"estimate"`` or ``"truth"``.
+    time_unit : TimeUnit
+        The unit of its stamps; ``auto`` (the default) decides from the format and the
+        magnitude.
+    schema : LogSchema or None
+        The column names of a credcli log (default: ``LogSchema()``).
+    topic : str or None
+        The bag topic to read (None: the only one of a usable type); only for bags.
+
+    Returns
+    -------
+    Trajectory
+        Stamps in seconds, positions (or a credcli log's vector), quaternions and the
+        claimed covariance where the format has them, and the notes on what was decided.
+
+    Raises
+    ------
+    CredcliError
+        If the file is missing or empty, is a directory but not read as a bag, has a
+        ``topic`` but is not a bag, or cannot be read as its format (missing columns,
+        NaN or Inf values, zero quaternions, repeated truth stamps).
+    """
     path = Path(path)
     fmt, notes = _format_of(path, fmt, role, topic)
     if fmt is InputFormat.ROSBAG:
@@ -107,7 +162,32 @@ def read_bag_pair(
 ) -> tuple[Trajectory, Trajectory] | None:
     """The estimate and the truth as two topics of the one bag at ``path``, read in one
     pass (:func:`credcli.io.rosbag.read_bag_topics`); None when ``path`` is not read as
-    a bag for both."""
+    a bag for both.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The bag file or ROS2 bag directory.
+    fmt, truth_fmt : InputFormat
+        The formats given for the estimate and the truth (``auto``: sniffed).
+    time_unit : TimeUnit
+        The ``time_unit`` given (bag stamps are seconds and nanoseconds; another unit
+        only adds a note).
+    topic, truth_topic : str or None
+        The estimate's and the truth's topics (None: the only one of a usable type).
+
+    Returns
+    -------
+    tuple of (Trajectory, Trajectory) or None
+        The estimate and the truth, checked as by :func:`read_trajectory`; None when
+        ``path`` is not a bag for both.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` does not exist, a topic is given for a file that is not a bag, or the
+        bag or a topic cannot be read.
+    """
     path = Path(path)
     fmt, notes = _format_of(path, fmt, "estimate", topic)
     truth_fmt, truth_notes = _format_of(path, truth_fmt, "truth", truth_topic)

@@ -22,7 +22,25 @@ MAX_DT_FACTOR = 2.5
 
 @dataclass(frozen=True)
 class Pairing:
-    """Which estimate epochs have truth, and the truth interpolated to them."""
+    """Which estimate epochs have truth, and the truth interpolated to them.
+
+    Attributes
+    ----------
+    keep : numpy.ndarray of bool, shape (N_est,)
+        Whether each estimate epoch has truth (n of them do).
+    position : numpy.ndarray, shape (n, k)
+        The truth's positions (or vectors) at the kept estimate stamps.
+    rotation : scipy.spatial.transform.Rotation or None
+        The truth's orientations at the kept stamps (n of them); None for a truth without
+        orientations.
+    max_dt : float
+        The widest gap (s) allowed between the two truth samples an epoch is
+        interpolated from: as given, or 2.5 × the median truth period.
+    dropped : int
+        The estimate epochs without truth.
+    note : str
+        The note that says how many epochs were paired, how, and how many dropped.
+    """
 
     keep: np.ndarray  # (N_est,) bool
     position: np.ndarray  # (n, k) truth at the kept estimate stamps
@@ -33,7 +51,41 @@ class Pairing:
 
 
 def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_offset: float):
-    """Interpolate ``truth`` to the (offset) estimate stamps; see the module docstring."""
+    """Interpolate ``truth`` to the (offset) estimate stamps; see the module docstring.
+
+    Parameters
+    ----------
+    estimate : Trajectory
+        The estimate, sorted by time.
+    truth : Trajectory
+        The truth, sorted by time, with distinct stamps.
+    max_dt : float or None
+        The widest gap (s) between the truth samples around an estimate stamp; None:
+        ``MAX_DT_FACTOR`` (2.5) × the median truth period.
+    time_offset : float
+        Seconds added to the estimate stamps before pairing.
+
+    Returns
+    -------
+    Pairing
+        The kept epochs, the truth at them, and the note.
+
+    Raises
+    ------
+    CredcliError
+        If the truth has fewer than two epochs, the two sets of stamps do not overlap, or
+        no estimate epoch has truth samples within ``max_dt`` on both sides.
+
+    Examples
+    --------
+    >>> from credcli.io.schema import InputFormat
+    >>> def track(t, x):
+    ...     t, rows = np.asarray(t, float), np.arange(1, len(t) + 1)
+    ...     return Trajectory(t, np.c_[x], None, None, rows, "t", InputFormat.CREDCLI)
+    >>> p = pair(track([0.5, 1.5, 9.0], [0, 0, 0]), track([0, 1, 2], [0, 10, 20]), None, 0.0)
+    >>> p.keep.tolist(), p.position[:, 0].tolist(), p.dropped
+    ([True, True, False], [5.0, 15.0], 1)
+    """
     import pandas as pd
 
     t_est = estimate.time + float(time_offset)

@@ -63,7 +63,19 @@ def _fields(msg):
 
 
 def check_bag_path(path: Path) -> None:
-    """A directory is a ROS2 bag only with a metadata.yaml in it."""
+    """Refuse a directory that is not a ROS2 bag: a directory is one only with a
+    metadata.yaml in it.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A bag file or directory.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a directory without a ``metadata.yaml`` file.
+    """
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise CredcliError(
             f"{path}: not a ROS2 bag directory (no metadata.yaml); name a log file or a bag"
@@ -71,7 +83,26 @@ def check_bag_path(path: Path) -> None:
 
 
 def read_bag(path: Path, topic: str | None, role: str, time_unit: TimeUnit) -> Trajectory:
-    """The poses (and covariances) of ``topic`` in the bag at ``path``."""
+    """The poses (and covariances) of ``topic`` in the bag at ``path``.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A ROS1 ``.bag`` file or a ROS2 bag directory.
+    topic : str or None
+        The topic; None: the only one of a type the ``role`` can use.
+    role : str
+        ``"estimate"`` (nav_msgs/Odometry, geometry_msgs/PoseWithCovarianceStamped) or
+        ``"truth"`` (also PoseStamped and TransformStamped).
+    time_unit : TimeUnit
+        The ``time_unit`` given: bag stamps are seconds and nanoseconds, so a unit other
+        than ``auto``, ``s`` or ``ns`` only adds a note.
+
+    Returns
+    -------
+    Trajectory
+        As :func:`read_bag_topics` gives it.
+    """
     return read_bag_topics(path, [(topic, role)], time_unit)[0]
 
 
@@ -79,8 +110,33 @@ def read_bag_topics(
     path: Path, requests: list[tuple[str | None, str]], time_unit: TimeUnit
 ) -> list[Trajectory]:
     """The trajectories of several (topic, role) requests, in their order, from one pass
-    over the bag: the estimate and the truth of one bag read together take 0.6-0.7 of the
-    time of reading them one after the other (its chunks and index are read once)."""
+    over the bag: its chunks and index are read once, not once per topic.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A ROS1 ``.bag`` file or a ROS2 bag directory (one with a ``metadata.yaml``).
+    requests : list of (str or None, str)
+        The topics and their roles (``"estimate"`` or ``"truth"``); a topic None is the
+        only one of a type its role can use, and a note says which was picked.
+    time_unit : TimeUnit
+        The ``time_unit`` given (a unit other than ``auto``, ``s`` or ``ns`` only adds a
+        note).
+
+    Returns
+    -------
+    list of Trajectory
+        One per request, its epochs in bag order: stamps from ``header.stamp`` (the
+        bag's receive times, with a note, when every header stamp is zero), positions,
+        quaternions (x, y, z, w), and the 6×6 covariance where the message type has one;
+        the source is ``"<path>:<topic>"``.
+
+    Raises
+    ------
+    CredcliError
+        If the ``rosbags`` package is missing, the bag cannot be opened, a topic is missing,
+        ambiguous, of the wrong type or without messages, or a message cannot be decoded.
+    """
     AnyReader, Stores, get_typestore = _require_rosbags()
     from rosbags.highlevel import AnyReaderError
 

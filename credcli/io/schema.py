@@ -145,6 +145,44 @@ class ReadOptions:
     credcli log. ``align``: how the estimate's world frame is moved onto the truth's
     before errors are taken (:mod:`credcli.engine.align`; docs/formats.md, "Aligning
     frames").
+
+    Attributes
+    ----------
+    truth : str or None
+        A separate ground-truth file or bag; None when the truth is in the estimate's rows
+        (or is ``truth_topic`` of the estimate's bag).
+    input_format, truth_format : InputFormat
+        The layouts of the log and of the truth; ``auto`` (the default) sniffs them.
+    topic, truth_topic : str or None
+        The bag topics of the estimate and the truth; None: the only one of a usable type.
+    time_unit : TimeUnit
+        The unit of the stamps; ``auto`` decides from the format and the magnitude.
+    max_dt : float or None
+        The widest gap (s) between the truth samples an estimate stamp is interpolated
+        from; None: 2.5 × the median truth period.
+    time_offset : float
+        Seconds added to the estimate stamps before pairing.
+    states : States or None
+        Which error of a pose log is diagnosed; None: ``position`` for pose data, the
+        vector itself for a credcli log.
+    perturbation : Perturbation
+        Where the orientation error acts: ``left`` (world frame, the default) or
+        ``right`` (body frame).
+    innovations : bool
+        The log holds a filter's innovations and their covariance S (NIS, no truth).
+    errors_only : bool
+        The log holds errors (``err_i``, or the truth columns named), not truth and
+        estimate.
+    align : Alignment
+        How the estimate's world frame is moved onto the truth's: ``none`` (the default),
+        ``origin``, ``se3`` or ``sim3``.
+
+    Raises
+    ------
+    CredcliError
+        If ``max_dt`` is not positive or ``time_offset`` is not a number.
+    ValueError
+        If a format, unit, perturbation, alignment or ``states`` is not one of its names.
     """
 
     truth: str | None = None
@@ -185,6 +223,18 @@ class ReadOptions:
         return self.truth is not None or self.truth_topic is not None
 
     def updated(self, **changes) -> ReadOptions:
+        """A copy with the given non-None fields changed (for CLI > config > defaults).
+
+        Parameters
+        ----------
+        **changes
+            Fields and their new values; None leaves a field as it is.
+
+        Returns
+        -------
+        ReadOptions
+            The changed copy, checked as a new one is.
+        """
         return replace(self, **{k: v for k, v in changes.items() if v is not None})
 
 
@@ -192,7 +242,23 @@ class ReadOptions:
 class LogReading:
     """How logs are read and cut into segments: the column layout, the reading options,
     whether rows with NaN/Inf are dropped, and the segmentation (``window`` a duration or
-    an epoch count; ``whole``: each log one segment; neither: the segment column)."""
+    an epoch count; ``whole``: each log one segment; neither: the segment column).
+
+    Attributes
+    ----------
+    schema : LogSchema
+        The column names of the logs.
+    options : ReadOptions
+        How the logs are read and paired with a separate ground truth.
+    drop_invalid : bool
+        Drop the rows with a NaN, Inf or empty value (counted, with a note) rather than
+        refuse the log.
+    window : str or None
+        The windows' length: a duration (``5s``, ``250ms``, ``2min``) or an epoch count
+        (``200``); None for no windows.
+    whole : bool
+        Each log one segment, whatever its segment column.
+    """
 
     schema: LogSchema = LogSchema()
     options: ReadOptions = ReadOptions()
@@ -206,7 +272,22 @@ class RangeReading:
     """How a STAR-loc ``uwb.csv`` is read (the reader's part of the UWB settings,
     :class:`credcli.studies.settings.UwbSettings`): the ``range_column``; ``std``, a fixed
     range std (m) for files without a ``std`` column; ``std_by_anchor``, one per anchor id
-    (over ``std`` and the column); ``std_estimate``: each anchor's estimated from the data."""
+    (over ``std`` and the column); ``std_estimate``: each anchor's estimated from the data.
+
+    Attributes
+    ----------
+    range_column : str
+        The range column; the default, ``range_calib``, falls back to the raw ``range``
+        (with a note) in files without it (setup s5).
+    std : float or None
+        A fixed range std (m), for files without a ``std`` column; where there is one, it
+        replaces the column.
+    std_by_anchor : tuple of (int, float)
+        A range std (m) per anchor id, over ``std`` and the column.
+    std_estimate : bool
+        Estimate each anchor's std from the data: 1.4826 × the median absolute deviation
+        of range − gt_range.
+    """
 
     range_column: str = "range_calib"
     std: float | None = None

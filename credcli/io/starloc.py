@@ -18,7 +18,36 @@ from credcli.io.schema import RangeReading
 
 @dataclass(frozen=True)
 class RangeLog:
-    """One STAR-loc uwb.csv: one range per row, sorted by time."""
+    """One STAR-loc uwb.csv: one range per row, sorted by time.
+
+    Attributes
+    ----------
+    source : str
+        The file, as given.
+    time : numpy.ndarray, shape (N,)
+        The rows' ``time_s`` stamps (s).
+    range : numpy.ndarray, shape (N,)
+        The measured ranges (m), from ``range_column``.
+    std : numpy.ndarray, shape (N,)
+        The claimed std of each range (m): the ``std`` column, or as the settings give or
+        estimate it.
+    tag : numpy.ndarray of int64, shape (N,)
+        The tag id of each range (``from_id``).
+    anchor : numpy.ndarray of int64, shape (N,)
+        The anchor id of each range (``to_id``).
+    tag_pos : numpy.ndarray, shape (N, 3)
+        The ground-truth tag position (m).
+    rig_pos : numpy.ndarray, shape (N, 3)
+        The ground-truth rig position (m): the ``x``, ``y``, ``z`` columns, or ``tag_pos``
+        in files without them.
+    gt_range : numpy.ndarray, shape (N,)
+        The ground-truth range (m).
+    range_column : str
+        The column the ranges were read from (``range_calib``, or ``range`` in files
+        without it).
+    notes : tuple of str
+        The decisions taken while reading (the range column, the std).
+    """
 
     source: str
     time: np.ndarray
@@ -39,7 +68,7 @@ class RangeLog:
 
 MAX_ID = 2.0**53
 """Anchor, tag and marker ids are whole numbers no larger than this (exact as float64 and
-as int64); a larger one was cast to a wrong id without a word."""
+as int64); a larger one would be cast to a wrong id without a word."""
 
 
 _REQUIRED = ("time_s", "from_id", "to_id", "tag_pos_x", "tag_pos_y", "tag_pos_z", "gt_range")
@@ -49,7 +78,29 @@ def read_starloc(path: str | Path, settings: RangeReading = RangeReading()) -> R
     """Read and validate a STAR-loc ``uwb.csv``.
 
     Without ``range_calib`` (setup s5) the raw ``range`` column is used, with a note.
-    Without ``std`` a fixed ``settings.std`` is required.
+    Without ``std`` a fixed ``settings.std`` is required (or ``std_by_anchor`` for every
+    anchor, or ``std_estimate``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``uwb.csv`` file.
+    settings : RangeReading
+        The range column and where the range std comes from (default: ``range_calib``
+        and the file's ``std`` column).
+
+    Returns
+    -------
+    RangeLog
+        The ranges, their std and ground truth, sorted by time (stable).
+
+    Raises
+    ------
+    CredcliError
+        If a required column is missing (``time_s``, ``from_id``, ``to_id``,
+        ``tag_pos_x/y/z``, ``gt_range``, the range column), no std is given, a value is
+        NaN, Inf or empty, a std is not positive, or an id is not a whole number up to
+        ``MAX_ID``.
     """
     path = Path(path)
     frame = read_table(path)
@@ -162,7 +213,24 @@ def _range_std(col: dict, settings: RangeReading, source: str, range_column: str
 
 
 def read_markers(path: str | Path) -> dict[int, np.ndarray]:
-    """Anchor positions from a STAR-loc markers file (first column the id, then x, y, z)."""
+    """Anchor positions from a STAR-loc markers file (first column the id, then x, y, z).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The markers file: its first column the ids, and columns ``x``, ``y``, ``z``.
+
+    Returns
+    -------
+    dict of int to numpy.ndarray
+        Each marker id's position, shape (3,).
+
+    Raises
+    ------
+    CredcliError
+        If the file has no ``x``, ``y``, ``z`` columns, a value is not a number, or an id is
+        not a whole number up to ``MAX_ID``.
+    """
     path = Path(path)
     frame = read_table(path)
     cols = [str(c) for c in frame.columns]

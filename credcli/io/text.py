@@ -19,6 +19,26 @@ _SNIFF_BYTES = 65536
 
 
 def head_lines(path: Path) -> list[str]:
+    """The first lines of a file, from its first 64 KiB decoded as UTF-8 (undecodable bytes
+    replaced), for sniffing its format and header.
+
+    When the file is longer than that, the last line read (cut short) is dropped.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+
+    Returns
+    -------
+    list of str
+        Its first lines, without their line ends.
+
+    Raises
+    ------
+    CredcliError
+        If the file cannot be read.
+    """
     try:
         with open(path, "rb") as fh:
             head = fh.read(_SNIFF_BYTES)
@@ -35,7 +55,20 @@ def read_csv_unmapped(path: Path, **options):
     Given a name, pandas (3.1 on) maps a large file into memory to parse it in threads; a
     file cut short while it is read (a log still being rewritten) then kills the process
     with SIGBUS. Through a file object it reads with plain reads: a file cut short is a
-    short read and an error message, not a signal. The cost is one parsing thread."""
+    short read and an error message, not a signal. The cost is one parsing thread.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+    **options
+        Passed on to ``pandas.read_csv``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        What ``pandas.read_csv`` returns.
+    """
     import pandas as pd
 
     with open(path, "rb") as fh:
@@ -43,6 +76,24 @@ def read_csv_unmapped(path: Path, **options):
 
 
 def numeric_line(line: str) -> bool:
+    """Whether every field of ``line`` (comma- or whitespace-separated) is a number.
+
+    Parameters
+    ----------
+    line : str
+        One line of a text table.
+
+    Returns
+    -------
+    bool
+        True when ``float`` reads every field (``nan`` and ``inf`` included, and a line
+        without fields); False for a header or any other word.
+
+    Examples
+    --------
+    >>> numeric_line("1.5, 2e3 nan"), numeric_line("# time x")
+    (True, False)
+    """
     try:
         [float(x) for x in line.replace(",", " ").split()]
     except ValueError:
@@ -53,7 +104,26 @@ def numeric_line(line: str) -> bool:
 def read_text_table(path: Path):
     """A text table as a DataFrame: comma- or whitespace-separated, with the header on
     the first line or on the last ``#`` line above the data (``# time truth_0 …``);
-    other ``#`` lines are comments. A table without a header gets columns 0, 1, …"""
+    other ``#`` lines are comments. A table without a header gets columns 0, 1, …
+
+    The separator is a comma when the first data line holds one, else whitespace.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The text file.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per data line, its columns named by the header.
+
+    Raises
+    ------
+    CredcliError
+        If the file has no data rows, cannot be parsed as a table, or its header names a
+        different number of columns than its rows hold.
+    """
     import pandas as pd
 
     lines = head_lines(path)
@@ -119,7 +189,35 @@ year 5138; epoch ns are about 1.7e18, µs 1.7e15, ms 1.7e12)."""
 
 def decide_unit(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: str):
     """(seconds per stamp unit, note) for stamps ``raw``: the given unit, the format's own
-    (``native``), or by magnitude for integer stamps."""
+    (``native``), or by magnitude for integer stamps.
+
+    With ``unit`` auto and no ``native`` unit, whole-number stamps whose largest magnitude
+    is at least 1e17, 1e14 or 1e11 are epoch nanoseconds, microseconds or milliseconds
+    (``_INTEGER_UNITS``); any other stamps are seconds.
+
+    Parameters
+    ----------
+    raw : numpy.ndarray
+        The stamps as read.
+    unit : TimeUnit
+        The unit given (``time_unit``); ``auto`` to decide.
+    native : TimeUnit or None
+        The format's own unit (nanoseconds for EuRoC and ROS CSV), taken under ``auto``.
+    what : str
+        The source, as the note names it.
+
+    Returns
+    -------
+    scale : float
+        Seconds per unit of ``raw``.
+    note : str or None
+        How the unit was decided; None when it was given, or when auto kept seconds.
+
+    Examples
+    --------
+    >>> decide_unit(np.array([1.7e18, 1.7e18 + 1e6]), TimeUnit.AUTO, None, "t")[0]
+    1e-09
+    """
     unit = TimeUnit(unit)
     if unit is not TimeUnit.AUTO:
         return unit.seconds, None
@@ -138,7 +236,26 @@ def decide_unit(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: 
 
 
 def seconds(raw: np.ndarray, unit: TimeUnit, native: TimeUnit | None, what: str):
-    """Stamps in seconds and the note on the unit decided."""
+    """Stamps in seconds and the note on the unit decided (:func:`decide_unit`).
+
+    Parameters
+    ----------
+    raw : numpy.ndarray
+        The stamps as read.
+    unit : TimeUnit
+        The unit given (``time_unit``); ``auto`` to decide.
+    native : TimeUnit or None
+        The format's own unit, taken under ``auto``.
+    what : str
+        The source, as the note names it.
+
+    Returns
+    -------
+    seconds : numpy.ndarray
+        The stamps in seconds (``raw`` itself when they are seconds already).
+    note : str or None
+        How the unit was decided, or None.
+    """
     scale, note = decide_unit(raw, unit, native, what)
     return raw * scale if scale != 1.0 else raw, note
 
@@ -157,9 +274,30 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
     """Seconds (float64) from numbers, numpy datetime64, pandas timestamps or ISO-8601
     strings, and the note to show when they were date-times (None for numbers).
 
-    Date-times become seconds since the Unix epoch in UTC, rounded once to float64
-    (a resolution of 0.24 µs at today's dates). A value that is neither a number nor a date-time is an error naming
-    ``what`` and the first such value.
+    Date-times become seconds since the Unix epoch in UTC, rounded once to float64 (a
+    resolution of 0.24 µs at today's dates); times without a zone are taken as UTC. A value
+    that is neither a number nor a date-time is an error naming ``what`` and the first such
+    value. Missing values are NaN.
+
+    Parameters
+    ----------
+    values : array_like or pandas.Series, shape (N,)
+        Numbers, datetime64, pandas timestamps, or ISO-8601 strings (numbers written as
+        text are read as numbers).
+    what : str
+        The column's name, for the note and the error.
+
+    Returns
+    -------
+    seconds : numpy.ndarray of float64, shape (N,)
+        The times in seconds.
+    note : str or None
+        ``ISO_TIME_NOTE`` for date-times; None for numbers.
+
+    Raises
+    ------
+    CredcliError
+        If a value is neither a number nor an ISO-8601 date-time.
 
     Examples
     --------
@@ -183,8 +321,8 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
     try:
         stamps = pd.to_datetime(series, utc=True, format="ISO8601")
     except (ValueError, TypeError, OverflowError):
-        # the first value that is not a date-time, in one vectorised pass (a per-row parse
-        # took 70 s on a million rows)
+        # the first value that is not a date-time, in one vectorised pass (not a parse per
+        # row)
         coerced = pd.to_datetime(series, utc=True, format="ISO8601", errors="coerce")
         wrong = np.flatnonzero((coerced.isna() & series.notna()).to_numpy())
         bad = [series.iloc[int(wrong[0])]] if wrong.size else []

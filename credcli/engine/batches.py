@@ -3,8 +3,7 @@ critical values for a fixed number of batches.
 
 A filter's errors stay correlated for seconds: hundreds of epochs at 100 Hz. A long-run
 variance estimated by a kernel with a data-driven bandwidth (Andrews 1991) is then too
-small, and a χ² or normal reference too narrow (the κ̂ interval of a correctly tuned EKF
-covered the truth in 4 of 20 runs). Fixed-b asymptotics (Kiefer & Vogelsang 2005) keep the
+small, and a χ² or normal reference too narrow (docs/measured.md). Fixed-b asymptotics (Kiefer & Vogelsang 2005) keep the
 bandwidth a fixed fraction of the sample and use the statistic's own, wider reference
 distribution. Its simplest member is batch means with a fixed number K of batches: the
 segment is cut into K contiguous batches, and the K batch statistics are treated as K
@@ -56,13 +55,38 @@ boundaries (AR(1) plug-in, :func:`credcli.engine.correlation.block_length`)."""
 
 
 def min_location_batches(dim: int) -> int:
-    """Fewest batches for the location test in d dimensions: F(d, K − d) needs K > d;
-    K − d >= 3 keeps its critical value finite in practice (F(2, 3) at 1.3 %: 28)."""
+    """Fewest batches for the location test in d dimensions.
+
+    F(d, K − d) needs K > d; K − d >= 3 keeps its critical value finite in practice
+    (F(2, 3) at 1.3 %: 28).
+
+    Parameters
+    ----------
+    dim : int
+        The state dimension d.
+
+    Returns
+    -------
+    int
+        d + 3.
+    """
     return dim + 3
 
 
 def batch_length(tau: float) -> int:
-    """The shortest batch for a series whose variance ratio is ``tau`` (at least 2)."""
+    """The shortest batch for a series whose variance ratio is ``tau``.
+
+    Parameters
+    ----------
+    tau : float
+        The variance ratio τ (values below 1 count as 1).
+
+    Returns
+    -------
+    int
+        The block length that loses at most :data:`BATCH_VARIANCE_LOSS` of the variance
+        (:func:`credcli.engine.correlation.block_length`), at least 2.
+    """
     return max(2, correlation.block_length(max(float(tau), 1.0), BATCH_VARIANCE_LOSS))
 
 
@@ -70,6 +94,23 @@ def boundary_inflation(tau: float, n: int, k: int) -> float:
     r"""How much the correlation of neighbouring batches inflates a batch-means statistic,
     AR(1) plug-in; 1 for independent epochs.
 
+    Parameters
+    ----------
+    tau : float
+        The variance ratio τ of the series (values below 1 count as 1).
+    n : int
+        Epochs in the segment.
+    k : int
+        The number of batches K.
+
+    Returns
+    -------
+    float
+        The factor c >= 1 below by which the squared t (or Hotelling's T²) is divided; 1
+        when g <= 0 or K < 2.
+
+    Notes
+    -----
     K batches of b = n/K epochs of a series with long-run variance Ω and
     G = 2 Σ_h h γ(h) (the notation of :mod:`credcli.engine.correlation`): to first order a
     batch sum has variance bΩ − G and two neighbouring sums covariance G/2, so their
@@ -80,9 +121,9 @@ def boundary_inflation(tau: float, n: int, k: int) -> float:
 
     .. math:: c = \frac{1 + 2r(K-1)/K}{1 - 2r/K},
 
-    by which it is divided. The batch length keeps g/b <= ε = 0.2, so r <= 1/8 and c <= 1.27.
-    Measured on AR(1) φ = 0.99 errors with 12 batches of 2.5 correlation times (200 segments
-    of 6,000 epochs): the mean test rejected 4 % at 2.53 % without it.
+    by which it is divided. The batch length keeps g/b <= ε = 0.2, so r <= 1/8 and c <= 1.27
+    (r is capped at 0.45 where a batch is only 2g long). Without it the mean test loses its
+    level on long correlation times (docs/measured.md).
     """
     tau = max(float(tau), 1.0)
     g = (tau * tau - 1.0) / (2.0 * tau)
@@ -94,27 +135,81 @@ def boundary_inflation(tau: float, n: int, k: int) -> float:
 
 
 def batch_count(n: int, length: int, smallest: int, largest: int = MAX_BATCHES) -> int:
-    """Batches for ``n`` epochs, each at least ``length`` long: as many as fit, at most
-    ``largest``; 0 when fewer than ``smallest`` fit."""
+    """The number of batches for ``n`` epochs, each at least ``length`` long.
+
+    Parameters
+    ----------
+    n : int
+        Epochs in the segment.
+    length : int
+        The shortest batch (values below 1 count as 1).
+    smallest : int
+        The fewest batches the test needs.
+    largest : int, default MAX_BATCHES
+        The most batches.
+
+    Returns
+    -------
+    int
+        As many as fit, at most ``largest``; 0 when fewer than ``smallest`` fit.
+
+    Examples
+    --------
+    >>> batch_count(6000, 50, 4), batch_count(300, 50, 4), batch_count(150, 50, 4)
+    (12, 6, 0)
+    """
     k = min(largest, n // max(int(length), 1))
     return k if k >= smallest else 0
 
 
 def bounds(n: int, k: int) -> np.ndarray:
-    """Start indices of ``k`` contiguous batches of ``n`` epochs, as equal as can be."""
+    """Start indices of ``k`` contiguous batches of ``n`` epochs, as equal as can be.
+
+    Parameters
+    ----------
+    n : int
+        Epochs in the segment.
+    k : int
+        The number of batches.
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (k,)
+        ⌊jn/k⌋ for j = 0 … k − 1 (for ``numpy.add.reduceat``).
+
+    Examples
+    --------
+    >>> bounds(10, 3).tolist()
+    [0, 3, 6]
+    """
     return (np.arange(k) * n) // k
 
 
 @dataclass(frozen=True)
 class BatchScale:
-    """The scale factor κ from K batch factors, a t interval on the log scale."""
+    """The scale factor κ from K batch factors, a t interval on the log scale
+    (:func:`batch_scale`).
+
+    Attributes
+    ----------
+    batches : int
+        K.
+    scale_factor : float
+        κ̄, the mean of the batch factors κ̂_j.
+    scale_factor_low, scale_factor_high : float
+        The 1 − level interval of κ.
+    pvalue_upper : float
+        The one-sided p-value of κ = 1 against κ > 1 (small: optimism).
+    pvalue_lower : float
+        The one-sided p-value of κ = 1 against κ < 1 (small: pessimism).
+    """
 
     batches: int
-    scale_factor: float  # mean of the batch factors κ̂_j
+    scale_factor: float
     scale_factor_low: float
     scale_factor_high: float
-    pvalue_upper: float  # small: optimism
-    pvalue_lower: float  # small: pessimism
+    pvalue_upper: float
+    pvalue_lower: float
 
 
 def batch_scale(
@@ -130,25 +225,44 @@ def batch_scale(
     .. math:: \hat\kappa_j = \frac{1}{n_j d}\sum_{k\in j} q_k,\quad
               t = \frac{\log\bar\kappa}{s_\kappa / (\bar\kappa\sqrt K)} \sim t_{K-1}
 
-    The batch factors of a dependent series are right-skewed (skewness 1.2 for 12 batches
-    of an AR(1) with φ = 0.99), and a t interval on log κ̄ then rejects "pessimism" too
-    often (4 % at 1.27 % per side). The interval is Cox's for a log-normal mean (Land
-    1972; Zhou & Gao 1997, Statistics in Medicine 16(7)), with y_j = log κ̂_j:
+    The batch factors of a dependent series are right-skewed, and a t interval on log κ̄
+    then rejects "pessimism" too often (docs/measured.md). The interval is Cox's for a
+    log-normal mean (Land 1972; Zhou & Gao 1997, Statistics in Medicine 16(7)), with
+    y_j = log κ̂_j:
 
     .. math:: \bar y + \frac{s_y^2}{2} \pm t_{K-1,1-\alpha/2}
               \sqrt{c\Big(\frac{s_y^2}{K} + \frac{s_y^4}{2(K-1)}\Big)}
 
     on the log scale, c = ``inflation`` (:func:`boundary_inflation`); the p-values are its
     two one-sided tests of κ = 1. The point estimate stays κ̄. (The delta method on log κ̄,
-    used when some κ̂_j is 0, is the fallback.) Measured on 1,000 such segments of 6,000
-    epochs with the centring and inflation corrections: the scale test rejected 0.8 % /
-    2.3 % (optimism / pessimism) against 1.7 % / 2.3 % with the delta method.
+    used when some κ̂_j is 0, is the fallback.)
 
     ``centring`` is the expected loss of Σq to the estimated mean, in units of κ: 1 per
     dimension for independent epochs, Σ_i τ_i for dependent ones (the sample mean of a
     series with variance ratio τ has τ times the variance of one epoch). The batch factors
-    are divided by (Nd − centring)/(Nd), so that κ̄ estimates κ without the downward bias of
-    centring (3 % for τ = 199 and N = 6,000, a quarter of the interval's standard error).
+    are divided by (Nd − centring)/(Nd) (a divisor no smaller than 1/2), so that κ̄
+    estimates κ without the downward bias of centring (3 % for τ = 199 and N = 6,000).
+
+    Parameters
+    ----------
+    q : numpy.ndarray, shape (N,)
+        The NEES of the GLS-centred errors.
+    dim : int
+        The state dimension d.
+    k : int
+        The number of batches K (at least 2).
+    level : float
+        The two-sided level of the interval.
+    inflation : float, default 1.0
+        c, the neighbouring batches' inflation of the variance (:func:`boundary_inflation`).
+    centring : float, default 0.0
+        The expected loss of Σq to the estimated mean, in units of κ.
+
+    Returns
+    -------
+    BatchScale
+        κ̄, its interval and the two one-sided p-values; where κ̄ is not positive, the
+        interval [0, inf) and p-values 1.
 
     Examples
     --------
@@ -189,20 +303,50 @@ def batch_scale(
 
 @dataclass(frozen=True)
 class MeanTest:
-    """A test of a zero mean of the errors in the claimed covariance's metric (GLS)."""
+    """A test of a zero mean of the errors in the claimed covariance's metric (GLS).
 
-    statistic: float  # F
-    dof: tuple[float, float]  # of the F reference
+    Attributes
+    ----------
+    statistic : float
+        The F statistic.
+    dof : tuple of float
+        The degrees of freedom of the F reference.
+    pvalue : float
+        The p-value (NaN where the test has too few degrees of freedom).
+    batches : int
+        K; 0 for the tests of independent epochs and under a dependence model.
+    spread : float, default nan
+        λ_max of Cov(x̂), x = (ΣW/N)^{1/2}μ: the bias in σ (NaN: the test carries no
+        confidence region).
+    t2_per_f : float, default nan
+        T² = t2_per_f · F: the confidence region's radius.
+    """
+
+    statistic: float
+    dof: tuple[float, float]
     pvalue: float
-    batches: int  # K; 0 for the test of independent epochs
-    spread: float = math.nan  # λ_max of Cov(x̂), x = (ΣW/N)^{1/2}μ: the bias in σ
-    t2_per_f: float = math.nan  # T² = t2_per_f · F: the confidence region's radius
+    batches: int
+    spread: float = math.nan
+    t2_per_f: float = math.nan
 
     def bias_bound(self, norm: float, level: float) -> float:
-        """An upper bound on ‖μ‖ in σ (the metric of the mean claimed precision) over the
-        1 − ``level`` confidence region of the mean, {x: (x̂ − x)ᵀ Cov(x̂)⁻¹ (x̂ − x) <= T²},
-        whose centre is ``norm`` = ‖x̂‖ from the origin: ‖x̂‖ + √(T²·λ_max). NaN where the
-        test carries no region."""
+        """An upper bound on ‖μ‖ in σ over the mean's confidence region.
+
+        In the metric of the mean claimed precision, over the 1 − ``level`` confidence
+        region {x: (x̂ − x)ᵀ Cov(x̂)⁻¹ (x̂ − x) <= T²} of the mean.
+
+        Parameters
+        ----------
+        norm : float
+            ‖x̂‖, the region's centre's distance from the origin, in σ.
+        level : float
+            The region's level (T² is t2_per_f times the F quantile at 1 − level).
+
+        Returns
+        -------
+        float
+            ‖x̂‖ + √(T²·λ_max); NaN where the test carries no region.
+        """
         if not (math.isfinite(self.spread) and math.isfinite(self.t2_per_f)):
             return math.nan
         crit = float(special.fdtri(self.dof[0], self.dof[1], 1.0 - level))
@@ -210,9 +354,28 @@ class MeanTest:
 
 
 def mean_spread(cov_sum: np.ndarray, precision: np.ndarray, ratio: float, n: int) -> float:
-    """λ_max of Cov(x̂) = S^{-1/2} Cov(G) S^{-1/2} / N, x = S^{1/2}μ/√N, S = Σ W_k, from
-    Cov(G) and S each divided by an exact power of two, ``ratio`` = Cov(G)'s unit over S's
-    (so that the result, which is scale-free, is exact and finite)."""
+    """λ_max of Cov(x̂) = S^{-1/2} Cov(G) S^{-1/2} / N, x = S^{1/2}μ/√N, S = Σ W_k.
+
+    Cov(G) and S come each divided by an exact power of two, so that the result, which
+    is scale-free, is exact and finite.
+
+    Parameters
+    ----------
+    cov_sum : numpy.ndarray, shape (d, d)
+        Cov(G), G = Σ_k g_k the sum of the GLS scores, over its unit.
+    precision : numpy.ndarray, shape (d, d)
+        S = Σ_k W_k over its unit.
+    ratio : float
+        Cov(G)'s unit over S's.
+    n : int
+        Epochs N.
+
+    Returns
+    -------
+    float
+        The largest eigenvalue of Cov(x̂) (:attr:`MeanTest.spread`); NaN when an
+        eigendecomposition fails.
+    """
     try:
         lam, vecs = np.linalg.eigh(precision)
         root = (vecs / np.sqrt(lam)) @ vecs.T  # S^{-1/2} (scaled)
@@ -236,12 +399,31 @@ def independent_mean_test(residuals: GlsResiduals, inflation: float = 1.0) -> Me
     true covariance: too small, too large or of the wrong shape (whitened variances
     (4, 0.25)). When Σ̂_k changes from epoch to epoch, A is the sandwich's meat under the
     null (White 1980: Cov(G) = E[A] for independent epochs with mean zero, however Σ̂_k
-    turns). The F test μ̂ᵀ(Σ W_k)μ̂/(d κ̂) against F(d, (N − 1)d) used before is exact
-    only when the misfit is the same in every direction: it found a "bias" in 3.4 % of
-    unbiased (4, 0.25) segments at 1.27 % (N = 100), and in 22.6 % at 5 % where the claimed
-    covariance also turns (N = 50). T² is divided by ``inflation`` first: the variance
-    ratio τ of weakly dependent epochs, by which their sum varies more than independent
-    ones would. A, G and the scores need no other pass over the epochs."""
+    turns). The simpler F test μ̂ᵀ(Σ W_k)μ̂/(d κ̂) against F(d, (N − 1)d) is exact only
+    when the misfit is the same in every direction, and finds a "bias" too often otherwise
+    (docs/measured.md). T² is divided by ``inflation`` first: the variance ratio τ of
+    weakly dependent epochs, by which their sum varies more than independent ones would.
+    A, G and the scores need no other pass over the epochs.
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals (their scores g_k and Σ W_k).
+    inflation : float, default 1.0
+        The divisor of T² (τ of weakly dependent epochs; 1 for independent ones).
+
+    Returns
+    -------
+    MeanTest
+        F with (d, N − d) degrees of freedom, its p-value, ``batches`` 0, and the
+        confidence region's ``spread`` and ``t2_per_f``.
+
+    References
+    ----------
+    H. Hotelling, "The generalization of Student's ratio", Ann. Math. Stat. 2(3), 1931.
+    H. White, "A heteroskedasticity-consistent covariance matrix estimator and a direct
+    test for heteroskedasticity", Econometrica 48(4), 1980.
+    """
     scores = residuals.scores
     n, d = scores.shape
     scores = scores / power_of_two_unit(scores)  # T² is scale-free; exact, and finite
@@ -279,6 +461,21 @@ def batch_mean_test(
     with T² divided by ``inflation`` (:func:`boundary_inflation`) first. With the
     ``residuals`` whose scores were summed, the test carries its confidence region
     (:meth:`MeanTest.bias_bound`).
+
+    Parameters
+    ----------
+    scores : numpy.ndarray, shape (K, d)
+        The batch sums U_j of the GLS scores (or Monte Carlo runs' sums).
+    inflation : float, default 1.0
+        c, the divisor of T² (:func:`boundary_inflation`).
+    residuals : GlsResiduals, optional
+        The residuals whose scores were summed; without them the test carries no
+        confidence region.
+
+    Returns
+    -------
+    MeanTest
+        F with (d, K − d) degrees of freedom, its p-value and ``batches`` K.
 
     Examples
     --------
@@ -324,7 +521,24 @@ def memory_mean_test(
     G = Σ g_k is Hotelling's statistic with ν degrees of freedom,
     (ν − d + 1)T²/(νd) ~ F(d, ν − d + 1), where 1/ν = 1/ν_Ω + 1/ν_γ: the model's own
     estimation error (:class:`credcli.engine.memory.Memory`) and the Satterthwaite degrees
-    of freedom of the variance estimate. ``inverse``: L⁻¹ (d, d) or L_k⁻¹ (N, d, d).
+    of freedom of the variance estimate.
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The segment's GLS residuals.
+    memory : Memory
+        The fitted dependence model.
+    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
+        L⁻¹, or L_k⁻¹ per epoch.
+
+    Returns
+    -------
+    test : MeanTest
+        F with (d, ν − d + 1) degrees of freedom, its p-value and confidence region
+        (``batches`` 0); NaN statistic and p-value when ν − d + 1 < 1.
+    stderr : numpy.ndarray, shape (d,)
+        The standard errors of μ̂'s components under the model.
     """
     u = residuals.whitened
     n, d = u.shape

@@ -12,31 +12,62 @@ from credcli.engine import batches, correlation
 
 
 class SerialDependence(NamedTuple):
-    """What the segment's serial dependence implies for its tests (:func:`serial_dependence`)."""
+    """What the segment's serial dependence implies for its tests (:func:`serial_dependence`).
 
-    dependent: bool  # the scale (and, for paper/ks, the ELT) refer to dependent epochs
-    tau_point: np.ndarray  # the kernel τ̂ per component (the reported effective N); 1s if not
-    tau: np.ndarray  # τ per component for lengths, the neighbour correction, the centring
-    tau_q: float  # τ of the squared errors q, for the scale's batches
-    weak_tau: np.ndarray | None  # τ of weak evidence where no batches fit (the location's)
+    Attributes
+    ----------
+    dependent : bool
+        Whether the scale (and, for paper/ks, the ELT) refer to dependent epochs.
+    tau_point : numpy.ndarray, shape (d,)
+        The kernel τ̂ per component (the reported effective N); ones if not dependent.
+    tau : numpy.ndarray, shape (d,)
+        τ per component for the lengths of batches and sign blocks, the neighbour
+        correction and the centring; ones if not dependent.
+    tau_q : float
+        τ of the squared errors q, for the scale's batches; 1 if not dependent.
+    weak_tau : numpy.ndarray or None
+        τ per component of weak evidence where no batches fit (the location question's);
+        None otherwise.
+    """
+
+    dependent: bool
+    tau_point: np.ndarray
+    tau: np.ndarray
+    tau_q: float
+    weak_tau: np.ndarray | None
 
 
 def serial_dependence(
     s: np.ndarray, q: np.ndarray, r1: np.ndarray | None = None
 ) -> SerialDependence:
-    """Whether the whitened errors ``s`` are serially dependent
-    (:func:`credcli.engine.correlation.serially_dependent`): at ``DEPENDENCE_LEVEL``
-    (1 %), or at ``SCREENING_LEVEL`` (20 %) where the batch-means tests fit in the
-    segment. The tests for independent epochs lose their level on weak dependence that a
-    1 % test misses (9 % wrong labels on 50-epoch AR(1) windows with φ = 0.3), while batch
-    means on independent epochs lose only some power. Where no batches fit, weak evidence
-    keeps the independent-epoch tests rather than leaving the segment untested; its τ is
+    """Whether the whitened errors ``s`` are serially dependent, and their variance ratios.
+
+    Dependent (:func:`credcli.engine.correlation.serially_dependent`) at
+    ``DEPENDENCE_LEVEL`` (1 %), or at ``SCREENING_LEVEL`` (20 %) where the batch-means
+    tests fit in the segment. The tests for independent epochs lose their level on weak
+    dependence that a 1 % test misses (docs/measured.md), while batch means on
+    independent epochs lose only some power. Where no batches fit, weak evidence keeps the
+    independent-epoch tests rather than leaving the segment untested; its τ is
     ``weak_tau``, which the calibrated rule's location question uses
-    (:func:`location_dependence`). If dependent, the kernel τ̂ of each component and, for
-    the lengths of batches and sign blocks, the neighbour correction and the centring of
-    κ̄, the larger of τ̂ and the bias-corrected AR(1) τ; for the squared errors q also at
-    least the τ that the errors' own τ implies for a Gaussian AR(1). On independent epochs
-    all are 1."""
+    (:func:`location_dependence`).
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+    q : numpy.ndarray, shape (N,)
+        Their squared norms (the GLS-centred NEES).
+    r1 : numpy.ndarray, shape (d,), optional
+        The lag-1 autocorrelations of ``s``, if already computed.
+
+    Returns
+    -------
+    SerialDependence
+        If dependent, the kernel τ̂ of each component and, for the lengths of batches and
+        sign blocks, the neighbour correction and the centring of κ̄, the larger of τ̂ and
+        the bias-corrected AR(1) τ; for the squared errors q also at least the τ that the
+        errors' own τ implies for a Gaussian AR(1). On independent epochs all are 1.
+    """
     r1 = correlation.autocorrelation(s) if r1 is None else r1
     n, d = s.shape
     ones = np.ones(d)
@@ -55,19 +86,39 @@ def serial_dependence(
 
 
 def location_dependence(s: np.ndarray, r1: np.ndarray, dep: SerialDependence):
-    """(dependent, τ per component) for the calibrated rule's location question.
+    """Whether the calibrated rule's location question refers to batch means, and its τ.
 
     Under the location's null hypothesis the errors have mean zero, so their dependence is
     screened once more by the lag-1 autocorrelation about zero
     (:func:`credcli.engine.correlation.autocorrelation`), at ``SCREENING_LEVEL``.
     The centred one misses exactly the windows that matter: a slow excursion of weakly
     dependent errors shifts their sample mean and, once that is removed, leaves little
-    lag-1 correlation, so such windows passed the screening and went to the tests for
-    independent epochs, which found a "bias" in them. A window flagged either way goes to
-    batch means where they fit; where they do not, the tests for independent epochs run
-    with its τ: the ELT in blocks, the mean test's T² divided by max_i τ_i. The lengths
-    come from the centred estimate (the bias-corrected AR(1) τ): a real bias inflates the
-    uncentred autocorrelation. Measurements: docs/measured.md."""
+    lag-1 correlation, so such windows would pass the centred screening alone and go to
+    the tests for independent epochs, which find a "bias" in them. A window flagged either
+    way goes to batch means where they fit; where they do not, the tests for independent
+    epochs run with its τ: the ELT in blocks, the mean test's T² divided by max_i τ_i. The
+    lengths come from the centred estimate (the bias-corrected AR(1) τ): a real bias
+    inflates the uncentred autocorrelation. Measurements: docs/measured.md.
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+    r1 : numpy.ndarray, shape (d,)
+        Their (centred) lag-1 autocorrelations.
+    dep : SerialDependence
+        The segment's screening (:func:`serial_dependence`).
+
+    Returns
+    -------
+    dependent : bool
+        Whether the location tests refer to batch means: the segment's screening found
+        dependence, or the screening about zero (or weak evidence) flags it and the mean
+        test's batches fit.
+    tau : numpy.ndarray, shape (d,)
+        τ per component for the location's sign blocks and batches (``dep.tau`` when
+        already dependent, or when nothing is flagged).
+    """
     if dep.dependent:
         return True, dep.tau
     n, d = s.shape
@@ -87,7 +138,25 @@ def location_dependence(s: np.ndarray, r1: np.ndarray, dep: SerialDependence):
 
 
 def batches_fit(n: int, d: int, tau: np.ndarray, tau_q: float) -> bool:
-    """Whether the batch-means scale test and mean test both fit in ``n`` epochs."""
+    """Whether the batch-means scale test and mean test both fit in ``n`` epochs.
+
+    Parameters
+    ----------
+    n : int
+        Epochs in the segment.
+    d : int
+        The state dimension (the mean test needs d + 3 batches).
+    tau : numpy.ndarray, shape (d,)
+        τ per component; the largest sets the mean test's batch length.
+    tau_q : float
+        τ of the squared errors, which sets the scale test's batch length.
+
+    Returns
+    -------
+    bool
+        True when at least ``MIN_SCALE_BATCHES`` scale batches and
+        ``min_location_batches(d)`` mean-test batches fit.
+    """
     scale = batches.batch_count(n, batches.batch_length(tau_q), batches.MIN_SCALE_BATCHES)
     worst = float(np.max(tau))
     mean = batches.batch_count(n, batches.batch_length(worst), batches.min_location_batches(d))

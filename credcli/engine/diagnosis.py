@@ -40,9 +40,22 @@ from credcli.logid import LogId
 
 @dataclass(frozen=True)
 class BlockScale:
-    """The scale factor of one named block of the state (its marginal errors against its
-    block of the claimed covariance), with its interval at the scale level shared among
-    the blocks (Bonferroni); NaN bounds when the block's scale cannot be tested."""
+    """The scale factor of one named block of the state (:func:`block_scales`).
+
+    Its marginal errors against its block of the claimed covariance, with its interval at
+    the scale level shared among the blocks (Bonferroni).
+
+    Attributes
+    ----------
+    name : str
+        The block's name (pose: position, orientation).
+    indices : tuple of int
+        The state components of the block.
+    factor : float
+        κ̂ of the block.
+    low, high : float
+        Its interval; NaN when the block's scale cannot be tested.
+    """
 
     name: str
     indices: tuple[int, ...]
@@ -184,7 +197,28 @@ class Diagnosis:
 
 
 def segment_seed(seed: int | None, name: str) -> np.random.SeedSequence:
-    """Per-segment random stream: a function of the seed and the segment's name only."""
+    """Per-segment random stream: a function of the seed and the segment's name only.
+
+    Parameters
+    ----------
+    seed : int or None
+        The run's seed (None: fresh entropy).
+    name : str
+        The segment's name (its CRC-32 is the spawn key).
+
+    Returns
+    -------
+    numpy.random.SeedSequence
+        The segment's seed sequence, the same for the same seed and name.
+
+    Examples
+    --------
+    >>> a = np.random.default_rng(segment_seed(0, "cruise")).integers(1 << 30)
+    >>> b = np.random.default_rng(segment_seed(0, "cruise")).integers(1 << 30)
+    >>> c = np.random.default_rng(segment_seed(0, "turn")).integers(1 << 30)
+    >>> bool(a == b), bool(a == c)
+    (True, False)
+    """
     return np.random.SeedSequence(entropy=seed, spawn_key=(zlib.crc32(name.encode()),))
 
 
@@ -197,10 +231,38 @@ def diagnose_errors(
     runs: int = 1,
     memory: Memory | None = None,
 ) -> Diagnosis:
-    """One segment of errors e_k = x_k − x̂_k (N, d) with claimed covariances (N, d, d),
-    by ``config``'s rule (the calibrated variant by default). ``runs``: the segment pools
-    that many independent Monte Carlo runs of N/runs epochs, one after the other; the ELT
-    flips each run's errors in their own blocks.
+    """Diagnose one segment of errors with their claimed covariances, by ``config``'s rule.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k = x_k − x̂_k ((N,) is d = 1).
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances, one per epoch.
+    config : DiagnosisConfig, optional
+        The settings; default the calibrated variant's defaults.
+    rng : int, numpy.random.Generator, numpy.random.SeedSequence or None
+        Source of the ELT's sign flips.
+    mse : numpy.ndarray, shape (d, d), optional
+        The MSE matrix of the NCI, Eq. (4); default estimated from the errors.
+    runs : int, default 1
+        The segment pools that many independent Monte Carlo runs of N/runs epochs, one
+        after the other; the ELT flips each run's errors in their own blocks.
+    memory : Memory, optional
+        The dependence model of the run the segment is a window of (:func:`run_model`);
+        default fitted on the segment where the rule reads one.
+
+    Returns
+    -------
+    Diagnosis
+        The label and every number behind it; insufficient-data for a segment too short
+        (``config.min_n(d)``) or whose errors span fewer than d dimensions.
+
+    Raises
+    ------
+    CredcliError
+        For invalid arrays (shapes, non-finite values, a covariance that is not positive
+        definite), a singular given ``mse``, or a NEES that overflows.
 
     Examples
     --------
@@ -356,8 +418,23 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
 
 
 def episode_findings(ev: evidence.Evidence, verdict, config: DiagnosisConfig) -> tuple[str, ...]:
-    """What the NEES does in time (:mod:`credcli.engine.episodes`): a divergence, the
-    scale decided by the median bound, and the largest bursts."""
+    """What the NEES does in time (:mod:`credcli.engine.episodes`).
+
+    Parameters
+    ----------
+    ev : Evidence
+        The segment's statistics (divergence, bursts, median NEES).
+    verdict : Verdict
+        The rule's verdict (whether the scale was decided by the median bound).
+    config : DiagnosisConfig
+        The configuration (α_S for the median bound).
+
+    Returns
+    -------
+    tuple of str
+        A divergence, the scale decided by the median bound, and the largest bursts (at
+        most ``episodes.MAX_BURSTS``, then how many more), each as a sentence.
+    """
     out = []
     if ev.divergence is not None:
         out.append(ev.divergence.describe())
@@ -377,10 +454,34 @@ def episode_findings(ev: evidence.Evidence, verdict, config: DiagnosisConfig) ->
 def too_short_batch(
     errors: np.ndarray, cov: np.ndarray, lengths: np.ndarray, config: DiagnosisConfig
 ) -> list[Diagnosis]:
-    """The diagnoses of consecutive segments too short for a verdict (``lengths`` epochs
-    each, all below ``config.min_n(d)``), checked and measured together: insufficient-data
-    with the reason, and their accuracy (:func:`credcli.engine.metrics.grouped_accuracy`).
-    A log of 10⁶ one-epoch segments is a few numpy calls, not 10⁶ diagnoses."""
+    """The diagnoses of consecutive segments too short for a verdict, checked and measured
+    together.
+
+    A log of 10⁶ one-epoch segments is a few numpy calls, not 10⁶ diagnoses.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors of the segments, one after the other (N = Σ ``lengths``).
+    cov : numpy.ndarray, shape (N, d, d)
+        Their claimed covariances (validated and factored, so that an invalid one is
+        still an error).
+    lengths : numpy.ndarray of int
+        Epochs of each segment, all below ``config.min_n(d)``.
+    config : DiagnosisConfig
+        The configuration (its ``min_n`` is the reason's figure).
+
+    Returns
+    -------
+    list of Diagnosis
+        One per segment: insufficient-data with the reason, and its accuracy
+        (:func:`credcli.engine.metrics.grouped_accuracy`).
+
+    Raises
+    ------
+    CredcliError
+        For invalid arrays, or a covariance that is not positive definite.
+    """
     errors, cov = metrics.check_errors_cov(errors, cov)
     _cholesky(cov)
     d = errors.shape[1]
@@ -453,7 +554,29 @@ def diagnose_segments(
     name), so a segment's result does not depend on the other segments. Windows of one
     run (``segment.window``) are judged against the run's dependence model
     (:func:`run_model`), whose findings go to the run's own segment.
-    ``progress``, if given, is called as ``progress(done, total)`` after each segment.
+
+    Parameters
+    ----------
+    log : EstimatorLog
+        The log (its errors, covariances, truth and time, id and state blocks).
+    segments : list of Segment
+        The segments to diagnose, in output order.
+    config : DiagnosisConfig, optional
+        The settings; default the calibrated variant's defaults.
+    seed : int or None, default 0
+        The seed of every segment's sign flips (:func:`segment_seed`).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each segment.
+
+    Returns
+    -------
+    list of SegmentDiagnosis
+        One per segment, in the order of ``segments``.
+
+    Raises
+    ------
+    CredcliError
+        For an invalid segment, naming the log and the segment (:func:`diagnose_segment`).
     """
     config = config or DiagnosisConfig()
     errors = log.errors
@@ -485,9 +608,23 @@ def diagnose_segments(
 def innovation_whiteness(
     errors: np.ndarray, cov: np.ndarray, level: float | None = None
 ) -> Whiteness | None:
-    """The portmanteau test of innovations whitened by their claimed covariance at ``level``
-    (:func:`credcli.engine.whiteness.innovation_levels`), or None for a segment too short
-    for one lag."""
+    """The portmanteau test of innovations whitened by their claimed covariance.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The innovations.
+    cov : numpy.ndarray, shape (N, d, d)
+        Their claimed covariances.
+    level : float, optional
+        The test's share of α (:func:`credcli.engine.whiteness.innovation_levels`);
+        None leaves the result's level NaN.
+
+    Returns
+    -------
+    Whiteness or None
+        The test, or None for a segment too short for one lag (N < d + 5).
+    """
     if errors.shape[0] < 5 + errors.shape[1]:
         return None
     white = portmanteau(whiten(errors, cov))
@@ -495,14 +632,33 @@ def innovation_whiteness(
 
 
 def innovation_config(config: DiagnosisConfig) -> tuple[DiagnosisConfig, float]:
-    """(the configuration of innovations' two questions, the whiteness test's level).
+    """The configuration of innovations' two questions, and the whiteness test's level.
 
     Under a right filter the innovations are white (Mehra 1970, IEEE TAC 15(2)): their
     null is independent epochs, so the questions are tested with single-epoch signs and
     the exact χ² and Hotelling references (``block_length`` 1), and correlation in time is
     a finding of its own, the portmanteau test, inside the α split
     (:func:`credcli.engine.whiteness.innovation_levels`), not a reason to decline. The
-    paper and ks variants keep their own level and take the whiteness test at α."""
+    paper and ks variants keep their own level and take the whiteness test at α.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The configuration for estimation errors.
+
+    Returns
+    -------
+    config : DiagnosisConfig
+        For the calibrated rule, ``block_length`` 1 and α the two questions' Šidák share;
+        else ``config`` unchanged.
+    level : float
+        The whiteness test's level: its Šidák share of α (calibrated), else α.
+
+    References
+    ----------
+    R. K. Mehra, "On the identification of variances and adaptive Kalman filtering",
+    IEEE Trans. Autom. Control 15(2), 1970.
+    """
     if not config.calibrated:
         return config, config.alpha
     pair, each = innovation_levels(config.alpha)
@@ -511,8 +667,16 @@ def innovation_config(config: DiagnosisConfig) -> tuple[DiagnosisConfig, float]:
 
 @dataclass(frozen=True)
 class RunModel:
-    """What a run tells its windows (:func:`run_model`): the dependence model of the errors
-    within a window, fitted once on all windows, and the run's findings."""
+    """What a run tells its windows (:func:`run_model`).
+
+    Attributes
+    ----------
+    memory : Memory or None
+        The dependence model of the errors within a window, fitted once on all windows
+        (None: no model, the windows are diagnosed as segments).
+    findings : tuple of str, default ()
+        The run's findings (a slowly varying error between windows).
+    """
 
     memory: Memory | None
     findings: tuple[str, ...] = ()
@@ -552,7 +716,31 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
     :math:`\sum_w \sum_i n_w (\bar y_{wi} - \bar y_i)^2 / v_i(n_w) \sim \chi^2_{d(W-1)}`
     (adjacent windows' means taken as independent). A rejection is the finding of a slowly
     varying error (or conditions that change between windows): each window's verdict then
-    describes the errors about that window's mean, and the run's own verdict the total."""
+    describes the errors about that window's mean, and the run's own verdict the total.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The whole run's errors.
+    cov : numpy.ndarray, shape (N, d, d)
+        Their claimed covariances.
+    windows : list of numpy.ndarray
+        The epochs (indices into the run) of each window.
+    config : DiagnosisConfig
+        The configuration; only a rule that reads the dependence model
+        (:func:`credcli.engine.evidence.reads_memory`) gets one.
+
+    Returns
+    -------
+    RunModel
+        The model and the homogeneity finding (at :data:`HOMOGENEITY_LEVEL`); no model
+        when the rule reads none or fewer than two windows are long enough.
+
+    Raises
+    ------
+    CredcliError
+        For invalid arrays, or a covariance that is not positive definite.
+    """
     if not evidence.reads_memory(config, 1) or len(windows) < 2:
         return RunModel(None)
     errors, cov = metrics.check_errors_cov(errors, cov)
@@ -609,17 +797,54 @@ def diagnose_segment(
     velocity: np.ndarray | None = None,
     fitted_mean: str | None = None,
 ) -> Diagnosis:
-    """One named segment of a log, its sign flips from :func:`segment_seed`; an error names
-    the log and the segment. ``runs``: see :func:`diagnose_errors`; ``blocks``: named
-    blocks of the state (:data:`credcli.engine.lie.STATE_BLOCKS`) whose scale factors the
-    calibrated rule reports beside the overall one (:func:`block_scales`); ``memory``: the
-    dependence model of the run the segment is a window of (:func:`run_model`);
-    ``findings``: the run's, for the run's own segment; ``declined``: why a window of a
-    run gets no label of its own (:attr:`RunModel.window_reason`); ``velocity``: the
-    truth's (:func:`credcli.engine.timing.truth_velocity`), to look for a time offset
-    that explains a misfit (:func:`credcli.engine.timing.time_offset`), named first;
-    ``fitted_mean``: why the errors' mean is no evidence (an alignment fitted it), which
-    leaves the location question open (:func:`without_location`)."""
+    """Diagnose one named segment of a log, its sign flips from :func:`segment_seed`.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The segment's errors.
+    cov : numpy.ndarray, shape (N, d, d)
+        Their claimed covariances.
+    config : DiagnosisConfig
+        The settings.
+    seed : int or None
+        The seed of the sign flips, with ``name``.
+    name : str
+        The segment's name.
+    source : LogId or str, default "<memory>"
+        The log, for error messages.
+    runs : int, default 1
+        See :func:`diagnose_errors`.
+    blocks : tuple, default ()
+        Named blocks of the state, ``(name, indices)`` pairs
+        (:data:`credcli.engine.lie.STATE_BLOCKS`), whose scale factors the calibrated rule
+        reports beside the overall one (:func:`block_scales`).
+    memory : Memory, optional
+        The dependence model of the run the segment is a window of (:func:`run_model`).
+    findings : tuple of str, default ()
+        The run's findings, for the run's own segment.
+    declined : str, optional
+        Why a window of a run gets no label of its own (:attr:`RunModel.window_reason`):
+        the numbers stay, the label is insufficient-data.
+    velocity : numpy.ndarray, shape (N, d), optional
+        The truth's velocity (:func:`credcli.engine.timing.truth_velocity`), to look for a
+        time offset that explains a misfit (:func:`credcli.engine.timing.time_offset`),
+        named first among the findings.
+    fitted_mean : str, optional
+        Why the errors' mean is no evidence (an alignment fitted it), which leaves the
+        location question open (:func:`without_location`).
+
+    Returns
+    -------
+    Diagnosis
+        The segment's diagnosis.
+
+    Raises
+    ------
+    CredcliError
+        For invalid arrays or settings, the message prefixed with the log and the
+        segment's name.
+    """
     try:
         errors, cov = metrics.check_errors_cov(errors, cov)
         n, d = errors.shape
@@ -650,10 +875,25 @@ def diagnose_segment(
 
 
 def without_location(diag: Diagnosis, reason: str) -> Diagnosis:
-    """``diag`` with its location question left open, ``reason`` saying why (the errors'
-    mean was fitted away before they reached the test, so "no bias" would be a claim the
-    data cannot make). The noise condition stays; with the scale question open too, the
-    segment is insufficient-data."""
+    """``diag`` with its location question left open, ``reason`` saying why.
+
+    For errors whose mean was fitted away before they reached the test, so that "no bias"
+    would be a claim the data cannot make.
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        The diagnosis.
+    reason : str
+        Why the location question is open (appended to ``diag.reason``).
+
+    Returns
+    -------
+    Diagnosis
+        ``diag`` unchanged when it is insufficient-data or its location is already open;
+        else its noise condition alone (or insufficient-data, with the scale question open
+        too), the location untested and ``smm_detected`` None.
+    """
     if diag.label is Label.INSUFFICIENT or Question.LOCATION in diag.untested:
         return diag
     noise = next(iter(diag.label.conditions - frozenset(LOCATION_CONDITIONS)), None)
@@ -664,8 +904,19 @@ def without_location(diag: Diagnosis, reason: str) -> Diagnosis:
 
 
 def memory_ratio(diag: Diagnosis) -> float:
-    """τ, the largest variance ratio of a diagnosis's errors: its memory model's, or N
-    over the lag-1 route's effective N."""
+    """τ, the largest variance ratio of a diagnosis's errors.
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        The diagnosis.
+
+    Returns
+    -------
+    float
+        Its memory model's largest τ, or N over the lag-1 route's effective N; 1 when it
+        has neither.
+    """
     if diag.memory is not None:
         return float(np.max(diag.memory.variance_ratios))
     if diag.effective_n:
@@ -685,6 +936,24 @@ def block_scales(
     so each block is a credibility question of its own (paper, Section II, for any d): a
     pose filter can be right about its position and optimistic about its attitude, which
     one factor for the 6×6 covariance averages away.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The segment's errors.
+    cov : numpy.ndarray, shape (N, d, d)
+        Their claimed covariances.
+    blocks : tuple
+        ``(name, indices)`` pairs, one per named block of the state.
+    config : DiagnosisConfig
+        The configuration (calibrated).
+    runs : int, default 1
+        Equal Monte Carlo runs pooled in the segment.
+
+    Returns
+    -------
+    tuple of BlockScale
+        One per block, in the order of ``blocks``.
 
     Examples
     --------

@@ -38,10 +38,63 @@ from credcli.errors import CredcliError
 class Evidence:
     """The statistics of one segment under one configuration (see :func:`gather`).
 
-    ``scale_reason`` says why the scale test cannot answer (None: it can); ``directions``
-    are the per-direction scale factors (calibrated, d > 1, where the overall test ran);
-    the location is answered by ``mean_test`` at ``mean_level`` and/or the ELT at
-    ``elt_level`` (None: not run), ``location_reason`` says why one is missing.
+    The location question is answered by ``mean_test`` at ``mean_level`` and/or the ELT at
+    ``elt_level`` (None: not run); ``location_reason`` says why one is missing.
+
+    Attributes
+    ----------
+    n, dim : int
+        Epochs N and state dimension d of the segment.
+    nci : float
+        The NCI, Eq. (4), of the errors (with the given MSE matrix, or the segment's).
+    nci_centered : float
+        The NCI of the errors less their mean, with their own MSE matrix (Section III-C).
+    anees : float
+        Mean NEES over d.
+    ks_pvalue : float
+        Two-sided Kolmogorov–Smirnov p-value of the NEES values against χ²_d
+        (:func:`ks_chi2_pvalue`).
+    nees_total : float
+        Σ_k ε_k, the sum of the NEES values, Eq. (1).
+    scale : ScaleTest
+        The scale test (untested ones carry κ̂ and NaN intervals).
+    scale_reason : str or None
+        Why the scale test cannot answer (None: it can).
+    directions : DirectionScales or None
+        The per-direction scale factors (calibrated, d > 1, where the overall test ran).
+    block_length : int
+        Epochs per ELT sign block.
+    effective_n : float
+        N over the largest variance ratio τ of the whitened errors.
+    autocorrelation : float
+        The largest lag-1 autocorrelation of the whitened error components.
+    mean_test : MeanTest or None
+        The GLS mean test (calibrated rule), None when it did not run.
+    mean_level : float
+        The mean test's level (0.0 when it did not run).
+    elt : ELTResult or None
+        The empirical location test, None when it did not run.
+    elt_level : float or None
+        The ELT's level (None: not run).
+    location_reason : str or None
+        Why a location test is missing (None: both ran, or the rule needs only one).
+    probes : Probes or None, default None
+        Scores of the centred predictive with the SRDs, Eqs. (18)-(19): where the paper's
+        rule needs them, or every metric is asked for.
+    scores : Probes or None, default None
+        Scores of the claimed predictive (every metric asked for).
+    memory : Memory or None, default None
+        The dependence model, for a configuration whose tests read it.
+    memory_source : str or None, default None
+        Where the model was fitted: ``"segment"`` or ``"run"``.
+    time_scales : TimeScales or None, default None
+        The variance at every averaging time, for a model fitted on this segment.
+    q_median : float or None, default None
+        The median GLS-centred NEES (the dependence-free bound's statistic).
+    bursts : tuple of Burst, default ()
+        Where the NEES leaves its band (Page's CUSUM).
+    divergence : Divergence or None, default None
+        Errors growing beyond any plausible tuning (calibrated rule).
     """
 
     n: int
@@ -65,11 +118,11 @@ class Evidence:
     probes: metrics.Probes | None = None
     scores: metrics.Probes | None = None
     memory: Memory | None = None
-    memory_source: str | None = None  # "segment" or "run": where the model was fitted
-    time_scales: TimeScales | None = None  # the variance at every averaging time
-    q_median: float | None = None  # median GLS-centred NEES (the dependence-free bound)
-    bursts: tuple[Burst, ...] = ()  # where the NEES leaves its band (Page's CUSUM)
-    divergence: Divergence | None = None  # errors growing beyond any plausible tuning
+    memory_source: str | None = None
+    time_scales: TimeScales | None = None
+    q_median: float | None = None
+    bursts: tuple[Burst, ...] = ()
+    divergence: Divergence | None = None
 
     @property
     def mean_rejected(self) -> bool:
@@ -99,23 +152,59 @@ class Evidence:
 
 
 def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Evidence]:
-    """The evidence of one segment of errors (N, d) with covariances (N, d, d) and their
-    Cholesky factors, for each configuration in ``configs`` (all with n >= min_n).
+    """The evidence of one segment for each configuration in ``configs``.
 
     The calibrated rule with estimated dependence (``block_length`` auto, one run) reads
     the segment's memory from a fitted AR sieve (:func:`credcli.engine.memory.fit_memory`),
     or from ``memory``, the model of the whole run the segment is a window of
     (:func:`memory_evidence`). ``paper``, ``ks``, fixed block lengths and pooled Monte Carlo
     ``runs`` keep the lag-1 screening and batch means (:mod:`credcli.engine.dependence`).
+    Evidence shared between configurations (scale tests, mean tests, ELTs with the same
+    blocks) is computed once.
 
-    Whole-length intermediates are freed as soon as they are used (a 2,000,000-epoch
-    segment peaks ~250 MiB lower); the probes need ``centred`` and ``chol`` to the end."""
+    Whole-length intermediates are freed as soon as they are used, to keep the peak memory
+    of long segments down; the probes need ``centred`` and ``chol`` to the end.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k = x_k − x̂_k (validated).
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances.
+    chol : numpy.ndarray, shape (N, d, d)
+        Their Cholesky factors L_k.
+    configs : list of DiagnosisConfig
+        The configurations, all with N >= ``min_n(d)``.
+    gen : numpy.random.Generator
+        Source of the ELT's sign flips (drawn in the order of ``configs``).
+    mse : numpy.ndarray, shape (d, d), or None
+        The MSE matrix of the NCI, Eq. (4); None: estimated from the errors.
+    runs : int, default 1
+        Equal independent Monte Carlo runs pooled one after the other in the segment.
+    memory : Memory, optional
+        The dependence model of the run this segment is a window of; None: fitted on the
+        segment where a configuration reads it.
+
+    Returns
+    -------
+    list of Evidence
+        One per configuration, in the order of ``configs``.
+
+    Raises
+    ------
+    CredcliError
+        When a NEES is not finite (an error whose square overflows), or a given ``mse``
+        is singular.
+    Undecidable
+        When the MSE matrix estimated from the segment is singular (the errors span fewer
+        than d dimensions).
+    """
     n, d = errors.shape
     probes_possible = any(not c.calibrated or c.metrics is MetricsLevel.ALL for c in configs)
     with np.errstate(over="ignore", invalid="ignore"):
         eps = metrics.nees_factored(errors, chol)
     if not np.all(np.isfinite(eps)):
-        raise CredcliError(overflow_message(errors, chol, eps))
+        raise CredcliError(_overflow_message(errors, chol, eps))
     given = mse is not None
     mse = np.asarray(mse, dtype=float) if given else metrics.mse_matrix(errors)
     nci_raw = metrics.nci_factored(errors, chol, mse_cholesky(mse, given), eps)
@@ -172,7 +261,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     for config in configs:
         if config in model_evidence:
             continue
-        key = scale_key(config, refers_to_batches(config, dependent))
+        key = _scale_key(config, refers_to_batches(config, dependent))
         if key not in scales:
             batched = refers_to_batches(config, dependent)
             scales[key] = scale_evidence(gls, config, tau, tau_q, batched, runs=runs)
@@ -204,7 +293,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             directions = modelled_config.directions
             segment_n = float(n / max(1.0, float(np.max(memory.variance_ratios))))
         else:
-            key = scale_key(config, refers_to_batches(config, dependent))
+            key = _scale_key(config, refers_to_batches(config, dependent))
             scale, scale_reason = scales[key]
             calibrated = config.calibrated and scale_reason is None
             directions = directional.get(key) if calibrated else None
@@ -271,19 +360,32 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
 
 
 def refers_to_batches(config: DiagnosisConfig, dependent: bool) -> bool:
-    """Whether the calibrated rule refers this segment's tests to batch means: serially
-    dependent epochs (estimated, or declared by a fixed block length above 1; a fixed 1
-    declares them independent)."""
+    """Whether the calibrated rule refers this segment's tests to batch means.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The configuration.
+    dependent : bool
+        Whether the screening found the epochs serially dependent.
+
+    Returns
+    -------
+    bool
+        True for the calibrated rule on serially dependent epochs: estimated
+        (``dependent``), or declared by a fixed block length above 1 (a fixed 1 declares
+        them independent). False for ``paper`` and ``ks``.
+    """
     fixed = config.fixed_block_length
     return config.calibrated and (fixed > 1 if fixed is not None else dependent)
 
 
-def scale_key(config: DiagnosisConfig, batched: bool) -> tuple:
+def _scale_key(config: DiagnosisConfig, batched: bool) -> tuple:
     """Configurations with equal keys share one scale test."""
     return (config.block_length == 1, config.scale_level, batched and config.fixed_block_length)
 
 
-def batch_length_for(config: DiagnosisConfig, tau: float) -> int:
+def _batch_length_for(config: DiagnosisConfig, tau: float) -> int:
     """Batches are at least the fixed sign-block length, else estimated from ``tau``."""
     return config.fixed_block_length or batches.batch_length(tau)
 
@@ -291,15 +393,43 @@ def batch_length_for(config: DiagnosisConfig, tau: float) -> int:
 def scale_evidence(
     gls, config: DiagnosisConfig, tau, tau_q: float, batched: bool, level=None, runs: int = 1
 ):
-    """(scale test or None, why it is untested): batch means on dependent epochs, else the
-    χ² (Satterthwaite-scaled) test of :func:`credcli.engine.scale.scale_test`; at
-    ``level`` (default: the configuration's α_S). ``runs``: see :func:`batch_plan`."""
+    """The scale test of the lag-1 route, and why it is untested.
+
+    Batch means on dependent epochs (:func:`credcli.engine.scale.batch_scale_test`, the
+    runs as batches where :func:`batch_plan` allows), else the χ² (Satterthwaite-scaled)
+    test of :func:`credcli.engine.scale.scale_test`.
+
+    Parameters
+    ----------
+    gls : GlsResiduals
+        The segment's GLS residuals (:func:`credcli.engine.scale.gls_residuals`).
+    config : DiagnosisConfig
+        The configuration (its fixed block length, if any, is the least batch length).
+    tau : numpy.ndarray, shape (d,)
+        The variance ratio τ per component (Satterthwaite scaling, centring of κ̄).
+    tau_q : float
+        The variance ratio of the squared errors q, which sets the batch length.
+    batched : bool
+        Whether the test refers to batch means (:func:`refers_to_batches`).
+    level : float, optional
+        The test's level; default the configuration's α_S.
+    runs : int, default 1
+        Equal Monte Carlo runs pooled in the segment (:func:`batch_plan`).
+
+    Returns
+    -------
+    scale : ScaleTest
+        The test; where too few batches fit, κ̂ and the bias with a NaN interval and
+        p-values (:func:`credcli.engine.scale.untested_scale`).
+    reason : str or None
+        Why the scale is untested (None: it is tested).
+    """
     level = config.scale_level if level is None else level
     if not batched:
         fixed = config.block_length == 1
         return scale_test(gls, level, None if fixed else tau), None
     n = gls.whitened.shape[0]
-    length = batch_length_for(config, tau_q)
+    length = _batch_length_for(config, tau_q)
     k, aligned = batch_plan(n, length, batches.MIN_SCALE_BATCHES, runs)
     if aligned:
         return batch_scale_test(gls, level, k, taus=tau, independent=True), None
@@ -313,15 +443,40 @@ def scale_evidence(
 
 
 def mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool, runs: int = 1):
-    """(the GLS mean test or None, why it is untested): Hotelling on batch score sums on
-    dependent epochs, else Hotelling's test of independent epochs. ``runs``: see
-    :func:`batch_plan`."""
+    """The GLS mean test of the lag-1 route, and why it is untested.
+
+    Hotelling on batch score sums on dependent epochs
+    (:func:`credcli.engine.batches.batch_mean_test`, with the neighbouring-batch
+    correction unless the runs are the batches), else Hotelling's test of independent
+    epochs (:func:`credcli.engine.batches.independent_mean_test`) with T² divided by
+    max_i τ_i.
+
+    Parameters
+    ----------
+    gls : GlsResiduals
+        The segment's GLS residuals.
+    config : DiagnosisConfig
+        The configuration (its fixed block length, if any, is the least batch length).
+    tau : numpy.ndarray, shape (d,)
+        The variance ratio τ per component; the largest sets the batch length.
+    batched : bool
+        Whether the test refers to batch means.
+    runs : int, default 1
+        Equal Monte Carlo runs pooled in the segment (:func:`batch_plan`).
+
+    Returns
+    -------
+    mean_test : MeanTest or None
+        The test, None when fewer batches than it needs fit.
+    reason : str or None
+        Why it is untested (None: it ran).
+    """
     n, d = gls.whitened.shape
     if not batched:
         return batches.independent_mean_test(gls, float(np.max(tau))), None
     worst = float(np.max(tau))
     smallest = batches.min_location_batches(d)
-    length = batch_length_for(config, worst)
+    length = _batch_length_for(config, worst)
     k, aligned = batch_plan(n, length, smallest, runs)
     if not k:
         return None, (
@@ -334,13 +489,34 @@ def mean_evidence(gls, config: DiagnosisConfig, tau, batched: bool, runs: int = 
 
 
 def batch_plan(n: int, length: int, smallest: int, runs: int) -> tuple[int, bool]:
-    """(K, whether the batches are the runs). A segment that pools ``runs`` independent
-    Monte Carlo runs of equal length has batches that are independent by construction:
-    the runs themselves. They are used when there are at least as many runs as batches of
-    ``length`` epochs would fit (and at least ``smallest``); then no estimate of the
-    correlation time decides the reference, and no correction for neighbouring batches is
-    needed. Otherwise K batches of at least ``length`` epochs, or 0 when fewer than
-    ``smallest`` fit (:func:`credcli.engine.batches.batch_count`)."""
+    """The number of batches K, and whether the batches are the runs.
+
+    A segment that pools ``runs`` independent Monte Carlo runs of equal length has batches
+    that are independent by construction: the runs themselves. They are used when there
+    are at least as many runs as batches of ``length`` epochs would fit (and at least
+    ``smallest``); then no estimate of the correlation time decides the reference, and no
+    correction for neighbouring batches is needed.
+
+    Parameters
+    ----------
+    n : int
+        Epochs in the segment.
+    length : int
+        The shortest batch, in epochs.
+    smallest : int
+        The fewest batches the test needs.
+    runs : int
+        Equal runs pooled in the segment (1: a single run).
+
+    Returns
+    -------
+    k : int
+        ``runs`` when the runs are the batches; otherwise K batches of at least
+        ``length`` epochs (at most ``MAX_BATCHES``), or 0 when fewer than ``smallest`` fit
+        (:func:`credcli.engine.batches.batch_count`).
+    aligned : bool
+        Whether the batches are the runs.
+    """
     k = batches.batch_count(n, length, smallest)
     if runs > 1 and n % runs == 0 and runs >= max(k, smallest):
         return runs, True
@@ -349,8 +525,21 @@ def batch_plan(n: int, length: int, smallest: int, runs: int) -> tuple[int, bool
 
 @dataclass(frozen=True)
 class LocationPlan:
-    """How one configuration answers the location question on this segment: the mean test
-    at ``mean_level`` and/or the ELT at ``elt_level`` (None: not run), and why not."""
+    """How one configuration answers the location question on this segment.
+
+    Attributes
+    ----------
+    block : int
+        Epochs per ELT sign block.
+    mean_test : MeanTest or None
+        The GLS mean test, None when it does not run.
+    mean_level : float
+        Its level (0.0 when it does not run).
+    elt_level : float or None
+        The ELT's level (None: the ELT does not run).
+    reason : str or None
+        Why a location test does not run (None: the plan is complete).
+    """
 
     block: int
     mean_test: batches.MeanTest | None
@@ -360,8 +549,35 @@ class LocationPlan:
 
 
 def location_plan(config: DiagnosisConfig, n, tau, means, dependent, runs) -> LocationPlan:
-    """The location plan of the lag-1 route: sign blocks from the AR(1) plug-in τ, the mean
-    test from ``means`` (:func:`split_location`); ``paper`` and ``ks`` run the ELT alone."""
+    """The location plan of the lag-1 route.
+
+    Sign blocks of the fixed block length, else from the AR(1) plug-in τ
+    (:func:`credcli.engine.correlation.block_length`); the calibrated rule splits α_L
+    between the mean test from ``means`` and the ELT (:func:`split_location`); ``paper``
+    and ``ks`` run the ELT alone, at α_L.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The configuration.
+    n : int
+        Epochs in the segment.
+    tau : numpy.ndarray, shape (d,)
+        The variance ratio τ per component, for the sign-block length.
+    means : dict
+        The mean tests already run, ``(batched, fixed block length) -> (MeanTest or None,
+        reason)`` (:func:`mean_evidence`).
+    dependent : bool
+        Whether the epochs were found serially dependent (which mean test applies).
+    runs : int
+        Equal runs pooled in the segment (the ELT flips each run's errors in its own
+        blocks).
+
+    Returns
+    -------
+    LocationPlan
+        The sign-block length, the tests that run, their levels, and why one does not.
+    """
     block = config.fixed_block_length or correlation.block_length(tau)
     cause = (
         f"serial dependence (variance ratio {float(np.max(tau)):.3g}) needs sign blocks of "
@@ -394,8 +610,34 @@ def _elt_fits(config: DiagnosisConfig, n: int, block: int, runs: int, cause: str
 def split_location(
     config: DiagnosisConfig, n: int, block: int, runs: int, mean_test, why_not_mean, cause: str
 ) -> LocationPlan:
-    """The calibrated rule runs the GLS mean test at α_L·MEAN_SHARE and the ELT at the
-    rest; a test that cannot run leaves the whole α_L to the other."""
+    """The calibrated rule's split of the location level between the mean test and the ELT.
+
+    The GLS mean test runs at α_L·MEAN_SHARE and the ELT at the rest; a test that cannot
+    run leaves the whole α_L to the other.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The configuration (its levels, ELT budget and fewest sign blocks).
+    n : int
+        Epochs in the segment.
+    block : int
+        Epochs per sign block.
+    runs : int
+        Equal runs pooled in the segment.
+    mean_test : MeanTest or None
+        The GLS mean test, None when it cannot run.
+    why_not_mean : str or None
+        Why the mean test cannot run.
+    cause : str
+        What asks for blocks of ``block`` epochs, for the reason when too few fit (the
+        start of a sentence ending "which").
+
+    Returns
+    -------
+    LocationPlan
+        The sign-block length, the tests that run at their levels, and why one does not.
+    """
     elt_ok, why_not_elt = _elt_fits(config, n, block, runs, cause)
     if mean_test is not None and elt_ok:
         return LocationPlan(block, mean_test, config.mean_level, config.elt_level, None)
@@ -409,8 +651,16 @@ def split_location(
 
 
 class Undecidable(Exception):
-    """A segment whose data cannot carry the tests at all (its ``reason``): the segment is
-    `insufficient-data`, and the other segments of the log are diagnosed as usual."""
+    """A segment whose data cannot carry the tests at all.
+
+    The segment is `insufficient-data` with the exception's ``reason``, and the other
+    segments of the log are diagnosed as usual.
+
+    Parameters
+    ----------
+    reason : str
+        Why the segment cannot be tested (kept as ``reason``).
+    """
 
     def __init__(self, reason: str) -> None:
         super().__init__(reason)
@@ -424,9 +674,27 @@ DEGENERATE = (
 
 
 def mse_cholesky(mse: np.ndarray, given: bool = False) -> np.ndarray:
-    """The Cholesky factor of the NCI's MSE matrix. A singular MSE estimated from the
-    segment makes the segment :class:`Undecidable`; a singular one the caller gave is an
-    error in the input."""
+    """The Cholesky factor of the NCI's MSE matrix.
+
+    Parameters
+    ----------
+    mse : numpy.ndarray, shape (d, d)
+        The MSE matrix of Eq. (4).
+    given : bool, default False
+        Whether the caller gave it (else it was estimated from the segment).
+
+    Returns
+    -------
+    numpy.ndarray, shape (d, d)
+        Its lower Cholesky factor.
+
+    Raises
+    ------
+    CredcliError
+        When a given ``mse`` is singular (an error in the input, naming ``mse``).
+    Undecidable
+        When an estimated one is singular: the segment is insufficient-data.
+    """
     try:
         return np.linalg.cholesky(mse)
     except np.linalg.LinAlgError as exc:
@@ -438,7 +706,7 @@ def mse_cholesky(mse: np.ndarray, given: bool = False) -> np.ndarray:
         raise Undecidable(DEGENERATE) from exc
 
 
-def overflow_message(errors: np.ndarray, chol: np.ndarray, eps: np.ndarray) -> str:
+def _overflow_message(errors: np.ndarray, chol: np.ndarray, eps: np.ndarray) -> str:
     """Why a NEES is not finite: an error so many claimed standard deviations away that its
     square overflows float64 (the whitened error itself is finite, or it is reported so)."""
     k = int(np.flatnonzero(~np.isfinite(eps))[0])
@@ -455,10 +723,29 @@ def overflow_message(errors: np.ndarray, chol: np.ndarray, eps: np.ndarray) -> s
 def ks_chi2_pvalue(eps: np.ndarray, dim: int) -> float:
     """Two-sided Kolmogorov–Smirnov p-value of NEES values against χ²_d.
 
-    p = min(1, 2·S_n(D)), with S_n the exact one-sided Smirnov tail. Against
-    ``scipy.stats.kstest(method="exact")`` over 3000 samples (n = 20–300) the largest
-    difference was 1.5e-8 where p < 0.02, 7e-7 where p < 0.05 and 2e-4 where p < 0.2, so the
-    decision at the 1% level is the exact test's; it avoids importing scipy.stats.
+    p = min(1, 2·S_n(D)), with D = max(D⁺, D⁻) the two-sided statistic and S_n the exact
+    one-sided Smirnov tail (:func:`smirnov_tail`). It agrees with
+    ``scipy.stats.kstest(method="exact")`` closely enough that the decision at the 1 %
+    level is the exact test's (docs/measured.md has the comparison), and avoids importing
+    scipy.stats.
+
+    Parameters
+    ----------
+    eps : numpy.ndarray, shape (N,)
+        The NEES values ε_k, Eq. (1).
+    dim : int
+        The state dimension d (the χ² degrees of freedom).
+
+    Returns
+    -------
+    float
+        The p-value, in [0, 1].
+
+    Examples
+    --------
+    >>> eps = np.random.default_rng(4).chisquare(2, size=200)
+    >>> ks_chi2_pvalue(eps, 2) > 0.05, ks_chi2_pvalue(4.0 * eps, 2) < 1e-6
+    (True, True)
     """
     x = np.sort(eps)
     n = x.size
@@ -476,15 +763,35 @@ term: on a credible segment the statistic is small and all N terms count
 
 
 def smirnov_tail(n: int, d: float) -> float:
-    r"""P(D⁺_n ≥ d), the exact one-sided Smirnov tail (Birnbaum & Tingey 1951):
+    r"""P(D⁺_n ≥ d), the exact one-sided Smirnov tail (Birnbaum & Tingey 1951).
 
-    .. math:: d \sum_{j=0}^{\lfloor n(1-d)\rfloor} \binom{n}{j}
-              \left(1 - d - \tfrac{j}{n}\right)^{n-j} \left(d + \tfrac{j}{n}\right)^{j-1},
+    scipy's ``smirnov`` up to :data:`SMIRNOV_SCIPY_MAX` epochs (and for d outside (0, 1)),
+    else the sum below in logarithms as one array (every term is positive: no
+    cancellation; docs/performance.md has its accuracy and cost). Beyond 10⁶ epochs scipy
+    switches to an asymptotic form; this stays exact.
 
-    scipy's ``smirnov`` up to :data:`SMIRNOV_SCIPY_MAX` epochs, else the sum in logarithms
-    as one array (every term is positive: no cancellation; the log-binomials' rounding
-    leaves a relative error below 1e-9 at n = 10⁶, against scipy's exact sum). Beyond
-    10⁶ epochs scipy switches to an asymptotic form; this stays exact."""
+    Parameters
+    ----------
+    n : int
+        The sample size.
+    d : float
+        The value of the one-sided statistic D⁺_n.
+
+    Returns
+    -------
+    float
+        P(D⁺_n ≥ d).
+
+    Notes
+    -----
+    .. math:: P(D_n^+ \ge d) = d \sum_{j=0}^{\lfloor n(1-d)\rfloor} \binom{n}{j}
+              \left(1 - d - \tfrac{j}{n}\right)^{n-j} \left(d + \tfrac{j}{n}\right)^{j-1}
+
+    References
+    ----------
+    Z. W. Birnbaum and F. H. Tingey, "One-sided confidence contours for probability
+    distribution functions", Ann. Math. Stat. 22(4), 1951.
+    """
     if n <= SMIRNOV_SCIPY_MAX or d <= 0.0 or d >= 1.0:
         return float(special.smirnov(n, d))
     j = np.arange(math.floor(n * (1.0 - d)) + 1, dtype=float)
@@ -502,15 +809,40 @@ def smirnov_tail(n: int, d: float) -> float:
 
 
 def reads_memory(config: DiagnosisConfig, runs: int) -> bool:
-    """Whether ``config``'s tests read the fitted dependence model: the calibrated rule
-    with the block length estimated (auto), on one run."""
+    """Whether ``config``'s tests read the fitted dependence model.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The configuration.
+    runs : int
+        Equal Monte Carlo runs pooled in the segment.
+
+    Returns
+    -------
+    bool
+        True for the calibrated rule with the block length estimated (auto), on one run.
+    """
     return config.calibrated and config.fixed_block_length is None and runs == 1
 
 
 @dataclass(frozen=True)
 class ModelEvidence:
     """The scale test, principal directions and location plan of one configuration under
-    the dependence model."""
+    the dependence model (:func:`memory_evidence`).
+
+    Attributes
+    ----------
+    scale : ScaleTest
+        The scale test under the model (untested, with κ̂, when the model is known to too
+        few degrees of freedom).
+    scale_reason : str or None
+        Why the scale is untested (None: tested).
+    directions : DirectionScales or None
+        The scale factor per principal direction (d > 1, scale tested).
+    plan : LocationPlan
+        How the location question is answered under the model.
+    """
 
     scale: ScaleTest
     scale_reason: str | None
@@ -526,9 +858,9 @@ with 3 has a 0.6 % tail at 5.5 standard errors, beyond which an interval says no
 SCREENED_BELOW = 200
 """Segments shorter than this are screened for weak memory by their lag-1 autocorrelation
 as well as by AICc, which chooses order 0 for weakly dependent errors on short windows
-too often (AR(1) φ = 0.3, 25 epochs: 7 % mean-test rejections at 1 % on the windows it
-left white); on longer segments AICc alone sees such memory, and the screen would send a
-third of independent segments to the bootstrap."""
+too often (the mean test then loses its level on the windows it left white); on longer
+segments AICc alone sees such memory, and the screen would send many independent segments
+to the bootstrap (docs/measured.md)."""
 MIN_MEAN_DOF = 3
 """Fewest denominator degrees of freedom of the mean test's F (as for batch means, K − d)."""
 
@@ -545,8 +877,31 @@ def memory_evidence(
     :func:`credcli.engine.batches.memory_mean_test`), and the ELT flips blocks long enough
     to lose at most ε of the variance under the model
     (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or
-    adjacent blocks. ``inverse``: L⁻¹ (d, d) or L_k⁻¹ (N, d, d); ``level``: the scale
-    test's (default α_S)."""
+    adjacent blocks. The scale is untested when the model has fewer than
+    :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
+    :data:`MIN_MEAN_DOF`.
+
+    Parameters
+    ----------
+    gls : GlsResiduals
+        The segment's GLS residuals.
+    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
+        L⁻¹, or L_k⁻¹ per epoch.
+    config : DiagnosisConfig
+        The configuration (calibrated).
+    memory : Memory
+        The dependence model (fitted on this segment, or the run's).
+    n : int
+        Epochs in the segment.
+    level : float, optional
+        The scale test's level; default α_S.
+
+    Returns
+    -------
+    ModelEvidence
+        The scale test and why it is untested, the principal directions' factors, and
+        the location plan.
+    """
     d = gls.whitened.shape[1]
     level = config.scale_level if level is None else level
     if memory.white and memory.epochs == n:
@@ -587,9 +942,23 @@ _MEMORY_BLOCKS = "the errors' memory needs sign blocks of {block} epochs, which"
 
 
 def memory_residuals(gls, inverse) -> np.ndarray:
-    """The Cholesky-whitened errors z_k = L_k⁻¹e_k without their fitted constants
-    (:func:`credcli.engine.memory.mean_free`): what the memory is fitted on, in the frame
-    the model's tests use (the GLS residuals and scores). ``inverse``: L⁻¹ or L_k⁻¹."""
+    """The Cholesky-whitened errors without their fitted constants: what the memory is
+    fitted on.
+
+    In the frame the model's tests use (the GLS residuals and scores).
+
+    Parameters
+    ----------
+    gls : GlsResiduals
+        The GLS residuals (their ``whitened`` errors and ``mean``).
+    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
+        L⁻¹, or L_k⁻¹ per epoch.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+        z_k = L_k⁻¹e_k less its fitted constants (:func:`credcli.engine.memory.mean_free`).
+    """
     if inverse.ndim == 2:
         z = gls.whitened + inverse @ gls.mean
     else:
@@ -626,8 +995,8 @@ def _slow_memory(scales: TimeScales | None, memory: Memory) -> str | None:
 MIN_RESOLUTION = 8.0
 """Fewest correlation times a segment must hold to be judged by the memory fitted on it:
 an AR fit on a window of a few correlation times sees only the part of the memory that the
-window resolves (AR(1) φ = 0.99 in 50-epoch windows: τ̂ ≈ 20 against 199, and 20 % of the
-windows were called a misfit), so the memory itself is then unknown."""
+window resolves, underestimating τ and calling windows a misfit (docs/measured.md), so
+the memory itself is then unknown."""
 
 
 def _unresolved_memory(memory: Memory, n: int) -> str | None:
@@ -651,10 +1020,32 @@ def _declined(ev: ModelEvidence, reason: str) -> ModelEvidence:
 
 def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
     """The dependence model fitted on one segment (or run) and its check at every
-    averaging time. Below :data:`SCREENED_BELOW` epochs the sieve is also told of memory
-    that the lag-1 autocorrelation of the whitened errors ``s`` shows, centred or about
-    zero, at SCREENING_LEVEL (issue 22: a slow excursion moves a window's mean and hides
-    from the centred one)."""
+    averaging time.
+
+    Below :data:`SCREENED_BELOW` epochs the sieve is also told of memory that the lag-1
+    autocorrelation of the whitened errors ``s`` shows, centred or about zero, at
+    SCREENING_LEVEL (a slow excursion moves a window's mean and hides from the centred
+    one).
+
+    Parameters
+    ----------
+    gls : GlsResiduals
+        The segment's GLS residuals (the model is fitted on
+        :func:`memory_residuals` and their ``q``).
+    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
+        L⁻¹, or L_k⁻¹ per epoch.
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors, for the lag-1 screening.
+    r1 : numpy.ndarray, shape (d,), optional
+        Their lag-1 autocorrelations, if already computed.
+
+    Returns
+    -------
+    memory : Memory
+        The fitted model (:func:`credcli.engine.memory.fit_memory`).
+    time_scales : TimeScales
+        Its check at every averaging time (:func:`credcli.engine.memory.time_scales`).
+    """
     n = s.shape[0]
     r1 = correlation.autocorrelation(s) if r1 is None else r1
     screened = n < SCREENED_BELOW and (
@@ -669,8 +1060,23 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
 
 
 def segment_memory_of(residuals: np.ndarray, q: np.ndarray) -> Memory:
-    """The dependence model of mean-free whitened residuals (N, d) and their squares ``q``,
-    screened by their own lag-1 autocorrelation (:func:`segment_memory`)."""
+    """The dependence model of mean-free whitened residuals and their squares.
+
+    Screened by their own lag-1 autocorrelation at SCREENING_LEVEL, whatever their length
+    (unlike :func:`segment_memory`).
+
+    Parameters
+    ----------
+    residuals : numpy.ndarray, shape (N, d)
+        Mean-free whitened residuals.
+    q : numpy.ndarray, shape (N,)
+        Their squares summed over components (centred NEES).
+
+    Returns
+    -------
+    Memory
+        The fitted model (:func:`credcli.engine.memory.fit_memory`).
+    """
     n = residuals.shape[0]
     screened = correlation.serially_dependent(
         correlation.autocorrelation(residuals), n, correlation.SCREENING_LEVEL

@@ -53,14 +53,45 @@ MAX_HORIZON = 1 << 20
 
 
 def max_order(n: int) -> int:
-    """p_max = ⌈12 (N/100)^{1/4}⌉ (Schwert 1989), at most N/4 and :data:`MAX_ORDER_CAP`."""
+    """The sieve's largest AR order for a series of ``n`` epochs.
+
+    Parameters
+    ----------
+    n : int
+        Epochs N of the series (of one run, when runs are pooled).
+
+    Returns
+    -------
+    int
+        p_max = ⌈12 (N/100)^{1/4}⌉ (Schwert 1989), at most N/4 and :data:`MAX_ORDER_CAP`,
+        and at least 0.
+
+    Examples
+    --------
+    >>> max_order(100), max_order(10_000), max_order(10), max_order(10**7)
+    (12, 38, 2, 60)
+    """
     return int(max(0, min(MAX_ORDER_CAP, n // 4, math.ceil(12.0 * (n / 100.0) ** 0.25))))
 
 
 @dataclass(frozen=True)
 class BurgFit:
-    """Burg's recursion on k series (pooled over m equal segments of T epochs each):
-    reflection coefficients (k, p_max) and innovation variances (k, p_max + 1) by order."""
+    """Burg's recursion on k series, each pooled over m equal segments of T epochs.
+
+    Made by :func:`burg`; every array is indexed by series first, then by order.
+
+    Attributes
+    ----------
+    reflection : numpy.ndarray, shape (k, p_max)
+        The reflection coefficients κ_1 … κ_{p_max} of each series.
+    variance : numpy.ndarray, shape (k, p_max + 1)
+        The innovation variance σ²_p of each series at orders p = 0 … p_max (σ²_0 is the
+        series' mean square; floored at the smallest positive float).
+    epochs : int
+        m·T, the epochs behind each fit.
+    segments : int
+        m, the segments pooled into each fit.
+    """
 
     reflection: np.ndarray
     variance: np.ndarray
@@ -68,7 +99,14 @@ class BurgFit:
     segments: int
 
     def aicc(self) -> np.ndarray:
-        """The corrected AIC (Hurvich & Tsai 1989) of each order, (k, p_max + 1)."""
+        """The corrected AIC (Hurvich & Tsai 1989) of each order.
+
+        Returns
+        -------
+        numpy.ndarray, shape (k, p_max + 1)
+            AICc(p) = T log σ²_p + 2(p + 1)T/(T − p − 2) per series and order p, with
+            T = :attr:`epochs` (the denominator at least 1).
+        """
         t = self.epochs
         p = np.arange(self.variance.shape[1])
         with np.errstate(divide="ignore"):
@@ -77,12 +115,35 @@ class BurgFit:
         return t * log_var + penalty
 
     def orders(self, minimum: int = 0) -> np.ndarray:
-        """The order of least AICc per series, at least ``minimum``."""
+        """The order of least AICc per series, at least ``minimum``.
+
+        Parameters
+        ----------
+        minimum : int, default 0
+            The smallest order allowed.
+
+        Returns
+        -------
+        numpy.ndarray of int, shape (k,)
+            The order p in ``minimum`` … p_max of least :meth:`aicc`, per series.
+        """
         return minimum + np.argmin(self.aicc()[:, minimum:], axis=1)
 
     def coefficients(self, series: int, order: int) -> np.ndarray:
-        """φ_1 … φ_p of one series at ``order`` (Levinson's step from the reflections):
-        x_t = Σ φ_j x_{t−j} + u_t."""
+        """φ_1 … φ_p of one series at ``order`` (Levinson's step from the reflections).
+
+        Parameters
+        ----------
+        series : int
+            Index of the series (row of :attr:`reflection`).
+        order : int
+            The AR order p (at most p_max).
+
+        Returns
+        -------
+        numpy.ndarray, shape (p,)
+            The coefficients φ_1 … φ_p of x_t = Σ φ_j x_{t−j} + u_t (empty for p = 0).
+        """
         a = np.zeros(0)
         for k in self.reflection[series, :order]:
             a = np.concatenate([a + k * a[::-1], [k]])
@@ -94,11 +155,36 @@ BURG_CHUNK = 1 << 16
 
 
 def burg(x: np.ndarray, order: int) -> BurgFit:
-    """Burg's recursion up to ``order`` on each of k series x (k, m, T), each pooled over
-    its m segments (the forward and backward prediction errors of every segment enter one
-    reflection coefficient: the segments share a model and nothing else). Centre first.
+    r"""Burg's recursion up to ``order`` on each of k series, each pooled over its segments.
 
-    A loop over orders (at most :data:`MAX_ORDER_CAP`), vectorised over series and epochs.
+    The forward and backward prediction errors of every segment enter one reflection
+    coefficient: the segments share a model and nothing else. A loop over orders (at most
+    :data:`MAX_ORDER_CAP`), vectorised over series and epochs; the prediction errors are
+    updated in place in chunks of :data:`BURG_CHUNK` epochs.
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (k, m, T)
+        k series of m segments of T epochs each, already centred (the caller centres
+        them; this function does not).
+    order : int
+        The largest order p_max fitted.
+
+    Returns
+    -------
+    BurgFit
+        The reflection coefficients (k, p_max) and innovation variances (k, p_max + 1),
+        with ``epochs`` = m·T and ``segments`` = m.
+
+    Notes
+    -----
+    At order p, with f and b the forward and backward prediction errors of order p − 1,
+
+    .. math:: \kappa_p = \frac{-2\sum_t f_t b_{t-1}}{\sum_t f_t^2 + \sum_t b_{t-1}^2},
+              \qquad \sigma_p^2 = \sigma_{p-1}^2 (1 - \kappa_p^2),
+
+    the sums running over every segment (Burg 1968). |κ_p| < 1 keeps every root inside
+    the unit circle.
     """
     k, m, t = x.shape
     f = x.copy()
@@ -130,9 +216,35 @@ def burg(x: np.ndarray, order: int) -> BurgFit:
 
 
 def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarray:
-    """γ(0) … γ(lags − 1) of the stationary AR(p) x_t = Σ φ_j x_{t−j} + u_t, Var u = σ²:
-    γ(0..p) from the p + 1 Yule–Walker equations, then the recursion
-    γ(h) = Σ φ_j γ(h − j) (a linear filter with no input, run by scipy's lfilter)."""
+    """γ(0) … γ(lags − 1) of the stationary AR(p) x_t = Σ φ_j x_{t−j} + u_t, Var u = σ².
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,)
+        The AR coefficients φ_1 … φ_p (empty: white noise); the model must be stationary.
+    sigma2 : float
+        The innovation variance σ².
+    lags : int
+        How many lags to return (at least 1).
+
+    Returns
+    -------
+    numpy.ndarray, shape (lags,)
+        The autocovariances γ(0) … γ(lags − 1).
+
+    Notes
+    -----
+    γ(0) … γ(p) solve the p + 1 Yule–Walker equations γ(k) − Σ_j φ_j γ(|k − j|) = σ² δ_k0;
+    later lags follow the recursion γ(h) = Σ_j φ_j γ(h − j), a linear filter with no input
+    run by scipy's ``lfilter``.
+
+    Examples
+    --------
+    An AR(1) has γ(h) = σ² φ^h / (1 − φ²):
+
+    >>> np.round(autocovariance_of_ar(np.array([0.5]), 0.75, 4), 6)
+    array([1.   , 0.5  , 0.25 , 0.125])
+    """
     p = phi.size
     if p == 0:
         out = np.zeros(lags)
@@ -168,14 +280,26 @@ def _horizon(phi: np.ndarray, n: int) -> int:
 
 @dataclass(frozen=True)
 class SeriesMemory:
-    """The fitted memory of one standardized series: AR(p) coefficients ``phi``, the
-    autocorrelation ``rho`` (ρ(0) = 1) at lags 0 … H − 1, and ``dof``, the degrees of
-    freedom ν_Ω of its long-run variance estimate (inf: known)."""
+    """The fitted memory of one standardized series (:func:`series_memory`).
+
+    Attributes
+    ----------
+    phi : numpy.ndarray, shape (p,)
+        The AR(p) coefficients at the order of least AICc (empty: white).
+    rho : numpy.ndarray, shape (H,)
+        The model's autocorrelation ρ(0) = 1, ρ(1), … ρ(H − 1), kept up to a horizon H
+        where it has decayed (zero beyond); after the bootstrap's bias correction.
+    dof : float
+        ν_Ω, the degrees of freedom of the long-run variance estimate (inf: known, as for
+        white noise).
+    square_dof : float, default inf
+        ν of τ₂ = Σρ², the scale test's model uncertainty.
+    """
 
     phi: np.ndarray
     rho: np.ndarray
     dof: float
-    square_dof: float = math.inf  # ν of τ₂ = Σρ², the scale test's model uncertainty
+    square_dof: float = math.inf
 
     @property
     def order(self) -> int:
@@ -188,15 +312,39 @@ class SeriesMemory:
         return float(1.0 + 2.0 * np.sum(self.rho[1:]))
 
     def window(self, n: int) -> np.ndarray:
-        """ρ(0) … ρ(n − 1), zero past the horizon."""
+        """The autocorrelation over a window of ``n`` epochs.
+
+        Parameters
+        ----------
+        n : int
+            Epochs in the window.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            ρ(0) … ρ(n − 1), zero past the horizon.
+        """
         if n <= self.rho.size:
             return self.rho[:n]
         return np.concatenate([self.rho, np.zeros(n - self.rho.size)])
 
     def test_window(self, n: int) -> np.ndarray:
-        """The autocorrelation the tests use over a window of n epochs: :meth:`window`, or
-        white noise's where the fitted one has v_n < 1 (the floor of :meth:`mean_ratio`,
-        for quadratic forms with time-varying weights)."""
+        """The autocorrelation the tests use over a window of ``n`` epochs.
+
+        The floor of :meth:`mean_ratio` (v_n >= 1), for quadratic forms with time-varying
+        weights: a fitted antipersistence is replaced by white noise.
+
+        Parameters
+        ----------
+        n : int
+            Epochs in the window.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            :meth:`window` ``(n)``, or white noise's (1, 0, …, 0) where the fitted one has
+            v_n < 1.
+        """
         rho = self.window(n)
         h = np.arange(1, n)
         if 1.0 + 2.0 * np.sum((1.0 - h / n) * rho[1:]) < 1.0:
@@ -204,18 +352,48 @@ class SeriesMemory:
         return rho
 
     def mean_ratio(self, n: int) -> float:
-        """v_n = n·Var(x̄_n)/γ(0) = 1 + 2 Σ_{h<n} (1 − h/n) ρ(h) for a window of n epochs
-        (τ as n → ∞), at least 1: a fitted antipersistence (v_n < 1, which a spurious
-        order on a short window of white errors often shows) never narrows a test."""
+        """The variance ratio v_n of the mean of a window of ``n`` epochs, at least 1.
+
+        A fitted antipersistence (v_n < 1, which a spurious order on a short window of
+        white errors often shows) never narrows a test.
+
+        Parameters
+        ----------
+        n : int
+            Epochs in the window.
+
+        Returns
+        -------
+        float
+            v_n = n·Var(x̄_n)/γ(0) = 1 + 2 Σ_{0<h<n} (1 − h/n) ρ(h), floored at 1 (τ as
+            n → ∞).
+        """
         rho = self.window(n)
         h = np.arange(1, n)
         return float(max(1.0 + 2.0 * np.sum((1.0 - h / n) * rho[1:]), 1.0))
 
     def centred_square_moments(self, n: int) -> tuple[float, float]:
-        r"""Mean and variance of Σ_k (x_k − x̄)² over a window of n epochs of a Gaussian
-        series with this autocorrelation and unit variance: with R the n × n Toeplitz
-        correlation and C = I − 11ᵀ/n, E = tr(CR) = n − 1ᵀR1/n and
-        Var = 2 tr((CRC)²) = 2[tr R² − 2|R1|²/n + (1ᵀR1/n)²] (Isserlis)."""
+        r"""Mean and variance of the centred sum of squares over a window of ``n`` epochs.
+
+        Of Σ_k (x_k − x̄)² for a Gaussian series with this autocorrelation and unit
+        variance.
+
+        Parameters
+        ----------
+        n : int
+            Epochs in the window.
+
+        Returns
+        -------
+        mean, variance : tuple of float
+            E and Var of Σ_k (x_k − x̄)², each floored at 1e-12.
+
+        Notes
+        -----
+        With R the n × n Toeplitz correlation (first row :meth:`window`) and
+        C = I − 11ᵀ/n, E = tr(CR) = n − 1ᵀR1/n and
+        Var = 2 tr((CRC)²) = 2[tr R² − 2|R1|²/n + (1ᵀR1/n)²] (Isserlis), in O(n).
+        """
         rho = self.window(n)
         h = np.arange(n)
         weights = np.where(h == 0, 1.0, 2.0)
@@ -227,10 +405,17 @@ class SeriesMemory:
         return max(mean, 1e-12), max(var, 1e-12)
 
     def block_loss(self) -> float:
-        """G/Ω = 2 Σ h ρ(h) / τ (Politis & White 2004's G over the long-run variance): a sign
-        block of length L loses about G/(LΩ) of the variance of the sum across its
-        boundaries; (τ² − 1)/(2τ) for an AR(1). 0 when it is negative or the series is
-        white."""
+        """The variance a sign block loses across its boundaries, per epoch of its length.
+
+        A sign block of length L loses about G/(LΩ) of the variance of the sum across its
+        boundaries (G of Politis & White 2004, over the long-run variance Ω).
+
+        Returns
+        -------
+        float
+            G/Ω = 2 Σ_h h ρ(h) / τ; (τ² − 1)/(2τ) for an AR(1). 0 when it is negative or
+            the series is white.
+        """
         h = np.arange(self.rho.size)
         tau = self.variance_ratio
         if tau <= 1e-12:
@@ -238,11 +423,24 @@ class SeriesMemory:
         return max(0.0, float(2.0 * np.sum(h * self.rho)) / tau)
 
     def decorrelation_lag(self, threshold: float = 0.2) -> int:
-        """The first lag from which |ρ(h)| stays below ``threshold``: sign blocks at least
-        this long keep every strong correlation between epochs inside a block or between
-        neighbouring blocks (whose pairs the ELT leaves out). It governs oscillating
-        errors, whose signed correlations nearly cancel in G (AR(2) with complex roots:
-        G/Ω ≈ 0 while |ρ(h)| stays above 0.2 for ten epochs)."""
+        """The first lag from which |ρ(h)| stays below ``threshold``.
+
+        Sign blocks at least this long keep every strong correlation between epochs inside
+        a block or between neighbouring blocks (whose pairs the ELT leaves out). It governs
+        oscillating errors, whose signed correlations nearly cancel in G (AR(2) with
+        complex roots: G/Ω ≈ 0 while |ρ(h)| stays above 0.2 for ten epochs).
+
+        Parameters
+        ----------
+        threshold : float, default 0.2
+            The correlation below which two epochs count as decorrelated.
+
+        Returns
+        -------
+        int
+            One more than the last lag h >= 1 with |ρ(h)| >= ``threshold``; 1 when there
+            is none.
+        """
         above = np.flatnonzero(np.abs(self.rho[1:]) >= threshold)
         return int(above[-1]) + 2 if above.size else 1
 
@@ -270,9 +468,9 @@ def _order_memory(fit: BurgFit, series: int, order: int, n: int):
 
 MIN_ORDER = 1
 """The sieve's smallest order. AICc chooses order 0 on short windows of weakly dependent
-errors too often (AR(1) φ = 0.3, 25 epochs: the tests for independent epochs then found a
-"bias" in 10 % of windows); an AR(1) at least, its estimation error bootstrapped, keeps the
-level there and costs independent errors little (their fitted τ̂ is near 1)."""
+errors too often, and the tests for independent epochs then lose their level there
+(docs/measured.md); an AR(1) at least, its estimation error bootstrapped, keeps the level
+there and costs independent errors little (their fitted τ̂ is near 1)."""
 FORCED_BELOW = 200
 """Runs shorter than this get :data:`MIN_ORDER` in every series; longer ones keep AICc's
 order 0 for a series that shows no memory (known white, no bootstrap)."""
@@ -287,9 +485,9 @@ MAX_BURN_IN = 200_000
 BOOTSTRAP_EPOCHS = 1 << 14
 """Longest bootstrap series. Longer runs are bootstrapped at this length and the spread
 and bias scaled by its ratio to the run's length (both are O(1/N) for a fitted AR model,
-Berk 1974): a 2,000,000-epoch segment drew 40 series of 2,000,000 epochs per direction
-(26 s and 640 MB each) for degrees of freedom in the tens of thousands, which no critical
-value can tell from infinity."""
+Berk 1974): series as long as a very long segment cost time and memory in proportion for
+degrees of freedom in the tens of thousands, which no critical value can tell from
+infinity (docs/performance.md)."""
 
 
 def _log_tau(phi: np.ndarray, sigma2: float) -> float:
@@ -303,16 +501,46 @@ def _log_tau(phi: np.ndarray, sigma2: float) -> float:
 def bootstrap_spread(
     phis: list[np.ndarray], n: int, p_max: int, seed: int, minimum: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(Var(log τ̂*), mean(log τ̂*) − log τ, Var(log τ̂₂*)) of each AR model in ``phis`` (unit
-    innovations): B series of ``n`` epochs drawn from it (Gaussian, stationary by a
-    burn-in), each refitted as the data were (Burg, order by AICc among ``minimum`` …
-    ``p_max``), and the variance and bias of their log τ̂ (τ floored at 1). This is the
-    parametric bootstrap of the fitted model (Efron & Tibshirani 1993, Ch. 6 and 10),
-    order selection included: a near-white model fitted by chance on a short window
-    refits near τ = 1 and has a small spread, a persistent one a large spread and a bias
-    towards less memory (Burg's and the sample mean's), which :func:`series_memory`
-    corrects. Beyond :data:`BOOTSTRAP_EPOCHS` the series are that long and the spread and
-    bias are scaled to ``n``."""
+    """The estimation error of fitted AR models' memory, by a parametric bootstrap.
+
+    B = :data:`BOOTSTRAP_REPLICATES` series of ``n`` epochs are drawn from each model in
+    ``phis`` (unit innovations, Gaussian, stationary by a burn-in), each centred and
+    refitted as the data were (Burg, order by AICc among ``minimum`` … ``p_max``); the
+    variance and bias of their log τ̂ (τ floored at 1) and the variance of their log τ̂₂
+    are returned. This is the parametric bootstrap of the fitted model (Efron & Tibshirani
+    1993, Ch. 6 and 10), order selection included: a near-white model fitted by chance on
+    a short window refits near τ = 1 and has a small spread, a persistent one a large
+    spread and a bias towards less memory (Burg's and the sample mean's), which
+    :func:`series_memory` corrects. Beyond :data:`BOOTSTRAP_EPOCHS` the series are that
+    long and the spread and bias are scaled to ``n``.
+
+    Parameters
+    ----------
+    phis : list of numpy.ndarray
+        The AR coefficients φ of each fitted model (each of order >= 1 in practice).
+    n : int
+        Epochs N behind the fit.
+    p_max : int
+        The largest order the refits may choose.
+    seed : int
+        Seeds the draws together with ``n``, ``p_max`` and the number of models
+        (``fit_memory`` passes the sum of the fitted orders): the same models give the
+        same spread.
+    minimum : int, default 0
+        The smallest order the refits may choose.
+
+    Returns
+    -------
+    var_log_tau, bias_log_tau, var_log_tau2 : tuple of numpy.ndarray
+        Three arrays of shape (len(phis),): Var(log τ̂*), mean(log τ̂*) − log τ, and
+        Var(log τ̂₂*) with τ₂ = Σρ², each scaled by min(1, BOOTSTRAP_EPOCHS/n).
+
+    Notes
+    -----
+    τ of each refit comes from its reflection coefficients k_j without forming the
+    autocorrelation: γ(0) = σ²_p/Π(1 − k_j²) and A(1) = Π(1 + k_j), so
+    τ = σ²_p/(A(1)²γ(0)) = Π_j (1 − k_j)/(1 + k_j).
+    """
     gen = np.random.default_rng(np.random.SeedSequence([seed, n, p_max, len(phis)]))
     b = BOOTSTRAP_REPLICATES
     shrink = min(1.0, BOOTSTRAP_EPOCHS / n)
@@ -367,13 +595,34 @@ def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
 def series_memory(
     fit: BurgFit, series: int, n: int, spread: tuple | None = None, minimum: int = 0
 ) -> SeriesMemory:
-    """The :class:`SeriesMemory` of one series of a Burg fit at its order of least AICc (at
-    least ``minimum``), its autocorrelation kept for windows up to ``n`` epochs. ``spread``:
-    the bootstrap's (Var log τ̂*, bias of log τ̂*, Var log τ̂₂*) (:func:`bootstrap_spread`),
-    which every series of order > 0 has; ν = 2/variance for τ and for τ₂, and a bias towards
-    less memory is corrected by stretching the correlations ρ(h), h > 0, by the factor that
-    multiplies τ by exp(−bias) (at most :data:`MAX_BIAS_FACTOR`; a bias towards more memory
-    is left, which errs on the safe side). Order 0 without a spread is known white noise."""
+    """The :class:`SeriesMemory` of one series of a Burg fit at its order of least AICc.
+
+    ν = 2/variance for τ and for τ₂, and a bias towards less memory is corrected by
+    stretching the correlations ρ(h), h > 0, by the factor that multiplies τ by
+    exp(−bias) (at most :data:`MAX_BIAS_FACTOR`; a bias towards more memory is left,
+    which errs on the safe side).
+
+    Parameters
+    ----------
+    fit : BurgFit
+        The fit (:func:`burg`).
+    series : int
+        Index of the series in ``fit``.
+    n : int
+        Epochs per window the autocorrelation must cover (at least this horizon is kept).
+    spread : tuple of float, optional
+        The bootstrap's (Var log τ̂*, bias of log τ̂*, Var log τ̂₂*) for this series
+        (:func:`bootstrap_spread`), which every series of order > 0 has. None: known
+        (infinite degrees of freedom, no correction); order 0 without a spread is known
+        white noise.
+    minimum : int, default 0
+        The smallest order allowed.
+
+    Returns
+    -------
+    SeriesMemory
+        φ, the (bias-corrected) autocorrelation, and ν for τ and τ₂.
+    """
     order = int(fit.orders(minimum)[series])
     phi, rho, log_tau = _order_memory(fit, series, order, n)
     if spread is None:
@@ -390,10 +639,21 @@ def series_memory(
 
 @dataclass(frozen=True)
 class Memory:
-    """The dependence model of a run's whitened errors: orthonormal principal
-    ``directions`` (d, d) (columns), one :class:`SeriesMemory` per direction, and one for
-    the centred NEES q (which carries heavy tails as well as memory); ``epochs`` behind
-    the fit, ``segments`` the runs it pooled."""
+    """The dependence model of a run's whitened errors (:func:`fit_memory`).
+
+    Attributes
+    ----------
+    directions : numpy.ndarray, shape (d, d)
+        Orthonormal principal directions (columns) of the long-run covariance.
+    series : tuple of SeriesMemory
+        One memory per principal direction, in the order of ``directions``' columns.
+    squares : SeriesMemory
+        The memory of the centred NEES q (which carries heavy tails as well as memory).
+    epochs : int
+        Epochs N behind the fit.
+    segments : int, default 1
+        The runs the fit pooled.
+    """
 
     directions: np.ndarray
     series: tuple[SeriesMemory, ...]
@@ -424,18 +684,44 @@ class Memory:
 
     def block_length(self, loss: float) -> int:
         """The shortest sign block that loses at most ``loss`` of the variance in every
-        direction, L = ⌈max_i (G/Ω)_i / ε⌉, and no shorter than any direction's
-        :meth:`SeriesMemory.decorrelation_lag`; at least 1."""
+        direction.
+
+        Parameters
+        ----------
+        loss : float
+            ε, the largest fraction of the variance a block may lose across its boundaries.
+
+        Returns
+        -------
+        int
+            L = ⌈max_i (G/Ω)_i / ε⌉ (:meth:`SeriesMemory.block_loss`), and no shorter than
+            any direction's :meth:`SeriesMemory.decorrelation_lag`; at least 1.
+        """
         worst = max(m.block_loss() for m in self.series)
         lag = max(m.decorrelation_lag() for m in self.series)
         return max(1, lag, math.ceil(worst / loss - 1e-9))
 
 
 def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
-    """Orthonormal directions (columns) of the long-run covariance of the whitened errors
-    ``s`` (N, d): eigenvectors of a Bartlett estimate with bandwidth ⌈√T⌉ (T epochs per
-    run, as moving sums), largest first. They only rotate the whitened frame, so the lag-0 covariance is
-    unchanged; a poor estimate costs efficiency, not level."""
+    """Orthonormal directions of the long-run covariance of the whitened errors ``s``.
+
+    They only rotate the whitened frame, so the lag-0 covariance is unchanged; a poor
+    estimate costs efficiency, not level.
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors, ``runs`` equal runs one after the other.
+    runs : int, default 1
+        The runs pooled in ``s``; each is centred on its own mean.
+
+    Returns
+    -------
+    numpy.ndarray, shape (d, d)
+        The eigenvectors (columns) of a Bartlett estimate of the long-run covariance with
+        bandwidth ⌈√T⌉ (T epochs per run, as moving sums), largest eigenvalue first; the
+        1 × 1 identity when d = 1.
+    """
     n, d = s.shape
     if d == 1:
         return np.ones((1, 1))
@@ -459,16 +745,44 @@ def fit_memory(
     order: int | None = None,
     screened: bool = False,
 ) -> Memory:
-    """The :class:`Memory` of whitened errors ``s`` (N, d) and their centred NEES ``q`` (N),
-    N = runs × T epochs of ``runs`` equal runs one after the other (pooled: one model, each
-    run centred on its own mean). ``order``: the largest AR order (default
-    :func:`max_order` of T).
+    """The :class:`Memory` of whitened errors and their centred NEES: an AR sieve per
+    principal direction.
 
-    Where AICc chooses order 0 for every series and the caller's lag-1 screening
-    (``screened``) found no dependence either, the errors are taken as independent (the
-    exact tests apply, :attr:`Memory.white`). Otherwise every series gets at least
-    :data:`MIN_ORDER`, and the models' estimation error and bias come from the parametric
+    The errors are rotated to their :func:`principal_directions`; each direction and q is
+    centred (per run), scaled by a power of two, and fitted by :func:`burg` with the order
+    of least AICc. Where AICc chooses order 0 for every series and the caller's lag-1
+    screening (``screened``) found no dependence either, the errors are taken as
+    independent (the exact tests apply, :attr:`Memory.white`). Otherwise every series gets
+    at least :data:`MIN_ORDER` (on runs shorter than :data:`FORCED_BELOW` epochs, or when
+    ``screened``), and the models' estimation error and bias come from the parametric
     bootstrap (:func:`bootstrap_spread`).
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors, N = runs × T epochs of ``runs`` equal runs one after the other
+        (pooled: one model, each run centred on its own mean).
+    q : numpy.ndarray, shape (N,)
+        Their centred NEES.
+    runs : int, default 1
+        The runs pooled in ``s`` and ``q``; taken as 1 when it is below 1 or does not
+        divide N.
+    order : int, optional
+        The largest AR order; default :func:`max_order` of T.
+    screened : bool, default False
+        Whether the caller's lag-1 screening found dependence: then the errors are never
+        taken as white, and every series gets at least :data:`MIN_ORDER`.
+
+    Returns
+    -------
+    Memory
+        The principal directions, one :class:`SeriesMemory` per direction and one for q.
+
+    References
+    ----------
+    K. N. Berk, "Consistent autoregressive spectral estimates", Ann. Stat. 2(3), 1974.
+    C. M. Hurvich and C.-L. Tsai, "Regression and time series model selection in small
+    samples", Biometrika 76(2), 1989.
 
     Examples
     --------
@@ -513,27 +827,75 @@ def fit_memory(
 
 
 def studentized_tail(z: float, dof: float) -> float:
-    """P(T_ν >= z) for Student's t with ν = ``dof`` (the normal when ν is infinite)."""
+    """The upper tail of Student's t, or of the normal when ν is infinite.
+
+    Parameters
+    ----------
+    z : float
+        The point.
+    dof : float
+        ν, the degrees of freedom (``math.inf``: the normal).
+
+    Returns
+    -------
+    float
+        P(T_ν >= z).
+
+    Examples
+    --------
+    >>> round(studentized_tail(1.96, math.inf), 4), round(studentized_tail(2.0, 4.0), 4)
+    (0.025, 0.0581)
+    """
     if not math.isfinite(dof):
         return float(special.ndtr(-z))
     return float(special.stdtr(dof, -z))
 
 
 def studentized_quantile(p: float, dof: float) -> float:
-    """The z with P(T_ν >= z) = p."""
+    """The upper quantile of Student's t, or of the normal when ν is infinite.
+
+    The inverse of :func:`studentized_tail` in ``z``.
+
+    Parameters
+    ----------
+    p : float
+        The upper-tail probability, in (0, 1).
+    dof : float
+        ν, the degrees of freedom (``math.inf``: the normal).
+
+    Returns
+    -------
+    float
+        The z with P(T_ν >= z) = p.
+    """
     if not math.isfinite(dof):
         return float(-special.ndtri(p))
     return float(-special.stdtrit(dof, p))
 
 
 def mean_free(s: np.ndarray, inverse: np.ndarray) -> np.ndarray:
-    r"""The whitened errors s_k = L_k⁻¹e_k (N, d) less their least-squares fit by a constant
-    in whitened space and a constant in the log's space, s_k ≈ m + L_k⁻¹b: the residuals the
-    memory is fitted on. A bias of either kind turns into a slowly varying whitened error
-    when the claimed covariance turns, and a memory model fitted on it would read the bias
-    as memory (a 1σ bias under a turning covariance gave τ̂ ≈ 15 on independent errors and
-    the mean test a tenth of its degrees of freedom). Under the null the 2d regressors
-    cost 2d of N·d degrees of freedom. ``inverse``: L⁻¹ (d, d) or L_k⁻¹ (N, d, d)."""
+    r"""The whitened errors less their fitted constants: the residuals the memory is fitted on.
+
+    The least-squares fit is by a constant in whitened space and a constant in the log's
+    space, s_k ≈ m + L_k⁻¹b. A bias of either kind turns into a slowly varying whitened
+    error when the claimed covariance turns, and a memory model fitted on it would read
+    the bias as memory, inflating τ̂ and taking degrees of freedom from the mean test
+    (docs/measured.md). Under the null the 2d regressors cost 2d of N·d degrees of
+    freedom.
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors s_k = L_k⁻¹e_k.
+    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
+        L⁻¹, one inverse Cholesky factor for every epoch, or L_k⁻¹ per epoch.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+        s_k − m̂ − L_k⁻¹b̂; with one covariance (the two constants are one), s less its
+        column means.
+    """
     n, d = s.shape
     if inverse.ndim == 2:  # one covariance: the two constants are one
         return s - s.mean(axis=0)
@@ -563,23 +925,39 @@ class TimeScales:
     memory predict: in the spirit of the Allan variance of the whitened errors (IEEE Std
     952), with the memory model as the reference instead of white noise.
 
-    For m = 1, 2, 4, … epochs (at least :data:`MIN_SCALE_BLOCKS` blocks), ``observed`` is
-    m times the variance of the m-epoch means of the whitened residuals (each principal
-    direction in units of its own variance, averaged over directions), ``predicted`` the
-    model's v_m (:meth:`SeriesMemory.mean_ratio`; 1 at every m for independent errors), and
-    [``low``, ``high``] the central 1 − level interval of ``observed`` under the model
-    (a χ² with d(K − 1) degrees of freedom for K blocks). ``pvalues``: upper-tail p-value
-    at each scale; ``tested``: the scales long enough against the fitted correlation time
-    (m >= 2τ̂) to enter the check; ``pvalue``: Bonferroni over those and the lowest
-    frequency below (one family at :data:`SCALE_CHECK_LEVEL`).
+    The scales are m = 1, 2, 4, … epochs (at least :data:`MIN_SCALE_BLOCKS` blocks of m
+    epochs); every array below has one entry per scale. The longest scales hold too few
+    blocks for that check, and long memory (ARFIMA) shows there first, so the whole
+    segment is checked as well, at its lowest Fourier frequency. One check at one level:
+    a check of each of K tested scales and of the lowest frequency at level/(K + 1).
+    Made by :func:`time_scales`.
 
-    The longest scales hold too few blocks for that check, and long memory (ARFIMA) shows
-    there first. ``lowest_ratio`` and ``lowest_pvalue`` check the whole segment: the
-    periodogram of the whitened residuals at the lowest Fourier frequency 2π/N, summed
-    over the directions in units of what the model predicts there, against its Gamma(d, 1)
-    distribution under the model (:func:`lowest_frequency_check`); None on segments too
-    short for any block. One check at one level: a check of each of K scales and of the
-    lowest frequency at level/(K + 1).
+    Attributes
+    ----------
+    epochs : numpy.ndarray of int
+        The averaging times m.
+    observed : numpy.ndarray
+        m times the variance of the m-epoch means of the whitened residuals (each principal
+        direction in units of its own variance, averaged over directions).
+    predicted : numpy.ndarray
+        The model's v_m (:meth:`SeriesMemory.mean_ratio`, averaged over directions; 1 at
+        every m for independent errors).
+    low, high : numpy.ndarray
+        The central 1 − level interval of ``observed`` under the model (a χ² with
+        d(K − 1) degrees of freedom for K blocks).
+    pvalues : numpy.ndarray
+        The upper-tail p-value at each scale.
+    tested : numpy.ndarray of bool
+        The scales long enough against the fitted correlation time (m >= 2τ̂, m >= 2) to
+        enter the check.
+    pvalue : float or None
+        Bonferroni over the tested scales and the lowest frequency (one family at
+        :data:`SCALE_CHECK_LEVEL`); None on segments too short for any block.
+    lowest_ratio, lowest_pvalue : float or None, default None
+        The whole segment's check (:func:`lowest_frequency_check`): the periodogram of
+        the whitened residuals at the lowest Fourier frequency 2π/N, summed over the
+        directions in units of what the model predicts there and divided by d, and its
+        p-value against Gamma(d, 1); None on segments too short for any block.
     """
 
     epochs: np.ndarray
@@ -612,8 +990,31 @@ class TimeScales:
 
 
 def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL) -> TimeScales:
-    """:class:`TimeScales` of the mean-free whitened residuals ``y`` (N, d) (in the frame
-    the model was fitted in) under ``memory``."""
+    """The variance of the whitened residuals at every averaging time, under ``memory``.
+
+    Parameters
+    ----------
+    y : numpy.ndarray, shape (N, d)
+        The mean-free whitened residuals (:func:`mean_free`), in the frame the model was
+        fitted in.
+    memory : Memory
+        The dependence model fitted on them.
+    level : float, default SCALE_CHECK_LEVEL
+        The level of the intervals [``low``, ``high``] at each scale.
+
+    Returns
+    -------
+    TimeScales
+        Observed and predicted variance ratios, intervals and p-values per scale, the
+        Bonferroni p-value of the check, and the lowest frequency's check.
+
+    Notes
+    -----
+    With K = ⌊N/m⌋ blocks of m epochs, block sums S_{ji} in direction i (centred over the
+    blocks) and γ̂_i the direction's variance (its sum of squares over the expected
+    centred sum, :meth:`SeriesMemory.centred_square_moments`), the statistic at scale m
+    is Σ_i Σ_j S_{ji}² / (m γ̂_i v_{i,m}), referred to χ² with d(K − 1) degrees of freedom.
+    """
     n, d = y.shape
     rotated = y @ memory.directions
     variances = np.array(
@@ -668,20 +1069,44 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
 def lowest_frequency_check(
     rotated: np.ndarray, memory: Memory, variances: np.ndarray
 ) -> tuple[float, float]:
-    r"""The whole segment against the model: the periodogram of each direction's series
-    x (N epochs, in the model's frame, variance γ̂₀ = ``variances``) at the lowest Fourier
-    frequency ω₁ = 2π/N, I = |Σ_t x_t e^{−iω₁t}|²/N, over its expectation under the model,
+    r"""The whole segment against the model: the periodogram at the lowest Fourier frequency.
+
+    An AR sieve cannot follow long memory (spectral density unbounded at frequency zero,
+    ARFIMA d > 0): the variance it leaves unexplained is largest at the lowest frequency,
+    where the block scales of :func:`time_scales` hold too few blocks to see it.
+
+    Parameters
+    ----------
+    rotated : numpy.ndarray, shape (N, d)
+        Each direction's series x, in the model's frame (the residuals times
+        ``memory.directions``).
+    memory : Memory
+        The dependence model.
+    variances : numpy.ndarray, shape (d,)
+        γ̂₀ of each direction's series.
+
+    Returns
+    -------
+    ratio, pvalue : tuple of float
+        S/d and P(Gamma(d, 1) ≥ S), S the sum over directions of the periodogram over its
+        expectation under the model.
+
+    Notes
+    -----
+    At ω₁ = 2π/N the periodogram is I = |Σ_t x_t e^{−iω₁t}|²/N, and under the model
 
     .. math:: E\,I(ω_1) = γ_0 \Big[1 + 2\sum_{h=1}^{N-1} (1 - h/N)\,ρ(h) \cos(ω_1 h)\Big]
 
     (exact for a stationary series; the mean does not enter at a Fourier frequency). Under
     the model each ratio is about Exp(1) and the directions are independent, so their sum
-    S is Gamma(d, 1) (Brockwell & Davis 1991, Thm 10.3.2: periodogram ordinates are
-    asymptotically independent exponentials with the spectral density as mean). Returns
-    (S/d, P(Gamma(d, 1) ≥ S)). An AR sieve cannot follow long memory (spectral density
-    unbounded at frequency zero, ARFIMA d > 0): the variance it leaves unexplained is
-    largest at the lowest frequency, where the block scales of :func:`time_scales` hold
-    too few blocks to see it."""
+    S is Gamma(d, 1).
+
+    References
+    ----------
+    P. J. Brockwell and R. A. Davis, *Time Series: Theory and Methods*, 2nd ed., 1991,
+    Thm 10.3.2 (periodogram ordinates are asymptotically independent exponentials with
+    the spectral density as mean).
+    """
     n, d = rotated.shape
     h = np.arange(n)
     phase = np.exp(-2j * np.pi * h / n)

@@ -18,26 +18,62 @@ from credcli.engine.scale import DirectionScales, ScaleTest
 
 @dataclass(frozen=True)
 class Verdict:
-    """What a rule decides on one segment's evidence: the label, which questions it left
-    untested, why, whether the location test found SMM (None: untested), and whether the
-    noise part comes from the principal directions."""
+    """What a rule decides on one segment's evidence (:func:`decide`).
+
+    Attributes
+    ----------
+    label : Label
+        The verdict.
+    untested : tuple of Question
+        The questions the rule left untested (empty for insufficient-data, which answers
+        neither).
+    reason : str or None
+        Why a question was left untested, or why the data are insufficient.
+    smm_detected : bool or None
+        Whether the location tests found a misfit (the paper's SMM); None: untested.
+    by_direction : bool
+        Whether the noise part comes from the principal directions.
+    by_median : bool, default False
+        Whether the scale was decided by the dependence-free median bound
+        (:func:`median_optimism`).
+    """
 
     label: Label
     untested: tuple[Question, ...]
     reason: str | None
     smm_detected: bool | None
     by_direction: bool
-    by_median: bool = False  # the scale decided by the dependence-free median bound
+    by_median: bool = False
 
 
 def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     """The label of one segment from its evidence, by ``config``'s variant.
 
     calibrated: the scale test at α_S with the relevance floor τ and the equivalence margin
-    :data:`CREDIBLE_FACTOR` (or the principal directions where they disagree), and the
-    location condition of the GLS mean test and the ELT at their shares of α_L: bias,
-    asymmetric, or smm where no mean test ran. paper and ks: Algorithm 1
-    (lines 2–23), SMM from the ELT.
+    :data:`CREDIBLE_FACTOR` (or the principal directions where they disagree; or the
+    median bound where the scale test cannot decide), and the location condition of the
+    GLS mean test and the ELT at their shares of α_L: bias, asymmetric, or smm where no
+    mean test ran; a location no test rejects is credible only within
+    :func:`bias_margin`. paper and ks: Algorithm 1 (lines 2–23), SMM from the ELT.
+
+    Parameters
+    ----------
+    evidence : Evidence
+        The segment's statistics (:func:`credcli.engine.evidence.gather`).
+    config : DiagnosisConfig
+        The configuration, whose variant chooses the rule.
+
+    Returns
+    -------
+    Verdict
+        The label, the untested questions and why, and whether SMM was found;
+        insufficient-data when both questions are untested (or, for ``paper`` and ``ks``,
+        when the ELT did not run).
+
+    References
+    ----------
+    P. Yan, L.-T. Hsu and R. Sun, "Credible Uncertainty Quantification under Noise and
+    System Model Mismatch", Algorithm 1.
     """
     scale_reason = evidence.scale_reason
     noise_override = None
@@ -90,17 +126,55 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
 
 
 def median_optimism(evidence: Evidence, config: DiagnosisConfig) -> bool:
-    """Whether the median GLS-centred NEES is above the dependence-free bound at α_S/2
-    (:func:`credcli.engine.episodes.median_bound`): the covariance is too small whatever
-    the errors' memory, where the memory-adjusted scale test could not decide (a diverging
-    filter, whose squared errors' variance ratio leaves no degrees of freedom)."""
+    """Whether the median GLS-centred NEES is above the dependence-free bound at α_S/2.
+
+    Then the covariance is too small whatever the errors' memory, where the
+    memory-adjusted scale test could not decide (a diverging filter, whose squared errors'
+    variance ratio leaves no degrees of freedom).
+
+    Parameters
+    ----------
+    evidence : Evidence
+        The segment's statistics (its ``q_median`` and ``dim``).
+    config : DiagnosisConfig
+        The configuration (its α_S).
+
+    Returns
+    -------
+    bool
+        ``q_median`` > :func:`credcli.engine.episodes.median_bound` (d, α_S); False
+        without a median.
+    """
     if evidence.q_median is None:
         return False
     return evidence.q_median > episodes.median_bound(evidence.dim, config.scale_level)
 
 
 def nees_label(nees_total: float, n: int, dim: int, alpha: float = 0.05) -> Label:
-    """:func:`nees_baseline` from the sum of the NEES values of ``n`` epochs."""
+    """:func:`nees_baseline` from the sum of the NEES values of ``n`` epochs.
+
+    Parameters
+    ----------
+    nees_total : float
+        Σ_k ε_k over the segment, Eq. (1).
+    n : int
+        Epochs N.
+    dim : int
+        The state dimension d.
+    alpha : float, default 0.05
+        The test's level (two-sided).
+
+    Returns
+    -------
+    Label
+        ``optimism`` above the upper 1 − α/2 quantile of χ²_{N·d}, ``pessimism`` below the
+        lower α/2 quantile, ``credible`` between.
+
+    Examples
+    --------
+    >>> [str(nees_label(total, 100, 2)) for total in (200.0, 260.0, 150.0)]
+    ['credible', 'optimism', 'pessimism']
+    """
     dof = n * dim
     if nees_total > special.chdtri(dof, alpha / 2):
         return Label.OPTIMISM
@@ -187,21 +261,56 @@ question untested, not credible: never a guess behind a label. On the paper's pr
 
 
 def bias_margin(dim: int) -> float:
-    """The calibrated rule calls a location credible only when the mean's confidence region
-    excludes a bias of this many σ (‖μ‖ in the metric of the mean claimed precision):
-    √(d(F − 1)), F = :data:`CREDIBLE_FACTOR`, i.e. √2σ for d = 2. A bias b raises the
-    mean NEES from d to d + b², so b² = d(F − 1) is the bias that misfits the claimed
-    covariance as much as the scale's margin, a factor F = 2 on the NEES: the two questions
-    share one definition of a relevant misfit. A region that reaches past it is
-    inconclusive, and the location question untested: no "no bias" claim from a mean test
-    too weak to see one. Where κ̂ > 1 the margin is in the σ of the corrected covariance,
-    √κ̂ times the claimed one (:func:`inconclusive_location`): after the covariance is
-    multiplied by κ̂, a bias misfits it as much as b/√κ̂ would the claimed one."""
+    """The bias, in σ, that the mean's confidence region must exclude for a credible
+    location.
+
+    The calibrated rule calls a location credible only when the mean's confidence region
+    excludes a bias of this many σ (‖μ‖ in the metric of the mean claimed precision). A
+    region that reaches past it is inconclusive, and the location question untested: no
+    "no bias" claim from a mean test too weak to see one. Where κ̂ > 1 the margin is in
+    the σ of the corrected covariance, √κ̂ times the claimed one
+    (:func:`inconclusive_location`): after the covariance is multiplied by κ̂, a bias
+    misfits it as much as b/√κ̂ would the claimed one.
+
+    Parameters
+    ----------
+    dim : int
+        The state dimension d.
+
+    Returns
+    -------
+    float
+        √(d(F − 1)), F = :data:`CREDIBLE_FACTOR`; √2 for d = 2.
+
+    Notes
+    -----
+    A bias b raises the mean NEES from d to d + b², Eq. (2), so b² = d(F − 1) is the bias
+    that misfits the claimed covariance as much as the scale's margin, a factor F = 2 on
+    the NEES: the two questions share one definition of a relevant misfit.
+
+    Examples
+    --------
+    >>> round(bias_margin(2), 4), round(bias_margin(3), 4)
+    (1.4142, 1.7321)
+    """
     return math.sqrt(dim * (CREDIBLE_FACTOR - 1.0))
 
 
 def inconclusive_location(evidence: Evidence) -> str | None:
-    """Why a location that no test rejects still does not support "no bias", or None."""
+    """Why a location that no test rejects still does not support "no bias", or None.
+
+    Parameters
+    ----------
+    evidence : Evidence
+        The segment's statistics (its mean test, scale test and mean level).
+
+    Returns
+    -------
+    str or None
+        The reason when no mean test ran (the ELT has no margin), or when the mean's
+        1 − ``mean_level`` confidence region reaches :func:`bias_margin` (in the σ of the
+        covariance corrected by κ̂ where κ̂ > 1); None when it excludes that bias.
+    """
     mean = evidence.mean_test
     # in the σ of the covariance as the scale's answer corrects it (κ̂ > 1): the bias that
     # matters once the covariance is fixed; never narrower than the claimed σ
@@ -223,7 +332,22 @@ def inconclusive_location(evidence: Evidence) -> str | None:
 
 
 def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
-    """Why a scale test that finds no misfit still does not support "credible", or None."""
+    """Why a scale test that finds no misfit still does not support "credible", or None.
+
+    Parameters
+    ----------
+    scale : ScaleTest
+        The scale test.
+    config : DiagnosisConfig
+        The configuration (α_S and the relevance floor τ).
+
+    Returns
+    -------
+    str or None
+        The reason when the test finds no misfit (:func:`noise` is None) and κ̂'s interval
+        is not within [1/F, F], F = :data:`CREDIBLE_FACTOR`; None when the test finds a
+        misfit or the interval is within the margin.
+    """
     if noise(scale, config) is not None:
         return None
     low, high = scale.scale_factor_low, scale.scale_factor_high
@@ -237,9 +361,25 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
 
 
 def mixed(directions: DirectionScales, config: DiagnosisConfig) -> bool:
-    """Whether the directions disagree in sign: one too large and another too small, each
-    beyond its interval and the relevance floor. One factor for the whole covariance is then
-    the wrong advice, and the label follows the directions (optimism)."""
+    """Whether the principal directions' scale factors disagree in sign.
+
+    One too large and another too small, each beyond its interval and the relevance
+    floor. One factor for the whole covariance is then the wrong advice, and the label
+    follows the directions (optimism).
+
+    Parameters
+    ----------
+    directions : DirectionScales
+        The scale factor per principal direction, with its interval.
+    config : DiagnosisConfig
+        The configuration (the relevance floor τ, in dB).
+
+    Returns
+    -------
+    bool
+        True when some direction's interval is above 1 with its factor above +τ dB and
+        another's below 1 with its factor below −τ dB.
+    """
     db = 10.0 * np.log10(np.maximum(directions.factors, np.finfo(float).tiny))
     too_small = np.any((directions.low > 1.0) & (db > config.tau_nci))
     too_large = np.any((directions.high < 1.0) & (db < -config.tau_nci))
@@ -248,10 +388,25 @@ def mixed(directions: DirectionScales, config: DiagnosisConfig) -> bool:
 
 def direction_noise(directions: DirectionScales, config: DiagnosisConfig) -> str | None:
     """The noise label from the principal directions, where the overall scale test was
-    inconclusive: "optimism" when some direction's factor is above 1 (interval and relevance
-    floor τ), whatever the others do, since a covariance too small in one direction makes
-    the estimator overconfident there (mixed directions are optimism; the advice gives the
-    matrix correction); else "pessimism" when some direction's is below 1; else None."""
+    inconclusive.
+
+    A covariance too small in one direction makes the estimator overconfident there, so
+    one such direction is optimism whatever the others do (mixed directions are optimism;
+    the advice gives the matrix correction).
+
+    Parameters
+    ----------
+    directions : DirectionScales
+        The scale factor per principal direction, with its interval.
+    config : DiagnosisConfig
+        The configuration (the relevance floor τ, in dB).
+
+    Returns
+    -------
+    str or None
+        "optimism" when some direction's factor is above 1 (interval and relevance floor
+        τ); else "pessimism" when some direction's is below 1; else None.
+    """
     db = 10.0 * np.log10(np.maximum(directions.factors, np.finfo(float).tiny))
     if np.any((directions.low > 1.0) & (db > config.tau_nci)):
         return "optimism"
@@ -261,7 +416,21 @@ def direction_noise(directions: DirectionScales, config: DiagnosisConfig) -> str
 
 
 def noise(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
-    """ "optimism", "pessimism" or None: the scale test at α_S with the relevance floor τ."""
+    """The noise condition of the scale test at α_S with the relevance floor τ.
+
+    Parameters
+    ----------
+    scale : ScaleTest
+        The scale test (its κ̂ and one-sided p-values).
+    config : DiagnosisConfig
+        The configuration (α_S and τ, in dB).
+
+    Returns
+    -------
+    str or None
+        "optimism" when the upper p-value is below α_S/2 and κ̂ is above +τ dB;
+        "pessimism" when the lower one is below α_S/2 and κ̂ below −τ dB; else None.
+    """
     half = config.scale_level / 2
     db = 10.0 * math.log10(scale.scale_factor) if scale.scale_factor > 0 else -math.inf
     if scale.pvalue_upper < half and db > config.tau_nci:
@@ -274,16 +443,50 @@ def noise(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
 def calibrated_label(
     scale: ScaleTest | None, location: str | None, config: DiagnosisConfig
 ) -> Label:
-    """Scale part (two-sided at α_S, with the relevance floor τ) plus the location
-    condition (:attr:`credcli.engine.evidence.Evidence.location_condition`); without a
-    scale test, the location half alone (or credible as far as the location goes)."""
+    """The calibrated rule's label: the scale part plus the location condition.
+
+    Parameters
+    ----------
+    scale : ScaleTest or None
+        The scale test; None where the scale is untested.
+    location : str or None
+        The location condition
+        (:attr:`credcli.engine.evidence.Evidence.location_condition`): "bias",
+        "asymmetric", "smm" or None.
+    config : DiagnosisConfig
+        The configuration (α_S and τ).
+
+    Returns
+    -------
+    Label
+        :func:`noise` (two-sided at α_S, with the relevance floor τ) composed with
+        ``location``; without a scale test, the location half alone (or credible as far as
+        the location goes).
+    """
     if scale is None:
         return Label.compose(None, location)
     return Label.compose(noise(scale, config), location)
 
 
 def label_without_smm(nci_value: float, ks_p: float, config: DiagnosisConfig) -> Label:
-    """Lines 2–8 of Algorithm 1, with the KS check of the authors' code for Variant.KS."""
+    """Lines 2–8 of Algorithm 1, with the KS check of the authors' code for Variant.KS.
+
+    Parameters
+    ----------
+    nci_value : float
+        The NCI in dB, Eq. (4).
+    ks_p : float
+        The KS p-value of the NEES against χ²_d
+        (:func:`credcli.engine.evidence.ks_chi2_pvalue`).
+    config : DiagnosisConfig
+        The configuration (variant, τ_NCI, the KS level).
+
+    Returns
+    -------
+    Label
+        For ``ks``, credible when the KS test does not reject or |NCI| <= τ_NCI;
+        otherwise :func:`nci_baseline`.
+    """
     if config.variant is Variant.KS and (
         ks_p >= config.ks_alpha or abs(nci_value) <= config.tau_nci
     ):
@@ -292,17 +495,36 @@ def label_without_smm(nci_value: float, ks_p: float, config: DiagnosisConfig) ->
 
 
 def label_with_smm(nci_centred: float, probes: metrics.Probes | None, tau: float) -> Label:
-    """Lines 10–23 of Algorithm 1 on the bias-corrected estimate x̃_k."""
+    """Lines 10–23 of Algorithm 1 on the bias-corrected estimate x̃_k.
+
+    Parameters
+    ----------
+    nci_centred : float
+        The NCI of the errors less their mean, in dB.
+    probes : Probes or None
+        The probes and SRDs of the centred predictive, Eqs. (18)-(19); needed when
+        ``nci_centred`` > ``tau``.
+    tau : float
+        τ_NCI in dB.
+
+    Returns
+    -------
+    Label
+        ``pessimism+smm`` below −τ; above +τ, ``smm`` when every probe is positive,
+        ``optimism+smm`` when SRD_NLL > SRD_ES (neither NaN), else ``smm``; ``smm``
+        within ±τ.
+    """
     if nci_centred < -tau:
         return Label.PESSIMISM_SMM
     if nci_centred > tau:
         assert probes is not None
         if probes.all_positive:
             return Label.SMM
-        if greater(probes.srd_nll, probes.srd_es):
+        if _greater(probes.srd_nll, probes.srd_es):
             return Label.OPTIMISM_SMM
     return Label.SMM
 
 
-def greater(a: float, b: float) -> bool:
+def _greater(a: float, b: float) -> bool:
+    """a > b, False when either is NaN."""
     return not math.isnan(a) and not math.isnan(b) and a > b

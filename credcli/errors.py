@@ -56,11 +56,30 @@ _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff]")
 
 
 def printable(text: str) -> str:
-    """``text`` safe to show on a terminal or in a one-line message: every control
-    character (C0, DEL, C1, the Unicode line and paragraph separators) and every lone
-    surrogate (a file name's bytes that are not UTF-8) as a backslash
+    """``text`` made safe to show on a terminal or in a one-line message.
+
+    Every control character (C0, DEL, C1, the Unicode line and paragraph separators) and
+    every lone surrogate (a file name's bytes that are not UTF-8) becomes a backslash
     escape (``\\n``, ``\\x1b``), as git and ls quote names, so that a name from the data
-    can neither move the cursor, set a window title, nor start a line of its own."""
+    can neither move the cursor, set a window title, nor start a line of its own.
+
+    Parameters
+    ----------
+    text : str
+        Any text, typically a name or value taken from the data.
+
+    Returns
+    -------
+    str
+        ``text`` itself when it has no such character, else ``text`` with each one
+        escaped: ``\\n``, ``\\r``, ``\\t``, ``\\xNN`` below U+0100, ``\\uNNNN``
+        from there on.
+
+    Examples
+    --------
+    >>> print(printable("run\\n1\\x1b[2J"))
+    run\\n1\\x1b[2J
+    """
     if _CONTROL.search(text) is None:
         return text
     return _CONTROL.sub(
@@ -74,5 +93,22 @@ def printable(text: str) -> str:
 
 
 def plain(message: str) -> str:
-    """A message with its parameter names out of their backticks."""
+    """A message with its parameter names out of their backticks.
+
+    Parameters
+    ----------
+    message : str
+        A message that names parameters in backticks (``NAMED``), as a
+        ``CredcliError``'s does.
+
+    Returns
+    -------
+    str
+        The message with each backticked name (lower case, digits, underscores) bare.
+
+    Examples
+    --------
+    >>> plain("`n_flips` must be a positive integer")
+    'n_flips must be a positive integer'
+    """
     return NAMED.sub(r"\1", message)

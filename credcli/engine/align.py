@@ -30,7 +30,17 @@ from credcli.errors import CredcliError
 
 @dataclass(frozen=True)
 class Transform:
-    """x ↦ s R x + t, with R (d, d) a rotation (det +1), t (d,), s > 0."""
+    """The similarity transform x ↦ s R x + t.
+
+    Attributes
+    ----------
+    rotation : numpy.ndarray
+        R (d, d), a rotation (det +1).
+    translation : numpy.ndarray
+        t (d,).
+    scale : float
+        s > 0 (default 1: a rigid transform).
+    """
 
     rotation: np.ndarray
     translation: np.ndarray
@@ -38,6 +48,7 @@ class Transform:
 
     @property
     def dim(self) -> int:
+        """d, the dimension the transform acts in."""
         return self.rotation.shape[0]
 
     @property
@@ -51,7 +62,18 @@ class Transform:
         return float(np.degrees(np.arccos(cos)))
 
     def apply(self, points: np.ndarray) -> np.ndarray:
-        """s R x_k + t for each row x_k of ``points`` (N, d)."""
+        """s R x_k + t for each row x_k of ``points``.
+
+        Parameters
+        ----------
+        points : numpy.ndarray, shape (N, d)
+            The points x_k, one per row.
+
+        Returns
+        -------
+        numpy.ndarray, shape (N, d)
+            The moved points.
+        """
         return self.scale * points @ self.rotation.T + self.translation
 
 
@@ -79,6 +101,11 @@ def umeyama(truth: np.ndarray, estimate: np.ndarray, with_scale: bool = False) -
         Paired positions.
     with_scale : bool
         Fit the scale s (Sim(d)); otherwise s = 1 (SE(d)).
+
+    Returns
+    -------
+    Transform
+        R, t and s, the transform to apply to the estimate (``Transform.apply``).
 
     Raises
     ------
@@ -144,9 +171,29 @@ def origin(
     r_true: np.ndarray | None = None,
     r_est: np.ndarray | None = None,
 ) -> Transform:
-    """The transform T = T_true T_est⁻¹ that maps the estimate's pose (``p_est``, rotation
-    matrix ``r_est``) onto the truth's: R = R_true R_estᵀ, t = p_true − R p_est (evo's
-    ``align_origin``). Without rotations, the translation p_true − p_est alone."""
+    """The transform T = T_true T_est⁻¹ that maps the estimate's pose onto the truth's.
+
+    R = R_true R_estᵀ, t = p_true − R p_est (evo's ``align_origin``); nothing is fitted to
+    the rest of the run.
+
+    Parameters
+    ----------
+    p_true, p_est : numpy.ndarray, shape (d,)
+        The truth's and the estimate's first positions.
+    r_true, r_est : numpy.ndarray or None, shape (d, d)
+        Their rotation matrices. Without both, R = I and T is the translation
+        p_true − p_est alone.
+
+    Returns
+    -------
+    Transform
+        R and t, with s = 1.
+
+    Examples
+    --------
+    >>> origin(np.array([1.0, 2.0]), np.array([0.5, 0.0])).translation.tolist()
+    [0.5, 2.0]
+    """
     p_true, p_est = np.asarray(p_true, dtype=float), np.asarray(p_est, dtype=float)
     d = p_true.shape[0]
     rotation = np.eye(d) if r_true is None or r_est is None else r_true @ r_est.T
@@ -154,12 +201,9 @@ def origin(
 
 
 def covariance_map(transform: Transform, size: int, world: bool = True) -> np.ndarray:
-    """The matrix J (``size``, ``size``) with which the claimed covariance of an estimate
-    moved by ``transform`` is J Σ Jᵀ.
+    """The matrix J that moves the claimed covariance with the estimate: Σ' = J Σ Jᵀ.
 
-    ``size`` d: a position covariance, J = s R (world-frame errors). ``size`` 2d in 3-D: a
-    pose covariance, positions then rotation vectors (ROS order). With x̂' = s R x̂ + t and
-    R̂' = R R̂:
+    With x̂' = s R x̂ + t and R̂' = R R̂:
 
     - ``world`` (left perturbation, R_true = Exp(δ) R̂): the world-frame position error
       scales and turns, δp' = s R δp, and so does the rotation error, Exp(δ') R R̂ =
@@ -168,6 +212,28 @@ def covariance_map(transform: Transform, size: int, world: bool = True) -> np.nd
       δ' = δ: J = diag(s I, I).
 
     The position–orientation cross block becomes s R Σ_pθ Rᵀ (world) or s Σ_pθ (body).
+
+    Parameters
+    ----------
+    transform : Transform
+        The alignment applied to the estimate.
+    size : int
+        The covariance's size: d for a position covariance, J = s R (world) or s I
+        (body); 2d = 6 in 3-D for a pose covariance, positions then rotation vectors
+        (ROS order).
+    world : bool
+        Whether the errors are in the world frame (left perturbation; default) or in the
+        estimate's body frame (right perturbation).
+
+    Returns
+    -------
+    numpy.ndarray, shape (size, size)
+        J (``transform_covariance`` applies it).
+
+    Raises
+    ------
+    CredcliError
+        For any other ``size`` (named as the ``align`` parameter).
     """
     d = transform.dim
     rotation = transform.rotation if world else np.eye(d)
@@ -185,6 +251,25 @@ def covariance_map(transform: Transform, size: int, world: bool = True) -> np.nd
 
 
 def transform_covariance(cov: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
-    """J Σ_k Jᵀ for each (N, m, m) covariance Σ_k, symmetrised against rounding."""
+    """J Σ_k Jᵀ for each covariance Σ_k, symmetrised against rounding.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, m, m)
+        The covariances Σ_k.
+    jacobian : numpy.ndarray, shape (m, m)
+        J (``covariance_map``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, m, m)
+        (J Σ_k Jᵀ + (J Σ_k Jᵀ)ᵀ)/2, C-contiguous.
+
+    Examples
+    --------
+    >>> j = covariance_map(Transform(np.eye(2), np.zeros(2), 2.0), 2)
+    >>> transform_covariance(np.eye(2)[None], j).tolist()
+    [[[4.0, 0.0], [0.0, 4.0]]]
+    """
     out = np.einsum("ij,njk,lk->nil", jacobian, cov, jacobian)
     return np.ascontiguousarray(0.5 * (out + np.swapaxes(out, 1, 2)))

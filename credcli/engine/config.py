@@ -15,8 +15,24 @@ from credcli.errors import CredcliError
 
 
 def sidak(alpha: float) -> float:
-    """The level of each of two independent tests whose union has level ``alpha``:
-    1 − √(1 − α), written α/(1 + √(1 − α)) so that it does not round to 0 for tiny α."""
+    """The level of each of two independent tests whose union has level ``alpha`` (Šidák).
+
+    Parameters
+    ----------
+    alpha : float
+        α, the level of the union, in (0, 1).
+
+    Returns
+    -------
+    float
+        1 − √(1 − α), computed as α/(1 + √(1 − α)) so that it does not round to 0 for
+        tiny α.
+
+    Examples
+    --------
+    >>> round(sidak(0.05), 6), sidak(1e-20)
+    (0.025321, 5e-21)
+    """
     return alpha / (1.0 + math.sqrt(1.0 - alpha))
 
 
@@ -149,9 +165,24 @@ class Alignment(str, enum.Enum):
     SIM3 = "sim3"  # Umeyama's rotation, translation and scale (Sim(2) in the plane)
 
     def fitted_parameters(self, dim: int) -> int:
-        """Parameters fitted to the whole run in ``dim`` dimensions: the degrees of freedom
-        the alignment takes out of the errors (``origin`` fits none: it uses the first
-        pose alone)."""
+        """Parameters fitted to the whole run: the degrees of freedom taken from the errors.
+
+        Parameters
+        ----------
+        dim : int
+            d, the dimension of the positions (2 or 3).
+
+        Returns
+        -------
+        int
+            0 for ``none`` and ``origin`` (which uses the first pose alone); d(d + 1)/2 for
+            ``se3`` (d translations, d(d − 1)/2 rotation angles); one more for ``sim3``.
+
+        Examples
+        --------
+        >>> Alignment.SE3.fitted_parameters(3), Alignment.SIM3.fitted_parameters(2)
+        (6, 4)
+        """
         if self in (Alignment.NONE, Alignment.ORIGIN):
             return 0
         rigid = dim * (dim + 1) // 2  # d translations and d(d − 1)/2 rotation angles
@@ -183,7 +214,24 @@ LABEL_ALIASES = {
 
 
 def parse_label(text: str) -> Label | None:
-    """A label from its name or alias (case-insensitive); None when it is neither."""
+    """A label from its name or alias (case-insensitive); None when it is neither.
+
+    Parameters
+    ----------
+    text : str
+        A label's text (``"optimism+smm"``) or one of ``LABEL_ALIASES`` (``"opt+smm"``);
+        surrounding spaces are ignored.
+
+    Returns
+    -------
+    Label or None
+        The label, or None when ``text`` names none.
+
+    Examples
+    --------
+    >>> parse_label(" Opt+SMM "), parse_label("optimism+bias"), parse_label("fine")
+    (<Label.OPTIMISM_SMM: 'optimism+smm'>, <Label.OPTIMISM_BIAS: 'optimism+bias'>, None)
+    """
     text = text.strip().lower()
     if text in LABEL_ALIASES:
         return LABEL_ALIASES[text]

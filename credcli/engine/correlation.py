@@ -14,11 +14,8 @@ Econometrica 60(4), Eq. (2.4)), with the Andrews (1991, Econometrica 59(3), Eqs.
 α̂(1) = 4ρ̂²/((1 − ρ̂)²(1 + ρ̂)²). The prewhitening coefficient is capped at ±0.999, so
 that recolouring by 1/(1 − ρ̂)² stays bounded (τ̂ <= 1999). Andrews & Monahan cap it at
 0.97, for near-unit-root regressors in samples of a few hundred; a filter's errors at 100 Hz
-have lag-1 autocorrelations of 0.99 and more in samples of thousands, and with the 0.97 cap
-τ̂ of an AR(1) with φ = 0.99 (τ = 199) was 28 (median of 50 series of 6,000 epochs; 10–90 %:
-25–32): sign blocks and batches a seventh as long as needed, and the ELT rejected 4.5 % of
-correct covariances at 1.27 %. With the 0.999 cap: median 210 (178–252), and 175 (102–320)
-on 600 epochs.
+have lag-1 autocorrelations of 0.99 and more in samples of thousands, where the 0.97 cap
+makes τ̂ far too small, and sign blocks and batches with it (figures in docs/measured.md).
 
 Block length: with τ = Ω/γ(0), a sign flip of blocks of length L loses the covariance
 across block boundaries, a fraction G/(L Ω) of the variance (G = 2 Σ_h h γ(h), the notation
@@ -54,9 +51,31 @@ def _lag1(x: np.ndarray) -> np.ndarray:
 
 
 def autocorrelation(x: np.ndarray, about_zero: bool = False) -> np.ndarray:
-    """Lag-1 sample autocorrelation γ̂(1)/γ̂(0) of each column of x (T, p), after centring;
-    ``about_zero``: Σ x_k x_{k−1} / Σ x_k² without centring, the estimate under a null
-    hypothesis of mean zero, which a slow excursion of the sample mean does not hide."""
+    """Lag-1 sample autocorrelation γ̂(1)/γ̂(0) of each column of x, after centring.
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (T,) or (T, p)
+        The series, one per column (more axes are flattened into columns).
+    about_zero : bool
+        Σ x_k x_{k−1} / Σ x_k² without centring: the estimate under a null hypothesis of
+        mean zero, which a slow excursion of the sample mean does not hide (default
+        False).
+
+    Returns
+    -------
+    numpy.ndarray, shape (p,)
+        r̂₁ per column; 0 for a column that does not vary, and for T < 2.
+
+    Examples
+    --------
+    An AR(1) with φ = 0.5; about zero, a mean of 3 reads as strong dependence:
+
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.5], np.random.default_rng(0).standard_normal(10_000))
+    >>> round(float(autocorrelation(x)[0]), 1), round(float(autocorrelation(x + 3, True)[0]), 1)
+    (0.5, 0.9)
+    """
     x = np.asarray(x, dtype=float)
     x = x.reshape(x.shape[0], -1)
     x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
@@ -73,6 +92,24 @@ def andrews_bandwidth(rho: np.ndarray, n: int) -> np.ndarray:
 
     .. math:: S = 1.1447\,\big(\hat\alpha(1)\,T\big)^{1/3},\qquad
               \hat\alpha(1) = \frac{4\hat\rho^2}{(1-\hat\rho)^2(1+\hat\rho)^2}
+
+    Parameters
+    ----------
+    rho : numpy.ndarray
+        ρ̂, the lag-1 autocorrelation of each column (capped at ±0.999, as the
+        prewhitening is).
+    n : int
+        T, the number of epochs.
+
+    Returns
+    -------
+    numpy.ndarray
+        S per column, in lags (a real number; 0 for ρ̂ = 0).
+
+    References
+    ----------
+    D. W. K. Andrews, "Heteroskedasticity and autocorrelation consistent covariance
+    matrix estimation", Econometrica 59(3), 1991, Eqs. (5.1)–(5.3), (6.4).
     """
     rho = np.clip(np.asarray(rho, dtype=float), -_MAX_PREWHITEN, _MAX_PREWHITEN)
     alpha1 = 4.0 * rho**2 / ((1.0 - rho) ** 2 * (1.0 + rho) ** 2)
@@ -91,6 +128,22 @@ def long_run_variance(x: np.ndarray) -> np.ndarray:
         \qquad \varepsilon_t = x_t - \hat\rho x_{t-1}
 
     The loop runs over lags (at most S, of order T^{1/3}), vectorised over epochs.
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (T,) or (T, p)
+        The series, one per column; centred here.
+
+    Returns
+    -------
+    numpy.ndarray, shape (p,)
+        Ω̂ per column, >= 0; the plain variance (about the mean) for T < 3.
+
+    References
+    ----------
+    D. W. K. Andrews and J. C. Monahan, "An improved heteroskedasticity and
+    autocorrelation consistent covariance matrix estimator", Econometrica 60(4), 1992,
+    Eq. (2.4).
 
     Examples
     --------
@@ -121,7 +174,27 @@ def long_run_variance(x: np.ndarray) -> np.ndarray:
 
 
 def variance_ratio(x: np.ndarray) -> np.ndarray:
-    """τ = Ω / γ(0) per column: 1 for independent epochs, (1 + φ)/(1 − φ) for an AR(1)."""
+    """τ = Ω / γ(0) per column: 1 for independent epochs, (1 + φ)/(1 − φ) for an AR(1).
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (T,) or (T, p)
+        The series, one per column (rescaled by a power of two first: exact, and the
+        squares cannot overflow).
+
+    Returns
+    -------
+    numpy.ndarray, shape (p,)
+        τ̂ = ``long_run_variance(x)`` / the sample variance, per column; 1 for a column
+        that does not vary.
+
+    Examples
+    --------
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.5], np.random.default_rng(0).standard_normal(100_000))
+    >>> round(float(variance_ratio(x)[0]), 1)  # AR(1), φ = 0.5: τ = 3
+    3.0
+    """
     x = np.asarray(x, dtype=float)
     x = x.reshape(x.shape[0], -1)
     x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
@@ -137,13 +210,33 @@ dependence-aware tests, where their batches fit (:func:`credcli.engine.dependenc
 
 
 def serially_dependent(r1: np.ndarray, n: int, level: float = DEPENDENCE_LEVEL) -> bool:
-    """Whether some of the lag-1 autocorrelations ``r1`` (:func:`autocorrelation`) of ``n``
-    epochs is significant.
+    """Whether some of the lag-1 autocorrelations of ``n`` epochs is significant.
 
     Under independence √n·r̂₁ is asymptotically N(0, 1) (Bartlett 1946); the columns are
     tested two-sided at ``level`` with a Bonferroni split. On independent data τ̂ is
     noisy (at n = 25 its lag-1 coefficient has a standard error of 0.2), and using it
     would ask for sign blocks that are not needed; this gate keeps L = 1 there.
+
+    Parameters
+    ----------
+    r1 : array_like
+        The lag-1 autocorrelations r̂₁ of the columns (``autocorrelation``).
+    n : int
+        The number of epochs they were estimated from.
+    level : float
+        The overall two-sided level (default ``DEPENDENCE_LEVEL``, 1 %); each of the p
+        columns is tested at ``level``/p.
+
+    Returns
+    -------
+    bool
+        True when some |r̂₁|·√n exceeds the normal quantile at 1 − ``level``/(2p); False
+        for n < 3.
+
+    Examples
+    --------
+    >>> serially_dependent([0.05, 0.3], 100), serially_dependent([0.05, 0.1], 100)
+    (True, False)
     """
     from scipy import special
 
@@ -158,6 +251,24 @@ def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> 
     """Smallest sign-block length that loses at most ``loss`` of the variance, AR(1) plug-in.
 
     L = max_i ⌈(τ_i² − 1)/(2 τ_i ε)⌉, and 1 when every τ_i <= 1.
+
+    Parameters
+    ----------
+    tau : numpy.ndarray or float
+        The variance ratios τ_i of the whitened components (non-finite ones are ignored).
+    loss : float
+        ε, the largest fraction of the statistic's variance the block flips may lose, in
+        (0, 1) (default ``BLOCK_VARIANCE_LOSS``, 0.1).
+
+    Returns
+    -------
+    int
+        L >= 1, in epochs.
+
+    Raises
+    ------
+    ValueError
+        If ``loss`` is not in (0, 1).
 
     Examples
     --------
@@ -177,16 +288,28 @@ def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> 
 
 
 def ar1_variance_ratio(r1: np.ndarray, n: int) -> np.ndarray:
-    r"""τ per column from the lag-1 autocorrelations ``r1`` (:func:`autocorrelation`) of
-    ``n`` epochs, bias-corrected, as an AR(1).
+    r"""τ per column from the lag-1 autocorrelations of ``n`` epochs, bias-corrected, as
+    an AR(1).
 
     The least-squares lag-1 coefficient of a short series with an estimated mean is biased
     towards 0 by about (1 + 3ρ)/T (Kendall 1954; Marriott & Pope 1954, Biometrika 41), so
     ρ̃ = ρ̂ + (1 + 3ρ̂)/T (capped as the prewhitening is) and τ = (1 + ρ̃)/(1 − ρ̃). Used
     with :func:`variance_ratio` as the larger of the two, for lengths of batches and sign
     blocks only: in a window of 50–120 epochs the kernel τ̂ is often far below the truth,
-    and the windows where it happens to be low were the ones decided, with false alarms of
-    10–24 % on AR(1) errors with φ = 0.5–0.95 (measured; docs/measured.md has the table).
+    and the windows where it happens to be low would be the ones decided, with false
+    alarms well above the level on AR(1) errors (docs/measured.md has the table).
+
+    Parameters
+    ----------
+    r1 : numpy.ndarray
+        The lag-1 autocorrelations r̂₁ of the columns (``autocorrelation``).
+    n : int
+        T, the number of epochs they were estimated from.
+
+    Returns
+    -------
+    numpy.ndarray
+        τ = (1 + ρ̃)/(1 − ρ̃) per column, with ρ̃ clipped to [0, 0.999]: at least 1.
 
     Examples
     --------
@@ -207,6 +330,16 @@ def squared_variance_ratio(tau: np.ndarray) -> float:
     The squared errors of a short window estimate their own τ worse than the errors do (the
     sample mean of a skewed, slowly varying series absorbs most of its slow part); this is
     the floor the scale test's batch length takes from the errors.
+
+    Parameters
+    ----------
+    tau : numpy.ndarray
+        The variance ratios τ of the columns (values below 1 count as 1).
+
+    Returns
+    -------
+    float
+        The largest τ_{x²} over the columns, at least 1.
 
     Examples
     --------

@@ -85,8 +85,28 @@ class ELTResult:
 
 
 def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k` with the symmetric inverse square
-    root, computed in chunks of epochs."""
+    r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k`, Eq. (12).
+
+    With the symmetric inverse square root (from ``eigh``), computed in chunks of epochs.
+    Nothing is validated here (``location_test`` does that).
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k.
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances Σ̂_k, symmetric positive definite.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+        s_k, one row per epoch; i.i.d. N(0, I_d) for credible Gaussian errors.
+
+    Examples
+    --------
+    >>> whiten(np.array([[2.0, 3.0]]), np.diag([4.0, 9.0])[None]).tolist()
+    [[1.0, 1.0]]
+    """
     out = np.empty(errors.shape)
     for sl in epoch_chunks(errors.shape[0]):
         lam, vecs = np.linalg.eigh(cov[sl])
@@ -99,6 +119,21 @@ def energy_statistic(s: np.ndarray) -> float:
     r"""T_obs of Eq. (13) with α = 1, directly from the pairwise sums and differences.
 
     .. math:: T = \frac{2}{N(N-1)}\sum_{i<j}\big(\|s_i+s_j\| - \|s_i-s_j\|\big)
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors (``whiten``), N >= 2.
+
+    Returns
+    -------
+    float
+        T_obs: near 0 for centrally symmetric errors, positive for a mean.
+
+    Examples
+    --------
+    >>> round(energy_statistic(np.array([[1.0, 0.0], [1.0, 0.0]])), 6)  # one pair, ‖2s‖
+    2.0
     """
     n = s.shape[0]
     return float(2.0 * pair_upper(s).sum() / (n * (n - 1)))
@@ -173,9 +208,31 @@ def location_test(
 
 
 def tested_blocks(n: int, block_length: int, max_epochs: int, runs: int = 1) -> int:
-    """Sign blocks the ELT flips for a segment of ``n`` epochs: ⌈n/L⌉ (per run, when the
-    segment pools ``runs`` independent runs of n/runs epochs), or the
-    ``max(2, max_epochs // L)`` whole blocks of the subsample when n exceeds the budget."""
+    """Sign blocks the ELT flips for a segment of ``n`` epochs.
+
+    Parameters
+    ----------
+    n : int
+        The segment's epochs.
+    block_length : int
+        L, epochs per sign block.
+    max_epochs : int
+        The ELT's memory budget: above it a subsample of whole blocks is tested.
+    runs : int
+        The independent runs of n/runs epochs the segment pools (default 1); blocks do
+        not cross runs.
+
+    Returns
+    -------
+    int
+        runs·⌈(n/runs)/L⌉; when n exceeds ``max_epochs``, at most
+        ``max(2, max_epochs // L)`` (the whole blocks of the subsample).
+
+    Examples
+    --------
+    >>> tested_blocks(1000, 3, 4000), tested_blocks(10_000, 3, 4000)
+    (334, 1333)
+    """
     n_blocks = runs * math.ceil(n // runs / block_length)
     if n > max_epochs:
         return min(n_blocks, max(2, max_epochs // block_length))
@@ -183,9 +240,36 @@ def tested_blocks(n: int, block_length: int, max_epochs: int, runs: int = 1) -> 
 
 
 def sign_blocks(n: int, block_length: int, runs: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """(block of each epoch, adjacency key of each block). Blocks are L consecutive epochs
-    of one run (the epochs of a run are consecutive, n/runs of them); blocks of different
-    runs never share a sign and are never adjacent: their keys differ by at least 2."""
+    """The sign block of each epoch, and an adjacency key of each block.
+
+    Blocks are L consecutive epochs of one run (the epochs of a run are consecutive,
+    n/runs of them); blocks of different runs never share a sign and are never adjacent:
+    their keys differ by at least 2.
+
+    Parameters
+    ----------
+    n : int
+        The epochs, a multiple of ``runs``.
+    block_length : int
+        L, epochs per block (a run's last block may be shorter).
+    runs : int
+        The independent runs one after the other (default 1).
+
+    Returns
+    -------
+    blocks : numpy.ndarray of int, shape (n,)
+        The block of each epoch, 0 … runs·⌈(n/runs)/L⌉ − 1, in time order.
+    keys : numpy.ndarray of int
+        One key per block: neighbouring blocks of a run differ by 1, blocks of different
+        runs by at least 2 (``separate_blocks`` leaves out pairs whose keys differ by at
+        most 1).
+
+    Examples
+    --------
+    >>> blocks, keys = sign_blocks(6, 2, runs=2)
+    >>> blocks.tolist(), keys.tolist()
+    ([0, 0, 1, 2, 2, 3], [0, 1, 3, 4])
+    """
     per_run = n // runs
     local = np.arange(n) % per_run // block_length
     run = np.arange(n) // per_run
@@ -223,7 +307,10 @@ def whitened_location_test(
     stop_level: float | None = None,
     runs: int = 1,
 ) -> ELTResult:
-    """The ELT on whitened errors s (N, d); see :func:`location_test`.
+    """The ELT on whitened errors s (N, d); see ``location_test``.
+
+    The settings are validated as ``location_test`` validates them; ``s`` is taken as it
+    is (clean whitened errors).
 
     ``separate_blocks``: leave out of the statistic the pairs of epochs in the same or in
     adjacent sign blocks. Pairs within a block do not change under block flips, and pairs
@@ -245,7 +332,40 @@ def whitened_location_test(
     (``flips_bounded``).
 
     ``runs``: s holds that many independent Monte Carlo runs of N/runs epochs one after
-    the other; each run's errors are flipped in their own blocks (:func:`sign_blocks`).
+    the other; each run's errors are flipped in their own blocks (``sign_blocks``).
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors (``whiten``).
+    n_flips : int
+        B, the number of random sign-flip vectors, >= 1.
+    gen : numpy.random.Generator
+        Source of the Rademacher signs and of the subsample.
+    block_length : int
+        L, epochs per sign block (default 1: the paper's test).
+    max_epochs : int
+        The memory budget: above it a random subsample of whole blocks, kept in time
+        order, is tested (default ``DEFAULT_MAX_EPOCHS``).
+    separate_blocks : bool
+        Leave out the pairs in the same or adjacent blocks (above; default False).
+    stop_level : float or None
+        Stop flipping once the test can no longer reject at this level (above; default
+        None: all B flips).
+    runs : int
+        The independent runs s holds (above; default 1).
+
+    Returns
+    -------
+    ELTResult
+        The statistic, its p-value, the null distribution of the flips used, and how many
+        flips were used and bounded.
+
+    Raises
+    ------
+    CredcliError
+        If ``n_flips`` or ``block_length`` is not a positive integer, ``max_epochs`` is
+        below 2, or N is not a multiple of ``runs``.
     """
     _check_flips(n_flips, block_length, max_epochs)
     n = s.shape[0]

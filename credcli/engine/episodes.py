@@ -54,8 +54,18 @@ IMPLAUSIBLE = 100.0
 
 @dataclass(frozen=True)
 class Burst:
-    """Epochs ``start`` … ``stop`` − 1 of the segment (0-based), where the CUSUM rose from 0
-    to its peak, and the largest NEES among them."""
+    """A run of epochs whose NEES looks ``BURST_FACTOR`` times its claim.
+
+    Attributes
+    ----------
+    start, stop : int
+        Epochs ``start`` … ``stop`` − 1 of the segment (0-based), where the CUSUM rose
+        from 0 to its peak.
+    peak_nees : float
+        The largest NEES among them.
+    statistic : float
+        The CUSUM's peak, against the threshold h = ln(N/``BURST_LEVEL``).
+    """
 
     start: int
     stop: int
@@ -63,6 +73,18 @@ class Burst:
     statistic: float  # the CUSUM's peak, against the threshold h
 
     def describe(self, dim: int) -> str:
+        """The burst as one sentence for the report (epochs 1-based).
+
+        Parameters
+        ----------
+        dim : int
+            d, the state dimension: the NEES is compared with χ²_d's 99.9 % point.
+
+        Returns
+        -------
+        str
+            The epochs, their count and the peak NEES against χ²_d's 99.9 % point.
+        """
         band = float(special.chdtri(dim, 0.001))
         return (
             f"burst: epochs {self.start + 1}–{self.stop} of the segment ({self.stop - self.start} "
@@ -73,14 +95,30 @@ class Burst:
 
 @dataclass(frozen=True)
 class Divergence:
-    """A filter whose errors grow beyond its covariance: from epoch ``start`` (0-based) on,
-    every block's median NEES is above the bound; the first and last quarters' medians."""
+    """A filter whose errors grow beyond its covariance.
+
+    Attributes
+    ----------
+    start : int
+        The epoch (0-based) from which every block's median NEES is above the bound
+        (``median_bound``).
+    first_median, last_median : float
+        The median NEES of the segment's first and last quarters.
+    """
 
     start: int
     first_median: float
     last_median: float
 
     def describe(self) -> str:
+        """The divergence as one sentence for the report (epochs 1-based).
+
+        Returns
+        -------
+        str
+            The first and last quarters' median NEES, the epoch it started from, and the
+            advice to fix the filter before its covariance.
+        """
         return (
             f"diverging: the median NEES goes from {self.first_median:.3g} in the first "
             f"quarter to {self.last_median:.3g} in the last, beyond any plausible tuning from "
@@ -90,13 +128,58 @@ class Divergence:
 
 
 def median_bound(dim: int, level: float) -> float:
-    """c with 2 P(χ²_d > c) = ``level``/2: a median NEES above it rejects at ``level``/2."""
+    """c with 2 P(χ²_d > c) = ``level``/2: a median NEES above it rejects at ``level``/2.
+
+    Markov's inequality on the share of epochs whose NEES exceeds c (module docstring):
+    valid whatever the dependence between epochs.
+
+    Parameters
+    ----------
+    dim : int
+        d, the state dimension.
+    level : float
+        The level; the bound rejects "the covariance is not too small" at ``level``/2.
+
+    Returns
+    -------
+    float
+        c, the χ²_d quantile at 1 − ``level``/4.
+
+    Examples
+    --------
+    >>> round(median_bound(2, 0.05), 2)  # χ²_2 at 0.9875
+    8.76
+    """
     return float(special.chdtri(dim, level / 4.0))
 
 
 def bursts(eps: np.ndarray, dim: int, squares_ratio: float = 1.0) -> tuple[Burst, ...]:
-    """The NEES bursts of a segment (NEES ``eps`` (N,), d = ``dim``), the largest first,
-    by Page's CUSUM (module docstring); ``squares_ratio``: τ_q of the squared errors."""
+    """The NEES bursts of a segment, the largest first, by Page's CUSUM (module docstring).
+
+    Parameters
+    ----------
+    eps : numpy.ndarray, shape (N,)
+        The segment's NEES per epoch.
+    dim : int
+        d, the state dimension.
+    squares_ratio : float
+        τ_q, the variance ratio of the squared errors; the CUSUM's increments are divided
+        by max(τ_q, 1) (default 1: independent epochs).
+
+    Returns
+    -------
+    tuple of Burst
+        Every excursion of the CUSUM above h = ln(N/``BURST_LEVEL``) whose rise lasts at
+        most ``MAX_BURST_SHARE`` of the segment, ordered by their peaks, largest first;
+        empty with fewer than 2 epochs. The caller lists at most ``MAX_BURSTS``.
+
+    Examples
+    --------
+    >>> eps = np.random.default_rng(0).chisquare(2, 1000)
+    >>> eps[500:520] *= 20.0  # twenty epochs of errors 4.5 times too large
+    >>> [(b.start, b.stop) for b in bursts(eps, 2)]  # up to the CUSUM's peak
+    [(500, 519)]
+    """
     n = eps.size
     if n < 2:
         return ()
@@ -130,9 +213,29 @@ def bursts(eps: np.ndarray, dim: int, squares_ratio: float = 1.0) -> tuple[Burst
 
 
 def divergence(q_median: float, eps: np.ndarray, dim: int, level: float) -> Divergence | None:
-    """The segment's divergence (module docstring), or None: the median bound fires on the
-    GLS-centred NEES (its median ``q_median``), and the NEES ``eps`` grows or is beyond any
-    tuning."""
+    """The segment's divergence (module docstring), or None.
+
+    Parameters
+    ----------
+    q_median : float
+        The median of the GLS-centred NEES, which the median bound is applied to.
+    eps : numpy.ndarray, shape (N,)
+        The segment's NEES per epoch.
+    dim : int
+        d, the state dimension.
+    level : float
+        The level of the median bound (``median_bound``).
+
+    Returns
+    -------
+    Divergence or None
+        The divergence when ``q_median`` is above the median bound and the NEES grows
+        (the last quarter's median at least ``GROWTH`` times the first's) or sits beyond
+        any tuning (its median at least ``IMPLAUSIBLE`` times χ²_d's); it starts at the
+        first block of max(4, N // 20) epochs from which every block's median is above the
+        bound. None otherwise, with fewer than 8 epochs, or when the last block is back
+        within the bound.
+    """
     n = eps.size
     if n < 8 or not q_median > median_bound(dim, level):
         return None

@@ -24,7 +24,23 @@ PVALUE_RTOL = 100 * np.finfo(float).eps
 @dataclass(frozen=True)
 class FlipOutcome:
     """The statistic, its randomisation p-value and null distribution, and how many flips
-    were evaluated and bounded (:class:`credcli.engine.elt.ELTResult` describes each)."""
+    were evaluated and bounded (``credcli.engine.elt.ELTResult`` describes each).
+
+    Attributes
+    ----------
+    statistic : float
+        T_obs of Eq. (13).
+    pvalue : float
+        The randomisation p-value of Eq. (16), or the sequential one when the flips
+        stopped early.
+    null_distribution : numpy.ndarray
+        The flipped statistics of Eq. (15) in the order drawn, one per flip used; NaN for
+        a flip that a bound alone placed below T_obs.
+    flips_used : int
+        The flips evaluated (B unless stopped early).
+    flips_bounded : int
+        Of those, the flips settled by the bound alone (the NaNs).
+    """
 
     statistic: float
     pvalue: float
@@ -44,7 +60,22 @@ def pair_matrix(s: np.ndarray) -> np.ndarray:
 
     Then Eq. (13) is :math:`T = \xi^\top A \xi / (N(N-1))` with ξ = 1, and every sign
     flip ξ gives the randomised statistic of Eq. (15) by the same quadratic form.
-    A = U + Uᵀ with U its strictly upper triangle (:func:`pair_upper`).
+    A = U + Uᵀ with U its strictly upper triangle (``pair_upper``).
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, N)
+        A, symmetric, float64.
+
+    Examples
+    --------
+    >>> pair_matrix(np.array([[1.0], [2.0]])).tolist()  # ‖3‖ − ‖−1‖ = 2
+    [[0.0, 2.0], [2.0, 0.0]]
     """
     upper = pair_upper(s)
     return upper + upper.T
@@ -54,7 +85,20 @@ def pair_upper(s: np.ndarray) -> np.ndarray:
     """The strictly upper triangle U of the pair matrix A (zeros elsewhere; A = U + Uᵀ).
 
     ‖s_i ± s_j‖² = ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j, computed a block of rows at a time so
-    that the intermediate arrays stay in cache, for j > i only."""
+    that the intermediate arrays stay in cache, for j > i only; a square that rounds below
+    zero counts as zero.
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, N)
+        U, float64: U_ij = ‖s_i + s_j‖ − ‖s_i − s_j‖ for j > i, 0 on and below the
+        diagonal.
+    """
     n = s.shape[0]
     out = np.zeros((n, n))
     for _ in _pair_rows(s, out):
@@ -75,11 +119,25 @@ def _lower_mask(k: int) -> np.ndarray:
 
 
 def pair_block_upper(s: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """M, the sums of the strictly upper triangle U of the pair matrix over the blocks of
-    consecutive epochs beginning at ``starts`` (M_bc = Σ U_ij over i in block b, j in block
-    c; A_b = M + Mᵀ is the block-summed pair matrix), made from bands of whole blocks of
-    rows: the N×N matrix is never held. Bands are _PAIR_ROWS rows where the blocks divide
-    it, so U's entries are the ones :func:`pair_upper` gives, summed in the same order."""
+    """M, the sums of the strictly upper triangle U of the pair matrix over blocks of epochs.
+
+    M_bc = Σ U_ij over i in block b, j in block c; A_b = M + Mᵀ is the block-summed pair
+    matrix. M is made from bands of whole blocks of rows: the N×N matrix is never held.
+    Bands are ``_PAIR_ROWS`` rows where the blocks divide it, so U's entries are the ones
+    ``pair_upper`` gives, summed in the same order.
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+    starts : numpy.ndarray of int, shape (m,)
+        The first epoch of each block of consecutive epochs, increasing from 0.
+
+    Returns
+    -------
+    numpy.ndarray, shape (m, m)
+        M, float64; zero below the diagonal (its diagonal holds the within-block sums).
+    """
     n = s.shape[0]
     bounds = np.r_[starts, n]
     out = np.zeros((starts.size, starts.size))
@@ -108,7 +166,7 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None, bands=None):
     n = s.shape[0]
     sq = np.einsum("ni,ni->n", s, s)
     twice = 2.0 * s  # exact: 2 s_i·s_j is then one product, bit for bit
-    # ‖s_i‖² + ‖s_j‖² as the product [‖s_i‖², 1]·[1, ‖s_j‖²]: the same sum, twice as fast as
+    # ‖s_i‖² + ‖s_j‖² as the product [‖s_i‖², 1]·[1, ‖s_j‖²]: the same sum, faster than
     # numpy's broadcast addition (products with 1 are exact; one rounding either way)
     sq_ones = np.stack([sq, np.ones(n)], axis=1)
     ones_sq = np.stack([np.ones(n), sq])
@@ -147,9 +205,23 @@ def _pair_block(sq_ones, ones_sq, two_gram, minus, plus, clamp: bool) -> None:
 
 
 def pair_matrix_float32(s: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """The strictly upper triangle of A (:func:`pair_matrix`) rounded to float32 (zeros
-    elsewhere), with 1ᵀA1 and Σ|A_ij| summed in float64 from its float64 rows, which are
-    never held all at once."""
+    """The strictly upper triangle of A (``pair_matrix``) rounded to float32, with 1ᵀA1 and
+    Σ|A_ij| summed in float64 from its float64 rows, which are never held all at once.
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+
+    Returns
+    -------
+    upper : numpy.ndarray of float32, shape (N, N)
+        U rounded to float32, zeros on and below the diagonal.
+    total : float
+        1ᵀA1 = 2·1ᵀU1, in float64.
+    absolute : float
+        Σ|A_ij| = 2·Σ|U_ij|, in float64.
+    """
     n = s.shape[0]
     out = np.zeros((n, n), dtype=np.float32)
     total = absolute = 0.0
@@ -183,8 +255,7 @@ class _FlippedStatistics:
     The flips run in float32 on the strictly upper triangle U of A (A = D + U + Uᵀ, so
     ξᵀAξ = tr D + 2ξᵀUξ; D is 0 but for the block sums of block flips) with BLAS's
     triangular product, which reads only that triangle and does half the multiply-adds
-    of a full product:
-    B·N²/2, about 3.5 times faster here than the float64 B×N×N product. Rounding of U to
+    of a full product, B·N²/2, in single precision. Rounding of U to
     float32 and the float32 inner products change each ξᵀAξ by at most
     (u + γ_N(1 + u))·Σ|A_ij| with u = 2⁻²⁴ and γ_N = Nu/(1 − Nu) (standard bounds for
     inner products in any order; the final sum runs in float64 and the products with ±1
@@ -255,11 +326,10 @@ class _FlippedStatistics:
 
     def _low_rank(self, below: float) -> _LowRankBound | None:
         """The bound, built at the first call that can use it: only for a float64 A of at
-        least _BOUND_MIN_SIZE rows and ``below`` > _BOUND_GATE·N·‖A‖_F. The bound's
-        remainder N·‖R‖_F was 0.08–0.12·N·‖A‖_F on whitened Gaussian errors of any bias
-        (d = 1, 2, 6; N = 1000) and its low-rank part about ±1.4‖A‖_F, so below the gate it
-        certifies little; above, it certified every flip in those measurements, for a
-        build of about a tenth of the flips' cost."""
+        least _BOUND_MIN_SIZE rows and ``below`` > _BOUND_GATE·N·‖A‖_F. The gate is the top
+        of the bound's remainder N·‖R‖_F measured on the ELT's pair matrix: below it the
+        bound certifies little, and its build is not repaid (figures in
+        docs/measured.md)."""
         if self.low_rank is None:
             self.low_rank = False
             if self.dense is not None and self.dense[0].shape[0] >= _BOUND_MIN_SIZE:
@@ -307,9 +377,9 @@ class _FlippedStatistics:
 
 def _block_sums(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """Sums of the rows of ``a`` over the blocks beginning at ``starts``: a reshape-sum
-    over the longest stretch of equal blocks (2.5 times faster than ``np.add.reduceat``
-    here), ``reduceat`` for the blocks after it (shorter ones: a run's or the subsample's
-    last block)."""
+    over the longest stretch of equal blocks (faster than ``np.add.reduceat``),
+    ``reduceat`` for the blocks after it (shorter ones: a run's or the subsample's last
+    block)."""
     sizes = np.diff(np.r_[starts, a.shape[0]])
     equal = int(np.argmax(sizes != sizes[0])) if np.any(sizes != sizes[0]) else sizes.size
     width = int(sizes[0])
@@ -374,9 +444,9 @@ class _LowRankBound:
 
     Norms in these bounds are inflated by 1 %, the sum by 1e-12 relative.
 
-    On the ELT's pair matrix of whitened errors N·‖R‖_F was 0.08–0.12·N·‖A‖_F (d = 1,
-    2, 6; N = 1000; any bias). A strongly rejecting segment's 1ᵀA1 is several times that,
-    so every flip is certified below it.
+    On the ELT's pair matrix of whitened errors N·‖R‖_F is a small fraction of N·‖A‖_F
+    (docs/measured.md), and a strongly rejecting segment's 1ᵀA1 is several times it, so
+    the flips are certified below it.
     """
 
     def __init__(self, q32, c, delta, remainder) -> None:
@@ -421,11 +491,10 @@ def _bound_basis(s: np.ndarray, starts: np.ndarray | None = None) -> np.ndarray:
     matrix A_ij = ‖s_i + s_j‖ − ‖s_i − s_j‖ (of its block sums BᵀAB with block sums BᵀF).
 
     A_ij is odd in s_i and in s_j, so its eigenvectors are odd functions of s; near
-    ‖s_j‖ ≪ ‖s_i‖ it is 2s_i·s_j/‖s_i‖. Measured on N = 1000 Gaussian errors with biases
-    0–2: ‖R‖_F/‖A‖_F 0.08–0.12 (d = 1, 2, 6), against 0.08–0.15 (d = 2, 8 columns) and
-    0.11–0.14 (d = 6, 20 columns) for the range of a Gaussian sketch (Halko, Martinsson &
-    Tropp 2011, SIAM Review 53(2), Alg. 4.1), which also costs a product with A; the even
-    columns 1 and ‖s_i‖ added nothing."""
+    ‖s_j‖ ≪ ‖s_i‖ it is 2s_i·s_j/‖s_i‖. These columns leave a remainder ‖R‖_F/‖A‖_F as
+    small as the range of a Gaussian sketch does (Halko, Martinsson & Tropp 2011, SIAM
+    Review 53(2), Alg. 4.1), which also costs a product with A (figures in
+    docs/measured.md)."""
     norms = np.sqrt(np.einsum("ni,ni->n", s, s))[:, None]
     unit = np.divide(s, norms, out=np.zeros_like(s), where=norms > 0)
     columns = np.hstack([s, unit, s * norms])
@@ -464,10 +533,43 @@ def sign_flip_test(
     separate_blocks=False,
     stop_level=None,
 ) -> FlipOutcome:
-    """Flip B sign vectors of the blocks. With blocks of L > 1 epochs the N×N pair matrix
-    is summed into an m×m block matrix first: ξᵀAξ = ηᵀA_bη for block signs η, so the
-    flips cost m²B instead of N²B. The statistic is homogeneous of degree 1 in s, so it is
-    computed on s/2^k and multiplied back, exactly."""
+    """Flip B sign vectors of the blocks: T_obs, its null distribution and p-value.
+
+    With blocks of L > 1 epochs the N×N pair matrix is summed into an m×m block matrix
+    first: ξᵀAξ = ηᵀA_bη for block signs η, so the flips cost m²B instead of N²B. The
+    statistic is homogeneous of degree 1 in s, so it is computed on s/2^k and multiplied
+    back, exactly. With more than ``STREAM_EPOCHS`` single-epoch blocks (and no
+    ``separate_blocks``) the pair matrix is held in float32 only. The inputs are taken as
+    clean (``credcli.engine.elt`` checks them).
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+    blocks : numpy.ndarray of int, shape (N,)
+        The sign block of each epoch, 0 … m − 1, non-decreasing (m = N: one epoch each).
+    block_ids : numpy.ndarray of int, shape (m,)
+        The adjacency key of each block (``credcli.engine.elt.sign_blocks``); read only
+        with ``separate_blocks``.
+    n_flips : int
+        B, the number of sign vectors drawn.
+    gen : numpy.random.Generator
+        Source of the Rademacher signs (``credcli.engine.rng.rademacher``); all B vectors
+        are drawn up front, whether or not the flips stop early.
+    separate_blocks : bool
+        Leave out of the statistic the pairs of epochs in the same or adjacent blocks
+        (keys at most 1 apart); T is then normalised by the number of pairs kept.
+    stop_level : float or None
+        Stop once the test can no longer reject at this level; flips of a test on course
+        to reject may then be settled by a proven bound (None: all B, exactly).
+
+    Returns
+    -------
+    FlipOutcome
+        T_obs, its p-value (1 + h)/(B + 1) with h the flips >= T_obs (the larger of
+        h/l and (1 + h)/(B + 1) when stopped after l flips), the flipped statistics and
+        the counts of flips used and bounded.
+    """
     n = s.shape[0]
     unit = power_of_two_unit(s)
     n_blocks = int(blocks[-1]) + 1
@@ -543,7 +645,7 @@ def _flip(
         # Besag & Clifford's sequential p-value h/l, and never below (1 + h)/(B + 1), the
         # smallest p-value the exhaustive test could still give: h >= h* puts that at or
         # above the level, so the decision, read off the p-value, is the exhaustive test's
-        # (12/960 = 0.0125 alone fell below the level 0.0127 with B = 999; issue 31)
+        # (h/l alone can fall below it: 12/960 = 0.0125 < 0.0127 with B = 999)
         pvalue = max(count / used, (1 + count) / (n_flips + 1))
     else:
         pvalue = (1 + count) / (n_flips + 1)

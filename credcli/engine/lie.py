@@ -42,12 +42,39 @@ NEEDS_ORIENTATION = {States.ORIENTATION, States.POSE, States.PLANAR}
 
 
 def wrap_angle(x: np.ndarray) -> np.ndarray:
-    """Angles wrapped to (−π, π]."""
+    """Angles wrapped to (−π, π].
+
+    Parameters
+    ----------
+    x : array_like
+        Angles in radians.
+
+    Returns
+    -------
+    numpy.ndarray
+        x + 2πk in (−π, π], elementwise (π stays π, −π becomes π).
+
+    Examples
+    --------
+    >>> np.round(wrap_angle([3 * np.pi / 2, -np.pi, 0.5]), 6).tolist()
+    [-1.570796, 3.141593, 0.5]
+    """
     return np.pi - np.mod(np.pi - np.asarray(x, dtype=float), 2.0 * np.pi)
 
 
 def yaw(rot) -> np.ndarray:
-    """Heading ψ of scipy Rotations: the first angle of the intrinsic Z-Y-X Euler sequence."""
+    """Heading ψ of scipy Rotations: the first angle of the intrinsic Z-Y-X Euler sequence.
+
+    Parameters
+    ----------
+    rot : scipy.spatial.transform.Rotation
+        N rotations (a stack, not a single rotation).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        ψ = atan2(R₁₀, R₀₀) in radians, in [−π, π].
+    """
     m = rot.as_matrix()
     return np.arctan2(m[:, 1, 0], m[:, 0, 0])
 
@@ -60,7 +87,36 @@ def state_errors(
     r_true=None,
     r_est=None,
 ) -> np.ndarray:
-    """Errors (N, d) of the chosen states: positions (N, 3) and scipy Rotations (N)."""
+    """Errors (N, d) of the chosen states: positions (N, 3) and scipy Rotations (N).
+
+    The conventions are the module docstring's: the truth minus the estimate, in the world
+    frame (``left``) or in the estimate's body frame (``right``).
+
+    Parameters
+    ----------
+    states : States or str
+        Which errors: ``position`` (d = 3), ``orientation`` (d = 3), ``pose`` (positions
+        then rotation vectors, d = 6) or ``planar`` (x, y, yaw; d = 3).
+    perturbation : Perturbation or str
+        ``left`` (world frame) or ``right`` (body frame).
+    p_true, p_est : numpy.ndarray or None, shape (N, 3)
+        True and estimated positions; not read for ``orientation``.
+    r_true, r_est : scipy.spatial.transform.Rotation or None
+        True and estimated orientations (N rotations); needed for ``orientation``,
+        ``pose`` and ``planar`` (``NEEDS_ORIENTATION``), and ``r_est`` for ``position``
+        with ``right`` too.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+        The errors, C-contiguous, in the order of the ROS covariance block that
+        ``cov_block`` takes for the same ``states``.
+
+    Raises
+    ------
+    ValueError
+        If ``states`` or ``perturbation`` is not one of its names.
+    """
     states, perturbation = States(states), Perturbation(perturbation)
     right = perturbation is Perturbation.RIGHT
     parts = []
@@ -83,6 +139,26 @@ def state_errors(
 
 
 def cov_block(cov6: np.ndarray, states: States) -> np.ndarray:
-    """The (N, d, d) block of ROS-ordered (N, 6, 6) covariances for ``states``."""
+    """The (N, d, d) block of ROS-ordered (N, 6, 6) covariances for ``states``.
+
+    Parameters
+    ----------
+    cov6 : numpy.ndarray, shape (N, 6, 6)
+        Pose covariances in ROS order: x, y, z, then rotations about x, y, z.
+    states : States or str
+        Which block (``COV_INDEX``): ``position`` rows 0–2, ``orientation`` 3–5,
+        ``pose`` all six, ``planar`` x, y and the rotation about z.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d, d)
+        The rows and columns of ``cov6`` kept, C-contiguous (a copy).
+
+    Examples
+    --------
+    >>> cov6 = np.diag(np.arange(1.0, 7.0))[None]
+    >>> np.diagonal(cov_block(cov6, "planar"), axis1=1, axis2=2).tolist()
+    [[1.0, 2.0, 6.0]]
+    """
     idx = np.asarray(COV_INDEX[States(states)])
     return np.ascontiguousarray(cov6[:, idx[:, None], idx[None, :]])

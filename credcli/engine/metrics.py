@@ -24,10 +24,38 @@ SYMMETRY_RTOL = 1e-6
 
 
 def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The one validation of (errors, cov) for every public entry of the engine: shapes
-    (N, d) and (N, d, d) ((N,) is d = 1), finite values, symmetric covariances (to
-    :data:`SYMMETRY_RTOL`). Positive definiteness is checked where the covariances are
-    factored (:func:`cholesky`). Errors name the argument and the epoch."""
+    """The one validation of (errors, cov) for every public entry of the engine.
+
+    Shapes (N, d) and (N, d, d) ((N,) is d = 1), finite values, symmetric covariances (to
+    ``SYMMETRY_RTOL``). Positive definiteness is checked where the covariances are
+    factored (``cholesky``). Errors name the argument and the epoch.
+
+    Parameters
+    ----------
+    errors : array_like, shape (N, d) or (N,)
+        The errors e_k.
+    cov : array_like, shape (N, d, d) or (N,)
+        The claimed covariances Σ̂_k ((N,): variances, d = 1).
+
+    Returns
+    -------
+    errors : numpy.ndarray, shape (N, d)
+        The errors as float64, (N,) made (N, 1).
+    cov : numpy.ndarray, shape (N, d, d)
+        The covariances as float64, (N,) made (N, 1, 1).
+
+    Raises
+    ------
+    CredcliError
+        For arrays of the wrong or mismatched shapes, a value that is not finite (naming
+        its index), or a covariance that is not symmetric (naming its epoch).
+
+    Examples
+    --------
+    >>> e, c = check_errors_cov([1.0, 2.0], [4.0, 4.0])
+    >>> e.shape, c.shape
+    ((2, 1), (2, 1, 1))
+    """
     errors = np.asarray(errors, dtype=float)
     cov = np.asarray(cov, dtype=float)
     if errors.ndim == 1:
@@ -62,8 +90,26 @@ def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, n
 
 
 def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
-    """Cholesky factors of (N, d, d) (or (d, d)) positive definite matrices; one that is not
-    is an error naming ``name`` and its epoch."""
+    """Cholesky factors of (N, d, d) (or (d, d)) positive definite matrices.
+
+    Parameters
+    ----------
+    matrices : numpy.ndarray, shape (N, d, d) or (d, d)
+        Symmetric matrices.
+    name : str
+        The argument the matrices came from, for the error (default ``"cov"``).
+
+    Returns
+    -------
+    numpy.ndarray
+        The lower-triangular factors L with L Lᵀ = the matrix, in the shape given.
+
+    Raises
+    ------
+    CredcliError
+        If a matrix is not positive definite, naming ``name`` and the first such epoch
+        (``cov[k]``).
+    """
     try:
         return np.linalg.cholesky(matrices)
     except np.linalg.LinAlgError:
@@ -125,7 +171,21 @@ def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 
 def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
-    """e_kᵀ (L Lᵀ)⁻¹ e_k for a factor per epoch (N, d, d) or one shared factor (d, d)."""
+    """The NEES e_kᵀ (L Lᵀ)⁻¹ e_k from Cholesky factors, by triangular solves.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k (clean: ``check_errors_cov``).
+    chol : numpy.ndarray, shape (N, d, d) or (d, d)
+        The Cholesky factors L_k of the claimed covariances (``cholesky``), or one shared
+        factor.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        ε_k, Eq. (1).
+    """
     if chol.ndim == 2:
         z = np.linalg.solve(chol, errors.T).T
         return np.einsum("ni,ni->n", z, z)
@@ -260,7 +320,24 @@ def nci(errors: np.ndarray, cov: np.ndarray, mse: np.ndarray | None = None) -> f
 def nci_factored(
     errors: np.ndarray, chol: np.ndarray, chol_mse: np.ndarray, eps: np.ndarray | None = None
 ) -> float:
-    """NCI from Cholesky factors; ``eps``, the NEES with ``chol``, when already computed."""
+    """The NCI in dB, Eq. (4), from Cholesky factors.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k (clean: ``check_errors_cov``).
+    chol : numpy.ndarray, shape (N, d, d) or (d, d)
+        The Cholesky factors of the claimed covariances.
+    chol_mse : numpy.ndarray, shape (N, d, d) or (d, d)
+        The Cholesky factors of the MSE matrix (``mse_matrix``).
+    eps : numpy.ndarray or None, shape (N,)
+        The NEES with ``chol`` when already computed (default None: computed here).
+
+    Returns
+    -------
+    float
+        10/N Σ_k (log₁₀ ε_k − log₁₀ ε*_k): positive for optimism, negative for pessimism.
+    """
     eps = nees_factored(errors, chol) if eps is None else eps
     eps_star = nees_factored(errors, chol_mse)
     return float(10.0 * np.mean(np.log(eps) - np.log(eps_star)) / _LOG10)
@@ -309,14 +386,16 @@ def gaussian_nll(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     """
     errors, cov = check_errors_cov(errors, cov)
     chol = cholesky(cov)
-    return nll_from_nees(nees_factored(errors, chol), log_det(chol), errors.shape[1], scale)
+    return _nll_from_nees(nees_factored(errors, chol), _log_det(chol), errors.shape[1], scale)
 
 
-def log_det(chol: np.ndarray) -> np.ndarray:
+def _log_det(chol: np.ndarray) -> np.ndarray:
+    """ln|Σ̂_k| = 2 Σ_i ln L_ii from Cholesky factors (N, d, d) or (d, d)."""
     return 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(axis=-1)
 
 
-def nll_from_nees(eps: np.ndarray, logdet: np.ndarray, d: int, scale: float) -> np.ndarray:
+def _nll_from_nees(eps: np.ndarray, logdet: np.ndarray, d: int, scale: float) -> np.ndarray:
+    """NLL_k of Eq. (7) at covariance scale s from the NEES and ln|Σ̂_k| at scale 1."""
     return 0.5 * (eps / scale + logdet + d * np.log(scale) + d * _LN_2PI)
 
 
@@ -334,11 +413,10 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
     factorisation from the bottom, and mᵀ(I + 2tS)⁻¹m = ‖m‖²/g₁ with g₁ the last pivot
     (a continued fraction). The factorisation of an SPD tridiagonal matrix is
     componentwise stable, so this is as accurate as an eigen-decomposition, and cheaper
-    (6×6: 0.35–0.5 µs per matrix against 3.1–3.7 µs for numpy's ``eigh``, measured). The
-    integral is a trapezoidal rule in log t with analytic tails, its window ended per
-    epoch where the rest is provably below 1e-12 (worst relative error below 1e-9 against
-    a 30-digit reference; see the constants of ``credcli.engine.quadrature``). d = 1 is
-    closed.
+    (docs/performance.md has the timings). The integral is a trapezoidal rule in log t
+    with analytic tails, its window ended per epoch where the rest is provably below
+    1e-12 (worst relative error below 1e-9 against a 30-digit reference; see the
+    constants of ``credcli.engine.quadrature``). d = 1 is closed.
 
     Parameters
     ----------
@@ -370,7 +448,13 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 class EnergyScorer:
     """The claimed covariances Σ̂_k and the sharpness term ½E‖Y − Y′‖ of Eq. (10) at
-    scale 1 (Y − Y′ ~ N(0, 2Σ̂_k)), computed once and shared by error sets and scales."""
+    scale 1 (Y − Y′ ~ N(0, 2Σ̂_k)), computed once and shared by error sets and scales.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances Σ̂_k (clean: ``check_errors_cov``).
+    """
 
     def __init__(self, cov: np.ndarray) -> None:
         self.cov = cov
@@ -378,6 +462,7 @@ class EnergyScorer:
 
     @property
     def spread(self) -> np.ndarray:
+        """½E‖Y − Y′‖ per epoch (N,) at scale 1, computed at first need."""
         if self._spread is None:
             self._spread = 0.5 * centred_norm(2.0 * self.cov)
         return self._spread
@@ -387,7 +472,20 @@ class EnergyScorer:
 
         E‖Y − x‖ (Y − x ~ N(−e, sΣ̂); the norm is even in the mean) comes from one
         reduction per epoch for every scale; E‖Y − Y′‖ = √2·E‖N(0, Σ̂)‖ scales with √s
-        and, for d >= 3, is taken from the same reduction the first time."""
+        and, for d >= 3, is taken from the same reduction the first time.
+
+        Parameters
+        ----------
+        errors : numpy.ndarray, shape (N, d)
+            The errors e_k (clean: ``check_errors_cov``).
+        scales : tuple of float
+            The factors s on the claimed covariances.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            ES_k (N,) for each scale, in the order of ``scales``.
+        """
         centred = None
         if self._spread is None and errors.shape[1] >= 3:
             centred = np.empty(errors.shape[0])
@@ -448,9 +546,18 @@ class Accuracy:
     figures evo prints first for a trajectory's absolute error, per component i and of the
     error's norm ‖e_k‖ (in the units of the states).
 
-    ``rmse`` √(mean e_i²); ``mean`` the signed mean of e_i (a bias shows here);
-    ``median`` and ``max`` of |e_i|. ``rmse_norm`` √(mean ‖e‖²) (= √(Σ_i rmse_i²)),
-    ``mean_norm``, ``median_norm``, ``max_norm`` of ‖e‖.
+    Attributes
+    ----------
+    rmse : numpy.ndarray
+        √(mean e_i²) per component (d,).
+    mean : numpy.ndarray
+        The signed mean of e_i per component (d,): a bias shows here.
+    median, max : numpy.ndarray
+        The median and the largest |e_i| per component (d,).
+    rmse_norm : float
+        √(mean ‖e‖²) (= √(Σ_i rmse_i²)).
+    mean_norm, median_norm, max_norm : float
+        The mean, median and largest ‖e‖.
     """
 
     rmse: np.ndarray
@@ -466,19 +573,44 @@ class Accuracy:
 def accuracy(errors: np.ndarray) -> Accuracy:
     """The ``Accuracy`` of errors (N, d), N ≥ 1.
 
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k = x_k − x̂_k, in the units of the states.
+
+    Returns
+    -------
+    Accuracy
+        The figures of all N epochs (``grouped_accuracy`` with one group).
+
+    Examples
+    --------
     >>> a = accuracy(np.array([[3.0, 4.0], [0.0, 0.0]]))
-    >>> a.rmse_norm, a.max_norm, a.mean.tolist()
-    (3.5355339059327378, 5.0, [1.5, 2.0])
+    >>> round(a.rmse_norm, 6), a.max_norm, a.mean.tolist()
+    (3.535534, 5.0, [1.5, 2.0])
     """
     return grouped_accuracy(errors, np.array([len(errors)]))[0]
 
 
 def grouped_accuracy(errors: np.ndarray, lengths: np.ndarray) -> list[Accuracy]:
-    """The :class:`Accuracy` of each of consecutive groups of rows of ``errors`` (N, d)
-    with the given ``lengths`` (each >= 1; they sum to N), in one vectorised pass: sums by
-    ``np.add.reduceat``, medians by one sort of (group, value). A log of 10⁶ one-epoch
-    segments takes these as numpy calls, not 10⁶ of them; one group gives
-    :func:`accuracy`, to the same bits."""
+    """The ``Accuracy`` of each of consecutive groups of rows of ``errors``, in one pass.
+
+    Vectorised over the groups: sums by ``np.add.reduceat``, medians by one sort of
+    (group, value). A log of 10⁶ one-epoch segments takes these as numpy calls, not 10⁶
+    of them; one group gives ``accuracy``, to the same bits.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors, the groups' rows one after the other.
+    lengths : numpy.ndarray of int
+        The rows of each group, each >= 1; they sum to N.
+
+    Returns
+    -------
+    list of Accuracy
+        One per group, in order. Errors beyond about 1e154 give inf (no warning).
+    """
     lengths = np.asarray(lengths, dtype=np.int64)
     starts = np.r_[0, np.cumsum(lengths)[:-1]]
     group = np.repeat(np.arange(lengths.size), lengths)
@@ -523,7 +655,23 @@ def _grouped_median(values: np.ndarray, group: np.ndarray, starts, lengths) -> n
 
 @dataclass(frozen=True)
 class Probes:
-    """Mean scores at covariance scales 1/c, 1 and c, the probes (18) and SRDs (19)."""
+    """Mean scores at covariance scales 1/c, 1 and c, the probes (18) and SRDs (19).
+
+    Attributes
+    ----------
+    c : float
+        The probe factor.
+    nll_minus, nll, nll_plus : float
+        The mean NLL at scales 1/c, 1 and c.
+    es_minus, es, es_plus : float
+        The mean ES at scales 1/c, 1 and c.
+    delta_nll_minus, delta_nll_plus : float
+        Δ⁻ and Δ⁺ of the NLL, Eq. (18): its mean at 1/c and at c minus that at 1.
+    delta_es_minus, delta_es_plus : float
+        The same for the ES.
+    srd_nll, srd_es : float
+        The SRD of each score, Eq. (19) (``srd``).
+    """
 
     c: float
     nll_minus: float  # mean NLL at scale 1/c
@@ -643,11 +791,34 @@ def probes(
 
 
 def probes_scored(errors, scorer: EnergyScorer, chol, c: float, srd_absolute: bool) -> Probes:
+    """The ``probes`` of errors whose covariances are factored and scored already.
+
+    The core of ``probes`` on clean arrays: the caller shares ``scorer`` and ``chol``
+    between the errors and the centred errors.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors (or the centred errors), clean.
+    scorer : EnergyScorer
+        The energy scorer of the claimed covariances.
+    chol : numpy.ndarray, shape (N, d, d) or (d, d)
+        Their Cholesky factors.
+    c : float
+        The probe factor, > 1 (not checked here).
+    srd_absolute : bool
+        The SRDs in the absolute form (``srd``).
+
+    Returns
+    -------
+    Probes
+        The mean scores, the probes and the SRDs.
+    """
     eps = nees_factored(errors, chol)
-    logdet = log_det(chol)
+    logdet = _log_det(chol)
     d = errors.shape[1]
     scales = (1.0 / c, 1.0, c)
-    nll = [float(np.mean(nll_from_nees(eps, logdet, d, s))) for s in scales]
+    nll = [float(np.mean(_nll_from_nees(eps, logdet, d, s))) for s in scales]
     es = [float(np.mean(v)) for v in scorer.energy_scores(errors, scales)]
     dn_minus, dn_plus = nll[0] - nll[1], nll[2] - nll[1]
     de_minus, de_plus = es[0] - es[1], es[2] - es[1]
@@ -673,12 +844,39 @@ def score_curves(errors: np.ndarray, cov: np.ndarray, scales) -> tuple[np.ndarra
 
     One Cholesky factor and one tridiagonal reduction serve every scale: the NEES is divided
     by s, and E‖Y − Y′‖ grows with √s.
+
+    Parameters
+    ----------
+    errors : array_like, shape (N, d)
+        The errors e_k = x_k − x̂_k ((N,) is d = 1).
+    cov : array_like, shape (N, d, d)
+        The claimed covariances Σ̂_k.
+    scales : iterable of float
+        The covariance scales s, each > 0.
+
+    Returns
+    -------
+    nll, es : numpy.ndarray
+        The mean NLL and the mean ES over the epochs at each scale (one value per scale).
+
+    Raises
+    ------
+    CredcliError
+        For arrays of the wrong shape, a value that is not finite, or a covariance that is
+        not symmetric positive definite, naming the argument and the epoch.
+
+    Examples
+    --------
+    >>> e = np.random.default_rng(0).standard_normal((1000, 2))
+    >>> nll, es = score_curves(e, np.broadcast_to(np.eye(2), (1000, 2, 2)), (0.5, 1.0, 2.0))
+    >>> int(np.argmin(nll)), int(np.argmin(es))  # both least at the right scale
+    (1, 1)
     """
     errors, cov = check_errors_cov(errors, cov)
     scales = tuple(float(x) for x in scales)
     chol = cholesky(cov)
     eps = nees_factored(errors, chol)
-    logdet, d = log_det(chol), errors.shape[1]
-    nll = np.array([nll_from_nees(eps, logdet, d, x).mean() for x in scales])
+    logdet, d = _log_det(chol), errors.shape[1]
+    nll = np.array([_nll_from_nees(eps, logdet, d, x).mean() for x in scales])
     es = np.array([v.mean() for v in EnergyScorer(cov).energy_scores(errors, scales)])
     return nll, es

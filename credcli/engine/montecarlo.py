@@ -15,8 +15,25 @@ from credcli.engine.metrics import cholesky, nees_factored
 
 @dataclass(frozen=True)
 class MonteCarlo:
-    """The per-epoch ANEES of M runs and its two-sided χ² bounds at level ``level``;
-    ``segments``: the fraction of each segment's epochs inside them."""
+    """The per-epoch ANEES of M runs and its two-sided χ² bounds at level ``level``.
+
+    Attributes
+    ----------
+    runs : int
+        M, the number of Monte Carlo runs.
+    dim : int
+        d, the state dimension.
+    level : float
+        α: the bounds hold a consistent filter's ANEES with probability 1 − α per epoch.
+    time : numpy.ndarray or None
+        The runs' common time stamps (N,), as given (None: none).
+    anees : numpy.ndarray
+        ε̄_k (N,), the NEES averaged over the runs at each epoch (not divided by d).
+    lower, upper : float
+        χ²_{Md}(α/2) / M and χ²_{Md}(1 − α/2) / M, the bounds on ε̄_k.
+    segments : dict
+        Segment name -> the fraction of the segment's epochs with ε̄_k inside the bounds.
+    """
 
     runs: int
     dim: int
@@ -29,13 +46,50 @@ class MonteCarlo:
 
     @property
     def inside(self) -> np.ndarray:
+        """Whether each epoch's ANEES is inside [lower, upper] (N,)."""
         return (self.anees >= self.lower) & (self.anees <= self.upper)
 
 
 def anees_test(errors, covs, level: float, time=None, segments=()) -> MonteCarlo:
-    """The ANEES test of M runs on one time base: ``errors`` (M, N, d) and ``covs``
-    (M, N, d, d) as sequences of the runs' arrays; ``segments`` (objects with ``name`` and
-    ``index``) get the fraction of their epochs inside the bounds.
+    """The ANEES test of M runs on one time base (Bar-Shalom et al. 2001, Sec. 5.4.2).
+
+    Each run's NEES ε_k is computed as ``credcli.engine.metrics.nees`` does (Cholesky
+    factors; the covariances must be positive definite), averaged over the runs at each
+    epoch into ε̄_k, and compared with the χ²_{Md} bounds of the module docstring.
+
+    Parameters
+    ----------
+    errors : sequence of array_like
+        The M runs' errors, each (N, d): (M, N, d) as a sequence of the runs' arrays.
+    covs : sequence of array_like
+        The M runs' claimed covariances, each (N, d, d).
+    level : float
+        α, the two-sided level of the per-epoch bounds.
+    time : array_like or None
+        The common time stamps (N,), kept in the result for plotting (default None).
+    segments : iterable
+        Objects with a ``name`` and an ``index`` (into the N epochs); each gets the
+        fraction of its epochs inside the bounds (default: none).
+
+    Returns
+    -------
+    MonteCarlo
+        The per-epoch ANEES, its bounds and the segments' fractions inside them.
+
+    Raises
+    ------
+    CredcliError
+        If a covariance is not positive definite (``credcli.engine.metrics.cholesky``).
+
+    Notes
+    -----
+    For a consistent filter M ε̄_k ~ χ²_{Md}, so ε̄_k lies in
+    [χ²_{Md}(α/2), χ²_{Md}(1 − α/2)] / M at a fraction 1 − α of the epochs.
+
+    References
+    ----------
+    Y. Bar-Shalom, X. R. Li and T. Kirubarajan, *Estimation with Applications to Tracking
+    and Navigation*, Wiley, 2001, Sec. 5.4.2.
 
     Examples
     --------

@@ -121,7 +121,19 @@ class ScaleTest:
 
 @dataclass(frozen=True)
 class GlsResiduals:
-    """Centred, whitened errors: what the scale test and the dependence estimate share."""
+    """Centred, whitened errors: what the scale test and the dependence estimate share.
+
+    Attributes
+    ----------
+    mean : numpy.ndarray
+        μ̂ (d,), the GLS mean (Σ W_k)⁻¹ Σ W_k e_k.
+    whitened : numpy.ndarray
+        u_k = L_k⁻¹(e_k − μ̂) (N, d), the whitened residuals.
+    precision_sum : numpy.ndarray
+        Σ W_k (d, d), W_k = Σ̂_k⁻¹.
+    scores : numpy.ndarray
+        g_k = W_k e_k (N, d), so that Σ g_k = (Σ W_k) μ̂.
+    """
 
     mean: np.ndarray  # μ̂ (d,)
     whitened: np.ndarray  # u_k = L_k⁻¹(e_k − μ̂), (N, d)
@@ -146,9 +158,21 @@ def gls_residuals(
 ) -> GlsResiduals:
     """μ̂ = (Σ W_k)⁻¹ Σ W_k e_k and the whitened residuals, by triangular solves.
 
-    ``chol`` holds the Cholesky factors L_k of Σ̂_k (N, d, d), or one shared factor (d, d);
-    ``inverse``, their inverses L_k⁻¹ (N, d, d) where the caller has them already (the
-    same matrices, so the same result), else they are computed here chunk by chunk.
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k (clean).
+    chol : numpy.ndarray, shape (N, d, d) or (d, d)
+        The Cholesky factors L_k of Σ̂_k, or one shared factor.
+    inverse : numpy.ndarray or None, shape (N, d, d)
+        Their inverses L_k⁻¹ where the caller has them already (the same matrices, so the
+        same result); None (default): computed here chunk by chunk. Not read with a
+        shared factor.
+
+    Returns
+    -------
+    GlsResiduals
+        μ̂, the whitened residuals u_k, Σ W_k and the scores W_k e_k.
     """
     n, d = errors.shape
     if chol.ndim == 2:
@@ -187,10 +211,8 @@ _T_NU = np.geomspace(4.05, 2000.0, 600)
 _T_RATIO = special.stdtrit(_T_NU, 0.975) / special.stdtrit(_T_NU, 0.75)  # decreasing in ν
 TAIL_GATE = 1.28
 """The ratio is read as a tail only when it exceeds the normal value by this many standard
-errors (one-sided 10 %); below that the tails are taken as normal. Measured trade-off
-(docs/measured.md): 1.645 left Student-t(5) at N = 100 at 6.3 % false alarms; 1.28 gives 5.9 % and
-costs the paper's protocol 0.7 points of mean accuracy; no gate cost 0.8 and left optimism
-below 90 %."""
+errors (one-sided 10 %); below that the tails are taken as normal. The value trades false
+alarms on heavy tails against accuracy on Gaussian errors (measured in docs/measured.md)."""
 
 
 def tail_factor(u: np.ndarray, gate: float = TAIL_GATE) -> float:
@@ -202,6 +224,20 @@ def tail_factor(u: np.ndarray, gate: float = TAIL_GATE) -> float:
     more than ``gate`` standard errors it is read as a Student-t with ν degrees of freedom
     (excess kurtosis k = 6/(ν − 4)); for an elliptical law Var(q) = 2d(1 + (d + 2)k/6), so
     the factor is 1 + (d + 2)k/6. ν is floored at 4.05; otherwise the factor is 1.
+
+    Parameters
+    ----------
+    u : numpy.ndarray, shape (N, d)
+        The whitened residuals (standardized per direction: ``standardized``).
+    gate : float
+        Standard errors of R above its normal value before R is read as a tail (default
+        ``TAIL_GATE``).
+
+    Returns
+    -------
+    float
+        The factor f >= 1 on the variance of q_k: 1 for normal tails, or when the
+        quartiles coincide.
     """
     n, d = u.shape
     m = u.size
@@ -218,10 +254,23 @@ def tail_factor(u: np.ndarray, gate: float = TAIL_GATE) -> float:
 
 
 def standardized(u: np.ndarray) -> np.ndarray:
-    """The whitened residuals in their principal directions, each divided by its own
-    spread: what the tail check pools. Unequal variances between directions are a misfit of
-    the covariance's shape, not heavy tails, and would otherwise read as tails (issue 22:
-    whitened variances (4, 0.25) gave 42 % `credible`)."""
+    """The whitened residuals in their principal directions, each divided by its own spread.
+
+    What the tail check pools (``tail_factor``). Unequal variances between directions are
+    a misfit of the covariance's shape, not heavy tails, and would otherwise read as tails
+    (and hide the misfit).
+
+    Parameters
+    ----------
+    u : numpy.ndarray, shape (N, d)
+        The whitened residuals.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+        u rotated onto the eigenvectors of uᵀu/(N − 1), each column divided by the square
+        root of its eigenvalue; u itself for d = 1.
+    """
     n, d = u.shape
     if d == 1:
         return u
@@ -238,9 +287,13 @@ def scale_test(
 ) -> ScaleTest:
     """The scale test at two-sided ``level``, from the GLS residuals.
 
+    With fewer than ``MIN_REFERENCE_DOF`` degrees of freedom left, the p-values are NaN
+    and the interval (0, ∞): nothing is decided.
+
     Parameters
     ----------
     residuals : GlsResiduals
+        The GLS residuals of the segment (``gls_residuals``).
     level : float
         α_S: the interval is 1 − α_S, each tail of the test α_S/2.
     tau : array (d,), optional
@@ -250,10 +303,14 @@ def scale_test(
     squares_white : bool
         With ``tau``: the squared errors are known to be serially independent (a white
         dependence model, :attr:`credcli.engine.memory.Memory.white`), so their variance,
-        not a long-run variance, sets the Satterthwaite factor.
+        not a long-run variance, sets the Satterthwaite factor (default False).
 
-    With fewer than :data:`MIN_REFERENCE_DOF` degrees of freedom left, the p-values are NaN
-    and the interval (0, ∞): nothing is decided.
+    Returns
+    -------
+    ScaleTest
+        κ̂ = T/ν₀, its interval, the one-sided p-values of T/f against χ²_{ν₀/f}, and
+        the GLS bias with its standard error (its variance scaled by κ̂ and, with
+        ``tau``, by the largest τ_i).
 
     Examples
     --------
@@ -322,7 +379,28 @@ def _pvalues(x: float, dof: float) -> tuple[float, float]:
 
 
 def chi2_interval(x: float, dof: float, level: float) -> tuple[float, float]:
-    """The 1 − ``level`` interval of κ from T/c = ``x`` ~ κ·χ²_dof, equal tails."""
+    """The 1 − ``level`` interval of κ from T/c = ``x`` ~ κ·χ²_dof, equal tails.
+
+    Parameters
+    ----------
+    x : float
+        T/c, the statistic divided by the Satterthwaite factor.
+    dof : float
+        The degrees of freedom of the reference χ².
+    level : float
+        The two-sided level.
+
+    Returns
+    -------
+    low, high : float
+        x/χ²_dof(1 − level/2) and x/χ²_dof(level/2); (0, ∞) below ``MIN_REFERENCE_DOF``.
+
+    Examples
+    --------
+    >>> low, high = chi2_interval(100.0, 100.0, 0.05)
+    >>> round(low, 3), round(high, 3)
+    (0.772, 1.347)
+    """
     upper = float(special.chdtri(dof, level / 2))
     return _interval(x, dof, upper, float(special.chdtri(dof, 1 - level / 2)))
 
@@ -347,12 +425,38 @@ def batch_scale_test(
     taus=None,
     independent: bool = False,
 ) -> ScaleTest:
-    """The scale test on serially dependent errors: batch means with ``k`` batches
-    (:func:`credcli.engine.batches.batch_scale`), and the bias's standard error from the
-    batch sums of the GLS scores (their covariance times K is that of Σ W_k e_k). ``tau_q``
-    and ``tau`` (the variance ratios of q and of the whitened errors) correct both for the
-    correlation of neighbouring batches (:func:`credcli.engine.batches.boundary_inflation`),
-    unless the batches are ``independent`` (independent Monte Carlo runs)."""
+    """The scale test on serially dependent errors, by batch means.
+
+    Batch means with ``k`` batches (:func:`credcli.engine.batches.batch_scale`), and the
+    bias's standard error from the batch sums of the GLS scores (their covariance times K
+    is that of Σ W_k e_k). ``tau_q`` and ``taus`` (the variance ratios of q and of the
+    whitened errors) correct both for the correlation of neighbouring batches
+    (:func:`credcli.engine.batches.boundary_inflation`), unless the batches are
+    ``independent`` (independent Monte Carlo runs).
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals of the segment.
+    level : float
+        α_S, the two-sided level.
+    k : int
+        K, the number of batches.
+    tau_q : float
+        The variance ratio of q_k (default 1).
+    taus : array_like or None
+        The variance ratios τ_i of the whitened components (d,) (default None: all 1);
+        they also set the centring's loss of degrees of freedom, Σ_i max(1, τ_i).
+    independent : bool
+        The batches are independent (Monte Carlo runs): no boundary inflation (default
+        False).
+
+    Returns
+    -------
+    ScaleTest
+        Student's t reference with ``dof`` K − 1 and ``batches`` K; the bias with its
+        batch-means standard error.
+    """
     q = residuals.q
     n, d = residuals.whitened.shape
     taus = np.ones(d) if taus is None else np.asarray(taus, dtype=float)
@@ -386,8 +490,21 @@ def batch_scale_test(
 
 
 def untested_scale(residuals: GlsResiduals) -> ScaleTest:
-    """κ̂ = T/((N − 1)d) and the GLS bias, without an interval or p-values (NaN): the
-    numbers of a segment whose scale question cannot be tested."""
+    """κ̂ = T/((N − 1)d) and the GLS bias, without an interval or p-values (NaN).
+
+    The numbers of a segment whose scale question cannot be tested.
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals of the segment.
+
+    Returns
+    -------
+    ScaleTest
+        T, κ̂, the bias and its Mahalanobis size; NaN for ``dof``, ``satterthwaite``, the
+        interval, the p-values and ``bias_stderr``.
+    """
     q = residuals.q
     n, d = residuals.whitened.shape
     mean = residuals.mean
@@ -410,9 +527,8 @@ def untested_scale(residuals: GlsResiduals) -> ScaleTest:
 DIRECTION_POWER = 3
 """Each direction's interval is at level/d³: Bonferroni over the d directions, and d² more
 because the directions are chosen from the data (the largest of d eigenvalues is biased
-up). Measured on credible i.i.d. segments, N = 25, d = 2, 1,000 trials: at level/d the
-false alarms rose from 4.1 % to 7.4 %, at level/d³ they are 4.3 %; anisotropic mismatch
-at N = 100 is decided as often either way (93-98 %)."""
+up). At level/d alone the false alarms on credible segments rose above the level, while
+level/d³ decides anisotropic mismatch as often (measured in docs/measured.md)."""
 
 
 @dataclass(frozen=True)
@@ -423,7 +539,20 @@ class DirectionScales:
     the mean squared residual along each (the eigenvalues of Ŝ = Σ u_k u_kᵀ/(N − 1)), with
     intervals each two-sided at level/d³ (:data:`DIRECTION_POWER`). In whitened
     coordinates the corrected covariance is L_k Ŝ L_kᵀ: ``vectors`` and ``factors`` are
-    that matrix correction."""
+    that matrix correction.
+
+    Attributes
+    ----------
+    vectors : numpy.ndarray
+        The principal directions (d, d) as columns, largest factor first.
+    factors : numpy.ndarray
+        The factor along each direction (d,).
+    low, high : numpy.ndarray
+        The interval of each factor (d,).
+    sphericity_pvalue : float or None
+        p-value of "the same factor in every direction" (``sphericity_pvalue``); None
+        when not computed (d = 1, too few batches, or a dependence model).
+    """
 
     vectors: np.ndarray
     factors: np.ndarray
@@ -448,6 +577,26 @@ def direction_scales(
     test is (:func:`memory_scale_test`). The
     directions are estimated from the same data, so the largest factor is biased up a
     little; the rule uses these intervals only where the overall test is inconclusive.
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals of the segment.
+    level : float
+        α_S; each direction's interval is two-sided at level/d³ (``DIRECTION_POWER``).
+    batches : int
+        K > 0: batch means with K batches (dependent epochs); 0 (default): independent
+        epochs.
+    memory : Memory or None
+        A fitted dependence model (``credcli.engine.memory.Memory``); it takes precedence
+        over ``batches`` (default None).
+
+    Returns
+    -------
+    DirectionScales
+        The directions, their factors and intervals; with a dependence model the factors
+        are in units of the model's expected sums of squares and the sphericity p-value
+        is None.
     """
     u = residuals.whitened
     n, d = u.shape
@@ -490,7 +639,25 @@ def sphericity_pvalue(residuals: GlsResiduals, batches: int = 0) -> float | None
     errors (heavy tails make it reject more often). With ``batches`` K (dependent epochs):
     Hotelling on the batch means of the m = d(d+1)/2 − 1 contrasts u_iu_j (i < j) and
     u_i² − u_1², referred to F(m, K − m); None when K <= m + 2. Reported, not used by the
-    labels, which follow the per-direction intervals (:func:`direction_scales`)."""
+    labels, which follow the per-direction intervals (:func:`direction_scales`).
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals of the segment.
+    batches : int
+        K > 0: Hotelling's test on K batch means; 0 (default): Mauchly's test.
+
+    Returns
+    -------
+    float or None
+        The p-value; None for d = 1 or K <= m + 2; 0 when Ŝ is singular.
+
+    References
+    ----------
+    J. W. Mauchly, "Significance test for sphericity of a normal n-variate distribution",
+    Ann. Math. Statist. 11(2), 1940.
+    """
     u = residuals.whitened
     n_epochs, d = u.shape
     if d < 2:
@@ -537,6 +704,23 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
     one-sided p-value is the χ² evidence as a normal score referred to Student's t with
     ν_Ω degrees of freedom, and the interval is inverted from the same p-values, so the
     interval and the test agree.
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals of the epochs tested.
+    memory : Memory
+        The fitted dependence model (``credcli.engine.memory.Memory``): per-direction
+        series memories and the memory of the squares.
+    level : float
+        α_S, the two-sided level.
+
+    Returns
+    -------
+    ScaleTest
+        κ̂ = T/E, its interval and the studentized p-values (NaN below
+        ``MIN_REFERENCE_DOF``), ``model_dof`` ν_Ω; ``bias_stderr`` is NaN (the model's
+        mean test fills it).
     """
     q = residuals.q
     n, d = residuals.whitened.shape

@@ -32,8 +32,17 @@ EXPLAINED_SHARE = 0.5
 
 @dataclass(frozen=True)
 class TimeOffset:
-    """δ̂ in the time column's unit (the estimate lags the truth when positive), its
-    standard error, and the scale κ̂ of the centred NEES before and after removing it."""
+    """A time offset that explains a segment's misfit (module docstring).
+
+    Attributes
+    ----------
+    seconds : float
+        δ̂ in the time column's unit: positive when the estimate lags the truth.
+    stderr : float
+        Its standard error under the claim, inflated by √τ for the errors' memory.
+    kappa_before, kappa_after : float
+        κ̂, the scale of the centred NEES, before and after removing the offset.
+    """
 
     seconds: float
     stderr: float
@@ -41,6 +50,14 @@ class TimeOffset:
     kappa_after: float
 
     def describe(self) -> str:
+        """The finding as one sentence for the report.
+
+        Returns
+        -------
+        str
+            Which way and by how much the estimate is offset, κ̂ before and after, and the
+            advice to fix the time stamps before the covariance.
+        """
         which = "lags" if self.seconds > 0 else "leads"
         return (
             f"time offset: the estimate {which} the truth by {abs(self.seconds):.3g} s "
@@ -50,8 +67,22 @@ class TimeOffset:
 
 
 def truth_velocity(truth: np.ndarray | None, time: np.ndarray | None) -> np.ndarray | None:
-    """ẋ (N, d) by central differences in time, or None without truth, time, or a strictly
-    increasing time."""
+    """ẋ (N, d) by central differences in time (``np.gradient``; one-sided at the ends).
+
+    Parameters
+    ----------
+    truth : numpy.ndarray or None, shape (N, d)
+        The true states x(t_k).
+    time : numpy.ndarray or None, shape (N,)
+        The time stamps t_k.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        The velocities (N, d) in the states' units per time unit; None without truth or
+        time, with fewer than 3 epochs, or when a time stamp is not finite or the times
+        do not strictly increase.
+    """
     if truth is None or time is None or truth.shape[0] < 3:
         return None
     t = np.asarray(time, dtype=float)
@@ -63,8 +94,30 @@ def truth_velocity(truth: np.ndarray | None, time: np.ndarray | None) -> np.ndar
 def time_offset(
     errors: np.ndarray, cov: np.ndarray, velocity: np.ndarray, memory_ratio: float = 1.0
 ) -> TimeOffset | None:
-    """The offset that explains a segment's misfit (module docstring), or None when there
-    is none: not significant, or removing it leaves most of the misfit."""
+    """The offset that explains a segment's misfit (module docstring), or None.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k.
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances Σ̂_k, positive definite; the errors and velocities are
+        whitened by their symmetric inverse square roots.
+    velocity : numpy.ndarray, shape (N, d)
+        The truth's velocity ẋ_k (``truth_velocity``).
+    memory_ratio : float
+        τ, the errors' largest variance ratio; the standard error is inflated by
+        √max(τ, 1) (default 1: independent epochs).
+
+    Returns
+    -------
+    TimeOffset or None
+        The offset; None with fewer than d + 3 epochs, when the velocity carries no
+        information apart from a constant bias (constant velocity), when δ̂ is not
+        significant at ``OFFSET_LEVEL`` (two-sided), when κ̂ before is at most 1, or
+        when removing the offset takes less than ``EXPLAINED_SHARE`` of the excess
+        κ̂ − 1 away.
+    """
     n, d = errors.shape
     if n < d + 3:
         return None

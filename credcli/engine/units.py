@@ -6,10 +6,31 @@ import numpy as np
 
 
 def power_of_two_unit(a, axis: int | None = None):
-    """2^k nearest (in log) to the largest |a| (per column along ``axis``), or 1 where
-    that is 0 or not finite. Dividing by it is exact, so every ratio of moments is
-    unchanged, and squares of the result cannot overflow or underflow whatever the units
-    of the log (errors of 1e150 σ, NEES of 1e300)."""
+    """2^k nearest (in log) to the largest |a|, or 1 where that is 0 or not finite.
+
+    Dividing by it is exact, so every ratio of moments is unchanged, and squares of the
+    result cannot overflow or underflow whatever the units of the log (errors of 1e150 σ,
+    NEES of 1e300).
+
+    Parameters
+    ----------
+    a : array_like
+        The values.
+    axis : int or None
+        None (default): one unit for all of ``a``. Otherwise the axis the largest |a| is
+        taken along (``axis=0``: one unit per column).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The power of two: a float when ``axis`` is None, else an array with ``axis``
+        removed from the shape of ``a`` (ones for an empty ``a``).
+
+    Examples
+    --------
+    >>> power_of_two_unit([3.0, -5.0]), power_of_two_unit([[1e-3, 0.0], [2e-3, 0.0]], 0)
+    (4.0, array([0.00195312, 1.        ]))
+    """
     a = np.asarray(a, dtype=float)
     if a.size == 0:
         return 1.0 if axis is None else np.ones(np.delete(a.shape, axis))

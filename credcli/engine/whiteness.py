@@ -30,7 +30,22 @@ MAX_LAGS = 10
 
 @dataclass(frozen=True)
 class Whiteness:
-    """The portmanteau test of one segment's whitened innovations."""
+    """The portmanteau test of one segment's whitened innovations.
+
+    Attributes
+    ----------
+    statistic : float
+        Hosking's Q_h (module docstring).
+    pvalue : float
+        P(χ²_dof >= Q_h).
+    lags : int
+        h, the number of lags summed.
+    dof : int
+        m²h, the degrees of freedom of the χ² reference.
+    level : float
+        The test's share of α (``innovation_levels``); NaN when none was set, and then
+        ``rejected`` is False.
+    """
 
     statistic: float
     pvalue: float
@@ -45,23 +60,93 @@ class Whiteness:
 
 
 def innovation_levels(alpha: float) -> tuple[float, float]:
-    """(α of the two questions, α_W of the whiteness test) for innovations: under a right
-    filter the innovations are white (Mehra 1970), so whiteness is a third question of the
-    same segment. Šidák's split gives each of the three tests the same share,
-    1 − (1 − α)^{1/3}: the two questions together 1 − (1 − α)^{2/3}, whiteness the rest,
-    and a right filter is flagged at most α in all."""
+    """The levels of the two questions and of the whiteness test, for innovations.
+
+    Under a right filter the innovations are white (Mehra 1970), so whiteness is a third
+    question of the same segment. Šidák's split gives each of the three tests the same
+    share, 1 − (1 − α)^{1/3}: the two questions together 1 − (1 − α)^{2/3}, whiteness the
+    rest, and a right filter is flagged at most α in all.
+
+    Parameters
+    ----------
+    alpha : float
+        α, the overall false-alarm level of the segment, in (0, 1).
+
+    Returns
+    -------
+    pair : float
+        1 − (1 − α)^{2/3}, the level left to the scale and location questions.
+    each : float
+        1 − (1 − α)^{1/3}, α_W of the whiteness test.
+
+    Examples
+    --------
+    >>> pair, each = innovation_levels(0.05)
+    >>> round(pair, 5), round(each, 5), round(1 - (1 - pair) * (1 - each), 12)
+    (0.03362, 0.01695, 0.05)
+    """
     each = -math.expm1(math.log1p(-alpha) / 3.0)
     pair = -math.expm1(2.0 * math.log1p(-alpha) / 3.0)
     return pair, each
 
 
 def default_lags(n: int) -> int:
-    """h = min(10, n // 5), at least 1."""
+    """The default number of lags: h = min(10, n // 5), at least 1.
+
+    Parameters
+    ----------
+    n : int
+        Epochs of innovations.
+
+    Returns
+    -------
+    int
+        h (Hyndman and Athanasopoulos' rule for non-seasonal data).
+    """
     return max(1, min(MAX_LAGS, n // 5))
 
 
 def portmanteau(whitened: np.ndarray, lags: int | None = None) -> Whiteness:
-    """Hosking's Q_h of whitened innovations (n, m); see the module docstring."""
+    r"""Hosking's Q_h of whitened innovations; see the module docstring.
+
+    Parameters
+    ----------
+    whitened : numpy.ndarray, shape (n, m)
+        The innovations whitened by their claimed covariances, w_k = L_k⁻¹ ν_k; they are
+        centred here.
+    lags : int or None
+        h, the number of lags (default ``default_lags(n)``).
+
+    Returns
+    -------
+    Whiteness
+        Q_h, its p-value against χ² with m²h degrees of freedom, h and m²h; ``level`` is
+        left NaN for the caller to set.
+
+    Raises
+    ------
+    ValueError
+        If ``lags`` is not between 1 and n − 1.
+
+    Notes
+    -----
+    .. math:: Q_h = n^2 \sum_{k=1}^{h} \frac{1}{n-k}
+              \operatorname{tr}(\hat C_k^\top \hat C_0^{-1} \hat C_k \hat C_0^{-1})
+
+    Ĉ_0 must be invertible (numpy raises ``LinAlgError`` otherwise).
+
+    References
+    ----------
+    J. R. M. Hosking, "The multivariate portmanteau statistic", JASA 75(371), 1980,
+    Eq. (2.5).
+
+    Examples
+    --------
+    >>> w = np.random.default_rng(0).standard_normal((500, 2))
+    >>> test = portmanteau(w)
+    >>> test.lags, test.dof, bool(test.pvalue > 0.01)
+    (10, 40, True)
+    """
     w = np.asarray(whitened, dtype=float)
     n, m = w.shape
     h = default_lags(n) if lags is None else int(lags)

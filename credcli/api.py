@@ -39,7 +39,7 @@ from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, LogSchema
 from credcli.io.schema import ReadOptions
 from credcli.logid import LogId
-from credcli.report.html import records_table
+from credcli.report.html import results_table
 from credcli.report.overview import DRAWN, PlotKind, Source, draw
 from credcli.report.records import segment_record
 from credcli.scheduling import diagnose_plans
@@ -202,7 +202,7 @@ class Results(Sequence):
     def _repr_html_(self) -> str:
         """The diagnosis table in a notebook: the columns ``credcli diagnose`` shows, the
         labels coloured, the advice lines below."""
-        return records_table(self.to_dict(), self._notes())
+        return results_table(list(self), self._notes())
 
     def _notes(self) -> tuple[str, ...]:
         return ()
@@ -255,9 +255,7 @@ class MonteCarloResults(Results):
 
 
 def _diagnosis_html(diagnosis: Diagnosis) -> str:
-    return records_table(
-        [segment_record(SegmentDiagnosis(LogId.of("<arrays>"), "all", None, None, diagnosis))]
-    )
+    return results_table([SegmentDiagnosis(LogId.of("<arrays>"), "all", None, None, diagnosis)])
 
 
 def _register_notebook_views() -> None:
@@ -270,7 +268,7 @@ def _register_notebook_views() -> None:
         return
     formatter = shell.display_formatter.formatters["text/html"]
     formatter.for_type(Diagnosis, _diagnosis_html)
-    formatter.for_type(SegmentDiagnosis, lambda r: records_table([segment_record(r)]))
+    formatter.for_type(SegmentDiagnosis, lambda r: results_table([r]))
 
 
 _register_notebook_views()

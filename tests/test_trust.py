@@ -610,7 +610,9 @@ def test_a_library_warning_and_an_html_cell_never_carry_a_raw_control_character(
     import warnings
 
     from credcli.cli.edge import note_warnings
-    from credcli.report.html import records_table
+    from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
+    from credcli.logid import LogId
+    from credcli.report.html import results_table
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -618,5 +620,8 @@ def test_a_library_warning_and_an_html_cell_never_carry_a_raw_control_character(
     note_warnings(caught, debug=False)
     err = capsys.readouterr().err
     assert _controls(err) == set() and "\\x1b" in err
-    html = records_table([{"segment": "a\x1b]0;t\x07", "n": 1, "dim": 1, "label": "credible"}])
+    item = SegmentDiagnosis(
+        LogId.of("x"), "a\x1b]0;t\x07", None, None, Diagnosis(Label.CREDIBLE, 1, 1)
+    )
+    html = results_table([item])
     assert _controls(html) == set() and "\\x1b" in html

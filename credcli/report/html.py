@@ -13,9 +13,11 @@ import math
 import re
 
 from credcli.engine.config import Label
+from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.errors import printable
 from credcli.report.overview import FILE_STEMS, PlotKind
 from credcli.report.plots import segment_group
+from credcli.report.records import segment_record
 from credcli.report.render import (
     SEGMENT_COLUMNS,
     Report,
@@ -106,16 +108,16 @@ def _table_html(table, anchor: str = "") -> str:
     )
 
 
-def records_table(records: list[dict], notes: tuple[str, ...] = ()) -> str:
-    """Segment records as an HTML table with the advice lines and ``notes`` below it.
+def results_table(items: list[SegmentDiagnosis], notes: tuple[str, ...] = ()) -> str:
+    """Diagnosed segments as an HTML table with ``notes`` and the advice lines below it.
 
     A notebook's view of ``credcli.api.Results``: the columns and cells ``credcli
     diagnose`` shows, labels coloured inline.
 
     Parameters
     ----------
-    records : list of dict
-        The segment records (``Results.to_dict()``).
+    items : list of SegmentDiagnosis
+        The diagnosed segments, in order.
     notes : tuple of str, default ()
         Lines shown below the table, before the advice.
 
@@ -124,8 +126,9 @@ def records_table(records: list[dict], notes: tuple[str, ...] = ()) -> str:
     str
         One ``<div>`` holding the table and the notes; text from the data is escaped.
     """
+    records = [segment_record(item) for item in items]
     body = _table_html(Table("credcli diagnose", SEGMENT_COLUMNS, records))
-    lines = [*notes, *(a for a in (advice(r) for r in records) if a)]
+    lines = [*notes, *(a for a in (advice(item) for item in items) if a)]
     shown = "".join(f'<p class="note">{_escape(line)}</p>' for line in lines)
     return f"<div>{body}{shown}</div>"
 

@@ -34,8 +34,8 @@ from credcli.report.records import (
     comparison_record,
     log_record,
     range_record,
-    record_label,
     segment_record,
+    shown_label,
     uwb_segment_record,
 )
 from credcli.segments import LogSummary
@@ -146,74 +146,132 @@ def _number(x: float | None) -> str:
     return "—" if x is None else f"{x:.3g}"
 
 
+def _interval(factor: float | None, low: float | None, high: float | None) -> str:
+    """'2.3 (1.9–2.8)': a factor with its interval; '2.3 (no interval)' without one."""
+    if low is None or high is None:
+        return f"{_number(factor)} (no interval)"
+    return f"{_number(factor)} ({_number(low)}–{_number(high)})"
+
+
 def scale_interval(rec: dict) -> str | None:
-    """'2.3 (1.9–2.8)': κ̂ with its interval, for tables; '2.3 (no interval)' where the
-    data hold too few batches for one (the segment's reason says why)."""
+    """The ``cov ×`` cell of a segment record: κ̂ with its interval.
+
+    Parameters
+    ----------
+    rec : dict
+        A segment record ([segment_record][credcli.report.records.segment_record]).
+
+    Returns
+    -------
+    str or None
+        '2.3 (1.9–2.8)'; '2.3 (no interval)' where the data hold too few batches for one
+        (the segment's reason says why); None when no scale was estimated.
+    """
     if rec.get("scale_factor") is None:
         return None
-    low, high = rec.get("scale_factor_low"), rec.get("scale_factor_high")
-    if low is None or high is None:
-        return f"{_number(rec['scale_factor'])} (no interval)"
-    return f"{_number(rec['scale_factor'])} ({_number(low)}–{_number(high)})"
+    return _interval(rec["scale_factor"], rec.get("scale_factor_low"), rec.get("scale_factor_high"))
 
 
 NOISE_CONDITIONS = frozenset({Label.OPTIMISM.value, Label.PESSIMISM.value})
 """The conditions of a label that a covariance factor answers."""
 
 
-def advice(rec: dict) -> str | None:
-    """What a user acts on for a segment that is not credible, in one line."""
-    label = record_label(rec)
-    untested = rec.get("untested") or []
+def _finite(x) -> float | None:
+    """A number as the records give it: None when it is missing, NaN or infinite."""
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _finites(values) -> list[float | None]:
+    return [_finite(float(v)) for v in values]
+
+
+def advice(item: SegmentDiagnosis) -> str | None:
+    """What a user acts on for a segment that is not credible, in one line.
+
+    Parameters
+    ----------
+    item : SegmentDiagnosis
+        A diagnosed segment.
+
+    Returns
+    -------
+    str or None
+        "segment: what to do": the covariance factor (per direction or block where they
+        differ), the bias and the component to look at first, a time offset to fix first,
+        or why there is no verdict; None for a credible segment with both questions
+        answered.
+    """
+    diag = item.diagnosis
+    label, untested = diag.label, [q.value for q in diag.untested]
     if label is Label.CREDIBLE and not untested:
         return None
     if label is Label.INSUFFICIENT:
-        return f"{rec['segment']}: no verdict: {rec['reason']}"
+        return f"{item.segment}: no verdict: {diag.reason}"
     noise = bool(label.conditions & NOISE_CONDITIONS)
+    sc = diag.scale
     parts = []
-    if rec.get("time_offset") is not None:  # the cause to fix first
-        which = "lags" if rec["time_offset"] > 0 else "leads"
+    offset = None if diag.time_offset is None else _finite(diag.time_offset.seconds)
+    if offset is not None:  # the cause to fix first
+        which = "lags" if offset > 0 else "leads"
         parts.append(
-            f"the estimate {which} the truth by {_number(abs(rec['time_offset']))} s: fix the "
+            f"the estimate {which} the truth by {_number(abs(offset))} s: fix the "
             "time stamps before the covariance"
         )
     if untested:
-        parts.append(f"{' and '.join(untested)} untested: {rec['reason']}")
-    if rec.get("scale_by_direction"):
-        parts.append(direction_advice(rec))
+        parts.append(f"{' and '.join(untested)} untested: {diag.reason}")
+    if diag.by_direction:
+        parts.append(direction_advice(diag))
     elif noise:
-        parts.append(f"multiply the covariance by {scale_interval(rec)}")
-    if rec.get("block_names") and noise:
-        parts.append(block_advice(rec))
+        factor = None if sc is None else _finite(sc.scale_factor)
+        shown = None
+        if factor is not None:
+            shown = _interval(factor, _finite(sc.scale_factor_low), _finite(sc.scale_factor_high))
+        parts.append(f"multiply the covariance by {shown}")
+    if diag.blocks and noise:
+        parts.append(block_advice(diag))
     location = label.location
     if location in ("bias", SMM_CONDITION):
-        bias = ", ".join(_number(b) for b in rec["bias"])
-        parts.append(f"bias ({bias}) in the log's units, {_number(rec['bias_mahalanobis'])} σ")
-        parts.append(_smm_hint(rec))
+        bias = ", ".join(_number(b) for b in _finites(sc.bias))
+        size = _number(_finite(sc.bias_mahalanobis))
+        parts.append(f"bias ({bias}) in the log's units, {size} σ")
+        parts.append(_smm_hint(diag))
     elif location == "asymmetric":
+        mean = diag.mean_test
         parts.append(
-            f"errors not symmetric about zero (ELT p {format_pvalue(rec['elt_pvalue'])}) with "
-            f"no mean found (mean test p {format_pvalue(rec['mean_pvalue'])}; "
-            f"mean {_number(rec['bias_mahalanobis'])} σ)"
+            f"errors not symmetric about zero (ELT p {format_pvalue(_finite(diag.elt_pvalue))}) "
+            f"with no mean found (mean test p "
+            f"{format_pvalue(None if mean is None else _finite(mean.pvalue))}; "
+            f"mean {_number(None if sc is None else _finite(sc.bias_mahalanobis))} σ)"
         )
-    return f"{rec['segment']}: " + "; ".join(p for p in parts if p)
+    return f"{item.segment}: " + "; ".join(p for p in parts if p)
 
 
-def _factors(rec: dict, key: str) -> list[str]:
-    """Each factor with its interval, "f (low–high)", from the record's ``key``,
-    ``key_low`` and ``key_high`` lists."""
+def _factors(factors, low, high) -> list[str]:
+    """Each factor with its interval, "f (low–high)"."""
     return [
         f"{_number(f)} ({_number(lo)}–{_number(hi)})"
-        for f, lo, hi in zip(rec[key], rec[f"{key}_low"], rec[f"{key}_high"])
+        for f, lo, hi in zip(_finites(factors), _finites(low), _finites(high))
     ]
 
 
-def direction_advice(rec: dict) -> str:
-    """The matrix correction of a scale decided along principal directions: the factor
-    (interval) along each direction of the whitened errors, Σ̂_k to become L_k Ŝ L_kᵀ."""
+def direction_advice(diag) -> str:
+    """The matrix correction of a scale decided along principal directions.
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        A diagnosis whose noise label comes from its directions (``by_direction``).
+
+    Returns
+    -------
+    str
+        The factor (interval) along each direction of the whitened errors, for Σ̂_k to
+        become L_k Ŝ L_kᵀ.
+    """
+    dirs = diag.directions
     parts = [
-        f"{factor} along ({', '.join(_number(c) for c in v)})"
-        for factor, v in zip(_factors(rec, "direction_factors"), rec["directions"])
+        f"{factor} along ({', '.join(_number(c) for c in _finites(v))})"
+        for factor, v in zip(_factors(dirs.factors, dirs.low, dirs.high), dirs.vectors.T)
     ]
     return (
         "the misfit differs between directions; multiply the covariance, in whitened "
@@ -221,17 +279,33 @@ def direction_advice(rec: dict) -> str:
     )
 
 
-def block_advice(rec: dict) -> str:
-    """The factor (interval) of each named block of the state, e.g. a pose's position and
-    orientation: the blocks of the covariance to correct, when they differ."""
-    parts = [f"{n} {f}" for n, f in zip(rec["block_names"], _factors(rec, "block_factors"))]
-    return "by block: " + ", ".join(parts)
+def block_advice(diag) -> str:
+    """The factor (interval) of each named block of the state.
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        A diagnosis with named blocks (a pose's position and orientation).
+
+    Returns
+    -------
+    str
+        "by block: position f (low–high), …": the blocks of the covariance to correct,
+        when they differ.
+    """
+    blocks = diag.blocks
+    factors = _factors(
+        [b.factor for b in blocks], [b.low for b in blocks], [b.high for b in blocks]
+    )
+    return "by block: " + ", ".join(f"{b.name} {f}" for b, f in zip(blocks, factors))
 
 
-def _smm_hint(rec: dict) -> str:
+def _smm_hint(diag) -> str:
     """What an SMM finding means for the estimator, and the axis to look at first: the
     component whose mean is the most standard errors from zero."""
-    bias, stderr = rec.get("bias") or [], rec.get("bias_stderr") or []
+    sc = diag.scale
+    bias = [] if sc is None else _finites(sc.bias)
+    stderr = [] if sc is None else _finites(sc.bias_stderr)
     ratios = [
         abs(b) / s if s else 0.0 for b, s in zip(bias, stderr) if b is not None and s is not None
     ]
@@ -513,26 +587,26 @@ def diagnose_report(
     (:func:`credcli.report.records.log_record`).
     Results are matched to their log by id (``SegmentDiagnosis.log``), never by name."""
     records = [segment_record(r) for r in results]
-    logs = {log_id: log_record(summary) for log_id, summary in logs.items()}
+    summaries, logs = logs, {log_id: log_record(summary) for log_id, summary in logs.items()}
     multi = len({r.log for r in results}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
-    if any("whiteness_pvalue" in r for r in records):
+    if any(r.whiteness is not None for r in results):
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     if multi:
         columns = (Column("log", "log", 0, limit=NAME_LIMIT),) + columns
     notes = []
-    sub = [r["segment"] for r in records if r["elt_subsampled"]]
+    sub = [r.segment for r in results if r.diagnosis.elt and r.diagnosis.elt.subsampled]
     if sub:
         notes.append(
             f"ELT ran on a random subsample of {config.max_elt_epochs} epochs in "
             f"segment(s) {', '.join(sub)} (memory budget; see `max_elt_epochs`)."
         )
-    for info in logs.values():
-        if info["dropped_rows"]:
-            notes.append(f"{info['path']}: dropped {info['dropped_rows']} row(s) with NaN/Inf.")
-    notes.extend(_advice_lines(records))
-    notes.extend(_finding_lines(records))
-    notes.extend(_whiteness_lines(records))
+    for summary in summaries.values():
+        if summary.dropped_rows:
+            notes.append(f"{summary.id.name}: dropped {summary.dropped_rows} row(s) with NaN/Inf.")
+    notes.extend(_advice_lines(results))
+    notes.extend(_finding_lines(results))
+    notes.extend(_whiteness_lines(results))
     if monte_carlo is not None:
         mc = monte_carlo
         notes.append(
@@ -543,7 +617,7 @@ def diagnose_report(
             + ", ".join(f"{k} {100 * v:.1f}%" for k, v in mc["segments"].items())
         )
     table = Table("credcli diagnose", columns, records, caption=_level_caption(config))
-    tables = [table, _logs_table(logs, results, records)] if multi else [table]
+    tables = [table, _logs_table(logs, results)] if multi else [table]
     document = {
         "version": __version__,
         "command": "diagnose",
@@ -569,29 +643,31 @@ LOG_COLUMNS = (
 log, and how many of its segments are credible."""
 
 
-def _logs_table(logs: Mapping[LogId, dict], results, records: list[dict]) -> Table:
+def _logs_table(logs: Mapping[LogId, dict], results) -> Table:
     rows = []
     for log_id, info in logs.items():
-        mine = [rec for r, rec in zip(results, records, strict=True) if r.log == log_id]
-        good = sum(r["label"] == Label.CREDIBLE.value for r in mine)
+        mine = [r.diagnosis for r in results if r.log == log_id]
+        good = sum(shown_label(d.label, d.untested) == Label.CREDIBLE.value for d in mine)
         rows.append(info | {"credible": f"{good} of {len(mine)}"})
     return Table("logs compared", LOG_COLUMNS, rows, caption="accuracy over all epochs of each log")
 
 
-def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
-    lines = [a for a in (advice(r) for r in records) if a]
+def _advice_lines(items: list[SegmentDiagnosis], limit: int = 10) -> list[str]:
+    """The advice of each segment that has one (:func:`advice`), at most ``limit``, then
+    what each location condition found means."""
+    lines = [a for a in (advice(item) for item in items) if a]
     if len(lines) > limit:
         lines = lines[:limit] + [
             f"... and {len(lines) - limit} more segment(s); see the JSON output"
         ]
-    found = {record_label(r).location for r in records}
+    found = {item.diagnosis.label.location for item in items}
     lines += [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in found]
     return lines
 
 
-def _finding_lines(records: list[dict], limit: int = 10) -> list[str]:
+def _finding_lines(items: list[SegmentDiagnosis], limit: int = 10) -> list[str]:
     """The findings the engine reports beside the labels (a slowly varying error, ...)."""
-    lines = [f"{r['segment']}: {f}" for r in records for f in r.get("findings") or ()]
+    lines = [f"{item.segment}: {f}" for item in items for f in item.diagnosis.findings]
     if len(lines) > limit:
         lines = lines[:limit] + [
             f"... and {len(lines) - limit} more finding(s); see the JSON output"
@@ -599,16 +675,16 @@ def _finding_lines(records: list[dict], limit: int = 10) -> list[str]:
     return lines
 
 
-def _whiteness_lines(records: list[dict], limit: int = 10) -> list[str]:
+def _whiteness_lines(items: list[SegmentDiagnosis], limit: int = 10) -> list[str]:
     """Segments whose innovations are not white at the whiteness test's share of α (the
-    engine's decision, ``whiteness_rejected``)."""
-    bad = [r for r in records if r.get("whiteness_rejected")]
+    engine's decision, ``Whiteness.rejected``)."""
+    bad = [item for item in items if item.whiteness is not None and item.whiteness.rejected]
     lines = [
-        f"{r['segment']}: innovations correlated in time (portmanteau p = "
-        f"{format_cell(r['whiteness_pvalue'], 3)}, {r['whiteness_lags']} lags, level "
-        f"{format_cell(r['whiteness_level'], 3)}): the filter's "
+        f"{item.segment}: innovations correlated in time (portmanteau p = "
+        f"{format_cell(item.whiteness.pvalue, 3)}, {item.whiteness.lags} lags, level "
+        f"{format_cell(item.whiteness.level, 3)}): the filter's "
         "model or noise is inconsistent even if the NIS level is right"
-        for r in bad[:limit]
+        for item in bad[:limit]
     ]
     if len(bad) > limit:
         lines.append(f"... and {len(bad) - limit} more segment(s) with correlated innovations")
@@ -824,10 +900,11 @@ def uwb_report(run, results, checks, parameters: dict) -> Report:
     and anchor (Figs. 4 and 5), and the anchors."""
     segments = [uwb_segment_record(r, c) for r, c in zip(results, checks, strict=True)]
     agreement = [
-        f"{rec['segment']}: the position-level label {label_text(rec)} "
+        f"{r.segment}: the position-level label "
+        f"{shown_label(r.diagnosis.label, r.diagnosis.untested)} "
         f"{'agrees with' if check.agrees else 'DISAGREES with'} the range-level evidence, "
         f"{check.label} ({check.why})"
-        for rec, check in zip(segments, checks)
+        for r, check in zip(results, checks)
         if check.agrees is not None
     ]
     ranges = [range_record(s) for s in run.range_stats]
@@ -855,7 +932,7 @@ def uwb_report(run, results, checks, parameters: dict) -> Report:
         Column("check", "check", 0),
         Column("rows", "ranges", 0),
     )
-    notes = list(run.ranges.notes) + list(run.notes) + _advice_lines(segments) + agreement
+    notes = list(run.ranges.notes) + list(run.notes) + _advice_lines(results) + agreement
     notes.append(screening_note(run, run.settings))
     tables = [
         Table(

@@ -48,11 +48,43 @@ def open_log(
     reading: ReadOptions | None = None,
     drop_invalid: bool = False,
 ) -> EstimatorLog:
-    """The log at ``path`` read as ``reading`` says (a credcli log with truth and estimate
-    in each row when no truth is named). ``path`` (or the truth) may be a stream: ``-`` for
-    standard input, a pipe or a FIFO (:mod:`credcli.io.streams`). What reading it freed
-    goes back to the system. The log's id (:class:`credcli.logid.LogId`) keeps ``path``
-    as given."""
+    """The log at ``path`` read as ``reading`` says.
+
+    Without a separate truth it is a credcli log with truth and estimate in each row
+    (aligned as ``reading.align`` says), an errors-only or innovations log, or an ``.npz``
+    of arrays; with one (``reading.truth`` or ``reading.truth_topic``), the estimate is
+    paired with its truth by time and the chosen states' errors are taken. ``path`` (or the
+    truth) may be a stream: ``-`` for standard input, a pipe or a FIFO, or a compressed
+    file (:mod:`credcli.io.streams`), read through a private copy. What reading it freed
+    goes back to the system.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The log (or estimate) file, bag or stream.
+    schema : LogSchema, optional
+        The column names of a credcli log; default ``LogSchema()``.
+    reading : ReadOptions, optional
+        How the log is read and paired; default ``ReadOptions()``.
+    drop_invalid : bool, default False
+        Drop the rows of a credcli log with a NaN, Inf or empty value rather than refuse
+        the log.
+
+    Returns
+    -------
+    EstimatorLog
+        The validated log. Its id (:class:`credcli.logid.LogId`) keeps ``path`` as given,
+        and its ``notes`` name the stream, not the copy read.
+
+    Raises
+    ------
+    CredcliError
+        The options contradict each other or would be ignored (``align`` for errors given,
+        pairing options without a truth, ``innovations`` or ``errors_only`` with a truth or
+        a format other than credcli, a pose format without its truth, ``states`` that need
+        orientations a credcli log does not have), or the files cannot be read, paired or
+        validated.
+    """
     reading = reading or ReadOptions()
     with contextlib.ExitStack() as stack:
         local = stack.enter_context(readable(path))
@@ -103,7 +135,7 @@ def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
                 "log does not have; read a pose log (tum, euroc, ros-csv, rosbag) with `truth`"
             )
         return align_log(load_log(path, schema, drop_invalid, reading.time_unit), reading.align)
-    return paired_log(path, schema, reading)
+    return _paired_log(path, schema, reading)
 
 
 def _check_options(reading: ReadOptions) -> None:
@@ -141,7 +173,7 @@ def _only_credcli(path: Path, fmt: InputFormat, what: str) -> None:
         )
 
 
-def paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> EstimatorLog:
+def _paired_log(path: Path, schema: LogSchema, reading: ReadOptions) -> EstimatorLog:
     """An estimate file (or bag topic) paired with its truth by time."""
     truth_path = Path(reading.truth) if reading.truth is not None else path
     both = None  # two topics of one bag are read in one pass

@@ -174,13 +174,41 @@ def load_log(
 ) -> EstimatorLog:
     """Read and validate an estimator log from CSV, whitespace-separated text or Parquet.
 
-    Raises CredcliError naming the file, row and column of the first problem: a missing or
-    empty file, missing columns, a non-numeric cell, NaN/Inf (unless ``drop_invalid``),
-    an asymmetric or non-positive-definite covariance, mismatched dimensions.
-    ``innovations``: the log holds a filter's innovations ``innov_i`` and their covariance
-    ``innov_cov_i_j`` (or ``innov_var_i``, ``innov_std_i``) instead of truth and estimate.
-    ``errors_only``: the log holds errors (``err_i``, or the columns
-    ``schema.truth_columns`` names); None: when it has ``err_0`` and no truth or estimate.
+    The file may be an fsspec URL (:func:`as_url`); a local Parquet file is read one column
+    at a time (:class:`ParquetColumns`). A compressed file or a stream is read through
+    :func:`credcli.io.ingest.open_log`, which decompresses it first. The table is validated
+    by :func:`log_from_frame`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The log file, or an fsspec URL (``s3://bucket/log.parquet``).
+    schema : LogSchema, optional
+        The column names; default ``LogSchema()``, the default convention.
+    drop_invalid : bool, default False
+        Drop the rows with a NaN, Inf or empty value (counted in ``dropped_rows``) rather
+        than refuse the log.
+    time_unit : TimeUnit, default TimeUnit.AUTO
+        The unit of the time column; ``auto`` decides from its format and magnitude.
+    innovations : bool, default False
+        The log holds a filter's innovations ``innov_i`` and their covariance
+        ``innov_cov_i_j`` (or ``innov_var_i``, ``innov_std_i``) instead of truth and
+        estimate.
+    errors_only : bool or None, default None
+        The log holds errors (``err_i``, or the columns ``schema.truth_columns`` names);
+        None: so when it has ``err_0`` and no truth or estimate.
+
+    Returns
+    -------
+    EstimatorLog
+        The validated log; its id names ``path`` as given (the URL for a URL).
+
+    Raises
+    ------
+    CredcliError
+        Naming the file, row and column of the first problem: a missing or empty file,
+        missing columns, a non-numeric cell, NaN/Inf (unless ``drop_invalid``), an
+        asymmetric or non-positive-definite covariance, mismatched dimensions.
     """
     url = as_url(path)
     path = Path(path)
@@ -206,13 +234,25 @@ INNOVATION_SCHEMA = {
 
 class ParquetColumns:
     """A Parquet file read one column at a time: the loader never holds the file's whole
-    table and its numeric copy at once (a 2,000,000-epoch log: 756 MiB peak with
-    pandas.read_parquet, see docs/performance.md).
+    table and its numeric copy at once, as ``pandas.read_parquet`` would.
 
     Numeric and string columns are read through Arrow's buffers (:meth:`floats`,
-    :meth:`labels`), without pandas: importing it, which Arrow's ``to_numpy`` does, costs
-    about 0.5 s of a command's start. Columns of other types are pandas Series (item
-    access), whose cells the loader checks one by one."""
+    :meth:`labels`), without pandas: importing it, which Arrow's ``to_numpy`` does, would
+    delay a command's start. Columns of other types are pandas Series (item access), whose
+    cells the loader checks one by one.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A local Parquet file.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The file.
+    columns : list of str
+        Its column names, in the file's order.
+    """
 
     def __init__(self, path: Path) -> None:
         import pyarrow.parquet as pq
@@ -231,8 +271,7 @@ class ParquetColumns:
     def _read(self, column: str, dictionary: bool = False):
         """The column as an Arrow ChunkedArray; with ``dictionary``, a string column comes
         as Parquet stores it, dictionary-encoded per row group, and is not decoded into a
-        string per row (a million rows of segment names: 0.02 s instead of 0.22 s with
-        encoding them again)."""
+        string per row and encoded again."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
@@ -247,9 +286,27 @@ class ParquetColumns:
             raise CredcliError(f"{self.path}: column '{column}' cannot be read: {first}") from exc
 
     def floats(self, column: str, out: np.ndarray) -> bool:
-        """Write an integer or floating-point column into ``out`` (N,) as float64, nulls as
-        NaN (as pandas' ``to_numpy(float)`` does); False, with nothing written, for a column
-        of any other type."""
+        """Write an integer or floating-point column into ``out`` as float64.
+
+        Nulls become NaN (as pandas' ``to_numpy(float)`` does); integers beyond 2^53 round.
+
+        Parameters
+        ----------
+        column : str
+            The column's name.
+        out : numpy.ndarray, shape (N,)
+            Where the values go (a float64 array or view, N the file's rows).
+
+        Returns
+        -------
+        bool
+            True when written; False, with nothing written, for a column of any other type.
+
+        Raises
+        ------
+        CredcliError
+            The column cannot be read.
+        """
         import pyarrow as pa
 
         data = self._read(column)
@@ -258,7 +315,7 @@ class ParquetColumns:
         start = 0
         for chunk in data.chunks:
             if chunk.type != pa.float64():
-                import pyarrow.compute as pc  # only here: importing it takes 0.08 s
+                import pyarrow.compute as pc  # only here: slow to import, rarely needed
 
                 chunk = pc.cast(chunk, pa.float64(), safe=False)  # integers beyond 2^53 round
             size = len(chunk)
@@ -269,10 +326,27 @@ class ParquetColumns:
         return True
 
     def labels(self, column: str) -> tuple[np.ndarray, np.ndarray] | None:
-        """A string column (or a dictionary of strings, as pandas writes a categorical) as
-        (an object array of its values, the rows where it is null), or None for a column of
-        any other type. Each distinct value of a row group is converted to a Python string
-        once, from the dictionary the file stores, not once per row."""
+        """A string column (or a dictionary of strings, as pandas writes a categorical).
+
+        Each distinct value of a row group is converted to a Python string once, from the
+        dictionary the file stores, not once per row.
+
+        Parameters
+        ----------
+        column : str
+            The column's name.
+
+        Returns
+        -------
+        tuple of (numpy.ndarray, numpy.ndarray) or None
+            An object array of its values, shape (N,) ("" where null), and a boolean array
+            of the rows where it is null, shape (N,); None for a column of any other type.
+
+        Raises
+        ------
+        CredcliError
+            The column cannot be read.
+        """
         import pyarrow as pa
 
         kind = self._file.schema_arrow.field(column).type
@@ -318,8 +392,26 @@ _URL = re.compile(r"^([a-z][a-z0-9+.-]+):/+(.*)$")
 
 
 def as_url(path) -> str | None:
-    """``path`` as an fsspec URL (``s3://bucket/log.parquet``, ``file:///data/log.csv``),
-    or None for a local path. A URL that went through pathlib lost a slash; it is put back."""
+    """``path`` as an fsspec URL (``s3://bucket/log.parquet``, ``file:///data/log.csv``).
+
+    A URL that went through pathlib lost a slash; it is put back. A one-letter scheme is a
+    Windows drive (``C:/``), not a URL.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A path or URL.
+
+    Returns
+    -------
+    str or None
+        The URL, or None for a local path.
+
+    Examples
+    --------
+    >>> as_url(Path("s3://bucket/log.parquet")), as_url("data/log.csv")
+    ('s3://bucket/log.parquet', None)
+    """
     m = _URL.match(str(path))
     if not m or len(m.group(1)) < 2:  # C:/ on Windows is a drive, not a scheme
         return None
@@ -356,8 +448,28 @@ def _read_url(url: str):
 
 
 def read_table(path: Path, columnwise: bool = False):
-    """The table of a CSV, text or Parquet file (or fsspec URL); with ``columnwise``, a
-    local Parquet file is a :class:`ParquetColumns` (columns read on use, without pandas)."""
+    """The table of a CSV, text or Parquet file (or fsspec URL).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file (compressed or not), or an fsspec URL.
+    columnwise : bool, default False
+        Read a local Parquet file as a :class:`ParquetColumns` (columns read on use,
+        without pandas). Without it, a compressed file is read through its decompressed
+        copy (``credcli.io.streams.readable``).
+
+    Returns
+    -------
+    pandas.DataFrame or ParquetColumns
+        The table, with at least one row.
+
+    Raises
+    ------
+    CredcliError
+        The file is missing, a directory, empty, UTF-16 or binary text, cannot be parsed,
+        or has a header and no rows.
+    """
     url = as_url(path)
     if url is not None:
         return _read_url(url)
@@ -440,9 +552,23 @@ _ORIENTATION_NAME = re.compile(
 
 
 def check_not_orientation(columns, source: str) -> None:
-    """Quaternion components are not a vector: refuse them by name (qw, q_x, quat_z,
-    orientation.w, rotation_x, …) rather than diagnose them as one. Other names with
-    "rotation" or "orientation" in them (rotation_rate) are left alone."""
+    """Refuse quaternion components by name rather than diagnose them as a vector.
+
+    Names such as qw, q_x, quat_z, orientation.w and rotation_x are refused; other names
+    with "rotation" or "orientation" in them (rotation_rate) are left alone.
+
+    Parameters
+    ----------
+    columns : iterable of str
+        The state columns.
+    source : str
+        The log's name in the message.
+
+    Raises
+    ------
+    CredcliError
+        Some column looks like a quaternion component.
+    """
     named = [c for c in columns if _ORIENTATION_NAME.search(str(c))]
     if named:
         raise CredcliError(
@@ -481,6 +607,32 @@ def _indexed(columns, prefix: str) -> dict[int, str]:
 
 
 def vector_columns(columns, prefix: str, explicit, what: str, source: str) -> list[str]:
+    """The columns of a state vector: those named, else ``prefix`` 0 … d−1.
+
+    Parameters
+    ----------
+    columns : list of str
+        The table's columns.
+    prefix : str
+        The columns' prefix (``truth_``, ``est_``, …), followed by the component's index.
+    explicit : sequence of str or None
+        The columns by name; when given, they are returned as they are.
+    what : str
+        What the vector is ("truth", "estimate", "error", "innovation"), for messages.
+    source : str
+        The log's name in messages.
+
+    Returns
+    -------
+    list of str
+        The d columns, in the order of the components.
+
+    Raises
+    ------
+    CredcliError
+        No column has the prefix (an innovations log read without ``innovations`` is named
+        as such), or an index between 0 and the largest one is missing.
+    """
     if explicit:
         return list(explicit)
     found = _indexed(columns, prefix)
@@ -512,7 +664,37 @@ def _list(columns) -> str:
 
 
 def cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind, list[str]]:
-    """Which covariance columns to read, and how."""
+    """Which covariance columns to read, and how.
+
+    Named columns (``schema.cov_columns``) are read by ``schema.cov_kind``, else by their
+    number: d² full, d(d+1)/2 upper triangle, d diagonal (variances). Otherwise the
+    columns are found by prefix: ``cov_i_j`` for every i, j (full) or for i <= j (upper),
+    else ``var_i``, else ``std_i``.
+
+    Parameters
+    ----------
+    columns : list of str
+        The table's columns.
+    schema : LogSchema
+        The column names and prefixes.
+    d : int
+        The state dimension.
+    source : str
+        The log's name in messages.
+
+    Returns
+    -------
+    tuple of (CovKind, list of str)
+        The layout and its columns, in the order :func:`build_cov` takes them.
+
+    Raises
+    ------
+    CredcliError
+        The named columns do not fit d or ``cov_kind``; a ``cov_i_j`` index is beyond d; both
+        ``cov_i_j`` and ``var_i``/``std_i`` columns are present; the ``cov_i_j`` are neither
+        full nor an upper triangle; the ``var_i``/``std_i`` do not match d; no covariance
+        column is found.
+    """
     if schema.cov_columns:
         cols = list(schema.cov_columns)
         by_len = {d * d: CovKind.FULL, d * (d + 1) // 2: CovKind.UPPER, d: CovKind.VAR}
@@ -595,9 +777,46 @@ def log_from_frame(
 ):
     """Validate a pandas DataFrame into an EstimatorLog (see :func:`load_log`).
 
-    ``errors_only``: the log holds errors ``err_i`` (or the columns ``schema.truth_columns``
-    names) and no truth or estimate; None: so when it has ``err_0`` and no ``truth_`` or
-    ``est_`` columns."""
+    Each group of columns (truth, estimate, covariance, time) is read straight into its own
+    float64 array; the covariances are built (:func:`build_cov`) and checked
+    (:func:`validated_cov`).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame or ParquetColumns
+        The table, one row per epoch. Its column names are made strings (in place, for a
+        DataFrame).
+    schema : LogSchema
+        The column names.
+    source : str, default "<frame>"
+        The log's name in messages, notes and its id.
+    drop_invalid : bool, default False
+        Drop the rows with a NaN, Inf or empty value rather than refuse the log.
+    time_unit : TimeUnit, default TimeUnit.AUTO
+        The unit of a numeric time column; ``auto`` decides from its magnitude. Date-times
+        become seconds since the Unix epoch.
+    innovations : bool, default False
+        The table holds a filter's innovations ``innov_i`` and their covariance instead of
+        truth and estimate.
+    errors_only : bool or None, default None
+        The log holds errors ``err_i`` (or the columns ``schema.truth_columns`` names) and
+        no truth or estimate; None: so when it has ``err_0`` and no ``truth_`` or ``est_``
+        columns.
+
+    Returns
+    -------
+    EstimatorLog
+        The validated log (errors and innovations as its ``state_errors``), with the notes
+        of the decisions taken (time unit, errors-only, symmetrised covariances).
+
+    Raises
+    ------
+    CredcliError
+        A repeated column name; missing or mismatched state, covariance, time, segment or
+        run columns; a cell that is not a number; NaN/Inf (unless ``drop_invalid``; then
+        when every row has one); a negative standard deviation; a covariance that is not symmetric or
+        not positive definite; an empty segment or run cell.
+    """
     columns = [str(c) for c in frame.columns]
     frame.columns = columns
     counts = collections.Counter(columns)  # linear: a header may have 10⁶ columns
@@ -775,8 +994,30 @@ def _labels(frame, column: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None = None):
-    """The columns ``cols`` of ``frame`` as float64 (N, len(cols)), into ``out`` when given,
-    one column at a time; a cell that is not a number is an error naming its row."""
+    """The columns ``cols`` of ``frame`` as float64, one column at a time.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame or ParquetColumns
+        The table.
+    cols : list of str
+        The columns to read.
+    source : str
+        The log's name in messages.
+    out : numpy.ndarray, shape (N, len(cols)), optional
+        Where to write them; default a new array.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, len(cols))
+        ``out`` (or the new array), missing values as NaN.
+
+    Raises
+    ------
+    CredcliError
+        A cell is not a number (naming its row and column), or a column is of another
+        type (booleans, date-times).
+    """
     if out is None:
         out = np.empty((len(frame), len(cols)))
     for j, col in enumerate(cols):
@@ -830,8 +1071,32 @@ def _time_column(frame, col: str, source: str, out: np.ndarray) -> str | None:
 
 
 def build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
-    """(N, d, d) covariances from their columns; for the full layout a view of ``values``
-    when it is contiguous (no copy of a large log's covariances)."""
+    """(N, d, d) covariances from their columns.
+
+    Parameters
+    ----------
+    values : numpy.ndarray, shape (N, k)
+        The covariance columns in the order :func:`cov_layout` gives: k = d² (full, row
+        major), d(d+1)/2 (upper triangle, row major) or d (variances or standard
+        deviations).
+    kind : CovKind
+        The layout.
+    d : int
+        The state dimension.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d, d)
+        The matrices: for the full layout a view of ``values`` when it is contiguous (no
+        copy of a large log's covariances), as given (checked by :func:`validated_cov`);
+        otherwise a new array, the upper triangle mirrored, the diagonal layouts squared
+        (``std``) or as they are (``var``).
+
+    Examples
+    --------
+    >>> build_cov(np.array([[1.0, 4.0]]), CovKind.STD, 2).tolist()
+    [[[1.0, 0.0], [0.0, 16.0]]]
+    """
     n = values.shape[0]
     if kind is CovKind.FULL:
         return values.reshape(n, d, d)
@@ -851,8 +1116,8 @@ def build_cov(values: np.ndarray, kind: CovKind, d: int) -> np.ndarray:
 SYMMETRISE_RTOL = 1e-3
 """Relative asymmetry (largest |Σ_ij − Σ_ji| over the largest entry) up to which a claimed
 covariance is made symmetric, with a note: a filter's covariance drifts from symmetric in
-float arithmetic (Stone Soup's default updater: a median 4.6e-4 after ~600 updates). Above
-it, the matrix is refused as not symmetric (a wrong column, a transposed layout)."""
+float arithmetic over many updates. Above it, the matrix is refused as not symmetric (a
+wrong column, a transposed layout)."""
 
 
 def validated_cov(
@@ -863,13 +1128,43 @@ def validated_cov(
     epoch=None,
     notes: list[str] | None = None,
 ) -> np.ndarray:
-    """The covariances, exactly symmetric, after checking that each is symmetric to
-    :data:`SYMMETRISE_RTOL` and positive definite (naming the first bad row). Only a full
-    matrix can be asymmetric: it is checked and made symmetric in place, an entry pair at a
-    time (no N×d×d temporaries); the other layouts are symmetric as built. Where some matrix
-    was asymmetric past float rounding (SYMMETRY_RTOL) but within SYMMETRISE_RTOL, a note
-    saying how many and how much is added to ``notes``. ``epoch(i)``, if given, names the
-    i-th matrix in a message instead of "{source}: row …" (arrays: "cov[i]")."""
+    """The covariances, exactly symmetric, after checking that each is symmetric and
+    positive definite.
+
+    Only a full matrix can be asymmetric: it is checked and made symmetric in place,
+    (Σ + Σᵀ)/2, an entry pair at a time (no N×d×d temporaries); the other layouts are
+    symmetric as built. Where some matrix was asymmetric past float rounding
+    (``SYMMETRY_RTOL``) but within :data:`SYMMETRISE_RTOL`, a note saying how many and how
+    much is added to ``notes``.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances (float64); a full layout is symmetrised in place.
+    rows : numpy.ndarray, shape (N,)
+        The file row of each matrix, for messages.
+    source : str
+        The log's name in messages and the note.
+    kind : CovKind, default CovKind.FULL
+        The layout the matrices were built from (:func:`build_cov`).
+    epoch : callable, optional
+        ``epoch(i)`` names the i-th matrix in a message instead of "{source}: row …"
+        (arrays: "cov[i]").
+    notes : list of str, optional
+        Where the note on symmetrised matrices is appended; None: no note.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d, d)
+        ``cov`` itself, exactly symmetric.
+
+    Raises
+    ------
+    CredcliError
+        Naming the first bad matrix: a variance that overflows double precision, a relative
+        asymmetry above :data:`SYMMETRISE_RTOL`, or a smallest eigenvalue not above 1e-12
+        times the largest entry (not positive definite).
+    """
 
     def where(i: int) -> str:
         return epoch(i) if epoch is not None else f"{source}: row {rows[i]}"

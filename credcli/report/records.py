@@ -24,7 +24,24 @@ BASELINE_KIND = "credcli-baseline"
 
 
 def json_value(x):
-    """JSON-safe scalar: enums to their value, NaN/Inf to None."""
+    """A JSON-safe scalar: enums to their value, NaN/Inf to None.
+
+    Parameters
+    ----------
+    x : object
+        A value of a record: None, a number, an enum or any other JSON-ready value.
+
+    Returns
+    -------
+    object
+        ``x.value`` for an enum, None for None and for a non-finite float (Python or numpy),
+        ``x`` itself otherwise.
+
+    Examples
+    --------
+    >>> json_value(float("nan")), json_value(Label.CREDIBLE), json_value(2.5)
+    (None, 'credible', 2.5)
+    """
     if x is None:
         return None
     if type(x) is float:  # the common case first: a record has dozens (10⁶ segments)
@@ -37,9 +54,31 @@ def json_value(x):
 
 
 def shown_label(label: Label, untested) -> str:
-    """The label as every output shows it: a partial verdict names the question it leaves
-    open ("credible (scale untested)"), so that a script reading only ``label`` never takes
-    a partial credible for a pass; the answered half alone is ``label_answered``."""
+    """The label as every output shows it.
+
+    A partial verdict names the question it leaves open ("credible (scale untested)"), so
+    that a script reading only ``label`` never takes a partial credible for a pass; the
+    answered half alone is ``label_answered``.
+
+    Parameters
+    ----------
+    label : Label
+        The answered label.
+    untested : iterable of Question or str
+        The questions the segment leaves open ("scale", "location"); empty for a full
+        verdict.
+
+    Returns
+    -------
+    str
+        The label's text, followed by "(… untested)" naming the open questions (joined by
+        "and") when there are any and the label is not ``insufficient-data``.
+
+    Examples
+    --------
+    >>> shown_label(Label.CREDIBLE, ["scale"]), shown_label(Label.OPTIMISM, [])
+    ('credible (scale untested)', 'optimism')
+    """
     names = [q if isinstance(q, str) else q.value for q in untested]
     if not names or label is Label.INSUFFICIENT:
         return label.value
@@ -47,8 +86,24 @@ def shown_label(label: Label, untested) -> str:
 
 
 def record_label(rec: dict) -> Label:
-    """The answered label of a segment record (a baseline written before partial verdicts
-    were shown has only ``label``)."""
+    """The answered label of a segment record.
+
+    Parameters
+    ----------
+    rec : dict
+        A segment record (:func:`segment_record`, or a baseline's segment).
+
+    Returns
+    -------
+    Label
+        Its ``label_answered``, or its ``label`` where it has none (a baseline written
+        before partial verdicts were shown has only ``label``).
+
+    Examples
+    --------
+    >>> record_label({"label": "credible (scale untested)", "label_answered": "credible"})
+    <Label.CREDIBLE: 'credible'>
+    """
     return Label(rec.get("label_answered") or rec["label"])
 
 
@@ -86,6 +141,17 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     Accuracy`): ``rmse`` and ``error_norm_mean``/``_median``/``_max`` of the error's norm;
     per component ``rmse_by_component``, ``error_mean`` (signed), ``error_median`` and
     ``error_max`` (of |e_i|), in the units of the states.
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        The diagnosis of one segment.
+
+    Returns
+    -------
+    dict
+        The record, str -> JSON-safe value (None for NaN, Inf and whatever the diagnosis
+        did not compute; enums as their values; vectors as lists of floats).
     """
     elt = diag.elt
     sc = diag.scale
@@ -169,8 +235,20 @@ _JSON_READY = frozenset({int, str, bool, list})
 
 
 def accuracy_record(acc) -> dict:
-    """The accuracy keys (:class:`credcli.engine.metrics.Accuracy`, or None: all null), of
-    a segment's record and of a log's entry."""
+    """The accuracy keys of a segment's record and of a log's entry.
+
+    Parameters
+    ----------
+    acc : Accuracy or None
+        The accuracy (:class:`credcli.engine.metrics.Accuracy`); None: every key null.
+
+    Returns
+    -------
+    dict
+        ``rmse``, ``error_norm_mean``, ``error_norm_median``, ``error_norm_max`` (of the
+        error's norm) and ``rmse_by_component``, ``error_mean``, ``error_median``,
+        ``error_max`` (lists, one per component), in the units of the states.
+    """
     return {
         "rmse": None if acc is None else acc.rmse_norm,
         "error_norm_mean": None if acc is None else acc.mean_norm,
@@ -184,11 +262,22 @@ def accuracy_record(acc) -> dict:
 
 
 def config_record(config: DiagnosisConfig) -> dict:
-    """Every DiagnosisConfig setting as JSON-safe values, by field name."""
+    """Every DiagnosisConfig setting as JSON-safe values, by field name.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The settings of the diagnosis.
+
+    Returns
+    -------
+    dict
+        Field name -> value, through :func:`json_value` (enums as their values).
+    """
     return {f.name: json_value(getattr(config, f.name)) for f in dataclasses.fields(config)}
 
 
-def settings_record(settings) -> dict:
+def _settings_record(settings) -> dict:
     """A settings dataclass (LogSchema, ReadOptions) as JSON-safe values: tuples as lists,
     enums as their values."""
     out = {}
@@ -201,27 +290,72 @@ def settings_record(settings) -> dict:
 def diagnose_parameters(
     config: DiagnosisConfig, seed: int, reading: LogReading, segmentation: str
 ) -> dict:
-    """The ``parameters`` of a diagnose (and baseline) document; :func:`read_baseline`
-    reads them back."""
+    """The ``parameters`` of a diagnose (and baseline) document.
+
+    :func:`read_baseline` reads them back.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The settings of the diagnosis: every field, as :func:`config_record` gives it.
+    seed : int
+        The seed of the run's random numbers.
+    reading : LogReading
+        How the logs were read and cut: its ``window``, ``whole`` and ``drop_invalid``, its
+        column names (``columns``) and its reading options (``input``).
+    segmentation : str
+        How the logs were cut into segments, as the document names it
+        (:func:`credcli.workflows.segmentation_name`).
+
+    Returns
+    -------
+    dict
+        The config's fields, then ``seed``, ``segmentation``, ``window``, ``whole``,
+        ``drop_invalid``, ``columns`` and ``input`` (the last two objects of their own).
+    """
     return config_record(config) | {
         "seed": seed,
         "segmentation": segmentation,
         "window": reading.window,
         "whole": reading.whole,
         "drop_invalid": reading.drop_invalid,
-        "columns": settings_record(reading.schema),
-        "input": settings_record(reading.options),
+        "columns": _settings_record(reading.schema),
+        "input": _settings_record(reading.options),
     }
 
 
 def uwb_segment_record(result: SegmentDiagnosis, check) -> dict:
-    """A period of `uwb`: its segment record and the range-level evidence beside it
-    (:class:`credcli.studies.uwb.RangeCheck`)."""
+    """A period of `uwb`: its segment record and the range-level evidence beside it.
+
+    Parameters
+    ----------
+    result : SegmentDiagnosis
+        The period's position-level diagnosis.
+    check : RangeCheck
+        The range-level evidence of the period (:class:`credcli.studies.uwb.RangeCheck`).
+
+    Returns
+    -------
+    dict
+        :func:`segment_record` of ``result``, then ``range_label`` and ``range_agrees``.
+    """
     return segment_record(result) | {"range_label": check.label, "range_agrees": check.agrees}
 
 
 def range_record(stats) -> dict:
-    """The range errors of one anchor in one period (:class:`credcli.studies.uwb.RangeStats`)."""
+    """The range errors of one anchor in one period.
+
+    Parameters
+    ----------
+    stats : RangeStats
+        The range-level evidence (:class:`credcli.studies.uwb.RangeStats`).
+
+    Returns
+    -------
+    dict
+        Its fields by name, in metres; a NaN standard deviation, standard error or ratio is
+        None.
+    """
     return {
         "segment": stats.segment,
         "anchor": stats.anchor,
@@ -238,8 +372,21 @@ def range_record(stats) -> dict:
 
 
 def anchor_record(anchor, mismatch: bool) -> dict:
-    """An anchor of `uwb` (:class:`credcli.studies.uwb.Anchor`) and whether its markers
-    position disagrees with the log's gt_range."""
+    """An anchor of `uwb` and whether its markers position disagrees with the log.
+
+    Parameters
+    ----------
+    anchor : Anchor
+        The anchor (:class:`credcli.studies.uwb.Anchor`).
+    mismatch : bool
+        Whether its markers position disagrees with the log's gt_range.
+
+    Returns
+    -------
+    dict
+        ``id``, its position ``x``, ``y``, ``z`` (m), ``source``, ``rms_mm`` (its RMS in
+        mm), ``rows`` and ``check`` ("MISMATCH" or "ok").
+    """
     return {
         "id": anchor.id,
         "x": float(anchor.position[0]),
@@ -253,8 +400,21 @@ def anchor_record(anchor, mismatch: bool) -> dict:
 
 
 def comparison_record(comparison) -> dict:
-    """A segment of `gate` (:class:`credcli.ci.gate.SegmentComparison`): its status, the
-    labels then and now, why, and both segment records."""
+    """A segment of `gate`: its status, the labels then and now, why, and both records.
+
+    Parameters
+    ----------
+    comparison : SegmentComparison
+        The segment's baseline against the segment now
+        (:class:`credcli.ci.gate.SegmentComparison`).
+
+    Returns
+    -------
+    dict
+        ``segment``, ``status``, ``baseline_label`` and ``label`` (the answered labels, None
+        for a new or a missing segment), ``reasons``, ``improvements``, and the segment
+        records ``baseline`` and ``current`` (None where there is none).
+    """
     old, new = comparison.old, comparison.new
     return {
         "segment": comparison.segment,
@@ -273,8 +433,19 @@ def _floats(values) -> list | None:
 
 
 def segment_record(result: SegmentDiagnosis) -> dict:
-    """The record of a segment: where it is, then :func:`diagnosis_record`, then the
-    innovations' whiteness test when there is one."""
+    """The record of a segment: where it is, its diagnosis, and the innovations' whiteness.
+
+    Parameters
+    ----------
+    result : SegmentDiagnosis
+        The segment's diagnosis.
+
+    Returns
+    -------
+    dict
+        ``log``, ``segment``, ``t_start`` and ``t_end``, then :func:`diagnosis_record`, then
+        the ``whiteness_*`` keys of the innovations' whiteness test when there is one.
+    """
     rec = {
         "log": str(result.log),
         "segment": result.segment,
@@ -294,8 +465,19 @@ def segment_record(result: SegmentDiagnosis) -> dict:
 
 
 def log_record(summary) -> dict:
-    """The report's entry for one log (:class:`credcli.segments.LogSummary`): its path, size,
-    dropped rows, notes and the accuracy keys over all its epochs."""
+    """The report's entry for one log: its path, size, dropped rows, notes and accuracy.
+
+    Parameters
+    ----------
+    summary : LogSummary
+        What the report says of the whole log (:class:`credcli.segments.LogSummary`).
+
+    Returns
+    -------
+    dict
+        ``path``, ``epochs``, ``dim``, ``dropped_rows``, ``unpaired_epochs``, ``segments``,
+        ``notes``, then :func:`accuracy_record` over all its epochs; JSON-safe.
+    """
     info = {
         "path": summary.id.name,
         "epochs": summary.epochs,
@@ -310,7 +492,20 @@ def log_record(summary) -> dict:
 
 
 def monte_carlo_record(mc) -> dict:
-    """The JSON record of the per-epoch ANEES test (:class:`credcli.engine.montecarlo.MonteCarlo`)."""
+    """The JSON record of the per-epoch ANEES test.
+
+    Parameters
+    ----------
+    mc : MonteCarlo
+        The test (:class:`credcli.engine.montecarlo.MonteCarlo`).
+
+    Returns
+    -------
+    dict
+        ``runs`` (M), ``dof`` (M·d), ``confidence`` (1 − α), the bounds ``lower`` and
+        ``upper``, ``fraction_inside`` (of the epochs), ``mean_anees`` and the fraction
+        inside per segment (``segments``).
+    """
     return {
         "runs": mc.runs,
         "dof": mc.runs * mc.dim,
@@ -325,8 +520,22 @@ def monte_carlo_record(mc) -> dict:
 
 @dataclass(frozen=True)
 class Snapshot:
-    """What the gate compares of one segment, typed; ``record`` is the whole record, kept
-    only to be reported."""
+    """What the gate compares of one segment, typed.
+
+    Attributes
+    ----------
+    segment : str
+        The segment's name.
+    label : Label
+        Its answered label.
+    nci, anees, elt_pvalue : float or None
+        Its NCI, ANEES and ELT p-value (None where not computed).
+    record : dict
+        The whole segment record, kept only to be reported (not compared, not shown in the
+        repr).
+    untested : tuple of str
+        The questions its verdict leaves open ("scale", "location").
+    """
 
     segment: str
     label: Label
@@ -338,8 +547,20 @@ class Snapshot:
 
     @classmethod
     def from_record(cls, rec: dict) -> Snapshot:
-        """From a baseline's segment record (checked by :func:`check_baseline`; a baseline
-        written before partial verdicts has no ``untested``: nothing was)."""
+        """The snapshot of a baseline's segment record.
+
+        Parameters
+        ----------
+        rec : dict
+            The segment record, as checked by :func:`read_baseline`.
+
+        Returns
+        -------
+        Snapshot
+            Its name, answered label, NCI, ANEES and ELT p-value, the record itself, and its
+            ``untested`` questions (a baseline written before partial verdicts has no
+            ``untested``: nothing was).
+        """
         return cls(
             rec["segment"],
             record_label(rec),
@@ -352,6 +573,19 @@ class Snapshot:
 
     @classmethod
     def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
+        """The snapshot of a segment diagnosed now.
+
+        Parameters
+        ----------
+        result : SegmentDiagnosis
+            The segment's diagnosis.
+
+        Returns
+        -------
+        Snapshot
+            Its name, label, NCI, ANEES, ELT p-value, :func:`segment_record` and its
+            ``untested`` questions.
+        """
         d = result.diagnosis
         untested = tuple(q.value for q in d.untested)
         return cls(
@@ -359,7 +593,7 @@ class Snapshot:
         )
 
 
-def check_baseline(doc: dict, source: str) -> None:
+def _check_baseline(doc: dict, source: str) -> None:
     """Refuse a file that is not a credcli baseline of a known schema version."""
     if not isinstance(doc, dict) or doc.get("kind") != BASELINE_KIND:
         raise CredcliError(
@@ -415,7 +649,21 @@ SEGMENTATION_SETTINGS = ("seed", "window", "whole", "drop_invalid")
 @dataclass(frozen=True)
 class Baseline:
     """A baseline file (``credcli baseline``), read and checked once: the settings it was
-    made with, typed, and its segments as :class:`Snapshot`."""
+    made with, typed, and its segments as :class:`Snapshot`.
+
+    Attributes
+    ----------
+    source : str
+        The file's path, as given.
+    config : DiagnosisConfig
+        The diagnosis settings the baseline was made with.
+    seed : int
+        The seed it was made with.
+    reading : LogReading
+        How its logs were read and cut into segments.
+    segments : tuple of Snapshot
+        Its segments, in the file's order.
+    """
 
     source: str
     config: DiagnosisConfig
@@ -424,8 +672,19 @@ class Baseline:
     segments: tuple[Snapshot, ...]
 
     def setting(self, name: str):
-        """The value of a DiagnosisConfig field, or of ``seed``, ``window``, ``whole`` or
-        ``drop_invalid``, as the baseline was made with it."""
+        """A setting as the baseline was made with it.
+
+        Parameters
+        ----------
+        name : str
+            A DiagnosisConfig field, or ``seed``, ``window``, ``whole`` or
+            ``drop_invalid``.
+
+        Returns
+        -------
+        object
+            The setting's value.
+        """
         if name == "seed":
             return self.seed
         if name in SEGMENTATION_SETTINGS:
@@ -434,8 +693,29 @@ class Baseline:
 
 
 def read_baseline(path: str | Path) -> Baseline:
-    """Read a baseline JSON file and check every key it must have; errors name the file
-    and say to record it again."""
+    """Read a baseline JSON file and check every key it must have.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The baseline file (``credcli baseline LOG -o FILE``).
+
+    Returns
+    -------
+    Baseline
+        Its settings, typed, and its segments.
+
+    Raises
+    ------
+    CredcliError
+        The file is missing, a directory, unreadable, not JSON (NaN and Infinity included)
+        or not a credcli baseline; its schema version is not
+        :data:`BASELINE_SCHEMA_VERSION`; ``parameters`` or ``segments`` are missing or of
+        the wrong type; a segment has no name, a label that is not one of the labels, or an
+        NCI, ANEES or ELT p-value that is not a number or null; a parameter is missing or
+        of the wrong type, or the seed is negative. Each message names the file; one about
+        the baseline's content says to record it again.
+    """
 
     def non_finite(word: str):
         raise ValueError(f"'{word}' is not a number JSON allows")
@@ -454,7 +734,7 @@ def read_baseline(path: str | Path) -> Baseline:
         raise CredcliError(
             f"{path}: nested too deeply to be a credcli baseline; record it again"
         ) from exc
-    check_baseline(doc, str(path))
+    _check_baseline(doc, str(path))
     params = doc["parameters"]
     fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
     try:

@@ -377,3 +377,43 @@ def test_no_import_cycles():
             visit(name, [name])
     assert cycles == []
     assert "credcli.engine.elt" in graph["credcli.engine.diagnosis"]  # the graph is read
+
+
+READER_ENGINE = {
+    "credcli.engine.linalg",  # the one validation of a covariance, chunks of epochs
+    "credcli.engine.config",  # the names of choices (States, Perturbation, Alignment)
+    "credcli.engine.lie",  # the errors of a pose: SO(3)/SE(3) differences
+    "credcli.engine.align",  # Umeyama's alignment of an estimate onto its truth
+}
+"""What the readers (credcli.io) may use of the engine: validation, names, and the geometry
+that turns two trajectories into errors; no test, scale or diagnosis (issue 34, item 1)."""
+
+
+def test_readers_only_read():
+    used = {
+        f"{name} -> {target}"
+        for name, targets in _all_imports().items()
+        if name.startswith("credcli.io")
+        for target in targets
+        if target.startswith("credcli.engine") and target not in READER_ENGINE
+    }
+    assert used == set()
+
+
+def _all_imports() -> dict[str, set[str]]:
+    """credcli module -> every credcli module it imports (anywhere in it), by module name."""
+    out = {}
+    for path in (ROOT / "credcli").rglob("*.py"):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("credcli"):
+                base = node.module
+                targets |= {
+                    f"{base}.{a.name}" if base == "credcli.engine" else base for a in node.names
+                }
+            elif isinstance(node, ast.Import):
+                targets |= {a.name for a in node.names if a.name.startswith("credcli")}
+        out[name] = targets
+    return out

@@ -256,7 +256,7 @@ def test_gls_residuals_from_given_inverses_are_those_computed_in_chunks():
     """The diagnosis inverts the Cholesky factors once and hands them to the GLS residuals;
     over several epoch chunks (per-epoch 3 × 3 covariances) that gives what the residuals
     compute themselves, to the bit (the same LAPACK inverse of each matrix)."""
-    from credcli.engine.config import EPOCH_CHUNK
+    from credcli.engine.linalg import EPOCH_CHUNK
     from credcli.engine.scale import gls_residuals
 
     rng = np.random.default_rng(1)

@@ -36,16 +36,6 @@ def sidak(alpha: float) -> float:
     return alpha / (1.0 + math.sqrt(1.0 - alpha))
 
 
-EPOCH_CHUNK = 262_144
-"""Epochs per chunk of per-epoch linear algebra: temporaries stay bounded on long segments."""
-
-
-def epoch_chunks(n: int, size: int = EPOCH_CHUNK):
-    """Slices of at most ``size`` epochs covering range(n)."""
-    for start in range(0, n, size):
-        yield slice(start, start + size)
-
-
 DEFAULT_MAX_EPOCHS = 4000
 """Largest N whose N×N ELT matrix is formed (4000² float64 = 128 MB); larger segments are
 tested on a seeded random subsample of this many epochs."""

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import special
 
-from credcli.engine import batches, dependence, episodes, evidence, metrics, rules, timing
+from credcli.engine import batches, dependence, episodes, evidence, linalg, metrics, rules, timing
 from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-exported)
     AUTO,
     DEFAULT_MAX_EPOCHS,
@@ -272,7 +272,7 @@ def diagnose_errors(
     'credible'
     """
     config = config or DiagnosisConfig()
-    errors, cov = metrics.check_errors_cov(errors, cov)
+    errors, cov = linalg.check_errors_cov(errors, cov)
     return _diagnose_checked(errors, cov, config, rng, mse, runs, memory)
 
 
@@ -284,8 +284,8 @@ def _diagnose_checked(errors, cov, config, rng, mse=None, runs=1, memory=None) -
 
 def _cholesky(cov: np.ndarray) -> np.ndarray:
     """The covariances' Cholesky factors, or the error naming the first that is not
-    positive definite (:func:`credcli.engine.metrics.cholesky`)."""
-    return metrics.cholesky(cov)
+    positive definite (:func:`credcli.engine.linalg.cholesky`)."""
+    return linalg.cholesky(cov)
 
 
 def diagnose_variants(
@@ -335,7 +335,7 @@ def diagnose_variants(
     >>> {v.value: d.label.value for v, d in found.items()}
     {'calibrated': 'pessimism', 'paper': 'pessimism'}
     """
-    errors, cov = metrics.check_errors_cov(errors, cov)
+    errors, cov = linalg.check_errors_cov(errors, cov)
     try:
         chosen = tuple(Variant(v) for v in variants)
     except ValueError:
@@ -482,7 +482,7 @@ def too_short_batch(
     CredcliError
         For invalid arrays, or a covariance that is not positive definite.
     """
-    errors, cov = metrics.check_errors_cov(errors, cov)
+    errors, cov = linalg.check_errors_cov(errors, cov)
     _cholesky(cov)
     d = errors.shape[1]
     accuracies = metrics.grouped_accuracy(errors, lengths)
@@ -743,7 +743,7 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
     """
     if not evidence.reads_memory(config, 1) or len(windows) < 2:
         return RunModel(None)
-    errors, cov = metrics.check_errors_cov(errors, cov)
+    errors, cov = linalg.check_errors_cov(errors, cov)
     d = errors.shape[1]
     chol = _cholesky(cov)
     gls = gls_residuals(errors, chol)
@@ -846,7 +846,7 @@ def diagnose_segment(
         segment's name.
     """
     try:
-        errors, cov = metrics.check_errors_cov(errors, cov)
+        errors, cov = linalg.check_errors_cov(errors, cov)
         n, d = errors.shape
         if n < config.min_n(d):  # checked as diagnose_errors checks, without a random stream
             return too_short_batch(errors, cov, np.array([n]), config)[0]

@@ -11,9 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from credcli.engine import metrics
-from credcli.engine.config import DEFAULT_MAX_EPOCHS, epoch_chunks
+from credcli.engine import linalg
+from credcli.engine.config import DEFAULT_MAX_EPOCHS
 from credcli.engine.flips import FlipOutcome, pair_upper, sign_flip_test
+from credcli.engine.linalg import epoch_chunks
 from credcli.engine.rng import RngLike, as_generator
 from credcli.errors import CredcliError
 
@@ -201,8 +202,8 @@ def location_test(
     True
     """
     _check_flips(n_flips, block_length, max_epochs)
-    errors, cov = metrics.check_errors_cov(errors, cov)
-    metrics.cholesky(cov)  # positive definite, or an error naming the epoch
+    errors, cov = linalg.check_errors_cov(errors, cov)
+    linalg.cholesky(cov)  # positive definite, or an error naming the epoch
     s = whiten(errors, cov)
     return whitened_location_test(s, n_flips, as_generator(rng), block_length, max_epochs)
 

@@ -11,124 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from credcli.engine.config import epoch_chunks
+from credcli.engine.linalg import check_errors_cov, cholesky, epoch_chunks
 from credcli.engine.quadrature import centred_norm, expected_norms
 from credcli.errors import CredcliError
 
 _LOG10 = np.log(10.0)
 _LN_2PI = np.log(2.0 * np.pi)
-
-
-SYMMETRY_RTOL = 1e-6
-"""Largest relative asymmetry |Σ_ij − Σ_ji| / max|Σ| of a claimed covariance."""
-
-
-def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The one validation of (errors, cov) for every public entry of the engine.
-
-    Shapes (N, d) and (N, d, d) ((N,) is d = 1), finite values, symmetric covariances (to
-    ``SYMMETRY_RTOL``). Positive definiteness is checked where the covariances are
-    factored (``cholesky``). Errors name the argument and the epoch.
-
-    Parameters
-    ----------
-    errors : array_like, shape (N, d) or (N,)
-        The errors e_k.
-    cov : array_like, shape (N, d, d) or (N,)
-        The claimed covariances Σ̂_k ((N,): variances, d = 1).
-
-    Returns
-    -------
-    errors : numpy.ndarray, shape (N, d)
-        The errors as float64, (N,) made (N, 1).
-    cov : numpy.ndarray, shape (N, d, d)
-        The covariances as float64, (N,) made (N, 1, 1).
-
-    Raises
-    ------
-    CredcliError
-        For arrays of the wrong or mismatched shapes, a value that is not finite (naming
-        its index), or a covariance that is not symmetric (naming its epoch).
-
-    Examples
-    --------
-    >>> e, c = check_errors_cov([1.0, 2.0], [4.0, 4.0])
-    >>> e.shape, c.shape
-    ((2, 1), (2, 1, 1))
-    """
-    errors = np.asarray(errors, dtype=float)
-    cov = np.asarray(cov, dtype=float)
-    if errors.ndim == 1:
-        errors = errors[:, None]
-    if cov.ndim == 1:
-        cov = cov[:, None, None]
-    if errors.ndim != 2 or cov.ndim != 3:
-        raise CredcliError(
-            f"errors must have shape (N, d) and cov (N, d, d); got {errors.shape} and {cov.shape}",
-            "errors" if errors.ndim != 2 else "cov",
-        )
-    n, d = errors.shape
-    if cov.shape != (n, d, d):
-        raise CredcliError(
-            f"cov must have shape (N, d, d) = ({n}, {d}, {d}) to match errors; got {cov.shape}",
-            "cov",
-        )
-    for name, values in (("errors", errors), ("cov", cov)):
-        bad = ~np.isfinite(values)
-        if bad.any():
-            where = ", ".join(str(int(i)) for i in np.argwhere(bad)[0])
-            raise CredcliError(f"{name}[{where}] is not finite", name)
-    if d > 1:
-        scale = np.abs(cov).max(axis=(1, 2))
-        asym = np.abs(cov - cov.transpose(0, 2, 1)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
-        if asym.any():
-            k = int(np.argmax(asym))
-            raise CredcliError(
-                f"cov[{k}] is not symmetric (relative asymmetry above {SYMMETRY_RTOL:g})", "cov"
-            )
-    return errors, cov
-
-
-def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
-    """Cholesky factors of (N, d, d) (or (d, d)) positive definite matrices.
-
-    Parameters
-    ----------
-    matrices : numpy.ndarray, shape (N, d, d) or (d, d)
-        Symmetric matrices.
-    name : str
-        The argument the matrices came from, for the error (default ``"cov"``).
-
-    Returns
-    -------
-    numpy.ndarray
-        The lower-triangular factors L with L Lᵀ = the matrix, in the shape given.
-
-    Raises
-    ------
-    CredcliError
-        If a matrix is not positive definite, naming ``name`` and the first such epoch
-        (``cov[k]``).
-    """
-    try:
-        return np.linalg.cholesky(matrices)
-    except np.linalg.LinAlgError:
-        stack = np.asarray(matrices, dtype=float).reshape(-1, *np.shape(matrices)[-2:])
-        k = next(
-            (i for i in range(stack.shape[0]) if not _factorable(stack[i])), 0
-        )  # only on failure: find the first one
-        where = f"{name}[{k}]" if np.ndim(matrices) == 3 else name
-        raise CredcliError(
-            f"{where} is not positive definite (a claimed covariance must be)", name
-        ) from None
-
-
-def _factorable(matrix: np.ndarray) -> bool:
-    try:
-        np.linalg.cholesky(matrix)
-    except np.linalg.LinAlgError:
-        return False
-    return True
 
 
 def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:

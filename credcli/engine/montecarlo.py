@@ -10,7 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from credcli.engine.metrics import cholesky, nees_factored
+from credcli.engine.linalg import cholesky
+from credcli.engine.metrics import nees_factored
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ def anees_test(errors, covs, level: float, time=None, segments=()) -> MonteCarlo
     Raises
     ------
     CredcliError
-        If a covariance is not positive definite (``credcli.engine.metrics.cholesky``).
+        If a covariance is not positive definite (``credcli.engine.linalg.cholesky``).
 
     Notes
     -----

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from credcli.engine.config import epoch_chunks
+from credcli.engine.linalg import eigenvalues_2x2, epoch_chunks
 
 # The energy score's Gaussian norm moments E‖W‖ (see `credcli.engine.metrics.expected_norm`) are a trapezoidal
 # rule in u = log t, in units where E[Q] = 1 (Q = ‖W‖²). The integrand is analytic in the
@@ -268,23 +268,3 @@ def centred_norm(cov: np.ndarray) -> np.ndarray:
         small = np.clip(small, 0.0, big)  # a PSD matrix's rounding can make it -0
         return np.sqrt(2.0 / np.pi * big) * special.ellipe(1.0 - small / big) * positive
     return expected_norms(np.zeros((n, d)), cov, (1.0,))[0]
-
-
-def eigenvalues_2x2(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The larger and the smaller eigenvalue of symmetric 2×2 matrices (N, 2, 2), in
-    closed form on each matrix scaled to O(1) by its largest entry (no underflow or
-    overflow at any scale): the larger as mean + hypot(half difference, off-diagonal),
-    the smaller as det / larger (no cancellation between the two roots; <= 0 when the
-    matrix is not positive definite)."""
-    n = cov.shape[0]
-    big, small = np.empty(n), np.empty(n)
-    for sl in epoch_chunks(n):  # bounded temporaries
-        p, q, r = cov[sl, 0, 0], cov[sl, 0, 1], cov[sl, 1, 1]
-        unit = np.maximum(np.maximum(np.abs(p), np.abs(q)), np.abs(r))
-        unit = np.where(unit > 0, unit, 1.0)
-        p, q, r = p / unit, q / unit, r / unit
-        larger = 0.5 * (p + r) + np.hypot(0.5 * (p - r), q)
-        det = p * r - q * q
-        big[sl] = unit * larger
-        small[sl] = unit * np.divide(det, larger, out=np.zeros_like(det), where=larger > 0)
-    return big, small

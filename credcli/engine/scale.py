@@ -30,7 +30,7 @@ from scipy import special
 
 from credcli.engine import correlation
 from credcli.engine.batches import batch_mean_test, batch_scale, boundary_inflation, bounds
-from credcli.engine.config import EPOCH_CHUNK, epoch_chunks
+from credcli.engine.linalg import EPOCH_CHUNK, epoch_chunks
 from credcli.engine.memory import studentized_quantile, studentized_tail
 from credcli.engine.units import power_of_two_unit
 

@@ -16,9 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from credcli.engine.config import Perturbation, epoch_chunks
-from credcli.engine.metrics import SYMMETRY_RTOL
-from credcli.engine.quadrature import eigenvalues_2x2
+from credcli.engine.config import Perturbation
+from credcli.engine.linalg import SYMMETRY_RTOL, eigenvalues_2x2, epoch_chunks
 from credcli.errors import CredcliError
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 from credcli.io.streams import TEXT_HEAD, is_compressed, readable

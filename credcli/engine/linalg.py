@@ -1,0 +1,192 @@
+"""Per-epoch linear algebra every layer may use: the one validation of errors and
+claimed covariances, their Cholesky factors, closed-form 2×2 eigenvalues, and the chunks of
+epochs that keep temporaries bounded on long segments.
+
+Readers (``credcli.io``) use it to check a covariance as they read it; the engine uses it
+at every public entry. It imports nothing of credcli but ``errors``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from credcli.errors import CredcliError
+
+EPOCH_CHUNK = 262_144
+"""Epochs per chunk of per-epoch linear algebra: temporaries stay bounded on long segments."""
+
+
+def epoch_chunks(n: int, size: int = EPOCH_CHUNK) -> Iterator[slice]:
+    """Slices of at most ``size`` epochs covering range(n).
+
+    Parameters
+    ----------
+    n : int
+        The number of epochs.
+    size : int, default EPOCH_CHUNK
+        The most epochs in one slice.
+
+    Yields
+    ------
+    slice
+        ``slice(start, start + size)`` for start = 0, size, 2·size, … below ``n``.
+
+    Examples
+    --------
+    >>> list(epoch_chunks(5, 2))
+    [slice(0, 2, None), slice(2, 4, None), slice(4, 6, None)]
+    """
+    for start in range(0, n, size):
+        yield slice(start, start + size)
+
+
+SYMMETRY_RTOL = 1e-6
+"""Largest relative asymmetry |Σ_ij − Σ_ji| / max|Σ| of a claimed covariance."""
+
+
+def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The one validation of (errors, cov) for every public entry of the engine.
+
+    Shapes (N, d) and (N, d, d) ((N,) is d = 1), finite values, symmetric covariances (to
+    ``SYMMETRY_RTOL``). Positive definiteness is checked where the covariances are
+    factored (``cholesky``). Errors name the argument and the epoch.
+
+    Parameters
+    ----------
+    errors : array_like, shape (N, d) or (N,)
+        The errors e_k.
+    cov : array_like, shape (N, d, d) or (N,)
+        The claimed covariances Σ̂_k ((N,): variances, d = 1).
+
+    Returns
+    -------
+    errors : numpy.ndarray, shape (N, d)
+        The errors as float64, (N,) made (N, 1).
+    cov : numpy.ndarray, shape (N, d, d)
+        The covariances as float64, (N,) made (N, 1, 1).
+
+    Raises
+    ------
+    CredcliError
+        For arrays of the wrong or mismatched shapes, a value that is not finite (naming
+        its index), or a covariance that is not symmetric (naming its epoch).
+
+    Examples
+    --------
+    >>> e, c = check_errors_cov([1.0, 2.0], [4.0, 4.0])
+    >>> e.shape, c.shape
+    ((2, 1), (2, 1, 1))
+    """
+    errors = np.asarray(errors, dtype=float)
+    cov = np.asarray(cov, dtype=float)
+    if errors.ndim == 1:
+        errors = errors[:, None]
+    if cov.ndim == 1:
+        cov = cov[:, None, None]
+    if errors.ndim != 2 or cov.ndim != 3:
+        raise CredcliError(
+            f"errors must have shape (N, d) and cov (N, d, d); got {errors.shape} and {cov.shape}",
+            "errors" if errors.ndim != 2 else "cov",
+        )
+    n, d = errors.shape
+    if cov.shape != (n, d, d):
+        raise CredcliError(
+            f"cov must have shape (N, d, d) = ({n}, {d}, {d}) to match errors; got {cov.shape}",
+            "cov",
+        )
+    for name, values in (("errors", errors), ("cov", cov)):
+        bad = ~np.isfinite(values)
+        if bad.any():
+            where = ", ".join(str(int(i)) for i in np.argwhere(bad)[0])
+            raise CredcliError(f"{name}[{where}] is not finite", name)
+    if d > 1:
+        scale = np.abs(cov).max(axis=(1, 2))
+        asym = np.abs(cov - cov.transpose(0, 2, 1)).max(axis=(1, 2)) > SYMMETRY_RTOL * scale
+        if asym.any():
+            k = int(np.argmax(asym))
+            raise CredcliError(
+                f"cov[{k}] is not symmetric (relative asymmetry above {SYMMETRY_RTOL:g})", "cov"
+            )
+    return errors, cov
+
+
+def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
+    """Cholesky factors of (N, d, d) (or (d, d)) positive definite matrices.
+
+    Parameters
+    ----------
+    matrices : numpy.ndarray, shape (N, d, d) or (d, d)
+        Symmetric matrices.
+    name : str
+        The argument the matrices came from, for the error (default ``"cov"``).
+
+    Returns
+    -------
+    numpy.ndarray
+        The lower-triangular factors L with L Lᵀ = the matrix, in the shape given.
+
+    Raises
+    ------
+    CredcliError
+        If a matrix is not positive definite, naming ``name`` and the first such epoch
+        (``cov[k]``).
+    """
+    try:
+        return np.linalg.cholesky(matrices)
+    except np.linalg.LinAlgError:
+        stack = np.asarray(matrices, dtype=float).reshape(-1, *np.shape(matrices)[-2:])
+        k = next(
+            (i for i in range(stack.shape[0]) if not _factorable(stack[i])), 0
+        )  # only on failure: find the first one
+        where = f"{name}[{k}]" if np.ndim(matrices) == 3 else name
+        raise CredcliError(
+            f"{where} is not positive definite (a claimed covariance must be)", name
+        ) from None
+
+
+def _factorable(matrix: np.ndarray) -> bool:
+    try:
+        np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
+def eigenvalues_2x2(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The larger and the smaller eigenvalue of symmetric 2×2 matrices, in closed form.
+
+    Each matrix is scaled to O(1) by its largest entry (no underflow or overflow at any
+    scale): the larger eigenvalue is mean + hypot(half difference, off-diagonal), the
+    smaller det / larger (no cancellation between the two roots).
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, 2, 2)
+        Symmetric matrices.
+
+    Returns
+    -------
+    big, small : numpy.ndarray, shape (N,)
+        The larger and the smaller eigenvalue of each; ``small`` <= 0 when the matrix is
+        not positive definite.
+
+    Examples
+    --------
+    >>> big, small = eigenvalues_2x2(np.array([[[2.0, 1.0], [1.0, 2.0]]]))
+    >>> big.tolist(), small.tolist()
+    ([3.0], [1.0])
+    """
+    n = cov.shape[0]
+    big, small = np.empty(n), np.empty(n)
+    for sl in epoch_chunks(n):  # bounded temporaries
+        p, q, r = cov[sl, 0, 0], cov[sl, 0, 1], cov[sl, 1, 1]
+        unit = np.maximum(np.maximum(np.abs(p), np.abs(q)), np.abs(r))
+        unit = np.where(unit > 0, unit, 1.0)
+        p, q, r = p / unit, q / unit, r / unit
+        larger = 0.5 * (p + r) + np.hypot(0.5 * (p - r), q)
+        det = p * r - q * q
+        big[sl] = unit * larger
+        small[sl] = unit * np.divide(det, larger, out=np.zeros_like(det), where=larger > 0)
+    return big, small

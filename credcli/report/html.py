@@ -17,14 +17,15 @@ from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.errors import printable
 from credcli.report.overview import FILE_STEMS, PlotKind
 from credcli.report.plots import segment_group
-from credcli.report.records import segment_record
+from credcli.report.records import segment_record, shown_label
 from credcli.report.render import (
     SEGMENT_COLUMNS,
     Report,
     Table,
     advice,
+    bias_size,
     format_cell,
-    scale_interval,
+    scale_text,
 )
 
 _STYLE = """
@@ -157,48 +158,51 @@ WORST_SHOWN = 5
 """The segments listed as the worst in a report's overview."""
 
 
-def _severity(rec: dict) -> float:
-    kappa = rec.get("scale_factor")
-    return abs(math.log(kappa)) if kappa and kappa > 0 else 0.0
+def _severity(diag) -> float:
+    """How far κ̂ is from 1 (|ln κ̂|; 0 without a finite positive κ̂)."""
+    kappa = None if diag.scale is None else diag.scale.scale_factor
+    return abs(math.log(kappa)) if kappa and math.isfinite(kappa) and kappa > 0 else 0.0
 
 
-def _summary_html(records: list[dict], figure_of: dict, several: bool) -> str:
+def _summary_html(results, figure_of: dict, several: bool) -> str:
     """Counts per label and the worst segments: the misfits whose κ̂ is farthest from 1,
-    each linked to its figures (``figure_of``: a record's position -> their anchor), named
+    each linked to its figures (``figure_of``: a result's position -> their anchor), named
     after its log too when the report holds ``several``."""
+    shown_labels = [shown_label(r.diagnosis.label, r.diagnosis.untested) for r in results]
     counts: dict[str, int] = {}
-    for rec in records:
-        counts[str(rec["label"])] = counts.get(str(rec["label"]), 0) + 1
+    for label in shown_labels:
+        counts[label] = counts.get(label, 0) + 1
     shown = "".join(
         f'<span style="{label_style(label)}">{_escape(label)}: {n}</span>'
         for label, n in sorted(counts.items(), key=lambda item: -item[1])
     )
-    parts = [f'<p class="counts">{len(records)} segments — {shown}</p>']
+    parts = [f'<p class="counts">{len(results)} segments — {shown}</p>']
     misfits = [
         (k, r)
-        for k, r in enumerate(records)
-        if r.get("label_answered", r["label"])
-        not in (Label.CREDIBLE.value, Label.INSUFFICIENT.value)
+        for k, r in enumerate(results)
+        if r.diagnosis.label not in (Label.CREDIBLE, Label.INSUFFICIENT)
     ]
     if not misfits:
         parts.append('<p class="note">No segment is a misfit.</p>')
         return "".join(parts)
-    worst = sorted(misfits, key=lambda pair: _severity(pair[1]), reverse=True)[:WORST_SHOWN]
+    worst = sorted(misfits, key=lambda pair: _severity(pair[1].diagnosis), reverse=True)
+    worst = worst[:WORST_SHOWN]
     rows = []
-    for k, rec in worst:
-        name = _escape(str(rec["segment"]))
+    for k, result in worst:
+        diag = result.diagnosis
+        name = _escape(str(result.segment))
         if several:
-            name = f"{_escape(str(rec.get('log')))}: {name}"
+            name = f"{_escape(str(result.log))}: {name}"
         anchor = figure_of.get(k)
         if anchor:
             name = f'<a href="#{anchor}">{name}</a>'
-        label = str(rec["label"])
+        label = shown_labels[k]
         rows.append(
             f'<tr><td class="text">{name}</td><td class="text" style="{label_style(label)}">'
             f"{_escape(label)}</td>"
-            f"<td>{_escape(scale_interval(rec) or '–')}</td>"
-            f"<td>{_escape(format_cell(rec.get('bias_mahalanobis'), 3))}</td>"
-            f"<td>{rec.get('n', '')}</td></tr>"
+            f"<td>{_escape(scale_text(diag) or '–')}</td>"
+            f"<td>{_escape(format_cell(bias_size(diag), 3))}</td>"
+            f"<td>{diag.n}</td></tr>"
         )
     parts.append(
         f"<p>The worst segments ({len(worst)} of {len(misfits)} misfits, by how far κ̂ is from "
@@ -289,7 +293,7 @@ def build_html(title: str, report: Report, plots, subtitle: str = "", notes=(), 
     if records or timelines:
         parts.append('<section id="overview"><h2>Overview</h2>')
         if records:
-            parts.append(_summary_html(records, figure_of, several))
+            parts.append(_summary_html(results, figure_of, several))
         parts.extend(_figure_html(p) for p in timelines)
         parts.append("</section>")
     for table, anchor in zip(report.tables, table_ids):

@@ -185,6 +185,42 @@ def _finites(values) -> list[float | None]:
     return [_finite(float(v)) for v in values]
 
 
+def scale_text(diag) -> str | None:
+    """κ̂ with its interval, as the ``cov ×`` cell shows it, from a Diagnosis.
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        A segment's diagnosis.
+
+    Returns
+    -------
+    str or None
+        '2.3 (1.9–2.8)', '2.3 (no interval)', or None when no finite κ̂ was estimated.
+    """
+    sc = diag.scale
+    factor = None if sc is None else _finite(sc.scale_factor)
+    if factor is None:
+        return None
+    return _interval(factor, _finite(sc.scale_factor_low), _finite(sc.scale_factor_high))
+
+
+def bias_size(diag) -> float | None:
+    """The GLS mean's size in standard deviations (``|bias| [σ]``), or None.
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        A segment's diagnosis.
+
+    Returns
+    -------
+    float or None
+        √(μ̂ᵀ W̄ μ̂) of the scale test; None when there is none or it is not finite.
+    """
+    return None if diag.scale is None else _finite(diag.scale.bias_mahalanobis)
+
+
 def advice(item: SegmentDiagnosis) -> str | None:
     """What a user acts on for a segment that is not credible, in one line.
 
@@ -222,18 +258,13 @@ def advice(item: SegmentDiagnosis) -> str | None:
     if diag.by_direction:
         parts.append(direction_advice(diag))
     elif noise:
-        factor = None if sc is None else _finite(sc.scale_factor)
-        shown = None
-        if factor is not None:
-            shown = _interval(factor, _finite(sc.scale_factor_low), _finite(sc.scale_factor_high))
-        parts.append(f"multiply the covariance by {shown}")
+        parts.append(f"multiply the covariance by {scale_text(diag)}")
     if diag.blocks and noise:
         parts.append(block_advice(diag))
     location = label.location
     if location in ("bias", SMM_CONDITION):
         bias = ", ".join(_number(b) for b in _finites(sc.bias))
-        size = _number(_finite(sc.bias_mahalanobis))
-        parts.append(f"bias ({bias}) in the log's units, {size} σ")
+        parts.append(f"bias ({bias}) in the log's units, {_number(bias_size(diag))} σ")
         parts.append(_smm_hint(diag))
     elif location == "asymmetric":
         mean = diag.mean_test
@@ -241,7 +272,7 @@ def advice(item: SegmentDiagnosis) -> str | None:
             f"errors not symmetric about zero (ELT p {format_pvalue(_finite(diag.elt_pvalue))}) "
             f"with no mean found (mean test p "
             f"{format_pvalue(None if mean is None else _finite(mean.pvalue))}; "
-            f"mean {_number(None if sc is None else _finite(sc.bias_mahalanobis))} σ)"
+            f"mean {_number(bias_size(diag))} σ)"
         )
     return f"{item.segment}: " + "; ".join(p for p in parts if p)
 

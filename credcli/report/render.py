@@ -46,6 +46,38 @@ from credcli.version import __version__
 
 @dataclass(frozen=True)
 class Column:
+    """One column of a :class:`Table`: the record key it shows and how it is shown.
+
+    The record keeps the full value (CSV and JSON write it); a column only decides how
+    people read it: rounding, shortening, wrapping, and which columns a narrow terminal
+    hides first.
+
+    Attributes
+    ----------
+    key : str
+        The record's key whose value the column shows (and the CSV header).
+    header : str
+        The column's heading in tables.
+    digits : int, default 4
+        Significant digits of a float in tables (:func:`format_cell`); 0 for text and
+        integer columns, which are also left-aligned.
+    wrap : int, default 0
+        Wrap text at this width in Rich tables; 0: never wrap.
+    show : callable, optional
+        ``show(row)``: the cell from the whole row, for display only (e.g. a factor with
+        its interval); None: the row's value at ``key``.
+    limit : int, default 0
+        Shorten longer text to this many characters in tables, the last one "…"; 0:
+        never.
+    keep : bool, default False
+        Never shortened on a narrow terminal (labels, N, d).
+    rank : int, default 5
+        On a narrow terminal, the columns of the highest rank are hidden first; rank 0
+        is never hidden.
+    pvalue : bool, default False
+        A p-value: below ``PVALUE_FLOOR`` (0.001) it reads "<0.001".
+    """
+
     key: str
     header: str
     digits: int = 4  # significant digits in tables; 0 for text/int columns
@@ -57,6 +89,25 @@ class Column:
     pvalue: bool = False  # a p-value: below 0.001 it reads "<0.001"
 
     def value(self, row: dict):
+        """The cell's value as tables show it, before :func:`format_cell`.
+
+        Parameters
+        ----------
+        row : dict
+            A record of the table.
+
+        Returns
+        -------
+        object
+            ``show(row)``, or the row's value at ``key`` (None when it has none); text
+            longer than ``limit`` shortened to ``limit`` characters ending in "…", and a
+            ``pvalue`` below ``PVALUE_FLOOR`` as its text ("<0.001").
+
+        Examples
+        --------
+        >>> Column("segment", "segment", 0, limit=6).value({"segment": "run_0001"})
+        'run_0…'
+        """
         value = self.show(row) if self.show is not None else row.get(self.key)
         if self.limit and isinstance(value, str) and len(value) > self.limit:
             return value[: self.limit - 1] + "…"
@@ -72,13 +123,36 @@ one-epoch segments is read in CSV or JSON, which keep every row."""
 
 @dataclass(frozen=True)
 class Table:
+    """A titled table of records, with the columns people read.
+
+    Attributes
+    ----------
+    title : str
+        The table's title (and, in a CSV of several tables, the ``table`` cell of each
+        of its rows).
+    columns : tuple of Column
+        The columns shown in tables, in order.
+    rows : list of dict
+        The records, one per row; CSV and JSON keep every key and every row.
+    caption : str, default ""
+        A line under the table (the test's level, what a column means, ...).
+    """
+
     title: str
     columns: tuple[Column, ...]
     rows: list[dict]
     caption: str = ""
 
     def shown(self) -> Table:
-        """The table as people read it: at most SHOWN_ROWS rows, the caption saying so."""
+        """The table as people read it: at most ``SHOWN_ROWS`` rows, the caption saying so.
+
+        Returns
+        -------
+        Table
+            This table when it has at most ``SHOWN_ROWS`` rows; otherwise its first
+            ``SHOWN_ROWS`` rows, with a caption saying that every row is in the CSV and
+            JSON outputs.
+        """
         if len(self.rows) <= SHOWN_ROWS:
             return self
         more = (
@@ -91,15 +165,28 @@ class Table:
 
 @dataclass(frozen=True)
 class Report:
-    """What a command outputs: tables for people, ``document`` for machines (JSON)."""
+    """What a command outputs: tables for people, ``document`` for machines (JSON).
+
+    Attributes
+    ----------
+    tables : list of Table
+        The tables of the terminal, text, Markdown and CSV outputs, in order.
+    document : dict
+        The JSON document: ``version``, ``command``, ``parameters`` and the command's
+        results (records as JSON values).
+    notes : list of str
+        Lines printed after the tables (advice, findings, what was dropped); default
+        none.
+    """
 
     tables: list[Table]
     document: dict
     notes: list[str] = field(default_factory=list)
 
 
-def label_text(rec: dict) -> str:
-    """The label as tables show it (:func:`credcli.report.records.shown_label`)."""
+def _label_text(rec: dict) -> str:
+    """The label as tables show it: the record's ``label``, already the shown label
+    (:func:`credcli.report.records.shown_label`)."""
     return str(rec["label"])
 
 
@@ -110,7 +197,7 @@ SEGMENT_COLUMNS = (
     Column("segment", "segment", 0, limit=NAME_LIMIT, rank=0),
     Column("n", "N", 0, keep=True, rank=0),
     Column("dim", "d", 0, keep=True, rank=0),
-    Column("label", "label", 0, keep=True, rank=0, show=label_text),
+    Column("label", "label", 0, keep=True, rank=0, show=_label_text),
     Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r), rank=1),
     Column("scale_pvalue", "scale p", 3, pvalue=True, rank=3),
     Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
@@ -368,6 +455,30 @@ LOCATION_MEANING = {
 
 
 def format_cell(value, digits: int) -> str:
+    """A cell's value as text for people (tables, Markdown, HTML, CI summaries).
+
+    Parameters
+    ----------
+    value : object
+        The cell's value (:meth:`Column.value`): None, a bool, a float, a list of them,
+        or anything else shown as ``str(value)``.
+    digits : int
+        Significant digits of a float; 0 for the shortest ``g`` form.
+
+    Returns
+    -------
+    str
+        "—" for None; "yes" / "no" for a bool; a float with ``digits`` significant
+        digits, in scientific notation when it is non-zero and below 10^-digits in size;
+        a list as "(a, b, ...)", each item formatted alike.
+
+    Examples
+    --------
+    >>> format_cell(2.34567, 3), format_cell(0.000123, 3), format_cell(None, 3)
+    ('2.35', '1.23e-04', '—')
+    >>> format_cell([1.0, 2.5], 3), format_cell(True, 0), format_cell(12, 4)
+    ('(1, 2.5)', 'yes', '12')
+    """
     if value is None:
         return "—"
     if isinstance(value, list):
@@ -439,8 +550,26 @@ def _fitting_columns(table: Table, texts, width: int | None) -> list[int]:
 
 
 def rich_table(table: Table, width: int | None = None):
-    """A rich.table.Table for the terminal, hiding the least important columns when the
-    table would be wider than ``width`` (the caption names them)."""
+    """A ``rich.table.Table`` for the terminal, hiding the least important columns when the
+    table would be wider than ``width`` (the caption names them).
+
+    The table shows at most ``SHOWN_ROWS`` rows (:meth:`Table.shown`). Columns of the
+    highest ``rank`` (the rightmost first) are hidden until the rest fits; rank-0 columns
+    are always shown. Titles, captions and cells are escaped for Rich markup and made
+    printable (:func:`credcli.errors.printable`); label and status cells are coloured.
+
+    Parameters
+    ----------
+    table : Table
+        The table to show.
+    width : int, optional
+        The terminal's width in characters; None: every column is shown.
+
+    Returns
+    -------
+    rich.table.Table
+        The table, ready for ``Console.print``.
+    """
     from rich.markup import escape
     from rich.table import Table as RichTable
 
@@ -487,7 +616,24 @@ def rich_table(table: Table, width: int | None = None):
 def json_safe(value):
     """``value`` with every non-finite float (nested in dicts, lists, tuples) as None, as
     the records write them: JSON has no Inf or NaN, and every format takes the same
-    report."""
+    report.
+
+    Parameters
+    ----------
+    value : object
+        A JSON-like value: dicts, lists and tuples of floats, strings, ints, bools, None.
+
+    Returns
+    -------
+    object
+        A copy of ``value`` with each NaN or infinite float as None and each tuple as a
+        list; any other value as it is.
+
+    Examples
+    --------
+    >>> json_safe({"a": [1.0, float("inf")], "b": (float("nan"), "x")})
+    {'a': [1.0, None], 'b': [None, 'x']}
+    """
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
@@ -502,12 +648,29 @@ TEXT_PIECE = 1 << 20
 
 
 def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator[str]:
-    """:func:`to_text` in pieces of about :data:`TEXT_PIECE` characters: JSON streamed a
-    record at a time (:func:`credcli.report.jsontext.iterencode`, the bytes of
-    ``json.JSONEncoder(indent=2, allow_nan=False)`` at half its cost), so that a document of
-    10⁶ segments is never held as one string; the other formats in one piece. The records are
-    JSON-safe as made (:func:`credcli.report.records.json_value`); the rest of the document is
-    made so here (:func:`json_safe`)."""
+    """:func:`to_text` in pieces of about :data:`TEXT_PIECE` characters.
+
+    JSON is streamed a record at a time (:func:`credcli.report.jsontext.iterencode`, the
+    bytes of ``json.JSONEncoder(indent=2, allow_nan=False)``), so that a document of 10⁶
+    segments is never held as one string; the other formats come in one piece. The
+    records are JSON-safe as made (:func:`credcli.report.records.json_value`); the rest of
+    the document is made so here (:func:`json_safe`).
+
+    Parameters
+    ----------
+    report : Report
+        The report to write.
+    fmt : OutputFormat
+        The output format.
+    width : int, default 160
+        The width of a TABLE output in characters (ignored by the other formats).
+
+    Yields
+    ------
+    str
+        Consecutive pieces of the text; joined, they are ``to_text(report, fmt, width)``
+        (the JSON ends with a newline).
+    """
     if fmt is not OutputFormat.JSON:
         yield to_text(report, fmt, width)
         return
@@ -524,7 +687,25 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
 
 
 def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
-    """The whole report as text in ``fmt`` (a plain table without colour for TABLE)."""
+    """The whole report as text in ``fmt`` (a plain table without colour for TABLE).
+
+    Parameters
+    ----------
+    report : Report
+        The report to write.
+    fmt : OutputFormat
+        JSON: the document, indented by two spaces; CSV: every row of every table
+        (RFC 4180, full-precision floats); MARKDOWN: the tables and notes as shown;
+        TABLE: the Rich tables and the notes, without colour.
+    width : int, default 160
+        The width of a TABLE output in characters; narrower tables hide their least
+        important columns (:func:`rich_table`).
+
+    Returns
+    -------
+    str
+        The report as text.
+    """
     if fmt is OutputFormat.JSON:
         return "".join(text_pieces(report, fmt, width))
     if fmt is OutputFormat.CSV:
@@ -580,9 +761,27 @@ _MARKDOWN_SPECIAL = re.compile(r"([\\`*_\[\]<>|#~])")
 
 
 def markdown_text(text: str) -> str:
-    """Text as Markdown shows it literally, on one line: ``|`` would end a table cell,
-    ``*``, ``_``, ``[``, ``<`` and the rest would start markup (a segment named
-    ``run_1_*``); a control character is escaped (:func:`credcli.errors.printable`)."""
+    """Text as Markdown shows it literally, on one line.
+
+    ``|`` would end a table cell, ``*``, ``_``, ``[``, ``<`` and the rest would start
+    markup (a segment named ``run_1_*``); each is escaped with a backslash. Line breaks
+    become spaces and a control character is escaped (:func:`credcli.errors.printable`).
+
+    Parameters
+    ----------
+    text : str
+        Any text (a name or value from the data, a title, a note).
+
+    Returns
+    -------
+    str
+        ``text`` on one line, with Markdown's special characters backslash-escaped.
+
+    Examples
+    --------
+    >>> print(markdown_text("run_1_*|a\\nb"))
+    run\\_1\\_\\*\\|a b
+    """
     return _MARKDOWN_SPECIAL.sub(r"\\\1", printable(" ".join(str(text).splitlines())))
 
 
@@ -612,11 +811,41 @@ def diagnose_report(
     monte_carlo: dict | None = None,
 ) -> Report:
     """The `credcli diagnose` report: one row per segment, and the JSON document (with
-    the per-epoch ANEES test of Monte Carlo runs, when given). ``config`` is the rule the
-    results were decided with; ``parameters`` its record, shown in the document;
-    ``logs`` each log's summary by its id, in order, written here
-    (:func:`credcli.report.records.log_record`).
-    Results are matched to their log by id (``SegmentDiagnosis.log``), never by name."""
+    the per-epoch ANEES test of Monte Carlo runs, when given).
+
+    Results are matched to their log by id (``SegmentDiagnosis.log``), never by name.
+    With segments of more than one log, each row names its log and a second table
+    compares the logs (accuracy over all epochs, credible segments).
+
+    Parameters
+    ----------
+    results : list of SegmentDiagnosis
+        The diagnosed segments, in report order.
+    config : DiagnosisConfig
+        The rule the results were decided with (the table's caption; the ELT's
+        subsample size in the notes).
+    parameters : dict
+        Its record (and the run's other settings), written as the document's
+        ``parameters``.
+    logs : Mapping of LogId to LogSummary
+        Each log's summary by its id, in order; written here
+        (:func:`credcli.report.records.log_record`) as the document's ``logs``.
+    show_all : bool
+        Show every metric's column (NLL, ES, their SRDs, ...), not only the main ones.
+    monte_carlo : dict, optional
+        The per-epoch ANEES test of Monte Carlo runs
+        (:func:`credcli.report.records.monte_carlo_record`): a note, and the document's
+        ``monte_carlo``; None: no such test.
+
+    Returns
+    -------
+    Report
+        The segment table (with the innovations' whiteness column when any segment has
+        that test), the logs' table when there are several logs, the notes (ELT
+        subsamples, dropped rows, advice, findings, correlated innovations, the Monte
+        Carlo test) and the document (``version``, ``command``, ``parameters``, ``logs``,
+        ``segments`` and, when given, ``monte_carlo``).
+    """
     records = [segment_record(r) for r in results]
     summaries, logs = logs, {log_id: log_record(summary) for log_id, summary in logs.items()}
     multi = len({r.log for r in results}) > 1
@@ -770,7 +999,26 @@ def _method_columns(methods) -> tuple[Column, ...]:
 
 
 def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
-    """Table II (accuracy per scenario and method) and Table III (confusion matrix)."""
+    """Table II (accuracy per scenario and method) and Table III (confusion matrix).
+
+    Parameters
+    ----------
+    study : StudyResult
+        The study (:func:`credcli.studies.simulate.run_study`): accuracy per method and
+        scenario, and the confusion matrix of one variant.
+    parameters : dict
+        The study's settings, written as the document's ``parameters``.
+    paper_protocol : bool
+        Whether the study ran the paper's protocol: then Table II also shows the paper's
+        published accuracy (``PAPER_TABLE_II``) beside each scenario.
+
+    Returns
+    -------
+    Report
+        Table II with accuracies in percent (1 decimal), Table III with counts, and the
+        document with the accuracies as fractions (``accuracy``), ``confusion_variant``
+        and ``confusion``.
+    """
     rows = []
     for s in study.scenarios:
         row = {"scenario": s.value}
@@ -817,7 +1065,25 @@ def simulate_report(study, parameters: dict, paper_protocol: bool) -> Report:
 
 
 def sweep_report(sweep, points, parameters: dict) -> Report:
+    """The accuracy of every method against one swept parameter (``simulate --sweep``).
 
+    Parameters
+    ----------
+    sweep : Sweep
+        The parameter swept and its values (:class:`credcli.studies.simulate.Sweep`).
+    points : list of SweepPoint
+        The accuracy of every method at each value, per true label
+        (:func:`credcli.studies.simulate.run_sweep`).
+    parameters : dict
+        The study's settings, written as the document's ``parameters``.
+
+    Returns
+    -------
+    Report
+        One table, a row per point with the accuracies in percent (1 decimal), and the
+        document whose ``sweep`` holds the parameter, its values and each point's
+        accuracies as fractions.
+    """
     rows = [
         {"value": p.value, "scenario": p.truth.value, "trials": p.trials}
         | {m.value: _pct(a) for m, a in p.accuracy.items()}
@@ -850,7 +1116,25 @@ def sweep_report(sweep, points, parameters: dict) -> Report:
 
 
 def curves_report(by_rho, by_gamma, runs: int, parameters: dict) -> Report:
-    """The Fig. 1 curves (``runs`` Monte Carlo runs a point) against their exact values."""
+    """The Fig. 1 curves (``runs`` Monte Carlo runs a point) against their exact values.
+
+    Parameters
+    ----------
+    by_rho : list of CurvePoint
+        Fig. 1a: the scores against the covariance scale ρ, at γ = 0.
+    by_gamma : list of CurvePoint
+        Fig. 1b: the scores against the bias γ, at ρ = 1.
+    runs : int
+        Monte Carlo runs per point (for the captions).
+    parameters : dict
+        The study's settings, written as the document's ``parameters``.
+
+    Returns
+    -------
+    Report
+        Two tables (Fig. 1a and 1b: the sample means of ES and NLL beside their exact
+        expectations) and the document whose ``curves`` holds both lists of points.
+    """
 
     def cols(x):
         return (
@@ -889,7 +1173,7 @@ UWB_COLUMNS = (
     Column("t_start", "t start [s]", 4, rank=3),
     Column("t_end", "t end [s]", 4, rank=3),
     Column("n", "fixes", 0, keep=True, rank=0),
-    Column("label", "label", 0, keep=True, rank=0, show=label_text),
+    Column("label", "label", 0, keep=True, rank=0, show=_label_text),
     Column("scale_factor", "cov × (interval)", 0, show=lambda r: scale_interval(r), rank=1),
     Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
     Column("bias_mahalanobis", "|bias| [σ]", 3, rank=3),
@@ -903,7 +1187,7 @@ UWB_COLUMNS = (
 )
 
 
-def screening_note(run, settings) -> str:
+def _screening_note(run, settings) -> str:
     """One line: packets, fixes, and every packet dropped with its reason."""
     f = run.fixes
     scale = (
@@ -926,9 +1210,35 @@ def screening_note(run, settings) -> str:
 
 
 def uwb_report(run, results, checks, parameters: dict) -> Report:
-    """Table IV per period with the range-level verdict beside it (``checks``, one
-    :class:`credcli.studies.uwb.RangeCheck` per result), the range-level table per period
-    and anchor (Figs. 4 and 5), and the anchors."""
+    """Table IV per period with the range-level verdict beside it, the range-level table
+    per period and anchor (Figs. 4 and 5), and the anchors.
+
+    Parameters
+    ----------
+    run : UwbRun
+        Everything the `uwb` pipeline computed: anchors, fixes, periods, range statistics
+        and its settings (:class:`credcli.studies.uwb.UwbRun`).
+    results : list of SegmentDiagnosis
+        The diagnosis of each period, in order.
+    checks : list of RangeCheck
+        The range-level verdict of each result, one per result, in the same order
+        (:func:`credcli.studies.uwb.range_checks`).
+    parameters : dict
+        The diagnosis and pipeline settings, written as the document's ``parameters``.
+
+    Returns
+    -------
+    Report
+        The anchors' table, the range errors per period and anchor, Table IV; the notes
+        (the reader's and pipeline's warnings, the advice, whether each position-level
+        label agrees with the range-level evidence, and the screening line); and the
+        document (``segments``, ``anchors``, ``ranges``, ``screening`` and ``notes``).
+
+    Raises
+    ------
+    ValueError
+        If ``checks`` and ``results`` differ in length.
+    """
     segments = [uwb_segment_record(r, c) for r, c in zip(results, checks, strict=True)]
     agreement = [
         f"{r.segment}: the position-level label "
@@ -964,7 +1274,7 @@ def uwb_report(run, results, checks, parameters: dict) -> Report:
         Column("rows", "ranges", 0),
     )
     notes = list(run.ranges.notes) + list(run.notes) + _advice_lines(results) + agreement
-    notes.append(screening_note(run, run.settings))
+    notes.append(_screening_note(run, run.settings))
     tables = [
         Table(
             "Anchors", anchor_cols, anchors, caption=f"check: gt_range RMS <= {1000 * warn:g} mm"
@@ -1023,7 +1333,28 @@ def _label(snap) -> str | None:
 
 
 def gate_report(comparisons, parameters: dict, baseline: str, passed: bool, verdict: str) -> Report:
+    """The `credcli gate` report: each segment of the baseline against the same segment now.
 
+    Parameters
+    ----------
+    comparisons : list of SegmentComparison
+        Every segment compared (:func:`credcli.ci.gate.compare`).
+    parameters : dict
+        The new diagnosis's settings, written as the document's ``parameters``.
+    baseline : str
+        The baseline file's path, as given.
+    passed : bool
+        Whether no segment fails the gate.
+    verdict : str
+        The verdict line (:func:`credcli.ci.gate.verdict_line`).
+
+    Returns
+    -------
+    Report
+        One table, a row per segment: its status, its label, NCI, ANEES and ELT p-value
+        as "baseline → now", and why it changed; and the document (``baseline``,
+        ``parameters``, ``passed``, ``verdict`` and a record per segment).
+    """
     rows = [
         {
             "segment": c.segment,

@@ -281,3 +281,24 @@ class Point:
         "bad: no Returns section",
         "Point: Attributes lacks y",
     ]
+
+
+def test_every_exported_name_is_on_the_reference_page():
+    """Each name ``credcli`` exports (its lazy ``_EXPORTS``) is rendered by
+    docs/reference.md, under its own module or the one that defines it."""
+    import importlib
+
+    import credcli
+
+    rendered = set()
+    for obj in rendered_objects(ROOT / "docs" / "reference.md"):
+        rendered.add(obj.path)
+        if obj.is_alias:
+            rendered.add(obj.final_target.path)
+    missing = []
+    for name, module in credcli._EXPORTS.items():
+        value = getattr(importlib.import_module(module), name)
+        home = f"{value.__module__}.{value.__qualname__}"
+        if not {f"{module}.{name}", home} & rendered:
+            missing.append(name)
+    assert missing == []

@@ -6,9 +6,12 @@ format it. Floats keep full precision in CSV and JSON; tables round them for rea
 
 from __future__ import annotations
 
+import collections
 import csv
 import io
+import itertools
 import math
+import operator
 import re
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
@@ -21,6 +24,7 @@ from credcli.engine.config import (
     Variant,
 )
 from credcli.engine.diagnosis import SegmentDiagnosis
+from credcli.engine.short import SegmentResults
 from credcli.errors import printable
 from credcli.logid import LogId
 from credcli.report import jsontext
@@ -30,12 +34,14 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
     format_pvalue,
 )
 from credcli.report.records import (
+    RecordBatch,
+    Records,
     anchor_record,
     comparison_record,
     log_record,
     range_record,
     record_label,
-    segment_record,
+    segment_records,
     uwb_segment_record,
 )
 from credcli.segments import LogSummary
@@ -301,6 +307,9 @@ _FORMULA_STARTS = frozenset("=+-@\t\r")
 """A text cell starting with one of these is read as a formula by spreadsheets (OWASP, CSV
 injection); it is written with a leading apostrophe. Numbers are written as numbers."""
 
+_FORMULA_START = operator.methodcaller("startswith", tuple(_FORMULA_STARTS))
+"""Whether a text starts as a formula (:data:`_FORMULA_STARTS`), one C call a text."""
+
 
 _LABEL_STYLE = {
     Label.CREDIBLE.value: "green",
@@ -403,6 +412,9 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
     10⁶ segments is never held as one string; the other formats in one piece. The records are
     JSON-safe as made (:func:`credcli.report.records.json_value`); the rest of the document is
     made so here (:func:`json_safe`)."""
+    if fmt is OutputFormat.CSV:
+        yield from _csv_pieces(report)
+        return
     if fmt is not OutputFormat.JSON:
         yield to_text(report, fmt, width)
         return
@@ -410,12 +422,44 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
         key: value if key == "segments" else json_safe(value)
         for key, value in report.document.items()
     }
-    pieces = jsontext.iterencode(document, "segments", TEXT_PIECE)
+    records = document.get("segments")
+    texts = _record_texts(records) if isinstance(records, Records) else None
+    pieces = jsontext.iterencode(document, "segments", TEXT_PIECE, texts)
     last = next(pieces)
     for piece in pieces:
         yield last
         last = piece
     yield last + "\n"
+
+
+BATCH_ROWS = 4096
+"""Records of a batch (:class:`credcli.report.records.RecordBatch`) written at a time: the
+Python values of that many rows exist at once, not of a million."""
+
+
+def _batch_chunks(batch: RecordBatch) -> Iterator[tuple[dict, int]]:
+    """(the columns, the rows) of each chunk of BATCH_ROWS records of ``batch``."""
+    for start in range(0, len(batch), BATCH_ROWS):
+        stop = min(start + BATCH_ROWS, len(batch))
+        yield batch.columns(start, stop), stop - start
+
+
+def _record_texts(records: Records) -> Iterator[list[str]]:
+    """The records' JSON texts at level 2 in lists of consecutive records, a batch's from
+    one template (:func:`credcli.report.jsontext.encode_rows`)."""
+    singles: list[str] = []
+    for part in records.parts:
+        if not isinstance(part, RecordBatch):
+            singles.append(jsontext.encode(part, 2))
+            if len(singles) >= 64:
+                yield singles
+                singles = []
+            continue
+        yield singles
+        singles = []
+        for columns, count in _batch_chunks(part):
+            yield jsontext.encode_rows(part.shared, columns, count, 2)
+    yield singles
 
 
 def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
@@ -445,30 +489,128 @@ def _csv(report: Report) -> str:
     """One valid CSV (RFC 4180: CRLF line ends, cells with a comma, quote, CR or LF quoted).
     Several tables share it: a first column ``table`` names each row's
     table, and the header is the union of the tables' columns."""
+    return "".join(_csv_pieces(report))
+
+
+def _csv_pieces(report: Report) -> Iterator[str]:
+    """:func:`_csv` in pieces of about TEXT_PIECE characters, a batch of records
+    (:class:`credcli.report.records.RecordBatch`) written from one template per chunk."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\r\n")  # RFC 4180: a CR or LF in a cell is quoted
     if len(report.tables) == 1:
         keys = _csv_keys(report.tables[0])
         writer.writerow(keys)
-        for row in report.tables[0].rows:
-            writer.writerow([_csv_cell(row.get(k)) for k in keys])
-        return buf.getvalue()
-    keys: list[str] = []
+        prefix: tuple[str, ...] = ()
+    else:
+        keys = []
+        for table in report.tables:
+            keys.extend(c.key for c in table.columns if c.key not in keys)
+        writer.writerow(["table", *keys])
     for table in report.tables:
-        keys.extend(c.key for c in table.columns if c.key not in keys)
-    writer.writerow(["table", *keys])
-    for table in report.tables:
-        for row in table.rows:
-            writer.writerow([table.title, *(_csv_cell(row.get(k)) for k in keys)])
-    return buf.getvalue()
+        if len(report.tables) > 1:
+            prefix = (table.title,)
+        rows = table.rows.parts if isinstance(table.rows, Records) else table.rows
+        for row in rows:
+            if isinstance(row, RecordBatch) and len(prefix) + len(keys) > 1:  # (the writer
+                # quotes a row's only cell when it is empty)
+                for columns, count in _batch_chunks(row):
+                    buf.writelines(_csv_lines(row.shared, columns, count, keys, prefix))
+                    if buf.tell() >= TEXT_PIECE:
+                        yield _emptied(buf)
+            else:
+                for record in row if isinstance(row, RecordBatch) else (row,):
+                    writer.writerow([*prefix, *(_csv_cell(record.get(k)) for k in keys)])
+                    if buf.tell() >= TEXT_PIECE:
+                        yield _emptied(buf)
+    yield buf.getvalue()
+
+
+def _emptied(buf: io.StringIO) -> str:
+    """What ``buf`` holds, leaving it empty."""
+    text = buf.getvalue()
+    buf.seek(0)
+    buf.truncate()
+    return text
 
 
 def _csv_keys(table: Table) -> list[str]:
     """A single table's CSV holds every key of its records, not only the shown columns."""
+    if isinstance(table.rows, Records):
+        return table.rows.keys() or [c.key for c in table.columns]
     keys: list[str] = []
     for row in table.rows:
         keys.extend(k for k in row if k not in keys)
     return keys or [c.key for c in table.columns]
+
+
+def _csv_lines(shared: dict, columns: dict, count: int, keys, prefix=()) -> list[str]:
+    """The CSV lines of ``count`` records that differ only at the keys of ``columns``
+    (record k is ``shared | {key: columns[key][k]}``), as the CSV writer writes their
+    cells (:func:`_csv_cell`) at ``keys``, after the cells ``prefix``: one template filled
+    with each column's cells."""
+    forms = [_csv_field(text).replace("%", "%%") for text in prefix]
+    holes: list[list[str]] = []
+    made: dict[int, tuple[str, list]] = {}  # a column met twice is written once
+    for key in keys:
+        if key in columns:
+            column = columns[key]
+            if id(column) not in made:
+                made[id(column)] = _csv_column(column)
+            form, texts = made[id(column)]
+            forms.append(form)
+            holes.extend(texts)
+        else:
+            forms.append(_csv_field(_csv_cell(shared.get(key))).replace("%", "%%"))
+    template = ",".join(forms) + "\r\n"
+    if not holes:
+        return [template % ()] * count
+    return list(map(template.__mod__, zip(*holes)))
+
+
+_CSV_QUOTED = frozenset(',"\r\n')
+"""A cell with one of these characters is quoted by the CSV writer (delimiter, quote
+character, line ends)."""
+
+
+def _csv_field(text: str) -> str:
+    """One cell as the CSV writer writes it among others: quoted when it holds a comma, a
+    quote or a line end."""
+    if _CSV_QUOTED.isdisjoint(text):
+        return text
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\r\n").writerow([text, ""])
+    return buf.getvalue()[: -len(",\r\n")]
+
+
+def _csv_column(values: list) -> tuple[str, list[list[str]]]:
+    """(a %-template of one cell, the texts that fill its holes, a list per hole) of a
+    column of record values: numbers as :func:`_csv_cell` writes them, one C call a value;
+    lists of numbers a column per position; anything else cell by cell."""
+    kinds = set(map(type, values))
+    if len(kinds) == 1:
+        kind = kinds.pop()
+        if kind is float:
+            return "%s", [list(map(float.__repr__, values))]
+        if kind is int:
+            return "%s", [list(map(int.__repr__, values))]
+        if kind is type(None):
+            return "", []
+        if kind is str and not any(map(_FORMULA_START, values)):
+            if _CSV_QUOTED.isdisjoint("".join(values)):
+                return "%s", [values]
+            return "%s", [list(map(_csv_field, values))]
+        if kind is list and len(sizes := set(map(len, values))) == 1 and sizes != {0}:
+            positions = [list(p) for p in zip(*values)]
+            if all(set(map(type, p)) <= {float, type(None)} for p in positions):
+                forms, holes = [], []
+                for position in positions:
+                    if None in position:
+                        holes.append([_csv_cell(v) for v in position])
+                    else:
+                        holes.append(list(map(float.__repr__, position)))
+                    forms.append("%s")
+                return " ".join(forms), holes
+    return "%s", [[_csv_field(_csv_cell(v)) for v in values]]
 
 
 _MARKDOWN_SPECIAL = re.compile(r"([\\`*_\[\]<>|#~])")
@@ -512,16 +654,17 @@ def diagnose_report(
     ``logs`` each log's summary by its id, in order, written here
     (:func:`credcli.report.records.log_record`).
     Results are matched to their log by id (``SegmentDiagnosis.log``), never by name."""
-    records = [segment_record(r) for r in results]
+    records = segment_records(results)
     logs = {log_id: log_record(summary) for log_id, summary in logs.items()}
-    multi = len({r.log for r in results}) > 1
+    parts = results.parts if isinstance(results, SegmentResults) else results
+    multi = len({part.log for part in parts}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
-    if any("whiteness_pvalue" in r for r in records):
+    if "whiteness_pvalue" in records.keys():
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     if multi:
         columns = (Column("log", "log", 0, limit=NAME_LIMIT),) + columns
     notes = []
-    sub = [r["segment"] for r in records if r["elt_subsampled"]]
+    sub = list(itertools.compress(records.values("segment"), records.values("elt_subsampled")))
     if sub:
         notes.append(
             f"ELT ran on a random subsample of {config.max_elt_epochs} epochs in "
@@ -569,29 +712,66 @@ LOG_COLUMNS = (
 log, and how many of its segments are credible."""
 
 
-def _logs_table(logs: Mapping[LogId, dict], results, records: list[dict]) -> Table:
-    rows = []
-    for log_id, info in logs.items():
-        mine = [rec for r, rec in zip(results, records, strict=True) if r.log == log_id]
-        good = sum(r["label"] == Label.CREDIBLE.value for r in mine)
-        rows.append(info | {"credible": f"{good} of {len(mine)}"})
+def _result_logs(results) -> Iterator[LogId]:
+    """Each result's log, without making the items of :class:`SegmentResults`."""
+    return results.logs() if isinstance(results, SegmentResults) else (r.log for r in results)
+
+
+def _values(records, key: str) -> Iterator:
+    """Each record's value at ``key`` (None where it has none), without a dict per record of
+    a batch (:meth:`credcli.report.records.Records.values`)."""
+    if isinstance(records, Records):
+        return records.values(key)
+    return (r.get(key) for r in records)
+
+
+def _logs_table(logs: Mapping[LogId, dict], results, records: Records) -> Table:
+    good: dict[LogId, int] = dict.fromkeys(logs, 0)
+    total: dict[LogId, int] = dict.fromkeys(logs, 0)
+    labels = _values(records, "label")
+    for log_id, label in zip(_result_logs(results), labels, strict=True):
+        if log_id in total:
+            total[log_id] += 1
+            good[log_id] += label == Label.CREDIBLE.value
+    rows = [
+        info | {"credible": f"{good[log_id]} of {total[log_id]}"} for log_id, info in logs.items()
+    ]
     return Table("logs compared", LOG_COLUMNS, rows, caption="accuracy over all epochs of each log")
 
 
-def _advice_lines(records: list[dict], limit: int = 10) -> list[str]:
-    lines = [a for a in (advice(r) for r in records) if a]
-    if len(lines) > limit:
-        lines = lines[:limit] + [
-            f"... and {len(lines) - limit} more segment(s); see the JSON output"
-        ]
-    found = {record_label(r).location for r in records}
+def _advice_lines(records, limit: int = 10) -> list[str]:
+    """What to do about each segment that is not credible (:func:`advice`), the first
+    ``limit`` of them, then what each location condition found means."""
+
+    def kinds():  # (a record's label text, whether a question is untested), as advice reads
+        answered, shown = _values(records, "label_answered"), _values(records, "label")
+        return zip(map(_or, answered, shown), map(bool, _values(records, "untested")))
+
+    counts = collections.Counter(kinds())
+    labels = {text: Label(text) for text, _ in counts}
+
+    def advised(kind) -> bool:  # advice(record) is not None
+        return labels[kind[0]] is not Label.CREDIBLE or kind[1]
+
+    first = itertools.islice(itertools.compress(itertools.count(), map(advised, kinds())), limit)
+    lines = [advice(records[k]) for k in first]
+    count = sum(n for kind, n in counts.items() if advised(kind))
+    if count > limit:
+        lines.append(f"... and {count - limit} more segment(s); see the JSON output")
+    found = {label.location for label in labels.values()}
     lines += [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in found]
     return lines
 
 
-def _finding_lines(records: list[dict], limit: int = 10) -> list[str]:
+def _or(first, second):
+    return first or second
+
+
+def _finding_lines(records, limit: int = 10) -> list[str]:
     """The findings the engine reports beside the labels (a slowly varying error, ...)."""
-    lines = [f"{r['segment']}: {f}" for r in records for f in r.get("findings") or ()]
+    named = itertools.compress(_values(records, "segment"), _values(records, "findings"))
+    found = filter(None, _values(records, "findings"))
+    lines = [f"{name}: {f}" for name, findings in zip(named, found) for f in findings]
     if len(lines) > limit:
         lines = lines[:limit] + [
             f"... and {len(lines) - limit} more finding(s); see the JSON output"
@@ -599,16 +779,16 @@ def _finding_lines(records: list[dict], limit: int = 10) -> list[str]:
     return lines
 
 
-def _whiteness_lines(records: list[dict], limit: int = 10) -> list[str]:
+def _whiteness_lines(records, limit: int = 10) -> list[str]:
     """Segments whose innovations are not white at the whiteness test's share of α (the
     engine's decision, ``whiteness_rejected``)."""
-    bad = [r for r in records if r.get("whiteness_rejected")]
+    bad = list(itertools.compress(itertools.count(), _values(records, "whiteness_rejected")))
     lines = [
         f"{r['segment']}: innovations correlated in time (portmanteau p = "
         f"{format_cell(r['whiteness_pvalue'], 3)}, {r['whiteness_lags']} lags, level "
         f"{format_cell(r['whiteness_level'], 3)}): the filter's "
         "model or noise is inconsistent even if the NIS level is right"
-        for r in bad[:limit]
+        for r in (records[k] for k in bad[:limit])
     ]
     if len(bad) > limit:
         lines.append(f"... and {len(bad) - limit} more segment(s) with correlated innovations")

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import enum
+import itertools
 from dataclasses import dataclass
 
 from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
 from credcli.engine.config import LOCATION_CONDITIONS, SMM_CONDITION
 from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
+from credcli.engine.short import SegmentResults
 from credcli.errors import CredcliError
 from credcli.report.formats import format_pvalue
 from credcli.report.records import Baseline, Snapshot, json_value, shown_label
@@ -294,9 +296,18 @@ def gate_fail_on(
 def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
     """(passed, one-line verdict, indices of the failing segments) of `diagnose --fail-on`,
     decided on the typed results (:class:`credcli.engine.diagnosis.SegmentDiagnosis`)."""
-    bad = [
-        k for k, r in enumerate(results) if fail_on.fails(r.diagnosis.label, r.diagnosis.untested)
-    ]
+    if isinstance(results, SegmentResults):  # a run of short segments without its items
+        verdicts = results.verdicts()
+    else:
+        verdicts = ((r.diagnosis.label, r.diagnosis.untested) for r in results)
+    decided: dict = {}  # each (label, untested) decided once
+
+    def fails(verdict) -> bool:
+        if verdict not in decided:
+            decided[verdict] = fail_on.fails(*verdict)
+        return decided[verdict]
+
+    bad = list(itertools.compress(itertools.count(), map(fails, verdicts)))
     listed = str(fail_on)
     if bad:
         shown = ", ".join(

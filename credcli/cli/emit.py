@@ -181,11 +181,11 @@ def write_plots(run, directory: Path | None) -> None:
 def write_ci_reports(
     junit: Path | None, summary: Path | None, cases, markdown: str, inputs
 ) -> None:
-    from credcli.ci.reports import append_step_summary, junit_xml
+    from credcli.ci.reports import append_step_summary, junit_pieces
     from credcli.io.files import write_atomic
 
     if junit is not None:
-        write_atomic(junit, junit_xml("credcli", cases), inputs)
+        write_atomic(junit, junit_pieces("credcli", cases), inputs)
     if summary is not None:
         write_atomic(summary, markdown, inputs)
     append_step_summary(markdown)

@@ -161,10 +161,33 @@ class SegmentResults(Sequence):
             else:
                 yield part
 
+    def verdicts(self) -> Iterator[tuple[Label, tuple]]:
+        """Each segment's label and untested questions, in order, without making the
+        segments' results.
+
+        Returns
+        -------
+        iterator of (Label, tuple of Question)
+            ``(diagnosis.label, diagnosis.untested)`` of each segment.
+        """
+        return itertools.chain.from_iterable(
+            itertools.repeat((Label.INSUFFICIENT, ()), len(part))
+            if isinstance(part, ShortSegments)
+            else ((part.diagnosis.label, part.diagnosis.untested),)
+            for part in self.parts
+        )
+
     def logs(self) -> Iterator[LogId]:
-        """Each segment's log, in order, without making the segments' results."""
-        for part in self.parts:
-            if isinstance(part, ShortSegments):
-                yield from itertools.repeat(part.log, len(part))
-            else:
-                yield part.log
+        """Each segment's log, in order, without making the segments' results.
+
+        Returns
+        -------
+        iterator of LogId
+            The log of each segment.
+        """
+        return itertools.chain.from_iterable(
+            itertools.repeat(part.log, len(part))
+            if isinstance(part, ShortSegments)
+            else (part.log,)
+            for part in self.parts
+        )

@@ -10,7 +10,7 @@ measurements in docs/performance.md)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from json.encoder import encode_basestring_ascii
 
 INDENT = "  "
@@ -148,6 +148,8 @@ def _column_texts(values: list, level: int) -> tuple[str, list[list[str]]]:
     """(a %-template of one value's text at ``level``, the texts that fill its holes, a
     list per hole): a column of one scalar type takes its writer, a column of lists of one
     length is a column per position; anything else is written value by value."""
+    if isinstance(values, ListColumn):
+        return _list_texts(values.positions, level)
     kinds = set(map(type, values))
     if len(kinds) == 1:
         kind = kinds.pop()
@@ -159,15 +161,44 @@ def _column_texts(values: list, level: int) -> tuple[str, list[list[str]]]:
             return "%s", [list(map(int.__repr__, values))]
         if kind is type(None):
             return "null", []
-        if kind is list and len(sizes := set(map(len, values))) == 1 and sizes != {0}:
-            forms, holes = [], []
-            for position in zip(*values):
-                form, texts = _column_texts(list(position), level + 1)
-                forms.append(form)
-                holes.extend(texts)
-            inner = _pad(level + 1)
-            return "[" + inner + ("," + inner).join(forms) + _pad(level) + "]", holes
+        if kind is list and len(set(map(len, values))) == 1:
+            return _list_texts([list(position) for position in zip(*values)], level)
     return "%s", [[encode(value, level) for value in values]]
+
+
+def _list_texts(positions, level: int) -> tuple[str, list[list[str]]]:
+    """:func:`_column_texts` of lists of one length, given as their positions' columns."""
+    if not positions:
+        return "[]", []
+    forms, holes = [], []
+    for position in positions:
+        form, texts = _column_texts(position, level + 1)
+        forms.append(form)
+        holes.extend(texts)
+    inner = _pad(level + 1)
+    return "[" + inner + ("," + inner).join(forms) + _pad(level) + "]", holes
+
+
+class ListColumn(Sequence):
+    """A column of lists of one length, held by position, without a list per item: item k
+    is ``[p[k] for p in positions]``. :func:`encode_rows` writes it position by position.
+
+    Parameters
+    ----------
+    positions : sequence of list
+        One column per position of the lists, of one length (at least one position).
+    """
+
+    def __init__(self, positions) -> None:
+        self.positions = tuple(positions)
+
+    def __len__(self) -> int:
+        return len(self.positions[0])
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        return [p[k] for p in self.positions]
 
 
 def iterencode(

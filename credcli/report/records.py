@@ -24,6 +24,7 @@ from credcli.engine.short import SegmentResults, ShortSegments
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
+from credcli.report.jsontext import ListColumn
 
 BASELINE_SCHEMA_VERSION = 1
 BASELINE_KIND = "credcli-baseline"
@@ -359,9 +360,10 @@ class RecordBatch(Sequence):
 
         Returns
         -------
-        dict of str to list
-            Key to each record's value, JSON-safe as in its record: record k is
-            ``shared | {key: values[k - start]}`` (a key not given is shared).
+        dict of str to sequence
+            Key to each record's value (a list, or a ListColumn for list values), JSON-safe
+            as in its record: record k is ``shared | {key: values[k - start]}`` (a key not
+            given is shared).
         """
         short = self.segments
         part = slice(start, len(short) if stop is None else stop)
@@ -388,26 +390,28 @@ class RecordBatch(Sequence):
 
 
 class _Lists:
-    """Arrays as lists of numbers (lists of lists for 2-D; each non-finite number None
-    where ``json``, as :func:`json_value` and :func:`_floats` make them), one list for arrays
-    of the same bits: a one-epoch segment's RMSE, median and largest error are its |e|, and
-    a writer that meets one list twice writes its numbers once."""
+    """Arrays as columns of record values: a list of numbers, or for 2-D a
+    :class:`~credcli.report.jsontext.ListColumn` (a list per record, held by position); each
+    non-finite number None where ``json``, as :func:`json_value` and :func:`_floats` make
+    them. Arrays of the same bits give the same column: a one-epoch segment's RMSE, median
+    and largest error are its |e|, and a writer that meets one column twice writes its
+    numbers once."""
 
     def __init__(self) -> None:
         self.made: list[tuple[np.ndarray, bool, list]] = []
 
-    def of(self, values: np.ndarray, json: bool) -> list:
+    def of(self, values: np.ndarray, json: bool):
         bits = values.view(np.uint64)
         for seen, seen_json, made in self.made:
             if seen_json == json and seen.shape == bits.shape and np.array_equal(seen, bits):
                 return made
-        out = values.tolist()
-        if json:
-            for where in np.argwhere(~np.isfinite(values)).tolist():
-                if len(where) == 1:
-                    out[where[0]] = None
-                else:
-                    out[where[0]][where[1]] = None
+        if values.ndim == 1:
+            out = values.tolist()
+            if json:
+                for k in np.flatnonzero(~np.isfinite(values)).tolist():
+                    out[k] = None
+        else:  # a list per record, held by position (no list per record)
+            out = ListColumn([self.of(values[:, j], json) for j in range(values.shape[1])])
         self.made.append((bits, json, out))
         return out
 

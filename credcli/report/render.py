@@ -586,6 +586,8 @@ def _csv_column(values: list) -> tuple[str, list[list[str]]]:
     """(a %-template of one cell, the texts that fill its holes, a list per hole) of a
     column of record values: numbers as :func:`_csv_cell` writes them, one C call a value;
     lists of numbers a column per position; anything else cell by cell."""
+    if isinstance(values, jsontext.ListColumn):
+        return _csv_lists(values.positions) or ("%s", [[_csv_field(_csv_cell(v)) for v in values]])
     kinds = set(map(type, values))
     if len(kinds) == 1:
         kind = kinds.pop()
@@ -600,17 +602,22 @@ def _csv_column(values: list) -> tuple[str, list[list[str]]]:
                 return "%s", [values]
             return "%s", [list(map(_csv_field, values))]
         if kind is list and len(sizes := set(map(len, values))) == 1 and sizes != {0}:
-            positions = [list(p) for p in zip(*values)]
-            if all(set(map(type, p)) <= {float, type(None)} for p in positions):
-                forms, holes = [], []
-                for position in positions:
-                    if None in position:
-                        holes.append([_csv_cell(v) for v in position])
-                    else:
-                        holes.append(list(map(float.__repr__, position)))
-                    forms.append("%s")
-                return " ".join(forms), holes
+            found = _csv_lists([list(p) for p in zip(*values)])
+            if found:
+                return found
     return "%s", [[_csv_field(_csv_cell(v)) for v in values]]
+
+
+def _csv_lists(positions) -> tuple[str, list[list[str]]] | None:
+    """:func:`_csv_column` of lists of numbers of one length (at least one), given as their
+    positions' columns: a cell per list, its numbers joined by spaces; None for anything
+    else."""
+    if not positions or not all(set(map(type, p)) <= {float, type(None)} for p in positions):
+        return None
+    holes = [
+        [_csv_cell(v) for v in p] if None in p else list(map(float.__repr__, p)) for p in positions
+    ]
+    return " ".join(["%s"] * len(positions)), holes
 
 
 _MARKDOWN_SPECIAL = re.compile(r"([\\`*_\[\]<>|#~])")

@@ -230,7 +230,13 @@ def diagnose_plans(
     otherwise segments are diagnosed one by one in this process. Each segment's sign flips
     depend on (seed, segment name) only, so the results are the same for any ``jobs``.
     Segments too short for a verdict are diagnosed together here, and each run of them is
-    one part of the results (:class:`credcli.engine.short.SegmentResults`)."""
+    one part of the results.
+
+    Returns
+    -------
+    SegmentResults
+        The results, in the plans' order (:class:`credcli.engine.short.SegmentResults`).
+    """
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
     parallel = jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1

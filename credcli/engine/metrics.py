@@ -484,8 +484,15 @@ def grouped_accuracy(errors: np.ndarray, lengths: np.ndarray) -> list[Accuracy]:
 @dataclass(frozen=True, eq=False)
 class AccuracyColumns:
     """The :class:`Accuracy` of many groups of epochs as columns, one row per group
-    (:func:`accuracy_columns`): ``rmse``, ``mean``, ``median``, ``max`` (groups, d), the
-    ``*_norm`` figures (groups,). Item g is group g's :class:`Accuracy`."""
+    (:func:`accuracy_columns`). Item g is group g's :class:`Accuracy`.
+
+    Attributes
+    ----------
+    rmse, mean, median, max : numpy.ndarray
+        Per component, shape (groups, d), as :class:`Accuracy`'s.
+    rmse_norm, mean_norm, median_norm, max_norm : numpy.ndarray
+        Of the error's norm, shape (groups,).
+    """
 
     rmse: np.ndarray
     mean: np.ndarray
@@ -512,15 +519,38 @@ class AccuracyColumns:
         )
 
     def take(self, start: int, stop: int) -> AccuracyColumns:
-        """Groups ``start`` to ``stop`` (views)."""
+        """Groups ``start`` to ``stop``.
+
+        Parameters
+        ----------
+        start, stop : int
+            The groups.
+
+        Returns
+        -------
+        AccuracyColumns
+            Their rows (views).
+        """
         return AccuracyColumns(*(getattr(self, f)[start:stop] for f in self.__dataclass_fields__))
 
 
 def accuracy_columns(errors: np.ndarray, lengths: np.ndarray) -> AccuracyColumns:
-    """The accuracy of consecutive groups of rows of ``errors`` (N, d) with the given
-    ``lengths`` (each >= 1; they sum to N), as columns: sums by ``np.add.reduceat``,
-    medians by one sort of (group, value). A log of 10⁶ one-epoch segments takes these as
-    numpy calls, not 10⁶ of them."""
+    """The accuracy of consecutive groups of rows of ``errors`` as columns: sums by
+    ``np.add.reduceat``, medians by one sort of (group, value). A log of 10⁶ one-epoch
+    segments takes these as numpy calls, not 10⁶ of them.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors, one group after another.
+    lengths : array_like of int
+        Each group's rows (each >= 1; they sum to N).
+
+    Returns
+    -------
+    AccuracyColumns
+        One row per group.
+    """
     lengths = np.asarray(lengths, dtype=np.int64)
     starts = np.r_[0, np.cumsum(lengths)[:-1]]
     group = np.repeat(np.arange(lengths.size), lengths)

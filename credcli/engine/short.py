@@ -82,11 +82,33 @@ class ShortSegments(Sequence):
         return map(self.__getitem__, range(len(self)))
 
     def reason(self, n: int) -> str:
-        """Why a segment of ``n`` epochs has no verdict."""
+        """Why a segment of ``n`` epochs has no verdict.
+
+        Parameters
+        ----------
+        n : int
+            The segment's epochs.
+
+        Returns
+        -------
+        str
+            The reason of its insufficient-data result.
+        """
         return too_short_reason(n, self.dim, self.config)
 
     def take(self, start: int, stop: int) -> ShortSegments:
-        """Segments ``start`` to ``stop`` (the columns as views)."""
+        """Segments ``start`` to ``stop``.
+
+        Parameters
+        ----------
+        start, stop : int
+            The segments.
+
+        Returns
+        -------
+        ShortSegments
+            Those segments (the columns as views).
+        """
         part = slice(start, stop)
         return ShortSegments(
             self.log,
@@ -110,10 +132,37 @@ def short_segments(
     lengths: np.ndarray,
     config: DiagnosisConfig,
 ) -> ShortSegments:
-    """Consecutive segments too short for a verdict (``lengths`` epochs each, all below
-    ``config.min_n(d)``; their ``errors`` and ``cov`` one segment after another), checked
-    and measured together as :func:`credcli.engine.diagnosis.too_short_batch` does: a
-    CredcliError when a covariance is not valid (diagnose each alone to name it)."""
+    """Consecutive segments too short for a verdict, checked and measured together as
+    :func:`credcli.engine.diagnosis.too_short_batch` does.
+
+    Parameters
+    ----------
+    log : LogId
+        Their log.
+    names : sequence of str
+        Their names.
+    t_start, t_end : numpy.ndarray or None
+        Their first and last time stamps (None for a log without time).
+    errors : numpy.ndarray, shape (N, d)
+        Their errors, one segment after another.
+    cov : numpy.ndarray, shape (N, d, d)
+        Their claimed covariances, likewise.
+    lengths : array_like of int
+        Each segment's epochs, all below ``config.min_n(d)``.
+    config : DiagnosisConfig
+        The settings of the diagnosis.
+
+    Returns
+    -------
+    ShortSegments
+        Their insufficient-data results, as columns.
+
+    Raises
+    ------
+    CredcliError
+        When an error or a covariance is not valid (diagnose each segment alone to name
+        it).
+    """
     errors, cov = metrics.check_errors_cov(errors, cov)
     metrics.cholesky(cov)
     lengths = np.asarray(lengths, dtype=np.int64)

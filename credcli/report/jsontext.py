@@ -204,10 +204,26 @@ class ListColumn(Sequence):
 def iterencode(
     document: dict, streamed: str, piece: int, texts: Iterable[list[str]] | None = None
 ) -> Iterator[str]:
-    """The text of ``document`` (a dict) in pieces of about ``piece`` characters, its list
-    under the key ``streamed`` one item at a time: a document of 10⁶ records is never held
-    as one string. ``texts``: the items' texts (each as :func:`encode` writes it at level
-    2) in lists of consecutive items, when the caller makes them (:func:`encode_rows`)."""
+    """The text of ``document`` in pieces, its list under the key ``streamed`` one item
+    at a time: a document of 10⁶ records is never held as one string.
+
+    Parameters
+    ----------
+    document : dict
+        The document.
+    streamed : str
+        The key of the list written an item at a time.
+    piece : int
+        About how many characters a piece holds.
+    texts : iterable of list of str, optional
+        The streamed list's items' texts (each as :func:`encode` writes it at level 2), in
+        lists of consecutive items, when the caller makes them (:func:`encode_rows`).
+
+    Yields
+    ------
+    str
+        Consecutive pieces of the text.
+    """
     out: list[str] = []
     size = 0
     inner = "\n" + INDENT

@@ -483,6 +483,23 @@ class Records(Sequence):
                 else:
                     yield values
 
+    def has(self, key: str) -> bool:
+        """Whether any record has ``key``.
+
+        Parameters
+        ----------
+        key : str
+            A record key.
+
+        Returns
+        -------
+        bool
+            True when a record holds it.
+        """
+        return any(
+            key in (part.shared if isinstance(part, RecordBatch) else part) for part in self.parts
+        )
+
     def keys(self) -> list[str]:
         """Every key of the records, in the order they first appear.
 

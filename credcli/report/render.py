@@ -666,7 +666,7 @@ def diagnose_report(
     parts = results.parts if isinstance(results, SegmentResults) else results
     multi = len({part.log for part in parts}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
-    if "whiteness_pvalue" in records.keys():
+    if records.has("whiteness_pvalue"):
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     if multi:
         columns = (Column("log", "log", 0, limit=NAME_LIMIT),) + columns

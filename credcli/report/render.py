@@ -97,7 +97,11 @@ class Table:
 
 @dataclass(frozen=True)
 class Report:
-    """What a command outputs: tables for people, ``document`` for machines (JSON)."""
+    """What a command outputs: tables for people, ``document`` for machines (JSON). A
+    diagnose document's ``segments`` (and its table's rows) are
+    :class:`~credcli.report.records.Records`, a sequence of the records made as they are
+    read; :func:`text_pieces` writes them (``json.loads`` of its JSON is the document as
+    plain values)."""
 
     tables: list[Table]
     document: dict

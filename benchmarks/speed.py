@@ -124,6 +124,11 @@ WORKLOADS = (
         "speed._ten_epoch_segments({tmp!r} + '/ten.parquet')",
         "<= 30 s CPU, <= 1 GB",
     ),
+    Workload(
+        "10^6 one-epoch segments, d = 2",
+        "bench._one_epoch_segments({tmp!r} + '/tiny.parquet')",
+        "well under 60 s wall (JSON <= 20-30 s), < 2 GB",
+    ),
     Workload("100,000 epochs, d = 3", "speed._wide({tmp!r} + '/d3.parquet', 3)", "d growth"),
     Workload("100,000 epochs, d = 15", "speed._wide({tmp!r} + '/d15.parquet', 15)", "d^1.5"),
 )

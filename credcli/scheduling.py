@@ -5,6 +5,7 @@ segment name) only."""
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,8 +19,8 @@ from credcli.engine.diagnosis import (
     innovation_config,
     innovation_whiteness,
     run_model,
-    too_short_batch,
 )
+from credcli.engine.short import SegmentResults, ShortSegments, short_segments
 from credcli.engine.timing import truth_velocity
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
@@ -131,48 +132,69 @@ def _item(
 def _run_model(log, segments, config: DiagnosisConfig):
     """What a run tells its windows (:func:`credcli.engine.diagnosis.run_model`) when the
     segments are windows of one run; None otherwise."""
-    windows = [s.index for s in segments if s.window]
+    windows = seg.window_indices(segments)
     if not windows:
         return None
     return run_model(log.errors, log.cov, windows, config)
 
 
-def _short_results(log, segments, config: DiagnosisConfig) -> dict[int, SegmentDiagnosis]:
-    """The segments of ``log`` too short for a verdict, by their index, diagnosed together
-    in this process (:func:`credcli.engine.diagnosis.too_short_batch`): no task, no
-    transfer. Where their covariances fail the check, none: each is then diagnosed alone,
-    so that the error names its segment."""
-    smallest = config.min_n(log.dim)
-    short = [i for i, segment in enumerate(segments) if len(segment.index) < smallest]
-    if not short:
-        return {}
-    index = np.concatenate([np.asarray(segments[i].index) for i in short])
-    lengths = np.array([len(segments[i].index) for i in short])
+def _short_segments(log, segments, config: DiagnosisConfig) -> ShortSegments | None:
+    """The segments of ``log`` too short for a verdict, diagnosed together in this process
+    (:func:`credcli.engine.short.short_segments`): no task, no transfer, a few numpy calls
+    for a million one-epoch segments. None when there are none, or when their covariances
+    fail the check: each is then diagnosed alone, so that the error names its segment."""
+    sizes = seg.lengths(segments)
+    is_short = sizes < config.min_n(log.dim)
+    short = np.flatnonzero(is_short)
+    if short.size == 0:
+        return None
+    if isinstance(segments, seg.Segments):
+        every = short.size == len(segments)
+        index = segments.rows if every else segments.rows[np.repeat(is_short, sizes)]
+        names = segments.names if every else [segments.names[i] for i in short.tolist()]
+        t_start = None if segments.t_start is None else segments.t_start[short]
+        t_end = None if segments.t_end is None else segments.t_end[short]
+    else:
+        chosen = [segments[i] for i in short.tolist()]
+        if len({s.t_start is None for s in chosen}) > 1:  # an empty one among timed ones
+            return None
+        index = np.concatenate([np.asarray(s.index) for s in chosen])
+        names = [s.name for s in chosen]
+        timed = chosen[0].t_start is not None
+        t_start = np.array([s.t_start for s in chosen], dtype=float) if timed else None
+        t_end = np.array([s.t_end for s in chosen], dtype=float) if timed else None
     try:
-        found = too_short_batch(log.errors[index], log.cov[index], lengths, config)
+        return short_segments(
+            log.id, names, t_start, t_end, log.errors[index], log.cov[index], sizes[short], config
+        )
     except CredcliError:
-        return {}
-    return {
-        i: SegmentDiagnosis(log.id, segments[i].name, segments[i].t_start, segments[i].t_end, d)
-        for i, d in zip(short, found, strict=True)
-    }
+        return None
+
+
+def _long_indices(segments, config: DiagnosisConfig, short: ShortSegments | None, dim: int):
+    """The indices of the segments not in ``short`` (all of them when it is None)."""
+    if short is None:
+        return range(len(segments))
+    return np.flatnonzero(seg.lengths(segments) >= config.min_n(dim)).tolist()
 
 
 def _chunk_tasks(
-    plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1, done=None
+    plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1, shorts=None
 ):
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
-    epochs (one segment per task for target 0); made as they are consumed. ``done``: the
-    (plan, segment) indices diagnosed already, left out."""
+    epochs (one segment per task for target 0); made as they are consumed. ``shorts``: the
+    segments of each plan diagnosed already (:func:`_short_segments`), by plan, left out."""
     items, size, log_id, blocks = [], 0, None, ()
-    done = done or {}
+    shorts = shorts or {}
     for p, (log, segments) in enumerate(plans):
+        todo = _long_indices(segments, config, shorts.get(p), log.dim)
+        if not todo:
+            continue
         errors = log.errors
         model = None if innovations else _run_model(log, segments, config)
         velocity = None if innovations else truth_velocity(log.truth, log.time)
-        for i, segment in enumerate(segments):
-            if (p, i) in done:
-                continue
+        for i in todo:
+            segment = segments[i]
             if items and (size >= target or log_id != log.id):
                 yield (log_id, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
@@ -181,6 +203,29 @@ def _chunk_tasks(
             size += len(segment.index)
     if items:
         yield (log_id, items, config, seed, innovations, runs, blocks)
+
+
+def _in_order(plans, shorts: dict, diagnosed: list, config: DiagnosisConfig) -> SegmentResults:
+    """Every plan's results in its segments' order: each run of consecutive short segments
+    one part (a slice of the plan's :class:`ShortSegments`), the others from ``diagnosed``."""
+    parts: list = []
+    rest = iter(diagnosed)
+    for p, (log, segments) in enumerate(plans):
+        short = shorts.get(p)
+        if short is None:
+            parts.extend(itertools.islice(rest, len(segments)))
+            continue
+        flags = (seg.lengths(segments) < config.min_n(log.dim)).astype(np.int8)
+        edges = np.flatnonzero(np.diff(np.r_[0, flags, 0])).tolist()
+        done, at = 0, 0  # short segments taken; segments placed
+        for start, stop in zip(edges[::2], edges[1::2]):
+            parts.extend(itertools.islice(rest, start - at))
+            parts.append(
+                short if stop - start == len(short) else short.take(done, done + stop - start)
+            )
+            done, at = done + stop - start, stop
+        parts.extend(itertools.islice(rest, len(segments) - at))
+    return SegmentResults(tuple(parts))
 
 
 def diagnose_plans(
@@ -192,14 +237,14 @@ def diagnose_plans(
     pool=None,
     innovations: bool = False,
     runs: int = 1,
-):
+) -> SegmentResults:
     """Every segment of every (log, segments) plan, in order. From PARALLEL_MIN_EPOCHS on,
     ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
     otherwise segments are diagnosed one by one in this process. Each segment's sign flips
     depend on (seed, segment name) only, so the results are the same for any ``jobs``.
 
-    Segments too short for a verdict are diagnosed together in this process first (not
-    for innovations).
+    Segments too short for a verdict are diagnosed together here (not for innovations),
+    and each run of them is one part of the results.
 
     Parameters
     ----------
@@ -224,8 +269,8 @@ def diagnose_plans(
 
     Returns
     -------
-    list of SegmentDiagnosis
-        One per segment, in plan and segment order.
+    SegmentResults
+        The results, in the plans' order (:class:`credcli.engine.short.SegmentResults`).
     """
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
@@ -234,11 +279,14 @@ def diagnose_plans(
         pool.close()
         pool = None
     target = max(1, total_epochs // (TASKS_PER_JOB * jobs)) if parallel else 0
-    done = {}  # segments too short for a verdict: diagnosed here, together
+    shorts = {}  # segments too short for a verdict: diagnosed here, together
     if not innovations:
         for p, (log, segments) in enumerate(plans):
-            done |= {(p, i): r for i, r in _short_results(log, segments, config).items()}
-    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs, done)
+            short = _short_segments(log, segments, config)
+            if short is not None:
+                shorts[p] = short
+    done = sum(len(short) for short in shorts.values())
+    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs, shorts)
     if pool is not None:
         outputs = pool.map(_diagnose_chunk, list(tasks))
     else:
@@ -248,17 +296,10 @@ def diagnose_plans(
         for out in outputs:
             diagnosed.extend(out)
             if progress is not None:
-                progress(len(diagnosed) + len(done), total_segments)
+                progress(len(diagnosed) + done, total_segments)
     finally:
         outputs.close()
-    if not done:
-        return diagnosed
-    rest = iter(diagnosed)
-    return [
-        done[(p, i)] if (p, i) in done else next(rest)
-        for p, (_, segments) in enumerate(plans)
-        for i in range(len(segments))
-    ]
+    return _in_order(plans, shorts, diagnosed, config)
 
 
 # --- on a Dask cluster: the workers read the logs ----------------------------------------

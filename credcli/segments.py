@@ -4,6 +4,7 @@ and Monte Carlo runs: split by their run ids, pooled segment by segment."""
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -120,12 +121,104 @@ def _span(time: np.ndarray | None, index: np.ndarray) -> tuple[float | None, flo
     return float(time[index].min()), float(time[index].max())
 
 
-def by_column(values: np.ndarray, time: np.ndarray | None = None) -> list[Segment]:
+@dataclass(frozen=True, eq=False)
+class Segments(Sequence):
+    """Segments of one log as columns: item k is segment k's :class:`Segment`, made when it
+    is asked for. A log of 10⁶ one-epoch segments is a few arrays and its names, not 10⁶
+    Segment objects with an index array each.
+
+    Attributes
+    ----------
+    names : list of str
+        The segments' names.
+    rows : numpy.ndarray
+        The rows of every segment, one segment after another.
+    bounds : numpy.ndarray
+        Segment k's rows are ``rows[bounds[k]:bounds[k + 1]]`` (int, one more than the
+        segments).
+    t_start, t_end : numpy.ndarray or None
+        Each segment's first and last time stamps; None for a log without time.
+    """
+
+    names: list[str]
+    rows: np.ndarray
+    bounds: np.ndarray
+    t_start: np.ndarray | None
+    t_end: np.ndarray | None
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = range(len(self))[k]  # an IndexError past the end, as a list's
+        index = self.rows[self.bounds[k] : self.bounds[k + 1]]
+        if self.t_start is None:
+            return Segment(self.names[k], index)
+        return Segment(self.names[k], index, float(self.t_start[k]), float(self.t_end[k]))
+
+    def __iter__(self) -> Iterator[Segment]:
+        return map(self.__getitem__, range(len(self)))
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Each segment's epochs."""
+        return np.diff(self.bounds)
+
+
+def lengths(segments: Sequence[Segment]) -> np.ndarray:
+    """Each segment's epochs, without making the items of :class:`Segments`.
+
+    Parameters
+    ----------
+    segments : sequence of Segment
+        A list of segments or :class:`Segments`.
+
+    Returns
+    -------
+    numpy.ndarray
+        The epochs of each (int).
+    """
+    if isinstance(segments, Segments):
+        return segments.lengths
+    return np.array([len(s.index) for s in segments], dtype=np.int64)
+
+
+def window_indices(segments: Sequence[Segment]) -> list[np.ndarray]:
+    """The index of each window of a run among ``segments`` (none in :class:`Segments`,
+    whose segments come from a column), without making the items of :class:`Segments`.
+
+    Parameters
+    ----------
+    segments : sequence of Segment
+        A list of segments or :class:`Segments`.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        The rows of each segment that is a window (``Segment.window``).
+    """
+    if isinstance(segments, Segments):
+        return []
+    return [s.index for s in segments if s.window]
+
+
+def _names(values: np.ndarray) -> list[str]:
+    """``str`` of each value, as ``str(values[k])`` writes it: a list's items where those
+    are the same (text, integers, booleans), each numpy scalar otherwise (floats)."""
+    if values.dtype.kind in "OUiub":
+        return list(map(str, values.tolist()))
+    return [str(v) for v in values]
+
+
+def by_column(values: np.ndarray, time: np.ndarray | None = None) -> Segments:
     """One segment per distinct value, in order of first appearance.
 
     A log's segments are usually runs of consecutive rows, so the runs of equal values are
     found first and only each run's first value is sorted, not every row's value: O(N +
-    R log R) for R runs.
+    R log R) for R runs. The segments are columns (:class:`Segments`): a million one-epoch
+    segments take a few numpy calls.
 
     Parameters
     ----------
@@ -136,9 +229,9 @@ def by_column(values: np.ndarray, time: np.ndarray | None = None) -> list[Segmen
 
     Returns
     -------
-    list of Segment
-        One per distinct value, named ``str(value)``, its index the rows that hold the
-        value; in the order the values first appear.
+    Segments
+        One segment per distinct value, named ``str(value)``, its index the rows that hold
+        the value; in the order the values first appear.
 
     Examples
     --------
@@ -147,20 +240,32 @@ def by_column(values: np.ndarray, time: np.ndarray | None = None) -> list[Segmen
     """
     n = len(values)
     if n == 0:
-        return []
+        return Segments([], np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64), None, None)
     starts = np.flatnonzero(np.r_[True, values[1:] != values[:-1]])
     stops = np.r_[starts[1:], n]
     _, first_run, run_group = np.unique(values[starts], return_index=True, return_inverse=True)
-    first = starts[first_run]
-    order = np.argsort(first, kind="stable")
-    if first_run.size == starts.size:  # each value one run: the segments are ranges
-        indices = [np.arange(starts[r], stops[r]) for r in first_run]
+    if first_run.size == starts.size:  # each value one run: the segments are the runs
+        index = np.arange(n)
+        bounds = np.r_[starts, n]
+        names = _names(values[starts])
     else:
-        inverse = np.repeat(run_group, stops - starts)
-        groups = np.argsort(inverse, kind="stable")
-        bounds = np.r_[0, np.cumsum(np.bincount(inverse))]
-        indices = [groups[bounds[g] : bounds[g + 1]] for g in range(first_run.size)]
-    return [Segment(str(values[first[g]]), indices[g], *_span(time, indices[g])) for g in order]
+        order = np.argsort(starts[first_run], kind="stable")  # by first appearance
+        rank = np.empty_like(order)
+        rank[order] = np.arange(order.size)
+        segment_of_row = np.repeat(rank[run_group.reshape(-1)], stops - starts)
+        index = np.argsort(segment_of_row, kind="stable")
+        bounds = np.r_[0, np.cumsum(np.bincount(segment_of_row, minlength=order.size))]
+        names = _names(values[starts[first_run[order]]])
+    if time is None:
+        return Segments(names, index, bounds, None, None)
+    span = time[index]
+    return Segments(
+        names,
+        index,
+        bounds,
+        np.minimum.reduceat(span, bounds[:-1]),
+        np.maximum.reduceat(span, bounds[:-1]),
+    )
 
 
 def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:

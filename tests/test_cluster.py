@@ -17,6 +17,7 @@ from helpers import ROOT, error_line, run  # noqa: E402
 
 from credcli.cluster import DaskRunner  # noqa: E402
 from credcli.io.schema import LogReading  # noqa: E402
+from credcli.report.render import OutputFormat, to_text  # noqa: E402
 from credcli.requests import DiagnoseRequest, SimulateRequest  # noqa: E402
 from credcli.studies.samples import GOOD_SEGMENTS, estimator_log  # noqa: E402
 from credcli.workflows import run_diagnose, run_simulate  # noqa: E402
@@ -34,7 +35,9 @@ def _logs(tmp_path, count: int, per_segment: int = 300):
 
 
 def _document(run) -> str:
-    return json.dumps(run.report.document, sort_keys=True)
+    """The report's JSON document as the renderer writes it (its segments are Records, made
+    as they are written), keys sorted."""
+    return json.dumps(json.loads(to_text(run.report, OutputFormat.JSON)), sort_keys=True)
 
 
 @pytest.fixture(scope="module")

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import enum
+import itertools
 from dataclasses import dataclass
 
 from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
 from credcli.engine.config import LOCATION_CONDITIONS, SMM_CONDITION
 from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
+from credcli.engine.short import SegmentResults
 from credcli.errors import CredcliError
 from credcli.report.formats import format_pvalue
 from credcli.report.records import Baseline, Snapshot, json_value, shown_label
@@ -525,8 +527,9 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
 
     Parameters
     ----------
-    results : sequence of SegmentDiagnosis
-        The diagnosed segments (``credcli.engine.diagnosis.SegmentDiagnosis``).
+    results : sequence of SegmentDiagnosis, or SegmentResults
+        The diagnosed segments; a run of short segments is decided on its labels without
+        making its items (``credcli.engine.short.SegmentResults.verdicts``).
     fail_on : FailOn
         The conditions of ``--fail-on``.
 
@@ -540,9 +543,18 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
     failing : list of int
         The indices of the failing segments in ``results``.
     """
-    bad = [
-        k for k, r in enumerate(results) if fail_on.fails(r.diagnosis.label, r.diagnosis.untested)
-    ]
+    if isinstance(results, SegmentResults):  # a run of short segments without its items
+        verdicts = results.verdicts()
+    else:
+        verdicts = ((r.diagnosis.label, r.diagnosis.untested) for r in results)
+    decided: dict = {}  # each (label, untested) decided once
+
+    def fails(verdict) -> bool:
+        if verdict not in decided:
+            decided[verdict] = fail_on.fails(*verdict)
+        return decided[verdict]
+
+    bad = list(itertools.compress(itertools.count(), map(fails, verdicts)))
     listed = str(fail_on)
     if bad:
         shown = ", ".join(

@@ -6,8 +6,10 @@ import os
 import re
 import stat
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
+from credcli.engine.short import SegmentResults, ShortSegments
 from credcli.errors import CredcliError
 from credcli.report.records import json_value, shown_label
 from credcli.report.render import OutputFormat, format_cell, markdown_text, to_text
@@ -63,7 +65,33 @@ def xml_text(text: str) -> str:
     return _NOT_XML.sub(lambda m: f"#x{ord(m.group()):02X}", text)
 
 
-def junit_xml(suite: str, cases: list[Case]) -> str:
+@dataclass(frozen=True)
+class CaseBatch:
+    """JUnit test cases that differ only in their names (a run of segments too short for
+    a verdict, :class:`credcli.engine.short.ShortSegments`): one :class:`Case` per name.
+
+    Attributes
+    ----------
+    names : sequence of str
+        The cases' names.
+    classname, failure, details
+        What every case has, as a :class:`Case`.
+    """
+
+    names: Sequence[str]
+    classname: str
+    failure: str | None
+    details: str = ""
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __iter__(self) -> Iterator[Case]:
+        for name in self.names:
+            yield Case(name, self.classname, self.failure, self.details)
+
+
+def junit_xml(suite: str, cases: list[Case | CaseBatch]) -> str:
     """A JUnit XML document with one <testsuite>; failures carry their reason.
 
     Names and messages from the data pass through :func:`xml_text`.
@@ -72,8 +100,8 @@ def junit_xml(suite: str, cases: list[Case]) -> str:
     ----------
     suite : str
         The test suite's name.
-    cases : list of Case
-        The test cases, one per segment, in order.
+    cases : list of Case or CaseBatch
+        The test cases, in order.
 
     Returns
     -------
@@ -86,28 +114,122 @@ def junit_xml(suite: str, cases: list[Case]) -> str:
     >>> print(junit_xml("log", cases).splitlines()[1])
     <testsuites name="credcli" tests="2" failures="1">
     """
-    failures = sum(c.failure is not None for c in cases)
-    root = ET.Element("testsuites", name="credcli", tests=str(len(cases)), failures=str(failures))
+    return "".join(junit_pieces(suite, cases))
+
+
+def junit_pieces(suite: str, cases: list[Case | CaseBatch]) -> Iterator[str]:
+    """:func:`junit_xml` in pieces, the cases a few thousand at a time: the document is
+    ElementTree's (indented by ``ET.indent``) around a placeholder case, each case
+    ElementTree's at its depth, and a batch's cases one case's text with each name in it
+    (10⁶ one-epoch segments are not 10⁶ elements in one tree).
+
+    Parameters
+    ----------
+    suite : str
+        The test suite's name.
+    cases : list of Case or CaseBatch
+        The test cases, in order.
+
+    Yields
+    ------
+    str
+        Consecutive pieces of the document.
+    """
+    sizes = [len(c) if isinstance(c, CaseBatch) else 1 for c in cases]
+    tests = sum(sizes)
+    failures = sum(n for c, n in zip(cases, sizes) if c.failure is not None)
+    root = ET.Element("testsuites", name="credcli", tests=str(tests), failures=str(failures))
     node = ET.SubElement(
         root,
         "testsuite",
         name=xml_text(suite),
-        tests=str(len(cases)),
+        tests=str(tests),
         failures=str(failures),
         errors="0",
         skipped="0",
     )
-    for case in cases:
-        name, classname = xml_text(case.name), xml_text(case.classname)
-        tc = ET.SubElement(node, "testcase", name=name, classname=classname)
-        if case.failure is not None:
-            message = xml_text(case.failure)
-            fail = ET.SubElement(tc, "failure", message=message, type="CredibilityRegression")
-            fail.text = xml_text(case.details or case.failure)
-        elif case.details:
-            ET.SubElement(tc, "system-out").text = xml_text(case.details)
+    header = '<?xml version="1.0" encoding="UTF-8"?>\n'
+    if not tests:
+        ET.indent(root)
+        yield header + ET.tostring(root, encoding="unicode") + "\n"
+        return
+    ET.SubElement(node, "testcase")  # where the cases go
     ET.indent(root)
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+    head, tail = ET.tostring(root, encoding="unicode").split("<testcase />")
+    between = head[head.rindex("\n") :]  # a case's indent, as ET.indent makes it
+    yield header + head
+    before = ""
+    for texts in _case_texts(cases):
+        yield before + between.join(texts)
+        before = between
+    yield tail + "\n"
+
+
+CASE_LEVEL = 2
+"""The depth of a test case in the document (testsuites, testsuite, testcase)."""
+
+
+def _case_element(case: Case, name: str) -> ET.Element:
+    """A case's element, indented at its depth, named ``name`` (as the document writes it)."""
+    tc = ET.Element("testcase", name=name, classname=xml_text(case.classname))
+    if case.failure is not None:
+        message = xml_text(case.failure)
+        fail = ET.SubElement(tc, "failure", message=message, type="CredibilityRegression")
+        fail.text = xml_text(case.details or case.failure)
+    elif case.details:
+        ET.SubElement(tc, "system-out").text = xml_text(case.details)
+    ET.indent(tc, level=CASE_LEVEL)
+    return tc
+
+
+def _case_text(case: Case) -> str:
+    return ET.tostring(_case_element(case, xml_text(case.name)), encoding="unicode")
+
+
+CASES_AT_ONCE = 4096
+"""Cases of a batch written at a time."""
+
+_PLACEHOLDER = "\ue000"
+"""A name no case has, where a batch's template takes each name (a private-use character,
+which XML allows and ElementTree writes as it is)."""
+
+_ATTRIBUTE_ESCAPED = frozenset('&<>"\r\n\t')
+"""Characters ElementTree may write otherwise in an attribute value."""
+
+
+def _case_texts(cases) -> Iterator[list[str]]:
+    """The text of each case in lists of consecutive cases; a batch's from its first
+    case's text with each name in its place."""
+    singles: list[str] = []
+    for case in cases:
+        if not isinstance(case, CaseBatch):
+            singles.append(_case_text(case))
+            continue
+        if singles:
+            yield singles
+            singles = []
+        template = ET.tostring(_case_element(next(iter(case)), _PLACEHOLDER), encoding="unicode")
+        parts = template.split(_PLACEHOLDER)
+        for start in range(0, len(case), CASES_AT_ONCE):
+            names = case.names[start : start + CASES_AT_ONCE]
+            if len(parts) != 2:  # the placeholder is in the case's own text: case by case
+                yield [
+                    _case_text(Case(n, case.classname, case.failure, case.details)) for n in names
+                ]
+                continue
+            joined = "".join(names)
+            if _NOT_XML.search(joined) or not _ATTRIBUTE_ESCAPED.isdisjoint(joined):
+                names = list(map(_attribute_text, names))
+            yield [parts[0] + name + parts[1] for name in names]
+    if singles:
+        yield singles
+
+
+def _attribute_text(name: str) -> str:
+    """A case's name as the document writes it in its attribute (:func:`xml_text`, then
+    ElementTree's escapes)."""
+    text = ET.tostring(ET.Element("a", v=xml_text(name)), encoding="unicode")
+    return text[len('<a v="') : -len('" />')]
 
 
 def check_step_summary(path: str) -> None:
@@ -201,41 +323,55 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
     return cases
 
 
-def fail_on_cases(results, failing: list[int], fail_on) -> list[Case]:
-    """One JUnit case per diagnosed segment.
+def fail_on_cases(results, failing: list[int], fail_on) -> list[Case | CaseBatch]:
+    """One JUnit case per diagnosed segment (:class:`credcli.engine.diagnosis.SegmentDiagnosis`),
+    a run of segments too short for a verdict one :class:`CaseBatch`.
 
     Parameters
     ----------
-    results : sequence of SegmentDiagnosis
-        The diagnosed segments (``credcli.engine.diagnosis.SegmentDiagnosis``).
+    results : SegmentResults or sequence of SegmentDiagnosis
+        The diagnosed segments, in order.
     failing : list of int
-        The indices of the failing ones (``credcli.ci.gate.fail_on_verdict``).
+        The indices of the failing ones.
     fail_on : FailOn
-        The conditions of ``--fail-on``, named in the failure messages.
+        The conditions they failed on.
 
     Returns
     -------
-    list of Case
+    list of Case or CaseBatch
         In the order of ``results``, classed by their log's stem
         (``credcli.diagnose.<stem>``); the details give the label, ELT p-value, NCI and
         ANEES.
     """
     bad = set(failing)
     listed = str(fail_on)
-    cases = []
-    for k, result in enumerate(results):
-        d = result.diagnosis
-        label = shown_label(d.label, d.untested)
-        cases.append(
-            Case(
-                result.segment,
-                f"credcli.diagnose.{_classname(result.log.stem)}",
-                f"label {label} matches --fail-on {listed}" if k in bad else None,
-                f"label {label}, ELT p {_cell(d.elt_pvalue)}, NCI {_cell(d.nci)} dB, "
-                f"ANEES {_cell(d.anees)}",
-            )
-        )
+    cases: list[Case | CaseBatch] = []
+    k = 0
+    for part in results.parts if isinstance(results, SegmentResults) else results:
+        if not isinstance(part, ShortSegments):
+            cases.append(_fail_on_case(part, k in bad, listed))
+            k += 1
+            continue
+        failed = {i in bad for i in range(k, k + len(part))}
+        if len(failed) == 1:  # one case's text with each name
+            case = _fail_on_case(part[0], failed.pop(), listed)
+            cases.append(CaseBatch(part.names, case.classname, case.failure, case.details))
+        else:
+            cases.extend(_fail_on_case(r, i in bad, listed) for i, r in enumerate(part, start=k))
+        k += len(part)
     return cases
+
+
+def _fail_on_case(result, failed: bool, listed: str) -> Case:
+    d = result.diagnosis
+    label = shown_label(d.label, d.untested)
+    return Case(
+        result.segment,
+        f"credcli.diagnose.{_classname(result.log.stem)}",
+        f"label {label} matches --fail-on {listed}" if failed else None,
+        f"label {label}, ELT p {_cell(d.elt_pvalue)}, NCI {_cell(d.nci)} dB, "
+        f"ANEES {_cell(d.anees)}",
+    )
 
 
 def _cell(value) -> str:

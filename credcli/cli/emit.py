@@ -295,11 +295,11 @@ def _write_ci_reports(
 ) -> None:
     """The JUnit XML of ``cases`` to ``junit`` and ``markdown`` to ``summary`` (each if
     given), and ``markdown`` appended to $GITHUB_STEP_SUMMARY when that is set."""
-    from credcli.ci.reports import append_step_summary, junit_xml
+    from credcli.ci.reports import append_step_summary, junit_pieces
     from credcli.io.files import write_atomic
 
     if junit is not None:
-        write_atomic(junit, junit_xml("credcli", cases), inputs)
+        write_atomic(junit, junit_pieces("credcli", cases), inputs)
     if summary is not None:
         write_atomic(summary, markdown, inputs)
     append_step_summary(markdown)

@@ -486,14 +486,28 @@ def too_short_batch(
     _cholesky(cov)
     d = errors.shape[1]
     accuracies = metrics.grouped_accuracy(errors, lengths)
-    reasons = {int(n): _too_short_reason(int(n), d, config) for n in np.unique(lengths)}
+    reasons = {int(n): too_short_reason(int(n), d, config) for n in np.unique(lengths)}
     return [
         Diagnosis(Label.INSUFFICIENT, n, d, reason=reasons[n], config=config, accuracy=accuracy)
         for n, accuracy in zip(lengths.tolist(), accuracies, strict=True)
     ]
 
 
-def _too_short_reason(n: int, d: int, config: DiagnosisConfig) -> str:
+def too_short_reason(n: int, d: int, config: DiagnosisConfig) -> str:
+    """Why a segment of ``n`` epochs is too short for a verdict.
+
+    Parameters
+    ----------
+    n, d : int
+        The segment's epochs and state dimension.
+    config : DiagnosisConfig
+        The settings whose minimum (:meth:`DiagnosisConfig.min_n`) it is below.
+
+    Returns
+    -------
+    str
+        The reason an insufficient-data result gives.
+    """
     needs = f"min_epochs {config.min_epochs} and d + 2"
     if not config.calibrated:
         needs = f"min_epochs {config.min_epochs}, d + 2, and {config.min_blocks} sign blocks"
@@ -502,7 +516,7 @@ def _too_short_reason(n: int, d: int, config: DiagnosisConfig) -> str:
 
 def _too_short(n: int, d: int, config: DiagnosisConfig) -> Diagnosis:
     return Diagnosis(
-        label=Label.INSUFFICIENT, n=n, dim=d, reason=_too_short_reason(n, d, config), config=config
+        label=Label.INSUFFICIENT, n=n, dim=d, reason=too_short_reason(n, d, config), config=config
     )
 
 

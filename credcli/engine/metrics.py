@@ -483,9 +483,8 @@ def accuracy(errors: np.ndarray) -> Accuracy:
 def grouped_accuracy(errors: np.ndarray, lengths: np.ndarray) -> list[Accuracy]:
     """The ``Accuracy`` of each of consecutive groups of rows of ``errors``, in one pass.
 
-    Vectorised over the groups: sums by ``np.add.reduceat``, medians by one sort of
-    (group, value). A log of 10⁶ one-epoch segments takes these as numpy calls, not 10⁶
-    of them; one group gives ``accuracy``, to the same bits.
+    Vectorised over the groups (``accuracy_columns``); one group gives ``accuracy``, to
+    the same bits.
 
     Parameters
     ----------
@@ -498,6 +497,80 @@ def grouped_accuracy(errors: np.ndarray, lengths: np.ndarray) -> list[Accuracy]:
     -------
     list of Accuracy
         One per group, in order. Errors beyond about 1e154 give inf (no warning).
+    """
+    columns = accuracy_columns(errors, lengths)
+    return [columns[g] for g in range(len(columns))]
+
+
+@dataclass(frozen=True, eq=False)
+class AccuracyColumns:
+    """The :class:`Accuracy` of many groups of epochs as columns, one row per group
+    (:func:`accuracy_columns`). Item g is group g's :class:`Accuracy`.
+
+    Attributes
+    ----------
+    rmse, mean, median, max : numpy.ndarray
+        Per component, shape (groups, d), as :class:`Accuracy`'s.
+    rmse_norm, mean_norm, median_norm, max_norm : numpy.ndarray
+        Of the error's norm, shape (groups,).
+    """
+
+    rmse: np.ndarray
+    mean: np.ndarray
+    median: np.ndarray
+    max: np.ndarray
+    rmse_norm: np.ndarray
+    mean_norm: np.ndarray
+    median_norm: np.ndarray
+    max_norm: np.ndarray
+
+    def __len__(self) -> int:
+        return self.rmse_norm.shape[0]
+
+    def __getitem__(self, g: int) -> Accuracy:
+        return Accuracy(
+            self.rmse[g],
+            self.mean[g],
+            self.median[g],
+            self.max[g],
+            float(self.rmse_norm[g]),
+            float(self.mean_norm[g]),
+            float(self.median_norm[g]),
+            float(self.max_norm[g]),
+        )
+
+    def take(self, start: int, stop: int) -> AccuracyColumns:
+        """Groups ``start`` to ``stop``.
+
+        Parameters
+        ----------
+        start, stop : int
+            The groups.
+
+        Returns
+        -------
+        AccuracyColumns
+            Their rows (views).
+        """
+        return AccuracyColumns(*(getattr(self, f)[start:stop] for f in self.__dataclass_fields__))
+
+
+def accuracy_columns(errors: np.ndarray, lengths: np.ndarray) -> AccuracyColumns:
+    """The accuracy of consecutive groups of rows of ``errors`` as columns: sums by
+    ``np.add.reduceat``, medians by one sort of (group, value). A log of 10⁶ one-epoch
+    segments takes these as numpy calls, not 10⁶ of them.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors, one group after another.
+    lengths : array_like of int
+        Each group's rows (each >= 1; they sum to N).
+
+    Returns
+    -------
+    AccuracyColumns
+        One row per group.
     """
     lengths = np.asarray(lengths, dtype=np.int64)
     starts = np.r_[0, np.cumsum(lengths)[:-1]]
@@ -515,10 +588,9 @@ def grouped_accuracy(errors: np.ndarray, lengths: np.ndarray) -> list[Accuracy]:
         max_norm = np.maximum.reduceat(norms, starts)
         median = _grouped_median(np.c_[absolute, norms], group, starts, lengths)
     d = errors.shape[1]
-    return [
-        Accuracy(rmse[g], mean[g], median[g, :d], peak[g], *map(float, scalars))
-        for g, scalars in enumerate(zip(rmse_norm, mean_norm, median[:, d], max_norm, strict=True))
-    ]
+    return AccuracyColumns(
+        rmse, mean, median[:, :d], peak, rmse_norm, mean_norm, median[:, d], max_norm
+    )
 
 
 def _grouped_median(values: np.ndarray, group: np.ndarray, starts, lengths) -> np.ndarray:
@@ -527,6 +599,8 @@ def _grouped_median(values: np.ndarray, group: np.ndarray, starts, lengths) -> n
     average) select their two middle values by ``np.partition``, in linear time, group by
     group; many short ones take one sort of (group, value) per column. Both pick the same
     order statistics, so the result is the same to the bit."""
+    if lengths.size == values.shape[0]:  # groups of one epoch: (v + v) / 2, as below
+        return (values + values) / 2
     out = np.empty((lengths.size, values.shape[1]))
     if lengths.size * 64 <= values.shape[0]:
         for g, (start, length) in enumerate(zip(starts.tolist(), lengths.tolist())):

@@ -5,19 +5,26 @@ from here."""
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import enum
+import itertools
 import json
 import math
 import typing
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from credcli.engine.config import DiagnosisConfig
 from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
+from credcli.engine.short import SegmentResults, ShortSegments
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
+from credcli.report.jsontext import ListColumn
 
 BASELINE_SCHEMA_VERSION = 1
 BASELINE_KIND = "credcli-baseline"
@@ -234,6 +241,20 @@ _JSON_READY = frozenset({int, str, bool, list})
 """Values a record holds as they are (a float may be NaN, an enum is its value)."""
 
 
+ACCURACY_KEYS = {
+    "rmse": "rmse_norm",
+    "error_norm_mean": "mean_norm",
+    "error_norm_median": "median_norm",
+    "error_norm_max": "max_norm",
+    "rmse_by_component": "rmse",
+    "error_mean": "mean",
+    "error_median": "median",
+    "error_max": "max",
+}
+"""The accuracy keys of a record, each with its :class:`credcli.engine.metrics.Accuracy`
+field: a number for the norm's figures, a list (one per component) for the others."""
+
+
 def accuracy_record(acc) -> dict:
     """The accuracy keys of a segment's record and of a log's entry.
 
@@ -249,15 +270,11 @@ def accuracy_record(acc) -> dict:
         error's norm) and ``rmse_by_component``, ``error_mean``, ``error_median``,
         ``error_max`` (lists, one per component), in the units of the states.
     """
+    if acc is None:
+        return dict.fromkeys(ACCURACY_KEYS)
     return {
-        "rmse": None if acc is None else acc.rmse_norm,
-        "error_norm_mean": None if acc is None else acc.mean_norm,
-        "error_norm_median": None if acc is None else acc.median_norm,
-        "error_norm_max": None if acc is None else acc.max_norm,
-        "rmse_by_component": _floats(None if acc is None else acc.rmse),
-        "error_mean": _floats(None if acc is None else acc.mean),
-        "error_median": _floats(None if acc is None else acc.median),
-        "error_max": _floats(None if acc is None else acc.max),
+        key: value if isinstance(value := getattr(acc, name), float) else _floats(value)
+        for key, name in ACCURACY_KEYS.items()
     }
 
 
@@ -462,6 +479,233 @@ def segment_record(result: SegmentDiagnosis) -> dict:
             "whiteness_rejected": white.rejected,
         }
     return rec
+
+
+BATCH_KEYS = frozenset({"segment", "t_start", "t_end", "n", "reason", *ACCURACY_KEYS})
+"""The keys whose values may differ between the records of a :class:`RecordBatch`."""
+
+
+@dataclass(frozen=True, eq=False)
+class RecordBatch(Sequence):
+    """The records of a run of segments too short for a verdict
+    (:class:`credcli.engine.short.ShortSegments`) as one record they share and the columns
+    of the keys whose values differ: the segment, its times, its length and reason, its
+    accuracy. Item k is :func:`segment_record` of segment k; the renderers write a batch
+    from :meth:`columns` a chunk at a time, without a dict per record.
+
+    Attributes
+    ----------
+    segments : ShortSegments
+        The segments.
+    shared : dict
+        The first segment's record; every record has its keys, in its order, and its
+        values but at the keys of :meth:`columns`.
+    """
+
+    segments: ShortSegments
+    shared: dict = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "shared", segment_record(self.segments[0]))
+
+    def __len__(self) -> int:
+        return len(self.segments)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        return segment_record(self.segments[k])
+
+    def __iter__(self) -> Iterator[dict]:
+        return map(self.__getitem__, range(len(self)))
+
+    def columns(self, start: int = 0, stop: int | None = None, keys=BATCH_KEYS) -> dict:
+        """The values of records ``start`` to ``stop`` at the keys where they differ.
+
+        Parameters
+        ----------
+        start, stop : int
+            The records (``stop`` None: to the last).
+        keys : collection of str
+            The keys wanted (by default every key that may differ, :data:`BATCH_KEYS`).
+
+        Returns
+        -------
+        dict of str to sequence
+            Key to each record's value (a list, or a ListColumn for list values), JSON-safe
+            as in its record: record k is ``shared | {key: values[k - start]}`` (a key not
+            given is shared).
+        """
+        short = self.segments
+        part = slice(start, len(short) if stop is None else stop)
+        out: dict[str, list] = {}
+        lists = _Lists()
+        if "segment" in keys:
+            out["segment"] = list(short.names[part])
+        if short.t_start is not None and "t_start" in keys:
+            out["t_start"] = lists.of(short.t_start[part], False)
+        if short.t_end is not None and "t_end" in keys:
+            out["t_end"] = lists.of(short.t_end[part], False)
+        n = short.n[part]
+        if n.size and (n.min() != short.n[0] or n.max() != short.n[0]):
+            if "n" in keys:
+                out["n"] = n.tolist()
+            if "reason" in keys:
+                reasons = {v: short.reason(v) for v in np.unique(n).tolist()}
+                out["reason"] = [reasons[v] for v in n.tolist()]
+        accuracy = short.accuracy
+        for key, name in ACCURACY_KEYS.items():
+            if key in keys:
+                out[key] = lists.of(getattr(accuracy, name)[part], True)
+        return out
+
+
+class _Lists:
+    """Arrays as columns of record values: a list of numbers, or for 2-D a
+    :class:`~credcli.report.jsontext.ListColumn` (a list per record, held by position); each
+    non-finite number None where ``json``, as :func:`json_value` and :func:`_floats` make
+    them. Arrays of the same bits give the same column: a one-epoch segment's RMSE, median
+    and largest error are its |e|, and a writer that meets one column twice writes its
+    numbers once."""
+
+    def __init__(self) -> None:
+        self.made: list[tuple[np.ndarray, bool, list]] = []
+
+    def of(self, values: np.ndarray, json: bool):
+        bits = values.view(np.uint64)
+        for seen, seen_json, made in self.made:
+            if seen_json == json and seen.shape == bits.shape and np.array_equal(seen, bits):
+                return made
+        if values.ndim == 1:
+            out = values.tolist()
+            if json:
+                for k in np.flatnonzero(~np.isfinite(values)).tolist():
+                    out[k] = None
+        else:  # a list per record, held by position (no list per record)
+            out = ListColumn([self.of(values[:, j], json) for j in range(values.shape[1])])
+        self.made.append((bits, json, out))
+        return out
+
+
+class Records(Sequence):
+    """The records of results, in order (:func:`segment_records`): a sequence of dicts, held
+    as parts, one dict per SegmentDiagnosis and one :class:`RecordBatch` per run of segments
+    too short for a verdict. Item k is the record of result k.
+
+    Parameters
+    ----------
+    parts : tuple
+        Dicts and RecordBatch, in order.
+    """
+
+    def __init__(self, parts: tuple) -> None:
+        self.parts = parts
+        sizes = (len(p) if isinstance(p, RecordBatch) else 1 for p in parts)
+        self._ends = list(itertools.accumulate(sizes))
+
+    def __len__(self) -> int:
+        return self._ends[-1] if self._ends else 0
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = range(len(self))[k]
+        p = bisect.bisect_right(self._ends, k)
+        part = self.parts[p]
+        if isinstance(part, RecordBatch):
+            return part[k - (self._ends[p] - len(part))]
+        return part
+
+    def __iter__(self) -> Iterator[dict]:
+        for part in self.parts:
+            if isinstance(part, RecordBatch):
+                yield from part
+            else:
+                yield part
+
+    def values(self, key: str, chunk: int = 4096) -> Iterator:
+        """Each record's value at ``key`` (None where it has none), in order, without a
+        dict per record of a batch.
+
+        Parameters
+        ----------
+        key : str
+            A record key.
+        chunk : int
+            Records of a batch whose values are made at a time.
+
+        Returns
+        -------
+        iterator
+            The value of each record.
+        """
+        return itertools.chain.from_iterable(self._value_runs(key, chunk))
+
+    def _value_runs(self, key: str, chunk: int) -> Iterator:
+        for part in self.parts:
+            if not isinstance(part, RecordBatch):
+                yield (part.get(key),)
+                continue
+            for start in range(0, len(part), chunk):
+                stop = min(start + chunk, len(part))
+                values = part.columns(start, stop, (key,)).get(key)
+                if values is None:
+                    yield itertools.repeat(part.shared.get(key), stop - start)
+                else:
+                    yield values
+
+    def has(self, key: str) -> bool:
+        """Whether any record has ``key``.
+
+        Parameters
+        ----------
+        key : str
+            A record key.
+
+        Returns
+        -------
+        bool
+            True when a record holds it.
+        """
+        return any(
+            key in (part.shared if isinstance(part, RecordBatch) else part) for part in self.parts
+        )
+
+    def keys(self) -> list[str]:
+        """Every key of the records, in the order they first appear.
+
+        Returns
+        -------
+        list of str
+            The keys.
+        """
+        keys: dict[str, None] = {}
+        for part in self.parts:
+            keys.update(dict.fromkeys(part.shared if isinstance(part, RecordBatch) else part))
+        return list(keys)
+
+
+def segment_records(results) -> Records:
+    """The records of ``results`` in order (:func:`segment_record` of each), a run of
+    segments too short for a verdict as one :class:`RecordBatch`.
+
+    Parameters
+    ----------
+    results : SegmentResults or sequence of SegmentDiagnosis
+        The results.
+
+    Returns
+    -------
+    Records
+        Their records.
+    """
+    parts = results.parts if isinstance(results, SegmentResults) else tuple(results)
+    return Records(
+        tuple(
+            RecordBatch(part) if isinstance(part, ShortSegments) else segment_record(part)
+            for part in parts
+        )
+    )
 
 
 def log_record(summary) -> dict:

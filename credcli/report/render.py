@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import operator
 import re
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
@@ -21,6 +22,7 @@ from credcli.engine.config import (
     Variant,
 )
 from credcli.engine.diagnosis import SegmentDiagnosis
+from credcli.engine.short import SegmentResults, ShortSegments
 from credcli.errors import printable
 from credcli.logid import LogId
 from credcli.report import jsontext
@@ -30,11 +32,13 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
     format_pvalue,
 )
 from credcli.report.records import (
+    RecordBatch,
+    Records,
     anchor_record,
     comparison_record,
     log_record,
     range_record,
-    segment_record,
+    segment_records,
     shown_label,
     uwb_segment_record,
 )
@@ -166,6 +170,11 @@ class Table:
 @dataclass(frozen=True)
 class Report:
     """What a command outputs: tables for people, ``document`` for machines (JSON).
+
+    A diagnose document's ``segments`` (and its table's rows) are
+    :class:`~credcli.report.records.Records`, a sequence of the records made as they are
+    read; :func:`text_pieces` writes them (``json.loads`` of its JSON is the document as
+    plain values).
 
     Attributes
     ----------
@@ -517,6 +526,9 @@ _FORMULA_STARTS = frozenset("=+-@\t\r")
 """A text cell starting with one of these is read as a formula by spreadsheets (OWASP, CSV
 injection); it is written with a leading apostrophe. Numbers are written as numbers."""
 
+_FORMULA_START = operator.methodcaller("startswith", tuple(_FORMULA_STARTS))
+"""Whether a text starts as a formula (:data:`_FORMULA_STARTS`), one C call a text."""
+
 
 _LABEL_STYLE = {
     Label.CREDIBLE.value: "green",
@@ -671,6 +683,9 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
         Consecutive pieces of the text; joined, they are ``to_text(report, fmt, width)``
         (the JSON ends with a newline).
     """
+    if fmt is OutputFormat.CSV:
+        yield from _csv_pieces(report)
+        return
     if fmt is not OutputFormat.JSON:
         yield to_text(report, fmt, width)
         return
@@ -678,12 +693,44 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
         key: value if key == "segments" else json_safe(value)
         for key, value in report.document.items()
     }
-    pieces = jsontext.iterencode(document, "segments", TEXT_PIECE)
+    records = document.get("segments")
+    texts = _record_texts(records) if isinstance(records, Records) else None
+    pieces = jsontext.iterencode(document, "segments", TEXT_PIECE, texts)
     last = next(pieces)
     for piece in pieces:
         yield last
         last = piece
     yield last + "\n"
+
+
+BATCH_ROWS = 4096
+"""Records of a batch (:class:`credcli.report.records.RecordBatch`) written at a time: the
+Python values of that many rows exist at once, not of a million."""
+
+
+def _batch_chunks(batch: RecordBatch) -> Iterator[tuple[dict, int]]:
+    """(the columns, the rows) of each chunk of BATCH_ROWS records of ``batch``."""
+    for start in range(0, len(batch), BATCH_ROWS):
+        stop = min(start + BATCH_ROWS, len(batch))
+        yield batch.columns(start, stop), stop - start
+
+
+def _record_texts(records: Records) -> Iterator[list[str]]:
+    """The records' JSON texts at level 2 in lists of consecutive records, a batch's from
+    one template (:func:`credcli.report.jsontext.encode_rows`)."""
+    singles: list[str] = []
+    for part in records.parts:
+        if not isinstance(part, RecordBatch):
+            singles.append(jsontext.encode(part, 2))
+            if len(singles) >= 64:
+                yield singles
+                singles = []
+            continue
+        yield singles
+        singles = []
+        for columns, count in _batch_chunks(part):
+            yield jsontext.encode_rows(part.shared, columns, count, 2)
+    yield singles
 
 
 def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
@@ -731,30 +778,135 @@ def _csv(report: Report) -> str:
     """One valid CSV (RFC 4180: CRLF line ends, cells with a comma, quote, CR or LF quoted).
     Several tables share it: a first column ``table`` names each row's
     table, and the header is the union of the tables' columns."""
+    return "".join(_csv_pieces(report))
+
+
+def _csv_pieces(report: Report) -> Iterator[str]:
+    """:func:`_csv` in pieces of about TEXT_PIECE characters, a batch of records
+    (:class:`credcli.report.records.RecordBatch`) written from one template per chunk."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\r\n")  # RFC 4180: a CR or LF in a cell is quoted
     if len(report.tables) == 1:
         keys = _csv_keys(report.tables[0])
         writer.writerow(keys)
-        for row in report.tables[0].rows:
-            writer.writerow([_csv_cell(row.get(k)) for k in keys])
-        return buf.getvalue()
-    keys: list[str] = []
+        prefix: tuple[str, ...] = ()
+    else:
+        keys = []
+        for table in report.tables:
+            keys.extend(c.key for c in table.columns if c.key not in keys)
+        writer.writerow(["table", *keys])
     for table in report.tables:
-        keys.extend(c.key for c in table.columns if c.key not in keys)
-    writer.writerow(["table", *keys])
-    for table in report.tables:
-        for row in table.rows:
-            writer.writerow([table.title, *(_csv_cell(row.get(k)) for k in keys)])
-    return buf.getvalue()
+        if len(report.tables) > 1:
+            prefix = (table.title,)
+        rows = table.rows.parts if isinstance(table.rows, Records) else table.rows
+        for row in rows:
+            if isinstance(row, RecordBatch) and len(prefix) + len(keys) > 1:  # (the writer
+                # quotes a row's only cell when it is empty)
+                for columns, count in _batch_chunks(row):
+                    buf.writelines(_csv_lines(row.shared, columns, count, keys, prefix))
+                    if buf.tell() >= TEXT_PIECE:
+                        yield _emptied(buf)
+            else:
+                for record in row if isinstance(row, RecordBatch) else (row,):
+                    writer.writerow([*prefix, *(_csv_cell(record.get(k)) for k in keys)])
+                    if buf.tell() >= TEXT_PIECE:
+                        yield _emptied(buf)
+    yield buf.getvalue()
+
+
+def _emptied(buf: io.StringIO) -> str:
+    """What ``buf`` holds, leaving it empty."""
+    text = buf.getvalue()
+    buf.seek(0)
+    buf.truncate()
+    return text
 
 
 def _csv_keys(table: Table) -> list[str]:
     """A single table's CSV holds every key of its records, not only the shown columns."""
+    if isinstance(table.rows, Records):
+        return table.rows.keys() or [c.key for c in table.columns]
     keys: list[str] = []
     for row in table.rows:
         keys.extend(k for k in row if k not in keys)
     return keys or [c.key for c in table.columns]
+
+
+def _csv_lines(shared: dict, columns: dict, count: int, keys, prefix=()) -> list[str]:
+    """The CSV lines of ``count`` records that differ only at the keys of ``columns``
+    (record k is ``shared | {key: columns[key][k]}``), as the CSV writer writes their
+    cells (:func:`_csv_cell`) at ``keys``, after the cells ``prefix``: one template filled
+    with each column's cells."""
+    forms = [_csv_field(text).replace("%", "%%") for text in prefix]
+    holes: list[list[str]] = []
+    made: dict[int, tuple[str, list]] = {}  # a column met twice is written once
+    for key in keys:
+        if key in columns:
+            column = columns[key]
+            if id(column) not in made:
+                made[id(column)] = _csv_column(column)
+            form, texts = made[id(column)]
+            forms.append(form)
+            holes.extend(texts)
+        else:
+            forms.append(_csv_field(_csv_cell(shared.get(key))).replace("%", "%%"))
+    template = ",".join(forms) + "\r\n"
+    if not holes:
+        return [template % ()] * count
+    return list(map(template.__mod__, zip(*holes)))
+
+
+_CSV_QUOTED = frozenset(',"\r\n')
+"""A cell with one of these characters is quoted by the CSV writer (delimiter, quote
+character, line ends)."""
+
+
+def _csv_field(text: str) -> str:
+    """One cell as the CSV writer writes it among others: quoted when it holds a comma, a
+    quote or a line end."""
+    if _CSV_QUOTED.isdisjoint(text):
+        return text
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\r\n").writerow([text, ""])
+    return buf.getvalue()[: -len(",\r\n")]
+
+
+def _csv_column(values: list) -> tuple[str, list[list[str]]]:
+    """(a %-template of one cell, the texts that fill its holes, a list per hole) of a
+    column of record values: numbers as :func:`_csv_cell` writes them, one C call a value;
+    lists of numbers a column per position; anything else cell by cell."""
+    if isinstance(values, jsontext.ListColumn):
+        return _csv_lists(values.positions) or ("%s", [[_csv_field(_csv_cell(v)) for v in values]])
+    kinds = set(map(type, values))
+    if len(kinds) == 1:
+        kind = kinds.pop()
+        if kind is float:
+            return "%s", [list(map(float.__repr__, values))]
+        if kind is int:
+            return "%s", [list(map(int.__repr__, values))]
+        if kind is type(None):
+            return "", []
+        if kind is str and not any(map(_FORMULA_START, values)):
+            if _CSV_QUOTED.isdisjoint("".join(values)):
+                return "%s", [values]
+            return "%s", [list(map(_csv_field, values))]
+        if kind is list and len(sizes := set(map(len, values))) == 1 and sizes != {0}:
+            found = _csv_lists([list(p) for p in zip(*values)])
+            if found:
+                return found
+    return "%s", [[_csv_field(_csv_cell(v)) for v in values]]
+
+
+def _csv_lists(positions) -> tuple[str, list[list[str]]] | None:
+    """:func:`_csv_column` of lists of numbers of one length (at least one), given as their
+    positions' columns: a cell per list, its numbers joined by spaces; None for anything
+    else."""
+    if not positions or not all(set(map(type, p)) <= {float, type(None)} for p in positions):
+        return None
+    holes = [
+        [_csv_cell(v) for v in p] if None in p else list(map(float.__repr__, p)) for p in positions
+    ]
+    return " ".join(["%s"] * len(positions)), holes
 
 
 _MARKDOWN_SPECIAL = re.compile(r"([\\`*_\[\]<>|#~])")
@@ -846,16 +998,20 @@ def diagnose_report(
         Carlo test) and the document (``version``, ``command``, ``parameters``, ``logs``,
         ``segments`` and, when given, ``monte_carlo``).
     """
-    records = [segment_record(r) for r in results]
+    records = segment_records(results)
     summaries, logs = logs, {log_id: log_record(summary) for log_id, summary in logs.items()}
-    multi = len({r.log for r in results}) > 1
+    parts = _parts(results)
+    multi = len({part.log for part in parts}) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
-    if any(r.whiteness is not None for r in results):
+    if any(_singles(results, lambda r: r.whiteness is not None)):
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     if multi:
         columns = (Column("log", "log", 0, limit=NAME_LIMIT),) + columns
     notes = []
-    sub = [r.segment for r in results if r.diagnosis.elt and r.diagnosis.elt.subsampled]
+    sub = [
+        r.segment
+        for r in _singles(results, lambda r: r.diagnosis.elt and r.diagnosis.elt.subsampled)
+    ]
     if sub:
         notes.append(
             f"ELT ran on a random subsample of {config.max_elt_epochs} epochs in "
@@ -903,31 +1059,63 @@ LOG_COLUMNS = (
 log, and how many of its segments are credible."""
 
 
+def _parts(results) -> list:
+    """The results as parts: each a SegmentDiagnosis or a run of segments too short for a
+    verdict (:class:`credcli.engine.short.ShortSegments`), whose items are not made."""
+    return list(results.parts) if isinstance(results, SegmentResults) else list(results)
+
+
+def _singles(results, keep) -> list[SegmentDiagnosis]:
+    """The results that are not part of a run of short segments, where ``keep(result)``."""
+    return [p for p in _parts(results) if not isinstance(p, ShortSegments) and keep(p)]
+
+
 def _logs_table(logs: Mapping[LogId, dict], results) -> Table:
-    rows = []
-    for log_id, info in logs.items():
-        mine = [r.diagnosis for r in results if r.log == log_id]
-        good = sum(shown_label(d.label, d.untested) == Label.CREDIBLE.value for d in mine)
-        rows.append(info | {"credible": f"{good} of {len(mine)}"})
+    good: dict[LogId, int] = dict.fromkeys(logs, 0)
+    total: dict[LogId, int] = dict.fromkeys(logs, 0)
+    for part in _parts(results):
+        if part.log not in total:
+            continue
+        if isinstance(part, ShortSegments):  # insufficient-data, every one
+            total[part.log] += len(part)
+            continue
+        total[part.log] += 1
+        diag = part.diagnosis
+        good[part.log] += shown_label(diag.label, diag.untested) == Label.CREDIBLE.value
+    rows = [
+        info | {"credible": f"{good[log_id]} of {total[log_id]}"} for log_id, info in logs.items()
+    ]
     return Table("logs compared", LOG_COLUMNS, rows, caption="accuracy over all epochs of each log")
 
 
-def _advice_lines(items: list[SegmentDiagnosis], limit: int = 10) -> list[str]:
+def _advice_lines(results, limit: int = 10) -> list[str]:
     """The advice of each segment that has one (:func:`advice`), at most ``limit``, then
-    what each location condition found means."""
-    lines = [a for a in (advice(item) for item in items) if a]
-    if len(lines) > limit:
-        lines = lines[:limit] + [
-            f"... and {len(lines) - limit} more segment(s); see the JSON output"
-        ]
-    found = {item.diagnosis.label.location for item in items}
+    what each location condition found means. A run of short segments gives each its
+    reason without making its items."""
+    lines, count, found = [], 0, set()
+    for part in _parts(results):
+        if isinstance(part, ShortSegments):
+            found.add(Label.INSUFFICIENT.location)
+            for k in range(min(len(part), max(0, limit - len(lines)))):
+                lines.append(f"{part.names[k]}: no verdict: {part.reason(int(part.n[k]))}")
+            count += len(part)
+            continue
+        found.add(part.diagnosis.label.location)
+        line = advice(part)
+        if line:
+            count += 1
+            if len(lines) < limit:
+                lines.append(line)
+    if count > limit:
+        lines.append(f"... and {count - limit} more segment(s); see the JSON output")
     lines += [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in found]
     return lines
 
 
-def _finding_lines(items: list[SegmentDiagnosis], limit: int = 10) -> list[str]:
+def _finding_lines(results, limit: int = 10) -> list[str]:
     """The findings the engine reports beside the labels (a slowly varying error, ...)."""
-    lines = [f"{item.segment}: {f}" for item in items for f in item.diagnosis.findings]
+    found = _singles(results, lambda r: r.diagnosis.findings)
+    lines = [f"{item.segment}: {f}" for item in found for f in item.diagnosis.findings]
     if len(lines) > limit:
         lines = lines[:limit] + [
             f"... and {len(lines) - limit} more finding(s); see the JSON output"
@@ -935,10 +1123,10 @@ def _finding_lines(items: list[SegmentDiagnosis], limit: int = 10) -> list[str]:
     return lines
 
 
-def _whiteness_lines(items: list[SegmentDiagnosis], limit: int = 10) -> list[str]:
+def _whiteness_lines(results, limit: int = 10) -> list[str]:
     """Segments whose innovations are not white at the whiteness test's share of α (the
     engine's decision, ``Whiteness.rejected``)."""
-    bad = [item for item in items if item.whiteness is not None and item.whiteness.rejected]
+    bad = _singles(results, lambda r: r.whiteness is not None and r.whiteness.rejected)
     lines = [
         f"{item.segment}: innovations correlated in time (portmanteau p = "
         f"{format_cell(item.whiteness.pvalue, 3)}, {item.whiteness.lags} lags, level "

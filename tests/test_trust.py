@@ -625,3 +625,20 @@ def test_a_library_warning_and_an_html_cell_never_carry_a_raw_control_character(
     )
     html = results_table([item])
     assert _controls(html) == set() and "\\x1b" in html
+
+
+@pytest.mark.parametrize("unnamed", [True, False], ids=["O_TMPFILE", "named-temporary"])
+def test_an_output_name_of_many_bytes_per_character_is_written(unnamed, tmp_path, monkeypatch):
+    """A valid 249-byte name of two-byte characters was refused ("the file name is too
+    long"): its temporary name took 200 characters, 400 bytes, past the 255-byte limit."""
+    from credcli.io import files
+
+    if not unnamed:
+        monkeypatch.setattr(files, "_write_unnamed", lambda *args: False)
+    for name in ("\u00e9" * 122 + ".json", "\u4e2d" * 80 + ".json"):
+        path = tmp_path / name
+        files.write_atomic(path, "{}")
+        assert path.read_text() == "{}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["\u00e9" * 122 + ".json", "\u4e2d" * 80 + ".json"]
+    )

@@ -362,7 +362,13 @@ def _write_unnamed(directory: int, name: str, data, mode: int) -> bool:
 
 
 def _temporary_name(name: str) -> str:
-    return f".{name[:200]}.{secrets.token_hex(4)}.tmp"
+    """A hidden name beside ``name``, at most 214 bytes: its first 200 bytes whole characters
+    (a file system limits a name to 255 bytes, not characters: 200 characters of ``é`` are
+    400)."""
+    stem = name[:200]
+    while len(os.fsencode(stem)) > 200:
+        stem = stem[:-1]
+    return f".{stem}.{secrets.token_hex(4)}.tmp"
 
 
 def _write_named(directory: int, path: Path, data, mode: int) -> None:

@@ -642,3 +642,33 @@ def test_an_output_name_of_many_bytes_per_character_is_written(unnamed, tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         ["\u00e9" * 122 + ".json", "\u4e2d" * 80 + ".json"]
     )
+
+
+def test_figures_never_overwrite_an_input_nor_go_through_a_link(tmp_path, capsys, monkeypatch):
+    """--plots . beside a config named timeline.png replaced the config with a figure (and
+    the -o output with another); a --plots that is a symbolic link wrote the figures where
+    it points; --plots and --report on one path wrote every figure, then failed (exit 2
+    with two lines). Each is refused before anything is written."""
+    pytest.importorskip("matplotlib")
+    monkeypatch.chdir(tmp_path)
+    log = str(_short_log(tmp_path / "log.csv", np.random.default_rng(5)))
+    config = tmp_path / "timeline.png"
+    config.write_text("[diagnosis]\nseed = 0\n")
+    args = ["diagnose", log, "-f", "json", "-o", "out.json"]
+    assert main([*args, "--config", "timeline.png", "--plots", "."]) == 2
+    err = capsys.readouterr().err
+    assert "would overwrite timeline.png" in err and err.count("\n") == 1, err
+    assert config.read_text() == "[diagnosis]\nseed = 0\n"
+    assert main(["diagnose", log, "-f", "json", "-o", "errors.png", "--plots", "."]) == 2
+    assert "would overwrite errors.png" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "timeline.png"]
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (tmp_path / "figs").symlink_to(outside)
+    assert main([*args, "--plots", "figs"]) == 2
+    assert "--plots figs: is a symbolic link" in capsys.readouterr().err
+    assert main([*args, "--plots", "x", "--report", "x"]) == 2
+    err = capsys.readouterr().err
+    assert "--plots and --report are the same path" in err and err.count("\n") == 1, err
+    assert list(outside.iterdir()) == [] and not (tmp_path / "x").exists()
+    assert not (tmp_path / "out.json").exists()

@@ -143,6 +143,74 @@ def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
                 )
 
 
+def check_directory_output(name: str, directory: Path, outputs: dict, inputs=()) -> None:
+    """Refuse, before any work, a directory that outputs are written into (``--plots``)
+    when it is a symbolic link (it would be followed), an existing file, an input, or the
+    path of another output.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, as messages give it (``--plots``).
+    directory : pathlib.Path
+        The directory.
+    outputs : dict of str to pathlib.Path or None
+        The command's other outputs, by option name (None for one not asked for).
+    inputs : iterable of paths
+        The command's input files (None items are skipped).
+
+    Raises
+    ------
+    CredcliError
+        If ``directory`` is a symbolic link, exists and is not a directory, or is the same
+        path as an input or another output.
+    """
+    if directory.is_symlink():
+        raise CredcliError(
+            f"{name} {shown(directory)}: is a symbolic link; credcli does not write through "
+            "links (give the directory's real path, or remove the link)"
+        )
+    if directory.exists() and not directory.is_dir():
+        raise CredcliError(f"{name} {directory}: exists and is not a directory")
+    for other, path in outputs.items():
+        if path is not None and _same_file(directory, Path(path)):
+            raise CredcliError(
+                f"{name} and {other} are the same path ({directory}); give each its own"
+            )
+    for src in inputs:
+        if src is not None and _same_file(directory, Path(src)):
+            raise CredcliError(f"{name} {directory}: is also an input ({src})")
+
+
+def check_new_file(name: str, path: Path, keep=()) -> None:
+    """Refuse, before it is written, an output ``path`` that is a directory or one of
+    ``keep`` (the command's inputs and other outputs): for outputs whose names are known
+    only once the work is done (the figures of ``--plots``).
+
+    Parameters
+    ----------
+    name : str
+        The option that writes it, as messages give it.
+    path : pathlib.Path
+        The file to be written.
+    keep : iterable of paths
+        Files that must not be overwritten (None items are skipped).
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a directory or the same file as one of ``keep``.
+    """
+    if path.is_dir():
+        raise CredcliError(f"{name}: {path} would replace a directory; give another {name}")
+    for other in keep:
+        if other is not None and _same_file(path, Path(other)) and not _is_stream(path):
+            raise CredcliError(
+                f"{name}: {path} would overwrite {other}, an input or another output of this "
+                f"command; give another {name} directory"
+            )
+
+
 def write_atomic(path: str | Path, text: str | bytes | Iterable[str], inputs=()) -> None:
     """Write ``text`` to ``path``: atomically for a regular file, directly for a device,
     FIFO or /dev/stdout; refuse to overwrite ``inputs``. ``text`` may be pieces of text

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.io.files import write_atomic
+from credcli.io.files import check_directory_output, check_new_file, write_atomic
 from credcli.report.formats import format_pvalue
 from credcli.studies.simulate import CONFUSION_LABELS
 
@@ -147,11 +147,9 @@ def short_title(text: str, limit: int = 80) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
-def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
-    """Write each plot as DIR/<name>.png (atomically); create DIR if needed.
-
-    The names are checked before any file is written, so that a collision never
-    overwrites a figure.
+def check_plots(plots: list[Plot], directory: Path, keep=()) -> None:
+    """Check, before any figure (or any other output) is written, that :func:`write_plots`
+    can write every plot into ``directory``.
 
     Parameters
     ----------
@@ -159,23 +157,21 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
         The figures.
     directory : Path
         The directory DIR (a str is accepted).
-
-    Returns
-    -------
-    list of Path
-        The files written, in the order of ``plots``.
+    keep : iterable of paths, optional
+        Files no figure may overwrite: the command's inputs and other outputs (a config
+        named ``timeline.png`` in DIR); None items are skipped.
 
     Raises
     ------
     CredcliError
-        If ``directory`` exists and is not a directory, or if two plots have the same
-        name.
+        If ``directory`` is a symbolic link or exists and is not a directory, if two plots
+        have the same name, or if a figure would replace a directory or one of ``keep``.
     """
     directory = Path(directory)
-    if directory.exists() and not directory.is_dir():
-        raise CredcliError(f"`plots` {directory}: exists and is not a directory", "plots")
+    keep = [k for k in keep if k is not None]
+    check_directory_output("`plots`", directory, {})
     seen: set[str] = set()
-    for plot in plots:  # before any is written: a collision never overwrites a figure
+    for plot in plots:
         if plot.name in seen:
             raise CredcliError(
                 f"`plots`: two figures would both be {directory / plot.name}.png (segment "
@@ -185,6 +181,36 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
                 "plots",
             )
         seen.add(plot.name)
+        check_new_file("`plots`", directory / f"{plot.name}.png", keep)
+
+
+def write_plots(plots: list[Plot], directory: Path, keep=()) -> list[Path]:
+    """Write each plot as DIR/<name>.png (atomically); create DIR if needed.
+
+    Every name is checked before any file is written (:func:`check_plots`), so that a
+    collision never overwrites a figure, and no figure overwrites one of ``keep``.
+
+    Parameters
+    ----------
+    plots : list of Plot
+        The figures.
+    directory : Path
+        The directory DIR (a str is accepted).
+    keep : iterable of paths, optional
+        Files no figure may overwrite (None items are skipped).
+
+    Returns
+    -------
+    list of Path
+        The files written, in the order of ``plots``.
+
+    Raises
+    ------
+    CredcliError
+        As :func:`check_plots`.
+    """
+    directory = Path(directory)
+    check_plots(plots, directory, keep)
     directory.mkdir(parents=True, exist_ok=True)
     paths = []
     for plot in plots:

@@ -672,3 +672,41 @@ def test_figures_never_overwrite_an_input_nor_go_through_a_link(tmp_path, capsys
     assert "--plots and --report are the same path" in err and err.count("\n") == 1, err
     assert list(outside.iterdir()) == [] and not (tmp_path / "x").exists()
     assert not (tmp_path / "out.json").exists()
+
+
+def test_csv_on_standard_output_escapes_what_a_terminal_would_obey(evil_log, capsys, tmp_path):
+    """CSV on stdout carried a segment name's ESC, BEL and CR raw to the terminal (and a
+    file name's undecodable bytes to an encoder that refuses them: exit 3 under a strict
+    UTF-8 locale); each cell is escaped there now, while a CSV file keeps the names as
+    they are (test_csv_is_rfc4180_and_never_a_formula)."""
+    import os
+    import shutil
+
+    from helpers import ROOT
+
+    assert main(["diagnose", str(evil_log), "-f", "csv"]) == 0
+    out = capsys.readouterr().out
+    assert not _controls(out.replace("\r\n", "\n")), _controls(out)
+    rows = list(csv.DictReader(out.splitlines()))
+    assert [r["segment"] for r in rows] == [
+        "ok",
+        "'" + NAMES[1],
+        "bad\\x1b]0;title\\x07",
+        "two\\ncredcli: PASS: forged",
+        "cr\\rrow",
+        "c1\\x9bcsi",
+    ]
+    log = os.fsdecode(os.fsencode(tmp_path) + b"/log\xff.csv")
+    shutil.copy(ROOT / SAMPLE_LOG, log)
+    assert main(["diagnose", log, str(evil_log), "-f", "csv"]) == 0
+    out = capsys.readouterr().out
+    assert "log\\udcff.csv" in out and out.encode("utf-8")  # no lone surrogate left
+    clean = ROOT / SAMPLE_LOG
+    assert main(["diagnose", str(clean), "-f", "csv"]) == 0  # no such cell: as it was
+    from credcli.report.formats import OutputFormat
+    from credcli.report.render import to_text
+    from credcli.requests import DiagnoseRequest
+    from credcli.workflows import run_diagnose
+
+    expected = to_text(run_diagnose(DiagnoseRequest((str(clean),))).report, OutputFormat.CSV)
+    assert capsys.readouterr().out == expected

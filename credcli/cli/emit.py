@@ -8,8 +8,12 @@ modules) and Dask load only when a command runs, so that ``credcli --help`` stay
 from __future__ import annotations
 
 import contextlib
+import csv
 import dataclasses
+import io
 import os
+import re
+import stat
 import sys
 from pathlib import Path
 
@@ -40,7 +44,10 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
 
     report = dataclasses.replace(report, notes=[flag_names(n) for n in report.notes])
     if output is not None:
-        write_atomic(output, text_pieces(report, fmt), inputs)
+        pieces = text_pieces(report, fmt)
+        if fmt is OutputFormat.CSV and _is_screen(output):  # -o /dev/stdout, /dev/tty
+            pieces = map(terminal_csv, pieces)
+        write_atomic(output, pieces, inputs)
         stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
         return
     if fmt is OutputFormat.TABLE:
@@ -57,7 +64,57 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
             console.print(printable(note), markup=False, highlight=False)
         return
     for piece in text_pieces(report, fmt):
-        sys.stdout.write(piece)
+        sys.stdout.write(terminal_csv(piece) if fmt is OutputFormat.CSV else piece)
+
+
+def _is_screen(path: Path) -> bool:
+    """Whether ``path`` is this process's standard output or error, or a terminal: where
+    text is shown rather than kept (``-o /dev/stdout``)."""
+    try:
+        target = os.stat(path)
+    except (OSError, ValueError):
+        return False
+    if stat.S_ISREG(target.st_mode) or stat.S_ISDIR(target.st_mode):
+        return False
+    for fd in (1, 2):
+        with contextlib.suppress(OSError):
+            mine = os.fstat(fd)
+            if (mine.st_dev, mine.st_ino) == (target.st_dev, target.st_ino):
+                return True
+    return stat.S_ISCHR(target.st_mode) and os.path.realpath(path).startswith(
+        ("/dev/tty", "/dev/pts/")
+    )
+
+
+_CSV_UNSAFE = re.compile(r'[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff"]')
+"""What may put a control character, a line break or an undecodable name of a CSV cell on
+the terminal: a control character, or a quote (a quoted cell may hold CR and LF)."""
+
+
+def terminal_csv(text: str) -> str:
+    """CSV for standard output: each cell's control characters, line breaks and lone
+    surrogates escaped (:func:`credcli.errors.printable`), so that a segment or file name
+    can neither drive the terminal nor start a line of its own. A file (``--output``)
+    keeps the cells as they are.
+
+    Parameters
+    ----------
+    text : str
+        CSV, rows ending in CRLF (RFC 4180).
+
+    Returns
+    -------
+    str
+        ``text`` itself when no cell holds such a character; else the same CSV with each
+        such cell escaped.
+    """
+    if _CSV_UNSAFE.search(text.replace("\r\n", "")) is None:
+        return text
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\r\n")
+    for row in csv.reader(io.StringIO(text, newline="")):
+        writer.writerow([printable(cell) for cell in row])
+    return buf.getvalue()
 
 
 UNLIMITED_WIDTH = 10_000

@@ -710,3 +710,26 @@ def test_csv_on_standard_output_escapes_what_a_terminal_would_obey(evil_log, cap
 
     expected = to_text(run_diagnose(DiagnoseRequest((str(clean),))).report, OutputFormat.CSV)
     assert capsys.readouterr().out == expected
+
+
+def test_a_baseline_that_is_a_device_or_far_too_large_is_refused_unread(
+    tmp_path, capsys, monkeypatch
+):
+    """A committed baseline that is a symbolic link to /dev/zero was read whole: 22 GB of
+    memory until the kernel killed credcli (or another process). Refused before reading;
+    a baseline through a pipe (<(git show …)) is still read."""
+    from helpers import ROOT
+
+    from credcli.io import files
+
+    monkeypatch.chdir(ROOT)
+    link = tmp_path / "baseline.json"
+    link.symlink_to("/dev/zero")
+    assert main(["gate", SAMPLE_LOG, "-b", str(link)]) == 2
+    err = capsys.readouterr().err
+    assert "is a device, not a baseline JSON file" in err and err.count("\n") == 1, err
+    big = tmp_path / "big.json"
+    assert main(["baseline", SAMPLE_LOG, "-o", str(big)]) == 0
+    monkeypatch.setattr(files, "memory_budget", lambda: 16 * 1024)  # 1 KiB for a baseline
+    assert main(["gate", SAMPLE_LOG, "-b", str(big)]) == 2
+    assert "more than the 1 KiB a baseline JSON file may take" in capsys.readouterr().err

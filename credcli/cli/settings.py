@@ -32,7 +32,7 @@ from credcli.engine.config import AUTO
 from credcli.engine.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
-from credcli.io.files import read_toml
+from credcli.io.files import check_small_input, read_toml
 from credcli.io.logs import LogSchema
 from credcli.io.schema import LogReading, ReadOptions
 from credcli.parallel import default_jobs
@@ -546,6 +546,7 @@ def gate_request(
     requested = config.get("diagnosis", {}) | config.get("segments", {})
     requested.update({k: v for k, v in given.items() if v is not None})
     jobs = jobs_value(run.jobs)
+    check_small_input(baseline_file, "baseline JSON file")  # read whole: never /dev/zero
     baseline = read_baseline(baseline_file)
     check_same_parameters(baseline, requested)
     check_same_reading(

@@ -82,6 +82,50 @@ def memory_budget() -> int:
         return 8 * 2**30
 
 
+def check_small_input(path: str | Path, what: str, share: int = 16) -> None:
+    """Refuse, before it is read whole, a file read into memory at once (a baseline) that
+    is a device (``/dev/zero`` never ends) or a regular file larger than
+    ``memory_budget() // share`` bytes. A pipe or FIFO (``<(git show …)``) is read as it is.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file, as the user named it.
+    what : str
+        What it should be, for the message (``"baseline JSON file"``).
+    share : int, default 16
+        The part of the memory budget the file's text may take: parsed, it takes several
+        times its size.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a character or block device, or a regular file past the limit.
+        A path that cannot be examined is left for the reader to report.
+    """
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return
+    if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode):
+        raise CredcliError(f"{shown(path)}: is a device, not a {what}; give the {what}")
+    limit = memory_budget() // share
+    if stat.S_ISREG(info.st_mode) and info.st_size > limit:
+        raise CredcliError(
+            f"{shown(path)}: {_size(info.st_size)}, more than the {_size(limit)} a {what} may "
+            f"take on this machine (1/{share} of half its memory, since it is read whole); "
+            f"is it the {what}?"
+        )
+
+
+def _size(n: int) -> str:
+    """A number of bytes in words: ``1.5 GiB``, ``730 MiB``, ``12 KiB``, ``300 bytes``."""
+    for unit, power in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
+        if n >= 2**power:
+            return f"{n / 2**power:.3g} {unit}"
+    return f"{n} bytes"
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

@@ -733,3 +733,33 @@ def test_a_baseline_that_is_a_device_or_far_too_large_is_refused_unread(
     monkeypatch.setattr(files, "memory_budget", lambda: 16 * 1024)  # 1 KiB for a baseline
     assert main(["gate", SAMPLE_LOG, "-b", str(big)]) == 2
     assert "more than the 1 KiB a baseline JSON file may take" in capsys.readouterr().err
+
+
+def test_covariances_that_would_not_fit_in_memory_are_refused_before_allocating(
+    tmp_path, capsys, monkeypatch
+):
+    """40 rows of d = 3,000 variance columns (a 2.9 MB CSV) took 11.8 GB and 75 s; 20 rows
+    of d = 6,000 would have taken 23 GB. The N·d² covariances are checked against the
+    memory budget before they are made, for a CSV and for an .npz of variances alike."""
+    from credcli.io import files
+
+    monkeypatch.setattr(files, "memory_budget", lambda: 2**21)  # 2 MiB here
+    d = 40  # 60 epochs: 0.73 MiB of covariances, about 4 times that to diagnose them
+    gen = np.random.default_rng(2)
+    frame = pd.DataFrame(gen.standard_normal((60, d)), columns=[f"est_{i}" for i in range(d)])
+    frame = frame.assign(**{f"truth_{i}": 0.0 for i in range(d)})
+    frame = frame.assign(**{f"var_{i}": 1.0 for i in range(d)})
+    frame.to_csv(tmp_path / "wide.csv", index=False)
+    np.savez(
+        tmp_path / "wide.npz",
+        truth=np.zeros((60, d)),
+        estimate=frame.iloc[:, :d],
+        cov=np.ones((60, d)),
+    )
+    for name in ("wide.csv", "wide.npz"):
+        assert main(["diagnose", str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err
+        assert "60 epochs of dimension d = 40 make 750 KiB of covariance matrices" in err, err
+        assert err.count("\n") == 1
+    monkeypatch.setattr(files, "memory_budget", lambda: 2**22)  # 4 MiB: diagnosed
+    assert main(["diagnose", str(tmp_path / "wide.csv")]) == 0

@@ -19,6 +19,7 @@ import numpy as np
 from credcli.engine.config import Perturbation
 from credcli.engine.linalg import SYMMETRY_RTOL, eigenvalues_2x2, epoch_chunks
 from credcli.errors import CredcliError
+from credcli.io.files import check_covariance_memory
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 from credcli.io.streams import TEXT_HEAD, is_compressed, readable
 from credcli.io.text import read_csv_unmapped, read_text_table, seconds, time_seconds
@@ -884,6 +885,7 @@ def log_from_frame(
         )
     # each group of columns straight into its own array: no whole-table copy beside them
     n = len(frame)
+    check_covariance_memory(n, d, source)  # d variance columns make N·d² numbers
     blocks = [np.empty((n, len(cols))) for cols in (truth_cols, est_cols, cov_cols)]
     if time_col:
         blocks.append(np.empty((n, 1)))

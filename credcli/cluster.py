@@ -17,10 +17,10 @@ raised here as it was raised there.
 
 **Trust.** Results come back from the workers by pickle, so a scheduler and its workers can
 run code in this process: connect only to a cluster you control. Plain ``tcp://`` is
-unauthenticated and unencrypted; credcli refuses a ``tcp://`` scheduler that is not on the
-loopback interface unless :data:`REMOTE_OPT_IN` is set to 1 (which names the risk). For
-anything off this machine use ``tls://`` with certificates (Dask's ``distributed.comm.tls``
-settings), which credcli passes to Dask as it is.
+unauthenticated and unencrypted (so are ``ws://`` and ``ucx://``); credcli refuses such a
+scheduler that is not on the loopback interface unless :data:`REMOTE_OPT_IN` is set to 1
+(which names the risk). For anything off this machine use ``tls://`` with certificates
+(Dask's ``distributed.comm.tls`` settings), which credcli passes to Dask as it is.
 """
 
 from __future__ import annotations
@@ -62,11 +62,15 @@ def _check_loopback(host: str, address: str) -> None:
     remote = sorted(a for a in found if not ipaddress.ip_address(a.split("%")[0]).is_loopback)
     if remote:
         raise CredcliError(
-            f"`scheduler` {address}: a plain tcp:// scheduler off this machine ({remote[0]}) "
+            f"`scheduler` {address}: a plaintext scheduler off this machine ({remote[0]}) "
             "is unauthenticated and its workers can run code in credcli; use tls:// with "
             f"certificates (docs/scale.md), or set {REMOTE_OPT_IN}=1 to accept the risk"
         )
 
+
+PLAINTEXT_SCHEMES = ("ws://", "ucx://")
+"""Dask's schemes other than tcp:// that carry the pickled results without TLS: refused off
+the loopback interface as plain tcp:// is (wss:// and tls:// are Dask's TLS)."""
 
 _TCP = re.compile(r"^(?:tcp://)?\[?([^\]/]+?)\]?(?::(\d+))?/?$")
 
@@ -96,8 +100,16 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
         without `REMOTE_OPT_IN`, nothing answers in time, the connection fails or is
         closed at once, or an HTTP server answers.
     """
-    m = _TCP.match(address.strip())
-    if address.strip().count("://") and not address.strip().startswith("tcp://"):
+    text = address.strip()
+    if text.lower().startswith(PLAINTEXT_SCHEMES):  # as unauthenticated as tcp://
+        scheme, rest = text.split("://", 1)
+        m = _TCP.match("tcp://" + rest)
+        if not m:
+            raise CredcliError(f"`scheduler` {address}: expected {scheme}://host:port")
+        _check_loopback(m.group(1), address)
+        return  # Dask's own connection reports the rest
+    m = _TCP.match(text)
+    if text.count("://") and not text.startswith("tcp://"):
         return
     if not m:
         raise CredcliError(f"`scheduler` {address}: expected tcp://host:port or local:N")

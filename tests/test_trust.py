@@ -763,3 +763,19 @@ def test_covariances_that_would_not_fit_in_memory_are_refused_before_allocating(
         assert err.count("\n") == 1
     monkeypatch.setattr(files, "memory_budget", lambda: 2**22)  # 4 MiB: diagnosed
     assert main(["diagnose", str(tmp_path / "wide.csv")]) == 0
+
+
+@pytest.mark.parametrize("scheme", ["ws", "WS", "ucx"])
+def test_other_plaintext_schedulers_off_this_machine_are_refused(scheme, capsys, monkeypatch):
+    """ws:// (and ucx://) carry the pickled results as unauthenticated as tcp://, but went
+    to Dask as they were: a connection attempt to any host (10 s), not a refusal."""
+    pytest.importorskip("distributed")
+    from helpers import ROOT
+
+    from credcli.cluster import REMOTE_OPT_IN
+
+    monkeypatch.chdir(ROOT)
+    monkeypatch.delenv(REMOTE_OPT_IN, raising=False)
+    assert main(["diagnose", SAMPLE_LOG, "--scheduler", f"{scheme}://192.0.2.7:8786"]) == 2
+    err = capsys.readouterr().err
+    assert "a plaintext scheduler off this machine" in err and REMOTE_OPT_IN in err, err

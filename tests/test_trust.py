@@ -779,3 +779,14 @@ def test_other_plaintext_schedulers_off_this_machine_are_refused(scheme, capsys,
     assert main(["diagnose", SAMPLE_LOG, "--scheduler", f"{scheme}://192.0.2.7:8786"]) == 2
     err = capsys.readouterr().err
     assert "a plaintext scheduler off this machine" in err and REMOTE_OPT_IN in err, err
+
+
+def test_a_name_that_reads_as_mathtext_is_drawn_as_text(tmp_path, capsys):
+    """A segment named '$\\frac{a$' ended --plots and report in exit 3: matplotlib parsed
+    the figure titles and legends as mathtext."""
+    pytest.importorskip("matplotlib")
+    log = str(_short_log(tmp_path / "m.csv", np.random.default_rng(5), "$\\frac{a$", 3.0))
+    assert main(["diagnose", log, "--plots", str(tmp_path / "figs")]) == 0
+    assert main(["report", log, "-o", str(tmp_path / "r.html")]) == 0
+    assert "internal error" not in capsys.readouterr().err
+    assert any(p.name.endswith("_nees.png") for p in (tmp_path / "figs").iterdir())

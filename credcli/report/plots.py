@@ -79,9 +79,43 @@ def _whitened_axes(ax, lim: float) -> None:
     ax.set_ylabel("s_k,2 (whitened, unitless)")
 
 
+def plain_text(fig):
+    """Every title, label, legend and annotation of ``fig`` drawn as the text it is, never
+    as mathtext: a segment or log name such as ``$\\frac{a$`` made matplotlib fail (exit 3).
+    Dollar signs are escaped (``\\$``, drawn as ``$``); text without one, and the tick
+    labels (a log axis's ``10^{1}`` is mathtext; names given as tick labels are escaped
+    where they are given, :func:`draw_timeline`), are left as they are.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure, before it is laid out or drawn.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        ``fig``.
+    """
+    from matplotlib.text import Text
+
+    ticks = {
+        id(label)
+        for ax in fig.axes
+        for axis in (ax.xaxis, ax.yaxis)
+        for label in axis.get_ticklabels(which="both")
+    }
+    for text in fig.findobj(Text):
+        value = text.get_text()
+        if "$" in value and id(text) not in ticks and not getattr(text, "_credcli_plain", False):
+            text.set_text(value.replace("$", "\\$"))
+            text._credcli_plain = True  # escaped once, however often the figure is finished
+    return fig
+
+
 def _finish(fig, name: str, title: str, data: dict, group: str = "") -> Plot:
     plt = _pyplot()
     fig.suptitle(title)
+    plain_text(fig)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
@@ -985,6 +1019,7 @@ class Span:
 
 def _titled(fig, title: str):
     fig.suptitle(title)
+    plain_text(fig)
     fig.tight_layout()
     return fig
 
@@ -1462,7 +1497,7 @@ def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
     for row in range(rows):
         mine = [s for s, lane in zip(spans, lanes) if lane == row]
         names.append(short_title(mine[0].name, 14) if len(mine) == 1 else f"{len(mine)} segments")
-    ax.set_yticks(range(rows), names, fontsize=8)
+    ax.set_yticks(range(rows), [n.replace("$", "\\$") for n in names], fontsize=8)  # no mathtext
     ax.set_ylim(rows - 0.5, -0.5)
     ax.set_xlabel(xlabel)
     data = {
@@ -1498,6 +1533,7 @@ def figure_plot(name: str, title: str, drawn, group: str = "") -> Plot:
     """
     fig, data = drawn
     plt = _pyplot()
+    plain_text(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
     plt.close(fig)

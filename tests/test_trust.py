@@ -790,3 +790,22 @@ def test_a_name_that_reads_as_mathtext_is_drawn_as_text(tmp_path, capsys):
     assert main(["report", log, "-o", str(tmp_path / "r.html")]) == 0
     assert "internal error" not in capsys.readouterr().err
     assert any(p.name.endswith("_nees.png") for p in (tmp_path / "figs").iterdir())
+
+
+def test_an_error_line_is_not_followed_by_the_runs_notes(capsys, monkeypatch):
+    """A warning recorded before an error (numpy's overflow) was printed as a note after
+    the error line: exit 2 with two lines. The notes of a failed run show under --debug."""
+    import warnings
+
+    from credcli.cli import settings
+    from credcli.errors import CredcliError
+
+    def failing(*args, **kwargs):
+        warnings.warn("overflow encountered in multiply", RuntimeWarning, stacklevel=1)
+        raise CredcliError("the log is bad")
+
+    monkeypatch.setattr(settings, "diagnose_request", failing)
+    assert main(["diagnose", "x.csv"]) == 2
+    assert capsys.readouterr().err == "credcli: error: the log is bad\n"
+    assert main(["--debug", "diagnose", "x.csv"]) == 2
+    assert "overflow encountered in multiply" in capsys.readouterr().err

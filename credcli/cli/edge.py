@@ -46,7 +46,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app and turn every outcome into an exit code.
 
     Warnings (numpy's among them) are never printed raw: each distinct one becomes a
-    ``credcli: note:`` line on stderr at the end, with its source under --debug.
+    ``credcli: note:`` line on stderr at the end, with its source under --debug; a run
+    that ends in an error (exit 2 or 3) shows its one line only, the notes under --debug.
 
     Parameters
     ----------
@@ -71,12 +72,14 @@ def main(argv: list[str] | None = None) -> int:
         "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]
     )
     command = typer.main.get_command(app)
+    code = 3
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             code = _run(command, args, debug)
-        finally:
-            note_warnings(caught, debug)
+        finally:  # an error is one line: the notes of a run it ended only under --debug
+            if code in (0, 1) or debug:
+                note_warnings(caught, debug)
     return code
 
 

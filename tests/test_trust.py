@@ -792,6 +792,18 @@ def test_a_name_that_reads_as_mathtext_is_drawn_as_text(tmp_path, capsys):
     assert any(p.name.endswith("_nees.png") for p in (tmp_path / "figs").iterdir())
 
 
+def test_curve_runs_past_any_machine_are_a_usage_error(capsys):
+    """--curve-runs 10¹⁵ ended in exit 3 ("Unable to allocate 14.2 PiB"); a million runs
+    in d = 64 in exit 2 after 5 GB, with a numpy note after the error line."""
+    for args, words in (
+        (["--curve-runs", "999999999999999"], "--curve-runs must be 1 … 1,000,000"),
+        (["--curve-runs", "1000000", "--dim", "64"], "would need 122 GiB"),
+    ):
+        assert main(["simulate", "--curves", *args]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1, err
+
+
 def test_an_error_line_is_not_followed_by_the_runs_notes(capsys, monkeypatch):
     """A warning recorded before an error (numpy's overflow) was printed as a note after
     the error line: exit 2 with two lines. The notes of a failed run show under --debug."""

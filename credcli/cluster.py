@@ -170,6 +170,22 @@ def _check_tls(address: str) -> None:
         )
 
 
+LOCAL_PER_CORE = 4
+"""Most local:N workers per core: each is a process with its own memory, all started
+before any work (local:100000 started processes until it was stopped)."""
+
+
+def max_local_workers() -> int:
+    """The most workers ``local:N`` may start: `LOCAL_PER_CORE` per core.
+
+    Returns
+    -------
+    int
+        ``LOCAL_PER_CORE`` × the cores of this machine (1 core where it does not say).
+    """
+    return LOCAL_PER_CORE * (os.cpu_count() or 1)
+
+
 def _local_cluster(workers: int):
     """A LocalCluster whose processes leave Ctrl-C to this one (the terminal sends it to the
     whole process group: each worker would print its own traceback), keep their scratch files
@@ -242,6 +258,12 @@ class DaskRunner:
                 workers = int(local.group(1))
                 if workers < 1:
                     raise CredcliError(f"`scheduler` local:N needs N >= 1; got {address}")
+                if workers > max_local_workers():  # each a process, all started at once
+                    raise CredcliError(
+                        f"`scheduler` {address}: at most {max_local_workers()} local workers "
+                        f"({LOCAL_PER_CORE} per core of this machine); a cluster across "
+                        "machines is tls://host:port"
+                    )
                 self.cluster = _local_cluster(workers)
                 self.client = Client(self.cluster)
             elif address.strip().startswith("local:"):  # not localhost:8786, an address

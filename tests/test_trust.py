@@ -821,3 +821,18 @@ def test_an_error_line_is_not_followed_by_the_runs_notes(capsys, monkeypatch):
     assert capsys.readouterr().err == "credcli: error: the log is bad\n"
     assert main(["--debug", "diagnose", "x.csv"]) == 2
     assert "overflow encountered in multiply" in capsys.readouterr().err
+
+
+def test_a_local_cluster_of_more_workers_than_cores_can_take_is_refused(capsys, monkeypatch):
+    """--scheduler local:100000 started worker processes until it was killed (past 60 s,
+    its scratch directory left behind); refused before any is started."""
+    pytest.importorskip("distributed")
+    from helpers import ROOT
+
+    from credcli import cluster
+
+    monkeypatch.chdir(ROOT)
+    monkeypatch.setattr(cluster, "_local_cluster", lambda workers: pytest.fail("started"))
+    assert main(["diagnose", SAMPLE_LOG, "--scheduler", "local:100000"]) == 2
+    err = capsys.readouterr().err
+    assert f"at most {cluster.max_local_workers()} local workers" in err and err.count("\n") == 1

@@ -865,3 +865,44 @@ def test_wide_full_covariances_are_checked_a_matrix_at_a_time(monkeypatch):
     monkeypatch.setattr(logs, "itertools", itertools)
     assert np.array_equal(whole, pairwise) and whole_notes == notes and len(notes) == 1
     assert np.array_equal(whole, whole.transpose(0, 2, 1))
+
+
+@pytest.mark.parametrize(
+    "env, shown",
+    [
+        ({"PYTHONIOENCODING": "ascii"}, "cov \\xd7 (interval)"),
+        ({"LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0"}, "cov \\xd7 (interval)"),
+    ],
+    ids=["ascii", "C-locale"],
+)
+def test_an_output_stream_that_cannot_encode_a_character_gets_its_escape(env, shown, tmp_path):
+    """Under LC_ALL=C (or PYTHONIOENCODING=ascii) the table's × ended in exit 3
+    (UnicodeEncodeError); what the stream cannot encode is written as its backslash escape
+    (a file name's undecodable bytes too)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    from helpers import ROOT
+
+    shutil.copy(ROOT / SAMPLE_LOG, os.fsdecode(os.fsencode(tmp_path) + b"/log\xff.csv"))
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "credcli",
+            "diagnose",
+            b"log\xff.csv",
+            ROOT / SAMPLE_LOG,
+            "-f",
+            "markdown",
+        ],
+        capture_output=True,
+        cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(ROOT), **env},
+    )
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout.decode("ascii")
+    row = next(line for line in out.splitlines() if "cruise" in line)
+    assert shown in out and "log\\\\udcff.csv" in row, row

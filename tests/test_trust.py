@@ -906,3 +906,17 @@ def test_an_output_stream_that_cannot_encode_a_character_gets_its_escape(env, sh
     out = proc.stdout.decode("ascii")
     row = next(line for line in out.splitlines() if "cruise" in line)
     assert shown in out and "log\\\\udcff.csv" in row, row
+
+
+def test_a_log_name_that_is_not_utf8_is_drawn_escaped(tmp_path, capsys):
+    """A log whose name is not valid UTF-8 (held as surrogates) ended --plots and report in
+    exit 3: matplotlib refused the title that named it."""
+    pytest.importorskip("matplotlib")
+    import os
+
+    base = os.fsencode(tmp_path)
+    log = os.fsdecode(base + b"/log\xff.csv")
+    _short_log(Path(log), np.random.default_rng(5), "s", 3.0)
+    assert main(["diagnose", log, "--plots", os.fsdecode(base + b"/figs")]) == 0
+    assert main(["report", log, "-o", os.fsdecode(base + b"/r.html")]) == 0
+    assert "internal error" not in capsys.readouterr().err

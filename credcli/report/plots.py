@@ -106,10 +106,37 @@ def plain_text(fig):
     }
     for text in fig.findobj(Text):
         value = text.get_text()
+        if _SURROGATE.search(value):  # a file name's undecodable bytes: no font draws them
+            text.set_text(value := drawable(value))
         if "$" in value and id(text) not in ticks and not getattr(text, "_credcli_plain", False):
             text.set_text(value.replace("$", "\\$"))
             text._credcli_plain = True  # escaped once, however often the figure is finished
     return fig
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def drawable(text: str) -> str:
+    r"""``text`` with each lone surrogate (a file name's byte that is not UTF-8) as its
+    backslash escape, which matplotlib can draw (it refuses the string otherwise).
+
+    Parameters
+    ----------
+    text : str
+        A name from the data or a file name.
+
+    Returns
+    -------
+    str
+        ``text``, its lone surrogates written ``\udcff``.
+
+    Examples
+    --------
+    >>> drawable("log\udcff.csv")
+    'log\\udcff.csv'
+    """
+    return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
 
 
 def _finish(fig, name: str, title: str, data: dict, group: str = "") -> Plot:
@@ -1497,7 +1524,8 @@ def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
     for row in range(rows):
         mine = [s for s, lane in zip(spans, lanes) if lane == row]
         names.append(short_title(mine[0].name, 14) if len(mine) == 1 else f"{len(mine)} segments")
-    ax.set_yticks(range(rows), [n.replace("$", "\\$") for n in names], fontsize=8)  # no mathtext
+    names = [drawable(n).replace("$", "\\$") for n in names]  # no mathtext
+    ax.set_yticks(range(rows), names, fontsize=8)
     ax.set_ylim(rows - 0.5, -0.5)
     ax.set_xlabel(xlabel)
     data = {

@@ -920,3 +920,43 @@ def test_a_log_name_that_is_not_utf8_is_drawn_escaped(tmp_path, capsys):
     assert main(["diagnose", log, "--plots", os.fsdecode(base + b"/figs")]) == 0
     assert main(["report", log, "-o", os.fsdecode(base + b"/r.html")]) == 0
     assert "internal error" not in capsys.readouterr().err
+
+
+def test_binary_names_that_are_not_utf8_and_repeated_header_words(tmp_path, capsys):
+    """Two exit 3s: a Parquet segment column of bytes that are not UTF-8
+    (UnicodeDecodeError), and a TUM file whose comment line repeats a word ('# t 1 1 1 …':
+    the columns, read by those words, came back as a table)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from helpers import ROOT
+
+    from credcli.errors import CredcliError
+    from credcli.io.logs import numeric_columns
+
+    gen = np.random.default_rng(1)
+    e = gen.standard_normal((40, 2))
+    table = pa.table(
+        {
+            "segment": pa.array([b"\xff\x1b]0;x\x07"] * 40, pa.binary()),
+            **{f"truth_{i}": np.zeros(40) for i in range(2)},
+            **{f"est_{i}": e[:, i] for i in range(2)},
+            **{f"var_{i}": np.ones(40) for i in range(2)},
+        }
+    )
+    pq.write_table(table, tmp_path / "bytes.parquet")
+    assert main(["diagnose", str(tmp_path / "bytes.parquet"), "-f", "json"]) == 0
+    assert '"segment": "\\\\xff\\u001b]0;x\\u0007"' in capsys.readouterr().out
+    formats = ROOT / "sample_data" / "formats"
+    lines = (formats / "openvins_estimate.txt").read_text().splitlines()
+    lines[0] = "# t 1 1 1 q q q q " + " ".join(["p"] * 12)
+    (tmp_path / "est.txt").write_text("\n".join(lines) + "\n")
+    args = ["diagnose", str(tmp_path / "est.txt"), "--truth", str(formats / "tum_groundtruth.txt")]
+    assert main([*args, "-f", "json"]) == 0
+    original = ["diagnose", str(formats / "openvins_estimate.txt"), *args[2:], "-f", "json"]
+    ours = capsys.readouterr().out
+    assert main(original) == 0
+    same = capsys.readouterr().out
+    assert ours.replace(str(tmp_path / "est.txt"), "X") == same.replace(original[1], "X")
+    frame = pd.DataFrame([[1.0, 2.0]], columns=["a", "a"])
+    with pytest.raises(CredcliError, match="column 'a' is named 2 times in the header"):
+        numeric_columns(frame, ["a"], "f.csv")

@@ -991,7 +991,13 @@ def _labels(frame, column: str) -> tuple[np.ndarray, np.ndarray]:
     if fast is not None:
         return fast
     series = frame[column]
-    return series.astype(str).to_numpy(), series.isna().to_numpy()
+    try:
+        return series.astype(str).to_numpy(), series.isna().to_numpy()
+    except UnicodeDecodeError:  # Parquet binary names that are not UTF-8: their bytes escaped
+        text = series.map(
+            lambda v: v.decode("utf-8", "backslashreplace") if isinstance(v, bytes) else v
+        )
+        return text.astype(str).to_numpy(), series.isna().to_numpy()
 
 
 def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None = None):
@@ -1027,6 +1033,11 @@ def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None 
         import pandas as pd
 
         series = frame[col]
+        if isinstance(series, pd.DataFrame):  # a name the header gives more than once
+            raise CredcliError(
+                f"{source}: column '{col}' is named {series.shape[1]} times in the header; "
+                "give each column its own name"
+            )
         if series.dtype == object or pd.api.types.is_string_dtype(series.dtype):
             # the parser found a cell that is not a number: name the first one
             converted = pd.to_numeric(series, errors="coerce")

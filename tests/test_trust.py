@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from credcli.cli import main
-from credcli.errors import printable
+from credcli.errors import CredcliError, printable
 
 NAMES = (
     "ok",
@@ -960,3 +960,24 @@ def test_binary_names_that_are_not_utf8_and_repeated_header_words(tmp_path, caps
     frame = pd.DataFrame([[1.0, 2.0]], columns=["a", "a"])
     with pytest.raises(CredcliError, match="column 'a' is named 2 times in the header"):
         numeric_columns(frame, ["a"], "f.csv")
+
+
+def test_a_step_summary_that_is_a_link_is_refused_and_never_followed(tmp_path, capsys, monkeypatch):
+    """$GITHUB_STEP_SUMMARY naming a symbolic link appended the summary to the file it
+    points to; refused before any work, and the append itself does not follow a link."""
+    from helpers import ROOT
+
+    from credcli.ci import reports
+
+    monkeypatch.chdir(ROOT)
+    outside = tmp_path / "outside.md"
+    outside.write_text("keep me\n")
+    link = tmp_path / "summary.md"
+    link.symlink_to(outside)
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(link))
+    assert main(["diagnose", SAMPLE_LOG, "--fail-on", "smm"]) == 2
+    assert "is a symbolic link" in capsys.readouterr().err
+    monkeypatch.setattr(reports, "check_step_summary", lambda path: None)  # a link made late
+    with pytest.raises(CredcliError, match="cannot append the summary"):
+        reports.append_step_summary("# summary\n")
+    assert outside.read_text() == "keep me\n"

@@ -17,10 +17,10 @@ raised here as it was raised there.
 
 **Trust.** Results come back from the workers by pickle, so a scheduler and its workers can
 run code in this process: connect only to a cluster you control. Plain ``tcp://`` is
-unauthenticated and unencrypted; credcli refuses a ``tcp://`` scheduler that is not on the
-loopback interface unless :data:`REMOTE_OPT_IN` is set to 1 (which names the risk). For
-anything off this machine use ``tls://`` with certificates (Dask's ``distributed.comm.tls``
-settings), which credcli passes to Dask as it is.
+unauthenticated and unencrypted (so are ``ws://`` and ``ucx://``); credcli refuses such a
+scheduler that is not on the loopback interface unless :data:`REMOTE_OPT_IN` is set to 1
+(which names the risk). For anything off this machine use ``tls://`` with certificates
+(Dask's ``distributed.comm.tls`` settings), which credcli passes to Dask as it is.
 """
 
 from __future__ import annotations
@@ -62,11 +62,15 @@ def _check_loopback(host: str, address: str) -> None:
     remote = sorted(a for a in found if not ipaddress.ip_address(a.split("%")[0]).is_loopback)
     if remote:
         raise CredcliError(
-            f"`scheduler` {address}: a plain tcp:// scheduler off this machine ({remote[0]}) "
+            f"`scheduler` {address}: a plaintext scheduler off this machine ({remote[0]}) "
             "is unauthenticated and its workers can run code in credcli; use tls:// with "
             f"certificates (docs/scale.md), or set {REMOTE_OPT_IN}=1 to accept the risk"
         )
 
+
+PLAINTEXT_SCHEMES = ("ws://", "ucx://")
+"""Dask's schemes other than tcp:// that carry the pickled results without TLS: refused off
+the loopback interface as plain tcp:// is (wss:// and tls:// are Dask's TLS)."""
 
 _TCP = re.compile(r"^(?:tcp://)?\[?([^\]/]+?)\]?(?::(\d+))?/?$")
 
@@ -96,8 +100,16 @@ def probe_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
         without `REMOTE_OPT_IN`, nothing answers in time, the connection fails or is
         closed at once, or an HTTP server answers.
     """
-    m = _TCP.match(address.strip())
-    if address.strip().count("://") and not address.strip().startswith("tcp://"):
+    text = address.strip()
+    if text.lower().startswith(PLAINTEXT_SCHEMES):  # as unauthenticated as tcp://
+        scheme, rest = text.split("://", 1)
+        m = _TCP.match("tcp://" + rest)
+        if not m:
+            raise CredcliError(f"`scheduler` {address}: expected {scheme}://host:port")
+        _check_loopback(m.group(1), address)
+        return  # Dask's own connection reports the rest
+    m = _TCP.match(text)
+    if text.count("://") and not text.startswith("tcp://"):
         return
     if not m:
         raise CredcliError(f"`scheduler` {address}: expected tcp://host:port or local:N")
@@ -156,6 +168,22 @@ def _check_tls(address: str) -> None:
             f"`scheduler` {address}: tls:// needs this client's certificates, and Dask's "
             f"configuration has no {' or '.join(missing)}; set {TLS_SETTINGS}"
         )
+
+
+LOCAL_PER_CORE = 4
+"""Most local:N workers per core: each is a process with its own memory, all started
+before any work (local:100000 started processes until it was stopped)."""
+
+
+def max_local_workers() -> int:
+    """The most workers ``local:N`` may start: `LOCAL_PER_CORE` per core.
+
+    Returns
+    -------
+    int
+        ``LOCAL_PER_CORE`` × the cores of this machine (1 core where it does not say).
+    """
+    return LOCAL_PER_CORE * (os.cpu_count() or 1)
 
 
 def _local_cluster(workers: int):
@@ -230,6 +258,12 @@ class DaskRunner:
                 workers = int(local.group(1))
                 if workers < 1:
                     raise CredcliError(f"`scheduler` local:N needs N >= 1; got {address}")
+                if workers > max_local_workers():  # each a process, all started at once
+                    raise CredcliError(
+                        f"`scheduler` {address}: at most {max_local_workers()} local workers "
+                        f"({LOCAL_PER_CORE} per core of this machine); a cluster across "
+                        "machines is tls://host:port"
+                    )
                 self.cluster = _local_cluster(workers)
                 self.client = Client(self.cluster)
             elif address.strip().startswith("local:"):  # not localhost:8786, an address

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from credcli.cli import main
-from credcli.errors import printable
+from credcli.errors import CredcliError, printable
 
 NAMES = (
     "ok",
@@ -625,3 +625,359 @@ def test_a_library_warning_and_an_html_cell_never_carry_a_raw_control_character(
     )
     html = results_table([item])
     assert _controls(html) == set() and "\\x1b" in html
+
+
+@pytest.mark.parametrize("unnamed", [True, False], ids=["O_TMPFILE", "named-temporary"])
+def test_an_output_name_of_many_bytes_per_character_is_written(unnamed, tmp_path, monkeypatch):
+    """A valid 249-byte name of two-byte characters was refused ("the file name is too
+    long"): its temporary name took 200 characters, 400 bytes, past the 255-byte limit."""
+    from credcli.io import files
+
+    if not unnamed:
+        monkeypatch.setattr(files, "_write_unnamed", lambda *args: False)
+    for name in ("\u00e9" * 122 + ".json", "\u4e2d" * 80 + ".json"):
+        path = tmp_path / name
+        files.write_atomic(path, "{}")
+        assert path.read_text() == "{}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["\u00e9" * 122 + ".json", "\u4e2d" * 80 + ".json"]
+    )
+
+
+def test_figures_never_overwrite_an_input_nor_go_through_a_link(tmp_path, capsys, monkeypatch):
+    """--plots . beside a config named timeline.png replaced the config with a figure (and
+    the -o output with another); a --plots that is a symbolic link wrote the figures where
+    it points; --plots and --report on one path wrote every figure, then failed (exit 2
+    with two lines). Each is refused before anything is written."""
+    pytest.importorskip("matplotlib")
+    monkeypatch.chdir(tmp_path)
+    log = str(_short_log(tmp_path / "log.csv", np.random.default_rng(5)))
+    config = tmp_path / "timeline.png"
+    config.write_text("[diagnosis]\nseed = 0\n")
+    args = ["diagnose", log, "-f", "json", "-o", "out.json"]
+    assert main([*args, "--config", "timeline.png", "--plots", "."]) == 2
+    err = capsys.readouterr().err
+    assert "would overwrite timeline.png" in err and err.count("\n") == 1, err
+    assert config.read_text() == "[diagnosis]\nseed = 0\n"
+    assert main(["diagnose", log, "-f", "json", "-o", "errors.png", "--plots", "."]) == 2
+    assert "would overwrite errors.png" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "timeline.png"]
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (tmp_path / "figs").symlink_to(outside)
+    assert main([*args, "--plots", "figs"]) == 2
+    assert "--plots figs: is a symbolic link" in capsys.readouterr().err
+    assert main([*args, "--plots", "x", "--report", "x"]) == 2
+    err = capsys.readouterr().err
+    assert "--plots and --report are the same path" in err and err.count("\n") == 1, err
+    assert list(outside.iterdir()) == [] and not (tmp_path / "x").exists()
+    assert not (tmp_path / "out.json").exists()
+
+
+def test_csv_on_standard_output_escapes_what_a_terminal_would_obey(evil_log, capsys, tmp_path):
+    """CSV on stdout carried a segment name's ESC, BEL and CR raw to the terminal (and a
+    file name's undecodable bytes to an encoder that refuses them: exit 3 under a strict
+    UTF-8 locale); each cell is escaped there now, while a CSV file keeps the names as
+    they are (test_csv_is_rfc4180_and_never_a_formula)."""
+    import os
+    import shutil
+
+    from helpers import ROOT
+
+    assert main(["diagnose", str(evil_log), "-f", "csv"]) == 0
+    out = capsys.readouterr().out
+    assert not _controls(out.replace("\r\n", "\n")), _controls(out)
+    rows = list(csv.DictReader(out.splitlines()))
+    assert [r["segment"] for r in rows] == [
+        "ok",
+        "'" + NAMES[1],
+        "bad\\x1b]0;title\\x07",
+        "two\\ncredcli: PASS: forged",
+        "cr\\rrow",
+        "c1\\x9bcsi",
+    ]
+    log = os.fsdecode(os.fsencode(tmp_path) + b"/log\xff.csv")
+    shutil.copy(ROOT / SAMPLE_LOG, log)
+    assert main(["diagnose", log, str(evil_log), "-f", "csv"]) == 0
+    out = capsys.readouterr().out
+    assert "log\\udcff.csv" in out and out.encode("utf-8")  # no lone surrogate left
+    clean = ROOT / SAMPLE_LOG
+    assert main(["diagnose", str(clean), "-f", "csv"]) == 0  # no such cell: as it was
+    from credcli.report.formats import OutputFormat
+    from credcli.report.render import to_text
+    from credcli.requests import DiagnoseRequest
+    from credcli.workflows import run_diagnose
+
+    expected = to_text(run_diagnose(DiagnoseRequest((str(clean),))).report, OutputFormat.CSV)
+    assert capsys.readouterr().out == expected
+
+
+def test_a_baseline_that_is_a_device_or_far_too_large_is_refused_unread(
+    tmp_path, capsys, monkeypatch
+):
+    """A committed baseline that is a symbolic link to /dev/zero was read whole: 22 GB of
+    memory until the kernel killed credcli (or another process). Refused before reading;
+    a baseline through a pipe (<(git show …)) is still read."""
+    from helpers import ROOT
+
+    from credcli.io import files
+
+    monkeypatch.chdir(ROOT)
+    link = tmp_path / "baseline.json"
+    link.symlink_to("/dev/zero")
+    assert main(["gate", SAMPLE_LOG, "-b", str(link)]) == 2
+    err = capsys.readouterr().err
+    assert "is a device, not a baseline JSON file" in err and err.count("\n") == 1, err
+    big = tmp_path / "big.json"
+    assert main(["baseline", SAMPLE_LOG, "-o", str(big)]) == 0
+    monkeypatch.setattr(files, "memory_budget", lambda: 16 * 1024)  # 1 KiB for a baseline
+    assert main(["gate", SAMPLE_LOG, "-b", str(big)]) == 2
+    assert "more than the 1 KiB a baseline JSON file may take" in capsys.readouterr().err
+
+
+def test_covariances_that_would_not_fit_in_memory_are_refused_before_allocating(
+    tmp_path, capsys, monkeypatch
+):
+    """40 rows of d = 3,000 variance columns (a 2.9 MB CSV) took 11.8 GB and 75 s; 20 rows
+    of d = 6,000 would have taken 23 GB. The N·d² covariances are checked against the
+    memory budget before they are made, for a CSV and for an .npz of variances alike."""
+    from credcli.io import files
+
+    monkeypatch.setattr(files, "memory_budget", lambda: 2**21)  # 2 MiB here
+    d = 40  # 60 epochs: 0.73 MiB of covariances, about 4 times that to diagnose them
+    gen = np.random.default_rng(2)
+    frame = pd.DataFrame(gen.standard_normal((60, d)), columns=[f"est_{i}" for i in range(d)])
+    frame = frame.assign(**{f"truth_{i}": 0.0 for i in range(d)})
+    frame = frame.assign(**{f"var_{i}": 1.0 for i in range(d)})
+    frame.to_csv(tmp_path / "wide.csv", index=False)
+    np.savez(
+        tmp_path / "wide.npz",
+        truth=np.zeros((60, d)),
+        estimate=frame.iloc[:, :d],
+        cov=np.ones((60, d)),
+    )
+    for name in ("wide.csv", "wide.npz"):
+        assert main(["diagnose", str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err
+        assert "60 epochs of dimension d = 40 make 750 KiB of covariance matrices" in err, err
+        assert err.count("\n") == 1
+    monkeypatch.setattr(files, "memory_budget", lambda: 2**22)  # 4 MiB: diagnosed
+    assert main(["diagnose", str(tmp_path / "wide.csv")]) == 0
+
+
+@pytest.mark.parametrize("scheme", ["ws", "WS", "ucx"])
+def test_other_plaintext_schedulers_off_this_machine_are_refused(scheme, capsys, monkeypatch):
+    """ws:// (and ucx://) carry the pickled results as unauthenticated as tcp://, but went
+    to Dask as they were: a connection attempt to any host (10 s), not a refusal."""
+    pytest.importorskip("distributed")
+    from helpers import ROOT
+
+    from credcli.cluster import REMOTE_OPT_IN
+
+    monkeypatch.chdir(ROOT)
+    monkeypatch.delenv(REMOTE_OPT_IN, raising=False)
+    assert main(["diagnose", SAMPLE_LOG, "--scheduler", f"{scheme}://192.0.2.7:8786"]) == 2
+    err = capsys.readouterr().err
+    assert "a plaintext scheduler off this machine" in err and REMOTE_OPT_IN in err, err
+
+
+def test_a_name_that_reads_as_mathtext_is_drawn_as_text(tmp_path, capsys):
+    """A segment named '$\\frac{a$' ended --plots and report in exit 3: matplotlib parsed
+    the figure titles and legends as mathtext."""
+    pytest.importorskip("matplotlib")
+    log = str(_short_log(tmp_path / "m.csv", np.random.default_rng(5), "$\\frac{a$", 3.0))
+    assert main(["diagnose", log, "--plots", str(tmp_path / "figs")]) == 0
+    assert main(["report", log, "-o", str(tmp_path / "r.html")]) == 0
+    assert "internal error" not in capsys.readouterr().err
+    assert any(p.name.endswith("_nees.png") for p in (tmp_path / "figs").iterdir())
+
+
+def test_curve_runs_past_any_machine_are_a_usage_error(capsys):
+    """--curve-runs 10¹⁵ ended in exit 3 ("Unable to allocate 14.2 PiB"); a million runs
+    in d = 64 in exit 2 after 5 GB, with a numpy note after the error line."""
+    for args, words in (
+        (["--curve-runs", "999999999999999"], "--curve-runs must be 1 … 1,000,000"),
+        (["--curve-runs", "1000000", "--dim", "64"], "would need 122 GiB"),
+    ):
+        assert main(["simulate", "--curves", *args]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1, err
+
+
+def test_an_error_line_is_not_followed_by_the_runs_notes(capsys, monkeypatch):
+    """A warning recorded before an error (numpy's overflow) was printed as a note after
+    the error line: exit 2 with two lines. The notes of a failed run show under --debug."""
+    import warnings
+
+    from credcli.cli import settings
+    from credcli.errors import CredcliError
+
+    def failing(*args, **kwargs):
+        warnings.warn("overflow encountered in multiply", RuntimeWarning, stacklevel=1)
+        raise CredcliError("the log is bad")
+
+    monkeypatch.setattr(settings, "diagnose_request", failing)
+    assert main(["diagnose", "x.csv"]) == 2
+    assert capsys.readouterr().err == "credcli: error: the log is bad\n"
+    assert main(["--debug", "diagnose", "x.csv"]) == 2
+    assert "overflow encountered in multiply" in capsys.readouterr().err
+
+
+def test_a_local_cluster_of_more_workers_than_cores_can_take_is_refused(capsys, monkeypatch):
+    """--scheduler local:100000 started worker processes until it was killed (past 60 s,
+    its scratch directory left behind); refused before any is started."""
+    pytest.importorskip("distributed")
+    from helpers import ROOT
+
+    from credcli import cluster
+
+    monkeypatch.chdir(ROOT)
+    monkeypatch.setattr(cluster, "_local_cluster", lambda workers: pytest.fail("started"))
+    assert main(["diagnose", SAMPLE_LOG, "--scheduler", "local:100000"]) == 2
+    err = capsys.readouterr().err
+    assert f"at most {cluster.max_local_workers()} local workers" in err and err.count("\n") == 1
+
+
+def test_wide_full_covariances_are_checked_a_matrix_at_a_time(monkeypatch):
+    """Two epochs of one 3,000 × 3,000 covariance (an .npz) took 52 s: the symmetry check
+    went an entry pair at a time, 9 million Python steps. Above d = 16 whole matrices are
+    checked, with the same result and the same note as pair by pair."""
+    import itertools
+
+    from credcli.io import logs
+
+    gen = np.random.default_rng(0)
+    d, n = 40, 30
+    a = gen.standard_normal((n, d, d))
+    cov = a @ a.transpose(0, 2, 1) + d * np.eye(d) + 1e-3 * gen.standard_normal((n, d, d))
+    pairwise, notes = cov.copy(), []
+    with monkeypatch.context() as m:
+        m.setattr(logs, "PAIRWISE_MAX_D", 10**9, raising=False)
+        logs.validated_cov(pairwise, np.arange(n), "x", notes=notes)
+
+    class NoPairs:
+        def product(self, *args, **kwargs):
+            raise AssertionError("an entry pair at a time")
+
+    whole, whole_notes = cov.copy(), []
+    monkeypatch.setattr(logs, "itertools", NoPairs())
+    logs.validated_cov(whole, np.arange(n), "x", notes=whole_notes)
+    monkeypatch.setattr(logs, "itertools", itertools)
+    assert np.array_equal(whole, pairwise) and whole_notes == notes and len(notes) == 1
+    assert np.array_equal(whole, whole.transpose(0, 2, 1))
+
+
+@pytest.mark.parametrize(
+    "env, shown",
+    [
+        ({"PYTHONIOENCODING": "ascii"}, "cov \\xd7 (interval)"),
+        ({"LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0"}, "cov \\xd7 (interval)"),
+    ],
+    ids=["ascii", "C-locale"],
+)
+def test_an_output_stream_that_cannot_encode_a_character_gets_its_escape(env, shown, tmp_path):
+    """Under LC_ALL=C (or PYTHONIOENCODING=ascii) the table's × ended in exit 3
+    (UnicodeEncodeError); what the stream cannot encode is written as its backslash escape
+    (a file name's undecodable bytes too)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    from helpers import ROOT
+
+    shutil.copy(ROOT / SAMPLE_LOG, os.fsdecode(os.fsencode(tmp_path) + b"/log\xff.csv"))
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "credcli",
+            "diagnose",
+            b"log\xff.csv",
+            ROOT / SAMPLE_LOG,
+            "-f",
+            "markdown",
+        ],
+        capture_output=True,
+        cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(ROOT), **env},
+    )
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout.decode("ascii")
+    row = next(line for line in out.splitlines() if "cruise" in line)
+    assert shown in out and "log\\\\udcff.csv" in row, row
+
+
+def test_a_log_name_that_is_not_utf8_is_drawn_escaped(tmp_path, capsys):
+    """A log whose name is not valid UTF-8 (held as surrogates) ended --plots and report in
+    exit 3: matplotlib refused the title that named it."""
+    pytest.importorskip("matplotlib")
+    import os
+
+    base = os.fsencode(tmp_path)
+    log = os.fsdecode(base + b"/log\xff.csv")
+    _short_log(Path(log), np.random.default_rng(5), "s", 3.0)
+    assert main(["diagnose", log, "--plots", os.fsdecode(base + b"/figs")]) == 0
+    assert main(["report", log, "-o", os.fsdecode(base + b"/r.html")]) == 0
+    assert "internal error" not in capsys.readouterr().err
+
+
+def test_binary_names_that_are_not_utf8_and_repeated_header_words(tmp_path, capsys):
+    """Two exit 3s: a Parquet segment column of bytes that are not UTF-8
+    (UnicodeDecodeError), and a TUM file whose comment line repeats a word ('# t 1 1 1 …':
+    the columns, read by those words, came back as a table)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from helpers import ROOT
+
+    from credcli.errors import CredcliError
+    from credcli.io.logs import numeric_columns
+
+    gen = np.random.default_rng(1)
+    e = gen.standard_normal((40, 2))
+    table = pa.table(
+        {
+            "segment": pa.array([b"\xff\x1b]0;x\x07"] * 40, pa.binary()),
+            **{f"truth_{i}": np.zeros(40) for i in range(2)},
+            **{f"est_{i}": e[:, i] for i in range(2)},
+            **{f"var_{i}": np.ones(40) for i in range(2)},
+        }
+    )
+    pq.write_table(table, tmp_path / "bytes.parquet")
+    assert main(["diagnose", str(tmp_path / "bytes.parquet"), "-f", "json"]) == 0
+    assert '"segment": "\\\\xff\\u001b]0;x\\u0007"' in capsys.readouterr().out
+    formats = ROOT / "sample_data" / "formats"
+    lines = (formats / "openvins_estimate.txt").read_text().splitlines()
+    lines[0] = "# t 1 1 1 q q q q " + " ".join(["p"] * 12)
+    (tmp_path / "est.txt").write_text("\n".join(lines) + "\n")
+    args = ["diagnose", str(tmp_path / "est.txt"), "--truth", str(formats / "tum_groundtruth.txt")]
+    assert main([*args, "-f", "json"]) == 0
+    original = ["diagnose", str(formats / "openvins_estimate.txt"), *args[2:], "-f", "json"]
+    ours = capsys.readouterr().out
+    assert main(original) == 0
+    same = capsys.readouterr().out
+    assert ours.replace(str(tmp_path / "est.txt"), "X") == same.replace(original[1], "X")
+    frame = pd.DataFrame([[1.0, 2.0]], columns=["a", "a"])
+    with pytest.raises(CredcliError, match="column 'a' is named 2 times in the header"):
+        numeric_columns(frame, ["a"], "f.csv")
+
+
+def test_a_step_summary_that_is_a_link_is_refused_and_never_followed(tmp_path, capsys, monkeypatch):
+    """$GITHUB_STEP_SUMMARY naming a symbolic link appended the summary to the file it
+    points to; refused before any work, and the append itself does not follow a link."""
+    from helpers import ROOT
+
+    from credcli.ci import reports
+
+    monkeypatch.chdir(ROOT)
+    outside = tmp_path / "outside.md"
+    outside.write_text("keep me\n")
+    link = tmp_path / "summary.md"
+    link.symlink_to(outside)
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(link))
+    assert main(["diagnose", SAMPLE_LOG, "--fail-on", "smm"]) == 2
+    assert "is a symbolic link" in capsys.readouterr().err
+    monkeypatch.setattr(reports, "check_step_summary", lambda path: None)  # a link made late
+    with pytest.raises(CredcliError, match="cannot append the summary"):
+        reports.append_step_summary("# summary\n")
+    assert outside.read_text() == "keep me\n"

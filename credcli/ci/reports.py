@@ -235,7 +235,8 @@ def _attribute_text(name: str) -> str:
 def check_step_summary(path: str) -> None:
     """Check that $GITHUB_STEP_SUMMARY is a regular file or a new one (GitHub's always is).
 
-    A FIFO with no reader would block the run forever, a device is not a summary.
+    A FIFO with no reader would block the run forever, a device is not a summary, and a
+    symbolic link would send the summary to the file it points to.
 
     Parameters
     ----------
@@ -245,14 +246,20 @@ def check_step_summary(path: str) -> None:
     Raises
     ------
     CredcliError
-        If ``path`` exists and is not a regular file, or cannot be examined.
+        If ``path`` exists and is a symbolic link or not a regular file, or cannot be
+        examined.
     """
     try:
-        mode = os.stat(path).st_mode
+        mode = os.lstat(path).st_mode
     except FileNotFoundError:
         return
     except OSError as exc:
         raise CredcliError(f"GITHUB_STEP_SUMMARY={path}: {exc.strerror}") from exc
+    if stat.S_ISLNK(mode):
+        raise CredcliError(
+            f"GITHUB_STEP_SUMMARY={path}: is a symbolic link; credcli does not write through "
+            "links (GitHub's summary file never is one)"
+        )
     if not stat.S_ISREG(mode):
         raise CredcliError(
             f"GITHUB_STEP_SUMMARY={path}: not a regular file; the job summary is appended "
@@ -280,8 +287,9 @@ def append_step_summary(markdown: str) -> None:
     if not path:
         return
     check_step_summary(path)
-    try:
-        with open(path, "a", encoding="utf-8") as fh:
+    flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0)
+    try:  # never through a link planted at the name after the check
+        with os.fdopen(os.open(path, flags, 0o666), "a", encoding="utf-8") as fh:
             fh.write(markdown if markdown.endswith("\n") else markdown + "\n")
     except OSError as exc:
         raise CredcliError(

@@ -16,6 +16,7 @@ import typer
 
 from credcli.cli.emit import (
     Progress,
+    check_figures,
     check_plotting,
     cluster,
     emit,
@@ -276,8 +277,10 @@ def gate(
     request = gate_request(log, baseline_file, config, *given, figures=plots is not None)
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_gate(request, bar, runner)
+    keep = [*inputs, *written.values()]
+    check_figures(result.plots, plots, keep)
     emit(result.report, out.fmt, out.output, inputs=inputs)
-    write_plots(result.plots, plots)
+    write_plots(result.plots, plots, keep)
     passed = emit_gate_verdict(result, request, conditions, ci, str(log), baseline_file, inputs)
     return 0 if passed else 1
 
@@ -352,8 +355,9 @@ def simulate(
     start = time.perf_counter()
     with cluster(run.scheduler) as runner, Progress("simulating trials", min_total=1) as bar:
         result, summary = run_simulate(request, bar, runner)
+    check_figures(result, plots, [config, out.output])
     emit(result.report, out.fmt, out.output, inputs=[config])
-    write_plots(result, plots)
+    write_plots(result, plots, [config, out.output])
     stderr_console().print(f"{summary} in {time.perf_counter() - start:.2f} s", highlight=False)
     return 0
 

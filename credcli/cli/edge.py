@@ -46,7 +46,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app and turn every outcome into an exit code.
 
     Warnings (numpy's among them) are never printed raw: each distinct one becomes a
-    ``credcli: note:`` line on stderr at the end, with its source under --debug.
+    ``credcli: note:`` line on stderr at the end, with its source under --debug; a run
+    that ends in an error (exit 2 or 3) shows its one line only, the notes under --debug.
 
     Parameters
     ----------
@@ -71,13 +72,43 @@ def main(argv: list[str] | None = None) -> int:
         "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]
     )
     command = typer.main.get_command(app)
+    code = 3
+    strict = _escape_unencodable()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             code = _run(command, args, debug)
-        finally:
-            note_warnings(caught, debug)
+        finally:  # an error is one line: the notes of a run it ended only under --debug
+            if code in (0, 1) or debug:
+                note_warnings(caught, debug)
+            for stream, errors in strict:
+                stream.reconfigure(errors=errors)
     return code
+
+
+def _escape_unencodable() -> list:
+    """stdout and stderr write what their encoding cannot (× under LC_ALL=C, a file name's
+    undecodable bytes under a strict UTF-8 locale) as backslash escapes, not as exit 3;
+    returns the streams changed and their handlers, to be restored. A UTF-8 stream that
+    writes undecodable bytes back as they were (surrogateescape, Linux's C.UTF-8) stays so."""
+    import codecs
+
+    changed = []
+    for stream in (sys.stdout, sys.stderr):
+        errors, encoding = getattr(stream, "errors", None), getattr(stream, "encoding", None)
+        try:
+            utf8 = codecs.lookup(encoding or "").name == "utf-8"
+        except LookupError:
+            utf8 = False
+        if not hasattr(stream, "reconfigure") or errors == "backslashreplace":
+            continue
+        if errors == "strict" or (errors == "surrogateescape" and not utf8):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # a closed or detached stream
+                continue
+            changed.append((stream, errors))
+    return changed
 
 
 class Terminated(BaseException):

@@ -8,8 +8,12 @@ modules) and Dask load only when a command runs, so that ``credcli --help`` stay
 from __future__ import annotations
 
 import contextlib
+import csv
 import dataclasses
+import io
 import os
+import re
+import stat
 import sys
 from pathlib import Path
 
@@ -40,7 +44,10 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
 
     report = dataclasses.replace(report, notes=[flag_names(n) for n in report.notes])
     if output is not None:
-        write_atomic(output, text_pieces(report, fmt), inputs)
+        pieces = text_pieces(report, fmt)
+        if fmt is OutputFormat.CSV and _is_screen(output):  # -o /dev/stdout, /dev/tty
+            pieces = map(terminal_csv, pieces)
+        write_atomic(output, pieces, inputs)
         stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
         return
     if fmt is OutputFormat.TABLE:
@@ -57,7 +64,57 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
             console.print(printable(note), markup=False, highlight=False)
         return
     for piece in text_pieces(report, fmt):
-        sys.stdout.write(piece)
+        sys.stdout.write(terminal_csv(piece) if fmt is OutputFormat.CSV else piece)
+
+
+def _is_screen(path: Path) -> bool:
+    """Whether ``path`` is this process's standard output or error, or a terminal: where
+    text is shown rather than kept (``-o /dev/stdout``)."""
+    try:
+        target = os.stat(path)
+    except (OSError, ValueError):
+        return False
+    if stat.S_ISREG(target.st_mode) or stat.S_ISDIR(target.st_mode):
+        return False
+    for fd in (1, 2):
+        with contextlib.suppress(OSError):
+            mine = os.fstat(fd)
+            if (mine.st_dev, mine.st_ino) == (target.st_dev, target.st_ino):
+                return True
+    return stat.S_ISCHR(target.st_mode) and os.path.realpath(path).startswith(
+        ("/dev/tty", "/dev/pts/")
+    )
+
+
+_CSV_UNSAFE = re.compile(r'[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff"]')
+"""What may put a control character, a line break or an undecodable name of a CSV cell on
+the terminal: a control character, or a quote (a quoted cell may hold CR and LF)."""
+
+
+def terminal_csv(text: str) -> str:
+    """CSV for standard output: each cell's control characters, line breaks and lone
+    surrogates escaped (:func:`credcli.errors.printable`), so that a segment or file name
+    can neither drive the terminal nor start a line of its own. A file (``--output``)
+    keeps the cells as they are.
+
+    Parameters
+    ----------
+    text : str
+        CSV, rows ending in CRLF (RFC 4180).
+
+    Returns
+    -------
+    str
+        ``text`` itself when no cell holds such a character; else the same CSV with each
+        such cell escaped.
+    """
+    if _CSV_UNSAFE.search(text.replace("\r\n", "")) is None:
+        return text
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\r\n")
+    for row in csv.reader(io.StringIO(text, newline="")):
+        writer.writerow([printable(cell) for cell in row])
+    return buf.getvalue()
 
 
 UNLIMITED_WIDTH = 10_000
@@ -230,19 +287,19 @@ def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
     Raises
     ------
     CredcliError
-        If an output is an input, another output or a directory, or ``plots`` exists and
-        is not a directory.
+        If an output is an input, another output or a directory, or ``plots`` is a
+        symbolic link, exists and is not a directory, or is an input's or an output's path.
     """
     from credcli.ci.reports import check_step_summary
-    from credcli.io.files import check_outputs
+    from credcli.io.files import check_directory_output, check_outputs
 
     summary = os.environ.get("GITHUB_STEP_SUMMARY")
     if summary:  # appended at the end of a run: checked, like every output, first
         check_step_summary(summary)
         outputs = outputs | {"GITHUB_STEP_SUMMARY": Path(summary)}
     check_outputs(outputs, [p for p in inputs if p is not None])
-    if plots is not None and plots.exists() and not plots.is_dir():
-        raise CredcliError(f"--plots {plots}: exists and is not a directory")
+    if plots is not None:
+        check_directory_output("--plots", plots, outputs, inputs)
 
 
 def check_plotting(*wanted) -> None:
@@ -266,7 +323,27 @@ def check_plotting(*wanted) -> None:
         require_plotting()
 
 
-def write_plots(run, directory: Path | None) -> None:
+def check_figures(run, directory: Path | None, keep=()) -> None:
+    """Before any output is written: the figures of a Run (or a list of figures) can all be
+    written into ``directory`` (:func:`credcli.report.plots.check_plots`), if given.
+
+    Parameters
+    ----------
+    run : Run or list
+        A Run (its ``plots``), or the figures themselves.
+    directory : Path or None
+        ``--plots``; None checks nothing.
+    keep : iterable of Path, optional
+        The command's inputs and other outputs, which no figure may overwrite.
+    """
+    if directory is None:
+        return
+    from credcli.report.plots import check_plots
+
+    check_plots(run if isinstance(run, list) else run.plots, directory, keep)
+
+
+def write_plots(run, directory: Path | None, keep=()) -> None:
     """Write the figures of a Run (or a list of figures) into ``directory``, if given.
 
     Says on stderr how many were written, and then the Run's notes about its figures.
@@ -277,12 +354,15 @@ def write_plots(run, directory: Path | None) -> None:
         A Run (its ``plots`` and ``notes``), or the figures themselves.
     directory : Path or None
         ``--plots``; None writes nothing.
+    keep : iterable of Path, optional
+        The command's inputs and other outputs, which no figure may overwrite (checked
+        before any figure is written).
     """
     if directory is None:
         return
     from credcli.report.plots import write_plots as write_figures
 
-    paths = write_figures(run if isinstance(run, list) else run.plots, directory)
+    paths = write_figures(run if isinstance(run, list) else run.plots, directory, keep)
     stderr_console().print(
         printable(f"wrote {len(paths)} figure(s) to {directory}"), highlight=False, markup=False
     )
@@ -326,9 +406,11 @@ def emit_run(run, out, plots: Path | None, report_file: Path | None, title, sour
     inputs : iterable of Path
         The command's input files, which no output may overwrite.
     """
+    keep = [*inputs, out.output, report_file]
+    check_figures(run, plots, keep)
     print_notes(run.report)
     emit(run.report, out.fmt, out.output, inputs=inputs)
-    write_plots(run, plots)
+    write_plots(run, plots, keep)
     if report_file is not None:
         write_html(report_file, title, run, sources, inputs)
 
@@ -473,6 +555,8 @@ def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inpu
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html
 
+    keep = [*inputs, out.output, export_log, report_file]
+    check_figures(run, plots, keep)
     for warning in fixes.notes:  # anchors that disagree with the log's ground truth
         print(printable(f"credcli: warning: {flag_names(warning)}"), file=sys.stderr)
     if export_log is not None:
@@ -481,7 +565,7 @@ def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inpu
             printable(f"wrote {export_log} ({fixes.log.n} fixes)"), highlight=False, markup=False
         )
     emit(run.report, out.fmt, out.output, inputs=inputs)
-    write_plots(run, plots)
+    write_plots(run, plots, keep)
     if report_file is not None:
         title = f"credcli uwb: {source.name}"
         html = build_html(title, run.report, run.plots, str(source), results=run.results)

@@ -32,7 +32,7 @@ from credcli.engine.config import AUTO
 from credcli.engine.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
-from credcli.io.files import read_toml
+from credcli.io.files import check_small_input, read_toml
 from credcli.io.logs import LogSchema
 from credcli.io.schema import LogReading, ReadOptions
 from credcli.parallel import default_jobs
@@ -546,6 +546,7 @@ def gate_request(
     requested = config.get("diagnosis", {}) | config.get("segments", {})
     requested.update({k: v for k, v in given.items() if v is not None})
     jobs = jobs_value(run.jobs)
+    check_small_input(baseline_file, "baseline JSON file")  # read whole: never /dev/zero
     baseline = read_baseline(baseline_file)
     check_same_parameters(baseline, requested)
     check_same_reading(
@@ -674,7 +675,43 @@ def simulate_request(
     )
     values |= {"seed": seed_value, "diagnosis": diagnosis}
     sim = built(SimulationConfig, values, config, "simulate", given)
+    if curves:
+        check_curve_runs(curve_runs, sim.dim)
     return SimulateRequest(sim, scenario, sweep, curves, curve_runs, jobs, figures)
+
+
+MAX_CURVE_RUNS = 1_000_000
+"""Most --curve-runs: the paper's curves take 5,000; a million take about a minute."""
+
+
+def check_curve_runs(runs: int, dim: int) -> None:
+    """Refuse, before any draw, Fig. 1 curves of more runs than :data:`MAX_CURVE_RUNS` or
+    whose per-point arrays (runs × d × d numbers, a few at once) would not fit in memory.
+
+    Parameters
+    ----------
+    runs : int
+        ``--curve-runs``.
+    dim : int
+        The dimension d.
+
+    Raises
+    ------
+    CredcliError
+        If ``runs`` is past :data:`MAX_CURVE_RUNS`, or 4 arrays of runs × d² float64
+        exceed :func:`credcli.io.files.memory_budget`.
+    """
+    from credcli.io.files import memory_budget
+
+    if runs > MAX_CURVE_RUNS:
+        raise CredcliError(f"--curve-runs must be 1 … {MAX_CURVE_RUNS:,}; got {runs:,}")
+    need, budget = 4 * runs * dim * dim * 8, memory_budget()
+    if need > budget:
+        raise CredcliError(
+            f"--curve-runs {runs:,} in d = {dim} would need {need / 2**30:.3g} GiB, more than "
+            f"the {budget / 2**30:.3g} GiB credcli may use here; use fewer runs or a smaller "
+            "--dim"
+        )
 
 
 def id_pairs(text: str | None, flag: str, kind) -> tuple:

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.io.files import memory_budget, write_atomic
+from credcli.io.files import check_covariance_memory, memory_budget, write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
 from credcli.io.text import time_seconds
 from credcli.logid import LogId
@@ -98,6 +98,7 @@ def _cov_shape(array: np.ndarray) -> tuple[int | None, int]:
 def _covariances(array: np.ndarray, n: int, d: int, notes: list[str] | None = None) -> np.ndarray:
     """(N, d, d) claimed covariances from (N, d, d), one shared (d, d), (N, d) variances
     (d ≠ N), or (N,) variances for d = 1; a note on symmetrised ones goes to ``notes``."""
+    check_covariance_memory(n, d, "cov")
     if array.ndim == 1 and d == 1:
         array = array[:, None, None]
     if array.shape == (d, d):

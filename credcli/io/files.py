@@ -82,6 +82,85 @@ def memory_budget() -> int:
         return 8 * 2**30
 
 
+def check_small_input(path: str | Path, what: str, share: int = 16) -> None:
+    """Refuse, before it is read whole, a file read into memory at once (a baseline) that
+    is a device (``/dev/zero`` never ends) or a regular file larger than
+    ``memory_budget() // share`` bytes. A pipe or FIFO (``<(git show …)``) is read as it is.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file, as the user named it.
+    what : str
+        What it should be, for the message (``"baseline JSON file"``).
+    share : int, default 16
+        The part of the memory budget the file's text may take: parsed, it takes several
+        times its size.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a character or block device, or a regular file past the limit.
+        A path that cannot be examined is left for the reader to report.
+    """
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return
+    if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode):
+        raise CredcliError(f"{shown(path)}: is a device, not a {what}; give the {what}")
+    limit = memory_budget() // share
+    if stat.S_ISREG(info.st_mode) and info.st_size > limit:
+        raise CredcliError(
+            f"{shown(path)}: {_size(info.st_size)}, more than the {_size(limit)} a {what} may "
+            f"take on this machine (1/{share} of half its memory, since it is read whole); "
+            f"is it the {what}?"
+        )
+
+
+def _size(n: int) -> str:
+    """A number of bytes in words: ``1.5 GiB``, ``730 MiB``, ``12 KiB``, ``300 bytes``."""
+    for unit, power in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
+        if n >= 2**power:
+            return f"{n / 2**power:.3g} {unit}"
+    return f"{n} bytes"
+
+
+COV_COPIES = 4
+"""Copies of a log's (N, d, d) covariances held at once while it is read and diagnosed
+(measured: 4.0 × peak at d = 1,000 and d = 3,000)."""
+
+
+def check_covariance_memory(n: int, d: int, source: str) -> None:
+    """Refuse, before they are allocated, covariances that would not fit in the memory
+    budget: N epochs of dimension d take N·d² numbers, which a few megabytes of a header
+    of d variance columns can ask for (40 rows of d = 3,000: a 2.9 MB file, 12 GB).
+
+    Parameters
+    ----------
+    n : int
+        The epochs.
+    d : int
+        The state dimension.
+    source : str
+        The log, for the message.
+
+    Raises
+    ------
+    CredcliError
+        If `COV_COPIES` copies of the (N, d, d) covariances exceed :func:`memory_budget`.
+    """
+    one = n * d * d * 8
+    budget = memory_budget()
+    if COV_COPIES * one > budget:
+        raise CredcliError(
+            f"{source}: {n:,} epochs of dimension d = {d:,} make {_size(one)} of covariance "
+            f"matrices, and diagnosing them takes about {COV_COPIES} times that, more than the "
+            f"{_size(budget)} credcli may use here (half this machine's memory); split the "
+            "log, or diagnose it on a larger machine"
+        )
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
@@ -141,6 +220,74 @@ def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
                 raise CredcliError(
                     f"{name} and {other} are the same file ({path}); give each its own file"
                 )
+
+
+def check_directory_output(name: str, directory: Path, outputs: dict, inputs=()) -> None:
+    """Refuse, before any work, a directory that outputs are written into (``--plots``)
+    when it is a symbolic link (it would be followed), an existing file, an input, or the
+    path of another output.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, as messages give it (``--plots``).
+    directory : pathlib.Path
+        The directory.
+    outputs : dict of str to pathlib.Path or None
+        The command's other outputs, by option name (None for one not asked for).
+    inputs : iterable of paths
+        The command's input files (None items are skipped).
+
+    Raises
+    ------
+    CredcliError
+        If ``directory`` is a symbolic link, exists and is not a directory, or is the same
+        path as an input or another output.
+    """
+    if directory.is_symlink():
+        raise CredcliError(
+            f"{name} {shown(directory)}: is a symbolic link; credcli does not write through "
+            "links (give the directory's real path, or remove the link)"
+        )
+    if directory.exists() and not directory.is_dir():
+        raise CredcliError(f"{name} {directory}: exists and is not a directory")
+    for other, path in outputs.items():
+        if path is not None and _same_file(directory, Path(path)):
+            raise CredcliError(
+                f"{name} and {other} are the same path ({directory}); give each its own"
+            )
+    for src in inputs:
+        if src is not None and _same_file(directory, Path(src)):
+            raise CredcliError(f"{name} {directory}: is also an input ({src})")
+
+
+def check_new_file(name: str, path: Path, keep=()) -> None:
+    """Refuse, before it is written, an output ``path`` that is a directory or one of
+    ``keep`` (the command's inputs and other outputs): for outputs whose names are known
+    only once the work is done (the figures of ``--plots``).
+
+    Parameters
+    ----------
+    name : str
+        The option that writes it, as messages give it.
+    path : pathlib.Path
+        The file to be written.
+    keep : iterable of paths
+        Files that must not be overwritten (None items are skipped).
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a directory or the same file as one of ``keep``.
+    """
+    if path.is_dir():
+        raise CredcliError(f"{name}: {path} would replace a directory; give another {name}")
+    for other in keep:
+        if other is not None and _same_file(path, Path(other)) and not _is_stream(path):
+            raise CredcliError(
+                f"{name}: {path} would overwrite {other}, an input or another output of this "
+                f"command; give another {name} directory"
+            )
 
 
 def write_atomic(path: str | Path, text: str | bytes | Iterable[str], inputs=()) -> None:
@@ -362,7 +509,13 @@ def _write_unnamed(directory: int, name: str, data, mode: int) -> bool:
 
 
 def _temporary_name(name: str) -> str:
-    return f".{name[:200]}.{secrets.token_hex(4)}.tmp"
+    """A hidden name beside ``name``, at most 214 bytes: its first 200 bytes whole characters
+    (a file system limits a name to 255 bytes, not characters: 200 characters of ``é`` are
+    400)."""
+    stem = name[:200]
+    while len(os.fsencode(stem)) > 200:
+        stem = stem[:-1]
+    return f".{stem}.{secrets.token_hex(4)}.tmp"
 
 
 def _write_named(directory: int, path: Path, data, mode: int) -> None:

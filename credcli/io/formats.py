@@ -238,6 +238,8 @@ def _tum(frame, path: Path, unit: TimeUnit) -> Trajectory:
             f"{path}: a TUM file has 8 columns (timestamp tx ty tz qx qy qz qw), or 20 with "
             f"OpenVINS's covariance columns; found {width}"
         )
+    if len(set(frame.columns)) < width:  # a comment line's words, not names: by position
+        frame = frame.set_axis([f"column {k + 1}" for k in range(width)], axis=1)
     values = _column_values(frame, list(frame.columns), str(path))
     time, note = seconds(values[:, 0], unit, None, str(path))
     cov = None

@@ -19,6 +19,7 @@ import numpy as np
 from credcli.engine.config import Perturbation
 from credcli.engine.linalg import SYMMETRY_RTOL, eigenvalues_2x2, epoch_chunks
 from credcli.errors import CredcliError
+from credcli.io.files import check_covariance_memory
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 from credcli.io.streams import TEXT_HEAD, is_compressed, readable
 from credcli.io.text import read_csv_unmapped, read_text_table, seconds, time_seconds
@@ -884,6 +885,7 @@ def log_from_frame(
         )
     # each group of columns straight into its own array: no whole-table copy beside them
     n = len(frame)
+    check_covariance_memory(n, d, source)  # d variance columns make N·d² numbers
     blocks = [np.empty((n, len(cols))) for cols in (truth_cols, est_cols, cov_cols)]
     if time_col:
         blocks.append(np.empty((n, 1)))
@@ -989,7 +991,13 @@ def _labels(frame, column: str) -> tuple[np.ndarray, np.ndarray]:
     if fast is not None:
         return fast
     series = frame[column]
-    return series.astype(str).to_numpy(), series.isna().to_numpy()
+    try:
+        return series.astype(str).to_numpy(), series.isna().to_numpy()
+    except UnicodeDecodeError:  # Parquet binary names that are not UTF-8: their bytes escaped
+        text = series.map(
+            lambda v: v.decode("utf-8", "backslashreplace") if isinstance(v, bytes) else v
+        )
+        return text.astype(str).to_numpy(), series.isna().to_numpy()
 
 
 def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None = None):
@@ -1025,6 +1033,11 @@ def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None 
         import pandas as pd
 
         series = frame[col]
+        if isinstance(series, pd.DataFrame):  # a name the header gives more than once
+            raise CredcliError(
+                f"{source}: column '{col}' is named {series.shape[1]} times in the header; "
+                "give each column its own name"
+            )
         if series.dtype == object or pd.api.types.is_string_dtype(series.dtype):
             # the parser found a cell that is not a number: name the first one
             converted = pd.to_numeric(series, errors="coerce")
@@ -1119,6 +1132,19 @@ float arithmetic over many updates. Above it, the matrix is refused as not symme
 wrong column, a transposed layout)."""
 
 
+PAIRWISE_MAX_D = 16
+"""Largest d whose full covariances are checked and symmetrised an entry pair at a time
+(no N×d×d temporaries); above it, a chunk of whole matrices at a time."""
+
+_CHUNK_BYTES = 2**24
+"""Bytes of one chunk of matrices checked at once above `PAIRWISE_MAX_D` (at least one)."""
+
+
+def _matrix_chunks(n: int, d: int):
+    """Slices of the epochs whose d×d matrices take about `_CHUNK_BYTES` (one at least)."""
+    return epoch_chunks(n, max(1, _CHUNK_BYTES // (8 * d * d)))
+
+
 def validated_cov(
     cov: np.ndarray,
     rows: np.ndarray,
@@ -1179,13 +1205,19 @@ def validated_cov(
         )
     if kind is CovKind.FULL:
         d = cov.shape[1]
-        scale = np.abs(cov[:, 0, 0])
-        for i, j in itertools.product(range(d), repeat=2):
-            np.maximum(scale, np.abs(cov[:, i, j]), out=scale)
-        upper = [(i, j) for i in range(d) for j in range(i + 1, d)]
-        asym = np.zeros(cov.shape[0])
-        for i, j in upper:
-            np.maximum(asym, np.abs(cov[:, i, j] - cov[:, j, i]), out=asym)
+        if d <= PAIRWISE_MAX_D:
+            scale = np.abs(cov[:, 0, 0])
+            for i, j in itertools.product(range(d), repeat=2):
+                np.maximum(scale, np.abs(cov[:, i, j]), out=scale)
+            upper = [(i, j) for i in range(d) for j in range(i + 1, d)]
+            asym = np.zeros(cov.shape[0])
+            for i, j in upper:
+                np.maximum(asym, np.abs(cov[:, i, j] - cov[:, j, i]), out=asym)
+        else:  # d² pairs would be d² Python steps (d = 3,000: 24 s); whole matrices instead
+            scale, asym = np.empty(cov.shape[0]), np.empty(cov.shape[0])
+            for sl in _matrix_chunks(cov.shape[0], d):
+                scale[sl] = np.abs(cov[sl]).max(axis=(1, 2))
+                asym[sl] = np.abs(cov[sl] - cov[sl].transpose(0, 2, 1)).max(axis=(1, 2))
         with np.errstate(invalid="ignore", divide="ignore"):
             relative = np.where(asym > 0, asym / scale, 0.0)
         refused = relative > SYMMETRISE_RTOL
@@ -1203,10 +1235,14 @@ def validated_cov(
                 f"symmetric (relative asymmetry up to {relative.max():.2g}, within "
                 f"{SYMMETRISE_RTOL:g}): each was replaced by (Σ + Σᵀ)/2"
             )
-        for i, j in upper:
-            mean = 0.5 * (cov[:, i, j] + cov[:, j, i])
-            cov[:, i, j] = mean
-            cov[:, j, i] = mean
+        if d <= PAIRWISE_MAX_D:
+            for i, j in upper:
+                mean = 0.5 * (cov[:, i, j] + cov[:, j, i])
+                cov[:, i, j] = mean
+                cov[:, j, i] = mean
+        else:  # the same means (halving is exact); the diagonal stays as it is
+            for sl in _matrix_chunks(cov.shape[0], d):
+                cov[sl] = 0.5 * cov[sl] + 0.5 * cov[sl].transpose(0, 2, 1)
     else:
         scale = np.abs(diag).max(axis=1)  # the largest entry of a PD matrix is diagonal
     if kind in (CovKind.VAR, CovKind.STD):

@@ -325,6 +325,7 @@ def _time_scales(source: Source, name: str) -> tuple:
         rate = (len(segment.index) - 1) / span if span > 0 else None
     fig, data = figs.draw_time_scales(result.diagnosis.time_scales, rate)
     fig.suptitle(f"{name}: variance against averaging time, segment {result.segment}")
+    figs.plain_text(fig)
     fig.tight_layout()
     return fig, data
 

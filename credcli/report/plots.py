@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.io.files import write_atomic
+from credcli.io.files import check_directory_output, check_new_file, write_atomic
 from credcli.report.formats import format_pvalue
 from credcli.studies.simulate import CONFUSION_LABELS
 
@@ -79,9 +79,70 @@ def _whitened_axes(ax, lim: float) -> None:
     ax.set_ylabel("s_k,2 (whitened, unitless)")
 
 
+def plain_text(fig):
+    """Every title, label, legend and annotation of ``fig`` drawn as the text it is, never
+    as mathtext: a segment or log name such as ``$\\frac{a$`` made matplotlib fail (exit 3).
+    Dollar signs are escaped (``\\$``, drawn as ``$``); text without one, and the tick
+    labels (a log axis's ``10^{1}`` is mathtext; names given as tick labels are escaped
+    where they are given, :func:`draw_timeline`), are left as they are.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure, before it is laid out or drawn.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        ``fig``.
+    """
+    from matplotlib.text import Text
+
+    ticks = {
+        id(label)
+        for ax in fig.axes
+        for axis in (ax.xaxis, ax.yaxis)
+        for label in axis.get_ticklabels(which="both")
+    }
+    for text in fig.findobj(Text):
+        value = text.get_text()
+        if _SURROGATE.search(value):  # a file name's undecodable bytes: no font draws them
+            text.set_text(value := drawable(value))
+        if "$" in value and id(text) not in ticks and not getattr(text, "_credcli_plain", False):
+            text.set_text(value.replace("$", "\\$"))
+            text._credcli_plain = True  # escaped once, however often the figure is finished
+    return fig
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def drawable(text: str) -> str:
+    r"""``text`` with each lone surrogate (a file name's byte that is not UTF-8) as its
+    backslash escape, which matplotlib can draw (it refuses the string otherwise).
+
+    Parameters
+    ----------
+    text : str
+        A name from the data or a file name.
+
+    Returns
+    -------
+    str
+        ``text``, its lone surrogates written ``\udcff``.
+
+    Examples
+    --------
+    >>> drawable("log\udcff.csv")
+    'log\\udcff.csv'
+    """
+    return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
+
+
 def _finish(fig, name: str, title: str, data: dict, group: str = "") -> Plot:
     plt = _pyplot()
     fig.suptitle(title)
+    plain_text(fig)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
@@ -147,11 +208,9 @@ def short_title(text: str, limit: int = 80) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
-def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
-    """Write each plot as DIR/<name>.png (atomically); create DIR if needed.
-
-    The names are checked before any file is written, so that a collision never
-    overwrites a figure.
+def check_plots(plots: list[Plot], directory: Path, keep=()) -> None:
+    """Check, before any figure (or any other output) is written, that :func:`write_plots`
+    can write every plot into ``directory``.
 
     Parameters
     ----------
@@ -159,23 +218,21 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
         The figures.
     directory : Path
         The directory DIR (a str is accepted).
-
-    Returns
-    -------
-    list of Path
-        The files written, in the order of ``plots``.
+    keep : iterable of paths, optional
+        Files no figure may overwrite: the command's inputs and other outputs (a config
+        named ``timeline.png`` in DIR); None items are skipped.
 
     Raises
     ------
     CredcliError
-        If ``directory`` exists and is not a directory, or if two plots have the same
-        name.
+        If ``directory`` is a symbolic link or exists and is not a directory, if two plots
+        have the same name, or if a figure would replace a directory or one of ``keep``.
     """
     directory = Path(directory)
-    if directory.exists() and not directory.is_dir():
-        raise CredcliError(f"`plots` {directory}: exists and is not a directory", "plots")
+    keep = [k for k in keep if k is not None]
+    check_directory_output("`plots`", directory, {})
     seen: set[str] = set()
-    for plot in plots:  # before any is written: a collision never overwrites a figure
+    for plot in plots:
         if plot.name in seen:
             raise CredcliError(
                 f"`plots`: two figures would both be {directory / plot.name}.png (segment "
@@ -185,6 +242,36 @@ def write_plots(plots: list[Plot], directory: Path) -> list[Path]:
                 "plots",
             )
         seen.add(plot.name)
+        check_new_file("`plots`", directory / f"{plot.name}.png", keep)
+
+
+def write_plots(plots: list[Plot], directory: Path, keep=()) -> list[Path]:
+    """Write each plot as DIR/<name>.png (atomically); create DIR if needed.
+
+    Every name is checked before any file is written (:func:`check_plots`), so that a
+    collision never overwrites a figure, and no figure overwrites one of ``keep``.
+
+    Parameters
+    ----------
+    plots : list of Plot
+        The figures.
+    directory : Path
+        The directory DIR (a str is accepted).
+    keep : iterable of paths, optional
+        Files no figure may overwrite (None items are skipped).
+
+    Returns
+    -------
+    list of Path
+        The files written, in the order of ``plots``.
+
+    Raises
+    ------
+    CredcliError
+        As :func:`check_plots`.
+    """
+    directory = Path(directory)
+    check_plots(plots, directory, keep)
     directory.mkdir(parents=True, exist_ok=True)
     paths = []
     for plot in plots:
@@ -959,6 +1046,7 @@ class Span:
 
 def _titled(fig, title: str):
     fig.suptitle(title)
+    plain_text(fig)
     fig.tight_layout()
     return fig
 
@@ -1436,6 +1524,7 @@ def draw_timeline(spans: list[Span], xlabel: str = "time [s]", title: str = ""):
     for row in range(rows):
         mine = [s for s, lane in zip(spans, lanes) if lane == row]
         names.append(short_title(mine[0].name, 14) if len(mine) == 1 else f"{len(mine)} segments")
+    names = [drawable(n).replace("$", "\\$") for n in names]  # no mathtext
     ax.set_yticks(range(rows), names, fontsize=8)
     ax.set_ylim(rows - 0.5, -0.5)
     ax.set_xlabel(xlabel)
@@ -1472,6 +1561,7 @@ def figure_plot(name: str, title: str, drawn, group: str = "") -> Plot:
     """
     fig, data = drawn
     plt = _pyplot()
+    plain_text(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
     plt.close(fig)

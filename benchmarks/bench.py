@@ -133,7 +133,7 @@ def _bag_rate(path: str) -> str:
 
 def _dask_overhead(tasks: int = 2000) -> str:
     """Seconds per trivial task on local:1 and local:2 (the cluster's own cost per task)."""
-    from credcli.cluster import DaskRunner
+    from credcli.schedule.cluster import DaskRunner
 
     out = []
     for workers in (1, 2):

@@ -42,7 +42,7 @@ from credcli.logid import LogId
 from credcli.report.html import results_table
 from credcli.report.overview import DRAWN, PlotKind, Source, draw
 from credcli.report.records import segment_record
-from credcli.scheduling import diagnose_plans
+from credcli.schedule.plans import diagnose_plans
 from credcli.segments import monte_carlo_plan, split, split_runs, without_run
 
 __all__ = [

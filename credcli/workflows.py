@@ -10,7 +10,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from credcli import scheduling
 from credcli import segments as seg
 from credcli.ci.gate import compare, verdict_line
 from credcli.engine.curves import segment_curves
@@ -19,7 +18,6 @@ from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, with_unique_ids
 from credcli.io.streams import display_name, is_stream
-from credcli.parallel import WorkerPool
 from credcli.report import plots as figs
 from credcli.report.overview import Source, overview_plots, segments_to_draw
 from credcli.report.records import (
@@ -40,7 +38,14 @@ from credcli.report.render import (
     uwb_report,
 )
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
-from credcli.scheduling import PARALLEL_MIN_BYTES, diagnose_on_cluster, diagnose_plans, file_size
+from credcli.schedule import plans as scheduling
+from credcli.schedule.plans import (
+    PARALLEL_MIN_BYTES,
+    diagnose_on_cluster,
+    diagnose_plans,
+    file_size,
+)
+from credcli.schedule.pool import WorkerPool
 from credcli.segments import log_summary, monte_carlo_plan, split, split_runs
 from credcli.studies import simulate as sim
 from credcli.studies import uwb
@@ -102,7 +107,7 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     progress : callable, optional
         Called as ``progress(done, total)`` as segments are diagnosed.
     runner : DaskRunner, optional
-        A `credcli.cluster.DaskRunner`: the segments are diagnosed on a Dask cluster whose
+        A `credcli.schedule.cluster.DaskRunner`: the segments are diagnosed on a Dask cluster whose
         workers read the logs themselves. None: in this process and local workers.
 
     Returns
@@ -261,7 +266,7 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
     progress : callable, optional
         Called as ``progress(done, total)`` as trials finish.
     runner : DaskRunner, optional
-        Trials on a Dask cluster (`credcli.cluster.DaskRunner`); None: local processes.
+        Trials on a Dask cluster (`credcli.schedule.cluster.DaskRunner`); None: local processes.
 
     Returns
     -------

@@ -218,7 +218,7 @@ def test_only_the_command_line_tunes_its_allocator(monkeypatch, tmp_path, capsys
     """keep_freed_memory changes a process-wide malloc setting: the command line does it
     for a command it runs, not for --help, and the library never does."""
     import credcli
-    from credcli import parallel
+    from credcli.schedule import pool as parallel
 
     calls = []
     monkeypatch.setattr(parallel, "keep_freed_memory", lambda: calls.append(True))

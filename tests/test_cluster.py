@@ -15,10 +15,10 @@ distributed = pytest.importorskip("distributed")
 
 from helpers import ROOT, error_line, run  # noqa: E402
 
-from credcli.cluster import DaskRunner  # noqa: E402
 from credcli.io.schema import LogReading  # noqa: E402
 from credcli.report.render import OutputFormat, to_text  # noqa: E402
 from credcli.requests import DiagnoseRequest, SimulateRequest  # noqa: E402
+from credcli.schedule.cluster import DaskRunner  # noqa: E402
 from credcli.studies.samples import GOOD_SEGMENTS, estimator_log  # noqa: E402
 from credcli.workflows import run_diagnose, run_simulate  # noqa: E402
 
@@ -96,9 +96,9 @@ def test_bad_input_on_the_cluster_is_the_local_error(tmp_path, runner):
 
 
 def test_unreachable_scheduler_and_bad_address(monkeypatch):
-    import credcli.cluster
+    import credcli.schedule.cluster
 
-    monkeypatch.setattr(credcli.cluster, "CONNECT_TIMEOUT", "0.5s")
+    monkeypatch.setattr(credcli.schedule.cluster, "CONNECT_TIMEOUT", "0.5s")
     line = error_line(
         *run(
             "diagnose",

@@ -308,7 +308,7 @@ LAYERS = (
     ("credcli.errors", "credcli.version", "credcli.system", "credcli.logid"),
     ("credcli.engine",),
     ("credcli.io", "credcli.segments", "credcli.adapters"),
-    ("credcli.parallel", "credcli.scheduling", "credcli.cluster"),  # where work runs
+    ("credcli.schedule",),  # where work runs: plans, pool, cluster
     ("credcli.studies",),
     ("credcli.report", "credcli.ci", "credcli.requests"),
     ("credcli.workflows",),

@@ -576,8 +576,8 @@ def test_memory_error_is_blamed_on_settings_only_when_ours(monkeypatch):
 def test_a_port_where_no_scheduler_answers_fails_within_the_timeout():
     import socket
 
-    from credcli.cluster import probe_scheduler
     from credcli.errors import CredcliError
+    from credcli.schedule.cluster import probe_scheduler
 
     with socket.socket() as server:  # accepts, never writes: an HTTP server, say
         server.bind(("127.0.0.1", 0))
@@ -592,8 +592,8 @@ def test_a_port_where_no_scheduler_answers_fails_within_the_timeout():
 def test_an_http_answer_is_not_a_scheduler():
     import socket
 
-    from credcli.cluster import probe_scheduler
     from credcli.errors import CredcliError
+    from credcli.schedule.cluster import probe_scheduler
 
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))
@@ -748,7 +748,7 @@ def test_stopping_workers_killed_mid_result_returns():
     tests under load). Killed while sending 64 MB results, the pool now stops at once."""
     import threading
 
-    from credcli.parallel import WorkerPool
+    from credcli.schedule.pool import WorkerPool
 
     pool = WorkerPool(2)
     for _ in range(4):

@@ -103,7 +103,7 @@ def test_default_protocol_and_mean_over_seeds_are_close_to_table_ii():
 
 
 def test_jobs_do_not_change_output(tmp_path, capsys, monkeypatch):
-    from credcli import parallel
+    from credcli.schedule import pool as parallel
 
     outs = []
     for jobs, method in ((1, None), (2, "fork"), (2, "spawn")):
@@ -121,7 +121,7 @@ def test_jobs_do_not_change_output(tmp_path, capsys, monkeypatch):
 def test_workers_are_forked_only_from_a_single_thread_without_pyarrow(monkeypatch):
     import threading
 
-    from credcli import parallel
+    from credcli.schedule import pool as parallel
 
     if sys.platform != "linux":
         assert parallel.start_method() == "spawn"

@@ -95,8 +95,9 @@ def test_jobs_do_not_change_the_output(tmp_path, monkeypatch):
     """Two worker processes write the same bytes as one process. The size limits of the
     parallel path are lowered for the test (they are costs, not results): 5,400 epochs in
     18 segments take it, as 50,000 epochs and 2 MB would, and the workers get the tasks."""
-    from credcli import scheduling, workflows
+    from credcli import workflows
     from credcli.cli import main
+    from credcli.schedule import plans as scheduling
 
     monkeypatch.setattr(scheduling, "PARALLEL_MIN_EPOCHS", 5_000)
     monkeypatch.setattr(workflows, "PARALLEL_MIN_BYTES", 500_000)
@@ -229,7 +230,7 @@ def test_segments_too_short_for_a_verdict_are_diagnosed_together():
     one epoch), in the log's order among the long segments."""
     from credcli import log_from_arrays
     from credcli.engine.diagnosis import diagnose_segment
-    from credcli.scheduling import diagnose_plans
+    from credcli.schedule.plans import diagnose_plans
     from credcli.segments import split
 
     rng = np.random.default_rng(5)
@@ -278,7 +279,7 @@ def test_the_pool_threads_errors_after_a_stop_are_quiet_and_others_shown(monkeyp
     from concurrent.futures import InvalidStateError
     from concurrent.futures.process import _ExecutorManagerThread
 
-    from credcli import parallel
+    from credcli.schedule import pool as parallel
 
     shown = []
     monkeypatch.setattr(threading, "excepthook", shown.append)

@@ -198,7 +198,7 @@ def test_a_plain_tcp_scheduler_off_this_machine_is_refused(capsys, monkeypatch):
     pytest.importorskip("distributed")
     from helpers import ROOT
 
-    from credcli.cluster import REMOTE_OPT_IN
+    from credcli.schedule.cluster import REMOTE_OPT_IN
 
     monkeypatch.chdir(ROOT)
     monkeypatch.delenv(REMOTE_OPT_IN, raising=False)
@@ -772,7 +772,7 @@ def test_other_plaintext_schedulers_off_this_machine_are_refused(scheme, capsys,
     pytest.importorskip("distributed")
     from helpers import ROOT
 
-    from credcli.cluster import REMOTE_OPT_IN
+    from credcli.schedule.cluster import REMOTE_OPT_IN
 
     monkeypatch.chdir(ROOT)
     monkeypatch.delenv(REMOTE_OPT_IN, raising=False)
@@ -829,7 +829,7 @@ def test_a_local_cluster_of_more_workers_than_cores_can_take_is_refused(capsys, 
     pytest.importorskip("distributed")
     from helpers import ROOT
 
-    from credcli import cluster
+    from credcli.schedule import cluster
 
     monkeypatch.chdir(ROOT)
     monkeypatch.setattr(cluster, "_local_cluster", lambda workers: pytest.fail("started"))

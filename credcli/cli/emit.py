@@ -224,7 +224,7 @@ def cluster(scheduler: str | None):
     Raises
     ------
     CredcliError
-        If Dask is missing or the scheduler cannot be reached (`credcli.cluster`).
+        If Dask is missing or the scheduler cannot be reached (`credcli.schedule.cluster`).
     """
     if not scheduler:
         scheduler = os.environ.get(SCHEDULER_ENV) or None
@@ -233,7 +233,7 @@ def cluster(scheduler: str | None):
             print(printable(note), file=sys.stderr)
     if not scheduler:
         return contextlib.nullcontext(None)
-    from credcli.cluster import DaskRunner
+    from credcli.schedule.cluster import DaskRunner
 
     console = stderr_console()
 

@@ -35,9 +35,9 @@ from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.files import check_small_input, read_toml
 from credcli.io.logs import LogSchema
 from credcli.io.schema import LogReading, ReadOptions
-from credcli.parallel import default_jobs
 from credcli.report.records import read_baseline
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
+from credcli.schedule.pool import default_jobs
 from credcli.studies.settings import STD_ESTIMATE, SimulationConfig, UwbSettings
 
 KEY_ALIASES = {

@@ -26,7 +26,7 @@ from credcli.engine.diagnosis import (
     parse_label,
 )
 from credcli.errors import CredcliError, plain
-from credcli.parallel import ordered_map, prepare_worker
+from credcli.schedule.pool import ordered_map, prepare_worker
 from credcli.studies.settings import (  # noqa: F401 (re-exported)
     CURVE_RUNS,
     ErrorModel,
@@ -245,7 +245,7 @@ def run_groups(
     progress : callable, optional
         Called as ``progress(done, total)`` with counts of trials as tasks finish.
     runner : DaskRunner, optional
-        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        A :class:`credcli.schedule.cluster.DaskRunner` that runs the tasks on its cluster instead
         of local processes (``jobs`` then only sets the trials per task).
 
     Returns
@@ -281,7 +281,7 @@ def run_group_sets(
     progress : callable, optional
         Called as ``progress(done, total)`` with counts of trials as tasks finish.
     runner : DaskRunner, optional
-        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        A :class:`credcli.schedule.cluster.DaskRunner` that runs the tasks on its cluster instead
         of local processes (``jobs`` then only sets the trials per task).
 
     Returns
@@ -397,7 +397,7 @@ def run_study(
     progress : callable, optional
         Called as ``progress(done, total)`` with counts of trials as tasks finish.
     runner : DaskRunner, optional
-        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        A :class:`credcli.schedule.cluster.DaskRunner` that runs the tasks on its cluster instead
         of local processes (``jobs`` then only sets the trials per task).
 
     Returns
@@ -637,7 +637,7 @@ def run_sweep(
     progress : callable, optional
         Called as ``progress(done, total)`` with counts of trials as tasks finish.
     runner : DaskRunner, optional
-        A :class:`credcli.cluster.DaskRunner` that runs the tasks on its cluster instead
+        A :class:`credcli.schedule.cluster.DaskRunner` that runs the tasks on its cluster instead
         of local processes (``jobs`` then only sets the trials per task).
 
     Returns

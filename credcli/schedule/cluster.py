@@ -1,7 +1,7 @@
 """Work on a Dask distributed cluster (``--scheduler``; the ``credcli[dask]`` extra).
 
 Imported only when ``--scheduler`` is given: without it nothing of Dask is loaded and
-``--jobs`` uses local processes (credcli.parallel).
+``--jobs`` uses local processes (credcli.schedule.pool).
 
 - ``--scheduler tcp://host:8786`` (or ``CREDCLI_SCHEDULER``) connects a
   ``distributed.Client`` to a running scheduler (``dask scheduler`` and ``dask worker``);

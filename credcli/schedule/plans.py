@@ -25,7 +25,7 @@ from credcli.engine.timing import truth_velocity
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.logid import LogId, unique_ids
-from credcli.parallel import ordered_map, prepare_worker
+from credcli.schedule.pool import ordered_map, prepare_worker
 from credcli.segments import LogSummary, checked_log, log_summary, split
 
 PARALLEL_MIN_EPOCHS = 50_000
@@ -360,7 +360,7 @@ def diagnose_on_cluster(runner, sources, config, seed, innovations, progress=Non
     Parameters
     ----------
     runner : DaskRunner
-        The cluster (`credcli.cluster.DaskRunner`).
+        The cluster (`credcli.schedule.cluster.DaskRunner`).
     sources : list of tuple
         One per log: (path, schema, reading options, drop_invalid, window, whole,
         min_epochs), what a worker needs to read and cut it.

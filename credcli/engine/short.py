@@ -225,18 +225,3 @@ class SegmentResults(Sequence):
             else ((part.diagnosis.label, part.diagnosis.untested),)
             for part in self.parts
         )
-
-    def logs(self) -> Iterator[LogId]:
-        """Each segment's log, in order, without making the segments' results.
-
-        Returns
-        -------
-        iterator of LogId
-            The log of each segment.
-        """
-        return itertools.chain.from_iterable(
-            itertools.repeat(part.log, len(part))
-            if isinstance(part, ShortSegments)
-            else (part.log,)
-            for part in self.parts
-        )

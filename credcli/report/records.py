@@ -623,54 +623,6 @@ class Records(Sequence):
             else:
                 yield part
 
-    def values(self, key: str, chunk: int = 4096) -> Iterator:
-        """Each record's value at ``key`` (None where it has none), in order, without a
-        dict per record of a batch.
-
-        Parameters
-        ----------
-        key : str
-            A record key.
-        chunk : int
-            Records of a batch whose values are made at a time.
-
-        Returns
-        -------
-        iterator
-            The value of each record.
-        """
-        return itertools.chain.from_iterable(self._value_runs(key, chunk))
-
-    def _value_runs(self, key: str, chunk: int) -> Iterator:
-        for part in self.parts:
-            if not isinstance(part, RecordBatch):
-                yield (part.get(key),)
-                continue
-            for start in range(0, len(part), chunk):
-                stop = min(start + chunk, len(part))
-                values = part.columns(start, stop, (key,)).get(key)
-                if values is None:
-                    yield itertools.repeat(part.shared.get(key), stop - start)
-                else:
-                    yield values
-
-    def has(self, key: str) -> bool:
-        """Whether any record has ``key``.
-
-        Parameters
-        ----------
-        key : str
-            A record key.
-
-        Returns
-        -------
-        bool
-            True when a record holds it.
-        """
-        return any(
-            key in (part.shared if isinstance(part, RecordBatch) else part) for part in self.parts
-        )
-
     def keys(self) -> list[str]:
         """Every key of the records, in the order they first appear.
 

@@ -7,6 +7,7 @@ and one line on stderr. The only place that knows exit codes.
 
 from __future__ import annotations
 
+import codecs
 import errno
 import functools
 import os
@@ -91,8 +92,6 @@ def _escape_unencodable() -> list:
     undecodable bytes under a strict UTF-8 locale) as backslash escapes, not as exit 3;
     returns the streams changed and their handlers, to be restored. A UTF-8 stream that
     writes undecodable bytes back as they were (surrogateescape, Linux's C.UTF-8) stays so."""
-    import codecs
-
     changed = []
     for stream in (sys.stdout, sys.stderr):
         errors, encoding = getattr(stream, "errors", None), getattr(stream, "encoding", None)

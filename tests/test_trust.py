@@ -90,6 +90,28 @@ def test_csv_is_rfc4180_and_never_a_formula(evil_log, capsys, tmp_path):
     assert rows[0]["n"] == "60" and float(rows[0]["scale_factor"]) > 0  # numbers stay numbers
 
 
+def test_no_csv_cell_reads_as_a_formula_lists_of_numbers_included(tmp_path):
+    """A list cell such as ``bias`` is written "-0.0715 -0.3579": text to a spreadsheet,
+    which reads a text starting with '-' as a formula (=-0.07-0.35). Every cell of the
+    sample's CSV and of a log of one-epoch segments (the batched writer) is checked."""
+    from helpers import ROOT
+
+    rng = np.random.default_rng(3)
+    short = tmp_path / "short.csv"
+    e = rng.standard_normal((40, 2)) - 3.0  # negative means: lists starting with '-'
+    rows = ["time,segment,truth_0,truth_1,est_0,est_1,cov_0_0,cov_0_1,cov_1_1"]
+    rows += [f"{k},s{k},{a},{b},0,0,1,0,1" for k, (a, b) in enumerate(e)]
+    short.write_text("\n".join(rows) + "\n")
+    for log in (ROOT / SAMPLE_LOG, short):
+        out = tmp_path / f"{log.stem}.out.csv"
+        assert main(["diagnose", str(log), "-f", "csv", "-o", str(out)]) == 0
+        with out.open(newline="") as f:
+            cells = [c for row in csv.reader(f) for c in row]
+        lists = [c for c in cells if " " in c and c.lstrip("'-").replace(".", "", 1)[:1].isdigit()]
+        assert lists, "the CSV has list cells"
+        assert not [c for c in cells if c and (c[0] in "=+@\t\r" or (c[0] == "-" and " " in c))]
+
+
 SAMPLE_LOG = "sample_data/estimator_log.csv"
 
 

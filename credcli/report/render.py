@@ -514,8 +514,8 @@ def _csv_cell(value) -> str:
         return repr(value)
     if isinstance(value, int):
         return str(value)
-    if isinstance(value, list):
-        return " ".join(_csv_cell(v) for v in value)
+    if isinstance(value, list):  # "-0.07 -0.35" is text, and a formula, to a spreadsheet
+        return _unformula(" ".join(_csv_cell(v) for v in value))
     text = str(value)
     if text[:1] in _FORMULA_STARTS:  # a name from the data: never a spreadsheet formula
         return "'" + text
@@ -525,6 +525,12 @@ def _csv_cell(value) -> str:
 _FORMULA_STARTS = frozenset("=+-@\t\r")
 """A text cell starting with one of these is read as a formula by spreadsheets (OWASP, CSV
 injection); it is written with a leading apostrophe. Numbers are written as numbers."""
+
+
+def _unformula(text: str) -> str:
+    """``text`` with a leading apostrophe where a spreadsheet would read it as a formula."""
+    return "'" + text if text[:1] in _FORMULA_STARTS else text
+
 
 _FORMULA_START = operator.methodcaller("startswith", tuple(_FORMULA_STARTS))
 """Whether a text starts as a formula (:data:`_FORMULA_STARTS`), one C call a text."""
@@ -906,6 +912,7 @@ def _csv_lists(positions) -> tuple[str, list[list[str]]] | None:
     holes = [
         [_csv_cell(v) for v in p] if None in p else list(map(float.__repr__, p)) for p in positions
     ]
+    holes[0] = [_unformula(text) for text in holes[0]]  # the cell's text starts with it
     return " ".join(["%s"] * len(positions)), holes
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import bisect
 import itertools
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -170,25 +170,23 @@ def short_segments(
     return ShortSegments(log, names, t_start, t_end, lengths, errors.shape[1], config, accuracy)
 
 
-@dataclass(frozen=True, eq=False)
-class SegmentResults(Sequence):
-    """The results of segments, in order: a sequence of
-    :class:`~credcli.engine.diagnosis.SegmentDiagnosis` held as ``parts``, each one
-    SegmentDiagnosis or a :class:`ShortSegments` run, whose items are made when asked for.
-    The report reads the parts (:func:`credcli.report.records.segment_records`).
+class PartSequence(Sequence):
+    """A sequence held as parts, in order: single items, and runs (parts of the class
+    ``RUN``) whose items are made when asked for. Item k is found by bisection on the
+    parts' cumulative lengths.
 
-    Attributes
+    Parameters
     ----------
     parts : tuple
-        SegmentDiagnosis and ShortSegments, in the segments' order.
+        Single items and runs, in order.
     """
 
-    parts: tuple
-    _ends: list = field(init=False, repr=False)
+    RUN: type = tuple  # the class of a run; a subclass names its own
 
-    def __post_init__(self) -> None:
-        sizes = (len(p) if isinstance(p, ShortSegments) else 1 for p in self.parts)
-        object.__setattr__(self, "_ends", list(itertools.accumulate(sizes)))
+    def __init__(self, parts: tuple) -> None:
+        self.parts = tuple(parts)
+        sizes = (len(p) if isinstance(p, self.RUN) else 1 for p in self.parts)
+        self._ends = list(itertools.accumulate(sizes))
 
     def __len__(self) -> int:
         return self._ends[-1] if self._ends else 0
@@ -199,16 +197,31 @@ class SegmentResults(Sequence):
         k = range(len(self))[k]
         p = bisect.bisect_right(self._ends, k)
         part = self.parts[p]
-        if isinstance(part, ShortSegments):
+        if isinstance(part, self.RUN):
             return part[k - (self._ends[p] - len(part))]
         return part
 
-    def __iter__(self) -> Iterator[SegmentDiagnosis]:
+    def __iter__(self) -> Iterator:
         for part in self.parts:
-            if isinstance(part, ShortSegments):
+            if isinstance(part, self.RUN):
                 yield from part
             else:
                 yield part
+
+
+class SegmentResults(PartSequence):
+    """The results of segments, in order: a sequence of
+    :class:`~credcli.engine.diagnosis.SegmentDiagnosis` held as ``parts``, each one
+    SegmentDiagnosis or a :class:`ShortSegments` run, whose items are made when asked for.
+    The report reads the parts (:func:`credcli.report.records.segment_records`).
+
+    Parameters
+    ----------
+    parts : tuple
+        SegmentDiagnosis and ShortSegments, in the segments' order.
+    """
+
+    RUN = ShortSegments
 
     def verdicts(self) -> Iterator[tuple[Label, tuple]]:
         """Each segment's label and untested questions, in order, without making the

@@ -5,10 +5,8 @@ from here."""
 
 from __future__ import annotations
 
-import bisect
 import dataclasses
 import enum
-import itertools
 import json
 import math
 import typing
@@ -20,7 +18,7 @@ import numpy as np
 
 from credcli.engine.config import DiagnosisConfig
 from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
-from credcli.engine.short import SegmentResults, ShortSegments
+from credcli.engine.short import PartSequence, SegmentResults, ShortSegments
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
@@ -587,7 +585,7 @@ class _Lists:
         return out
 
 
-class Records(Sequence):
+class Records(PartSequence):
     """The records of results, in order (:func:`segment_records`): a sequence of dicts, held
     as parts, one dict per SegmentDiagnosis and one :class:`RecordBatch` per run of segments
     too short for a verdict. Item k is the record of result k.
@@ -598,30 +596,7 @@ class Records(Sequence):
         Dicts and RecordBatch, in order.
     """
 
-    def __init__(self, parts: tuple) -> None:
-        self.parts = parts
-        sizes = (len(p) if isinstance(p, RecordBatch) else 1 for p in parts)
-        self._ends = list(itertools.accumulate(sizes))
-
-    def __len__(self) -> int:
-        return self._ends[-1] if self._ends else 0
-
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        k = range(len(self))[k]
-        p = bisect.bisect_right(self._ends, k)
-        part = self.parts[p]
-        if isinstance(part, RecordBatch):
-            return part[k - (self._ends[p] - len(part))]
-        return part
-
-    def __iter__(self) -> Iterator[dict]:
-        for part in self.parts:
-            if isinstance(part, RecordBatch):
-                yield from part
-            else:
-                yield part
+    RUN = RecordBatch
 
     def keys(self) -> list[str]:
         """Every key of the records, in the order they first appear.

@@ -1003,3 +1003,18 @@ def test_a_step_summary_that_is_a_link_is_refused_and_never_followed(tmp_path, c
     with pytest.raises(CredcliError, match="cannot append the summary"):
         reports.append_step_summary("# summary\n")
     assert outside.read_text() == "keep me\n"
+
+
+def test_errors_that_drift_without_a_finite_memory_are_declined_not_a_crash(capsys):
+    """Smooth trajectories taken as errors (`--truth-columns` on positions): the fitted AR
+    model has a root on the unit circle to working precision, where its Yule–Walker system
+    is singular (issue 32: exit 3, "LinAlgError: Singular matrix")."""
+    import credcli
+    t = np.linspace(0.0, 30.0, 300)
+    errors = np.column_stack([50.0 * np.cos(t / 10.0), 3.0 * t + 0.1 * t**2])
+    result = credcli.diagnose(errors, np.diag(np.mean(errors**2, axis=0)), seed=1)
+    assert result.label.value == "insufficient-data"
+    sample = Path(__file__).parents[1] / "sample_data" / "estimator_log.csv"
+    args = ["diagnose", str(sample), "--errors-only", "--truth-columns", "truth_0,truth_1"]
+    assert main(args) == 0
+    assert "no finite memory" in capsys.readouterr().out

@@ -28,10 +28,10 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
 )
 from credcli.engine.elt import ELTResult, whiten
 from credcli.engine.evidence import ks_chi2_pvalue  # noqa: F401 (re-exported)
-from credcli.engine.memory import Memory, TimeScales
+from credcli.engine.memory import Memory, NoFiniteMemory, TimeScales
 from credcli.engine.rng import RngLike, as_generator
 from credcli.engine.rules import nci_baseline, nees_baseline  # noqa: F401 (re-exported)
-from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals
+from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals, untested_scale
 from credcli.engine.timing import TimeOffset
 from credcli.engine.whiteness import Whiteness, innovation_levels, portmanteau
 from credcli.errors import CredcliError
@@ -775,7 +775,10 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
     if len(parts) < 2:
         return RunModel(None)
     pooled = np.concatenate(parts)
-    memory = evidence.segment_memory_of(pooled, np.einsum("ni,ni->n", pooled, pooled))
+    try:
+        memory = evidence.segment_memory_of(pooled, np.einsum("ni,ni->n", pooled, pooled))
+    except NoFiniteMemory:  # each window is then judged (and declined) as a segment
+        return RunModel(None)
     rotated = np.asarray(means) @ memory.directions
     sizes = np.asarray(sizes)
     ratios = np.array([[m.mean_ratio(int(k)) for m in memory.series] for k in sizes])
@@ -989,10 +992,14 @@ def block_scales(
         s = whiten(e, c)
         if evidence.reads_memory(config, runs):  # the block's memory, fitted as a segment's
             inverse = np.linalg.inv(chol)
-            memory, _ = evidence.segment_memory(gls, inverse, s)
-            test = evidence.memory_evidence(
-                gls, inverse, config, memory, e.shape[0], level=level
-            ).scale
+            try:
+                memory, _ = evidence.segment_memory(gls, inverse, s)
+            except NoFiniteMemory:
+                test = untested_scale(gls)  # no interval: the block's errors drift
+            else:
+                test = evidence.memory_evidence(
+                    gls, inverse, config, memory, e.shape[0], level=level
+                ).scale
         else:
             dep = dependence.serial_dependence(s, gls.q)
             batched = evidence.refers_to_batches(config, dep.dependent)

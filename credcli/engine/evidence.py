@@ -20,7 +20,14 @@ from credcli.engine import batches, correlation, dependence, episodes, metrics
 from credcli.engine.config import SMM_CONDITION, DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.episodes import Burst, Divergence
-from credcli.engine.memory import Memory, TimeScales, fit_memory, mean_free, time_scales
+from credcli.engine.memory import (
+    Memory,
+    NoFiniteMemory,
+    TimeScales,
+    fit_memory,
+    mean_free,
+    time_scales,
+)
 from credcli.engine.scale import (
     DirectionScales,
     ScaleTest,
@@ -230,11 +237,19 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     effective_n = float(n / max(1.0, float(np.max(tau_point))))
     source = "run" if memory is not None else "segment"
     scales_check = None
+    drifting = None
     if modelled and memory is None:
-        memory, scales_check = segment_memory(gls, inverse, s, r1)
-    model_evidence = {
-        c: memory_evidence(gls, inverse, c, memory, n) for c in dict.fromkeys(modelled)
-    }
+        try:
+            memory, scales_check = segment_memory(gls, inverse, s, r1)
+        except NoFiniteMemory:
+            drifting = _drift_evidence(gls, n)
+            source = None
+    if drifting is not None:
+        model_evidence = dict.fromkeys(modelled, drifting)
+    else:
+        model_evidence = {
+            c: memory_evidence(gls, inverse, c, memory, n) for c in dict.fromkeys(modelled)
+        }
     del inverse
     squares_ratio = memory.squares.variance_ratio if memory is not None else tau_q
     found_bursts = episodes.bursts(eps, d, squares_ratio)
@@ -247,7 +262,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     del eps
     if any(diverging.values()):  # the divergence names the run-away tail: not a burst
         found_bursts = tuple(b for b in found_bursts if b.stop < n)
-    slow = _slow_memory(scales_check, memory)
+    slow = _slow_memory(scales_check, memory) if memory is not None else None
     if slow is None and modelled and source == "segment":
         slow = _unresolved_memory(memory, n)
     if slow is not None:
@@ -291,7 +306,11 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             modelled_config = model_evidence[config]
             scale, scale_reason = modelled_config.scale, modelled_config.scale_reason
             directions = modelled_config.directions
-            segment_n = float(n / max(1.0, float(np.max(memory.variance_ratios))))
+            segment_n = (
+                float(n / max(1.0, float(np.max(memory.variance_ratios))))
+                if memory is not None
+                else 0.0  # no finite memory: no independent epochs to count
+            )
         else:
             key = _scale_key(config, refers_to_batches(config, dependent))
             scale, scale_reason = scales[key]
@@ -1010,6 +1029,21 @@ def _unresolved_memory(memory: Memory, n: int) -> str | None:
         "than the segment shows; neither question is answered (a longer segment, or windows "
         "of one run, can decide)"
     )
+
+
+NO_FINITE_MEMORY = (
+    "no finite memory: the errors drift like a trend, a random walk or a smooth curve (the "
+    "dependence model fitted on them has a root on the unit circle), so no average over the "
+    "segment settles; neither question is answered"
+)
+"""Why a segment whose fitted memory is not finite gets no verdict (:func:`gather`)."""
+
+
+def _drift_evidence(gls, n: int) -> ModelEvidence:
+    """Both questions declined because the segment's memory is not finite
+    (:class:`credcli.engine.memory.NoFiniteMemory`)."""
+    plan = LocationPlan(n, None, 0.0, None, NO_FINITE_MEMORY)
+    return ModelEvidence(untested_scale(gls), NO_FINITE_MEMORY, None, plan)
 
 
 def _declined(ev: ModelEvidence, reason: str) -> ModelEvidence:

@@ -215,6 +215,22 @@ def burg(x: np.ndarray, order: int) -> BurgFit:
     return BurgFit(reflection, variance, m * t, m)
 
 
+def _yule_walker_matrix(phi: np.ndarray) -> np.ndarray:
+    """A of the Yule–Walker system A γ = σ² e_0 of an AR(p): A[k, l] collects φ_j at
+    |k − j| = l (γ(0) … γ(p) solve it)."""
+    p = phi.size
+    a = np.eye(p + 1)
+    k, j = np.meshgrid(np.arange(p + 1), np.arange(1, p + 1), indexing="ij")
+    np.subtract.at(a, (k, np.abs(k - j)), np.broadcast_to(phi, k.shape))
+    return a
+
+
+class NoFiniteMemory(ArithmeticError):
+    """A fitted AR model has a root on the unit circle to working precision, where its
+    Yule–Walker system is singular: the errors drift (a trend, a random walk, a smooth
+    curve) and have no finite memory that a segment could resolve (:func:`fit_memory`)."""
+
+
 def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarray:
     """γ(0) … γ(lags − 1) of the stationary AR(p) x_t = Σ φ_j x_{t−j} + u_t, Var u = σ².
 
@@ -250,10 +266,7 @@ def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarra
         out = np.zeros(lags)
         out[0] = sigma2
         return out
-    # A γ = σ² e_0 with A[k, l] collecting φ_j at |k − j| = l
-    a = np.eye(p + 1)
-    k, j = np.meshgrid(np.arange(p + 1), np.arange(1, p + 1), indexing="ij")
-    np.subtract.at(a, (k, np.abs(k - j)), np.broadcast_to(phi, k.shape))
+    a = _yule_walker_matrix(phi)
     rhs = np.zeros(p + 1)
     rhs[0] = sigma2
     gamma = np.linalg.solve(a, rhs)
@@ -778,6 +791,12 @@ def fit_memory(
     Memory
         The principal directions, one :class:`SeriesMemory` per direction and one for q.
 
+    Raises
+    ------
+    NoFiniteMemory
+        When a fitted model has a root on the unit circle to working precision, so that
+        its Yule–Walker system is singular.
+
     References
     ----------
     K. N. Berk, "Consistent autoregressive spectral estimates", Ann. Stat. 2(3), 1974.
@@ -816,13 +835,16 @@ def fit_memory(
     orders = fit.orders(minimum)
     spreads: list = [None] * (d + 1)
     fitted = np.flatnonzero(orders > 0)
-    if fitted.size:
-        phis = [fit.coefficients(int(i), int(orders[i])) for i in fitted]
-        search = min(p_max, 2 * int(orders.max()) + 4)
-        spread, bias, square = bootstrap_spread(phis, n, search, int(orders.sum()), minimum)
-        for i, v, b, w in zip(fitted, spread, bias, square):
-            spreads[int(i)] = (v, b, w)
-    memories = [series_memory(fit, i, t, spreads[i], minimum) for i in range(d + 1)]
+    try:  # the models' Yule–Walker systems: singular only for a root on the unit circle
+        if fitted.size:
+            phis = [fit.coefficients(int(i), int(orders[i])) for i in fitted]
+            search = min(p_max, 2 * int(orders.max()) + 4)
+            spread, bias, square = bootstrap_spread(phis, n, search, int(orders.sum()), minimum)
+            for i, v, b, w in zip(fitted, spread, bias, square):
+                spreads[int(i)] = (v, b, w)
+        memories = [series_memory(fit, i, t, spreads[i], minimum) for i in range(d + 1)]
+    except np.linalg.LinAlgError as exc:
+        raise NoFiniteMemory(str(exc)) from exc
     return Memory(directions, tuple(memories[:d]), memories[d], n, runs)
 
 

@@ -513,11 +513,17 @@ def label_with_smm(nci_centred: float, probes: metrics.Probes | None, tau: float
         ``pessimism+smm`` below −τ; above +τ, ``smm`` when every probe is positive,
         ``optimism+smm`` when SRD_NLL > SRD_ES (neither NaN), else ``smm``; ``smm``
         within ±τ.
+
+    Raises
+    ------
+    TypeError
+        Above +τ without ``probes`` (a caller's error, not the data's).
     """
     if nci_centred < -tau:
         return Label.PESSIMISM_SMM
     if nci_centred > tau:
-        assert probes is not None
+        if probes is None:
+            raise TypeError("label_with_smm: the probes are needed above +τ_NCI")
         if probes.all_positive:
             return Label.SMM
         if _greater(probes.srd_nll, probes.srd_es):

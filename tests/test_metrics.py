@@ -399,3 +399,42 @@ def test_grouped_accuracy_equals_numpy_per_group(lengths):
         assert a.median_norm == pytest.approx(np.median(norms), rel=1e-12)
         np.testing.assert_allclose(a.rmse, np.sqrt(np.mean(e**2, axis=0)), rtol=1e-12)
         assert a.max_norm == pytest.approx(norms.max(), rel=1e-12)
+
+
+@pytest.mark.parametrize("func", [metrics.expected_norm, metrics.energy_score])
+def test_a_covariance_that_is_not_positive_definite_is_named(func):
+    """E‖W‖ of an indefinite "covariance" is not a number to return (it gave 0 before);
+    a singular one is a degenerate Gaussian and stays allowed."""
+    from credcli.errors import CredcliError
+
+    cov = np.array([np.eye(2), np.diag([1.0, -1.0])])
+    with pytest.raises(CredcliError, match=r"cov\[1\] is not positive semidefinite"):
+        func(np.zeros((2, 2)), cov)
+    assert np.all(np.isfinite(func(np.ones((2, 2)), np.array([np.eye(2), np.zeros((2, 2))]))))
+
+
+def test_curve_scales_hold_each_scale_once():
+    """geomspace(1/4, 4, 17) holds 2 less one ulp; with c = 2 it was listed twice."""
+    from credcli.engine.curves import PROBE_CURVE_SCALES, curve_scales
+
+    for c in (1.5, 2.0, 3.0, 4.0):
+        scales = curve_scales(c)
+        assert np.all(np.diff(np.log(scales)) > 1e-6)  # no two within a part in a million
+        for s in (1 / c, 1.0, c):
+            assert s in scales  # the probes themselves, exactly
+        lo, hi, _ = PROBE_CURVE_SCALES
+        assert scales[0] == min(lo, 1 / c) and scales[-1] == max(hi, c)
+
+
+def test_argument_errors_of_engine_helpers_are_credcli_errors():
+    from credcli.engine.correlation import block_length
+    from credcli.engine.curves import running_mean
+    from credcli.engine.whiteness import portmanteau
+    from credcli.errors import CredcliError
+
+    with pytest.raises(CredcliError, match="`lags`"):
+        portmanteau(np.random.default_rng(0).standard_normal((20, 2)), lags=20)
+    with pytest.raises(CredcliError, match="`window`"):
+        running_mean(np.ones(3), 4)
+    with pytest.raises(CredcliError, match="`loss`"):
+        block_length(2.0, loss=1.5)

@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from credcli.engine.units import power_of_two_unit
+from credcli.errors import CredcliError
 
 _BARTLETT_CONSTANT = 1.1447  # Andrews (1991), Eq. (6.4), Bartlett kernel
 _MAX_PREWHITEN = 0.999  # cap on the AR(1) prewhitening coefficient (see above)
@@ -267,7 +268,7 @@ def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> 
 
     Raises
     ------
-    ValueError
+    CredcliError
         If ``loss`` is not in (0, 1).
 
     Examples
@@ -278,7 +279,7 @@ def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> 
     1
     """
     if not 0 < loss < 1:
-        raise ValueError(f"loss must be in (0, 1); got {loss}")
+        raise CredcliError(f"`loss` must be in (0, 1); got {loss}", "loss")
     tau = np.atleast_1d(np.asarray(tau, dtype=float))
     tau = np.maximum(tau[np.isfinite(tau)], 1.0) if tau.size else np.ones(1)
     if tau.size == 0:

@@ -12,6 +12,7 @@ from scipy import special
 
 from credcli.engine.elt import whiten
 from credcli.engine.metrics import nees, score_curves
+from credcli.errors import CredcliError
 
 PROBE_CURVE_SCALES = (0.25, 4.0, 17)
 """The covariance scales of the score curves: geomspace(1/4, 4, 17), plus 1/c, 1 and c."""
@@ -28,16 +29,22 @@ def curve_scales(c: float) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        geomspace(1/4, 4, 17) with 1/c, 1 and c added, sorted, exact repeats removed
-        (``np.unique``).
+        geomspace(1/4, 4, 17) with 1/c, 1 and c added, sorted; a grid point within
+        10⁻⁹ (relative) of an added scale gives way to it, so that no scale appears twice
+        (geomspace's 2.0 is 2 less one unit in the last place).
 
     Examples
     --------
     >>> scales = curve_scales(3.0)
     >>> scales.size, float(scales[0]), float(scales[-1]), bool(np.isclose(scales, 1 / 3).any())
     (19, 0.25, 4.0, True)
+    >>> curve_scales(2.0).size  # 1/2, 1 and 2 are on the grid already: 17 scales, each once
+    17
     """
-    return np.unique(np.r_[np.geomspace(*PROBE_CURVE_SCALES), 1.0 / c, 1.0, c])
+    probes = np.array([1.0 / c, 1.0, c])
+    grid = np.geomspace(*PROBE_CURVE_SCALES)
+    near = np.isclose(grid[:, None], probes[None, :], rtol=1e-9, atol=0.0).any(axis=1)
+    return np.unique(np.r_[grid[~near], probes])
 
 
 @dataclass(frozen=True)
@@ -133,7 +140,7 @@ def running_mean(values: np.ndarray, window: int) -> np.ndarray:
 
     Raises
     ------
-    ValueError
+    CredcliError
         If ``window`` is not between 1 and N.
 
     Examples
@@ -143,7 +150,9 @@ def running_mean(values: np.ndarray, window: int) -> np.ndarray:
     """
     values = np.asarray(values, dtype=float)
     if not 1 <= window <= values.size:
-        raise ValueError(f"window must be between 1 and {values.size}; got {window}")
+        raise CredcliError(
+            f"`window` must be between 1 and {values.size}; got {window}", "window"
+        )
     sums = np.cumsum(np.r_[0.0, values])
     return (sums[window:] - sums[:-window]) / window
 

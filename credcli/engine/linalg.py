@@ -146,6 +146,47 @@ def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
         ) from None
 
 
+SEMIDEFINITE_RTOL = 1e-12
+"""A symmetric matrix counts as positive semidefinite when no eigenvalue is below
+−SEMIDEFINITE_RTOL × its largest eigenvalue magnitude (rounding of a singular covariance)."""
+
+
+def check_semidefinite(matrices: np.ndarray, name: str = "cov") -> None:
+    """Raise unless every matrix of (N, d, d) symmetric ones is positive semidefinite.
+
+    For the moments of N(m, S) that stay defined when S is singular (E‖W‖ of a point mass
+    is ‖m‖), where :func:`cholesky` would refuse a singular S.
+
+    Parameters
+    ----------
+    matrices : numpy.ndarray, shape (N, d, d)
+        Symmetric matrices.
+    name : str
+        The argument the matrices came from, for the error (default ``"cov"``).
+
+    Raises
+    ------
+    CredcliError
+        If a matrix has an eigenvalue below −:data:`SEMIDEFINITE_RTOL` times its largest
+        eigenvalue magnitude, naming the first such epoch (``cov[k]``).
+
+    Examples
+    --------
+    >>> check_semidefinite(np.array([np.eye(2), np.zeros((2, 2))]))  # a point mass is fine
+    >>> check_semidefinite(np.array([np.diag([1.0, -1.0])]))
+    Traceback (most recent call last):
+    ...
+    credcli.errors.CredcliError: cov[0] is not positive semidefinite (it has a negative eigenvalue)
+    """
+    values = np.linalg.eigvalsh(matrices)
+    bad = values[:, 0] < -SEMIDEFINITE_RTOL * np.abs(values).max(axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise CredcliError(
+            f"{name}[{k}] is not positive semidefinite (it has a negative eigenvalue)", name
+        )
+
+
 def _factorable(matrix: np.ndarray) -> bool:
     try:
         np.linalg.cholesky(matrix)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from credcli.engine.linalg import check_errors_cov, cholesky, epoch_chunks
+from credcli.engine.linalg import check_errors_cov, check_semidefinite, cholesky, epoch_chunks
 from credcli.engine.quadrature import centred_norm, expected_norms
 from credcli.errors import CredcliError
 
@@ -42,7 +42,7 @@ def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite, naming the argument and the epoch.
+        not symmetric positive semidefinite, naming the argument and the epoch.
 
     References
     ----------
@@ -105,7 +105,7 @@ def anees(errors: np.ndarray, cov: np.ndarray) -> float:
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite, naming the argument and the epoch.
+        not symmetric positive semidefinite, naming the argument and the epoch.
 
     References
     ----------
@@ -259,7 +259,7 @@ def gaussian_nll(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite, naming the argument and the epoch.
+        not symmetric positive semidefinite, naming the argument and the epoch.
 
     References
     ----------
@@ -311,7 +311,8 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
     mean : array_like, shape (N, d)
         The means m ((N,) is d = 1).
     cov : array_like, shape (N, d, d)
-        The covariances S, symmetric positive definite.
+        The covariances S, symmetric positive semidefinite (a singular S is a degenerate
+        Gaussian; S = 0 gives ‖m‖).
 
     Returns
     -------
@@ -322,7 +323,7 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite (the message calls ``mean`` "errors").
+        not symmetric positive semidefinite (the message calls ``mean`` "errors").
 
     Examples
     --------
@@ -331,6 +332,7 @@ def expected_norm(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
     (1.253314, 1.253314)
     """
     mean, cov = check_errors_cov(mean, cov)
+    check_semidefinite(cov)  # or a CredcliError naming the epoch
     return expected_norms(mean, cov, (1.0,))[0]
 
 
@@ -411,7 +413,7 @@ def energy_score(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite, naming the argument and the epoch.
+        not symmetric positive semidefinite, naming the argument and the epoch.
 
     References
     ----------
@@ -425,6 +427,7 @@ def energy_score(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.
     (0.2337, 0.2337)
     """
     errors, cov = check_errors_cov(errors, cov)
+    check_semidefinite(cov)  # or a CredcliError naming the epoch
     return EnergyScorer(cov).energy_scores(errors, (scale,))[0]
 
 
@@ -825,7 +828,7 @@ def score_curves(errors: np.ndarray, cov: np.ndarray, scales) -> tuple[np.ndarra
     ------
     CredcliError
         For arrays of the wrong shape, a value that is not finite, or a covariance that is
-        not symmetric positive definite, naming the argument and the epoch.
+        not symmetric positive semidefinite, naming the argument and the epoch.
 
     Examples
     --------

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
+from credcli.errors import CredcliError
+
 MAX_LAGS = 10
 
 
@@ -125,7 +127,7 @@ def portmanteau(whitened: np.ndarray, lags: int | None = None) -> Whiteness:
 
     Raises
     ------
-    ValueError
+    CredcliError
         If ``lags`` is not between 1 and n − 1.
 
     Notes
@@ -151,7 +153,7 @@ def portmanteau(whitened: np.ndarray, lags: int | None = None) -> Whiteness:
     n, m = w.shape
     h = default_lags(n) if lags is None else int(lags)
     if not 1 <= h < n:
-        raise ValueError(f"lags must be between 1 and n - 1 = {n - 1}; got {h}")
+        raise CredcliError(f"`lags` must be between 1 and n − 1 = {n - 1}; got {h}", "lags")
     w = w - w.mean(axis=0)
     c0 = w.T @ w / n
     c0_inv = np.linalg.inv(c0)

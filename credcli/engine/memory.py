@@ -513,7 +513,7 @@ def _log_tau(phi: np.ndarray, sigma2: float) -> float:
 
 def bootstrap_spread(
     phis: list[np.ndarray], n: int, p_max: int, seed: int, minimum: int = 0
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The estimation error of fitted AR models' memory, by a parametric bootstrap.
 
     B = :data:`BOOTSTRAP_REPLICATES` series of ``n`` epochs are drawn from each model in

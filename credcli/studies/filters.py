@@ -100,7 +100,7 @@ class FilterRuns:
         >>> runs = ekf_runs(runs=2, rate_hz=10.0, duration_s=2.0)
         >>> slow = runs.thinned(5)
         >>> runs.errors.shape, slow.errors.shape, slow.cov.shape, np.round(slow.time, 6).tolist()
-        ((2, 20, 2), (2, 4, 2), (2, 4, 2, 2), [0.0, 0.5, 1.0, 1.5])
+        ((2, 20, 2), (2, 4, 2), (2, 4, 2, 2), [0.1, 0.6, 1.1, 1.6])
         """
         return FilterRuns(self.errors[:, ::every], self.cov[:, ::every], self.time[::every])
 
@@ -150,7 +150,8 @@ def ekf_runs(
     -------
     FilterRuns
         Position errors (M, N, 2), claimed position covariances (M, N, 2, 2) and times
-        k / ``rate_hz`` (N,).
+        (k + 1) / ``rate_hz`` (N,): epoch k is recorded after the update of step k + 1
+        (the truth starts at time 0).
 
     Notes
     -----
@@ -210,7 +211,7 @@ def ekf_runs(
         p = ikh @ p @ np.swapaxes(ikh, 1, 2) + gain @ rf @ np.swapaxes(gain, 1, 2)
         errors[:, k] = (x - xh)[:, :2]
         cov[:, k] = p[:, :2, :2]
-    return FilterRuns(errors, cov, np.arange(n) * dt)
+    return FilterRuns(errors, cov, np.arange(1, n + 1) * dt)  # epoch k is after k + 1 steps
 
 
 def rotating_bias_log(

@@ -521,13 +521,16 @@ def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
     -------
     list of EstimatorLog
         One log per run id, identified by ``log.id.run(id)`` (:meth:`LogId.run`); ``[log]``
-        itself for a log without run ids.
+        itself for a log without run ids. Each keeps the log's notes, blocks, fitted-mean
+        reason and its own epochs of the other convention's errors; the file's counts of
+        dropped and unpaired rows go with the first run, so that the runs add up to them.
     """
     if log.run is None:
         return [log]
     names, first = np.unique(log.run, return_index=True)
     out = []
-    for name in names[np.argsort(first)]:
+    other = log.other_convention
+    for k, name in enumerate(names[np.argsort(first)]):
         index = np.flatnonzero(log.run == name)
         out.append(
             EstimatorLog(
@@ -538,9 +541,16 @@ def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
                 segment=None if log.segment is None else log.segment[index],
                 rows=log.rows[index],
                 id=log.id.run(name),
+                # the file's counts, not any run's: kept once, so that the runs add up
+                dropped_rows=log.dropped_rows if k == 0 else 0,
                 state_errors=None if log.state_errors is None else log.state_errors[index],
                 notes=log.notes,
+                unpaired=log.unpaired if k == 0 else 0,
                 blocks=log.blocks,
+                fitted_mean=log.fitted_mean,
+                other_convention=None
+                if other is None
+                else replace(other, errors=other.errors[index]),
             )
         )
     return out

@@ -109,6 +109,9 @@ def test_errors_only_and_npz_files_through_the_cli(tmp_path, arrays):
     np.savez(tmp_path / "typo.npz", erors=arrays["errors"], cov=arrays["cov"])
     line = error_line(*run("diagnose", tmp_path / "typo.npz")[::2])
     assert "unknown array(s) erors" in line and "typo.npz" in line
+    np.savez(tmp_path / "two.npz", errors=arrays["errors"], err=arrays["errors"], cov=arrays["cov"])
+    line = error_line(*run("diagnose", tmp_path / "two.npz")[::2])  # one was silently kept
+    assert "arrays errors and err are two names of `errors`" in line, line
     assert error_line(*run("diagnose", tmp_path / "none.npz")[::2]).endswith(
         "none.npz: file not found"
     )
@@ -380,3 +383,31 @@ def test_errors_only_flag_with_named_columns(tmp_path):
     assert "errors-only log: ex, ey are the errors e_k" in err
     line = error_line(*run(*args, "--errors-only", "--truth", tmp_path / "named.csv")[::2])
     assert "--errors-only needs no ground truth" in line
+
+
+def test_split_runs_keep_what_the_file_said_once():
+    """The runs of a Monte Carlo log keep its fitted-mean reason and their own epochs of
+    the other convention's errors; the file's dropped and unpaired rows are counted once
+    (they were dropped from every run)."""
+    from dataclasses import replace as _replace
+
+    from credcli.engine.config import Perturbation
+    from credcli.io.logs import EstimatorLog, OtherConvention
+    from credcli.segments import split_runs
+
+    n = 6
+    errors = np.arange(2 * n, dtype=float).reshape(n, 2)
+    other = OtherConvention(Perturbation.LEFT, Perturbation.RIGHT, -errors)
+    log = EstimatorLog(
+        None, None, np.broadcast_to(np.eye(2), (n, 2, 2)).copy(), state_errors=errors,
+        run=np.array(["b", "a", "b", "a", "b", "a"]), dropped_rows=3, unpaired=2,
+        fitted_mean="aligned", other_convention=other,
+    )
+    runs = split_runs(log)
+    assert [r.n for r in runs] == [3, 3]
+    assert sum(r.dropped_rows for r in runs) == 3 and sum(r.unpaired for r in runs) == 2
+    assert all(r.fitted_mean == "aligned" for r in runs)
+    for r in runs:
+        np.testing.assert_array_equal(r.other_convention.errors, -r.errors)
+    plain = _replace(log, run=None)
+    assert split_runs(plain)[0] is plain

@@ -457,8 +457,9 @@ def load_npz(path: Path) -> EstimatorLog:
     ------
     CredcliError
         If the file is missing, is not a readable ``.npz``, declares more data than it
-        holds or than fits in memory, holds an unknown array or no ``cov``, or if its
-        arrays are not a valid log (the message names the file).
+        holds or than fits in memory, holds an unknown array, two names of one array
+        (``estimate`` and ``est``) or no ``cov``, or if its arrays are not a valid log
+        (the message names the file).
     """
     if not path.exists():
         raise CredcliError(f"{path}: file not found")
@@ -478,7 +479,14 @@ def load_npz(path: Path) -> EstimatorLog:
         )
     if "cov" not in arrays:
         raise CredcliError(f"{path}: no 'cov' array (N, d, d): the claimed covariances")
-    kwargs = {known[name]: value for name, value in arrays.items()}
+    kwargs: dict = {}
+    for name, value in arrays.items():
+        if known[name] in kwargs:
+            both = " and ".join(a for a in NPZ_NAMES[known[name]] if a in arrays)
+            raise CredcliError(
+                f"{path}: arrays {both} are two names of `{known[name]}`; keep one of them"
+            )
+        kwargs[known[name]] = value
     try:
         return log_from_arrays(source=str(path), **kwargs)
     except CredcliError as exc:

@@ -241,3 +241,14 @@ def test_real_s5_windows_print_as_a_table(capsys):
     code, out, err = _run(capsys, "uwb", s5, "--window", "5s", "--std", "0.1")
     assert code == 0, err
     assert "Table IV" in out and all(f"w{k:03d}" in out for k in range(1, 14))
+
+
+@pytest.mark.parametrize("cell", ["", "nan", "inf"])
+def test_a_marker_without_a_finite_position_is_named(tmp_path, cell):
+    from credcli.errors import CredcliError
+    from credcli.io.starloc import read_markers
+
+    path = tmp_path / "markers.csv"
+    path.write_text(f",x,y,z\n10,1.0,2.0,0.5\n11,3.0,{cell},0.5\n")
+    with pytest.raises(CredcliError, match="row 2: marker 11 has a position that is not"):
+        read_markers(path)

@@ -228,8 +228,9 @@ def read_markers(path: str | Path) -> dict[int, np.ndarray]:
     Raises
     ------
     CredcliError
-        If the file has no ``x``, ``y``, ``z`` columns, a value is not a number, or an id is
-        not a whole number up to ``MAX_ID``.
+        If the file has no ``x``, ``y``, ``z`` columns, a value is not a number, a position
+        is not finite (NaN, an empty cell, inf), or an id is not a whole number up to
+        ``MAX_ID``.
     """
     path = Path(path)
     frame = read_table(path)
@@ -249,6 +250,13 @@ def read_markers(path: str | Path) -> dict[int, np.ndarray]:
         raise CredcliError(
             f"{path}: row {row}: marker id {raw[row - 1]:g} is not an integer id (ids are "
             f"whole numbers up to {MAX_ID:.0e})"
+        )
+    bad = ~np.isfinite(xyz).all(axis=1)
+    if bad.any():
+        row = int(np.argmax(bad)) + 1
+        raise CredcliError(
+            f"{path}: row {row}: marker {int(raw[row - 1])} has a position that is not a "
+            "finite number; give x, y, z of every anchor"
         )
     ids = raw.astype(np.int64)
     return {int(i): p for i, p in zip(ids, xyz)}

@@ -105,6 +105,9 @@ def _rec(label, nci=0.1, anees=1.0, p=0.5):
         ),
         (_rec("pessimism", anees=0.5), _rec("pessimism", anees=0.41), False, None),
         (_rec("optimism", anees=2.0), _rec("optimism", anees=2.6), True, "x1.30"),
+        # an ANEES of exactly 0 (every error 0) is a value, infinitely far from 1
+        (_rec("pessimism", anees=0.5), _rec("pessimism", anees=0.0), True, "ANEES 0.5 -> 0"),
+        (_rec("pessimism", anees=0.0), _rec("pessimism", anees=0.0), False, None),
         (_rec("credible", p=0.2), _rec("credible", p=0.01), True, "ELT newly rejects"),
         (_rec("optimism+smm"), _rec("optimism"), False, None),  # lost a condition: improved
     ],

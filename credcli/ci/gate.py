@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 import itertools
+import math
 from dataclasses import dataclass
 
 from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
@@ -244,8 +245,14 @@ class SegmentComparison:
         return self.failed
 
 
-def _anees_deviation(a: float) -> float:
-    return max(a, 1.0 / a)
+def _anees_ratio(old: float, new: float) -> float:
+    """How many times further from 1 the new ANEES is than the old, on a log scale
+    (max(a, 1/a)); an ANEES of 0 (every error exactly 0) is infinitely far, and two of
+    them are no change."""
+    far = [math.inf if a <= 0 else max(a, 1.0 / a) for a in (old, new)]
+    if math.isinf(far[0]) and math.isinf(far[1]):
+        return 1.0
+    return far[1] / far[0]
 
 
 def _beyond(label: Label, other: Label) -> set[str]:
@@ -322,8 +329,8 @@ def compare_segment(
             )
         elif change < -th.max_nci_increase:
             better.append(f"|NCI| {abs(old.nci):.2f} -> {abs(new.nci):.2f} dB")
-    if old.anees and new.anees:
-        ratio = _anees_deviation(new.anees) / _anees_deviation(old.anees)
+    if old.anees is not None and new.anees is not None:
+        ratio = _anees_ratio(old.anees, new.anees)
         if ratio > th.max_anees_ratio:
             reasons.append(
                 f"ANEES {old.anees:.3g} -> {new.anees:.3g} (further from 1 by x{ratio:.2f} > {th.max_anees_ratio:g})"

@@ -36,6 +36,7 @@ the whitened errors are modelled per principal direction of their long-run covar
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -291,6 +292,28 @@ def _horizon(phi: np.ndarray, n: int) -> int:
     return int(min(MAX_HORIZON, max(n, phi.size + 1, math.ceil(decay) + phi.size + 1)))
 
 
+def _memoised(method):
+    """Keep a model-only method's answers on its (frozen) instance, by argument.
+
+    The windows of one run are judged against one model and ask it the same questions
+    (the moments of a window of n epochs, the sign-block length), window after window;
+    the answers depend on the model and n alone. Arrays come back read-only, so that no
+    caller can change a shared answer."""
+
+    @functools.wraps(method)
+    def answer(self, *args):
+        memo = self.__dict__.setdefault("_memo", {})
+        key = (method.__name__, *args)
+        if key not in memo:
+            value = method(self, *args)
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+            memo[key] = value
+        return memo[key]
+
+    return answer
+
+
 @dataclass(frozen=True)
 class SeriesMemory:
     """The fitted memory of one standardized series (:func:`series_memory`).
@@ -319,11 +342,12 @@ class SeriesMemory:
         """The order of least AICc."""
         return int(self.phi.size)
 
-    @property
+    @functools.cached_property
     def variance_ratio(self) -> float:
         """τ = Ω/γ(0) = 1 + 2 Σ_{h>0} ρ(h): the integrated correlation time, in epochs."""
         return float(1.0 + 2.0 * np.sum(self.rho[1:]))
 
+    @_memoised
     def window(self, n: int) -> np.ndarray:
         """The autocorrelation over a window of ``n`` epochs.
 
@@ -341,6 +365,7 @@ class SeriesMemory:
             return self.rho[:n]
         return np.concatenate([self.rho, np.zeros(n - self.rho.size)])
 
+    @_memoised
     def test_window(self, n: int) -> np.ndarray:
         """The autocorrelation the tests use over a window of ``n`` epochs.
 
@@ -364,6 +389,7 @@ class SeriesMemory:
             return np.eye(1, n)[0]
         return rho
 
+    @_memoised
     def mean_ratio(self, n: int) -> float:
         """The variance ratio v_n of the mean of a window of ``n`` epochs, at least 1.
 
@@ -385,6 +411,7 @@ class SeriesMemory:
         h = np.arange(1, n)
         return float(max(1.0 + 2.0 * np.sum((1.0 - h / n) * rho[1:]), 1.0))
 
+    @_memoised
     def centred_square_moments(self, n: int) -> tuple[float, float]:
         r"""Mean and variance of the centred sum of squares over a window of ``n`` epochs.
 
@@ -417,6 +444,7 @@ class SeriesMemory:
         var = 2.0 * (tr_r2 - 2.0 * float(row @ row) / n + (ones_r_ones / n) ** 2)
         return max(mean, 1e-12), max(var, 1e-12)
 
+    @_memoised
     def block_loss(self) -> float:
         """The variance a sign block loses across its boundaries, per epoch of its length.
 
@@ -435,6 +463,7 @@ class SeriesMemory:
             return 0.0
         return max(0.0, float(2.0 * np.sum(h * self.rho)) / tau)
 
+    @_memoised
     def decorrelation_lag(self, threshold: float = 0.2) -> int:
         """The first lag from which |ρ(h)| stays below ``threshold``.
 
@@ -680,10 +709,12 @@ class Memory:
         tests for independent epochs apply."""
         return all(m.order == 0 for m in (*self.series, self.squares))
 
-    @property
+    @functools.cached_property
     def variance_ratios(self) -> np.ndarray:
-        """τ per principal direction."""
-        return np.array([m.variance_ratio for m in self.series])
+        """τ per principal direction (read-only)."""
+        ratios = np.array([m.variance_ratio for m in self.series])
+        ratios.setflags(write=False)
+        return ratios
 
     @property
     def dof(self) -> float:
@@ -695,6 +726,7 @@ class Memory:
         """ν of τ₂ = Σρ² of the least certain direction (the scale's reference)."""
         return float(min(m.square_dof for m in self.series))
 
+    @_memoised
     def block_length(self, loss: float) -> int:
         """The shortest sign block that loses at most ``loss`` of the variance in every
         direction.

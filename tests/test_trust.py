@@ -367,6 +367,38 @@ def test_endless_and_device_inputs_end_with_one_line(tmp_path, capsys, monkeypat
     writer.join(timeout=10)
 
 
+def test_a_fifo_that_no_process_writes_is_one_line_not_a_hang(tmp_path, capsys, monkeypatch):
+    """A named FIFO as log, truth or baseline with no writer waited for ever (opening it
+    blocks); now it has WRITER_WAIT seconds to send data, and a late writer still works."""
+    import os
+    import threading
+
+    from credcli.io import streams
+
+    monkeypatch.setattr(streams, "WRITER_WAIT", 0.3)
+    sample = Path(__file__).parents[1] / "sample_data" / "estimator_log.csv"
+    fifo = tmp_path / "log.csv"
+    os.mkfifo(fifo)
+    for args in (
+        ["diagnose", str(fifo)],
+        ["gate", str(sample), "--baseline", str(fifo)],
+    ):
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert "a FIFO that no process wrote to within 0.3 s" in err and err.count("\n") == 1
+
+    def late_writer():
+        with open(fifo, "wb") as out:
+            out.write(sample.read_bytes())
+
+    monkeypatch.setattr(streams, "WRITER_WAIT", 30.0)
+    writer = threading.Thread(target=late_writer, daemon=True)
+    writer.start()
+    assert main(["diagnose", str(fifo), "-f", "json"]) == 0
+    writer.join(timeout=10)
+    assert '"label"' in capsys.readouterr().out
+
+
 def test_the_step_summary_is_checked_before_any_work(tmp_path, capsys, monkeypatch):
     """A FIFO as $GITHUB_STEP_SUMMARY blocked forever, after the outputs were written; an
     input named there would have been appended to."""

@@ -49,6 +49,11 @@ def read_toml(path: str | Path) -> dict:
     if path.is_dir():
         raise CredcliError(f"{path}: is a directory, expected a TOML config file")
     if not path.is_file():
+        if path.exists():
+            raise CredcliError(
+                f"{path}: is not a regular file (a device, FIFO or socket); give the TOML "
+                "config file itself"
+            )
         raise CredcliError(f"{path}: config file not found")
     try:
         text = path.read_bytes().decode("utf-8")

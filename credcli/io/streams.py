@@ -17,6 +17,7 @@ import contextlib
 import gzip
 import lzma
 import os
+import select
 import shutil
 import stat
 import sys
@@ -69,6 +70,64 @@ def is_stream(path: str | Path) -> bool:
     except (OSError, ValueError):
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+WRITER_WAIT = 10.0
+"""Seconds a named FIFO may stay silent once opened for reading. Without a writer, opening
+it waits for ever (as ``cat`` does); a process that writes one sends its first bytes, or
+closes it, well within this."""
+
+
+def _named_fifo(path: str | Path) -> bool:
+    """Whether ``path`` is a FIFO with a name in the file system: not standard input and
+    not a pipe that a shell handed over (``/dev/fd/63``, whose writer exists already)."""
+    name = str(path)
+    if name == STDIN or name.startswith(("/dev/fd/", "/proc/")):
+        return False
+    try:
+        return stat.S_ISFIFO(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
+def open_input(path: str | Path):
+    """``path`` opened for reading in binary; a named FIFO must send data or close within
+    :data:`WRITER_WAIT` seconds.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A file, pipe or FIFO.
+
+    Returns
+    -------
+    io.BufferedReader
+        The open file, blocking as usual once data have come.
+
+    Raises
+    ------
+    CredcliError
+        If ``path`` is a named FIFO that no process writes to within :data:`WRITER_WAIT`
+        seconds.
+    OSError
+        As ``open`` raises it (a missing or unreadable path).
+    """
+    if not _named_fifo(path) or not hasattr(select, "poll"):
+        return open(path, "rb")  # noqa: SIM115 (the caller closes it)
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN | select.POLLHUP)
+        if not poller.poll(int(WRITER_WAIT * 1000)):
+            raise CredcliError(
+                f"{display_name(path)}: a FIFO that no process wrote to within "
+                f"{WRITER_WAIT:g} s; start its writer first, or give a file"
+            )
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
 
 
 def _unpacker(head: bytes):
@@ -215,7 +274,7 @@ def readable(path: str | Path) -> Iterator[Path]:
                 raise CredcliError(
                     f"{name}: is a device, not a log; give a file, a pipe or - (standard input)"
                 )
-            source = stack.enter_context(open(path, "rb"))  # noqa: SIM115
+            source = stack.enter_context(open_input(path))
         unpacker = _unpacker(source.peek(6)[:6])
         if unpacker is not None:
             source = stack.enter_context(unpacker(source))

@@ -22,6 +22,7 @@ from credcli.engine.short import PartSequence, SegmentResults, ShortSegments
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
+from credcli.io.streams import open_input
 from credcli.report.jsontext import ListColumn
 
 BASELINE_SCHEMA_VERSION = 1
@@ -892,7 +893,10 @@ def read_baseline(path: str | Path) -> Baseline:
         raise ValueError(f"'{word}' is not a number JSON allows")
 
     try:
-        doc = json.loads(Path(path).read_text(), parse_constant=non_finite)
+        with open_input(path) as fh:
+            doc = json.loads(fh.read().decode("utf-8"), parse_constant=non_finite)
+    except CredcliError:
+        raise  # a FIFO with no writer (open_input): its own message
     except FileNotFoundError as exc:
         raise CredcliError(f"{path}: baseline file not found") from exc
     except IsADirectoryError as exc:

@@ -148,7 +148,9 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     else:
         results, logs, plans, mc = _diagnose_here(request, progress)
     segmentation = segmentation_name(window, whole)
-    parameters = diagnose_parameters(config, seed, reading, segmentation, mc is not None)
+    parameters = diagnose_parameters(
+        config, seed, reading, segmentation, monte_carlo=mc is not None
+    )
     show_all = config.metrics is MetricsLevel.ALL
     report = diagnose_report(results, config, parameters, logs, show_all, mc)
     figures, notes = [], []
@@ -284,8 +286,11 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
     )
     jobs, plots = request.jobs, request.figures
     scenarios = sim.parse_scenarios(request.scenario)
-    parameters = simulate_parameters(
-        config, scenarios, curve_runs if curves else None, None if curves else sweep
+    parameters = simulate_parameters(  # the curves, a sweep or the study: one of them
+        config,
+        scenarios,
+        curve_runs=curve_runs if curves else None,
+        sweep=None if curves else sweep,
     )
 
     figures = []

@@ -1303,7 +1303,9 @@ def curves_document(parameters: dict, by_rho, by_gamma) -> dict:
     }
 
 
-def uwb_parameters(config: DiagnosisConfig, seed: int, segmentation: str, settings, anchors):
+def uwb_parameters(
+    config: DiagnosisConfig, seed: int, segmentation: str, settings, anchors
+) -> dict:
     """The ``parameters`` of a `uwb` document.
 
     Parameters

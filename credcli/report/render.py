@@ -31,7 +31,7 @@ def format_cell(value, digits: int) -> str:
     Parameters
     ----------
     value : object
-        The cell's value (:meth:`Column.value`): None, a bool, a float, a list of them,
+        The cell's value (:meth:`credcli.report.tables.Column.value`): None, a bool, a float, a list of them,
         or anything else shown as ``str(value)``.
     digits : int
         Significant digits of a float; 0 for the shortest ``g`` form.
@@ -132,7 +132,7 @@ def rich_table(table: Table, width: int | None = None):
     """A ``rich.table.Table`` for the terminal, hiding the least important columns when the
     table would be wider than ``width`` (the caption names them).
 
-    The table shows at most ``SHOWN_ROWS`` rows (:meth:`Table.shown`). Columns of the
+    The table shows at most ``SHOWN_ROWS`` rows (:meth:`credcli.report.tables.Table.shown`). Columns of the
     highest ``rank`` (the rightmost first) are hidden until the rest fits; rank-0 columns
     are always shown. Titles, captions and cells are escaped for Rich markup and made
     printable (:func:`credcli.errors.printable`); label and status cells are coloured.

@@ -29,7 +29,7 @@ class Column:
     header : str
         The column's heading in tables.
     digits : int, default 4
-        Significant digits of a float in tables (:func:`format_cell`); 0 for text and
+        Significant digits of a float in tables (:func:`credcli.report.render.format_cell`); 0 for text and
         integer columns, which are also left-aligned.
     wrap : int, default 0
         Wrap text at this width in Rich tables; 0: never wrap.
@@ -62,7 +62,7 @@ class Column:
     coloured: bool = False  # a label or status: coloured by its value in tables
 
     def value(self, row: dict):
-        """The cell's value as tables show it, before :func:`format_cell`.
+        """The cell's value as tables show it, before :func:`credcli.report.render.format_cell`.
 
         Parameters
         ----------
@@ -142,7 +142,7 @@ class Report:
 
     A diagnose document's ``segments`` (and its table's rows) are
     :class:`~credcli.report.records.Records`, a sequence of the records made as they are
-    read; :func:`text_pieces` writes them (``json.loads`` of its JSON is the document as
+    read; :func:`credcli.report.render.text_pieces` writes them (``json.loads`` of its JSON is the document as
     plain values).
 
     Attributes

@@ -708,258 +708,7 @@ def monte_carlo_record(mc) -> dict:
     }
 
 
-@dataclass(frozen=True)
-class Snapshot:
-    """What the gate compares of one segment, typed.
-
-    Attributes
-    ----------
-    segment : str
-        The segment's name.
-    label : Label
-        Its answered label.
-    nci, anees, elt_pvalue : float or None
-        Its NCI, ANEES and ELT p-value (None where not computed).
-    record : dict
-        The whole segment record, kept only to be reported (not compared, not shown in the
-        repr).
-    untested : tuple of str
-        The questions its verdict leaves open ("scale", "location").
-    """
-
-    segment: str
-    label: Label
-    nci: float | None
-    anees: float | None
-    elt_pvalue: float | None
-    record: dict = field(repr=False, compare=False, default_factory=dict)
-    untested: tuple[str, ...] = ()
-
-    @classmethod
-    def from_record(cls, rec: dict) -> Snapshot:
-        """The snapshot of a baseline's segment record.
-
-        Parameters
-        ----------
-        rec : dict
-            The segment record, as checked by :func:`read_baseline`.
-
-        Returns
-        -------
-        Snapshot
-            Its name, answered label, NCI, ANEES and ELT p-value, the record itself, and its
-            ``untested`` questions (a baseline written before partial verdicts has no
-            ``untested``: nothing was).
-        """
-        return cls(
-            rec["segment"],
-            record_label(rec),
-            rec.get("nci"),
-            rec.get("anees"),
-            rec.get("elt_pvalue"),
-            rec,
-            tuple(rec.get("untested") or ()),
-        )
-
-    @classmethod
-    def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
-        """The snapshot of a segment diagnosed now.
-
-        Parameters
-        ----------
-        result : SegmentDiagnosis
-            The segment's diagnosis.
-
-        Returns
-        -------
-        Snapshot
-            Its name, label, NCI, ANEES, ELT p-value, :func:`segment_record` and its
-            ``untested`` questions.
-        """
-        d = result.diagnosis
-        untested = tuple(q.value for q in d.untested)
-        return cls(
-            result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result), untested
-        )
-
-
-def _check_baseline(doc: dict, source: str) -> None:
-    """Refuse a file that is not a credcli baseline of a known schema version."""
-    if not isinstance(doc, dict) or doc.get("kind") != BASELINE_KIND:
-        raise CredcliError(
-            f"{source}: not a credcli baseline (make one with `credcli baseline LOG -o FILE`)"
-        )
-    version = doc.get("schema_version")
-    if version != BASELINE_SCHEMA_VERSION:
-        raise CredcliError(
-            f"{source}: baseline schema version {version!r} is not supported (this credcli reads "
-            f"version {BASELINE_SCHEMA_VERSION}); record the baseline again with this version"
-        )
-    for key in ("parameters", "segments"):
-        if key not in doc:
-            raise CredcliError(f"{source}: baseline has no '{key}'; record it again")
-    if not isinstance(doc["parameters"], dict) or not isinstance(doc["segments"], list):
-        raise CredcliError(
-            f"{source}: baseline 'parameters' must be an object and 'segments' a list; "
-            "record it again"
-        )
-    labels = {lab.value for lab in Label}
-    for k, rec in enumerate(doc["segments"], start=1):
-        where = f"{source}: segment {k}"
-        if not isinstance(rec, dict) or not isinstance(rec.get("segment"), str):
-            raise CredcliError(f"{where}: needs a 'segment' name (a string); record it again")
-        where = f"{source}: segment '{rec['segment']}'"
-        label = rec.get("label")
-        answered = rec.get("label_answered", label)
-        untested = rec.get("untested") or []
-        if (
-            not isinstance(label, str)
-            or not isinstance(answered, str)
-            or answered not in labels
-            or not isinstance(untested, list)
-            or label not in (shown_label(Label(answered), [str(q) for q in untested]), answered)
-        ):  # a baseline written before partial labels were shown has the bare label
-            got = "no label" if "label" not in rec else f"label {rec['label']!r}"
-            raise CredcliError(
-                f"{where}: {got}; a label is one of {', '.join(sorted(labels))}, with its "
-                "untested questions in brackets, and agrees with 'label_answered'"
-            )
-        for key in ("nci", "anees", "elt_pvalue"):
-            value = rec.get(key)
-            if value is not None and (
-                isinstance(value, bool) or not isinstance(value, (int, float))
-            ):
-                raise CredcliError(f"{where}: '{key}' must be a number or null; got {value!r}")
-
-
-SEGMENTATION_SETTINGS = ("seed", "window", "whole", "drop_invalid")
-"""A baseline's settings beside its DiagnosisConfig fields."""
-
-
-@dataclass(frozen=True)
-class Baseline:
-    """A baseline file (``credcli baseline``), read and checked once: the settings it was
-    made with, typed, and its segments as :class:`Snapshot`.
-
-    Attributes
-    ----------
-    source : str
-        The file's path, as given.
-    config : DiagnosisConfig
-        The diagnosis settings the baseline was made with.
-    seed : int
-        The seed it was made with.
-    reading : LogReading
-        How its logs were read and cut into segments.
-    segments : tuple of Snapshot
-        Its segments, in the file's order.
-    """
-
-    source: str
-    config: DiagnosisConfig
-    seed: int
-    reading: LogReading
-    segments: tuple[Snapshot, ...]
-
-    def setting(self, name: str):
-        """A setting as the baseline was made with it.
-
-        Parameters
-        ----------
-        name : str
-            A DiagnosisConfig field, or ``seed``, ``window``, ``whole`` or
-            ``drop_invalid``.
-
-        Returns
-        -------
-        object
-            The setting's value.
-        """
-        if name == "seed":
-            return self.seed
-        if name in SEGMENTATION_SETTINGS:
-            return getattr(self.reading, name)
-        return getattr(self.config, name)
-
-
-def read_baseline(path: str | Path) -> Baseline:
-    """Read a baseline JSON file and check every key it must have.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The baseline file (``credcli baseline LOG -o FILE``).
-
-    Returns
-    -------
-    Baseline
-        Its settings, typed, and its segments.
-
-    Raises
-    ------
-    CredcliError
-        The file is missing, a directory, unreadable, not JSON (NaN and Infinity included)
-        or not a credcli baseline; its schema version is not
-        :data:`BASELINE_SCHEMA_VERSION`; ``parameters`` or ``segments`` are missing or of
-        the wrong type; a segment has no name, a label that is not one of the labels, or an
-        NCI, ANEES or ELT p-value that is not a number or null; a parameter is missing or
-        of the wrong type, or the seed is negative. Each message names the file; one about
-        the baseline's content says to record it again.
-    """
-
-    def non_finite(word: str):
-        raise ValueError(f"'{word}' is not a number JSON allows")
-
-    try:
-        doc = json.loads(Path(path).read_text(), parse_constant=non_finite)
-    except FileNotFoundError as exc:
-        raise CredcliError(f"{path}: baseline file not found") from exc
-    except IsADirectoryError as exc:
-        raise CredcliError(f"{path}: is a directory, expected a baseline JSON file") from exc
-    except OSError as exc:
-        raise CredcliError(f"{path}: cannot be read ({exc.strerror})") from exc
-    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
-        raise CredcliError(f"{path}: not valid JSON ({exc})") from exc
-    except RecursionError as exc:
-        raise CredcliError(
-            f"{path}: nested too deeply to be a credcli baseline; record it again"
-        ) from exc
-    _check_baseline(doc, str(path))
-    params = doc["parameters"]
-    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
-    try:
-        hints = diagnosis_hints() | SEGMENT_HINTS | {"window": str | None, "drop_invalid": bool}
-        check_types(params, hints, "baseline parameters")
-        if not isinstance(params.get("columns"), dict):
-            raise CredcliError("baseline parameters: 'columns' must be an object")
-        check_types(params["columns"], typing.get_type_hints(LogSchema), "baseline columns")
-        if params["seed"] < 0:
-            raise CredcliError("baseline parameters: seed must be >= 0")
-        config = DiagnosisConfig(**{k: v for k, v in params.items() if k in fields})
-        schema = LogSchema().updated(**params["columns"])
-        recorded = params.get("input", {})  # baselines before 0.2 have none
-        if not isinstance(recorded, dict):
-            raise CredcliError("baseline parameters: 'input' must be an object")
-        check_types(recorded, typing.get_type_hints(ReadOptions), "baseline input")
-        reading = LogReading(
-            schema,
-            ReadOptions(**recorded),
-            params["drop_invalid"],
-            params["window"],
-            params["whole"],
-        )
-        seed = params["seed"]
-    except CredcliError as exc:
-        raise CredcliError(f"{path}: {plain(exc.message)}; record the baseline again") from exc
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CredcliError(
-            f"{path}: baseline parameters are incomplete ({exc}); record it again"
-        ) from exc
-    segments = tuple(Snapshot.from_record(r) for r in doc["segments"])
-    return Baseline(str(path), config, seed, reading, segments)
-
-
-# --- documents: the JSON each command writes ------------------------------------------
+# --- documents: the JSON each command writes -------------------------------------------
 
 SEGMENTS = "segments"
 """The key of a document's list of segment records: the JSON writer streams it a record at
@@ -1700,3 +1449,257 @@ GATE_COLUMNS = (
     Column("why", "why", 0, wrap=60),
 )
 """The gate's table (:func:`gate_row`)."""
+
+
+# --- a baseline read back: typed values for the gate -----------------------------------
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What the gate compares of one segment, typed.
+
+    Attributes
+    ----------
+    segment : str
+        The segment's name.
+    label : Label
+        Its answered label.
+    nci, anees, elt_pvalue : float or None
+        Its NCI, ANEES and ELT p-value (None where not computed).
+    record : dict
+        The whole segment record, kept only to be reported (not compared, not shown in the
+        repr).
+    untested : tuple of str
+        The questions its verdict leaves open ("scale", "location").
+    """
+
+    segment: str
+    label: Label
+    nci: float | None
+    anees: float | None
+    elt_pvalue: float | None
+    record: dict = field(repr=False, compare=False, default_factory=dict)
+    untested: tuple[str, ...] = ()
+
+    @classmethod
+    def from_record(cls, rec: dict) -> Snapshot:
+        """The snapshot of a baseline's segment record.
+
+        Parameters
+        ----------
+        rec : dict
+            The segment record, as checked by :func:`read_baseline`.
+
+        Returns
+        -------
+        Snapshot
+            Its name, answered label, NCI, ANEES and ELT p-value, the record itself, and its
+            ``untested`` questions (a baseline written before partial verdicts has no
+            ``untested``: nothing was).
+        """
+        return cls(
+            rec["segment"],
+            record_label(rec),
+            rec.get("nci"),
+            rec.get("anees"),
+            rec.get("elt_pvalue"),
+            rec,
+            tuple(rec.get("untested") or ()),
+        )
+
+    @classmethod
+    def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
+        """The snapshot of a segment diagnosed now.
+
+        Parameters
+        ----------
+        result : SegmentDiagnosis
+            The segment's diagnosis.
+
+        Returns
+        -------
+        Snapshot
+            Its name, label, NCI, ANEES, ELT p-value, :func:`segment_record` and its
+            ``untested`` questions.
+        """
+        d = result.diagnosis
+        untested = tuple(q.value for q in d.untested)
+        return cls(
+            result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result), untested
+        )
+
+
+def _check_baseline(doc: dict, source: str) -> None:
+    """Refuse a file that is not a credcli baseline of a known schema version."""
+    if not isinstance(doc, dict) or doc.get("kind") != BASELINE_KIND:
+        raise CredcliError(
+            f"{source}: not a credcli baseline (make one with `credcli baseline LOG -o FILE`)"
+        )
+    version = doc.get("schema_version")
+    if version != BASELINE_SCHEMA_VERSION:
+        raise CredcliError(
+            f"{source}: baseline schema version {version!r} is not supported (this credcli reads "
+            f"version {BASELINE_SCHEMA_VERSION}); record the baseline again with this version"
+        )
+    for key in ("parameters", "segments"):
+        if key not in doc:
+            raise CredcliError(f"{source}: baseline has no '{key}'; record it again")
+    if not isinstance(doc["parameters"], dict) or not isinstance(doc["segments"], list):
+        raise CredcliError(
+            f"{source}: baseline 'parameters' must be an object and 'segments' a list; "
+            "record it again"
+        )
+    labels = {lab.value for lab in Label}
+    for k, rec in enumerate(doc["segments"], start=1):
+        where = f"{source}: segment {k}"
+        if not isinstance(rec, dict) or not isinstance(rec.get("segment"), str):
+            raise CredcliError(f"{where}: needs a 'segment' name (a string); record it again")
+        where = f"{source}: segment '{rec['segment']}'"
+        label = rec.get("label")
+        answered = rec.get("label_answered", label)
+        untested = rec.get("untested") or []
+        if (
+            not isinstance(label, str)
+            or not isinstance(answered, str)
+            or answered not in labels
+            or not isinstance(untested, list)
+            or label not in (shown_label(Label(answered), [str(q) for q in untested]), answered)
+        ):  # a baseline written before partial labels were shown has the bare label
+            got = "no label" if "label" not in rec else f"label {rec['label']!r}"
+            raise CredcliError(
+                f"{where}: {got}; a label is one of {', '.join(sorted(labels))}, with its "
+                "untested questions in brackets, and agrees with 'label_answered'"
+            )
+        for key in ("nci", "anees", "elt_pvalue"):
+            value = rec.get(key)
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, (int, float))
+            ):
+                raise CredcliError(f"{where}: '{key}' must be a number or null; got {value!r}")
+
+
+SEGMENTATION_SETTINGS = ("seed", "window", "whole", "drop_invalid")
+"""A baseline's settings beside its DiagnosisConfig fields."""
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A baseline file (``credcli baseline``), read and checked once: the settings it was
+    made with, typed, and its segments as :class:`Snapshot`.
+
+    Attributes
+    ----------
+    source : str
+        The file's path, as given.
+    config : DiagnosisConfig
+        The diagnosis settings the baseline was made with.
+    seed : int
+        The seed it was made with.
+    reading : LogReading
+        How its logs were read and cut into segments.
+    segments : tuple of Snapshot
+        Its segments, in the file's order.
+    """
+
+    source: str
+    config: DiagnosisConfig
+    seed: int
+    reading: LogReading
+    segments: tuple[Snapshot, ...]
+
+    def setting(self, name: str):
+        """A setting as the baseline was made with it.
+
+        Parameters
+        ----------
+        name : str
+            A DiagnosisConfig field, or ``seed``, ``window``, ``whole`` or
+            ``drop_invalid``.
+
+        Returns
+        -------
+        object
+            The setting's value.
+        """
+        if name == "seed":
+            return self.seed
+        if name in SEGMENTATION_SETTINGS:
+            return getattr(self.reading, name)
+        return getattr(self.config, name)
+
+
+def read_baseline(path: str | Path) -> Baseline:
+    """Read a baseline JSON file and check every key it must have.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The baseline file (``credcli baseline LOG -o FILE``).
+
+    Returns
+    -------
+    Baseline
+        Its settings, typed, and its segments.
+
+    Raises
+    ------
+    CredcliError
+        The file is missing, a directory, unreadable, not JSON (NaN and Infinity included)
+        or not a credcli baseline; its schema version is not
+        :data:`BASELINE_SCHEMA_VERSION`; ``parameters`` or ``segments`` are missing or of
+        the wrong type; a segment has no name, a label that is not one of the labels, or an
+        NCI, ANEES or ELT p-value that is not a number or null; a parameter is missing or
+        of the wrong type, or the seed is negative. Each message names the file; one about
+        the baseline's content says to record it again.
+    """
+
+    def non_finite(word: str):
+        raise ValueError(f"'{word}' is not a number JSON allows")
+
+    try:
+        doc = json.loads(Path(path).read_text(), parse_constant=non_finite)
+    except FileNotFoundError as exc:
+        raise CredcliError(f"{path}: baseline file not found") from exc
+    except IsADirectoryError as exc:
+        raise CredcliError(f"{path}: is a directory, expected a baseline JSON file") from exc
+    except OSError as exc:
+        raise CredcliError(f"{path}: cannot be read ({exc.strerror})") from exc
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
+        raise CredcliError(f"{path}: not valid JSON ({exc})") from exc
+    except RecursionError as exc:
+        raise CredcliError(
+            f"{path}: nested too deeply to be a credcli baseline; record it again"
+        ) from exc
+    _check_baseline(doc, str(path))
+    params = doc["parameters"]
+    fields = {f.name for f in dataclasses.fields(DiagnosisConfig)}
+    try:
+        hints = diagnosis_hints() | SEGMENT_HINTS | {"window": str | None, "drop_invalid": bool}
+        check_types(params, hints, "baseline parameters")
+        if not isinstance(params.get("columns"), dict):
+            raise CredcliError("baseline parameters: 'columns' must be an object")
+        check_types(params["columns"], typing.get_type_hints(LogSchema), "baseline columns")
+        if params["seed"] < 0:
+            raise CredcliError("baseline parameters: seed must be >= 0")
+        config = DiagnosisConfig(**{k: v for k, v in params.items() if k in fields})
+        schema = LogSchema().updated(**params["columns"])
+        recorded = params.get("input", {})  # baselines before 0.2 have none
+        if not isinstance(recorded, dict):
+            raise CredcliError("baseline parameters: 'input' must be an object")
+        check_types(recorded, typing.get_type_hints(ReadOptions), "baseline input")
+        reading = LogReading(
+            schema,
+            ReadOptions(**recorded),
+            params["drop_invalid"],
+            params["window"],
+            params["whole"],
+        )
+        seed = params["seed"]
+    except CredcliError as exc:
+        raise CredcliError(f"{path}: {plain(exc.message)}; record the baseline again") from exc
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CredcliError(
+            f"{path}: baseline parameters are incomplete ({exc}); record it again"
+        ) from exc
+    segments = tuple(Snapshot.from_record(r) for r in doc["segments"])
+    return Baseline(str(path), config, seed, reading, segments)

@@ -28,9 +28,10 @@ from credcli.engine.config import SMM_CONDITION
 from credcli.engine.diagnosis import DiagnosisConfig, Label
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
+from credcli.report.builders import diagnose_report
 from credcli.report.formats import OutputFormat
 from credcli.report.records import config_record
-from credcli.report.render import diagnose_report, to_text
+from credcli.report.render import to_text
 
 __all__ = ["assert_credible", "assert_label", "diagnosis_text"]
 

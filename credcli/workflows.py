@@ -19,17 +19,7 @@ from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, with_unique_ids
 from credcli.io.streams import display_name, is_stream
 from credcli.report import plots as figs
-from credcli.report.overview import Source, overview_plots, segments_to_draw
-from credcli.report.records import (
-    BASELINE_KIND,
-    BASELINE_SCHEMA_VERSION,
-    Snapshot,
-    config_record,
-    diagnose_parameters,
-    monte_carlo_record,
-)
-from credcli.report.render import (
-    Report,
+from credcli.report.builders import (
     curves_report,
     diagnose_report,
     gate_report,
@@ -37,6 +27,16 @@ from credcli.report.render import (
     sweep_report,
     uwb_report,
 )
+from credcli.report.overview import Source, overview_plots, segments_to_draw
+from credcli.report.records import (
+    Snapshot,
+    baseline_document,
+    diagnose_parameters,
+    document_parameters,
+    simulate_parameters,
+    uwb_parameters,
+)
+from credcli.report.tables import Report
 from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
 from credcli.schedule import plans as scheduling
 from credcli.schedule.plans import (
@@ -147,12 +147,12 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
         mc = None
     else:
         results, logs, plans, mc = _diagnose_here(request, progress)
-    parameters = diagnose_parameters(config, seed, reading, segmentation_name(window, whole))
-    if mc is not None:
-        parameters["monte_carlo"] = True
+    segmentation = segmentation_name(window, whole)
+    parameters = diagnose_parameters(
+        config, seed, reading, segmentation, monte_carlo=mc is not None
+    )
     show_all = config.metrics is MetricsLevel.ALL
-    mc_record = mc and monte_carlo_record(mc)
-    report = diagnose_report(results, config, parameters, logs, show_all, mc_record)
+    report = diagnose_report(results, config, parameters, logs, show_all, mc)
     figures, notes = [], []
     plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here
@@ -286,19 +286,12 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
     )
     jobs, plots = request.jobs, request.figures
     scenarios = sim.parse_scenarios(request.scenario)
-    parameters = {
-        "scenarios": [s.value for s in scenarios],
-        "trials": config.trials,
-        "n": config.n,
-        "dim": config.dim,
-        "rho_optimism": list(config.rho_optimism),
-        "rho_pessimism": list(config.rho_pessimism),
-        "bias": list(config.bias),
-        "eigenvalues": list(config.eigenvalues),
-        "seed": config.seed,
-        "ar": config.ar,
-        "noise": config.noise,
-    } | config_record(config.diagnosis)
+    parameters = simulate_parameters(  # the curves, a sweep or the study: one of them
+        config,
+        scenarios,
+        curve_runs=curve_runs if curves else None,
+        sweep=None if curves else sweep,
+    )
 
     figures = []
     if plots or curves:
@@ -308,14 +301,12 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
         if plots:
             figures.append(figs.curves_plot(by_rho, by_gamma))
     if curves:
-        parameters |= {"curve_runs": curve_runs}
         return Run(curves_report(by_rho, by_gamma, curve_runs, parameters), figures), (
             f"Fig. 1 curves: {len(by_rho)} values of ρ and {len(by_gamma)} of γ, {curve_runs} runs each"
         )
     if sweep is not None:
         spec = sim.Sweep.parse(sweep)
         points = sim.run_sweep(spec, config, scenarios, jobs, progress, runner)
-        parameters |= {"sweep": sweep}
         n_trials = sum(p.trials for p in points)
         if plots:
             figures.append(figs.sweep_plot(spec, points))
@@ -374,15 +365,8 @@ def run_uwb(request: UwbRequest, progress=None):
     if not run.segments:
         raise CredcliError(f"{path}: no fix falls in any period; try `window` 5s or `whole`")
     results = diagnose_segments(run.log, run.segments, config, seed, progress)
-    parameters = (
-        config_record(config)
-        | {
-            "seed": seed,
-            "segmentation": "static" if not (window or whole) else segmentation_name(window, whole),
-        }
-        | {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
-        | {"anchors": str(anchors) if anchors else "self-calibrated"}
-    )
+    segmentation = "static" if not (window or whole) else segmentation_name(window, whole)
+    parameters = uwb_parameters(config, seed, segmentation, settings, anchors)
     figures, notes = [], ()
     if request.figures:  # the fixes' overview (timeline, errors, NEES) as diagnose draws it
         source = Source.of([run.log], run.segments, results, config.nees_alpha)
@@ -417,13 +401,7 @@ def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report
         kind and schema version.
     """
     report = run_diagnose(request, progress, runner).report
-    marked = {
-        **report.document,
-        "command": "baseline",
-        "kind": BASELINE_KIND,
-        "schema_version": BASELINE_SCHEMA_VERSION,
-    }
-    return dataclasses.replace(report, document=marked)
+    return dataclasses.replace(report, document=baseline_document(report.document))
 
 
 @dataclass(frozen=True)
@@ -477,6 +455,6 @@ def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
         baseline.config.elt_level,
     )
     passed, verdict = verdict_line(comparisons, thresholds)
-    parameters = run.report.document["parameters"]
+    parameters = document_parameters(run.report.document)
     report = gate_report(comparisons, parameters, baseline.source, passed, verdict)
     return GateRun(report, comparisons, passed, verdict, run.plots)

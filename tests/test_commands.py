@@ -400,6 +400,143 @@ def test_readers_only_read():
     assert used == set()
 
 
+RECORDS_MODULE = "credcli/report/records.py"
+"""The only module that knows the keys of credcli's JSON (issue 34, item 2)."""
+
+KEYED_PLACES = (
+    "credcli/report",
+    "credcli/ci",
+    "credcli/cli",
+    "credcli/workflows.py",
+    "credcli/api.py",
+    "credcli/testing.py",
+)
+"""Where records are built, rendered, gated and handed to users: above the engine, which
+knows no JSON keys at all (STYLE.md), and the readers, whose keys are a file's columns."""
+
+NOT_RECORD_KEYS = {
+    ("credcli/cli/settings.py", "*"): "the TOML config file's tables and settings: "
+    "configuration read in (and the typed settings built from it), not a record written",
+    ("credcli/report/plots.py", "*"): "Plot.data, the numbers a figure drew, handed to "
+    "Python callers, and matplotlib's keyword dicts; no JSON document holds them",
+    ("credcli/ci/gate.py", "columns"): "the config's [columns] table, by name",
+    ("credcli/ci/gate.py", "input"): "the config's [input] table, by name",
+    ("credcli/cli/app.py", "--*"): "an output path by the flag that gave it, for the guard "
+    "that no output overwrites an input",
+    ("credcli/cli/emit.py", "GITHUB_STEP_SUMMARY"): "the step summary's path among the "
+    "outputs the guard checks",
+    **{
+        ("credcli/cli/options.py", field): "a settings field by the option that sets it "
+        "(FIELD_OPTIONS)"
+        for field in ("tau_nci", "n_flips", "c", "time", "segment")
+    },
+    ("credcli/cli/options.py", "return"): "a function's annotations",
+    **{
+        ("credcli/report/advice.py", condition): "LOCATION_MEANING, keyed by a label's "
+        "location condition: a label's value, not a key"
+        for condition in ("bias", "asymmetric")
+    },
+    **{
+        ("credcli/report/html.py", label): "LABEL_COLOURS, keyed by a label's value"
+        for label in ("credible", "insufficient-data")
+    },
+    **{
+        ("credcli/report/render.py", status): "the Rich style of a gate's status cell, keyed "
+        "by its value"
+        for status in ("regressed", "improved", "unchanged")
+    },
+    ("credcli/api.py", "truth"): "read_log's keyword options (ReadOptions fields)",
+    ("credcli/api.py", "window"): "the segmenter's settings by their Python name (errors)",
+    ("credcli/api.py", "whole"): "the segmenter's settings by their Python name (errors)",
+    ("credcli/api.py", "text/html"): "IPython's display formatter of a MIME type",
+    ("credcli/api.py", "truth_columns"): "LogSchema fields, given to LogSchema.updated",
+    ("credcli/api.py", "estimate_columns"): "LogSchema fields, given to LogSchema.updated",
+    ("credcli/api.py", "cov_columns"): "LogSchema fields, given to LogSchema.updated",
+    ("credcli/testing.py", "errors"): "diagnose's keyword arguments",
+    ("credcli/testing.py", "cov"): "diagnose's keyword arguments",
+}
+"""String keys in KEYED_PLACES that name no JSON record key, each with why: (module, key),
+or (module, "*") for a module whose string keys are all of another kind (the config file,
+the figures' data), or "--*" for command-line flags. Every entry must still be needed."""
+
+
+NOT_MAPPINGS_OF_RECORDS = ("os.environ", "sys.modules")
+"""Mappings whose keys are never record keys: environment variables, imported modules."""
+
+
+def literal_keys(tree: ast.AST):
+    """(line, how, key) of each string literal a module uses as a mapping's key: a
+    subscript ``x["key"]``, ``x.get("key")`` (and ``pop``, ``setdefault``), a dict display's
+    key ``{"key": ...}`` and a table column ``Column("key", ...)``. Reads of ``os.environ``
+    and ``sys.modules`` (environment variables, imported modules) are not of records."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Subscript):
+            if ast.unparse(node.value) in NOT_MAPPINGS_OF_RECORDS:
+                continue
+            key, how = node.slice, "subscript"
+        elif isinstance(node, ast.Call) and node.args:
+            func = node.func
+            name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+            if name not in ("get", "pop", "setdefault", "Column"):
+                continue
+            if (
+                isinstance(func, ast.Attribute)
+                and ast.unparse(func.value) in NOT_MAPPINGS_OF_RECORDS
+            ):
+                continue
+            key, how = node.args[0], name
+        elif isinstance(node, ast.Dict):
+            for key in node.keys:
+                if isinstance(key, ast.Constant) and isinstance(key.value, str):
+                    yield key.lineno, "dict", key.value
+            continue
+        else:
+            continue
+        if isinstance(key, ast.Constant) and isinstance(key.value, str):
+            yield node.lineno, how, key.value
+
+
+def _exemptions(path: str, key: str) -> list[tuple[str, str]]:
+    """The entries of NOT_RECORD_KEYS that exempt ``key`` in ``path``."""
+    patterns = ("*", key, "--*") if key.startswith("--") else ("*", key)
+    return [(path, p) for p in patterns if (path, p) in NOT_RECORD_KEYS]
+
+
+def test_only_records_name_json_keys():
+    """JSON keys are spelled in credcli/report/records.py only: the builders, renderers,
+    the gate, the commands and the API use its functions, columns and constants (issue 34:
+    results typed until the last moment). A string key elsewhere is either a record key
+    (move it to records) or listed in NOT_RECORD_KEYS with why it is not one."""
+    found, used = [], set()
+    for place in KEYED_PLACES:
+        paths = [ROOT / place] if place.endswith(".py") else (ROOT / place).rglob("*.py")
+        for path in sorted(paths):
+            rel = path.relative_to(ROOT).as_posix()
+            if rel == RECORDS_MODULE:
+                continue
+            for line, how, key in literal_keys(ast.parse(path.read_text())):
+                exemptions = _exemptions(rel, key)
+                used.update(exemptions)
+                if not exemptions:
+                    found.append(f"{rel}:{line} {how} {key!r}")
+    assert found == []
+    assert used == set(NOT_RECORD_KEYS)  # every exemption is still needed
+    keys = {key for _, _, key in literal_keys(ast.parse((ROOT / RECORDS_MODULE).read_text()))}
+    assert {"scale_factor", "segments", "parameters", "published", "status"} <= keys  # read
+
+
+def test_renderers_only_format():
+    """The renderers format a Report: no study, segmentation, reader or diagnosis is
+    imported by render.py (or tables.py); the builders make the Report from them."""
+    imports = _all_imports()
+    allowed = ("credcli.errors", "credcli.engine.config", "credcli.report.")
+    for name in ("credcli.report.render", "credcli.report.tables"):
+        assert imports[name], name  # read
+        outside = {t for t in imports[name] if t != "credcli.report" and not t.startswith(allowed)}
+        assert outside == set(), name
+    assert "credcli.report.builders" not in imports["credcli.report.render"]
+
+
 def _all_imports() -> dict[str, set[str]]:
     """credcli module -> every credcli module it imports (anywhere in it), by module name."""
     out = {}

@@ -312,7 +312,8 @@ def test_a_std_whose_square_overflows_is_named(tmp_path):
 
 
 def test_json_output_takes_non_finite_numbers():
-    from credcli.report.render import OutputFormat, Report, json_safe, to_text
+    from credcli.report.render import OutputFormat, json_safe, to_text
+    from credcli.report.tables import Report
 
     doc = {"a": [1.0, float("inf")], "b": {"c": float("nan")}}
     assert json.loads(to_text(Report([], doc), OutputFormat.JSON)) == {

@@ -23,8 +23,9 @@ from credcli.engine.metrics import Accuracy
 from credcli.engine.short import SegmentResults, ShortSegments
 from credcli.io.arrays import log_from_arrays
 from credcli.report import jsontext, render
+from credcli.report.builders import diagnose_report
 from credcli.report.records import Records, segment_record, segment_records
-from credcli.report.render import OutputFormat, diagnose_report, text_pieces, to_text
+from credcli.report.render import OutputFormat, text_pieces, to_text
 from credcli.schedule.plans import diagnose_plans
 from credcli.segments import Segment, Segments, by_column, lengths, log_summary, split
 

@@ -12,7 +12,7 @@ from credcli.cli import main
 from credcli.engine import metrics
 from credcli.engine.diagnosis import DIAGNOSIS_LABELS, Label
 from credcli.errors import CredcliError
-from credcli.report.render import PAPER_TABLE_II
+from credcli.report.builders import PAPER_TABLE_II
 from credcli.studies import simulate as sim
 
 

@@ -195,9 +195,10 @@ def print_notes(report) -> None:
         A diagnose report; the notes of each entry of its document's ``logs`` go to
         stderr, options named as flags.
     """
-    for log in report.document.get("logs", []):
-        for note in log.get("notes", []):
-            print(printable(f"credcli: note: {flag_names(note)}"), file=sys.stderr)
+    from credcli.report.records import log_notes
+
+    for note in log_notes(report.document):
+        print(printable(f"credcli: note: {flag_names(note)}"), file=sys.stderr)
 
 
 SCHEDULER_ENV = "CREDCLI_SCHEDULER"

@@ -54,3 +54,50 @@ def format_pvalue(p: float | None) -> str:
     if p is None or p != p:
         return "—"
     return f"<{PVALUE_FLOOR:g}" if p < PVALUE_FLOOR else f"{p:.3g}"
+
+
+def format_number(x: float | None) -> str:
+    """A number for sentences (advice, notes): three significant digits, no float noise.
+
+    Parameters
+    ----------
+    x : float or None
+        The number; None where there is none (an open interval's end).
+
+    Returns
+    -------
+    str
+        ``x`` in the ``.3g`` form, or ``"—"`` for None.
+
+    Examples
+    --------
+    >>> format_number(2.34567), format_number(None)
+    ('2.35', '—')
+    """
+    return "—" if x is None else f"{x:.3g}"
+
+
+def format_interval(factor: float | None, low: float | None, high: float | None) -> str:
+    """A factor with its interval, as the ``cov ×`` cell and the advice show it.
+
+    Parameters
+    ----------
+    factor : float or None
+        The factor.
+    low, high : float or None
+        The interval's ends; None for either: no interval.
+
+    Returns
+    -------
+    str
+        ``"2.3 (1.9–2.8)"``, or ``"2.3 (no interval)"`` without one (:func:`format_number`
+        spells each number).
+
+    Examples
+    --------
+    >>> format_interval(2.3, 1.9, 2.8), format_interval(2.3, None, 2.8)
+    ('2.3 (1.9–2.8)', '2.3 (no interval)')
+    """
+    if low is None or high is None:
+        return f"{format_number(factor)} (no interval)"
+    return f"{format_number(factor)} ({format_number(low)}–{format_number(high)})"

@@ -15,18 +15,19 @@ import re
 from credcli.engine.config import Label
 from credcli.engine.diagnosis import SegmentDiagnosis
 from credcli.errors import printable
+from credcli.report.advice import advice, bias_size, scale_text
 from credcli.report.overview import FILE_STEMS, PlotKind
 from credcli.report.plots import segment_group
-from credcli.report.records import segment_record, shown_label
-from credcli.report.render import (
+from credcli.report.records import (
     SEGMENT_COLUMNS,
-    Report,
-    Table,
-    advice,
-    bias_size,
-    format_cell,
-    scale_text,
+    document_parameters,
+    document_segments,
+    document_version,
+    segment_record,
+    shown_label,
 )
+from credcli.report.render import format_cell
+from credcli.report.tables import Report, Table
 
 _STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
@@ -97,7 +98,7 @@ def _table_html(table, anchor: str = "") -> str:
             # as the terminal shows it: control characters from the data escaped
             text = _escape(format_cell(c.value(row), c.digits))
             cls, style = "text" if not c.digits else "num", ""
-            if c.key in ("label", "nees_label", "nci_label") and isinstance(value, str):
+            if c.coloured and isinstance(value, str):
                 cls += " credible" if value == Label.CREDIBLE.value else " bad"
                 style = f' style="{label_style(value)}"'
             cells.append(f'<td class="{cls}"{style}>{text}</td>')
@@ -253,7 +254,7 @@ def build_html(title: str, report: Report, plots, subtitle: str = "", notes=(), 
         The HTML document, ending in a newline; text from the data is escaped.
     """
     anchors = _Anchors()
-    records = report.document.get("segments", [])
+    records = document_segments(report.document)
     timeline_stem = FILE_STEMS[PlotKind.TIMELINE]
     timelines = [p for p in plots if p.name.endswith(timeline_stem) and "overview" in p.group]
     others = [p for p in plots if p not in timelines]
@@ -310,9 +311,9 @@ def build_html(title: str, report: Report, plots, subtitle: str = "", notes=(), 
         parts.append(f'<div class="{"wide" if wide else "figs"}">')
         parts.extend(_figure_html(p) for p in members)
         parts.append("</div></section>")
-    params = report.document.get("parameters", {})
+    params = document_parameters(report.document)
     parts.append('<h2 id="parameters">Parameters</h2>')
     parts.append(f"<pre>{_escape(json.dumps(params, indent=2))}</pre>")
-    version = report.document.get("version", "")
+    version = document_version(report.document)
     parts.append(f'<p class="note">credcli {_escape(str(version))}</p></body></html>')
     return "\n".join(parts) + "\n"

@@ -1,7 +1,13 @@
-"""Records: a Diagnosis as a flat, JSON-safe dict, and a baseline file read back into
-typed values. The only place that knows the keys of a segment record and of a baseline;
-the renderers, the CI gate and the Python API's ``to_dict``/``to_frame`` all read them
-from here."""
+"""Records: the only module that knows the keys of credcli's JSON.
+
+A Diagnosis as a flat, JSON-safe dict (:func:`segment_record`), each command's document
+(:func:`diagnose_document`, :func:`simulate_document`, ...) and its ``parameters``, the rows
+of the tables people read and the columns that show them (:data:`SEGMENT_COLUMNS`, ...), the
+accessors of a document's parts (:func:`document_parameters`, :func:`log_notes`), and a
+baseline file read back into typed values (:func:`read_baseline`). The builders, the
+renderers, the CI gate and the Python API's ``to_dict``/``to_frame`` read every key from
+here.
+"""
 
 from __future__ import annotations
 
@@ -23,7 +29,10 @@ from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
 from credcli.io.streams import open_input
+from credcli.report.formats import format_interval
 from credcli.report.jsontext import ListColumn
+from credcli.report.tables import Column
+from credcli.version import __version__
 
 BASELINE_SCHEMA_VERSION = 1
 BASELINE_KIND = "credcli-baseline"
@@ -304,7 +313,11 @@ def _settings_record(settings) -> dict:
 
 
 def diagnose_parameters(
-    config: DiagnosisConfig, seed: int, reading: LogReading, segmentation: str
+    config: DiagnosisConfig,
+    seed: int,
+    reading: LogReading,
+    segmentation: str,
+    monte_carlo: bool = False,
 ) -> dict:
     """The ``parameters`` of a diagnose (and baseline) document.
 
@@ -322,14 +335,17 @@ def diagnose_parameters(
     segmentation : str
         How the logs were cut into segments, as the document names it
         (:func:`credcli.workflows.segmentation_name`).
+    monte_carlo : bool, default False
+        Whether the logs are Monte Carlo runs pooled segment by segment.
 
     Returns
     -------
     dict
         The config's fields, then ``seed``, ``segmentation``, ``window``, ``whole``,
-        ``drop_invalid``, ``columns`` and ``input`` (the last two objects of their own).
+        ``drop_invalid``, ``columns`` and ``input`` (the last two objects of their own),
+        and ``monte_carlo`` (true) for Monte Carlo runs.
     """
-    return config_record(config) | {
+    parameters = config_record(config) | {
         "seed": seed,
         "segmentation": segmentation,
         "window": reading.window,
@@ -338,6 +354,9 @@ def diagnose_parameters(
         "columns": _settings_record(reading.schema),
         "input": _settings_record(reading.options),
     }
+    if monte_carlo:
+        parameters["monte_carlo"] = True
+    return parameters
 
 
 def uwb_segment_record(result: SegmentDiagnosis, check) -> dict:
@@ -688,6 +707,752 @@ def monte_carlo_record(mc) -> dict:
         "mean_anees": float(mc.anees.mean()),
         "segments": mc.segments,
     }
+
+
+# --- documents: the JSON each command writes -------------------------------------------
+
+SEGMENTS = "segments"
+"""The key of a document's list of segment records: the JSON writer streams it a record at
+a time (:func:`credcli.report.render.text_pieces`)."""
+
+
+def diagnose_document(
+    parameters: dict, logs: list[dict], segments: Records, monte_carlo: dict | None = None
+) -> dict:
+    """The JSON document of `credcli diagnose`.
+
+    Parameters
+    ----------
+    parameters : dict
+        The run's settings (:func:`diagnose_parameters`).
+    logs : list of dict
+        Each log's entry (:func:`log_record`), in order.
+    segments : Records
+        The segments' records (:func:`segment_records`).
+    monte_carlo : dict, optional
+        The per-epoch ANEES test (:func:`monte_carlo_record`); None: none.
+
+    Returns
+    -------
+    dict
+        ``version``, ``command`` (``"diagnose"``), ``parameters``, ``logs``, ``segments``
+        and, when given, ``monte_carlo``.
+    """
+    document = {
+        "version": __version__,
+        "command": "diagnose",
+        "parameters": parameters,
+        "logs": logs,
+        SEGMENTS: segments,
+    }
+    if monte_carlo is not None:
+        document["monte_carlo"] = monte_carlo
+    return document
+
+
+def baseline_document(document: dict) -> dict:
+    """A diagnose document marked as a baseline of the current schema version.
+
+    Parameters
+    ----------
+    document : dict
+        The document of `credcli diagnose` (:func:`diagnose_document`); not changed.
+
+    Returns
+    -------
+    dict
+        A copy whose ``command`` is ``"baseline"``, with ``kind`` (:data:`BASELINE_KIND`)
+        and ``schema_version`` (:data:`BASELINE_SCHEMA_VERSION`) added: what
+        :func:`read_baseline` reads back.
+    """
+    return {
+        **document,
+        "command": "baseline",
+        "kind": BASELINE_KIND,
+        "schema_version": BASELINE_SCHEMA_VERSION,
+    }
+
+
+def document_parameters(document: dict) -> dict:
+    """The settings a document was made with.
+
+    Parameters
+    ----------
+    document : dict
+        A command's JSON document.
+
+    Returns
+    -------
+    dict
+        Its ``parameters``; empty where it has none.
+    """
+    return document.get("parameters", {})
+
+
+def document_version(document: dict) -> str:
+    """The credcli version that wrote a document.
+
+    Parameters
+    ----------
+    document : dict
+        A command's JSON document.
+
+    Returns
+    -------
+    str
+        Its ``version``; "" where it has none.
+    """
+    return document.get("version", "")
+
+
+def document_segments(document: dict) -> Sequence:
+    """A document's segment records.
+
+    Parameters
+    ----------
+    document : dict
+        A command's JSON document.
+
+    Returns
+    -------
+    sequence of dict
+        Its ``segments`` (:data:`SEGMENTS`); empty where it has none.
+    """
+    return document.get(SEGMENTS, [])
+
+
+def log_notes(document: dict) -> Iterator[str]:
+    """The decisions taken while reading the logs of a diagnose document.
+
+    Parameters
+    ----------
+    document : dict
+        A command's JSON document.
+
+    Yields
+    ------
+    str
+        The ``notes`` of each entry of its ``logs`` (:func:`log_record`), in order; none
+        where it has no logs.
+    """
+    for log in document.get("logs", []):
+        yield from log.get("notes", [])
+
+
+def simulate_parameters(config, scenarios, curve_runs: int | None = None, sweep=None) -> dict:
+    """The ``parameters`` of a `simulate` document.
+
+    Parameters
+    ----------
+    config : SimulationConfig
+        The study's design and its diagnosis settings
+        (:class:`credcli.studies.settings.SimulationConfig`).
+    scenarios : sequence of Label
+        The scenarios run.
+    curve_runs : int, optional
+        Monte Carlo runs per point of the Fig. 1 curves, when they are the output.
+    sweep : str, optional
+        The sweep, as given (``rho=0.1:10:20``), when one is the output.
+
+    Returns
+    -------
+    dict
+        ``scenarios``, ``trials``, ``n``, ``dim``, the ranges ``rho_optimism``,
+        ``rho_pessimism``, ``bias`` and ``eigenvalues``, ``seed``, ``ar``, ``noise``, every
+        DiagnosisConfig field (:func:`config_record`), then ``curve_runs`` and ``sweep``
+        where given.
+    """
+    parameters = {
+        "scenarios": [s.value for s in scenarios],
+        "trials": config.trials,
+        "n": config.n,
+        "dim": config.dim,
+        "rho_optimism": list(config.rho_optimism),
+        "rho_pessimism": list(config.rho_pessimism),
+        "bias": list(config.bias),
+        "eigenvalues": list(config.eigenvalues),
+        "seed": config.seed,
+        "ar": config.ar,
+        "noise": config.noise,
+    } | config_record(config.diagnosis)
+    if curve_runs is not None:
+        parameters |= {"curve_runs": curve_runs}
+    if sweep is not None:
+        parameters |= {"sweep": sweep}
+    return parameters
+
+
+def simulate_document(parameters: dict, study, labels) -> dict:
+    """The JSON document of the Monte Carlo study (Tables II and III).
+
+    Parameters
+    ----------
+    parameters : dict
+        The study's settings (:func:`simulate_parameters`).
+    study : StudyResult
+        The study (:func:`credcli.studies.simulate.run_study`).
+    labels : sequence of Label
+        The diagnosed labels of the confusion matrix, in order.
+
+    Returns
+    -------
+    dict
+        ``version``, ``command``, ``parameters``, ``accuracy`` (method -> scenario ->
+        fraction), ``confusion_variant`` and ``confusion`` (true label -> diagnosed label
+        -> count).
+    """
+    return {
+        "version": __version__,
+        "command": "simulate",
+        "parameters": parameters,
+        "accuracy": {
+            m.value: {s.value: acc[s] for s in study.scenarios} for m, acc in study.accuracy.items()
+        },
+        "confusion_variant": study.variant.value,
+        "confusion": {
+            t.value: {lab.value: study.confusion[t][lab] for lab in labels} for t in study.scenarios
+        },
+    }
+
+
+def accuracy_row(scenario: str, percents: dict, published: float | None = None) -> dict:
+    """A row of Table II: a scenario's accuracy per method, in percent.
+
+    Parameters
+    ----------
+    scenario : str
+        The true label.
+    percents : dict of str to float or None
+        Method name -> accuracy in percent, in the table's order.
+    published : float, optional
+        The paper's accuracy in percent; None: the row has no ``published``.
+
+    Returns
+    -------
+    dict
+        ``scenario``, a key per method, then ``published`` when given.
+    """
+    row = {"scenario": scenario} | percents
+    if published is not None:
+        row["published"] = published
+    return row
+
+
+def confusion_row(scenario: str, counts: dict) -> dict:
+    """A row of Table III: how often each label was diagnosed for one true label.
+
+    Parameters
+    ----------
+    scenario : str
+        The true label.
+    counts : dict of str to int
+        Diagnosed label -> count, in the table's order.
+
+    Returns
+    -------
+    dict
+        ``scenario``, then a key per diagnosed label.
+    """
+    return {"scenario": scenario} | counts
+
+
+def sweep_row(point, percents: dict) -> dict:
+    """A row of a sweep: one value of the swept parameter and one true label.
+
+    Parameters
+    ----------
+    point : SweepPoint
+        The point (:class:`credcli.studies.simulate.SweepPoint`).
+    percents : dict of str to float or None
+        Method name -> accuracy in percent.
+
+    Returns
+    -------
+    dict
+        ``value``, ``scenario``, ``trials``, then a key per method.
+    """
+    return {"value": point.value, "scenario": point.truth.value, "trials": point.trials} | percents
+
+
+def sweep_document(parameters: dict, sweep, points) -> dict:
+    """The JSON document of ``simulate --sweep``.
+
+    Parameters
+    ----------
+    parameters : dict
+        The study's settings (:func:`simulate_parameters`).
+    sweep : Sweep
+        The parameter swept and its values (:class:`credcli.studies.simulate.Sweep`).
+    points : list of SweepPoint
+        The accuracy of every method at each value, per true label.
+
+    Returns
+    -------
+    dict
+        ``version``, ``command``, ``parameters`` and ``sweep``: the ``parameter``, its
+        ``values`` and the ``points`` (``value``, ``scenario``, ``trials``, ``accuracy``
+        as fractions).
+    """
+    return {
+        "version": __version__,
+        "command": "simulate",
+        "parameters": parameters,
+        "sweep": {
+            "parameter": sweep.parameter.value,
+            "values": list(sweep.values),
+            "points": [
+                {
+                    "value": p.value,
+                    "scenario": p.truth.value,
+                    "trials": p.trials,
+                    "accuracy": {m.value: a for m, a in p.accuracy.items()},
+                }
+                for p in points
+            ],
+        },
+    }
+
+
+def curve_records(points) -> list[dict]:
+    """The points of a Fig. 1 curve as records.
+
+    Parameters
+    ----------
+    points : list of CurvePoint
+        The points (:class:`credcli.studies.simulate.CurvePoint`).
+
+    Returns
+    -------
+    list of dict
+        Each point's fields by name.
+    """
+    return [dataclasses.asdict(p) for p in points]
+
+
+def curves_document(parameters: dict, by_rho, by_gamma) -> dict:
+    """The JSON document of ``simulate --curves``.
+
+    Parameters
+    ----------
+    parameters : dict
+        The study's settings (:func:`simulate_parameters`).
+    by_rho, by_gamma : list of CurvePoint
+        Fig. 1a (against ρ) and Fig. 1b (against γ).
+
+    Returns
+    -------
+    dict
+        ``version``, ``command``, ``parameters`` and ``curves`` (``rho`` and ``gamma``:
+        :func:`curve_records`).
+    """
+    return {
+        "version": __version__,
+        "command": "simulate",
+        "parameters": parameters,
+        "curves": {"rho": curve_records(by_rho), "gamma": curve_records(by_gamma)},
+    }
+
+
+def uwb_parameters(
+    config: DiagnosisConfig, seed: int, segmentation: str, settings, anchors
+) -> dict:
+    """The ``parameters`` of a `uwb` document.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig
+        The diagnosis settings (every field, :func:`config_record`).
+    seed : int
+        The seed of the run's random numbers.
+    segmentation : str
+        How the fixes were cut into periods.
+    settings : UwbSettings
+        The pipeline's settings (:class:`credcli.studies.settings.UwbSettings`), every
+        field by name.
+    anchors : path or None
+        The anchors file; None: the anchors were self-calibrated.
+
+    Returns
+    -------
+    dict
+        The config's fields, ``seed``, ``segmentation``, the pipeline's settings and
+        ``anchors``.
+    """
+    return (
+        config_record(config)
+        | {"seed": seed, "segmentation": segmentation}
+        | {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
+        | {"anchors": str(anchors) if anchors else "self-calibrated"}
+    )
+
+
+def uwb_document(parameters: dict, segments, anchors, ranges, run, notes) -> dict:
+    """The JSON document of `credcli uwb`.
+
+    Parameters
+    ----------
+    parameters : dict
+        The diagnosis and pipeline settings (:func:`uwb_parameters`).
+    segments : list of dict
+        Each period's record (:func:`uwb_segment_record`).
+    anchors : list of dict
+        Each anchor's record (:func:`anchor_record`).
+    ranges : list of dict
+        The range errors per period and anchor (:func:`range_record`).
+    run : UwbRun
+        The pipeline's run (:class:`credcli.studies.uwb.UwbRun`): its packets and fixes.
+    notes : list of str
+        The report's notes.
+
+    Returns
+    -------
+    dict
+        ``version``, ``command``, ``parameters``, ``segments``, ``anchors``, ``ranges``,
+        ``screening`` (packets, fixes, what was dropped and moved, the residual scale) and
+        ``notes``.
+    """
+    return {
+        "version": __version__,
+        "command": "uwb",
+        "parameters": parameters,
+        SEGMENTS: segments,
+        "anchors": anchors,
+        "ranges": ranges,
+        "screening": {
+            "packets": run.packets,
+            "fixes": int(run.fixes.time.size),
+            "dropped": run.fixes.dropped,
+            "moved_to_global_minimum": run.fixes.moved,
+            "residual_scale": run.fixes.residual_scale,
+        },
+        "notes": notes,
+    }
+
+
+def gate_row(
+    segment: str, status: str, labels: str, nci: str, anees: str, elt: str, why: str
+) -> dict:
+    """A row of the gate's table: one segment then and now, as text.
+
+    Parameters
+    ----------
+    segment : str
+        The segment's name.
+    status : str
+        What became of it (unchanged, improved, regressed, new, missing).
+    labels, nci, anees, elt : str
+        Its label, NCI, ANEES and ELT p-value as "baseline → now".
+    why : str
+        Why it changed.
+
+    Returns
+    -------
+    dict
+        The row, by the keys of :data:`GATE_COLUMNS`.
+    """
+    return {
+        "segment": segment,
+        "status": status,
+        "labels": labels,
+        "nci": nci,
+        "anees": anees,
+        "elt": elt,
+        "why": why,
+    }
+
+
+def gate_document(
+    baseline: str, parameters: dict, passed: bool, verdict: str, segments: list[dict]
+) -> dict:
+    """The JSON document of `credcli gate`.
+
+    Parameters
+    ----------
+    baseline : str
+        The baseline file's path, as given.
+    parameters : dict
+        The new diagnosis's settings.
+    passed : bool
+        Whether no segment fails the gate.
+    verdict : str
+        The verdict line.
+    segments : list of dict
+        Each segment compared (:func:`comparison_record`).
+
+    Returns
+    -------
+    dict
+        ``version``, ``command``, ``baseline``, ``parameters``, ``passed``, ``verdict``
+        and ``segments``.
+    """
+    return {
+        "version": __version__,
+        "command": "gate",
+        "baseline": baseline,
+        "parameters": parameters,
+        "passed": passed,
+        "verdict": verdict,
+        SEGMENTS: segments,
+    }
+
+
+def compared_log_row(entry: dict, credible: str) -> dict:
+    """A row of the logs compared side by side.
+
+    Parameters
+    ----------
+    entry : dict
+        The log's entry (:func:`log_record`).
+    credible : str
+        How many of its segments are credible ("3 of 5").
+
+    Returns
+    -------
+    dict
+        ``entry`` with ``credible``.
+    """
+    return entry | {"credible": credible}
+
+
+# --- columns: which key each table shows, and how --------------------------------------
+
+
+def _label_text(rec: dict) -> str:
+    """The label as tables show it: the record's ``label``, already the shown label
+    (:func:`shown_label`)."""
+    return str(rec["label"])
+
+
+def scale_interval(rec: dict) -> str | None:
+    """The ``cov ×`` cell of a segment record: κ̂ with its interval.
+
+    Parameters
+    ----------
+    rec : dict
+        A segment record ([segment_record][credcli.report.records.segment_record]).
+
+    Returns
+    -------
+    str or None
+        '2.3 (1.9–2.8)'; '2.3 (no interval)' where the data hold too few batches for one
+        (the segment's reason says why); None when no scale was estimated.
+    """
+    if rec.get("scale_factor") is None:
+        return None
+    return format_interval(
+        rec["scale_factor"], rec.get("scale_factor_low"), rec.get("scale_factor_high")
+    )
+
+
+NAME_LIMIT = 60
+"""Longest segment or log name shown in a table cell (JSON and CSV keep the whole name)."""
+
+SEGMENT_COLUMNS = (
+    Column("segment", "segment", 0, limit=NAME_LIMIT, rank=0),
+    Column("n", "N", 0, keep=True, rank=0),
+    Column("dim", "d", 0, keep=True, rank=0),
+    Column("label", "label", 0, keep=True, rank=0, show=_label_text, coloured=True),
+    Column("scale_factor", "cov × (interval)", 0, show=scale_interval, rank=1),
+    Column("scale_pvalue", "scale p", 3, pvalue=True, rank=3),
+    Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
+    Column("bias_mahalanobis", "|bias| [σ]", 3, rank=3),
+    Column("rmse", "RMSE", 4, rank=4),
+    Column("block_length", "L", 0, rank=4),
+    Column("nci", "NCI [dB]", 3, rank=5),
+    Column("anees", "ANEES", 4, rank=5),
+    Column("nees_label", "NEES baseline", 0, rank=6, coloured=True),
+    Column("nci_label", "NCI baseline", 0, rank=6, coloured=True),
+)
+
+SEGMENT_COLUMNS_ALL = SEGMENT_COLUMNS + (
+    Column("nci_centered", "NCI centred", 3),
+    Column("nll", "NLL", 4),
+    Column("es", "ES", 4),
+    Column("delta_nll_minus", "ΔNLL−", 3),
+    Column("delta_nll_plus", "ΔNLL+", 3),
+    Column("delta_es_minus", "ΔES−", 3),
+    Column("delta_es_plus", "ΔES+", 3),
+    Column("srd_nll", "SRD NLL", 3),
+    Column("srd_es", "SRD ES", 3),
+)
+
+
+WHITENESS_COLUMN = Column("whiteness_pvalue", "white p", 3, pvalue=True, rank=2)
+"""The innovations' portmanteau p-value (--innovations), after the ELT's."""
+
+LOG_NAME_COLUMN = Column("log", "log", 0, limit=NAME_LIMIT)
+"""The log of each segment, first, when a report holds several logs."""
+
+LOG_COLUMNS = (
+    Column("path", "log", 0, limit=NAME_LIMIT, rank=0),
+    Column("epochs", "N", 0, keep=True, rank=0),
+    Column("credible", "credible", 0, keep=True, rank=0),
+    Column("rmse", "RMSE", 4, rank=1),
+    Column("error_norm_mean", "mean ‖e‖", 4, rank=2),
+    Column("error_norm_median", "median ‖e‖", 4, rank=2),
+    Column("error_norm_max", "max ‖e‖", 4, rank=2),
+)
+"""The logs side by side (as evo_res compares results): accuracy over all epochs of each
+log, and how many of its segments are credible (:func:`compared_log_row`)."""
+
+_METHOD_HEADERS = {
+    "calibrated": "calibrated [%]",
+    "ks": "ks [%]",
+    "paper": "paper rule [%]",
+    "nees": "NEES [%]",
+    "nci": "NCI [%]",
+}
+
+_SHORT = {
+    Label.CREDIBLE.value: "Credible",
+    Label.OPTIMISM.value: "O",
+    Label.PESSIMISM.value: "P",
+    Label.SMM.value: "SMM",
+    Label.OPTIMISM_SMM.value: "O+SMM",
+    Label.PESSIMISM_SMM.value: "P+SMM",
+    Label.INSUFFICIENT.value: "insuff.",
+}
+
+
+def _method_columns(methods) -> tuple[Column, ...]:
+    return tuple(Column(m.value, _METHOD_HEADERS[m.value], 3) for m in methods)
+
+
+def accuracy_columns(methods, published: bool) -> tuple[Column, ...]:
+    """The columns of Table II (:func:`accuracy_row`).
+
+    Parameters
+    ----------
+    methods : iterable of Method
+        The methods, in order.
+    published : bool
+        Whether the rows have the paper's accuracy.
+
+    Returns
+    -------
+    tuple of Column
+        The scenario, each method's accuracy in percent, then the published one.
+    """
+    cols = (Column("scenario", "scenario", 0),) + _method_columns(methods)
+    if published:
+        cols += (Column("published", "published [%]", 3),)
+    return cols
+
+
+def confusion_columns(labels) -> tuple[Column, ...]:
+    """The columns of Table III (:func:`confusion_row`).
+
+    Parameters
+    ----------
+    labels : iterable of Label
+        The diagnosed labels, in order.
+
+    Returns
+    -------
+    tuple of Column
+        The true label, then a count per diagnosed label (headed by its short name).
+    """
+    return (Column("scenario", "true \\ diagnosed", 0),) + tuple(
+        Column(lab.value, _SHORT[lab.value], 0) for lab in labels
+    )
+
+
+def sweep_columns(parameter: str, methods) -> tuple[Column, ...]:
+    """The columns of a sweep's table (:func:`sweep_row`).
+
+    Parameters
+    ----------
+    parameter : str
+        The swept parameter's name (the first column's heading).
+    methods : iterable of Method
+        The methods, in order.
+
+    Returns
+    -------
+    tuple of Column
+        The value, the true label, the trials, then each method's accuracy in percent.
+    """
+    return (
+        Column("value", parameter, 4),
+        Column("scenario", "true label", 0),
+        Column("trials", "trials", 0),
+    ) + _method_columns(methods)
+
+
+def _curve_columns(x: str) -> tuple[Column, ...]:
+    return (
+        Column(x, "ρ" if x == "rho" else "γ", 4),
+        Column("mean_es", "mean ES", 5),
+        Column("expected_es", "E[ES] exact", 5),
+        Column("mean_nll", "mean NLL", 5),
+        Column("expected_nll", "E[NLL] exact", 5),
+    )
+
+
+CURVE_COLUMNS_RHO = _curve_columns("rho")
+"""The columns of Fig. 1a (:func:`curve_records` against ρ)."""
+CURVE_COLUMNS_GAMMA = _curve_columns("gamma")
+"""The columns of Fig. 1b (:func:`curve_records` against γ)."""
+
+UWB_COLUMNS = (
+    Column("segment", "period", 0, limit=NAME_LIMIT, rank=0),
+    Column("t_start", "t start [s]", 4, rank=3),
+    Column("t_end", "t end [s]", 4, rank=3),
+    Column("n", "fixes", 0, keep=True, rank=0),
+    Column("label", "label", 0, keep=True, rank=0, show=_label_text, coloured=True),
+    Column("scale_factor", "cov × (interval)", 0, show=scale_interval, rank=1),
+    Column("elt_pvalue", "ELT p", 3, pvalue=True, rank=2),
+    Column("bias_mahalanobis", "|bias| [σ]", 3, rank=3),
+    Column("rmse", "RMSE", 4, rank=4),
+    Column("range_label", "range evidence", 0, rank=1),
+    Column("range_agrees", "agrees", 0, rank=1),
+    Column("nees_label", "NEES", 0, rank=5, coloured=True),
+    Column("nci_label", "NCI", 0, rank=5, coloured=True),
+    Column("nci", "NCI [dB]", 3, rank=6),
+    Column("anees", "ANEES", 4, rank=6),
+)
+"""Table IV of `uwb`: a period's diagnosis with the range-level evidence beside it
+(:func:`uwb_segment_record`)."""
+
+RANGE_COLUMNS = (
+    Column("segment", "period", 0),
+    Column("anchor", "anchor", 0),
+    Column("n", "ranges", 0),
+    Column("mean_error", "bias [m]", 3),
+    Column("bias_stderr", "± s.e. [m]", 2),
+    Column("std_error", "std [m]", 3),
+    Column("robust_std", "robust std [m]", 3),
+    Column("median_std", "reported std [m]", 3),
+    Column("robust_ratio", "robust / reported", 3),
+    Column("beyond_3sigma", "beyond 3σ", 2),
+)
+"""The range errors of `uwb` per period and anchor (:func:`range_record`)."""
+
+ANCHOR_COLUMNS = (
+    Column("id", "anchor", 0),
+    Column("x", "x [m]", 4),
+    Column("y", "y [m]", 4),
+    Column("z", "z [m]", 4),
+    Column("source", "source", 0),
+    Column("rms_mm", "gt_range RMS [mm]", 3),
+    Column("check", "check", 0),
+    Column("rows", "ranges", 0),
+)
+"""The anchors of `uwb` (:func:`anchor_record`)."""
+
+GATE_COLUMNS = (
+    Column("segment", "segment", 0, limit=NAME_LIMIT),
+    Column("status", "status", 0, coloured=True),
+    Column("labels", "label (baseline → now)", 0),
+    Column("nci", "NCI [dB]", 0),
+    Column("anees", "ANEES", 0),
+    Column("elt", "ELT p", 0),
+    Column("why", "why", 0, wrap=60),
+)
+"""The gate's table (:func:`gate_row`)."""
+
+
+# --- a baseline read back: typed values for the gate -----------------------------------
 
 
 @dataclass(frozen=True)

@@ -432,9 +432,9 @@ def test_argument_errors_of_engine_helpers_are_credcli_errors():
     from credcli.engine.whiteness import portmanteau
     from credcli.errors import CredcliError
 
-    with pytest.raises(CredcliError, match="`lags`"):
+    with pytest.raises(CredcliError, match="lags must be between"):
         portmanteau(np.random.default_rng(0).standard_normal((20, 2)), lags=20)
-    with pytest.raises(CredcliError, match="`window`"):
+    with pytest.raises(CredcliError, match="running mean's window must be between"):
         running_mean(np.ones(3), 4)
-    with pytest.raises(CredcliError, match="`loss`"):
+    with pytest.raises(CredcliError, match="loss must be in"):
         block_length(2.0, loss=1.5)

@@ -112,6 +112,18 @@ def test_no_csv_cell_reads_as_a_formula_lists_of_numbers_included(tmp_path):
         assert not [c for c in cells if c and (c[0] in "=+@\t\r" or (c[0] == "-" and " " in c))]
 
 
+def test_full_width_formula_signs_get_the_apostrophe_too(tmp_path):
+    """'＝cmd()' (U+FF1D) was written bare; an East Asian spreadsheet may read it as '='."""
+    path = tmp_path / "fw.csv"
+    rows = ["time,segment,truth_0,truth_1,est_0,est_1,cov_0_0,cov_0_1,cov_1_1"]
+    rows += [f"{k},＝cmd(),{k % 3},0,0,0,1,0,1" for k in range(30)]
+    path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    out = tmp_path / "o.csv"
+    assert main(["diagnose", str(path), "-f", "csv", "-o", str(out)]) == 0
+    with out.open(newline="", encoding="utf-8") as f:
+        assert [r["segment"] for r in csv.DictReader(f)] == ["'＝cmd()"]
+
+
 SAMPLE_LOG = "sample_data/estimator_log.csv"
 
 

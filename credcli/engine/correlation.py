@@ -279,7 +279,7 @@ def block_length(tau: np.ndarray | float, loss: float = BLOCK_VARIANCE_LOSS) -> 
     1
     """
     if not 0 < loss < 1:
-        raise CredcliError(f"`loss` must be in (0, 1); got {loss}", "loss")
+        raise CredcliError(f"loss must be in (0, 1); got {loss}")
     tau = np.atleast_1d(np.asarray(tau, dtype=float))
     tau = np.maximum(tau[np.isfinite(tau)], 1.0) if tau.size else np.ones(1)
     if tau.size == 0:

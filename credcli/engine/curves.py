@@ -151,7 +151,7 @@ def running_mean(values: np.ndarray, window: int) -> np.ndarray:
     values = np.asarray(values, dtype=float)
     if not 1 <= window <= values.size:
         raise CredcliError(
-            f"`window` must be between 1 and {values.size}; got {window}", "window"
+            f"a running mean's window must be between 1 and {values.size}; got {window}"
         )
     sums = np.cumsum(np.r_[0.0, values])
     return (sums[window:] - sums[:-window]) / window

@@ -153,7 +153,7 @@ def portmanteau(whitened: np.ndarray, lags: int | None = None) -> Whiteness:
     n, m = w.shape
     h = default_lags(n) if lags is None else int(lags)
     if not 1 <= h < n:
-        raise CredcliError(f"`lags` must be between 1 and n − 1 = {n - 1}; got {h}", "lags")
+        raise CredcliError(f"lags must be between 1 and n − 1 = {n - 1}; got {h}")
     w = w - w.mean(axis=0)
     c0 = w.T @ w / n
     c0_inv = np.linalg.inv(c0)

@@ -84,9 +84,11 @@ def _csv_cell(value) -> str:
     return text
 
 
-_FORMULA_STARTS = frozenset("=+-@\t\r")
+_FORMULA_STARTS = frozenset("=+-@\t\r＝＋－＠")
 """A text cell starting with one of these is read as a formula by spreadsheets (OWASP, CSV
-injection); it is written with a leading apostrophe. Numbers are written as numbers."""
+injection); it is written with a leading apostrophe. Numbers are written as numbers. The
+full-width forms (U+FF1D, U+FF0B, U+FF0D, U+FF20) are included: a spreadsheet that
+normalises text input (East Asian locales) may read them as the ASCII ones."""
 
 
 def _unformula(text: str) -> str:

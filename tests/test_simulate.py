@@ -249,3 +249,14 @@ def test_bad_simulation_options(capsys):
     ]:
         code, _, err = _run(capsys, "simulate", *args)
         assert code == 2 and msg in err and err.count("\n") == 1
+
+
+def test_curves_csv_cells_are_plain_numbers(tmp_path, capsys):
+    """numpy floats reached the CSV as "np.float64(0.1)" (their repr) in the ρ column."""
+    import csv
+
+    out = tmp_path / "c.csv"
+    assert main(["simulate", "--curves", "--curve-runs", "5", "-f", "csv", "-o", str(out)]) == 0
+    with out.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and all(float(r["rho"]) > 0 and float(r["gamma"]) >= 0 for r in rows)

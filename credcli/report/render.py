@@ -73,9 +73,9 @@ def _csv_cell(value) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
-        return repr(value)
+        return float.__repr__(value)  # numpy's float64 repr is "np.float64(0.1)"
     if isinstance(value, int):
-        return str(value)
+        return int.__repr__(value)
     if isinstance(value, list):  # "-0.07 -0.35" is text, and a formula, to a spreadsheet
         return _unformula(" ".join(_csv_cell(v) for v in value))
     text = str(value)

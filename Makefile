@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
-EXTRAS := .[plots,ros,dask,filterpy,stonesoup,docs,dev]
+EXTRAS := .[plots,ros,dask,filterpy,stonesoup,fast,docs,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 

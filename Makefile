@@ -3,11 +3,11 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
-EXTRAS := .[plots,ros,dask,filterpy,stonesoup,docs,dev]
+EXTRAS := .[plots,ros,dask,filterpy,stonesoup,fast,docs,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 
-.PHONY: install demo test docs test-oldest lock lint format bench bench-dask sample-data config clean
+.PHONY: install demo test docs test-oldest lock lint format bench bench-elt bench-dask sample-data config clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -64,6 +64,13 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/memory.py --quick --windows 13 --lengths 50,300
 	$(BIN)/python benchmarks/se3.py
 	$(BIN)/python benchmarks/findings.py
+
+## bench-elt: the ELT's pair-matrix pass before (ELT_BASE) and after, interleaved (issue 35)
+ELT_BASE ?= 2ee3e12
+bench-elt: $(STAMP)
+	rm -rf /tmp/credcli-elt-base && mkdir -p /tmp/credcli-elt-base
+	git archive $(ELT_BASE) credcli | tar -x -C /tmp/credcli-elt-base
+	$(BIN)/python benchmarks/elt_kernel.py /tmp/credcli-elt-base
 
 ## bench-dask: only the Dask rows of make bench (issue 13)
 bench-dask: $(STAMP)

@@ -66,14 +66,15 @@ def test_short_reprs_and_unpacking():
 
 
 def test_the_command_line_starts_without_the_numeric_stack():
-    """`credcli --help` and `--version` import no numpy, scipy or pandas (start-up)."""
+    """`credcli --help` and `--version` import no numpy, scipy, pandas or numba (start-up)."""
     import subprocess
     import sys
 
     code = (  # a fresh interpreter: this one has loaded them all
         "import sys, credcli, credcli.cli, credcli.cli.edge\n"
         "assert credcli.cli.main(['--help']) == credcli.cli.main(['--version']) == 0\n"
-        "print(sorted(m for m in ('numpy', 'scipy', 'pandas', 'matplotlib') if m in sys.modules))"
+        "print(sorted(m for m in ('numpy', 'scipy', 'pandas', 'matplotlib', 'numba')"
+        " if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     *help_text, loaded = out.stdout.strip().splitlines()

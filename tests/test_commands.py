@@ -236,6 +236,7 @@ LAZY_IMPORTS = {
     "distributed": "the [dask] extra",
     "filterpy": "the [filterpy] extra",
     "stonesoup": "the [stonesoup] extra",
+    "numba": "the [fast] extra; 0.3 s of CPU, loaded once a process has built many pairs",
     "credcli.adapters": "the adapters import the optional libraries",
     # heavy, and needed only by some paths
     "pandas": "0.2-0.4 s to import; only text tables, exports and frames need it",

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 
 import numpy as np
 import pytest
 from helpers import gaussian_segment
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from credcli.engine import elt, flips
@@ -279,6 +282,7 @@ def test_squared_norms_that_round_below_zero_count_as_zero(monkeypatch):
         pair_block(*args, clamp=clamp)
 
     monkeypatch.setattr(flips, "_pair_block", spy)
+    monkeypatch.setattr(flips, "KERNEL_PAIRS", 10**18)  # the numpy path, whose checks are spied
     a = flips.pair_matrix(s)
     assert True in clamped  # the check found a rounded-negative square in some block
     norms = np.linalg.norm(s, axis=1)
@@ -343,3 +347,133 @@ def test_location_test_validates_its_inputs(cov, words):
     e = np.random.default_rng(0).standard_normal((50, 2))
     with pytest.raises(CredcliError, match=words.replace("[", r"\[").replace("]", r"\]")):
         elt.location_test(e, np.broadcast_to(cov, (50, *cov.shape)), n_flips=99, rng=0)
+
+
+def _pair_paths():
+    """The two ways of building the pair matrix: numpy, and numba's compiled kernel (from
+    the first pair on); the test is skipped where numba is not installed."""
+    from credcli.engine import compiled
+
+    if compiled.pair_band_kernel() is None:
+        pytest.skip("numba is not installed (the extra `fast`)")
+
+    @contextlib.contextmanager
+    def on(path):
+        with pytest.MonkeyPatch.context() as m:
+            m.setattr(flips, "KERNEL_PAIRS", 0 if path == "compiled" else 10**18)
+            yield
+
+    return on
+
+
+def _pair_outputs(s, starts):
+    upper, upper32, absolute = flips.pair_upper_float32(s)
+    streamed32, total, streamed_abs = flips.pair_matrix_float32(s)
+    return dict(
+        upper=flips.pair_upper(s),
+        fused=upper,
+        upper32=upper32,
+        absolute=absolute,
+        streamed32=streamed32,
+        total=total,
+        streamed_abs=streamed_abs,
+        blocks=flips.pair_block_upper(s, starts),
+    )
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    n=st.integers(2, 260),
+    d=st.integers(1, 4),
+    repeats=st.booleans(),
+    scale=st.sampled_from([1e-3, 1.0, 1e3]),
+    block=st.integers(1, 5),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_compiled_pair_kernel_gives_numpys_bits(n, d, repeats, scale, block, seed):
+    """Issue 35: the compiled kernel writes A's float64 and float32 entries with the bits
+    of the numpy path, whose sums it leaves unchanged (1ᵀA1 bit for bit; Σ|A_ij|, summed in
+    another order, to 1e-13), also where a square rounds below zero (repeated and opposite
+    errors); both equal the pairwise formula ‖s_i + s_j‖ − ‖s_i − s_j‖ computed directly."""
+    on = _pair_paths()
+    rng = np.random.default_rng(seed)
+    s = rng.standard_normal((n, d)) * scale
+    if repeats and n >= 3:
+        s[n // 3 :: 3] = -s[: len(s[n // 3 :: 3])]  # opposite pairs: squares that round to <= 0
+        s[1] = s[0]
+    starts = np.arange(0, n, block)
+    with on("numpy"):
+        want = _pair_outputs(s, starts)
+    with on("compiled"):
+        got = _pair_outputs(s, starts)
+    for key in ("upper", "fused", "upper32", "streamed32", "blocks"):
+        np.testing.assert_array_equal(got[key], want[key], err_msg=key)
+    assert got["total"] == want["total"]
+    for key in ("absolute", "streamed_abs"):
+        assert got[key] == pytest.approx(want[key], rel=1e-13, abs=1e-300)
+    direct = np.linalg.norm(s[:, None] + s[None], axis=2) - np.linalg.norm(
+        s[:, None] - s[None], axis=2
+    )
+    np.fill_diagonal(direct, 0.0)
+    upper = np.triu(direct, 1)
+    np.testing.assert_allclose(got["upper"], upper, rtol=1e-10, atol=2e-7 * scale)
+    np.testing.assert_array_equal(got["upper32"], got["upper"].astype(np.float32))
+    assert got["absolute"] == pytest.approx(np.abs(direct).sum(), rel=1e-6, abs=1e-300)
+
+
+@pytest.mark.parametrize(
+    "n, block_length, separate",
+    [(300, 1, False), (300, 3, True), (flips.STREAM_EPOCHS + 60, 1, False)],
+)
+@pytest.mark.parametrize("bias", [0.0, 0.3])
+def test_the_elt_is_the_same_on_both_pair_paths(n, block_length, separate, bias):
+    """The whole test, both sides of STREAM_EPOCHS, blocked or not, near and far from
+    rejection: statistic, p-value, flips used and bounded and every flipped statistic are
+    the same bits whichever path built the pair matrix."""
+    on = _pair_paths()
+    s = np.random.default_rng(n + block_length).standard_normal((n, 2)) + [bias, 0.0]
+    results = []
+    for path in ("numpy", "compiled"):
+        with on(path):
+            results.append(
+                elt.whitened_location_test(
+                    s, 999, np.random.default_rng(8), block_length, 10**6, separate, 0.05
+                )
+            )
+    numpy_result, compiled_result = results
+    assert compiled_result.statistic == numpy_result.statistic
+    assert (compiled_result.pvalue, compiled_result.flips_used, compiled_result.flips_bounded) == (
+        numpy_result.pvalue,
+        numpy_result.flips_used,
+        numpy_result.flips_bounded,
+    )
+    np.testing.assert_array_equal(compiled_result.null_distribution, numpy_result.null_distribution)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    rows=st.integers(1, 70),
+    columns=st.integers(1, 40),
+    before=st.integers(0, 3),
+    batches=st.lists(st.integers(1, 20), min_size=1, max_size=8),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_signs_drawn_as_read_are_the_whole_draws_rows(rows, columns, before, batches, seed):
+    """Issue 35: the ELT draws only the sign vectors its stopping rule reads; they are the
+    rows of the whole draw (numpy's ``integers``) bit for bit, in batches of any size, and
+    the generator is left as the whole draw leaves it, however few rows are read."""
+    from credcli.engine import rng as _rng
+
+    a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+    for g in (a, b):  # a 32-bit word left buffered when ``before`` is odd
+        g.integers(0, 2**32, size=before, dtype=np.uint32)
+    whole = b.integers(0, 2, size=(rows, columns), dtype=np.int8) * 2 - 1
+    lazy = _rng.SignRows(a, (rows, columns))
+    assert a.bit_generator.state == b.bit_generator.state
+    start = 0
+    for size in batches:
+        got = lazy.take(start, start + size)
+        assert got.dtype == np.int8
+        np.testing.assert_array_equal(got, whole[start : start + size])
+        start = min(rows, start + size)
+    assert a.random() == b.random()

@@ -342,3 +342,19 @@ def test_the_streamed_json_refuses_what_json_refuses():
     assert jsontext.encode({3: 2, 2.5: None, True: "x", None: []}) == json.dumps(
         {3: 2, 2.5: None, True: "x", None: []}, indent=2
     )
+
+
+def test_a_short_diagnosis_does_not_load_numba():
+    """Issue 35: numba's import and first call (~0.3 s of CPU) are paid only once a process
+    has built ``KERNEL_PAIRS`` pairs; a diagnosis of a few thousand epochs never loads it."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np, credcli\n"
+        "e = np.random.default_rng(0).standard_normal((3000, 2)) + 0.2\n"
+        "credcli.diagnose(e, np.eye(2), rng=0)\n"
+        "print('numba' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "False"

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import blas  # here, not in the flips: forked workers find it loaded
 
-from credcli.engine.rng import rademacher
+from credcli.engine import compiled
+from credcli.engine.rng import SignRows
 from credcli.engine.units import power_of_two_unit
 
 PVALUE_RTOL = 100 * np.finfo(float).eps
@@ -49,6 +50,7 @@ class FlipOutcome:
     flips_bounded: int
 
 
+_FLOAT32_EPOCHS = 64  # from this many flipped blocks on, the flips run in float32
 _PAIR_ROWS = 96  # rows per block: three 96×N float64 blocks stay in cache for N ~ 1000
 STREAM_EPOCHS = 2048
 """Above this many flipped epochs the pair matrix is held in float32 only (4000 epochs:
@@ -106,6 +108,31 @@ def pair_upper(s: np.ndarray) -> np.ndarray:
     return out
 
 
+def pair_upper_float32(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """U of ``pair_upper`` in float64 and rounded to float32, with Σ|A_ij|, in one pass
+    over its bands of rows (no pass over the N×N matrix to round or sum it).
+
+    Parameters
+    ----------
+    s : numpy.ndarray, shape (N, d)
+        The whitened errors.
+
+    Returns
+    -------
+    upper : numpy.ndarray, shape (N, N)
+        U, float64, bit for bit ``pair_upper(s)``.
+    upper32 : numpy.ndarray of float32, shape (N, N)
+        U rounded to float32.
+    absolute : float
+        Σ|A_ij| = 2·Σ|U_ij|, summed in float64 (in an order of its own: the rounding
+        bound it serves has a margin for that).
+    """
+    n = s.shape[0]
+    out, out32 = np.zeros((n, n)), np.zeros((n, n), dtype=np.float32)
+    absolute = 2.0 * sum(band[4] for band in _pair_rows(s, out, out32=out32))
+    return out, out32, absolute
+
+
 def _zero_lower(rows: np.ndarray) -> None:
     """Zero the lower triangle and the diagonal of the leading square of a block of rows
     that starts on the diagonal."""
@@ -147,24 +174,50 @@ def pair_block_upper(s: np.ndarray, starts: np.ndarray) -> np.ndarray:
             bands.append((first, b))
             first = b
     row_bands = [(int(bounds[b0]), int(bounds[b1])) for b0, b1 in bands]
-    for (b0, b1), (start, _, plus) in zip(bands, _pair_rows(s, bands=row_bands)):
+    for (b0, b1), (start, _, plus, _, _) in zip(bands, _pair_rows(s, bands=row_bands)):
         by_row = _block_sums(plus, starts[b0:b1] - start)
         out[b0:b1, b0:] = _block_sums(by_row.T, starts[b0:] - start).T
     return out
 
 
-def _pair_rows(s: np.ndarray, out: np.ndarray | None = None, bands=None):
-    """Blocks of rows of A's strictly upper triangle: (start, stop, A[start:stop, start:])
-    in float64 with zeros on and below the diagonal of its leading k×k square, written into
-    ``out`` when given (the block is then a view of it). ``bands``: the (start, stop) of
-    the blocks, _PAIR_ROWS rows each by default.
+KERNEL_PAIRS = 40_000_000
+"""Pairs of epochs a process builds with numpy before it turns to the compiled kernel
+(:func:`credcli.engine.compiled.pair_band_kernel`, when numba is installed): numba's
+import and first call, about 0.3 s of CPU, are repaid by then (the kernel saves about
+6 ns a pair; figures in docs/performance.md). A short diagnosis never loads numba."""
+
+_pairs_built = [0]  # pairs this process has built (forked workers start from their parent's)
+
+
+def _band_kernel(n: int):
+    """The compiled band kernel, once this process has built ``KERNEL_PAIRS`` pairs; None
+    before that, or without numba (the numpy path, the same bits)."""
+    _pairs_built[0] += n * (n - 1) // 2
+    if _pairs_built[0] <= KERNEL_PAIRS:
+        return None
+    return compiled.pair_band_kernel()
+
+
+def _pair_rows(
+    s: np.ndarray, out: np.ndarray | None = None, bands=None, out32=None, sums: bool = False
+):
+    """Blocks of rows of A's strictly upper triangle: (start, stop, A[start:stop, start:],
+    the block's sum (NaN in the compiled kernel's path unless ``sums``), the sum of its
+    absolute values) in float64 with zeros on and below
+    the diagonal of its leading k×k square, written into ``out`` when given (the block is
+    then a view of it) and rounded into ``out32`` (float32, N×N) when given (the sum of
+    absolute values is 0.0 without it). ``bands``: the (start, stop) of the blocks,
+    _PAIR_ROWS rows each by default.
 
     A squared norm ‖s_i ± s_j‖² computed as ‖s_i‖² + ‖s_j‖² ± 2 s_i·s_j can round below
     zero when s_j ≈ ∓s_i; its square root is then NaN, which the block's sum shows, and
     that block is computed again with the squares clamped at zero. The result is that of
-    clamping every square, with two passes fewer per block."""
+    clamping every square, with two passes fewer per block. The compiled kernel
+    (:func:`_band_kernel`) clamps every square and gives the same bits: the same
+    correctly rounded operations on the same operands, in the same order."""
     n = s.shape[0]
-    sq = np.einsum("ni,ni->n", s, s)
+    kernel = _band_kernel(n)
+    sq = np.ascontiguousarray(np.einsum("ni,ni->n", s, s))
     twice = 2.0 * s  # exact: 2 s_i·s_j is then one product, bit for bit
     # ‖s_i‖² + ‖s_j‖² as the product [‖s_i‖², 1]·[1, ‖s_j‖²]: the same sum, faster than
     # numpy's broadcast addition (products with 1 are exact; one rounding either way)
@@ -176,16 +229,31 @@ def _pair_rows(s: np.ndarray, out: np.ndarray | None = None, bands=None):
     minus = np.empty((rows, n))
     two_gram = np.empty((rows, n))
     spare = np.empty((rows, n)) if out is None else None
+    no32 = np.zeros((0, 0), dtype=np.float32)
     for start, stop in bands:
         k, width = stop - start, n - start
         g, m = two_gram[:k, :width], minus[:k, :width]
         plus = spare[:k, :width] if out is None else out[start:stop, start:]
+        band32 = None if out32 is None else out32[start:stop, start:]
         np.matmul(twice[start:stop], s[start:].T, out=g)
+        if kernel is not None:
+            row0, col0, whole = (0, 0, spare) if out is None else (start, start, out)
+            absolute = kernel(
+                sq, two_gram, k, start, whole, row0, col0, no32 if out32 is None else out32
+            )
+            yield start, stop, plus, float(plus.sum()) if sums else math.nan, absolute
+            continue
         sums = (sq_ones[start:stop], ones_sq[:, start:])
         _pair_block(*sums, g, m, plus, clamp=False)
-        if np.isnan(plus.sum()):
+        total = float(plus.sum())
+        if math.isnan(total):
             _pair_block(*sums, g, m, plus, clamp=True)
-        yield start, stop, plus
+            total = float(plus.sum())
+        absolute = 0.0
+        if band32 is not None:
+            band32[...] = plus
+            absolute = float(np.abs(plus, out=m).sum())
+        yield start, stop, plus, total, absolute
 
 
 def _pair_block(sq_ones, ones_sq, two_gram, minus, plus, clamp: bool) -> None:
@@ -225,10 +293,9 @@ def pair_matrix_float32(s: np.ndarray) -> tuple[np.ndarray, float, float]:
     n = s.shape[0]
     out = np.zeros((n, n), dtype=np.float32)
     total = absolute = 0.0
-    for start, stop, plus in _pair_rows(s):  # strictly upper: each pair once
-        total += 2.0 * float(plus.sum())
-        absolute += 2.0 * float(np.abs(plus).sum())
-        out[start:stop, start:] = plus
+    for _, _, _, block_sum, block_abs in _pair_rows(s, out32=out, sums=True):  # each pair once
+        total += 2.0 * block_sum
+        absolute += 2.0 * block_abs
     return out, total, absolute
 
 
@@ -241,7 +308,7 @@ def _exact_dense(a: np.ndarray, factor: float, xi: np.ndarray) -> np.ndarray:
 def _exact_quadratic(s: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """ξ_bᵀAξ_b in float64 for rows ξ_b (float ±1), A's rows rebuilt a block at a time."""
     values = np.zeros(xi.shape[0])
-    for start, stop, plus in _pair_rows(s):
+    for start, stop, plus, _, _ in _pair_rows(s):
         values += 2.0 * np.einsum("bi,bi->b", xi[:, start:stop], xi[:, start:] @ plus.T)
     return values
 
@@ -282,19 +349,23 @@ class _FlippedStatistics:
 
     @classmethod
     def of_matrix(
-        cls, a: np.ndarray, observed: float, upper: bool = False, basis=None
+        cls, a: np.ndarray, observed: float, upper: bool = False, basis=None, rounded=None
     ) -> _FlippedStatistics:
         """From A, or with ``upper`` its strictly upper triangle U (then 1ᵀA1 = 2·1ᵀU1);
-        ``basis()``: the columns Q of a :class:`_LowRankBound` span (None: no bound)."""
+        ``basis()``: the columns Q of a :class:`_LowRankBound` span (None: no bound);
+        ``rounded``: (U in float32, Σ|A_ij|) when already made (``pair_upper_float32``)."""
         exact = functools.partial(_exact_dense, a, 2.0 if upper else 1.0)
-        if a.shape[0] < 64:  # small problems: float64 throughout
+        if a.shape[0] < _FLOAT32_EPOCHS:  # small problems: float64 throughout
             return cls(observed, exact)
         # U: the strictly upper triangle, ξᵀAξ = tr A + 2ξᵀUξ (the triangular product reads
         # only that triangle, the blocked one of _blocked every entry it is given)
-        upper32 = a.astype(np.float32) if upper else np.triu(a.astype(np.float32), 1)
-        np.fill_diagonal(upper32, 0.0)
+        if rounded is not None and upper:
+            upper32, abs_sum = rounded
+        else:
+            upper32 = a.astype(np.float32) if upper else np.triu(a.astype(np.float32), 1)
+            np.fill_diagonal(upper32, 0.0)
+            abs_sum = _abs_sum(a) * (2.0 if upper else 1.0)
         trace = 0.0 if upper else float(np.trace(a))
-        abs_sum = _abs_sum(a) * (2.0 if upper else 1.0)
         dense = None if basis is None else (a, upper, basis)
         return cls(observed, exact, upper32, trace, abs_sum, dense)
 
@@ -554,8 +625,9 @@ def sign_flip_test(
     n_flips : int
         B, the number of sign vectors drawn.
     gen : numpy.random.Generator
-        Source of the Rademacher signs (``credcli.engine.rng.rademacher``); all B vectors
-        are drawn up front, whether or not the flips stop early.
+        Source of the Rademacher signs (``credcli.engine.rng.rademacher``); it advances
+        as for all B vectors, but the vectors are drawn as far as the flips go
+        (``credcli.engine.rng.SignRows``).
     separate_blocks : bool
         Leave out of the statistic the pairs of epochs in the same or adjacent blocks
         (keys at most 1 apart); T is then normalised by the number of pairs kept.
@@ -579,9 +651,13 @@ def sign_flip_test(
         flipped = _FlippedStatistics.streamed(scaled)
         return _flip(flipped, float(n * (n - 1)), n, **flips)
     if n_blocks == n and not separate_blocks:  # flips on U itself (A = U + Uᵀ)
-        upper = pair_upper(scaled)
+        if n >= _FLOAT32_EPOCHS:  # U in float64 and float32 in one pass
+            upper, *rounded = pair_upper_float32(scaled)
+        else:
+            upper, rounded = pair_upper(scaled), None
         basis = functools.partial(_bound_basis, scaled)
-        flipped = _FlippedStatistics.of_matrix(upper, 2.0 * float(upper.sum()), True, basis)
+        observed = 2.0 * float(upper.sum())
+        flipped = _FlippedStatistics.of_matrix(upper, observed, True, basis, rounded)
         return _flip(flipped, float(n * (n - 1)), n, **flips)
     if n_blocks < n:  # A_b = M + Mᵀ with M the block sums of U
         starts = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]])
@@ -621,13 +697,13 @@ def _flip(
     total = flipped.observed
     scale = norm if norm > 0 else 1.0  # no pairs left: a is zero and so is the statistic
     t_obs = total / scale
-    signs = rademacher(gen, (n_flips, n_blocks))
+    signs = SignRows(gen, (n_flips, n_blocks))  # drawn as far as the flips go
     threshold = t_obs - PVALUE_RTOL * abs(t_obs)
     stop = _stop_count(stop_level, n_flips)
     parts, count, used, batch = [], 0, 0, _FIRST_BATCH if stop is not None else n_flips
     below = None
     while used < n_flips:
-        chunk = flipped(signs[used : used + batch], below) / scale
+        chunk = flipped(signs.take(used, used + batch), below) / scale
         parts.append(chunk)
         count += int(np.count_nonzero(chunk >= threshold))
         used += chunk.size

@@ -125,3 +125,90 @@ def _raw_draws_match() -> bool:
             )
         _MATCH.append(ok)
     return _MATCH[0]
+
+
+class SignRows:
+    """The rows of ``rademacher(gen, shape)``, drawn only as far as they are read.
+
+    ``gen`` is left at once in the state the whole draw leaves it in (PCG64 jumps ahead
+    by ``advance``), so what is drawn from it next does not depend on how many rows are
+    read; the rows come from a copy of its bit generator, bit for bit those of the whole
+    draw. The stopping rule of the ELT reads 64 of B = 1,000 sign vectors on most segments
+    that do not reject. Where :func:`rademacher` falls back to ``gen.integers``, every row
+    is drawn here at once.
+
+    Parameters
+    ----------
+    gen : numpy.random.Generator
+        The generator; it advances exactly as ``rademacher(gen, shape)`` advances it.
+    shape : tuple of int
+        (rows, columns) of the signs, e.g. (B flips, blocks).
+
+    Examples
+    --------
+    >>> a, b = np.random.default_rng(3), np.random.default_rng(3)
+    >>> rows = SignRows(a, (6, 5))
+    >>> bool(np.array_equal(rows.take(2, 4), rademacher(b, (6, 5))[2:4]))
+    True
+    >>> a.random() == b.random()  # the same state after
+    True
+    """
+
+    def __init__(self, gen: np.random.Generator, shape: tuple[int, int]) -> None:
+        self.shape = shape
+        bitgen = gen.bit_generator
+        if not _raw_draws_match() or type(bitgen) is not np.random.PCG64:
+            self._all = rademacher(gen, shape)
+            return
+        self._all = None
+        count = shape[0] * shape[1]
+        words = -(-count // 4)
+        state = bitgen.state
+        buffered = [np.uint32(state["uinteger"])] if state["has_uint32"] and words else []
+        self._bytes = np.array(buffered, dtype=np.uint32).view(np.uint8)
+        fresh = words - len(buffered)
+        self._raw_left = -(-fresh // 2)  # 64-bit outputs the whole draw takes
+        self._copy = np.random.PCG64()
+        self._copy.state = state
+        if self._raw_left:  # the last output's high half is what numpy keeps or leaves
+            bitgen.advance(self._raw_left - 1)
+            last = bitgen.random_raw(1).view(np.uint32)
+        final = bitgen.state
+        if fresh % 2:
+            final["has_uint32"], final["uinteger"] = 1, int(last[1])
+        elif fresh:
+            final["has_uint32"], final["uinteger"] = 0, int(last[1])
+        else:
+            final["has_uint32"] = 0
+        bitgen.state = final
+
+    def take(self, start: int, stop: int) -> np.ndarray:
+        """Rows ``start`` to ``stop`` (int8 ±1, shape (stop − start, columns)).
+
+        Parameters
+        ----------
+        start, stop : int
+            The rows, 0 <= start <= stop (clipped to the rows there are).
+
+        Returns
+        -------
+        numpy.ndarray of int8
+            Those rows of ``rademacher(gen, shape)``.
+        """
+        rows, columns = self.shape
+        stop = min(stop, rows)
+        if self._all is not None:
+            return self._all[start:stop]
+        needed = stop * columns
+        if self._bytes.size < needed:  # draw on, at least doubling what is held
+            want = min(max(needed, 2 * self._bytes.size), rows * columns)
+            raw = -(-(want - self._bytes.size) // 8)
+            raw = min(raw, self._raw_left)
+            self._raw_left -= raw
+            fresh = self._copy.random_raw(raw).view(np.uint8)
+            self._bytes = np.concatenate([self._bytes, fresh])
+        signs = (self._bytes[start * columns : needed] >> 7).view(np.int8)
+        signs = signs.reshape(stop - start, columns)
+        signs *= 2
+        signs -= 1
+        return signs

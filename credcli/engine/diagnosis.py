@@ -776,7 +776,9 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
         return RunModel(None)
     pooled = np.concatenate(parts)
     try:
-        memory = evidence.segment_memory_of(pooled, np.einsum("ni,ni->n", pooled, pooled))
+        memory = evidence.segment_memory_of(
+            pooled, np.einsum("ni,ni->n", pooled, pooled), cover=max(sizes)
+        )
     except NoFiniteMemory:  # each window is then judged (and declined) as a segment
         return RunModel(None)
     rotated = np.asarray(means) @ memory.directions

@@ -1093,7 +1093,7 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
     return memory, time_scales(residuals, memory)
 
 
-def segment_memory_of(residuals: np.ndarray, q: np.ndarray) -> Memory:
+def segment_memory_of(residuals: np.ndarray, q: np.ndarray, cover: int | None = None) -> Memory:
     """The dependence model of mean-free whitened residuals and their squares.
 
     Screened by their own lag-1 autocorrelation at SCREENING_LEVEL, whatever their length
@@ -1105,6 +1105,8 @@ def segment_memory_of(residuals: np.ndarray, q: np.ndarray) -> Memory:
         Mean-free whitened residuals.
     q : numpy.ndarray, shape (N,)
         Their squares summed over components (centred NEES).
+    cover : int, optional
+        The longest window the model will judge (:func:`credcli.engine.memory.fit_memory`).
 
     Returns
     -------
@@ -1115,4 +1117,4 @@ def segment_memory_of(residuals: np.ndarray, q: np.ndarray) -> Memory:
     screened = correlation.serially_dependent(
         correlation.autocorrelation(residuals), n, correlation.SCREENING_LEVEL
     )
-    return fit_memory(residuals, q, screened=screened)
+    return fit_memory(residuals, q, screened=screened, cover=cover)

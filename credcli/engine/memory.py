@@ -789,6 +789,7 @@ def fit_memory(
     runs: int = 1,
     order: int | None = None,
     screened: bool = False,
+    cover: int | None = None,
 ) -> Memory:
     """The :class:`Memory` of whitened errors and their centred NEES: an AR sieve per
     principal direction.
@@ -817,6 +818,12 @@ def fit_memory(
     screened : bool, default False
         Whether the caller's lag-1 screening found dependence: then the errors are never
         taken as white, and every series gets at least :data:`MIN_ORDER`.
+    cover : int, optional
+        The longest window the model will judge: each autocorrelation is kept up to this
+        lag at least (and on to where it decays), where the default is T, every lag of
+        the fit. A run's model judges windows much shorter than the run, and its
+        autocorrelations past their decay are only zeros held (and shipped to every
+        worker and back with every result).
 
     Returns
     -------
@@ -874,7 +881,8 @@ def fit_memory(
             spread, bias, square = bootstrap_spread(phis, n, search, int(orders.sum()), minimum)
             for i, v, b, w in zip(fitted, spread, bias, square):
                 spreads[int(i)] = (v, b, w)
-        memories = [series_memory(fit, i, t, spreads[i], minimum) for i in range(d + 1)]
+        floor = t if cover is None else min(t, int(cover))
+        memories = [series_memory(fit, i, floor, spreads[i], minimum) for i in range(d + 1)]
     except np.linalg.LinAlgError as exc:
         raise NoFiniteMemory(str(exc)) from exc
     return Memory(directions, tuple(memories[:d]), memories[d], n, runs)

@@ -284,3 +284,12 @@ def test_a_baseline_of_one_variant_is_not_gated_with_another(tmp_path):
     assert proc.stderr.count("\n") == 1
     ok = _cli("gate", GOOD, "--baseline", base, "-f", "json")  # the baseline's variant is used
     assert ok.returncode == 0 and json.loads(ok.stdout)["parameters"]["variant"] == "ks"
+
+
+def test_a_number_the_gate_table_lacks_is_a_dash_not_nan():
+    from credcli.report.builders import _pair
+
+    assert _pair(_rec("credible", anees=float("nan")), _rec("credible", anees=1.25), "anees") == (
+        "— → 1.25"
+    )
+    assert _pair(None, _rec("credible", nci=0.5), "nci") == "— → 0.5"

@@ -459,7 +459,7 @@ def _pair(old, new, key: str) -> str:
         v = None if snap is None else getattr(snap, key)
         if key.endswith("pvalue"):
             return format_pvalue(v)
-        return "—" if v is None else f"{v:.3g}"
+        return "—" if v is None or v != v else f"{v:.3g}"  # NaN (v != v) is no number
 
     return f"{f(old)} → {f(new)}"
 

@@ -229,3 +229,18 @@ def test_only_the_command_line_tunes_its_allocator(monkeypatch, tmp_path, capsys
     assert calls == []
     assert main(["diagnose", str(LOG), "-f", "json", "-o", str(tmp_path / "d.json")]) == 0
     assert calls == [True]
+
+
+def test_the_subsample_note_names_the_log_among_several(tmp_path, capsys):
+    """Two logs with the same segment names: the ELT-subsample note named segments only."""
+    import shutil
+
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    shutil.copy(LOG, a)
+    shutil.copy(LOG, b)
+    code, out, err = _run(capsys, "diagnose", str(a), str(b), "--max-elt-epochs", "100")
+    assert code == 0, err
+    note = next(line for line in (out + err).splitlines() if "random subsample" in line)
+    assert f"{a}: cruise" in note and f"{b}: cruise" in note
+    code, out, err = _run(capsys, "diagnose", str(a), "--max-elt-epochs", "100")
+    assert "segment(s) cruise, turn" in out + err  # one log: the names alone, as before

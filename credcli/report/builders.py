@@ -116,7 +116,7 @@ def diagnose_report(
         columns = (LOG_NAME_COLUMN,) + columns
     notes = []
     sub = [
-        r.segment
+        f"{r.log.name}: {r.segment}" if multi else r.segment  # which log's, among several
         for r in _singles(results, lambda r: r.diagnosis.elt and r.diagnosis.elt.subsampled)
     ]
     if sub:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import xml.etree.ElementTree as ET
@@ -178,6 +179,10 @@ def test_good_log_passes_and_regressed_log_fails_end_to_end(tmp_path, baseline, 
     assert verdict.startswith("credcli: FAIL: 2 of 6 segment(s) regressed")
     cases = {tc.get("name"): tc for tc in ET.parse(junit).getroot().iter("testcase")}
     assert len(cases) == 6
+    # named by the command, then the log, as diagnose's are (was credcli.ci.gate.<stem>)
+    assert {tc.get("classname") for tc in cases.values()} == {
+        f"credcli.gate.{os.path.splitext(os.path.basename(REGRESSED))[0]}"
+    }
     failed = {
         name: tc.find("failure").get("message")
         for name, tc in cases.items()

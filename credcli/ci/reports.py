@@ -25,7 +25,7 @@ class Case:
         The test case's name: the segment's name.
     classname : str
         The test case's class: the command and the log's stem
-        (``credcli.diagnose.<stem>``, ``credcli.ci.gate.<stem>``).
+        (``credcli.diagnose.<stem>``, ``credcli.gate.<stem>``: the command, then the log).
     failure : str or None
         Why it failed, the failure's message; None when it passed.
     details : str, default ""
@@ -308,7 +308,7 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
         The gate's thresholds (whether new or missing segments fail).
     log : str
         The log's path or name; its stem names the cases' class
-        (``credcli.ci.gate.<stem>``).
+        (``credcli.gate.<stem>``, as ``credcli.diagnose.<stem>`` for diagnose).
 
     Returns
     -------
@@ -323,7 +323,7 @@ def gate_cases(comparisons, thresholds, log: str) -> list[Case]:
         cases.append(
             Case(
                 c.segment,
-                f"credcli.ci.gate.{_classname(os.path.splitext(os.path.basename(log))[0])}",
+                f"credcli.gate.{_classname(os.path.splitext(os.path.basename(log))[0])}",
                 "; ".join(c.reasons) if failed else None,
                 details,
             )

@@ -12,6 +12,7 @@ import numpy as np
 from credcli.engine.convention import convention_warning
 from credcli.engine.metrics import Accuracy, accuracy
 from credcli.engine.montecarlo import anees_test
+from credcli.engine.short import ColumnRows
 from credcli.errors import CredcliError
 from credcli.io.logs import EstimatorLog
 from credcli.logid import LogId
@@ -122,7 +123,7 @@ def _span(time: np.ndarray | None, index: np.ndarray) -> tuple[float | None, flo
 
 
 @dataclass(frozen=True, eq=False)
-class Segments(Sequence):
+class Segments(ColumnRows):
     """Segments of one log as columns: item k is segment k's :class:`Segment`, made when it
     is asked for. A log of 10⁶ one-epoch segments is a few arrays and its names, not 10⁶
     Segment objects with an index array each.
@@ -146,20 +147,26 @@ class Segments(Sequence):
     t_start: np.ndarray | None
     t_end: np.ndarray | None
 
-    def __len__(self) -> int:
-        return len(self.names)
+    def row(self, k: int) -> Segment:
+        """The k-th segment.
 
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        k = range(len(self))[k]  # an IndexError past the end, as a list's
+        Parameters
+        ----------
+        k : int
+            Its index.
+
+        Returns
+        -------
+        Segment
+            Its name, epoch indices and time span.
+        """
         index = self.rows[self.bounds[k] : self.bounds[k + 1]]
         if self.t_start is None:
             return Segment(self.names[k], index)
         return Segment(self.names[k], index, float(self.t_start[k]), float(self.t_end[k]))
 
     def __iter__(self) -> Iterator[Segment]:
-        return map(self.__getitem__, range(len(self)))
+        return map(self.row, range(len(self)))
 
     @property
     def lengths(self) -> np.ndarray:

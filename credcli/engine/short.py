@@ -24,8 +24,39 @@ from credcli.engine.diagnosis import Diagnosis, SegmentDiagnosis, too_short_reas
 from credcli.logid import LogId
 
 
+class ColumnRows(Sequence):
+    """A sequence of rows held as columns, one per name in ``names``: indexing makes the
+    k-th row (:meth:`row`) on demand, a slice the list of its rows, an index past the end
+    an IndexError, as a list's."""
+
+    names: list[str]
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self.row(i) for i in range(*k.indices(len(self)))]
+        return self.row(range(len(self))[k])
+
+    def row(self, k: int):
+        """The k-th row, 0 <= k < len(self).
+
+        Parameters
+        ----------
+        k : int
+            Its index.
+
+        Returns
+        -------
+        object
+            The row.
+        """
+        raise NotImplementedError
+
+
 @dataclass(frozen=True, eq=False)
-class ShortSegments(Sequence):
+class ShortSegments(ColumnRows):
     """Consecutive segments of one log, each too short for a verdict (fewer epochs than
     ``config.min_n(dim)``): insufficient-data, with the reason and their accuracy, as
     columns. Item k is segment k's :class:`~credcli.engine.diagnosis.SegmentDiagnosis`,
@@ -58,13 +89,19 @@ class ShortSegments(Sequence):
     config: DiagnosisConfig
     accuracy: metrics.AccuracyColumns
 
-    def __len__(self) -> int:
-        return len(self.names)
+    def row(self, k: int) -> SegmentDiagnosis:
+        """The k-th segment's result (``insufficient-data``, its reason, its accuracy).
 
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        k = range(len(self))[k]  # an IndexError past the end, as a list's
+        Parameters
+        ----------
+        k : int
+            Its index.
+
+        Returns
+        -------
+        SegmentDiagnosis
+            Its result, as a segment diagnosed alone would give it.
+        """
         n = int(self.n[k])
         diagnosis = Diagnosis(
             Label.INSUFFICIENT,
@@ -79,7 +116,7 @@ class ShortSegments(Sequence):
         return SegmentDiagnosis(self.log, self.names[k], t_start, t_end, diagnosis)
 
     def __iter__(self) -> Iterator[SegmentDiagnosis]:
-        return map(self.__getitem__, range(len(self)))
+        return map(self.row, range(len(self)))
 
     def reason(self, n: int) -> str:
         """Why a segment of ``n`` epochs has no verdict.

@@ -124,6 +124,8 @@ def test_a_runs_model_holds_its_autocorrelation_to_its_decay_not_to_the_runs_len
     NEGLIGIBLE, so τ moves by no more than the tail it drops."""
     import pickle
 
+    from credcli.engine.evidence import segment_memory_of
+
     rng = np.random.default_rng(4)
     e = lfilter([1.0], [1.0, -0.5], rng.standard_normal((20_000, 2)), axis=0) * math.sqrt(0.75)
     cov = np.broadcast_to(np.eye(2), (20_000, 2, 2))
@@ -131,11 +133,12 @@ def test_a_runs_model_holds_its_autocorrelation_to_its_decay_not_to_the_runs_len
     run = run_model(e, cov, windows, DiagnosisConfig())
     assert all(100 <= m.rho.size < 2_000 for m in (*run.memory.series, run.memory.squares))
     assert len(pickle.dumps(run.memory)) < 100_000
-    pooled = np.concatenate([e[w] - e[w].mean(axis=0) for w in windows])
-    whole = mem.fit_memory(pooled / pooled.std(), np.sum((pooled / pooled.std()) ** 2, axis=1))
-    assert whole.series[0].rho.size == 20_000  # a segment's model: every lag of the fit
-    for m in run.memory.series:
-        assert abs(float(np.sum(m.rho[1:]))) < 10 and m.rho[-1] < 1e-6
+    # the same fit held to every lag (a segment's model): τ within the dropped tail
+    q = np.einsum("ni,ni->n", e, e)
+    whole, held = segment_memory_of(e, q), segment_memory_of(e, q, cover=100)
+    assert whole.series[0].rho.size == 20_000
+    np.testing.assert_allclose(held.variance_ratios, whole.variance_ratios, rtol=1e-7)
+    assert held.variance_ratios[0] == pytest.approx(3.0, rel=0.1)  # AR(1) φ = 0.5: τ = 3
 
 
 def _white_model(n: int) -> mem.Memory:

@@ -187,3 +187,20 @@ def test_burg_in_chunks_equals_burg_in_one_pass(monkeypatch):
     chunked = mem.burg(x, 12)
     np.testing.assert_array_equal(whole.reflection, chunked.reflection)
     np.testing.assert_array_equal(whole.variance, chunked.variance)
+
+
+@pytest.mark.parametrize("lags", [1, 5, 32, 33, 200])
+def test_toeplitz_form_equals_the_dense_quadratic_form(lags):
+    """The mean test's Cov(Σ g_k), lag by lag up to DIRECT_LAGS and by one FFT convolution
+    beyond, against Mᵀ R M with the dense Toeplitz R (lags past the kernel and past N count
+    as 0)."""
+    from credcli.engine import batches
+
+    gen = np.random.default_rng(lags)
+    m = gen.standard_normal((150, 3))
+    rho = 0.9 ** np.arange(lags)
+    column = np.zeros(150)
+    column[: min(lags, 150)] = rho[:150]
+    dense = m.T @ toeplitz(column) @ m
+    np.testing.assert_allclose(batches.toeplitz_form(m, rho), dense, rtol=1e-12, atol=1e-10)
+

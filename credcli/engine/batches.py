@@ -504,6 +504,46 @@ def batch_mean_test(
     return MeanTest(f, (float(d), float(k - d)), p, k, spread, d * (k - 1) * inflation / (k - d))
 
 
+DIRECT_LAGS = 32
+"""Longest autocorrelation (in lags) whose Toeplitz form :func:`toeplitz_form` sums lag by
+lag; longer ones go through one FFT convolution, which costs some 30 passes over the data
+and four transforms' memory."""
+
+
+def toeplitz_form(m: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    r"""The Toeplitz quadratic form :math:`\sum_{k,l} \rho(|k - l|)\, m_k m_l^\top`.
+
+    Lag by lag, :math:`\rho(0) M^\top M + \sum_{h \ge 1} \rho(h) (S_h + S_h^\top)` with
+    :math:`S_h = \sum_k m_k m_{k+h}^\top`, one pass over M per lag and nothing held beside
+    it, while ρ is negligible (below 1e-12) past :data:`DIRECT_LAGS` lags; otherwise one
+    FFT convolution of M with the two-sided kernel.
+
+    Parameters
+    ----------
+    m : numpy.ndarray, shape (N, d)
+        The vectors m_k.
+    rho : numpy.ndarray
+        ρ(0), ρ(1), …; lags past its end (or past N − 1) count as 0.
+
+    Returns
+    -------
+    numpy.ndarray, shape (d, d)
+        The form, symmetric up to rounding.
+    """
+    n = m.shape[0]
+    rho = np.asarray(rho, dtype=float)[:n]
+    horizon = int(np.max(np.flatnonzero(np.abs(rho) > 1e-12), initial=0)) + 1
+    if horizon <= DIRECT_LAGS:
+        form = rho[0] * (m.T @ m)
+        for h in range(1, horizon):
+            lagged = m[:-h].T @ m[h:]
+            form += rho[h] * (lagged + lagged.T)
+        return form
+    kernel = np.concatenate([rho[horizon - 1 : 0 : -1], rho[:horizon]])
+    smoothed = fftconvolve(m, kernel[:, None], mode="full", axes=0)
+    return m.T @ smoothed[horizon - 1 : horizon - 1 + n]
+
+
 def memory_mean_test(
     residuals: GlsResiduals, memory: Memory, inverse: np.ndarray
 ) -> tuple[MeanTest, np.ndarray]:
@@ -515,7 +555,7 @@ def memory_mean_test(
     .. math:: \operatorname{Cov}\Big(\sum_k g_k\Big) = \sum_i \gamma_i \sum_{k,l}
               \rho_i(k - l)\, m^{(i)}_k m^{(i)\top}_l,\qquad m^{(i)}_k = L_k^{-\top} V_{:,i},
 
-    a Toeplitz quadratic form per direction (one FFT convolution; a closed form when the
+    a Toeplitz quadratic form per direction (:func:`toeplitz_form`; a closed form when the
     claimed covariance is constant). γ_i is estimated from the centred residuals, unbiased
     under the model (divided by the expected centred sum of squares). T² = GᵀĈ⁻¹G with
     G = Σ g_k is Hotelling's statistic with ν degrees of freedom,
@@ -555,12 +595,7 @@ def memory_mean_test(
             cov += gamma * n * series.mean_ratio(n) * np.outer(m, m)
             continue
         m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) / unit
-        rho = series.test_window(n)
-        horizon = int(np.max(np.flatnonzero(np.abs(rho) > 1e-12), initial=0)) + 1
-        kernel = np.concatenate([rho[horizon - 1 : 0 : -1], rho[:horizon]])
-        smoothed = fftconvolve(m, kernel[:, None], mode="full", axes=0)
-        smoothed = smoothed[horizon - 1 : horizon - 1 + n]
-        cov += gamma * (m.T @ smoothed)
+        cov += gamma * toeplitz_form(m, series.test_window(n))
     cov = 0.5 * (cov + cov.T)
     total = residuals.scores.sum(axis=0) / unit
     dof = 1.0 / (1.0 / memory.dof + 1.0 / dof_var)

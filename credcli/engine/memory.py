@@ -610,16 +610,43 @@ def bootstrap_spread(
 
 
 SPECTRUM_POINTS = 4096
-"""Frequencies on which :func:`_square_ratios` integrates the AR spectra."""
-_HALF_CIRCLE = np.r_[1.0, np.full(SPECTRUM_POINTS // 2 - 1, 2.0), 1.0] / SPECTRUM_POINTS
-"""Weights of the rfft's frequencies 0 … π for a mean over the whole circle."""
+"""Most frequencies on which :func:`_square_ratios` integrates an AR spectrum (models with
+a root nearer the unit circle than about 0.98 in modulus get this many)."""
+FEWEST_SPECTRUM_POINTS = 64
+"""Fewest frequencies on which :func:`_square_ratios` integrates an AR spectrum."""
+ALIASING = 1e-18
+"""Largest relative aliasing error G²r^G of the grid mean of the squared spectrum (r the
+largest root modulus, G the grid), below every float64 rounding."""
+
+
+def _grid_points(a: np.ndarray) -> np.ndarray:
+    """The grid G of each AR polynomial's spectrum (rows of ``a``, a_0 = 1): the fewest
+    points, a power of two from :data:`FEWEST_SPECTRUM_POINTS` to :data:`SPECTRUM_POINTS`,
+    with G²r^G <= :data:`ALIASING`. The grid mean of f or f² differs from its integral by
+    the autocovariances of f or f² at multiples of G (the Poisson sum), which decay as
+    r^h and h·r^h."""
+    p = a.shape[1] - 1
+    if p == 0:
+        return np.full(a.shape[0], FEWEST_SPECTRUM_POINTS)
+    companion = np.zeros((a.shape[0], p, p))
+    companion[:, 0, :] = -a[:, 1:]
+    companion[:, np.arange(1, p), np.arange(p - 1)] = 1.0
+    radius = np.max(np.abs(np.linalg.eigvals(companion)), axis=1)
+    grids = FEWEST_SPECTRUM_POINTS * 2 ** np.arange(
+        int(math.log2(SPECTRUM_POINTS // FEWEST_SPECTRUM_POINTS)) + 1
+    )
+    with np.errstate(divide="ignore"):
+        log_error = 2.0 * np.log(grids)[None, :] + grids[None, :] * np.log(radius)[:, None]
+    fine = log_error <= math.log(ALIASING)
+    return np.where(fine.any(axis=1), grids[np.argmax(fine, axis=1)], SPECTRUM_POINTS)
 
 
 def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
     """τ₂ = Σ_h ρ(h)² of each AR model given by its reflection coefficients (k, p_max) at
     its order: Levinson's step on all models at once, then Parseval on the spectrum
-    f ∝ 1/|A(e^{iω})|², τ₂ = mean(f²)/mean(f)². The scale test's variance is proportional
-    to τ₂ (:meth:`SeriesMemory.centred_square_moments`), so its spread is the scale's model
+    f ∝ 1/|A(e^{iω})|², τ₂ = mean(f²)/mean(f)², on each model's grid (:func:`_grid_points`;
+    one FFT per grid size). The scale test's variance is proportional to τ₂
+    (:meth:`SeriesMemory.centred_square_moments`), so its spread is the scale's model
     uncertainty."""
     k, p_max = reflection.shape
     a = np.zeros((k, p_max + 1))
@@ -627,11 +654,16 @@ def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
     for j in range(1, p_max + 1):
         step = np.where(j <= orders, reflection[:, j - 1], 0.0)
         a[:, 1 : j + 1] += step[:, None] * a[:, j - 1 :: -1].copy()
-    # the coefficients are real, so the spectrum is even: its half from rfft, the inner
-    # frequencies counted twice, is the whole circle's mean at half the cost
-    spectrum = 1.0 / np.abs(np.fft.rfft(a, SPECTRUM_POINTS, axis=1)) ** 2
-    weights = _HALF_CIRCLE
-    return (spectrum**2 @ weights) / (spectrum @ weights) ** 2
+    grid = _grid_points(a)
+    ratios = np.empty(k)
+    for points in np.unique(grid).tolist():
+        rows = grid == points
+        # the coefficients are real, so the spectrum is even: its half from rfft, the inner
+        # frequencies counted twice, is the whole circle's mean at half the cost
+        spectrum = 1.0 / np.abs(np.fft.rfft(a[rows], points, axis=1)) ** 2
+        weights = np.r_[1.0, np.full(points // 2 - 1, 2.0), 1.0] / points
+        ratios[rows] = (spectrum**2 @ weights) / (spectrum @ weights) ** 2
+    return ratios
 
 
 def series_memory(

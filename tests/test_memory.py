@@ -223,3 +223,16 @@ def test_square_ratios_match_the_sum_of_squared_autocorrelations():
         gamma = mem.autocovariance_of_ar(-a[1:], 1.0, 20_000)
         rho = gamma / gamma[0]
         assert value == pytest.approx(2.0 * np.sum(rho**2) - 1.0, rel=1e-11)
+
+
+@pytest.mark.parametrize("phi", [[0.5], [1.6, -0.8], [0.3, 0.2, -0.1, 0.05]])
+def test_ar_filter_is_the_ar_recursion(phi):
+    """x_t = Σ_j φ_j x_{t−j} + z_t from a zero state, per column, against the recursion
+    written out; short inputs (fewer epochs than the order) included."""
+    phi = np.array(phi)
+    z = np.random.default_rng(phi.size).standard_normal((300, 3))
+    want = np.zeros_like(z)
+    for t in range(z.shape[0]):
+        want[t] = z[t] + sum(phi[j] * want[t - 1 - j] for j in range(phi.size) if t - 1 - j >= 0)
+    np.testing.assert_allclose(mem.ar_filter(phi, z), want, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(mem.ar_filter(phi, z[:2, 0]), want[:2, 0], rtol=1e-12)

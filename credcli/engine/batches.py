@@ -34,7 +34,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import special
-from scipy.signal import fftconvolve
 
 from credcli.engine import correlation
 from credcli.engine.units import power_of_two_unit
@@ -540,8 +539,10 @@ def toeplitz_form(m: np.ndarray, rho: np.ndarray) -> np.ndarray:
             form += rho[h] * (lagged + lagged.T)
         return form
     kernel = np.concatenate([rho[horizon - 1 : 0 : -1], rho[:horizon]])
-    smoothed = fftconvolve(m, kernel[:, None], mode="full", axes=0)
-    return m.T @ smoothed[horizon - 1 : horizon - 1 + n]
+    size = 1 << (n + kernel.size - 2).bit_length()  # room for the full convolution
+    spectrum = np.fft.rfft(m, size, axis=0) * np.fft.rfft(kernel, size)[:, None]
+    smoothed = np.fft.irfft(spectrum, size, axis=0)[horizon - 1 : horizon - 1 + n]
+    return m.T @ smoothed
 
 
 def memory_mean_test(

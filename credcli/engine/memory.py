@@ -41,7 +41,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal, special
+from scipy import special
+from scipy.linalg import lapack
 
 from credcli.engine.units import power_of_two_unit
 
@@ -252,8 +253,8 @@ def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarra
     Notes
     -----
     γ(0) … γ(p) solve the p + 1 Yule–Walker equations γ(k) − Σ_j φ_j γ(|k − j|) = σ² δ_k0;
-    later lags follow the recursion γ(h) = Σ_j φ_j γ(h − j), a linear filter with no input
-    run by scipy's ``lfilter``.
+    later lags follow the recursion γ(h) = Σ_j φ_j γ(h − j) (:func:`ar_filter`, with the
+    known γ(1) … γ(p) as inputs).
 
     Examples
     --------
@@ -273,10 +274,51 @@ def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarra
     gamma = np.linalg.solve(a, rhs)
     if lags <= p + 1:
         return gamma[:lags].copy()
-    den = np.concatenate([[1.0], -phi])
-    zi = signal.lfiltic([1.0], den, gamma[::-1][:p])  # y[-1] = γ(p), y[-2] = γ(p − 1), …
-    rest, _ = signal.lfilter([1.0], den, np.zeros(lags - p - 1), zi=zi)
-    return np.concatenate([gamma, rest])
+    # γ(p + 1 + t) − Σ_j φ_j γ(p + 1 + t − j) = Σ over the j that reach back to γ(1 … p)
+    known = np.zeros(lags - p - 1)
+    for j in range(1, p + 1):
+        reach = min(j, known.size)  # rows t < j read γ(p + 1 + t − j), t − j < 0
+        known[:reach] += phi[j - 1] * gamma[p + 1 - j : p + 1 - j + reach]
+    return np.concatenate([gamma, ar_filter(phi, known)])
+
+
+def ar_filter(phi: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """x with x_t = Σ_j φ_j x_{t−j} + z_t from a zero state, along the first axis of z.
+
+    The recursion is forward substitution in the unit lower-triangular banded Toeplitz
+    system with first column (1, −φ_1, …, −φ_p), solved by LAPACK's ``dtbtrs`` (scipy's
+    ``lfilter`` does the same recursion, but ``scipy.signal`` costs half a second to import
+    on every run).
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,)
+        The AR coefficients φ_1 … φ_p.
+    z : numpy.ndarray, shape (T,) or (T, m)
+        The inputs, one series per column.
+
+    Returns
+    -------
+    numpy.ndarray
+        x, in the shape of z.
+
+    Examples
+    --------
+    >>> ar_filter(np.array([0.5]), np.array([1.0, 0.0, 0.0, 1.0])).tolist()
+    [1.0, 0.5, 0.25, 1.125]
+    """
+    z = np.asarray(z, dtype=float)
+    t = z.shape[0]
+    if t == 0 or phi.size == 0:
+        return z.copy()
+    kd = min(phi.size, t - 1)
+    band = np.empty((kd + 1, t))
+    band[0] = 1.0
+    band[1:] = -phi[:kd, None]
+    x, info = lapack.dtbtrs(band, z.reshape(t, -1), uplo="L", trans="N", diag="U")
+    if info != 0:  # a unit diagonal is never singular
+        raise np.linalg.LinAlgError(f"dtbtrs failed (info {info})")
+    return x.reshape(z.shape)
 
 
 def _horizon(phi: np.ndarray, n: int) -> int:
@@ -591,7 +633,7 @@ def bootstrap_spread(
     for i, phi in enumerate(phis):
         burn = min(MAX_BURN_IN, _horizon(phi, 0)) if phi.size else 0
         z = gen.standard_normal((b, n + burn))
-        draws[i] = signal.lfilter([1.0], np.concatenate([[1.0], -phi]), z, axis=1)[:, burn:]
+        draws[i] = ar_filter(phi, z.T)[burn:].T
     draws -= draws.mean(axis=2, keepdims=True)
     fit = burg(draws.reshape(len(phis) * b, 1, n), p_max)
     orders = fit.orders(minimum)

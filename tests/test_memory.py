@@ -236,3 +236,18 @@ def test_ar_filter_is_the_ar_recursion(phi):
         want[t] = z[t] + sum(phi[j] * want[t - 1 - j] for j in range(phi.size) if t - 1 - j >= 0)
     np.testing.assert_allclose(mem.ar_filter(phi, z), want, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(mem.ar_filter(phi, z[:2, 0]), want[:2, 0], rtol=1e-12)
+
+
+def test_a_pickled_model_leaves_its_answers_behind_and_answers_the_same():
+    """Memoised answers are a cache: a model sent between processes (a worker's results)
+    carries none of them, and answers every question as before."""
+    import pickle
+
+    x = _ar([1, -0.6], 400, np.random.default_rng(5))
+    model = mem.fit_memory(x / x.std(), (x[:, 0] / x.std()) ** 2)
+    series = model.series[0]
+    before = series.test_window(50).copy(), series.centred_square_moments(50)
+    sent = pickle.loads(pickle.dumps(model))
+    assert "_memo" in series.__dict__ and "_memo" not in sent.series[0].__dict__
+    np.testing.assert_array_equal(sent.series[0].test_window(50), before[0])
+    assert sent.series[0].centred_square_moments(50) == before[1]

@@ -356,8 +356,19 @@ def _memoised(method):
     return answer
 
 
+class _Answering:
+    """A frozen model that keeps answers (:func:`_memoised`): they are a cache, so they stay
+    behind when the model is pickled (a worker's results carry their models to the parent,
+    where 10⁵ segments' answers would hold some 100 MB)."""
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state.pop("_memo", None)
+        return state
+
+
 @dataclass(frozen=True)
-class SeriesMemory:
+class SeriesMemory(_Answering):
     """The fitted memory of one standardized series (:func:`series_memory`).
 
     Attributes
@@ -754,7 +765,7 @@ def series_memory(
 
 
 @dataclass(frozen=True)
-class Memory:
+class Memory(_Answering):
     """The dependence model of a run's whitened errors (:func:`fit_memory`).
 
     Attributes

@@ -7,7 +7,7 @@ EXTRAS := .[plots,ros,dask,filterpy,stonesoup,fast,docs,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 
-.PHONY: install demo test docs test-oldest lock lint format bench bench-elt bench-dask sample-data config clean
+.PHONY: install demo test docs test-oldest lock lint format bench bench-elt bench-versus bench-dask sample-data config clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -71,6 +71,13 @@ bench-elt: $(STAMP)
 	rm -rf /tmp/credcli-elt-base && mkdir -p /tmp/credcli-elt-base
 	git archive $(ELT_BASE) credcli | tar -x -C /tmp/credcli-elt-base
 	$(BIN)/python benchmarks/elt_kernel.py /tmp/credcli-elt-base
+
+## bench-versus: diagnose's wall, CPU and memory at BASE and here, interleaved (issue 35)
+BASE ?= 579f626
+bench-versus: $(STAMP)
+	rm -rf /tmp/credcli-versus-base && mkdir -p /tmp/credcli-versus-base
+	git archive $(BASE) credcli | tar -x -C /tmp/credcli-versus-base
+	$(BIN)/python benchmarks/versus.py /tmp/credcli-versus-base $(if $(ONLY),--only '$(ONLY)')
 
 ## bench-dask: only the Dask rows of make bench (issue 13)
 bench-dask: $(STAMP)

@@ -92,6 +92,36 @@ def printable(text: str) -> str:
     )
 
 
+NAME_LIMIT = 80
+"""Most characters of a name from the data shown in a one-line verdict (:func:`shortened`)."""
+
+
+def shortened(name: str, limit: int = NAME_LIMIT) -> str:
+    """A name from the data cut to about ``limit`` characters for a one-line message: past
+    it, its first ``limit − 20`` characters, an ellipsis and its length.
+
+    Parameters
+    ----------
+    name : str
+        A segment's or file's name.
+    limit : int, default NAME_LIMIT
+        The longest name shown whole.
+
+    Returns
+    -------
+    str
+        ``name``, or its start with ``… (N characters)``.
+
+    Examples
+    --------
+    >>> shortened("s" * 100, 30)
+    'ssssssssss… (100 characters)'
+    """
+    if len(name) <= limit:
+        return name
+    return f"{name[: max(limit - 20, 1)]}… ({len(name):,} characters)"
+
+
 def plain(message: str) -> str:
     """A message with its parameter names out of their backticks.
 

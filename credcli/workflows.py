@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from credcli import segments as seg
-from credcli.ci.gate import compare, verdict_line
+from credcli.ci.gate import check_same_dimension, compare, verdict_line
 from credcli.engine.curves import segment_curves
 from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_segments
 from credcli.errors import CredcliError
@@ -448,12 +448,9 @@ def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
     """
     run = run_diagnose(request.diagnose, progress, runner)
     baseline, thresholds = request.baseline, request.thresholds
-    comparisons = compare(
-        list(baseline.segments),
-        [Snapshot.from_result(r) for r in run.results],
-        thresholds,
-        baseline.config.elt_level,
-    )
+    current = [Snapshot.from_result(r) for r in run.results]
+    check_same_dimension(baseline, current)
+    comparisons = compare(list(baseline.segments), current, thresholds, baseline.config.elt_level)
     passed, verdict = verdict_line(comparisons, thresholds)
     parameters = document_parameters(run.report.document)
     report = gate_report(comparisons, parameters, baseline.source, passed, verdict)

@@ -1054,6 +1054,7 @@ def test_errors_that_drift_without_a_finite_memory_are_declined_not_a_crash(caps
     model has a root on the unit circle to working precision, where its Yule–Walker system
     is singular (issue 32: exit 3, "LinAlgError: Singular matrix")."""
     import credcli
+
     t = np.linspace(0.0, 30.0, 300)
     errors = np.column_stack([50.0 * np.cos(t / 10.0), 3.0 * t + 0.1 * t**2])
     result = credcli.diagnose(errors, np.diag(np.mean(errors**2, axis=0)), seed=1)
@@ -1062,3 +1063,85 @@ def test_errors_that_drift_without_a_finite_memory_are_declined_not_a_crash(caps
     args = ["diagnose", str(sample), "--errors-only", "--truth-columns", "truth_0,truth_1"]
     assert main(args) == 0
     assert "no finite memory" in capsys.readouterr().out
+
+
+def _short_log(path: Path, dim: int = 2, segment=None) -> Path:
+    """A 300-epoch credible CSV log of dimension ``dim`` in segments ``a`` and ``b``."""
+    e = np.random.default_rng(dim).standard_normal((300, dim))
+    frame = pd.DataFrame({"time": np.arange(300) * 0.1, "segment": np.repeat(["a", "b"], 150)})
+    frame = frame.assign(**{f"truth_{i}": 0.0 for i in range(dim)})
+    frame = frame.assign(**{f"est_{i}": e[:, i] for i in range(dim)})
+    frame.assign(**{f"var_{i}": 1.0 for i in range(dim)}).to_csv(path, index=False)
+    return path
+
+
+def test_npz_segment_labels_of_non_utf8_bytes_are_read_as_escaped_text(tmp_path):
+    """A .npz whose segment labels are bytes that are not UTF-8 (once exit 3, a
+    UnicodeDecodeError): read, the bytes kept as \\xNN escapes."""
+    from helpers import run
+
+    e = np.random.default_rng(1).standard_normal((60, 2))
+    path = tmp_path / "x.npz"
+    np.savez(
+        path,
+        truth=e,
+        estimate=np.zeros((60, 2)),
+        cov=np.broadcast_to(np.eye(2), (60, 2, 2)),
+        segment=np.array([b"\xff\x1b"] * 60),
+    )
+    code, out, err = run("diagnose", path, "-f", "json")
+    assert code == 0, err
+    assert '"segment": "\\\\xff\\u001b"' in out
+
+
+def test_a_huge_config_file_is_refused_before_it_is_read(tmp_path):
+    """A sparse 1 TiB config (once exit 3, MemoryError) is bad input: one line, exit 2."""
+    from helpers import error_line, run
+
+    config = tmp_path / "c.toml"
+    with open(config, "wb") as handle:
+        handle.write(b"[diagnosis]\n")
+        handle.truncate(1 << 40)
+    log = _short_log(tmp_path / "log.csv")
+    code, _, err = run("diagnose", log, "--config", config)
+    assert "too large for a config file" in error_line(code, err)
+
+
+def test_a_closed_standard_output_is_bad_usage_not_a_crash(tmp_path, monkeypatch, capsys):
+    """Started with stdout closed (``credcli … >&-``, sys.stdout None; once exit 3, an
+    AttributeError): exit 2 naming -o."""
+    import sys
+
+    log = _short_log(tmp_path / "log.csv")
+    monkeypatch.setattr(sys, "stdout", None)
+    code = main(["diagnose", str(log), "-f", "json"])
+    err = capsys.readouterr().err
+    assert code == 2 and "standard output is closed" in err and "-o FILE" in err
+
+
+def test_gate_refuses_a_log_of_another_dimension(tmp_path):
+    """A d = 3 log gated against a d = 2 baseline with the same segment names once passed
+    (exit 0, 'no regression'): its labels describe other states, so it is bad input."""
+    from helpers import error_line, run
+
+    baseline = tmp_path / "b.json"
+    assert run("baseline", _short_log(tmp_path / "d2.csv"), "-o", baseline)[0] == 0
+    code, _, err = run("gate", _short_log(tmp_path / "d3.csv", dim=3), "-b", baseline)
+    assert "d = 2 states, the new log's d = 3" in error_line(code, err)
+    assert run("gate", tmp_path / "d2.csv", "-b", baseline)[0] == 0
+
+
+def test_verdict_lines_cut_long_segment_names(tmp_path):
+    """A 100,000-character segment name once made a 100,000-character verdict line."""
+    from helpers import run
+
+    e = 3.0 * np.random.default_rng(2).standard_normal((200, 2))  # optimism
+    frame = pd.DataFrame({"segment": ["s" * 100_000] * 200, "truth_0": 0.0, "truth_1": 0.0})
+    frame = frame.assign(est_0=e[:, 0], est_1=e[:, 1], var_0=1.0, var_1=1.0)
+    frame.to_parquet(tmp_path / "log.parquet", index=False)
+    code, _, err = run(
+        "diagnose", tmp_path / "log.parquet", "--fail-on", "noncredible", "-o", tmp_path / "o.json"
+    )
+    verdict = [line for line in err.splitlines() if "FAIL" in line]
+    assert code == 1 and len(verdict) == 1 and len(verdict[0]) < 300, err[:400]
+    assert "(100,000 characters)" in verdict[0]

@@ -11,7 +11,7 @@ from credcli.ci.thresholds import Thresholds  # noqa: F401 (re-exported)
 from credcli.engine.config import LOCATION_CONDITIONS, SMM_CONDITION
 from credcli.engine.diagnosis import LABEL_ALIASES, Label, parse_label
 from credcli.engine.short import SegmentResults
-from credcli.errors import CredcliError
+from credcli.errors import CredcliError, shortened
 from credcli.report.formats import format_pvalue
 from credcli.report.records import Baseline, Snapshot, json_value, shown_label
 
@@ -394,6 +394,34 @@ def compare(
     return out
 
 
+def check_same_dimension(baseline: Baseline, current: list[Snapshot]) -> None:
+    """Check that the new log's errors have the baseline's state dimension.
+
+    Parameters
+    ----------
+    baseline : Baseline
+        The baseline as read.
+    current : list of Snapshot
+        The segments of the current run.
+
+    Raises
+    ------
+    CredcliError
+        If a segment of the new log has another dimension d than the baseline's segments:
+        its labels describe other states, and no segment of one is a regression of the
+        other's.
+    """
+    before = {s.dim for s in baseline.segments if s.dim is not None}
+    now = {s.dim for s in current if s.dim is not None}
+    if before and now and before != now:
+        was, is_now = (", ".join(map(str, sorted(dims))) for dims in (before, now))
+        raise CredcliError(
+            f"{baseline.source}: the baseline's segments have d = {was} states, the new log's "
+            f"d = {is_now}; gate compares one estimator's states: gate a log of the same "
+            "states, or record a new baseline"
+        )
+
+
 def check_same_parameters(baseline: Baseline, requested: dict) -> None:
     """Check that the settings given to the gate (command line or config file) equal the
     baseline's.
@@ -489,7 +517,7 @@ def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[
         first = failed[0]
         return False, (
             f"FAIL: {len(failed)} of {len(comparisons)} segment(s) regressed ({tally}); "
-            f"first: {first.segment}: {first.reasons[0]}"
+            f"first: {shortened(first.segment)}: {first.reasons[0]}"
         )
     return True, f"PASS: no regression in {len(comparisons)} segment(s) ({tally})"
 
@@ -523,7 +551,9 @@ def gate_fail_on(
     ]
     if not bad:
         return passed, verdict
-    shown = ", ".join(f"{c.segment} ({shown_label(c.new.label, c.new.untested)})" for c in bad[:5])
+    shown = ", ".join(
+        f"{shortened(c.segment)} ({shown_label(c.new.label, c.new.untested)})" for c in bad[:5]
+    )
     more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
     line = f"{len(bad)} segment(s) match `fail_on` {fail_on}: {shown}{more}"
     return False, (f"{verdict}; {line}" if not passed else f"FAIL: {line}")
@@ -565,7 +595,7 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
     listed = str(fail_on)
     if bad:
         shown = ", ".join(
-            f"{results[k].segment} ({shown_label(d.label, d.untested)})"
+            f"{shortened(results[k].segment)} ({shown_label(d.label, d.untested)})"
             for k in bad[:5]
             for d in (results[k].diagnosis,)
         )

@@ -50,6 +50,8 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
         write_atomic(output, pieces, inputs)
         stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
         return
+    if sys.stdout is None:  # started with its descriptor closed (credcli … >&-)
+        raise CredcliError("standard output is closed; pass -o FILE to write the report to a file")
     if fmt is OutputFormat.TABLE:
         from rich.console import Console
 

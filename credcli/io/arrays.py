@@ -275,7 +275,16 @@ def _labels(name: str, values, n: int) -> np.ndarray | None:
     """(N,) labels as strings, or None."""
     if values is None:
         return None
-    labels = np.asarray(values).astype(str).astype(object)
+    values = np.asarray(values)
+    try:
+        if values.dtype.kind == "S":  # bytes: UTF-8, other bytes kept as \xNN escapes
+            values = np.char.decode(values, "utf-8", errors="backslashreplace")
+        labels = values.astype(str).astype(object)
+    except (TypeError, ValueError, UnicodeError) as exc:
+        raise CredcliError(
+            f"{name}: labels of dtype {values.dtype} cannot be read as text; give strings or "
+            "integers"
+        ) from exc
     if labels.shape != (n,):
         raise CredcliError(f"{name}: expected shape ({n},); got {labels.shape}")
     return labels

@@ -21,6 +21,9 @@ from pathlib import Path
 
 from credcli.errors import CredcliError
 
+MAX_CONFIG_BYTES = 1 << 20
+"""Largest config file read (1 MiB; credcli's every setting fits in a few kB)."""
+
 
 def read_toml(path: str | Path) -> dict:
     """A TOML file's tables; a missing, non-UTF-8 or invalid file is a CredcliError.
@@ -38,8 +41,9 @@ def read_toml(path: str | Path) -> dict:
     Raises
     ------
     CredcliError
-        If ``path`` is a directory or not a file, cannot be read, is not UTF-8, is not
-        valid TOML, or is nested too deeply to parse.
+        If ``path`` is a directory or not a file, cannot be read, is larger than
+        :data:`MAX_CONFIG_BYTES`, is not UTF-8, is not valid TOML, or is nested too deeply
+        to parse.
     """
     try:
         import tomllib
@@ -56,7 +60,14 @@ def read_toml(path: str | Path) -> dict:
             )
         raise CredcliError(f"{path}: config file not found")
     try:
-        text = path.read_bytes().decode("utf-8")
+        with open(path, "rb") as handle:
+            data = handle.read(MAX_CONFIG_BYTES + 1)
+        if len(data) > MAX_CONFIG_BYTES:
+            raise CredcliError(
+                f"{path}: larger than {MAX_CONFIG_BYTES // 1024} KiB, too large for a config "
+                "file; a config has a few flat tables of settings"
+            )
+        text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise CredcliError(
             f"{path}: not UTF-8 text (byte {exc.start}); save the config as UTF-8"

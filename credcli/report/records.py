@@ -1472,6 +1472,8 @@ class Snapshot:
         repr).
     untested : tuple of str
         The questions its verdict leaves open ("scale", "location").
+    dim : int or None
+        The state dimension d of its errors (None in a record that does not say).
     """
 
     segment: str
@@ -1481,6 +1483,7 @@ class Snapshot:
     elt_pvalue: float | None
     record: dict = field(repr=False, compare=False, default_factory=dict)
     untested: tuple[str, ...] = ()
+    dim: int | None = None
 
     @classmethod
     def from_record(cls, rec: dict) -> Snapshot:
@@ -1494,9 +1497,9 @@ class Snapshot:
         Returns
         -------
         Snapshot
-            Its name, answered label, NCI, ANEES and ELT p-value, the record itself, and its
+            Its name, answered label, NCI, ANEES and ELT p-value, the record itself, its
             ``untested`` questions (a baseline written before partial verdicts has no
-            ``untested``: nothing was).
+            ``untested``: nothing was) and its dimension.
         """
         return cls(
             rec["segment"],
@@ -1506,6 +1509,7 @@ class Snapshot:
             rec.get("elt_pvalue"),
             rec,
             tuple(rec.get("untested") or ()),
+            rec.get("dim") if type(rec.get("dim")) is int else None,
         )
 
     @classmethod
@@ -1520,14 +1524,13 @@ class Snapshot:
         Returns
         -------
         Snapshot
-            Its name, label, NCI, ANEES, ELT p-value, :func:`segment_record` and its
-            ``untested`` questions.
+            Its name, label, NCI, ANEES, ELT p-value, :func:`segment_record`, its
+            ``untested`` questions and its dimension.
         """
         d = result.diagnosis
         untested = tuple(q.value for q in d.untested)
-        return cls(
-            result.segment, d.label, d.nci, d.anees, d.elt_pvalue, segment_record(result), untested
-        )
+        record = segment_record(result)
+        return cls(result.segment, d.label, d.nci, d.anees, d.elt_pvalue, record, untested, d.dim)
 
 
 def _check_baseline(doc: dict, source: str) -> None:

@@ -1145,3 +1145,45 @@ def test_verdict_lines_cut_long_segment_names(tmp_path):
     verdict = [line for line in err.splitlines() if "FAIL" in line]
     assert code == 1 and len(verdict) == 1 and len(verdict[0]) < 300, err[:400]
     assert "(100,000 characters)" in verdict[0]
+
+
+def test_an_encrypted_npz_member_is_bad_input(tmp_path):
+    """A .npz whose members are flagged encrypted (once exit 3, zipfile's RuntimeError)."""
+    import io
+
+    from helpers import error_line, run
+
+    buffer = io.BytesIO()
+    np.savez(buffer, truth=np.zeros((30, 2)), estimate=np.ones((30, 2)), cov=np.eye(2))
+    data = bytearray(buffer.getvalue())
+    for signature, offset in ((b"PK\x03\x04", 6), (b"PK\x01\x02", 8)):  # flag bit 0: encrypted
+        at = data.find(signature)
+        while at >= 0:
+            data[at + offset] |= 1
+            at = data.find(signature, at + 4)
+    (tmp_path / "x.npz").write_bytes(bytes(data))
+    code, _, err = run("diagnose", tmp_path / "x.npz")
+    assert "encrypted" in error_line(code, err)
+
+
+def test_truth_quaternions_of_huge_components_are_normalised(tmp_path):
+    """A TUM truth whose quaternion w components are 1e300 (once exit 3: the norm
+    overflowed to inf, the quaternion to zero): read as the unit quaternions they are."""
+    import re
+
+    from helpers import run
+
+    formats = Path(__file__).parents[1] / "sample_data" / "formats"
+    truth = (formats / "tum_groundtruth.txt").read_text()
+    (tmp_path / "t.txt").write_text(re.sub(r"(?m)(?<=\d) (\S+)$", " 1e300", truth))
+    code, _, err = run(
+        "diagnose",
+        formats / "openvins_estimate.txt",
+        "--truth",
+        tmp_path / "t.txt",
+        "--states",
+        "pose",
+        "-f",
+        "json",
+    )
+    assert code == 0, err

@@ -433,7 +433,14 @@ def _check_npz_sizes(path: Path) -> None:
                     fmt = np.lib.format
                     read = {(1, 0): fmt.read_array_header_1_0, (2, 0): fmt.read_array_header_2_0}
                     shape, _, dtype = read[fmt.read_magic(member)](member)
-            except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+            except (
+                OSError,
+                ValueError,
+                KeyError,
+                zipfile.BadZipFile,
+                RuntimeError,
+                NotImplementedError,
+            ):
                 continue  # np.load reports it
             declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
             if declared > info.file_size:
@@ -476,7 +483,16 @@ def load_npz(path: Path) -> EstimatorLog:
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (
+        OSError,
+        ValueError,
+        EOFError,
+        zipfile.BadZipFile,
+        RuntimeError,
+        NotImplementedError,
+    ) as exc:
+        # RuntimeError: an encrypted member; NotImplementedError: a compression numpy's
+        # zipfile does not unpack
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise CredcliError(f"{path}: not a readable .npz file ({first})") from None
     known = {alias: arg for arg, aliases in NPZ_NAMES.items() for alias in aliases}

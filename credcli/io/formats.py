@@ -443,7 +443,14 @@ def _checked(traj: Trajectory, role: str) -> Trajectory:
         )
     quaternion = traj.quaternion
     if quaternion is not None:
-        norm = np.linalg.norm(quaternion, axis=1)
+        with np.errstate(over="ignore"):
+            norm = np.linalg.norm(quaternion, axis=1)
+        huge = np.isinf(norm)  # components near 1e300: scaled by the largest one first
+        if huge.any():
+            peak = np.max(np.abs(quaternion[huge]), axis=1)
+            quaternion = quaternion.copy()
+            quaternion[huge] /= peak[:, None]
+            norm[huge] = np.linalg.norm(quaternion[huge], axis=1)
         zero = ~(norm > 1e-9)
         if zero.any():
             i = int(np.argmax(zero))

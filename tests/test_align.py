@@ -372,3 +372,18 @@ def test_without_location_keeps_the_noise_condition():
     scale_open = Diagnosis(Label.BIAS, 100, 2, untested=(Question.SCALE,), reason="short")
     assert without_location(scale_open, "fitted").label is Label.INSUFFICIENT
     assert without_location(scale_open, "fitted").reason == "short; fitted"
+
+
+@pytest.mark.parametrize("units", [1e-300, 1e200])
+def test_umeyama_fits_a_scale_whatever_the_estimate_units(units):
+    """Estimate positions in units of 1e-300 (or 1e200) of the truth's: σ²_x̂ once
+    underflowed to 0 (ZeroDivisionError, exit 3). The fit is made in power-of-two units,
+    s and t scaled back: s·units = 2.5, R and t as for units of 1."""
+    gen = np.random.default_rng(3)
+    x_hat = gen.standard_normal((50, 3))
+    r = np.linalg.qr(gen.standard_normal((3, 3)))[0]
+    r[:, 0] *= np.sign(np.linalg.det(r))
+    fit = umeyama(2.5 * x_hat @ r.T + [1.0, 2.0, 3.0], x_hat * units, with_scale=True)
+    assert fit.scale * units == pytest.approx(2.5, rel=1e-12)
+    np.testing.assert_allclose(fit.rotation, r, atol=1e-12)
+    np.testing.assert_allclose(fit.translation, [1.0, 2.0, 3.0], atol=1e-12)

@@ -399,9 +399,15 @@ def test_split_runs_keep_what_the_file_said_once():
     errors = np.arange(2 * n, dtype=float).reshape(n, 2)
     other = OtherConvention(Perturbation.LEFT, Perturbation.RIGHT, -errors)
     log = EstimatorLog(
-        None, None, np.broadcast_to(np.eye(2), (n, 2, 2)).copy(), state_errors=errors,
-        run=np.array(["b", "a", "b", "a", "b", "a"]), dropped_rows=3, unpaired=2,
-        fitted_mean="aligned", other_convention=other,
+        None,
+        None,
+        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
+        state_errors=errors,
+        run=np.array(["b", "a", "b", "a", "b", "a"]),
+        dropped_rows=3,
+        unpaired=2,
+        fitted_mean="aligned",
+        other_convention=other,
     )
     runs = split_runs(log)
     assert [r.n for r in runs] == [3, 3]

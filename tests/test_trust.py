@@ -1065,7 +1065,7 @@ def test_errors_that_drift_without_a_finite_memory_are_declined_not_a_crash(caps
     assert "no finite memory" in capsys.readouterr().out
 
 
-def _short_log(path: Path, dim: int = 2, segment=None) -> Path:
+def _credible_csv(path: Path, dim: int = 2) -> Path:
     """A 300-epoch credible CSV log of dimension ``dim`` in segments ``a`` and ``b``."""
     e = np.random.default_rng(dim).standard_normal((300, dim))
     frame = pd.DataFrame({"time": np.arange(300) * 0.1, "segment": np.repeat(["a", "b"], 150)})
@@ -1102,7 +1102,7 @@ def test_a_huge_config_file_is_refused_before_it_is_read(tmp_path):
     with open(config, "wb") as handle:
         handle.write(b"[diagnosis]\n")
         handle.truncate(1 << 40)
-    log = _short_log(tmp_path / "log.csv")
+    log = _credible_csv(tmp_path / "log.csv")
     code, _, err = run("diagnose", log, "--config", config)
     assert "too large for a config file" in error_line(code, err)
 
@@ -1112,7 +1112,7 @@ def test_a_closed_standard_output_is_bad_usage_not_a_crash(tmp_path, monkeypatch
     AttributeError): exit 2 naming -o."""
     import sys
 
-    log = _short_log(tmp_path / "log.csv")
+    log = _credible_csv(tmp_path / "log.csv")
     monkeypatch.setattr(sys, "stdout", None)
     code = main(["diagnose", str(log), "-f", "json"])
     err = capsys.readouterr().err
@@ -1125,8 +1125,8 @@ def test_gate_refuses_a_log_of_another_dimension(tmp_path):
     from helpers import error_line, run
 
     baseline = tmp_path / "b.json"
-    assert run("baseline", _short_log(tmp_path / "d2.csv"), "-o", baseline)[0] == 0
-    code, _, err = run("gate", _short_log(tmp_path / "d3.csv", dim=3), "-b", baseline)
+    assert run("baseline", _credible_csv(tmp_path / "d2.csv"), "-o", baseline)[0] == 0
+    code, _, err = run("gate", _credible_csv(tmp_path / "d3.csv", dim=3), "-b", baseline)
     assert "d = 2 states, the new log's d = 3" in error_line(code, err)
     assert run("gate", tmp_path / "d2.csv", "-b", baseline)[0] == 0
 
@@ -1187,3 +1187,170 @@ def test_truth_quaternions_of_huge_components_are_normalised(tmp_path):
         "json",
     )
     assert code == 0, err
+
+
+def test_settings_that_exclude_each_other_are_refused_not_one_silently_dropped(tmp_path):
+    """--window with --whole (once: --window silently ignored), var_i beside std_i columns
+    (once: var_i silently read) and a --cov-kind the columns found do not have (once:
+    silently ignored) are each exit 2 with one line; a command-line --whole over a
+    config's window is the command line's choice."""
+    from helpers import error_line, run
+
+    log = _credible_csv(tmp_path / "log.csv")
+    code, _, err = run("diagnose", log, "--window", "40", "--whole")
+    assert "--window and --whole exclude each other" in error_line(code, err)
+    config = tmp_path / "c.toml"
+    config.write_text('[segments]\nwindow = "40"\nwhole = true\n')
+    code, _, err = run("diagnose", log, "--config", config)
+    assert "sets both window and whole" in error_line(code, err)
+    code, out, err = run("diagnose", log, "--config", config, "--whole", "-f", "csv")
+    assert code == 0 and out.count("\n") == 2, err  # a header and the one segment "all"
+    frame = pd.read_csv(log)
+    frame.assign(std_0=1.0, std_1=1.0).to_csv(tmp_path / "both.csv", index=False)
+    code, _, err = run("diagnose", tmp_path / "both.csv")
+    assert "both var_i and std_i columns" in error_line(code, err)
+    code, _, err = run("diagnose", log, "--cov-kind", "std")
+    assert "--cov-kind std does not describe" in error_line(code, err)
+    assert run("diagnose", log, "--cov-kind", "var", "-f", "json")[0] == 0
+
+
+def test_an_output_under_another_output_or_a_file_is_refused_before_anything_is_written(
+    tmp_path, monkeypatch
+):
+    """--plots under -o's file, --summary under --junit's, -o under an existing file (each
+    once failed only after the other outputs were written: exit 2 with two lines and a
+    file left behind), and a figure whose name is --summary's (once silently replaced)."""
+    from helpers import error_line, run
+
+    monkeypatch.chdir(tmp_path)
+    log = _credible_csv(tmp_path / "log.csv")
+    code, _, err = run("diagnose", log, "-f", "json", "-o", "o.json", "--plots", "o.json/figs")
+    assert "lies under --output" in error_line(code, err) and not Path("o.json").exists()
+    code, _, err = run(
+        "diagnose", log, "--fail-on", "noncredible", "--junit", "j.xml", "--summary", "j.xml/s.md"
+    )
+    assert "lies under --junit" in error_line(code, err) and not Path("j.xml").exists()
+    Path("afile").write_text("kept")
+    code, _, err = run("diagnose", log, "-f", "json", "-o", "afile/o.json")
+    assert "is a file, not a directory" in error_line(code, err)
+    assert Path("afile").read_text() == "kept"
+    pytest.importorskip("matplotlib")
+    code, _, err = run(
+        "diagnose",
+        log,
+        "--fail-on",
+        "noncredible",
+        "--summary",
+        "figs/timeline.png",
+        "--plots",
+        "figs",
+    )
+    assert "would overwrite figs/timeline.png" in error_line(code, err)
+    assert not Path("figs/timeline.png").exists()
+
+
+def test_integers_beyond_the_float_range_are_bad_input_in_configs_and_baselines(tmp_path):
+    """A 401-digit integer where a number is expected once overflowed on conversion (exit
+    3, OverflowError): in a config's [diagnosis], a baseline segment's NCI and a
+    baseline's integer n_flips."""
+    import json
+    import re
+
+    from helpers import error_line, run
+
+    big = "1" + "0" * 400
+    log = _credible_csv(tmp_path / "log.csv")
+    (tmp_path / "c.toml").write_text(f"[diagnosis]\ntau_nci = {big}\n")
+    code, _, err = run("diagnose", log, "--config", tmp_path / "c.toml")
+    assert "tau_nci must be a number" in error_line(code, err)
+    assert run("baseline", log, "-o", tmp_path / "b.json")[0] == 0
+    text = (tmp_path / "b.json").read_text()
+    nci = re.sub(r'"nci": [^,]+,', f'"nci": {big},', text, count=1)
+    (tmp_path / "nci.json").write_text(nci)
+    code, _, err = run("gate", log, "-b", tmp_path / "nci.json")
+    assert "'nci' must be a number or null" in error_line(code, err)
+    assert json.loads(text)["parameters"]["n_flips"] > 0
+    flips = re.sub(r'"n_flips": \d+', f'"n_flips": {big}', text, count=1)
+    (tmp_path / "flips.json").write_text(flips)
+    code, _, err = run("gate", log, "-b", tmp_path / "flips.json")
+    assert "n_flips must be an integer" in error_line(code, err)
+
+
+def test_a_ros2_bag_with_a_fifo_a_huge_metadata_or_bad_compression_is_bad_input(tmp_path):
+    """A bag directory whose .db3 is a FIFO (once a hang), whose metadata.yaml is 1 TiB
+    (once MemoryError, exit 3) or claims a compression its data do not have (once
+    ZstdError, exit 3): each exit 2 with one line."""
+    import os
+    import shutil
+
+    pytest.importorskip("rosbags")
+    from helpers import error_line, run
+
+    source = Path(__file__).parents[1] / "sample_data" / "formats" / "odom_ros2"
+    args = ("--topic", "/odom", "--truth-topic", "/ground_truth")
+    fifo = shutil.copytree(source, tmp_path / "fifo")
+    database = next(fifo.glob("*.db3"))
+    database.unlink()
+    os.mkfifo(database)
+    code, _, err = run("diagnose", fifo, *args)
+    assert "not a regular file" in error_line(code, err)
+    huge = shutil.copytree(source, tmp_path / "huge")
+    with open(huge / "metadata.yaml", "r+b") as handle:
+        handle.truncate(1 << 40)
+    code, _, err = run("diagnose", huge, *args)
+    assert "too large for a bag's metadata" in error_line(code, err)
+    import re
+
+    packed = shutil.copytree(source, tmp_path / "packed")
+    meta = (packed / "metadata.yaml").read_text()
+    meta = re.sub(r"compression_format: .*", "compression_format: zstd", meta)
+    meta = re.sub(r"compression_mode: .*", "compression_mode: FILE", meta)
+    (packed / "metadata.yaml").write_text(meta)
+    code, _, err = run("diagnose", packed, *args)
+    assert "cannot be read as a ROS bag" in error_line(code, err)
+
+
+def test_a_bad_mplbackend_does_not_stop_the_figures(tmp_path):
+    """MPLBACKEND=nonexistent once failed matplotlib's import (exit 3); credcli draws with
+    Agg whatever the backend. In a child process: matplotlib is imported fresh."""
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("matplotlib")
+    log = _credible_csv(tmp_path / "log.csv")
+    env = dict(os.environ, MPLBACKEND="nonexistent")
+    env["PYTHONPATH"] = str(Path(__file__).parents[1])
+    done = subprocess.run(
+        [sys.executable, "-m", "credcli", "diagnose", str(log), "--plots", str(tmp_path / "f")],
+        env=env,
+        capture_output=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr.decode()[-300:]
+    assert any((tmp_path / "f").glob("*.png"))
+
+
+def test_an_output_in_a_missing_directory_is_refused_before_the_others_are_written(
+    tmp_path, monkeypatch
+):
+    """-o o.json with --junit nodir/j.xml once wrote o.json, then failed (exit 2, two
+    lines)."""
+    from helpers import error_line, run
+
+    monkeypatch.chdir(tmp_path)
+    log = _credible_csv(tmp_path / "log.csv")
+    code, _, err = run(
+        "diagnose",
+        log,
+        "-f",
+        "json",
+        "-o",
+        "o.json",
+        "--fail-on",
+        "noncredible",
+        "--junit",
+        "nodir/j.xml",
+    )
+    assert "does not exist" in error_line(code, err) and not Path("o.json").exists()

@@ -149,7 +149,7 @@ def diagnose(
     conditions = fail_on_conditions(ci)
     inputs = [*logs, config, log.truth]
     written = {"--output": out.output, "--junit": ci.junit, "--summary": ci.summary}
-    guard_outputs(written | {"--report": report_file}, inputs, plots)
+    keep = guard_outputs(written | {"--report": report_file}, inputs, plots)
     check_plotting(plots, report_file)
     figures = plots is not None or report_file is not None
     request = diagnose_request(
@@ -158,7 +158,7 @@ def diagnose(
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner)
     title = "credcli diagnose: " + ", ".join(p.name for p in logs)
-    emit_run(result, out, plots, report_file, title, logs, inputs)
+    emit_run(result, out, plots, report_file, title, logs, inputs, keep)
     passed = emit_fail_on(result, conditions, ci, inputs)
     return 0 if passed else 1
 
@@ -271,13 +271,12 @@ def gate(
     conditions = parse_fail_on(ci.fail_on) if ci.fail_on is not None else None
     inputs = [log, baseline_file, config, truth]
     written = {"--output": out.output, "--junit": ci.junit, "--summary": ci.summary}
-    guard_outputs(written, inputs, plots)
+    keep = guard_outputs(written, inputs, plots)
     check_plotting(plots)
     given = (thresholds, truth, segments, rule, seed, run)
     request = gate_request(log, baseline_file, config, *given, figures=plots is not None)
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_gate(request, bar, runner)
-    keep = [*inputs, *written.values()]
     check_figures(result.plots, plots, keep)
     emit(result.report, out.fmt, out.output, inputs=inputs)
     write_plots(result.plots, plots, keep)
@@ -338,7 +337,7 @@ def simulate(
     from credcli.cli.settings import simulate_request
     from credcli.workflows import run_simulate
 
-    guard_outputs({"--output": out.output}, [config], plots)
+    keep = guard_outputs({"--output": out.output}, [config], plots)
     check_plotting(plots)
     request = simulate_request(
         config,
@@ -355,9 +354,9 @@ def simulate(
     start = time.perf_counter()
     with cluster(run.scheduler) as runner, Progress("simulating trials", min_total=1) as bar:
         result, summary = run_simulate(request, bar, runner)
-    check_figures(result, plots, [config, out.output])
+    check_figures(result, plots, keep)
     emit(result.report, out.fmt, out.output, inputs=[config])
-    write_plots(result, plots, [config, out.output])
+    write_plots(result, plots, keep)
     stderr_console().print(f"{summary} in {time.perf_counter() - start:.2f} s", highlight=False)
     return 0
 
@@ -426,7 +425,7 @@ def uwb(
 
     inputs = [file, anchors, config]
     written = {"--output": out.output, "--export-log": export_log, "--report": report_file}
-    guard_outputs(written, inputs, plots)
+    keep = guard_outputs(written, inputs, plots)
     request = uwb_request(
         file,
         config,
@@ -439,7 +438,7 @@ def uwb(
     )
     with Progress("diagnosing periods") as bar:
         result, fixes = run_uwb(request, bar)
-    emit_uwb(result, fixes, out, plots, report_file, export_log, file, inputs)
+    emit_uwb(result, fixes, out, plots, report_file, export_log, file, inputs, keep)
     return 0
 
 

@@ -273,10 +273,10 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
     )
 
 
-def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
-    """Before any work: no output may be an input or another output, or a directory; the
-    --plots directory may not be an input file. $GITHUB_STEP_SUMMARY, when set, is checked
-    as an output too.
+def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> list[Path]:
+    """Before any work: no output may be an input or another output, or a directory, or
+    lie under a file; the --plots directory may not be an input file. $GITHUB_STEP_SUMMARY,
+    when set, is checked as an output too.
 
     Parameters
     ----------
@@ -287,11 +287,18 @@ def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
     plots : Path or None, optional
         The ``--plots`` directory.
 
+    Returns
+    -------
+    list of Path
+        The inputs and every output (the step summary included), which no figure may
+        overwrite (the ``keep`` of :func:`check_figures`).
+
     Raises
     ------
     CredcliError
-        If an output is an input, another output or a directory, or ``plots`` is a
-        symbolic link, exists and is not a directory, or is an input's or an output's path.
+        If an output is an input, another output or a directory, or lies under a file, or
+        ``plots`` is a symbolic link, exists and is not a directory, or is an input's or an
+        output's path.
     """
     from credcli.ci.reports import check_step_summary
     from credcli.io.files import check_directory_output, check_outputs
@@ -300,9 +307,18 @@ def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> None:
     if summary:  # appended at the end of a run: checked, like every output, first
         check_step_summary(summary)
         outputs = outputs | {"GITHUB_STEP_SUMMARY": Path(summary)}
-    check_outputs(outputs, [p for p in inputs if p is not None])
+    check_outputs(outputs, [p for p in inputs if p is not None], plots)
     if plots is not None:
         check_directory_output("--plots", plots, outputs, inputs)
+        where = Path(os.path.abspath(plots))
+        inside = [
+            p
+            for p in outputs.values()
+            if p is not None and Path(os.path.abspath(p)).parent == where
+        ]
+        if inside:  # made now, so that an output written before the figures finds it
+            plots.mkdir(parents=True, exist_ok=True)
+    return [Path(p) for p in (*inputs, *outputs.values()) if p is not None]
 
 
 def check_plotting(*wanted) -> None:
@@ -388,7 +404,9 @@ def _write_ci_reports(
     append_step_summary(markdown)
 
 
-def emit_run(run, out, plots: Path | None, report_file: Path | None, title, sources, inputs):
+def emit_run(
+    run, out, plots: Path | None, report_file: Path | None, title, sources, inputs, keep=()
+):
     """What `diagnose` shows of a Run: the reading notes, the report (``out``: its format
     and file), the figures into ``plots`` and an HTML report into ``report_file``.
 
@@ -408,8 +426,11 @@ def emit_run(run, out, plots: Path | None, report_file: Path | None, title, sour
         The logs, the HTML report's subtitle.
     inputs : iterable of Path
         The command's input files, which no output may overwrite.
+    keep : iterable of Path, optional
+        The command's other outputs (:func:`guard_outputs`), which no figure may overwrite
+        either.
     """
-    keep = [*inputs, out.output, report_file]
+    keep = [*inputs, out.output, report_file, *keep]
     check_figures(run, plots, keep)
     print_notes(run.report)
     emit(run.report, out.fmt, out.output, inputs=inputs)
@@ -531,7 +552,9 @@ def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) 
     return passed
 
 
-def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inputs) -> None:
+def emit_uwb(
+    run, fixes, out, plots, report_file, export_log, source: Path, inputs, keep=()
+) -> None:
     """What `uwb` shows: warnings about the anchors, the fixes as a diagnose log
     (``export_log``), the report, the figures and an HTML report.
 
@@ -553,12 +576,15 @@ def emit_uwb(run, fixes, out, plots, report_file, export_log, source: Path, inpu
         The ``uwb.csv``, named in the HTML report.
     inputs : iterable of Path
         The command's input files, which no output may overwrite.
+    keep : iterable of Path, optional
+        The command's other outputs (:func:`guard_outputs`), which no figure may overwrite
+        either.
     """
     from credcli.io.arrays import log_csv
     from credcli.io.files import write_atomic
     from credcli.report.html import build_html
 
-    keep = [*inputs, out.output, export_log, report_file]
+    keep = [*inputs, out.output, export_log, report_file, *keep]
     check_figures(run, plots, keep)
     for warning in fixes.notes:  # anchors that disagree with the log's ground truth
         print(printable(f"credcli: warning: {flag_names(warning)}"), file=sys.stderr)

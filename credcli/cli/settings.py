@@ -244,7 +244,8 @@ def build_reading(config: dict, cli: dict) -> ReadOptions:
 def segment_settings(
     config: dict, window: str | None, whole: bool | None
 ) -> tuple[str | None, bool]:
-    """``--window`` and ``--whole`` from the command line, else from [segments].
+    """``--window`` and ``--whole`` from the command line, else from [segments]. They
+    exclude each other; one given on the command line replaces the other in the config.
 
     Parameters
     ----------
@@ -259,9 +260,25 @@ def segment_settings(
     -------
     tuple of (str or None, bool)
         The window and whether each log is one segment (default False).
+
+    Raises
+    ------
+    CredcliError
+        If both are given on the command line, or both in the config and neither on the
+        command line.
     """
     values = merged(config, "segments", {"window": window, "whole": whole})
-    return values.get("window"), bool(values.get("whole", False))
+    chosen, one = values.get("window"), bool(values.get("whole", False))
+    if chosen is not None and one:  # the command line's choice over the config's
+        if window is not None and whole:
+            raise CredcliError("`window` and `whole` exclude each other; give one of them")
+        if window is None and not whole:
+            raise CredcliError(
+                "the config's [segments] sets both window and whole, which exclude each "
+                "other; keep one of them"
+            )
+        chosen, one = (window, False) if window is not None else (None, True)
+    return chosen, one
 
 
 def build_diagnosis_config(

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from credcli.engine.config import Alignment  # noqa: F401 (re-exported)
+from credcli.engine.units import power_of_two_unit
 from credcli.errors import CredcliError
 
 
@@ -132,6 +133,12 @@ def umeyama(truth: np.ndarray, estimate: np.ndarray, with_scale: bool = False) -
         )
     if not (np.isfinite(x).all() and np.isfinite(x_hat).all()):
         raise CredcliError("`align`: the positions must be finite", "align")
+    spread_hat = float(np.max(np.abs(x_hat - x_hat.mean(axis=0)), initial=0.0))
+    if with_scale and (0.0 < spread_hat < 1e-150 or spread_hat > 1e150):
+        # σ²_x̂ would under- or overflow: fit in exact power-of-two units, s and t back after
+        unit, unit_hat = power_of_two_unit(x), power_of_two_unit(x_hat - x_hat.mean(axis=0))
+        fit = _umeyama(x / unit, x_hat / unit_hat, with_scale)
+        return Transform(fit.rotation, fit.translation * unit, fit.scale * unit / unit_hat)
     return _umeyama(x, x_hat, with_scale)
 
 

@@ -41,6 +41,37 @@ def _describe(hint) -> str:
     )
 
 
+def is_number(value) -> bool:
+    """Whether a value read from TOML or JSON is a number credcli can take as a float: a
+    float, or an int (not a bool) within the float range (an integer of 400 digits is
+    not: converting it overflows).
+
+    Parameters
+    ----------
+    value : object
+        The value.
+
+    Returns
+    -------
+    bool
+        True for a float or a convertible int.
+
+    Examples
+    --------
+    >>> is_number(2), is_number(2.5), is_number(True), is_number(10**400)
+    (True, True, False, False)
+    """
+    if isinstance(value, float):
+        return True
+    if not isinstance(value, int) or isinstance(value, bool):
+        return False
+    try:
+        float(value)
+    except OverflowError:
+        return False
+    return True
+
+
 def _type_ok(value, hint) -> bool:
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
@@ -60,10 +91,10 @@ def _type_ok(value, hint) -> bool:
         return isinstance(value, str) and value in {m.value for m in hint}
     if hint is bool:
         return isinstance(value, bool)
-    if hint is int:
-        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is int:  # every integer setting of credcli fits 64 bits
+        return isinstance(value, int) and not isinstance(value, bool) and -(2**63) <= value < 2**63
     if hint is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
+        return is_number(value)
     if hint is str:
         return isinstance(value, str)
     return True
@@ -72,8 +103,9 @@ def _type_ok(value, hint) -> bool:
 def check_types(section: dict, hints: dict, where: str) -> None:
     """Each config value against its field's type, naming the key and the expected type.
 
-    An int is a number where a float is expected; a bool is neither. Keys without a hint
-    are not checked here.
+    An int is a number where a float is expected (if a float can hold it); a bool is
+    neither; an integer setting must fit 64 bits. Keys without a hint are not checked
+    here.
 
     Parameters
     ----------

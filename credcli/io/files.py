@@ -199,7 +199,7 @@ def _is_stream(path: Path) -> bool:
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
-def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
+def check_outputs(outputs: dict[str, Path | None], inputs=(), plots: Path | None = None) -> None:
     """Refuse before any work: an output that is an input, two outputs on one path, or an
     output that is a directory. ``outputs`` maps an option name to its path (or None).
 
@@ -213,17 +213,28 @@ def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
         not asked for.
     inputs : iterable of paths
         The command's input files (None items are skipped).
+    plots : pathlib.Path, optional
+        The ``--plots`` directory, which credcli creates: an output may be written in it.
 
     Raises
     ------
     CredcliError
-        If an output is a directory, is one of ``inputs``, or is the same file as another
-        output.
+        If an output is a directory, is one of ``inputs``, is the same file as another
+        output, lies under a file (:func:`check_not_under_file`), or is in a directory that
+        does not exist (other than ``plots``).
     """
     given = [(name, Path(p)) for name, p in outputs.items() if p is not None]
     for name, path in given:
         if path.is_dir():
             raise CredcliError(f"{name} {path}: is a directory; give a file name")
+        check_not_under_file(name, path, outputs)
+        parent = Path(os.path.abspath(path)).parent
+        if not parent.is_dir() and not (
+            plots is not None and parent == Path(os.path.abspath(plots))
+        ):
+            raise CredcliError(
+                f"{name} {shown(path)}: directory {shown(parent)} does not exist; create it first"
+            )
         for src in inputs:
             if src is not None and _same_file(path, Path(src)) and not _is_stream(path):
                 raise CredcliError(
@@ -236,6 +247,46 @@ def check_outputs(outputs: dict[str, Path | None], inputs=()) -> None:
                 raise CredcliError(
                     f"{name} and {other} are the same file ({path}); give each its own file"
                 )
+
+
+def check_not_under_file(name: str, path: Path, outputs: dict) -> None:
+    """Refuse, before any work, an output whose path lies under a file: an existing
+    ancestor that is not a directory, or an ancestor that another output will write
+    (``--plots out.json/figs`` beside ``-o out.json``), which would fail only after the
+    other outputs were written.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, as messages give it.
+    path : pathlib.Path
+        The output's path.
+    outputs : dict of str to pathlib.Path or None
+        Every output of the command, by option name (None for one not asked for).
+
+    Raises
+    ------
+    CredcliError
+        If an ancestor of ``path`` is an existing non-directory or another output's path.
+    """
+    others = {
+        Path(os.path.abspath(p)): other
+        for other, p in outputs.items()
+        if p is not None and other != name
+    }
+    for parent in Path(os.path.abspath(path)).parents:
+        if parent in others:
+            raise CredcliError(
+                f"{name} {shown(path)}: lies under {others[parent]} {shown(parent)}, a file "
+                "credcli writes; give each output its own place"
+            )
+        if parent.exists():
+            if not parent.is_dir():
+                raise CredcliError(
+                    f"{name} {shown(path)}: {shown(parent)} is a file, not a directory; give "
+                    "a path in a directory"
+                )
+            return  # an existing directory: what is above it exists as directories
 
 
 def check_directory_output(name: str, directory: Path, outputs: dict, inputs=()) -> None:
@@ -257,8 +308,9 @@ def check_directory_output(name: str, directory: Path, outputs: dict, inputs=())
     Raises
     ------
     CredcliError
-        If ``directory`` is a symbolic link, exists and is not a directory, or is the same
-        path as an input or another output.
+        If ``directory`` is a symbolic link, exists and is not a directory, lies under a
+        file (:func:`check_not_under_file`), or is the same path as an input or another
+        output.
     """
     if directory.is_symlink():
         raise CredcliError(
@@ -267,6 +319,7 @@ def check_directory_output(name: str, directory: Path, outputs: dict, inputs=())
         )
     if directory.exists() and not directory.is_dir():
         raise CredcliError(f"{name} {directory}: exists and is not a directory")
+    check_not_under_file(name, directory, outputs)
     for other, path in outputs.items():
         if path is not None and _same_file(directory, Path(path)):
             raise CredcliError(

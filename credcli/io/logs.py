@@ -669,7 +669,7 @@ def cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind
     Named columns (``schema.cov_columns``) are read by ``schema.cov_kind``, else by their
     number: d² full, d(d+1)/2 upper triangle, d diagonal (variances). Otherwise the
     columns are found by prefix: ``cov_i_j`` for every i, j (full) or for i <= j (upper),
-    else ``var_i``, else ``std_i``.
+    else ``var_i``, else ``std_i``; a ``cov_kind`` given must then name that layout.
 
     Parameters
     ----------
@@ -690,10 +690,11 @@ def cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind
     Raises
     ------
     CredcliError
-        The named columns do not fit d or ``cov_kind``; a ``cov_i_j`` index is beyond d; both
-        ``cov_i_j`` and ``var_i``/``std_i`` columns are present; the ``cov_i_j`` are neither
-        full nor an upper triangle; the ``var_i``/``std_i`` do not match d; no covariance
-        column is found.
+        The named columns do not fit d or ``cov_kind``; a ``cov_i_j`` index is beyond d;
+        both ``cov_i_j`` and ``var_i``/``std_i`` columns, or both ``var_i`` and ``std_i``
+        columns, are present; ``cov_kind`` is not the layout of the columns found by
+        prefix; the ``cov_i_j`` are neither full nor an upper triangle; the
+        ``var_i``/``std_i`` do not match d; no covariance column is found.
     """
     if schema.cov_columns:
         cols = list(schema.cov_columns)
@@ -716,6 +717,19 @@ def cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind
                 f"covariance for d = {d} needs {expected}"
             )
         return kind, cols
+    kind, cols = _found_layout(columns, schema, d, source)
+    if schema.cov_kind is not None and schema.cov_kind is not kind:
+        raise CredcliError(
+            f"{source}: `cov_kind` {schema.cov_kind.value} does not describe the covariance "
+            f"columns found ({_list(cols)}, read as {kind.value}); name the columns "
+            "with `cov_columns`, or drop `cov_kind`"
+        )
+    return kind, cols
+
+
+def _found_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind, list[str]]:
+    """The covariance columns found by their prefixes, and how they store it
+    (:func:`cov_layout` without named columns)."""
     pairs = {}
     for col in columns:
         if col.startswith(schema.cov_prefix):
@@ -750,6 +764,14 @@ def cov_layout(columns, schema: LogSchema, d: int, source: str) -> tuple[CovKind
         raise CredcliError(
             f"{source}: incomplete covariance: missing column(s) {', '.join(missing)} "
             f"(give cov_i_j for every i, j or for i <= j)"
+        )
+    variances, deviations = (_indexed(columns, p) for p in (schema.var_prefix, schema.std_prefix))
+    if variances and deviations:
+        shown = [*list(variances.values())[:2], *list(deviations.values())[:2]]
+        raise CredcliError(
+            f"{source}: both {schema.var_prefix}i and {schema.std_prefix}i columns "
+            f"({', '.join(map(str, shown))}, …): which is the covariance? Name its columns "
+            "with `cov_columns`"
         )
     for kind, prefix in ((CovKind.VAR, schema.var_prefix), (CovKind.STD, schema.std_prefix)):
         found = _indexed(columns, prefix)

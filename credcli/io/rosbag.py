@@ -62,9 +62,14 @@ def _fields(msg):
     )
 
 
+MAX_METADATA_BYTES = 16 << 20
+"""Largest ROS2 ``metadata.yaml`` read (16 MiB; a bag's is a few kB)."""
+
+
 def check_bag_path(path: Path) -> None:
     """Refuse a directory that is not a ROS2 bag: a directory is one only with a
-    metadata.yaml in it.
+    metadata.yaml in it, of at most :data:`MAX_METADATA_BYTES`, and holds files (a FIFO
+    among them would block the reader).
 
     Parameters
     ----------
@@ -74,12 +79,27 @@ def check_bag_path(path: Path) -> None:
     Raises
     ------
     CredcliError
-        If ``path`` is a directory without a ``metadata.yaml`` file.
+        If ``path`` is a directory without a ``metadata.yaml`` file, with one too large,
+        or with an entry that is neither a file nor a directory.
     """
-    if path.is_dir() and not (path / "metadata.yaml").is_file():
+    if not path.is_dir():
+        return
+    metadata = path / "metadata.yaml"
+    if not metadata.is_file():
         raise CredcliError(
             f"{path}: not a ROS2 bag directory (no metadata.yaml); name a log file or a bag"
         )
+    if metadata.stat().st_size > MAX_METADATA_BYTES:
+        raise CredcliError(
+            f"{metadata}: larger than {MAX_METADATA_BYTES // 2**20} MiB, too large for a bag's "
+            "metadata; check the bag"
+        )
+    for entry in path.iterdir():  # a FIFO or device among the bag's files would block
+        if not (entry.is_file() or entry.is_dir()):
+            raise CredcliError(
+                f"{entry}: not a regular file (a FIFO, device or socket) in the bag directory; "
+                "a bag holds files"
+            )
 
 
 def read_bag(path: Path, topic: str | None, role: str, time_unit: TimeUnit) -> Trajectory:
@@ -138,13 +158,12 @@ def read_bag_topics(
         ambiguous, of the wrong type or without messages, or a message cannot be decoded.
     """
     AnyReader, Stores, get_typestore = _require_rosbags()
-    from rosbags.highlevel import AnyReaderError
 
     check_bag_path(Path(path))
     try:
         reader = AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         reader.open()
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
+    except Exception as exc:  # rosbags and its decompressors raise their own error types
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         if "YAML" in first:
             first = "its metadata.yaml is not valid YAML"

@@ -9,7 +9,9 @@ from __future__ import annotations
 import dataclasses
 import io
 import math
+import os
 import re
+import sys
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,6 +53,8 @@ class Plot:
 
 
 def _pyplot():
+    if "matplotlib" not in sys.modules:  # credcli draws with Agg whatever the user's backend;
+        os.environ.pop("MPLBACKEND", None)  # a bad one would fail matplotlib's import
     try:
         import matplotlib
     except ModuleNotFoundError as exc:

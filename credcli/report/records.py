@@ -25,8 +25,8 @@ import numpy as np
 from credcli.engine.config import DiagnosisConfig
 from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
 from credcli.engine.short import PartSequence, SegmentResults, ShortSegments
-from credcli.errors import CredcliError, plain
-from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
+from credcli.errors import CredcliError, plain, shortened
+from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints, is_number
 from credcli.io.schema import LogReading, LogSchema, ReadOptions
 from credcli.io.streams import open_input
 from credcli.report.formats import format_interval
@@ -1576,10 +1576,10 @@ def _check_baseline(doc: dict, source: str) -> None:
             )
         for key in ("nci", "anees", "elt_pvalue"):
             value = rec.get(key)
-            if value is not None and (
-                isinstance(value, bool) or not isinstance(value, (int, float))
-            ):
-                raise CredcliError(f"{where}: '{key}' must be a number or null; got {value!r}")
+            if value is not None and not is_number(value):
+                raise CredcliError(
+                    f"{where}: '{key}' must be a number or null; got {shortened(repr(value))}"
+                )
 
 
 SEGMENTATION_SETTINGS = ("seed", "window", "whole", "drop_invalid")

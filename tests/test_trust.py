@@ -1354,3 +1354,31 @@ def test_an_output_in_a_missing_directory_is_refused_before_the_others_are_writt
         "nodir/j.xml",
     )
     assert "does not exist" in error_line(code, err) and not Path("o.json").exists()
+
+
+def test_baselines_with_a_float_schema_version_or_a_negative_anees_are_refused(tmp_path):
+    """ "schema_version": 1.0 and an ANEES of −1 were once read as a version-1 baseline
+    and as a value (shown as an improvement)."""
+    import json
+
+    from helpers import error_line, run
+
+    log = _credible_csv(tmp_path / "log.csv")
+    assert run("baseline", log, "-o", tmp_path / "b.json")[0] == 0
+    doc = json.loads((tmp_path / "b.json").read_text())
+    (tmp_path / "v.json").write_text(json.dumps(doc | {"schema_version": 1.0}))
+    code, _, err = run("gate", log, "-b", tmp_path / "v.json")
+    assert "schema version 1.0 is not supported" in error_line(code, err)
+    doc["segments"][0]["anees"] = -1.0
+    (tmp_path / "a.json").write_text(json.dumps(doc))
+    code, _, err = run("gate", log, "-b", tmp_path / "a.json")
+    assert "'anees' must be >= 0" in error_line(code, err)
+
+
+def test_a_long_scheduler_address_is_cut_in_its_note(tmp_path, monkeypatch):
+    """CREDCLI_SCHEDULER of 5,000 characters once made a 5,000-character note line."""
+    from helpers import run
+
+    monkeypatch.setenv("CREDCLI_SCHEDULER", "tcp://" + "a" * 5000 + ":1")
+    code, _, err = run("diagnose", _credible_csv(tmp_path / "log.csv"))
+    assert code == 2 and max(len(line) for line in err.splitlines()) <= 600, err[:300]

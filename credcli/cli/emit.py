@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 from credcli.cli.flags import flag_names
-from credcli.errors import CredcliError, printable
+from credcli.errors import CredcliError, printable, shortened
 from credcli.report.formats import OutputFormat
 
 
@@ -232,7 +232,8 @@ def cluster(scheduler: str | None):
     if not scheduler:
         scheduler = os.environ.get(SCHEDULER_ENV) or None
         if scheduler is not None:
-            note = f"credcli: note: running on the Dask scheduler {scheduler} ({SCHEDULER_ENV})"
+            shown = shortened(scheduler)
+            note = f"credcli: note: running on the Dask scheduler {shown} ({SCHEDULER_ENV})"
             print(printable(note), file=sys.stderr)
     if not scheduler:
         return contextlib.nullcontext(None)

@@ -1540,7 +1540,7 @@ def _check_baseline(doc: dict, source: str) -> None:
             f"{source}: not a credcli baseline (make one with `credcli baseline LOG -o FILE`)"
         )
     version = doc.get("schema_version")
-    if version != BASELINE_SCHEMA_VERSION:
+    if type(version) is not int or version != BASELINE_SCHEMA_VERSION:  # 1.0 is not 1
         raise CredcliError(
             f"{source}: baseline schema version {version!r} is not supported (this credcli reads "
             f"version {BASELINE_SCHEMA_VERSION}); record the baseline again with this version"
@@ -1580,6 +1580,10 @@ def _check_baseline(doc: dict, source: str) -> None:
                 raise CredcliError(
                     f"{where}: '{key}' must be a number or null; got {shortened(repr(value))}"
                 )
+        for key in ("anees", "elt_pvalue"):  # a mean of squares, and a probability
+            value = rec.get(key)
+            if value is not None and not value >= 0:
+                raise CredcliError(f"{where}: '{key}' must be >= 0 or null; got {value!r}")
 
 
 SEGMENTATION_SETTINGS = ("seed", "window", "whole", "drop_invalid")

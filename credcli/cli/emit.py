@@ -276,8 +276,9 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
 
 def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> list[Path]:
     """Before any work: no output may be an input or another output, or a directory, or
-    lie under a file; the --plots directory may not be an input file. $GITHUB_STEP_SUMMARY,
-    when set, is checked as an output too.
+    lie under a file; the --plots directory may not be an input file, and is made now when
+    another output is to be written in it. $GITHUB_STEP_SUMMARY, when set, is checked as an
+    output too.
 
     Parameters
     ----------

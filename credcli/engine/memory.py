@@ -359,7 +359,7 @@ def _memoised(method):
 class _Answering:
     """A frozen model that keeps answers (:func:`_memoised`): they are a cache, so they stay
     behind when the model is pickled (a worker's results carry their models to the parent,
-    where 10⁵ segments' answers would hold some 100 MB)."""
+    where 10⁵ segments' answers would hold some 200 MB)."""
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)

@@ -1382,3 +1382,15 @@ def test_a_long_scheduler_address_is_cut_in_its_note(tmp_path, monkeypatch):
     monkeypatch.setenv("CREDCLI_SCHEDULER", "tcp://" + "a" * 5000 + ":1")
     code, _, err = run("diagnose", _credible_csv(tmp_path / "log.csv"))
     assert code == 2 and max(len(line) for line in err.splitlines()) <= 600, err[:300]
+
+
+def test_an_empty_truth_in_a_config_is_bad_input(tmp_path):
+    """[input] truth = "" was read as the current directory (".: not a ROS2 bag")."""
+    from helpers import error_line, run
+
+    formats = Path(__file__).parents[1] / "sample_data" / "formats"
+    (tmp_path / "c.toml").write_text('[input]\ntruth = ""\n')
+    code, _, err = run(
+        "diagnose", formats / "openvins_estimate.txt", "--config", tmp_path / "c.toml"
+    )
+    assert "is empty; name the ground-truth file" in error_line(code, err)

@@ -238,6 +238,8 @@ def build_reading(config: dict, cli: dict) -> ReadOptions:
     values = merged(config, "input", cli)
     if values.get("truth") is not None:
         values["truth"] = str(values["truth"])
+        if not values["truth"].strip():  # Path("") is the current directory
+            raise CredcliError("`truth` is empty; name the ground-truth file or bag")
     return built(ReadOptions, values, config, "input", cli)
 
 
@@ -574,6 +576,8 @@ def gate_request(
         },
     )
     if truth is None and config.get("input", {}).get("truth") is not None:
+        if not str(config["input"]["truth"]).strip():
+            raise CredcliError("`truth` is empty; name the ground-truth file or bag")
         truth = Path(str(config["input"]["truth"]))  # named by the user's config, not the baseline
     reading = baseline.reading
     recorded_truth = reading.options.truth

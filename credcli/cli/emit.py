@@ -55,11 +55,11 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
     if fmt is OutputFormat.TABLE:
         from rich.console import Console
 
-        console = Console()
+        console = Console(highlight=False)
         fit: int | None = console.width  # a terminal: hide columns that do not fit
         if not console.is_terminal:  # a log or a pipe: $COLUMNS if given, else every column
             fit = _given_width()
-            console = Console(width=fit or UNLIMITED_WIDTH, soft_wrap=fit is None)
+            console = Console(width=fit or UNLIMITED_WIDTH, soft_wrap=fit is None, highlight=False)
         for table in report.tables:
             console.print(rich_table(table, fit))
         for note in report.notes:
@@ -144,9 +144,11 @@ def stderr_console():
     """
     from rich.console import Console
 
-    console = Console(stderr=True)
+    console = Console(stderr=True, highlight=False)
     if not console.is_terminal:
-        console = Console(stderr=True, soft_wrap=True, width=_given_width() or UNLIMITED_WIDTH)
+        console = Console(
+            stderr=True, soft_wrap=True, width=_given_width() or UNLIMITED_WIDTH, highlight=False
+        )
     return console
 
 

@@ -334,7 +334,12 @@ def to_text(report: Report, fmt: OutputFormat, width: int = 160) -> str:
     # never the notebook's display: in Jupyter, Rich would show the table there and leave
     # the buffer empty
     console = Console(
-        file=buf, width=width, color_system=None, force_terminal=False, force_jupyter=False
+        file=buf,
+        width=width,
+        color_system=None,
+        force_terminal=False,
+        force_jupyter=False,
+        highlight=False,  # Rich's highlighter takes a minute on a 100,000-character name
     )
     for table in report.tables:
         console.print(rich_table(table, width))

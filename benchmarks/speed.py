@@ -72,6 +72,19 @@ def _child(argv: list[str]) -> tuple[float, float, float]:
     return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
 
 
+def medians(runs: dict[str, list[tuple[float, float, float]]]) -> dict:
+    """Per name: the median wall and CPU seconds of its runs (:func:`_child`) and their
+    largest peak RSS (MiB)."""
+    return {
+        k: (
+            statistics.median(r[0] for r in v),
+            statistics.median(r[1] for r in v),
+            max(r[2] for r in v),
+        )
+        for k, v in runs.items()
+    }
+
+
 def _ten_epoch_segments(path, segments: int = 100_000) -> Path:
     """``segments`` segments of 10 epochs, d = 2, credible (issue 35: per-segment cost)."""
     import pandas as pd
@@ -170,12 +183,8 @@ def main(argv: list[str] | None = None) -> int:
                 cmd = [sys.executable, "-m", "credcli", "diagnose", log, "-f", "json", "-o", out]
                 runs["credcli"].append(_child(cmd))
                 os.unlink(out)
-            med = {
-                k: (statistics.median(r[0] for r in v), statistics.median(r[1] for r in v))
-                for k, v in runs.items()
-            }
-            peak = max(r[2] for r in runs["credcli"])
-            (pw, pc), (cw, cc) = med["plain"], med["credcli"]
+            med = medians(runs)
+            (pw, pc, _), (cw, cc, peak) = med["plain"], med["credcli"]
             print(
                 f"| {work.name} | {pw:.2f} s / {pc:.2f} s | {cw:.2f} s / {cc:.2f} s | "
                 f"{cw / pw:.1f} / {cc / pc:.1f} | {peak:.0f} MiB | {work.target} |",

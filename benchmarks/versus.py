@@ -16,8 +16,6 @@ from __future__ import annotations
 import argparse
 import compileall
 import os
-import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -55,24 +53,34 @@ def main(argv: list[str] | None = None) -> int:
         w for w in workloads if not args.only or any(s in w.name for s in args.only.split(","))
     ]
     print(f"credcli new ({trees['new']}) against old ({trees['old']}), {os.cpu_count()} CPU(s)")
-    print("| workload | old wall / CPU | new wall / CPU | new/old wall / CPU | peak RSS old / new |")
+    print(
+        "| workload | old wall / CPU | new wall / CPU | new/old wall / CPU | peak RSS old / new |"
+    )
     print("|---|---|---|---|---|", flush=True)
     for work in chosen:
         with tempfile.TemporaryDirectory() as tmp:
             log = speed._build(work.build.format(tmp=tmp))
             runs: dict[str, list] = {"old": [], "new": []}
-            os.chdir(tmp)  # `python -m credcli` in a checkout would import that checkout's
+            os.chdir(tmp)  # run from a checkout, `python -m credcli` imports that checkout
             for _ in range(args.rounds):
                 for name, tree in trees.items():
                     os.environ["PYTHONPATH"] = str(tree)
                     out = str(Path(tmp) / f"{name}.json")
-                    cmd = [sys.executable, "-m", "credcli", "diagnose", log, "-f", "json", "-o", out]
+                    cmd = [
+                        sys.executable,
+                        "-m",
+                        "credcli",
+                        "diagnose",
+                        log,
+                        "-f",
+                        "json",
+                        "-o",
+                        out,
+                    ]
                     runs[name].append(speed._child(cmd))
                     os.unlink(out)
             os.chdir(ROOT)
-            wall = {k: statistics.median(r[0] for r in v) for k, v in runs.items()}
-            cpu = {k: statistics.median(r[1] for r in v) for k, v in runs.items()}
-            peak = {k: max(r[2] for r in v) for k, v in runs.items()}
+            wall, cpu, peak = ({k: m[i] for k, m in speed.medians(runs).items()} for i in range(3))
             print(
                 f"| {work.name} | {wall['old']:.2f} s / {cpu['old']:.2f} s | "
                 f"{wall['new']:.2f} s / {cpu['new']:.2f} s | "

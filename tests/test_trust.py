@@ -339,6 +339,36 @@ def test_an_npz_that_inflates_past_the_memory_budget_is_refused(tmp_path, capsys
     assert "more than the" in capsys.readouterr().err
 
 
+def test_npz_arrays_that_fit_no_one_log_are_refused_before_any_is_read(
+    tmp_path, capsys, monkeypatch
+):
+    """A 4 MB .npz whose truth declared 2²⁸ epochs beside two of the estimate was unpacked
+    whole (22 s, 4.7 GB) before the lengths were compared; unknown arrays were read too.
+    Shapes that fit some log (a transposed one, which the reader names) are still read."""
+    import zipfile
+
+    n = 4096
+    with zipfile.ZipFile(tmp_path / "x.npz", "w", compression=zipfile.ZIP_DEFLATED) as z:
+        z.writestr("truth.npy", _npy_header((n, 2)) + bytes(16 * n))
+        z.writestr("estimate.npy", _npy_header((2, 2)) + bytes(32))
+        z.writestr("cov.npy", _npy_header((2, 2)) + bytes(32))
+    np.savez(tmp_path / "junk.npz", errors=np.zeros((5, 2)), cov=np.eye(2), junk=np.zeros(9))
+    monkeypatch.setattr(np.lib.npyio.NpzFile, "__getitem__", lambda *a: pytest.fail("read"))
+    assert main(["diagnose", str(tmp_path / "x.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "fit no one number of epochs" in err and f"truth ({n}, 2)" in err, err
+    assert main(["diagnose", str(tmp_path / "junk.npz")]) == 2
+    assert "unknown array(s) junk" in capsys.readouterr().err
+    monkeypatch.undo()
+    np.savez(tmp_path / "t.npz", errors=np.zeros((2, 30)), cov=np.eye(2))
+    assert main(["diagnose", str(tmp_path / "t.npz")]) == 2
+    assert "is transposed" in capsys.readouterr().err
+    for cov in (np.ones(30), np.ones((30, 1)), np.ones((30, 1, 1)), np.eye(1)):
+        np.savez(tmp_path / "one.npz", errors=np.zeros(30), cov=cov, time=np.arange(30.0))
+        assert main(["diagnose", str(tmp_path / "one.npz"), "-f", "json"]) == 0, cov.shape
+        capsys.readouterr()
+
+
 def test_a_header_gap_is_one_short_line(tmp_path, capsys):
     """A 55-byte header naming truth_1000000000000 took 1.76 GB and a header gap to
     truth_1000000 a 13.9 MB error line; both are one short line now."""

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.errors import CredcliError
-from credcli.io.files import check_covariance_memory, memory_budget, write_atomic
+from credcli.io.files import check_covariance_memory, memory_budget, shown, write_atomic
 from credcli.io.logs import EstimatorLog, validated_cov
 from credcli.io.text import time_seconds
 from credcli.logid import LogId
@@ -409,25 +409,57 @@ NPZ_NAMES = {
 names each may have in the file."""
 
 
+def _shape_fits(name: str, shape: tuple, n: int, d: int) -> bool:
+    """Whether an array called ``name`` (an alias of :data:`NPZ_NAMES`) of ``shape`` can be
+    read as a log of ``n`` epochs in ``d`` dimensions, as :func:`log_from_arrays` reads it
+    (a transposed (d, N) array too, which it names as such)."""
+    if name == "cov":
+        return shape in ((n, d, d), (d, d), (n, d), (d, n)) or shape == (n,) and d == 1
+    if name in NPZ_NAMES["time"] + NPZ_NAMES["segment"] + NPZ_NAMES["run"]:
+        return shape == (n,)
+    return shape in ((n,), (n, d), (d, n), (n, d, 1)) and (len(shape) > 1 or d == 1)
+
+
+def _check_npz_shapes(path: Path, shapes: dict[str, tuple]) -> None:
+    """Refuse arrays whose declared shapes fit no one number of epochs N and dimension d
+    (one array of 2²⁸ epochs beside others of 2), before any is read."""
+    known = {n: s for n, s in shapes.items() if any(n in a for a in NPZ_NAMES.values())}
+    sizes = {int(size) for shape in known.values() for size in shape}
+    if not known or any(
+        all(_shape_fits(name, shape, n, d) for name, shape in known.items())
+        for n in sizes
+        for d in sizes | {1}
+    ):
+        return
+    listed = ", ".join(f"{name} {tuple(shape)}" for name, shape in known.items())
+    raise CredcliError(
+        f"{path}: its arrays' shapes fit no one number of epochs N and dimension d "
+        f"({shown(listed)}); a log's arrays are (N, d), (N, d, d) or (d, d), and (N,)"
+    )
+
+
 def _check_npz_sizes(path: Path) -> None:
     """Refuse, before anything is allocated, an ``.npz`` whose arrays declare more bytes
-    than they hold (a 588-byte file declaring 10¹³ floats) or than this machine has memory
-    for (a zip bomb: 4 MB of zeros inflating to 15 GB). Other faults are left for
-    ``np.load`` to report."""
+    than they hold (a 588-byte file declaring 10¹³ floats), more than this machine has
+    memory for together (a zip bomb: 4 MB of zeros inflating to 15 GB), or shapes that fit
+    no one log (4 GiB of one array beside two epochs of the others). Other faults are left
+    for ``np.load`` to report."""
     try:
         archive = zipfile.ZipFile(path)
     except zipfile.BadZipFile as exc:  # np.load would leave its file open on this
         raise CredcliError(f"{path}: not a readable .npz file ({exc})") from None
     except OSError:
         return  # np.load reports it
+    shapes: dict[str, tuple] = {}
     with archive:
         budget = memory_budget()
+        total = sum(info.file_size for info in archive.infolist())
+        if total > budget:
+            raise CredcliError(
+                f"{path}: its arrays inflate to {total / 2**30:.3g} GiB, more than the "
+                f"{budget / 2**30:.3g} GiB of memory credcli may use here"
+            )
         for info in archive.infolist():
-            if info.file_size > budget:
-                raise CredcliError(
-                    f"{path}: array {info.filename} inflates to {info.file_size / 2**30:.3g} GiB, "
-                    f"more than the {budget / 2**30:.3g} GiB of memory credcli may use here"
-                )
             try:
                 with archive.open(info) as member:
                     fmt = np.lib.format
@@ -445,9 +477,11 @@ def _check_npz_sizes(path: Path) -> None:
             declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
             if declared > info.file_size:
                 raise CredcliError(
-                    f"{path}: array {info.filename} declares {declared:,} bytes of data "
-                    f"but holds {info.file_size:,}; the file is damaged or not a log"
+                    f"{path}: array {shown(info.filename)} declares {declared:,} bytes of "
+                    f"data but holds {info.file_size:,}; the file is damaged or not a log"
                 )
+            shapes[info.filename.removesuffix(".npy")] = tuple(shape)
+    _check_npz_shapes(path, shapes)
 
 
 def load_npz(path: Path) -> EstimatorLog:
@@ -480,8 +514,15 @@ def load_npz(path: Path) -> EstimatorLog:
     if not path.exists():
         raise CredcliError(f"{path}: file not found")
     _check_npz_sizes(path)
+    known = {alias: arg for arg, aliases in NPZ_NAMES.items() for alias in aliases}
     try:
         with np.load(path, allow_pickle=False) as data:
+            unknown = sorted(set(data.files) - set(known))
+            if unknown:  # refused before any array is read
+                raise CredcliError(
+                    f"{path}: unknown array(s) {shown(', '.join(unknown))}; a credcli .npz "
+                    "holds " + ", ".join(a for aliases in NPZ_NAMES.values() for a in aliases[:1])
+                )
             arrays = {name: data[name] for name in data.files}
     except (
         OSError,
@@ -495,13 +536,6 @@ def load_npz(path: Path) -> EstimatorLog:
         # zipfile does not unpack
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise CredcliError(f"{path}: not a readable .npz file ({first})") from None
-    known = {alias: arg for arg, aliases in NPZ_NAMES.items() for alias in aliases}
-    unknown = sorted(set(arrays) - set(known))
-    if unknown:
-        raise CredcliError(
-            f"{path}: unknown array(s) {', '.join(unknown)}; a credcli .npz holds "
-            + ", ".join(a for aliases in NPZ_NAMES.values() for a in aliases[:1])
-        )
     if "cov" not in arrays:
         raise CredcliError(f"{path}: no 'cov' array (N, d, d): the claimed covariances")
     kwargs: dict = {}

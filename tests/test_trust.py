@@ -649,6 +649,36 @@ def test_a_compressed_log_that_unpacks_past_memory_is_refused(tmp_path, capsys, 
     assert "holds NUL bytes past its first 4,096 bytes" in capsys.readouterr().err
 
 
+def test_a_compressed_field_without_end_is_refused_as_it_is_unpacked(tmp_path, capsys):
+    """A 4 MB gzip of one 4 GiB line of zeros was unpacked whole and handed to pandas
+    (exit 2 after 33-40 s and 4.3 GB, "C error: out of memory"). A stretch of over 1 MiB
+    with no separator is refused while it is unpacked, whether it crosses two chunks or
+    many; names and lines up to that length are read."""
+    import gzip
+
+    from credcli.io import streams
+
+    header = b"time,truth_0,est_0,var_0\n"
+    rows = b"".join(b"%d,0,0.5,1\n" % i for i in range(40))
+    limit = streams._LONGEST_FIELD
+    for where, body in (
+        ("in one line", header + b"0" * (3 * limit)),
+        ("across a chunk edge", header + rows + b"7" * (limit - 200) + b"9" * 400 + b",1\n"),
+    ):
+        path = tmp_path / "bomb.csv.gz"
+        path.write_bytes(gzip.compress(body, compresslevel=1))
+        assert main(["diagnose", str(path)]) == 2, where
+        err = capsys.readouterr().err
+        assert "MiB with no separator" in err and err.count("\n") == 1, (where, err)
+    named = b"time,truth_0,est_0,var_0,segment\n" + b"".join(
+        b"%d,0,0.5,1,%s\n" % (i, b"s" * (limit - 100)) for i in range(40)
+    )
+    path = tmp_path / "long-names.csv.gz"
+    path.write_bytes(gzip.compress(named, compresslevel=1))
+    assert main(["diagnose", str(path), "-f", "json"]) == 0
+    capsys.readouterr()
+
+
 def test_a_log_is_read_without_mapping_it(tmp_path, monkeypatch):
     """Issue 32 item 5: pandas maps a large CSV named by path into memory, and a log cut
     short while it was read killed credcli with SIGBUS; it is read through a file object."""

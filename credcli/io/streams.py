@@ -39,6 +39,9 @@ _UNPACKERS = (
 """The compressed formats unpacked here, by their first bytes."""
 _TEXT_SUFFIXES = (".csv", ".txt", ".tum")
 _SEPARATORS = (b",", b"\n", b" ", b"\t")
+_LONGEST_FIELD = _CHUNK
+"""Bytes a stream's text may hold with no separator: no number, name or line of a log is a
+mebibyte long, while unpacked data of one repeated byte (a gzip bomb) run to gigabytes."""
 _BYTES_PER_FIELD = 16
 """Memory a text log's field takes as it is read: a float64, and about as much again while
 pandas parses."""
@@ -308,7 +311,7 @@ def _copy(source, first: bytes, local: Path, name: str, limit: int) -> None:
     bytes (as UTF-16 or binary). A NUL further on is refused here."""
     text = local.suffix in _TEXT_SUFFIXES
     budget = memory_budget() // _BYTES_PER_FIELD
-    fields = copied = 0
+    fields = copied = run = 0  # run: bytes since the last separator
     with open(local, "wb") as out:
         chunk = first
         while chunk:
@@ -329,6 +332,7 @@ def _copy(source, first: bytes, local: Path, name: str, limit: int) -> None:
                         "not CSV or text; check how it was written"
                     )
                 fields += sum(chunk.count(sep) for sep in _SEPARATORS)
+                run = _unseparated(chunk, run, name)
                 if fields > budget:
                     raise CredcliError(
                         f"{name}: unpacks to over {fields:,} fields, more than "
@@ -337,3 +341,18 @@ def _copy(source, first: bytes, local: Path, name: str, limit: int) -> None:
                     )
             out.write(chunk)
             chunk = source.read(_CHUNK)
+
+
+def _unseparated(chunk: bytes, run: int, name: str) -> int:
+    """The bytes since the last separator at the end of ``chunk``, ``run`` of them before
+    it; an error past :data:`_LONGEST_FIELD`. A stretch inside one chunk is shorter than the
+    chunk, so only stretches that cross chunks are measured: exact for a limit of a chunk."""
+    first = min((i for i in (chunk.find(sep) for sep in _SEPARATORS) if i >= 0), default=-1)
+    if run + (len(chunk) if first < 0 else first) > _LONGEST_FIELD:
+        raise CredcliError(
+            f"{name}: holds over {_LONGEST_FIELD // 2**20} MiB with no separator (comma, space, "
+            "tab or line end), so it is not a log's text; check how it was written"
+        )
+    if first < 0:
+        return run + len(chunk)
+    return len(chunk) - 1 - max(chunk.rfind(sep) for sep in _SEPARATORS)

@@ -676,12 +676,12 @@ def test_segments_without_a_scale_interval_print_in_every_format(tmp_path):
     from credcli import log_from_arrays, write_log
     from credcli.cli import main
 
-    gen = np.random.default_rng(3)
+    gen = np.random.default_rng(4)
     z = gen.standard_normal((400, 2))
     e = np.empty_like(z)
     e[0] = z[0]
-    for k in range(1, 400):  # AR(1), φ = 0.95: about 2 effective epochs in 50
-        e[k] = 0.95 * e[k - 1] + np.sqrt(1 - 0.95**2) * z[k]
+    for k in range(1, 400):  # AR(1), φ = 0.98: under one effective epoch in 50
+        e[k] = 0.98 * e[k - 1] + np.sqrt(1 - 0.98**2) * z[k]
     segment = np.repeat([f"w{i}" for i in range(8)], 50)
     path = tmp_path / "short.csv"
     write_log(log_from_arrays(np.eye(2), errors=e, segment=segment), path)

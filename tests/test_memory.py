@@ -251,3 +251,20 @@ def test_a_pickled_model_leaves_its_answers_behind_and_answers_the_same():
     assert "_memo" in series.__dict__ and "_memo" not in sent.series[0].__dict__
     np.testing.assert_array_equal(sent.series[0].test_window(50), before[0])
     assert sent.series[0].centred_square_moments(50) == before[1]
+
+
+def test_the_scale_tests_model_dof_pools_the_directions_fits():
+    """Each direction's τ₂ is fitted apart, so the model's ν for V = Σ V_i is Satterthwaite's
+    (Σ V_i)²/Σ(V_i²/ν_i): twice ν for two equal directions of ν each, four times ν when the
+    other direction is known (ν = ∞); it was the least certain direction's ν."""
+    from credcli.engine.scale import gls_residuals, memory_scale_test
+
+    rng = np.random.default_rng(31)
+    u = rng.standard_normal((2_000, 2))
+    residuals = gls_residuals(u, np.broadcast_to(np.eye(2), (2_000, 2, 2)))
+    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf)
+    for nus, expected in (((25.0, 25.0), 50.0), ((25.0, math.inf), 100.0)):
+        series = tuple(mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf, nu) for nu in nus)
+        model = mem.Memory(np.eye(2), series, white, 2_000)
+        test = memory_scale_test(residuals, model, 0.05)
+        assert test.model_dof == pytest.approx(expected, rel=1e-12)

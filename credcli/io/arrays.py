@@ -424,7 +424,8 @@ def _check_npz_shapes(path: Path, shapes: dict[str, tuple]) -> None:
     """Refuse arrays whose declared shapes fit no one number of epochs N and dimension d
     (one array of 2²⁸ epochs beside others of 2), before any is read."""
     known = {n: s for n, s in shapes.items() if any(n in a for a in NPZ_NAMES.values())}
-    sizes = {int(size) for shape in known.values() for size in shape}
+    # no array of a log has more than three axes: the candidates are a few dozen sizes
+    sizes = {int(size) for shape in known.values() if len(shape) <= 3 for size in shape}
     if not known or any(
         all(_shape_fits(name, shape, n, d) for name, shape in known.items())
         for n in sizes

@@ -278,7 +278,8 @@ def quartic_ratio(memory, n: int) -> float:
     float
         The ratio, at least 1 (1 for white errors).
     """
-    return float(np.mean([1.0 + 2.0 * np.sum(m.window(n)[1:] ** 4) for m in memory.series]))
+    # ρ is zero past the model's horizon: its kept lags are the whole sum
+    return float(np.mean([1.0 + 2.0 * np.sum(m.rho[1:n] ** 4) for m in memory.series]))
 
 
 def standardized(u: np.ndarray) -> np.ndarray:

@@ -97,29 +97,30 @@ NAME_LIMIT = 80
 
 
 def shortened(name: str, limit: int = NAME_LIMIT) -> str:
-    """A name from the data cut to about ``limit`` characters for a one-line message: past
-    it, its first ``limit − 20`` characters, an ellipsis and its length.
+    """A name from the data cut in the middle for a one-line message: past ``limit``
+    characters, its first ``limit − 40`` and last 39 around an ellipsis, and its length
+    (``credcli.io.files.shown`` cuts an escaped file name so).
 
     Parameters
     ----------
     name : str
         A segment's or file's name.
     limit : int, default NAME_LIMIT
-        The longest name shown whole.
+        The longest name shown whole (at least 41).
 
     Returns
     -------
     str
-        ``name``, or its start with ``… (N characters)``.
+        ``name``, or its start and end with ``(N characters)``.
 
     Examples
     --------
-    >>> shortened("s" * 100, 30)
-    'ssssssssss… (100 characters)'
+    >>> shortened("a" * 30 + "b" * 70, 50)
+    'aaaaaaaaaa…bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb (100 characters)'
     """
     if len(name) <= limit:
         return name
-    return f"{name[: max(limit - 20, 1)]}… ({len(name):,} characters)"
+    return f"{name[: limit - 40]}…{name[-39:]} ({len(name):,} characters)"
 
 
 def plain(message: str) -> str:

@@ -19,7 +19,7 @@ import stat
 from collections.abc import Iterable
 from pathlib import Path
 
-from credcli.errors import CredcliError
+from credcli.errors import CredcliError, shortened
 
 MAX_CONFIG_BYTES = 1 << 20
 """Largest config file read (1 MiB; credcli's every setting fits in a few kB)."""
@@ -446,10 +446,9 @@ def shown(name: object, limit: int = 120) -> str:
     >>> shown("out\nreport.json")
     'out\\nreport.json'
     """
-    text = str(name).encode("unicode_escape", "backslashreplace").decode("ascii", "replace")
-    if len(text) <= limit:
-        return text
-    return f"{text[: limit - 40]}…{text[-39:]} ({len(text):,} characters)"
+    return shortened(
+        str(name).encode("unicode_escape", "backslashreplace").decode("ascii", "replace"), limit
+    )
 
 
 USER_ERRNOS = frozenset(

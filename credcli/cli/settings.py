@@ -237,10 +237,17 @@ def build_reading(config: dict, cli: dict) -> ReadOptions:
     """
     values = merged(config, "input", cli)
     if values.get("truth") is not None:
-        values["truth"] = str(values["truth"])
-        if not values["truth"].strip():  # Path("") is the current directory
-            raise CredcliError("`truth` is empty; name the ground-truth file or bag")
+        values["truth"] = truth_name(values["truth"])
     return built(ReadOptions, values, config, "input", cli)
+
+
+def truth_name(value) -> str:
+    """A ``truth`` setting as the path text it names; an empty one is refused, since
+    ``Path("")`` is the current directory."""
+    name = str(value)
+    if not name.strip():
+        raise CredcliError("`truth` is empty; name the ground-truth file or bag")
+    return name
 
 
 def segment_settings(
@@ -576,9 +583,7 @@ def gate_request(
         },
     )
     if truth is None and config.get("input", {}).get("truth") is not None:
-        if not str(config["input"]["truth"]).strip():
-            raise CredcliError("`truth` is empty; name the ground-truth file or bag")
-        truth = Path(str(config["input"]["truth"]))  # named by the user's config, not the baseline
+        truth = Path(truth_name(config["input"]["truth"]))  # the user's config, not the baseline
     reading = baseline.reading
     recorded_truth = reading.options.truth
     # a baseline carries settings, never paths: only the command line names files to read

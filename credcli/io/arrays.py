@@ -407,15 +407,17 @@ NPZ_NAMES = {
 }
 """The arrays of a credcli ``.npz`` log, by argument of :func:`log_from_arrays`, with the
 names each may have in the file."""
+_NPZ_ARGUMENTS = {alias: arg for arg, aliases in NPZ_NAMES.items() for alias in aliases}
+"""Each name an ``.npz`` array may have, to its argument of :func:`log_from_arrays`."""
 
 
-def _shape_fits(name: str, shape: tuple, n: int, d: int) -> bool:
-    """Whether an array called ``name`` (an alias of :data:`NPZ_NAMES`) of ``shape`` can be
-    read as a log of ``n`` epochs in ``d`` dimensions, as :func:`log_from_arrays` reads it
-    (a transposed (d, N) array too, which it names as such)."""
-    if name == "cov":
+def _shape_fits(argument: str, shape: tuple, n: int, d: int) -> bool:
+    """Whether an array for ``argument`` of :func:`log_from_arrays` of ``shape`` can be
+    read as a log of ``n`` epochs in ``d`` dimensions, as that function reads it (a
+    transposed (d, N) array too, which it names as such)."""
+    if argument == "cov":
         return shape in ((n, d, d), (d, d), (n, d), (d, n)) or shape == (n,) and d == 1
-    if name in NPZ_NAMES["time"] + NPZ_NAMES["segment"] + NPZ_NAMES["run"]:
+    if argument in ("time", "segment", "run"):
         return shape == (n,)
     return shape in ((n,), (n, d), (d, n), (n, d, 1)) and (len(shape) > 1 or d == 1)
 
@@ -423,11 +425,11 @@ def _shape_fits(name: str, shape: tuple, n: int, d: int) -> bool:
 def _check_npz_shapes(path: Path, shapes: dict[str, tuple]) -> None:
     """Refuse arrays whose declared shapes fit no one number of epochs N and dimension d
     (one array of 2²⁸ epochs beside others of 2), before any is read."""
-    known = {n: s for n, s in shapes.items() if any(n in a for a in NPZ_NAMES.values())}
+    known = {name: shape for name, shape in shapes.items() if name in _NPZ_ARGUMENTS}
     # no array of a log has more than three axes: the candidates are a few dozen sizes
     sizes = {int(size) for shape in known.values() if len(shape) <= 3 for size in shape}
     if not known or any(
-        all(_shape_fits(name, shape, n, d) for name, shape in known.items())
+        all(_shape_fits(_NPZ_ARGUMENTS[name], shape, n, d) for name, shape in known.items())
         for n in sizes
         for d in sizes | {1}
     ):
@@ -515,10 +517,9 @@ def load_npz(path: Path) -> EstimatorLog:
     if not path.exists():
         raise CredcliError(f"{path}: file not found")
     _check_npz_sizes(path)
-    known = {alias: arg for arg, aliases in NPZ_NAMES.items() for alias in aliases}
     try:
         with np.load(path, allow_pickle=False) as data:
-            unknown = sorted(set(data.files) - set(known))
+            unknown = sorted(set(data.files) - set(_NPZ_ARGUMENTS))
             if unknown:  # refused before any array is read
                 raise CredcliError(
                     f"{path}: unknown array(s) {shown(', '.join(unknown))}; a credcli .npz "
@@ -541,12 +542,12 @@ def load_npz(path: Path) -> EstimatorLog:
         raise CredcliError(f"{path}: no 'cov' array (N, d, d): the claimed covariances")
     kwargs: dict = {}
     for name, value in arrays.items():
-        if known[name] in kwargs:
-            both = " and ".join(a for a in NPZ_NAMES[known[name]] if a in arrays)
+        if _NPZ_ARGUMENTS[name] in kwargs:
+            both = " and ".join(a for a in NPZ_NAMES[_NPZ_ARGUMENTS[name]] if a in arrays)
             raise CredcliError(
-                f"{path}: arrays {both} are two names of `{known[name]}`; keep one of them"
+                f"{path}: arrays {both} are two names of `{_NPZ_ARGUMENTS[name]}`; keep one of them"
             )
-        kwargs[known[name]] = value
+        kwargs[_NPZ_ARGUMENTS[name]] = value
     try:
         return log_from_arrays(source=str(path), **kwargs)
     except CredcliError as exc:

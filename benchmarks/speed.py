@@ -72,6 +72,11 @@ def _child(argv: list[str]) -> tuple[float, float, float]:
     return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
 
 
+def diagnose_argv(log: str, out: str) -> list[str]:
+    """The measured command line: ``credcli diagnose LOG -f json -o OUT`` in a child."""
+    return [sys.executable, "-m", "credcli", "diagnose", log, "-f", "json", "-o", out]
+
+
 def medians(runs: dict[str, list[tuple[float, float, float]]]) -> dict:
     """Per name: the median wall and CPU seconds of its runs (:func:`_child`) and their
     largest peak RSS (MiB)."""
@@ -180,8 +185,7 @@ def main(argv: list[str] | None = None) -> int:
             runs: dict[str, list[tuple[float, float, float]]] = {"plain": [], "credcli": []}
             for _ in range(args.rounds):
                 runs["plain"].append(_child([*plain, log]))
-                cmd = [sys.executable, "-m", "credcli", "diagnose", log, "-f", "json", "-o", out]
-                runs["credcli"].append(_child(cmd))
+                runs["credcli"].append(_child(diagnose_argv(log, out)))
                 os.unlink(out)
             med = medians(runs)
             (pw, pc, _), (cw, cc, peak) = med["plain"], med["credcli"]

@@ -66,18 +66,7 @@ def main(argv: list[str] | None = None) -> int:
                 for name, tree in trees.items():
                     os.environ["PYTHONPATH"] = str(tree)
                     out = str(Path(tmp) / f"{name}.json")
-                    cmd = [
-                        sys.executable,
-                        "-m",
-                        "credcli",
-                        "diagnose",
-                        log,
-                        "-f",
-                        "json",
-                        "-o",
-                        out,
-                    ]
-                    runs[name].append(speed._child(cmd))
+                    runs[name].append(speed._child(speed.diagnose_argv(log, out)))
                     os.unlink(out)
             os.chdir(ROOT)
             wall, cpu, peak = ({k: m[i] for k, m in speed.medians(runs).items()} for i in range(3))

@@ -242,8 +242,23 @@ def build_reading(config: dict, cli: dict) -> ReadOptions:
 
 
 def truth_name(value) -> str:
-    """A ``truth`` setting as the path text it names; an empty one is refused, since
-    ``Path("")`` is the current directory."""
+    """A ``truth`` setting as the path text it names.
+
+    Parameters
+    ----------
+    value : object
+        The setting (a path or a string, from the command line or a config).
+
+    Returns
+    -------
+    str
+        Its text.
+
+    Raises
+    ------
+    CredcliError
+        If it is empty or blank: ``Path("")`` would be the current directory.
+    """
     name = str(value)
     if not name.strip():
         raise CredcliError("`truth` is empty; name the ground-truth file or bag")

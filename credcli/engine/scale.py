@@ -754,15 +754,19 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
     q = residuals.q
     n, d = residuals.whitened.shape
     total = float(q.sum())
-    expected = gaussian = spread = 0.0
+    expected = gaussian = 0.0
+    shared: dict[int, list] = {}  # one entry per distinct model: [model, Σ V_i it serves]
     for series in memory.series:
         e_i, v_i = series.centred_square_moments(n)
         expected += e_i
         gaussian += v_i
-        spread += v_i * v_i / series.square_dof  # Var(V_i)/2: each direction fitted apart
+        shared.setdefault(id(series), [series, 0.0])[1] += v_i
+    # Var(V)/2 from each distinct model's ν: directions fitted apart are independent, and
+    # directions that share one model (memory.fit_memory) share its error
+    spread = sum(v * v / series.square_dof for series, v in shared.values())
     kappa = total / expected
     gaussian *= tail_factor(standardized(residuals.whitened), memory_ratio=quartic_ratio(memory, n))
-    # ν of V = Σ V_i from each direction's ν (Satterthwaite): their fits are independent
+    # ν of V = Σ V_i from each model's ν (Satterthwaite)
     dof_model = gaussian * gaussian / spread if spread > 0 else math.inf
     variance = gaussian
     if kappa > 0:

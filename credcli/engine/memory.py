@@ -968,10 +968,10 @@ def fit_memory(
     orders = fit.orders(minimum)
     lifted: list[int] = []
     common = _common_model(fit, stacked[:d], orders, minimum, p_max, runs) if d > 1 else None
-    if common is not None:
+    if common is not None:  # directions whose own model has less memory take the common one
         pooled, p = common
-        mine = _log_taus(fit.reflection[:d], orders[:d])
-        lifted = [i for i in range(d) if _log_taus(pooled.reflection, [p])[0] > mine[i]]
+        shared_tau = _log_taus(pooled.reflection, [p])[0]
+        lifted = np.flatnonzero(_log_taus(fit.reflection[:d], orders[:d]) < shared_tau).tolist()
     keep = [i for i in range(d + 1) if i not in lifted]
     memories = dict(zip(keep, _separate_memories(fit, orders, minimum, p_max, n, t, cover, keep)))
     if lifted:

@@ -321,3 +321,24 @@ def test_the_bootstrap_refits_shared_models_on_all_their_segments():
         mem.bootstrap_spread([phi], 300, 4, seed=s, minimum=1, segments=2)[0][0] for s in range(10)
     ]
     assert 0.35 < np.mean(two) / np.mean(one) < 0.7
+
+
+def test_the_lowest_frequency_check_skips_a_direction_it_cannot_predict():
+    """A model whose correlation is 1 at every lag of the segment predicts no power at
+    2π/N (the Fejér kernel's zero), which the sum gives as rounding of either sign: that
+    direction is left out (it read "inf× as much" before, p 0), and a white direction
+    beside it is checked alone, I/γ₀ against Exp(1)."""
+    rng = np.random.default_rng(5)
+    n = 300
+    x = rng.standard_normal((n, 2))
+    flat = mem.SeriesMemory(np.array([0.999]), np.ones(n), 10.0)
+    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf)
+    variances = np.array([1.3, 0.7])
+    alone = mem.Memory(np.eye(2), (flat, flat), white, n)
+    assert math.isnan(mem.lowest_frequency_check(x, alone, variances)[0])
+    assert mem.lowest_frequency_check(x, alone, variances)[1] == 1.0
+    beside = mem.Memory(np.eye(2), (flat, white), white, n)
+    ratio, pvalue = mem.lowest_frequency_check(x, beside, variances)
+    ordinate = abs(np.sum(x[:, 1] * np.exp(-2j * np.pi * np.arange(n) / n))) ** 2 / n
+    assert ratio == pytest.approx(ordinate / 0.7, rel=1e-9)
+    assert pvalue == pytest.approx(math.exp(-ordinate / 0.7), rel=1e-9)

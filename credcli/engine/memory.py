@@ -1328,6 +1328,11 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     )
 
 
+LOWEST_CHECKED = 1e-9
+"""Smallest expected periodogram at the lowest frequency, relative to the size of the sum
+that gives it, that :func:`lowest_frequency_check` trusts (below: cancellation)."""
+
+
 def lowest_frequency_check(
     rotated: np.ndarray, memory: Memory, variances: np.ndarray
 ) -> tuple[float, float]:
@@ -1350,8 +1355,10 @@ def lowest_frequency_check(
     Returns
     -------
     ratio, pvalue : tuple of float
-        S/d and P(Gamma(d, 1) ≥ S), S the sum over directions of the periodogram over its
-        expectation under the model.
+        S/d' and P(Gamma(d', 1) ≥ S), S the sum over the d' directions whose model predicts
+        power there of the periodogram over that expectation; (NaN, 1.0) where no
+        direction's does (memory spanning the segment, which the resolution rule
+        declines).
 
     Notes
     -----
@@ -1375,6 +1382,12 @@ def lowest_frequency_check(
     ordinate = np.abs(phase @ rotated) ** 2 / n
     weights = (1.0 - h[1:] / n) * np.cos(2.0 * np.pi * h[1:] / n)
     expected = np.array([1.0 + 2.0 * float(weights @ m.window(n)[1:]) for m in memory.series])
-    expected = variances * np.maximum(expected, np.finfo(float).tiny)
-    total = float(np.sum(ordinate / expected))
-    return total / d, float(special.gammaincc(d, total))
+    # a model whose memory spans the segment predicts almost no power at 2π/N (none for a
+    # constant), and the sum above cancels to rounding, or below zero where the bias
+    # correction stretched ρ: such a direction has no prediction to check
+    checked = expected > LOWEST_CHECKED * (1.0 + 2.0 * np.abs(weights).sum())
+    if not checked.any():
+        return math.nan, 1.0
+    total = float(np.sum(ordinate[checked] / (variances[checked] * expected[checked])))
+    count = int(checked.sum())
+    return total / count, float(special.gammaincc(count, total))

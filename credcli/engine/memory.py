@@ -1050,7 +1050,8 @@ def _common_model(fit, y, orders, minimum, p_max, runs):
     orders : numpy.ndarray of int
         The AICc orders of ``fit``'s series.
     minimum, p_max : int
-        The smallest and largest orders.
+        The smallest and largest orders; the common model's order is at most
+        2 max_i p_i + 4 (the bootstrap's search).
     runs : int
         The runs pooled in each series.
 
@@ -1063,8 +1064,11 @@ def _common_model(fit, y, orders, minimum, p_max, runs):
     d, _, t = y.shape
     unit = np.sqrt(np.mean(y * y, axis=(1, 2)))
     z = y / np.where(unit > 0, unit, 1.0)[:, None, None]
-    pooled = burg(z.reshape(1, d * runs, t), p_max)
-    p = int(pooled.orders(minimum)[0])
+    # orders up to the bootstrap's search beyond the directions' own (a model that needs
+    # many more lags than any direction's is no common description of them)
+    search = min(p_max, 2 * int(orders[:d].max()) + 4)
+    pooled = burg(z.reshape(1, d * runs, t), search)
+    p = int(pooled.orders(min(minimum, search))[0])
     first = max(p, int(orders[:d].max()))
     epochs = runs * (t - first)
     own = [_log_mean_square(z[i], fit.coefficients(i, int(orders[i])), first) for i in range(d)]

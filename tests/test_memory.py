@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.linalg import toeplitz
 from scipy.signal import lfilter
 
@@ -342,3 +344,36 @@ def test_the_lowest_frequency_check_skips_a_direction_it_cannot_predict():
     ordinate = abs(np.sum(x[:, 1] * np.exp(-2j * np.pi * np.arange(n) / n))) ** 2 / n
     assert ratio == pytest.approx(ordinate / 0.7, rel=1e-9)
     assert pvalue == pytest.approx(math.exp(-ordinate / 0.7), rel=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    k=st.integers(1, 4),
+    m=st.integers(1, 3),
+    t=st.integers(8, 400),
+    order=st.integers(1, 6),
+    smooth=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_the_compiled_burg_update_gives_numpys_bits(k, m, t, order, smooth, seed):
+    """Issue 35: Burg's recursion with the compiled update of its prediction errors
+    (numba, when installed) gives the reflection coefficients and innovation variances of
+    the numpy path bit for bit, on white and on near-unit-root series."""
+    from credcli.engine import compiled
+
+    if compiled.burg_update_kernel() is None:
+        pytest.skip("numba is not installed (the extra `fast`)")
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((k, m, t))
+    if smooth:
+        x = np.cumsum(x, axis=2) + 0.1 * x
+    x = x - x.mean(axis=2, keepdims=True)
+    order = min(order, t // 4)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(mem, "_update_kernel", lambda work: None)
+        want = mem.burg(x, order)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(mem, "_update_kernel", lambda work: compiled.burg_update_kernel())
+        got = mem.burg(x, order)
+    np.testing.assert_array_equal(got.reflection, want.reflection)
+    np.testing.assert_array_equal(got.variance, want.variance)

@@ -1,9 +1,11 @@
-"""A compiled kernel for the pair matrix of the ELT (Eq. (14)), with numba (``pip install
-credcli[fast]``): one pass over a band of rows writes A's float64 and float32 entries and
-sums |A_ij|, where numpy makes about ten passes. :mod:`credcli.engine.flips` uses it once a
-process has built enough pairs to repay numba's start-up, and numpy before that or without
-numba; both give the same bits. numba is imported here only, when that first happens (never
-on the command line's start-up path).
+"""Compiled kernels, with numba (``pip install credcli[fast]``): the pair matrix of the
+ELT (Eq. (14)), where one pass over a band of rows writes A's float64 and float32 entries
+and sums |A_ij| where numpy makes about ten passes; and the update of Burg's prediction
+errors (:func:`credcli.engine.memory.burg`), one pass per order where numpy makes five.
+:mod:`credcli.engine.flips` and :mod:`credcli.engine.memory` use them once a process has
+done enough of that work to repay numba's start-up, and numpy before that or without
+numba; both paths give the same bits. numba is imported here only, when that first
+happens (never on the command line's start-up path).
 """
 
 from __future__ import annotations
@@ -74,3 +76,35 @@ def _pair_band(sq, two_gram, k, start, plus, row0, col0, out32):  # pragma: no c
                 c += 1
             absolute += (a0 + a1) + (a2 + a3)
     return absolute
+
+
+def _burg_update(f, b, kappa, p):  # pragma: no cover
+    k, m, t = f.shape
+    for i in range(k):
+        c = kappa[i]
+        for j in range(m):
+            for s in range(t - 1, p - 1, -1):
+                old = f[i, j, s]
+                f[i, j, s] = old + c * b[i, j, s - 1]
+                b[i, j, s] = b[i, j, s - 1] + c * old
+
+
+@functools.lru_cache(maxsize=1)
+def burg_update_kernel():
+    """The compiled update of Burg's prediction errors, or None where numba cannot be
+    imported.
+
+    Returns
+    -------
+    callable or None
+        ``kernel(f, b, kappa, p)``: for every series i, segment and epoch s >= p, from the
+        last epoch back, f[i, ·, s] += κ_i b[i, ·, s − 1] and b[i, ·, s] = b[i, ·, s − 1] +
+        κ_i f[i, ·, s] (its value before), on whole C-ordered (k, m, T) arrays: the numpy
+        path of :func:`credcli.engine.memory.burg` in one pass, each entry the same two
+        correctly rounded operations (a product, then a sum), so the same bits.
+    """
+    try:
+        import numba
+    except ImportError:  # the numpy path
+        return None
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(_burg_update)

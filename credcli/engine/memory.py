@@ -38,12 +38,14 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import special
 from scipy.linalg import lapack
 
+from credcli.engine import compiled
 from credcli.engine.units import power_of_two_unit
 
 MAX_ORDER_CAP = 60
@@ -154,6 +156,22 @@ class BurgFit:
 
 BURG_CHUNK = 1 << 16
 """Epochs per chunk of Burg's in-place update (bounded temporaries on long runs)."""
+KERNEL_UPDATES = 50_000_000
+"""Series × epochs × orders of Burg's recursion a process runs with numpy before it turns
+to the compiled update (:func:`credcli.engine.compiled.burg_update_kernel`, when numba is
+installed; at once where numba is loaded already): numba's import and first call are
+repaid by then. Both give the same bits, so the choice never shows in a result."""
+
+_updates_done = [0]  # Burg work this process has done (forked workers start from their parent's)
+
+
+def _update_kernel(work: int):
+    """The compiled Burg update once this process has done :data:`KERNEL_UPDATES` of
+    Burg's work, or where numba is loaded already; None before that, or without numba."""
+    _updates_done[0] += work
+    if _updates_done[0] <= KERNEL_UPDATES and "numba" not in sys.modules:
+        return None
+    return compiled.burg_update_kernel()
 
 
 def burg(x: np.ndarray, order: int) -> BurgFit:
@@ -194,6 +212,7 @@ def burg(x: np.ndarray, order: int) -> BurgFit:
     variance = np.empty((k, order + 1))
     variance[:, 0] = np.einsum("kmt,kmt->k", x, x) / (m * t)
     reflection = np.zeros((k, order))
+    kernel = _update_kernel(k * m * t * order)
     for p in range(1, order + 1):
         fp = f[:, :, p:]
         bp = b[:, :, p - 1 : -1]
@@ -203,6 +222,9 @@ def burg(x: np.ndarray, order: int) -> BurgFit:
         kappa = np.clip(kappa, -1.0 + 1e-12, 1.0 - 1e-12)
         reflection[:, p - 1] = kappa
         variance[:, p] = variance[:, p - 1] * (1.0 - kappa**2)
+        if kernel is not None:
+            kernel(f, b, kappa, p)
+            continue
         k3 = kappa[:, None, None]
         # f_t += κ b_{t−1} and b_t = b_{t−1} + κ f_t (old f_t) in place, in chunks of
         # epochs from the end: a chunk reads b one epoch before it, which no later (that

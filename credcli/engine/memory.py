@@ -180,7 +180,8 @@ def burg(x: np.ndarray, order: int) -> BurgFit:
     The forward and backward prediction errors of every segment enter one reflection
     coefficient: the segments share a model and nothing else. A loop over orders (at most
     :data:`MAX_ORDER_CAP`), vectorised over series and epochs; the prediction errors are
-    updated in place in chunks of :data:`BURG_CHUNK` epochs.
+    updated in place in chunks of :data:`BURG_CHUNK` epochs, or by the compiled kernel in
+    one pass (:func:`_update_kernel`; the same bits).
 
     Parameters
     ----------

@@ -35,6 +35,7 @@ from credcli.engine.scale import (
     direction_scales,
     gls_residuals,
     memory_scale_test,
+    memory_tail_factor,
     scale_test,
     untested_scale,
 )
@@ -929,7 +930,8 @@ def memory_evidence(
         mean = batches.independent_mean_test(gls, 1.0)
         plan = split_location(config, n, 1, 1, mean, None, _MEMORY_BLOCKS.format(block=1))
         return ModelEvidence(scale, None, directions, plan)
-    scale = memory_scale_test(gls, memory, level)
+    tail = memory_tail_factor(gls, memory)
+    scale = memory_scale_test(gls, memory, level, tail)
     mean, stderr = batches.memory_mean_test(gls, memory, inverse)
     scale = replace(scale, bias_stderr=stderr)
     tau = float(np.max(memory.variance_ratios))
@@ -943,7 +945,7 @@ def memory_evidence(
             f"{MIN_MODEL_DOF} an interval needs"
         )
     else:
-        directions = direction_scales(gls, level, 0, memory) if d > 1 else None
+        directions = direction_scales(gls, level, 0, memory, tail) if d > 1 else None
         scale_reason = None
     why_not = None
     if not mean.dof[1] >= MIN_MEAN_DOF:

@@ -591,7 +591,11 @@ class DirectionScales:
 
 
 def direction_scales(
-    residuals: GlsResiduals, level: float, batches: int = 0, memory=None
+    residuals: GlsResiduals,
+    level: float,
+    batches: int = 0,
+    memory=None,
+    tail: float | None = None,
 ) -> DirectionScales:
     """Per-direction factors of the whitened GLS residuals u_k (N, d).
 
@@ -619,6 +623,9 @@ def direction_scales(
     memory : Memory or None
         A fitted dependence model (``credcli.engine.memory.Memory``); it takes precedence
         over ``batches`` (default None).
+    tail : float or None
+        With ``memory``: :func:`memory_tail_factor` of these residuals, where the caller
+        has it (default None: computed here).
 
     Returns
     -------
@@ -638,7 +645,7 @@ def direction_scales(
     if memory is not None:
         moments = [m.centred_square_moments(n) for m in memory.series]
         expected, variance = min(moments, key=lambda ev: 2.0 * ev[0] ** 2 / ev[1])
-        variance *= tail_factor(standardized(u), memory_ratio=quartic_ratio(memory, n))
+        variance *= memory_tail_factor(residuals, memory) if tail is None else tail
         c = variance / (2.0 * expected)
         dof = 2.0 * expected * expected / variance
         upper = _studentized_chi2_quantile(dof, memory.square_dof, each / 2, upper=True)
@@ -713,7 +720,30 @@ def sphericity_pvalue(residuals: GlsResiduals, batches: int = 0) -> float | None
     return float(special.chdtrc(m, max(statistic, 0.0)))
 
 
-def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTest:
+def memory_tail_factor(residuals: GlsResiduals, memory) -> float:
+    """The tail factor of the standardized residuals under a dependence model's memory
+    (:func:`tail_factor` with :func:`quartic_ratio`), which the overall and the
+    per-direction scale tests share.
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals of the segment.
+    memory : Memory
+        The fitted dependence model (``credcli.engine.memory.Memory``).
+
+    Returns
+    -------
+    float
+        f >= 1.
+    """
+    n = residuals.whitened.shape[0]
+    return tail_factor(standardized(residuals.whitened), memory_ratio=quartic_ratio(memory, n))
+
+
+def memory_scale_test(
+    residuals: GlsResiduals, memory, level: float, tail: float | None = None
+) -> ScaleTest:
     r"""The scale test of serially dependent errors under a fitted dependence model
     (:class:`credcli.engine.memory.Memory`, possibly fitted on a whole run of which these
     epochs are a window).
@@ -743,6 +773,8 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
         series memories and the memory of the squares.
     level : float
         α_S, the two-sided level.
+    tail : float, optional
+        :func:`memory_tail_factor` of these residuals and model, where the caller has it.
 
     Returns
     -------
@@ -765,7 +797,7 @@ def memory_scale_test(residuals: GlsResiduals, memory, level: float) -> ScaleTes
     # directions that share one model (memory.fit_memory) share its error
     spread = sum(v * v / series.square_dof for series, v in shared.values())
     kappa = total / expected
-    gaussian *= tail_factor(standardized(residuals.whitened), memory_ratio=quartic_ratio(memory, n))
+    gaussian *= memory_tail_factor(residuals, memory) if tail is None else tail
     # ν of V = Σ V_i from each model's ν (Satterthwaite)
     dof_model = gaussian * gaussian / spread if spread > 0 else math.inf
     variance = gaussian

@@ -659,9 +659,7 @@ def bootstrap_spread(
 
     Notes
     -----
-    τ of each refit comes from its reflection coefficients k_j without forming the
-    autocorrelation: γ(0) = σ²_p/Π(1 − k_j²) and A(1) = Π(1 + k_j), so
-    τ = σ²_p/(A(1)²γ(0)) = Π_j (1 − k_j)/(1 + k_j).
+    τ of each refit comes from its reflection coefficients (:func:`_log_taus`).
     """
     gen = np.random.default_rng(np.random.SeedSequence([seed, n, p_max, len(phis)]))
     b = BOOTSTRAP_REPLICATES
@@ -675,11 +673,7 @@ def bootstrap_spread(
     draws -= draws.mean(axis=2, keepdims=True)
     fit = burg(draws.reshape(len(phis) * b, segments, n), p_max)
     orders = fit.orders(minimum)
-    # τ of an AR(p) from its reflection coefficients: γ(0) = σ²_p/Π(1 − k_j²) and
-    # A(1) = Π(1 + k_j) (Levinson's step at z = 1), so τ = σ²_p/(A(1)²γ(0)) = Π (1 − k_j)/(1 + k_j)
-    steps = np.log1p(-fit.reflection) - np.log1p(fit.reflection)
-    cumulative = np.concatenate([np.zeros((steps.shape[0], 1)), np.cumsum(steps, axis=1)], axis=1)
-    logs = np.maximum(cumulative[np.arange(orders.size), orders], 0.0).reshape(len(phis), b)
+    logs = _log_taus(fit.reflection, orders).reshape(len(phis), b)
     truths = np.array([_log_tau(phi, 1.0) for phi in phis])
     squares = np.log(_square_ratios(fit.reflection, orders)).reshape(len(phis), b)
     return (
@@ -997,33 +991,28 @@ def fit_memory(
         shared_tau = _log_taus(pooled.reflection, [p])[0]
         lifted = np.flatnonzero(_log_taus(fit.reflection[:d], orders[:d]) < shared_tau).tolist()
     keep = [i for i in range(d + 1) if i not in lifted]
-    memories = dict(zip(keep, _separate_memories(fit, orders, minimum, p_max, n, t, cover, keep)))
+    memories = dict(zip(keep, _fitted_memories(fit, orders, minimum, p_max, n, t, cover, keep)))
     if lifted:
-        try:  # singular only for a root on the unit circle
-            search = min(p_max, 2 * p + 4)
-            spread = bootstrap_spread(
-                [pooled.coefficients(0, p)], n, search, p, minimum, segments=d
-            )
-            floor = t if cover is None else min(t, int(cover))
-            shared = series_memory(pooled, 0, floor, tuple(v[0] for v in spread), minimum)
-        except np.linalg.LinAlgError as exc:
-            raise NoFiniteMemory(str(exc)) from exc
-        memories.update(dict.fromkeys(lifted, shared))
+        shared = _fitted_memories(pooled, [p], minimum, p_max, n, t, cover, [0], segments=d)
+        memories.update(dict.fromkeys(lifted, shared[0]))
     return Memory(directions, tuple(memories[i] for i in range(d)), memories[d], n, runs)
 
 
 def _log_taus(reflection: np.ndarray, orders) -> np.ndarray:
-    """log max(τ, 1) of AR models from their reflection coefficients (rows) at ``orders``:
-    τ = Π_{j <= p} (1 − k_j)/(1 + k_j) (:func:`bootstrap_spread`'s Notes)."""
+    """log max(τ, 1) of AR models from their reflection coefficients k_j (rows) at
+    ``orders``, without forming the autocorrelation: γ(0) = σ²_p/Π(1 − k_j²) and
+    A(1) = Π(1 + k_j) (Levinson's step at z = 1), so τ = σ²_p/(A(1)²γ(0)) =
+    Π_{j <= p} (1 − k_j)/(1 + k_j)."""
     steps = np.log1p(-reflection) - np.log1p(reflection)
-    taus = [float(np.sum(steps[i, : int(p)])) for i, p in enumerate(orders)]
-    return np.maximum(np.array(taus), 0.0)
+    cumulative = np.concatenate([np.zeros((steps.shape[0], 1)), np.cumsum(steps, axis=1)], axis=1)
+    return np.maximum(cumulative[np.arange(len(orders)), np.asarray(orders, dtype=int)], 0.0)
 
 
-def _separate_memories(fit, orders, minimum, p_max, n, t, cover, picked) -> list:
+def _fitted_memories(fit, orders, minimum, p_max, n, t, cover, picked, segments=1) -> list:
     """One :class:`SeriesMemory` for each series of ``fit`` in ``picked`` at its order, with
     the bootstrap's spread of every one of order > 0 (one bootstrap call, seeded by their
-    orders)."""
+    orders; ``segments`` series per replicate for a model fitted on that many)."""
+    orders = np.asarray(orders)
     spreads: dict = {}
     fitted = [int(i) for i in picked if orders[i] > 0]
     try:  # the models' Yule–Walker systems: singular only for a root on the unit circle
@@ -1031,7 +1020,7 @@ def _separate_memories(fit, orders, minimum, p_max, n, t, cover, picked) -> list
             phis = [fit.coefficients(i, int(orders[i])) for i in fitted]
             search = min(p_max, 2 * int(orders[fitted].max()) + 4)
             seed = int(orders[list(picked)].sum())
-            spread, bias, square = bootstrap_spread(phis, n, search, seed, minimum)
+            spread, bias, square = bootstrap_spread(phis, n, search, seed, minimum, segments)
             for i, v, b, w in zip(fitted, spread, bias, square):
                 spreads[i] = (v, b, w)
         floor = t if cover is None else min(t, int(cover))

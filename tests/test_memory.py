@@ -377,3 +377,16 @@ def test_the_compiled_burg_update_gives_numpys_bits(k, m, t, order, smooth, seed
         got = mem.burg(x, order)
     np.testing.assert_array_equal(got.reflection, want.reflection)
     np.testing.assert_array_equal(got.variance, want.variance)
+
+
+def test_a_memory_lists_its_distinct_models_with_the_directions_they_serve():
+    """Memory.models: a model object per entry, with the directions holding it (the
+    scale test counts a shared model's error once, from this list)."""
+    one = mem.SeriesMemory(np.array([0.5]), 0.5 ** np.arange(20), 30.0)
+    own = mem.SeriesMemory(np.array([0.2]), 0.2 ** np.arange(20), 40.0)
+    white = mem.SeriesMemory(np.zeros(0), np.ones(1), math.inf)
+    model = mem.Memory(np.eye(3), (one, own, one), white, 500)
+    assert [(m is one, m is own, served) for m, served in model.models()] == [
+        (True, False, (0, 2)),
+        (False, True, (1,)),
+    ]

@@ -834,6 +834,22 @@ class Memory(_Answering):
         """ν of τ₂ = Σρ² of the least certain direction (the scale's reference)."""
         return float(min(m.square_dof for m in self.series))
 
+    def models(self) -> list[tuple[SeriesMemory, tuple[int, ...]]]:
+        """The distinct models of the directions, each with the directions it serves.
+
+        Returns
+        -------
+        list of (SeriesMemory, tuple of int)
+            One entry per model object in :attr:`series`, in order of first use: a model
+            fitted on one direction serves that one; the directions' common model
+            (:func:`_common_model`) serves every direction that took it, which share its
+            estimation error.
+        """
+        served: dict[int, tuple[SeriesMemory, list[int]]] = {}
+        for i, series in enumerate(self.series):
+            served.setdefault(id(series), (series, []))[1].append(i)
+        return [(series, tuple(index)) for series, index in served.values()]
+
     @_memoised
     def block_length(self, loss: float) -> int:
         """The shortest sign block that loses at most ``loss`` of the variance in every

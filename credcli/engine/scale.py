@@ -786,16 +786,15 @@ def memory_scale_test(
     q = residuals.q
     n, d = residuals.whitened.shape
     total = float(q.sum())
-    expected = gaussian = 0.0
-    shared: dict[int, list] = {}  # one entry per distinct model: [model, Σ V_i it serves]
-    for series in memory.series:
-        e_i, v_i = series.centred_square_moments(n)
-        expected += e_i
-        gaussian += v_i
-        shared.setdefault(id(series), [series, 0.0])[1] += v_i
+    moments = [series.centred_square_moments(n) for series in memory.series]
+    expected = sum(e_i for e_i, _ in moments)
+    gaussian = sum(v_i for _, v_i in moments)
     # Var(V)/2 from each distinct model's ν: directions fitted apart are independent, and
-    # directions that share one model (memory.fit_memory) share its error
-    spread = sum(v * v / series.square_dof for series, v in shared.values())
+    # directions that share one model share its error
+    spread = 0.0
+    for model, served in memory.models():
+        v = sum(moments[i][1] for i in served)
+        spread += v * v / model.square_dof
     kappa = total / expected
     gaussian *= memory_tail_factor(residuals, memory) if tail is None else tail
     # ν of V = Σ V_i from each model's ν (Satterthwaite)

@@ -344,9 +344,22 @@ def ar_filter(phi: np.ndarray, z: np.ndarray) -> np.ndarray:
     return x.reshape(z.shape)
 
 
-def _horizon(phi: np.ndarray, n: int) -> int:
-    """Lags to keep: until the slowest root's power has decayed below NEGLIGIBLE, at least
-    the segment length, at most MAX_HORIZON."""
+def decay_horizon(phi: np.ndarray, n: int) -> int:
+    """Lags to keep of an AR model's autocorrelation.
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,)
+        The AR coefficients (stationary).
+    n : int
+        The fewest lags to keep (the segment's length).
+
+    Returns
+    -------
+    int
+        Lags until the slowest root's power has decayed below :data:`NEGLIGIBLE`, at least
+        ``n`` (and p + 1), at most :data:`MAX_HORIZON`.
+    """
     if phi.size == 0:
         return max(n, 1)
     roots = np.abs(np.roots(np.concatenate([[1.0], -phi])))
@@ -577,7 +590,7 @@ def _order_memory(fit: BurgFit, series: int, order: int, n: int):
     """(φ, autocorrelation, log max(τ, 1)) of one series at one order."""
     phi = fit.coefficients(series, order)
     sigma2 = float(fit.variance[series, order])
-    gamma = autocovariance_of_ar(phi, sigma2, _horizon(phi, n))
+    gamma = autocovariance_of_ar(phi, sigma2, decay_horizon(phi, n))
     g0 = float(gamma[0])
     rho = gamma / g0 if g0 > 0 else np.eye(1, gamma.size)[0]
     log_tau = math.log(max(1.0 + 2.0 * float(np.sum(rho[1:])), 1.0))
@@ -667,7 +680,7 @@ def bootstrap_spread(
     n = min(n, BOOTSTRAP_EPOCHS)
     draws = np.empty((len(phis), b * segments, n))
     for i, phi in enumerate(phis):
-        burn = min(MAX_BURN_IN, _horizon(phi, 0)) if phi.size else 0
+        burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
         z = gen.standard_normal((b * segments, n + burn))
         draws[i] = ar_filter(phi, z.T)[burn:].T
     draws -= draws.mean(axis=2, keepdims=True)
@@ -743,12 +756,8 @@ def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
 def series_memory(
     fit: BurgFit, series: int, n: int, spread: tuple | None = None, minimum: int = 0
 ) -> SeriesMemory:
-    """The :class:`SeriesMemory` of one series of a Burg fit at its order of least AICc.
-
-    ν = 2/variance for τ and for τ₂, and a bias towards less memory is corrected by
-    stretching the correlations ρ(h), h > 0, by the factor that multiplies τ by
-    exp(−bias) (at most :data:`MAX_BIAS_FACTOR`; a bias towards more memory is left,
-    which errs on the safe side).
+    """The :class:`SeriesMemory` of one series of a Burg fit at its order of least AICc,
+    with its bootstrap's degrees of freedom and bias correction (:func:`corrected_memory`).
 
     Parameters
     ----------
@@ -775,6 +784,30 @@ def series_memory(
     phi, rho, log_tau = _order_memory(fit, series, order, n)
     if spread is None:
         return SeriesMemory(phi, rho, math.inf)
+    return corrected_memory(phi, rho, log_tau, spread)
+
+
+def corrected_memory(
+    phi: np.ndarray, rho: np.ndarray, log_tau: float, spread: tuple
+) -> SeriesMemory:
+    """A fitted model with its bootstrap's degrees of freedom and bias correction.
+
+    Parameters
+    ----------
+    phi, rho : numpy.ndarray
+        The model's AR coefficients and autocorrelation.
+    log_tau : float
+        log of the memory the bootstrap measured (τ), at least 0.
+    spread : tuple of float
+        The bootstrap's (Var log τ̂*, bias of log τ̂*, Var log τ̂₂*).
+    Returns
+    -------
+    SeriesMemory
+        ν = 2/variance for τ and for τ₂; a bias towards less memory corrected by stretching
+        ρ(h), h > 0, by the factor that multiplies τ (linear in ρ) by exp(−bias), at most
+        :data:`MAX_BIAS_FACTOR` (a bias towards more memory is left, which errs on the safe
+        side).
+    """
     var_log, bias, var_square = (float(v) for v in spread)
     tau = math.exp(log_tau)
     if bias < 0 and tau > 1.0 + 1e-9:  # τ̂ is low by exp(bias): lengthen the memory

@@ -402,7 +402,7 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
         "memory": ev.memory,
         "memory_source": ev.memory_source,
         "time_scales": ev.time_scales,
-        "findings": episode_findings(ev, verdict, config),
+        "findings": memory_findings(ev.memory) + episode_findings(ev, verdict, config),
     }
     if verdict.label is Label.INSUFFICIENT:
         return Diagnosis(label=Label.INSUFFICIENT, **common)
@@ -414,6 +414,35 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
         probes=ev.probes,
         untested=verdict.untested,
         **common,
+    )
+
+
+def memory_findings(memory) -> tuple[str, ...]:
+    """Long memory, where the segment's model found it (:mod:`credcli.engine.longmemory`).
+
+    Parameters
+    ----------
+    memory : Memory or None
+        The segment's dependence model.
+
+    Returns
+    -------
+    tuple of str
+        One sentence naming the largest fractional order d̂ and how the variance of a mean
+        falls with its length; empty where every direction has the AR sieve's model.
+    """
+    if memory is None:
+        return ()
+    fractions = [m.fraction for m in memory.series]
+    largest = max(fractions)
+    if largest <= 0:
+        return ()
+    count = sum(f > 0 for f in fractions)
+    return (
+        f"long memory: a fractional model (d̂ {largest:.2g}) fits {count} of "
+        f"{len(fractions)} directions better than any short-memory one, so the variance of "
+        f"a mean of N epochs falls as N^{2 * largest - 1:.2g}, not 1/N: longer segments "
+        "settle a bias or a scale more slowly than their length suggests",
     )
 
 

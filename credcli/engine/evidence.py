@@ -20,6 +20,7 @@ from credcli.engine import batches, correlation, dependence, episodes, metrics
 from credcli.engine.config import SMM_CONDITION, DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.episodes import Burst, Divergence
+from credcli.engine.longmemory import with_long_memory
 from credcli.engine.memory import (
     Memory,
     NoFiniteMemory,
@@ -1025,6 +1026,14 @@ def _unresolved_memory(memory: Memory, n: int) -> str | None:
     tau = float(np.max(memory.variance_ratios))
     if n / tau >= MIN_RESOLUTION:
         return None
+    fraction = max(m.fraction for m in memory.series)
+    if fraction > 0:
+        return (
+            f"long memory: a fractional model (d̂ {fraction:.2g}) fits the errors, whose "
+            f"mean then varies as much as that of {n / tau:.3g} independent epochs, fewer "
+            f"than {MIN_RESOLUTION:g}; neither question is answered (the variance of a mean "
+            f"falls as N^(2d−1), so only much longer segments or more runs can decide)"
+        )
     return (
         f"memory comparable to the segment: τ̂ {tau:.3g} epochs leaves N/τ̂ {n / tau:.3g}, "
         f"fewer than {MIN_RESOLUTION:g} correlation times, and the true memory may be longer "
@@ -1091,7 +1100,7 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
         )
     )
     residuals = memory_residuals(gls, inverse)
-    memory = fit_memory(residuals, gls.q, screened=screened)
+    memory = with_long_memory(fit_memory(residuals, gls.q, screened=screened), residuals)
     return memory, time_scales(residuals, memory)
 
 
@@ -1119,4 +1128,5 @@ def segment_memory_of(residuals: np.ndarray, q: np.ndarray, cover: int | None = 
     screened = correlation.serially_dependent(
         correlation.autocorrelation(residuals), n, correlation.SCREENING_LEVEL
     )
-    return fit_memory(residuals, q, screened=screened, cover=cover)
+    memory = fit_memory(residuals, q, screened=screened, cover=cover)
+    return with_long_memory(memory, residuals)

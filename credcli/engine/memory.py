@@ -419,21 +419,32 @@ class SeriesMemory(_Answering):
         white noise).
     square_dof : float, default inf
         ν of τ₂ = Σρ², the scale test's model uncertainty.
+    fraction : float, default 0
+        d of a long-memory model (1 − B)^d A(B) x = u, whose AR part is ``phi``
+        (:mod:`credcli.engine.longmemory`); 0 for the AR sieve's models. Its ``rho`` spans
+        every lag of the segment.
     """
 
     phi: np.ndarray
     rho: np.ndarray
     dof: float
     square_dof: float = math.inf
+    fraction: float = 0.0
 
     @property
     def order(self) -> int:
-        """The order of least AICc."""
+        """The AR order (of the AR part, for a long-memory model)."""
         return int(self.phi.size)
 
     @functools.cached_property
     def variance_ratio(self) -> float:
-        """τ = Ω/γ(0) = 1 + 2 Σ_{h>0} ρ(h): the integrated correlation time, in epochs."""
+        """τ = Ω/γ(0) = 1 + 2 Σ_{h>0} ρ(h): the integrated correlation time, in epochs.
+
+        A long-memory model (``fraction`` > 0) has no finite τ (Σρ diverges); its
+        ``variance_ratio`` is v_N of the segment's N epochs (:meth:`mean_ratio`), so that
+        N/τ counts the independent epochs the segment's mean is worth."""
+        if self.fraction > 0:
+            return self.mean_ratio(self.rho.size)
         return float(1.0 + 2.0 * np.sum(self.rho[1:]))
 
     @_memoised
@@ -788,7 +799,7 @@ def series_memory(
 
 
 def corrected_memory(
-    phi: np.ndarray, rho: np.ndarray, log_tau: float, spread: tuple
+    phi: np.ndarray, rho: np.ndarray, log_tau: float, spread: tuple, fraction: float = 0.0
 ) -> SeriesMemory:
     """A fitted model with its bootstrap's degrees of freedom and bias correction.
 
@@ -797,9 +808,13 @@ def corrected_memory(
     phi, rho : numpy.ndarray
         The model's AR coefficients and autocorrelation.
     log_tau : float
-        log of the memory the bootstrap measured (τ), at least 0.
+        log of the memory the bootstrap measured (τ, or a long-memory model's v_N), at
+        least 0.
     spread : tuple of float
         The bootstrap's (Var log τ̂*, bias of log τ̂*, Var log τ̂₂*).
+    fraction : float, default 0
+        The model's fractional order d.
+
     Returns
     -------
     SeriesMemory
@@ -815,7 +830,7 @@ def corrected_memory(
         rho = np.concatenate([rho[:1], np.clip(rho[1:] * factor, -1.0, 1.0)])
     dof = 2.0 / var_log if var_log > 0 else math.inf
     square_dof = 2.0 / var_square if var_square > 0 else math.inf
-    return SeriesMemory(phi, rho, dof, square_dof)
+    return SeriesMemory(phi, rho, dof, square_dof, fraction)
 
 
 @dataclass(frozen=True)

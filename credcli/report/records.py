@@ -224,6 +224,9 @@ def diagnosis_record(diag: Diagnosis) -> dict:
     rec |= {
         "memory_source": diag.memory_source,
         "memory_orders": None if memory is None else [m.order for m in memory.series],
+        "memory_fractions": _floats(
+            None if memory is None else [m.fraction for m in memory.series]
+        ),
         "memory_variance_ratios": _floats(None if memory is None else memory.variance_ratios),
         "memory_dof": None if memory is None else memory.dof,
         "time_scale_epochs": None if scales is None else [int(m) for m in scales.epochs],

@@ -1,0 +1,170 @@
+"""Long memory beside the AR sieve (credcli.engine.longmemory): the fractional filter and
+autocovariances against independent computations, and the choice on simulated series."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate, special
+
+from credcli.engine import evidence, longmemory
+from credcli.engine.config import Label
+from credcli.engine.diagnosis import diagnose_errors
+from credcli.engine.memory import fit_memory
+from credcli.report.records import diagnosis_record
+
+
+def _fractional_noise(d: float, n: int, count: int, rng) -> np.ndarray:
+    """(count, n) exact fractional noise by Cholesky of its Toeplitz covariance (a
+    construction independent of the module's circulant draws)."""
+    gamma = longmemory.fractional_autocovariance(d, n)
+    lags = np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
+    return rng.standard_normal((count, n)) @ np.linalg.cholesky(gamma[lags]).T
+
+
+def test_fractional_difference_inverts_itself():
+    x = np.random.default_rng(0).standard_normal((3, 257))
+    back = longmemory.fractional_difference(longmemory.fractional_difference(x, 0.3), -0.3)
+    np.testing.assert_allclose(back, x, atol=1e-10)
+
+
+def test_fractional_difference_matches_the_direct_sum():
+    x = np.random.default_rng(1).standard_normal(40)
+    d = 0.37
+    weights = [1.0]
+    for k in range(1, 40):
+        weights.append(weights[-1] * (k - 1 - d) / k)
+    direct = [sum(weights[k] * x[t - k] for k in range(t + 1)) for t in range(40)]
+    np.testing.assert_allclose(longmemory.fractional_difference(x, d), direct, atol=1e-12)
+
+
+@pytest.mark.parametrize("d", [0.1, 0.3, 0.45])
+def test_fractional_autocovariance_is_the_spectrum_integral(d):
+    """γ(h) = (1/π) ∫_0^π |2 sin(λ/2)|^{−2d} cos(hλ) dλ (Hosking 1981), by quadrature."""
+    gamma = longmemory.fractional_autocovariance(d, 6)
+    for h in range(6):
+        value, _ = integrate.quad(
+            lambda lam, h=h: (2 * math.sin(lam / 2)) ** (-2 * d) * math.cos(h * lam) / math.pi,
+            0,
+            math.pi,
+            limit=400,
+        )
+        assert gamma[h] == pytest.approx(value, rel=1e-6)
+    assert gamma[1] / gamma[0] == pytest.approx(d / (1 - d))
+    assert gamma[0] == pytest.approx(special.gamma(1 - 2 * d) / special.gamma(1 - d) ** 2)
+
+
+def test_arfima_autocorrelation_is_the_ma_representation():
+    """ARFIMA(1, 0.2, 0), φ = 0.6: γ(h) = Σ_j ψ_j ψ_{j+h} with ψ the AR filter's weights
+    convolved with (1 − B)^{−d}'s, summed over 2²⁰ terms (the tail is below 1e-3
+    relative)."""
+    phi, d, terms = np.array([0.6]), 0.2, 1 << 20
+    k = np.arange(1, terms)
+    fractional = np.concatenate([[1.0], np.cumprod((k - 1 + d) / k)])
+    ar = 0.6 ** np.arange(64)
+    size = 1 << (terms + 64).bit_length()
+    psi = np.fft.irfft(np.fft.rfft(fractional, size) * np.fft.rfft(ar, size), size)[:terms]
+    gamma = np.array([psi[: terms - h] @ psi[h:] for h in range(8)])
+    rho = longmemory.arfima_autocorrelation(phi, d, 8)
+    np.testing.assert_allclose(rho, gamma / gamma[0], atol=2e-3)
+    white = longmemory.arfima_autocorrelation(np.zeros(0), 0.0, 4)
+    np.testing.assert_allclose(white, [1, 0, 0, 0], atol=1e-15)
+
+
+def test_circulant_draws_have_the_model_covariance():
+    gamma = longmemory.fractional_autocovariance(0.3, 64)
+    draws = longmemory._circulant_draws(gamma, 20_000, np.random.default_rng(2))
+    empirical = np.array([np.mean(draws[:, 0] * draws[:, h]) for h in range(5)])
+    # standard error of a product moment of unit-variance normals over 20,000 draws <= 0.012
+    np.testing.assert_allclose(empirical, gamma[:5], atol=5 * 0.012 * gamma[0])
+
+
+def _memory(x: np.ndarray):
+    x = x - x.mean(axis=0)
+    q = np.sum(x * x, axis=1) - x.shape[1]
+    return longmemory.with_long_memory(fit_memory(x, q), x)
+
+
+def test_the_choice_is_rare_on_short_memory_and_common_on_long():
+    """The class choice (BIC's charge for d), 2,000 epochs: no white or AR(1) φ = 0.9
+    series of 200 each takes a fractional model (measured: none of 200 white series at
+    300, 1,000 or 2,000 epochs), against 79 of 100 ARFIMA(0, 0.3, 0) series (bound 60 %,
+    five standard errors below)."""
+    rng = np.random.default_rng(5)
+    n = 2000
+    white = rng.standard_normal((200, n))
+    ar = np.empty((200, n + 200))
+    z = rng.standard_normal((200, n + 200)) * math.sqrt(1 - 0.81)
+    ar[:, 0] = z[:, 0] / math.sqrt(1 - 0.81)
+    for t in range(1, n + 200):
+        ar[:, t] = 0.9 * ar[:, t - 1] + z[:, t]
+    long = _fractional_noise(0.3, n, 100, rng)
+    rates = []
+    for x in (white, ar[:, 200:], long):
+        fractions, _, _ = longmemory._fractional_fits(x - x.mean(axis=1, keepdims=True), 12)
+        rates.append(float(np.mean(fractions > 0)))
+    assert rates[0] <= 0.02 and rates[1] <= 0.02
+    assert rates[2] >= 0.6
+
+
+def test_long_memory_is_found_and_its_mean_variance_follows():
+    """ARFIMA(0, 0.3, 0), N = 2,000, d = 2: the median of v_N over the runs is within
+    0.6–2 times the truth (86.5; the bootstrap's bias correction errs towards more memory),
+    where the AR sieve alone gives under a fifth of it."""
+    n, runs = 2000, 12
+    rng = np.random.default_rng(3)
+    h = np.arange(1, n)
+    rho = np.cumprod((h - 1 + 0.3) / (h - 0.3))  # Hosking's ρ(h), h >= 1
+    truth = 1 + 2 * np.sum((1 - h / n) * rho)
+    ratios, sieve = [], []
+    for _ in range(runs):
+        x = _fractional_noise(0.3, n, 2, rng).T
+        ratios.append(_memory(x).series[0].mean_ratio(n))
+        plain = fit_memory(x - x.mean(axis=0), np.sum(x * x, axis=1))
+        sieve.append(plain.series[0].mean_ratio(n))
+    assert 0.6 * truth < np.median(ratios) < 2.0 * truth
+    assert np.median(sieve) < truth / 5
+
+
+def test_a_fractional_model_never_shortens_memory():
+    """Whatever the data, each direction keeps at least the memory of its AR model."""
+    rng = np.random.default_rng(6)
+    for _ in range(6):
+        x = np.cumsum(rng.standard_normal((600, 2)), axis=0) * 0.05 + rng.standard_normal((600, 2))
+        x = x - x.mean(axis=0)
+        plain = fit_memory(x, np.sum(x * x, axis=1) - 2)
+        long = longmemory.with_long_memory(plain, x)
+        for a, b in zip(plain.series, long.series):
+            assert b.mean_ratio(600) >= a.mean_ratio(600) - 1e-12
+
+
+def test_a_diagnosis_names_long_memory_and_claims_no_misfit_from_it(monkeypatch):
+    """Credible ARFIMA(0, 0.35, 0) errors, 2,000 epochs, d = 2, 8 runs: where the model takes
+    the fractional order the diagnosis names it in its findings and JSON, and the runs name
+    a misfit at most half as often as the AR sieve alone does on the same runs (measured:
+    1 of 8 against 5 of 8; the fractional order taken in 7)."""
+    rng = np.random.default_rng(8)
+    n = 2000
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    scale = math.sqrt(longmemory.fractional_autocovariance(0.35, 1)[0])
+    runs = [
+        longmemory._circulant_draws(longmemory.fractional_autocovariance(0.35, n), 2, rng).T / scale
+        for _ in range(8)
+    ]
+    misfits, taken = 0, 0
+    for i, errors in enumerate(runs):
+        diagnosis = diagnose_errors(errors, cov, rng=i)
+        misfits += diagnosis.label not in (Label.CREDIBLE, Label.INSUFFICIENT)
+        if max(m.fraction for m in diagnosis.memory.series) > 0:
+            taken += 1
+            assert any(f.startswith("long memory") for f in diagnosis.findings)
+            assert max(diagnosis_record(diagnosis)["memory_fractions"]) > 0
+    monkeypatch.setattr(evidence, "with_long_memory", lambda memory, residuals: memory)
+    sieve = sum(
+        diagnose_errors(errors, cov, rng=i).label not in (Label.CREDIBLE, Label.INSUFFICIENT)
+        for i, errors in enumerate(runs)
+    )
+    assert taken >= 5
+    assert 2 * misfits <= sieve

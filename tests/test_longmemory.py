@@ -11,7 +11,7 @@ from scipy import integrate, special
 
 from credcli.engine import evidence, longmemory
 from credcli.engine.config import Label
-from credcli.engine.diagnosis import diagnose_errors
+from credcli.engine.diagnosis import diagnose_errors, memory_ratio
 from credcli.engine.memory import fit_memory
 from credcli.report.records import diagnosis_record
 
@@ -128,16 +128,27 @@ def test_long_memory_is_found_and_its_mean_variance_follows():
     assert np.median(sieve) < truth / 5
 
 
-def test_a_fractional_model_never_shortens_memory():
-    """Whatever the data, each direction keeps at least the memory of its AR model."""
+def test_a_fractional_model_never_shortens_memory(monkeypatch):
+    """A direction whose chosen fractional model implies less memory over the segment than
+    its AR model keeps the AR model; one whose fractional model implies more takes it."""
     rng = np.random.default_rng(6)
-    for _ in range(6):
-        x = np.cumsum(rng.standard_normal((600, 2)), axis=0) * 0.05 + rng.standard_normal((600, 2))
-        x = x - x.mean(axis=0)
-        plain = fit_memory(x, np.sum(x * x, axis=1) - 2)
-        long = longmemory.with_long_memory(plain, x)
-        for a, b in zip(plain.series, long.series):
-            assert b.mean_ratio(600) >= a.mean_ratio(600) - 1e-12
+    x = np.empty((600, 2))
+    z = rng.standard_normal((600, 2))
+    x[0] = z[0]
+    for t in range(1, 600):
+        x[t] = 0.9 * x[t - 1] + z[t]
+    x = x - x.mean(axis=0)
+    plain = fit_memory(x, np.sum(x * x, axis=1) - 2)
+    ratios = [m.mean_ratio(600) for m in plain.series]
+
+    def weak_and_strong(x, p_max, choose=True):  # d = 0.05, white: far less than AR(1) 0.9
+        return np.array([0.05, 0.4]), np.array([0, 0]), [np.zeros(0), np.zeros(0)]
+
+    monkeypatch.setattr(longmemory, "_fractional_fits", weak_and_strong)
+    monkeypatch.setattr(longmemory, "fractional_spread", lambda *args: (0.01, 0.0, 0.01))
+    long = longmemory.with_long_memory(plain, x)
+    assert long.series[0] is plain.series[0] and long.series[0].mean_ratio(600) == ratios[0]
+    assert long.series[1].fraction == 0.4 and long.series[1].mean_ratio(600) > ratios[1]
 
 
 def test_a_diagnosis_names_long_memory_and_claims_no_misfit_from_it(monkeypatch):
@@ -157,7 +168,9 @@ def test_a_diagnosis_names_long_memory_and_claims_no_misfit_from_it(monkeypatch)
     for i, errors in enumerate(runs):
         diagnosis = diagnose_errors(errors, cov, rng=i)
         misfits += diagnosis.label not in (Label.CREDIBLE, Label.INSUFFICIENT)
-        if max(m.fraction for m in diagnosis.memory.series) > 0:
+        if diagnosis.memory is None:  # d̂ at the grid's top: no finite memory
+            assert diagnosis.reason.startswith("no finite memory")
+        elif max(m.fraction for m in diagnosis.memory.series) > 0:
             taken += 1
             assert any(f.startswith("long memory") for f in diagnosis.findings)
             assert max(diagnosis_record(diagnosis)["memory_fractions"]) > 0
@@ -168,3 +181,18 @@ def test_a_diagnosis_names_long_memory_and_claims_no_misfit_from_it(monkeypatch)
     )
     assert taken >= 5
     assert 2 * misfits <= sieve
+
+
+def test_a_random_walk_has_no_finite_memory_and_counts_as_one_epoch():
+    """A random walk of small steps under white noise (2,000 epochs, d = 2): the fractional
+    order reaches the grid's top, so the segment has no finite memory, and what reads its
+    memory (the time offset's standard error) counts the segment as one epoch, not 2,000
+    independent ones (it counted them independent before). Measured on seeds 0–5: five
+    reach the top; one keeps the sieve's AR model, τ̂ 1,290, with the same label)."""
+    rng = np.random.default_rng(0)
+    walk = np.cumsum(rng.standard_normal((2000, 2)), axis=0) * 0.05
+    errors = walk + rng.standard_normal((2000, 2))
+    diagnosis = diagnose_errors(errors, np.broadcast_to(np.eye(2), (2000, 2, 2)), rng=0)
+    assert diagnosis.label is Label.INSUFFICIENT
+    assert diagnosis.reason.startswith("no finite memory")
+    assert memory_ratio(diagnosis) == 2000

@@ -962,11 +962,14 @@ def memory_ratio(diag: Diagnosis) -> float:
     Returns
     -------
     float
-        Its memory model's largest τ, or N over the lag-1 route's effective N; 1 when it
-        has neither.
+        Its memory model's largest τ, or N over the lag-1 route's effective N; N where the
+        errors have no finite memory (effective N 0: the segment is worth one epoch); 1
+        when it has neither.
     """
     if diag.memory is not None:
         return float(np.max(diag.memory.variance_ratios))
+    if diag.effective_n is not None and diag.effective_n <= 0:
+        return float(diag.n)
     if diag.effective_n:
         return diag.n / diag.effective_n
     return 1.0

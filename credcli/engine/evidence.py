@@ -1044,8 +1044,9 @@ def _unresolved_memory(memory: Memory, n: int) -> str | None:
 
 NO_FINITE_MEMORY = (
     "no finite memory: the errors drift like a trend, a random walk or a smooth curve (the "
-    "dependence model fitted on them has a root on the unit circle), so no average over the "
-    "segment settles; neither question is answered"
+    "dependence model fitted on them has a root on the unit circle, or a fractional order "
+    "at the edge of stationarity), so no average over the segment settles; neither "
+    "question is answered"
 )
 """Why a segment whose fitted memory is not finite gets no verdict (:func:`gather`)."""
 

@@ -53,6 +53,7 @@ from credcli.engine.memory import (
     BOOTSTRAP_EPOCHS,
     BOOTSTRAP_REPLICATES,
     Memory,
+    NoFiniteMemory,
     autocovariance_of_ar,
     burg,
     corrected_memory,
@@ -338,6 +339,14 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
         shorter than :data:`FEWEST_EPOCHS`, or the AR sieve chosen everywhere); else a copy
         whose changed directions hold a :class:`~credcli.engine.memory.SeriesMemory` with
         ``fraction`` d > 0.
+
+    Raises
+    ------
+    NoFiniteMemory
+        Where a direction's fractional model is chosen at the top of the grid (d = 0.45):
+        the likelihood still rises towards d = 1/2, where the errors stop being stationary
+        (a drift, a random walk; a time offset's error), and no mean over the segment
+        settles.
     """
     n = residuals.shape[0]
     if memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
@@ -349,6 +358,11 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     # AR part needs no more lags than the bootstrap's search beyond the directions' own
     search = min(max_order(n), 2 * max(m.order for m in memory.series) + 4)
     fractions, orders, coefficients = _fractional_fits(x, search)
+    if np.any(fractions >= FRACTIONS[-1] - 1e-9):
+        raise NoFiniteMemory(
+            f"a fractional order at the grid's top, {FRACTIONS[-1]:g}: the errors are no "
+            "more stationary than d = 1/2 allows"
+        )
     series = list(memory.series)
     for i in np.flatnonzero(fractions > 0).tolist():
         phi, fraction = coefficients[i], float(fractions[i])

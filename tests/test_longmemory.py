@@ -196,3 +196,31 @@ def test_a_random_walk_has_no_finite_memory_and_counts_as_one_epoch():
     assert diagnosis.label is Label.INSUFFICIENT
     assert diagnosis.reason.startswith("no finite memory")
     assert memory_ratio(diagnosis) == 2000
+
+
+def test_windows_judged_with_a_long_memory_run_leave_the_finding_to_the_run():
+    """A window judged with its run's model does not repeat the model's long memory among
+    its findings (the run's own segment reports its own); a segment judged with a model of
+    its own does. (Centring each window hides most long memory from the run's model, 1 of
+    8 ARFIMA runs of 13 × 300 epochs take it, so the model here is given a fractional
+    direction.)"""
+    from dataclasses import replace
+
+    from credcli.engine.config import DiagnosisConfig
+    from credcli.engine.diagnosis import diagnose_segment, memory_findings, run_model
+
+    rng = np.random.default_rng(10)
+    n = 3900
+    gamma = longmemory.fractional_autocovariance(0.3, n)
+    errors = longmemory._circulant_draws(gamma, 2, rng).T / math.sqrt(gamma[0])
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    windows = [np.arange(k, k + 300) for k in range(0, n, 300)]
+    run = run_model(errors, cov, windows, DiagnosisConfig())
+    first = replace(run.memory.series[0], fraction=0.3)
+    memory = replace(run.memory, series=(first, *run.memory.series[1:]))
+    assert memory_findings(memory)[0].startswith("long memory")
+    window = diagnose_segment(
+        errors[windows[0]], cov[windows[0]], DiagnosisConfig(), 0, "w001", memory=memory
+    )
+    assert window.memory_source == "run"
+    assert not any(f.startswith("long memory") for f in window.findings)

@@ -402,7 +402,9 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
         "memory": ev.memory,
         "memory_source": ev.memory_source,
         "time_scales": ev.time_scales,
-        "findings": memory_findings(ev.memory) + episode_findings(ev, verdict, config),
+        # a window judged with its run's model leaves long memory to the run's own segment
+        "findings": (memory_findings(ev.memory) if ev.memory_source != "run" else ())
+        + episode_findings(ev, verdict, config),
     }
     if verdict.label is Label.INSUFFICIENT:
         return Diagnosis(label=Label.INSUFFICIENT, **common)

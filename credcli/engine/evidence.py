@@ -957,7 +957,32 @@ def memory_evidence(
         mean = None
     block = memory.block_length(MEMORY_BLOCK_LOSS)
     plan = split_location(config, n, block, 1, mean, why_not, _MEMORY_BLOCKS.format(block=block))
-    return ModelEvidence(scale, scale_reason, directions, plan)
+    return ModelEvidence(
+        scale, scale_reason, directions, _held_under_long_memory(plan, gls, memory, inverse)
+    )
+
+
+def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
+    """``plan``, or the location declined where its mean test finds a bias that the
+    model's long-memory alternative (:attr:`credcli.engine.memory.Memory.alternative`)
+    does not: where AICc prefers a fractional model and BIC does not, one segment cannot
+    tell short memory from long, and a mean off by that much is within what long memory
+    lets a mean wander."""
+    alternative = memory.alternative
+    test = plan.mean_test
+    if alternative is None or test is None or not test.pvalue < plan.mean_level:
+        return plan
+    other, _ = batches.memory_mean_test(gls, alternative, inverse)
+    if other.dof[1] >= MIN_MEAN_DOF and other.pvalue < plan.mean_level:
+        return plan
+    fraction = max(m.fraction for m in alternative.series)
+    reason = (
+        f"location untested: the mean test finds a bias (p {test.pvalue:.2g}) under the "
+        f"errors' short-memory model, but not under a long-memory one (d̂ {fraction:.2g}) "
+        "that fits them almost as well (AICc prefers it, BIC does not); one segment cannot "
+        "tell the two apart (a longer segment, or more runs, can)"
+    )
+    return LocationPlan(plan.block, None, 0.0, None, reason)
 
 
 _MEMORY_BLOCKS = "the errors' memory needs sign blocks of {block} epochs, which"

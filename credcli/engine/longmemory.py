@@ -21,7 +21,9 @@ corrected AIC. Whether the memory is short or long is decided by BIC's charge fo
 series; no SE(3) filter run of ``benchmarks/se3.py``) while 79 of 100 ARFIMA d = 0.3
 series of 2,000 epochs (23 of 100 at 300) take the fractional one. Where it is chosen and
 implies more memory over the segment than the direction's own model, the direction takes
-it (:func:`with_long_memory`); a direction's memory is never shortened.
+it (:func:`with_long_memory`); a direction's memory is never shortened. Where AICc prefers
+the fractional model and BIC does not, the model keeps it as its ``alternative``, under
+which a bias must hold as well (:func:`credcli.engine.evidence.memory_evidence`).
 
 The model's autocorrelation is exact (:func:`arfima_autocorrelation`), so every test of
 the engine reads the variance of a window mean, of a centred sum of squares and of sign
@@ -45,6 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy import special
@@ -54,6 +57,7 @@ from credcli.engine.memory import (
     BOOTSTRAP_REPLICATES,
     Memory,
     NoFiniteMemory,
+    SeriesMemory,
     autocovariance_of_ar,
     burg,
     corrected_memory,
@@ -203,10 +207,10 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
 
     Returns
     -------
-    fractions, orders : numpy.ndarray
-        d (0: the AR sieve) and p per series.
-    coefficients : list of numpy.ndarray
-        φ of each series' model (its AR part where d > 0).
+    _Choice
+        Per series: d (0: the AR sieve), p and φ of the model taken (its AR part where
+        d > 0); whether the choice was weak (AICc prefers the fractional model, BIC does
+        not); the best fractional model's (d, φ), taken or not.
     """
     k, t = x.shape
     step = float(FRACTIONS[1] - FRACTIONS[0])
@@ -231,20 +235,39 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     chosen = np.argmin(flat, axis=1)
     which, orders = np.divmod(chosen, p_max + 1)
     # the class (short or long memory) by BIC's charge for d, log T, where AICc charges 2
-    taken = flat[np.arange(k), chosen] + (math.log(t) - 2.0) < plain
+    cost = flat[np.arange(k), chosen]
+    preferred = cost < plain
+    taken = cost + (math.log(t) - 2.0) < plain
     if not choose:
         taken[:] = True
-    out_fractions = np.where(taken, fractions[which, np.arange(k)], 0.0)
-    out_orders = np.where(taken, orders, np.argmin(_aicc(fit, t, 0)[:k], axis=1))
-    coefficients = []
+    candidates = []
     for j in range(k):
-        if not taken[j]:
-            coefficients.append(fit.coefficients(j, int(out_orders[j])))
-        elif which[j] == 0:
-            coefficients.append(fit.coefficients(k * (1 + int(best[j])) + j, int(orders[j])))
+        if which[j] == 0:
+            phi = fit.coefficients(k * (1 + int(best[j])) + j, int(orders[j]))
         else:
-            coefficients.append(near.coefficients(k * (int(which[j]) - 1) + j, int(orders[j])))
-    return out_fractions, out_orders, coefficients
+            phi = near.coefficients(k * (int(which[j]) - 1) + j, int(orders[j]))
+        candidates.append((float(fractions[which[j], j]), phi))
+    sieve = np.argmin(_aicc(fit, t, 0)[:k], axis=1)
+    return _Choice(
+        np.where(taken, [c[0] for c in candidates], 0.0),
+        np.where(taken, orders, sieve),
+        [
+            c[1] if taken[j] else fit.coefficients(j, int(sieve[j]))
+            for j, c in enumerate(candidates)
+        ],
+        preferred & ~taken,
+        candidates,
+    )
+
+
+class _Choice(NamedTuple):
+    """What :func:`_fractional_fits` chose for each series."""
+
+    fractions: np.ndarray  # d of the model taken (0: the AR sieve)
+    orders: np.ndarray  # its AR order
+    coefficients: list  # its AR coefficients
+    weak: np.ndarray  # AICc prefers the fractional candidate, BIC does not
+    candidates: list  # (d, φ) of the best fractional model, taken or not
 
 
 def _mean_ratio(rho: np.ndarray, n: int) -> float:
@@ -305,7 +328,7 @@ def fractional_spread(
     rho = arfima_autocorrelation(phi, d, n)
     draws = _circulant_draws(rho, BOOTSTRAP_REPLICATES, gen)
     draws -= draws.mean(axis=1, keepdims=True)
-    fractions, _, coefficients = _fractional_fits(draws, p_max, choose=False)
+    fractions, _, coefficients, _, _ = _fractional_fits(draws, p_max, choose=False)
     logs, squares = np.empty(draws.shape[0]), np.empty(draws.shape[0])
     for i, (g, refit) in enumerate(zip(fractions, coefficients)):
         r = arfima_autocorrelation(refit, float(g), n)
@@ -357,7 +380,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     # the fractional part carries the memory the sieve's orders were reaching for, so its
     # AR part needs no more lags than the bootstrap's search beyond the directions' own
     search = min(max_order(n), 2 * max(m.order for m in memory.series) + 4)
-    fractions, orders, coefficients = _fractional_fits(x, search)
+    fractions, orders, coefficients, weak, candidates = _fractional_fits(x, search)
     if np.any(fractions >= FRACTIONS[-1] - 1e-9):
         raise NoFiniteMemory(
             f"a fractional order at the grid's top, {FRACTIONS[-1]:g}: the errors are no "
@@ -374,6 +397,36 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
             continue
         spread = fractional_spread(phi, fraction, n, search, int(orders[i]) + i)
         series[i] = corrected_memory(phi, rho, math.log(_mean_ratio(rho, n)), spread, fraction)
-    if all(new is old for new, old in zip(series, memory.series)):
+    alternative = _weak_alternative(series, weak, candidates, n)
+    if alternative is None and all(new is old for new, old in zip(series, memory.series)):
         return memory
-    return replace(memory, series=tuple(series))
+    chosen = replace(memory, series=tuple(series))
+    if alternative is None:
+        return chosen
+    return replace(chosen, alternative=replace(chosen, series=alternative))
+
+
+def _weak_alternative(series: list, weak: np.ndarray, candidates: list, n: int):
+    """The directions' models with each weakly chosen fractional model in place of its own
+    (where it implies more memory over the segment), or None where there is none.
+
+    Its degrees of freedom are the direction's own (no bootstrap): the alternative serves
+    only to check that a location finding holds under long memory as well
+    (:func:`credcli.engine.evidence.memory_evidence`), and more degrees of freedom make
+    that check reject more readily, so it declines no more findings than a bootstrap
+    would."""
+    out, changed = list(series), False
+    for i in np.flatnonzero(weak).tolist():
+        fraction, phi = candidates[i]
+        if fraction >= FRACTIONS[-1] - 1e-9:
+            continue
+        try:
+            rho = arfima_autocorrelation(phi, fraction, n)
+        except np.linalg.LinAlgError:
+            continue
+        if _mean_ratio(rho, n) <= out[i].mean_ratio(n):
+            continue
+        own = out[i]
+        out[i] = SeriesMemory(phi, rho, own.dof, own.square_dof, fraction)
+        changed = True
+    return tuple(out) if changed else None

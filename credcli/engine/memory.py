@@ -851,6 +851,10 @@ class Memory(_Answering):
         Epochs N behind the fit.
     segments : int, default 1
         The runs the fit pooled.
+    alternative : Memory or None, default None
+        The same model with long memory in the directions where AICc prefers a fractional
+        model and BIC does not (:mod:`credcli.engine.longmemory`): a location finding must
+        hold under it as well. None where there is no such direction.
     """
 
     directions: np.ndarray
@@ -858,6 +862,7 @@ class Memory(_Answering):
     squares: SeriesMemory
     epochs: int
     segments: int = 1
+    alternative: Memory | None = None
 
     @property
     def white(self) -> bool:

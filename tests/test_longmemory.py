@@ -247,3 +247,18 @@ def test_a_bias_must_hold_under_the_long_memory_the_data_do_not_exclude(monkeypa
     assert checked.reason.startswith("location untested: the mean test finds a bias")
     monkeypatch.setattr(evidence, "_held_under_long_memory", lambda plan, *args: plan)
     assert "bias" in diagnose_errors(errors, cov, rng=36).label.value
+
+
+def test_fractional_noise_of_ar_order_zero_is_not_white():
+    """A memory whose every direction is fractional noise (AR order 0) and whose squares
+    are white is not white: the exact tests for independent epochs must not apply."""
+    from dataclasses import replace
+
+    x = np.random.default_rng(12).standard_normal((400, 2))
+    plain = fit_memory(x - x.mean(axis=0), np.sum(x * x, axis=1) - 2)
+    noise = longmemory.arfima_autocorrelation(np.zeros(0), 0.3, 400)
+    fractional = replace(plain.series[0], phi=np.zeros(0), rho=noise, fraction=0.3)
+    white = replace(plain.squares, phi=np.zeros(0), rho=np.ones(1))
+    memory = replace(plain, series=(fractional, fractional), squares=white)
+    assert not memory.white
+    assert replace(memory, series=(white, white)).white

@@ -322,6 +322,7 @@ def fractional_spread(
     -------
     var_log_v, bias_log_v, var_log_tau2 : tuple of float
     """
+    # the trailing 7 keeps these draws apart from the AR models' bootstrap stream
     gen = np.random.default_rng(np.random.SeedSequence([seed, n, p_max, 7]))
     shrink = min(1.0, BOOTSTRAP_EPOCHS / n)
     n = min(n, BOOTSTRAP_EPOCHS)
@@ -361,7 +362,8 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
         ``memory`` itself where no direction changes (white errors, pooled runs, segments
         shorter than :data:`FEWEST_EPOCHS`, or the AR sieve chosen everywhere); else a copy
         whose changed directions hold a :class:`~credcli.engine.memory.SeriesMemory` with
-        ``fraction`` d > 0.
+        ``fraction`` d > 0, and whose ``alternative`` holds the fractional models AICc
+        prefers and BIC does not (:func:`_weak_alternative`), where there are any.
 
     Raises
     ------

@@ -867,8 +867,9 @@ class Memory(_Answering):
     @property
     def white(self) -> bool:
         """Whether the errors are taken as independent (:func:`fit_memory`): then the exact
-        tests for independent epochs apply."""
-        return all(m.order == 0 for m in (*self.series, self.squares))
+        tests for independent epochs apply. A long-memory model of AR order 0 (fractional
+        noise) is not white."""
+        return all(m.order == 0 and m.fraction == 0 for m in (*self.series, self.squares))
 
     @functools.cached_property
     def variance_ratios(self) -> np.ndarray:

@@ -63,6 +63,7 @@ from credcli.engine.memory import (
     corrected_memory,
     decay_horizon,
     max_order,
+    mean_variance_ratio,
 )
 from credcli.engine.units import power_of_two_unit
 
@@ -170,14 +171,6 @@ def arfima_autocorrelation(phi: np.ndarray, d: float, lags: int) -> np.ndarray:
     return gamma / gamma[0]
 
 
-def _aicc(fit, t: int, extra: int) -> np.ndarray:
-    """AICc of every order of every series of ``fit`` (k, p_max + 1), with ``extra``
-    parameters beside the p coefficients and the innovation variance."""
-    p = np.arange(fit.variance.shape[1]) + 1 + extra
-    with np.errstate(divide="ignore"):
-        return t * np.log(fit.variance) + 2.0 * p * t / np.maximum(t - p - 1, 1)
-
-
 def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     """Each series' model: the AR sieve (d = 0) or ARFIMA(p, d, 0), d on the grid
     :data:`FRACTIONS`, orders 0 … ``p_max``.
@@ -218,8 +211,9 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     fit = burg(
         np.stack([x] + [fractional_difference(x, g) for g in coarse]).reshape(-1, 1, t), p_max
     )
-    plain = _aicc(fit, t, 0)[:k].min(axis=1)
-    fractional = _aicc(fit, t, 1)[k:].reshape(coarse.size, k, p_max + 1)
+    sieve_cost = fit.aicc()[:k]
+    plain = sieve_cost.min(axis=1)
+    fractional = fit.aicc(extra=1)[k:].reshape(coarse.size, k, p_max + 1)
     best = np.argmin(fractional.min(axis=2), axis=0)
     centre = coarse[best]
     neighbours = [centre - step, centre + step]
@@ -229,7 +223,7 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     # the candidates of each series: the best coarse d, then its two neighbours
     fractions = np.stack([centre, *neighbours])
     costs = np.concatenate(
-        [fractional[best, np.arange(k)][None], _aicc(near, t, 1).reshape(2, k, p_max + 1)]
+        [fractional[best, np.arange(k)][None], near.aicc(extra=1).reshape(2, k, p_max + 1)]
     )
     flat = costs.transpose(1, 0, 2).reshape(k, -1)
     chosen = np.argmin(flat, axis=1)
@@ -247,7 +241,7 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
         else:
             phi = near.coefficients(k * (int(which[j]) - 1) + j, int(orders[j]))
         candidates.append((float(fractions[which[j], j]), phi))
-    sieve = np.argmin(_aicc(fit, t, 0)[:k], axis=1)
+    sieve = np.argmin(sieve_cost, axis=1)
     return _Choice(
         np.where(taken, [c[0] for c in candidates], 0.0),
         np.where(taken, orders, sieve),
@@ -270,10 +264,16 @@ class _Choice(NamedTuple):
     candidates: list  # (d, φ) of the best fractional model, taken or not
 
 
-def _mean_ratio(rho: np.ndarray, n: int) -> float:
-    """v_n = 1 + 2 Σ_{0<h<n} (1 − h/n) ρ(h), at least 1."""
-    h = np.arange(1, n)
-    return max(1.0 + 2.0 * float(np.sum((1.0 - h / n) * rho[1:n])), 1.0)
+def _longer_memory(phi: np.ndarray, fraction: float, n: int, own) -> np.ndarray | None:
+    """ρ over ``n`` lags of the ARFIMA(p, d, 0) with AR part ``phi`` and d = ``fraction``
+    where it implies more memory over the segment than the direction's model ``own`` (a
+    larger v_n); None where it does not, or where its AR part has a root on the unit
+    circle."""
+    try:
+        rho = arfima_autocorrelation(phi, fraction, n)
+    except np.linalg.LinAlgError:
+        return None
+    return rho if mean_variance_ratio(rho) > own.mean_ratio(n) else None
 
 
 def _circulant_draws(gamma: np.ndarray, count: int, gen: np.random.Generator) -> np.ndarray:
@@ -333,9 +333,9 @@ def fractional_spread(
     logs, squares = np.empty(draws.shape[0]), np.empty(draws.shape[0])
     for i, (g, refit) in enumerate(zip(fractions, coefficients)):
         r = arfima_autocorrelation(refit, float(g), n)
-        logs[i] = math.log(_mean_ratio(r, n))
+        logs[i] = math.log(max(mean_variance_ratio(r), 1.0))
         squares[i] = math.log(float(np.sum(r * r)))
-    truth = math.log(_mean_ratio(rho, n))
+    truth = math.log(max(mean_variance_ratio(rho), 1.0))
     return (
         float(np.var(logs, ddof=1)) * shrink,
         (float(np.mean(logs)) - truth) * shrink,
@@ -391,14 +391,12 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     series = list(memory.series)
     for i in np.flatnonzero(fractions > 0).tolist():
         phi, fraction = coefficients[i], float(fractions[i])
-        try:
-            rho = arfima_autocorrelation(phi, fraction, n)
-        except np.linalg.LinAlgError:  # an AR part with a root on the unit circle
-            continue
-        if _mean_ratio(rho, n) <= series[i].mean_ratio(n):
+        rho = _longer_memory(phi, fraction, n, series[i])
+        if rho is None:
             continue
         spread = fractional_spread(phi, fraction, n, search, int(orders[i]) + i)
-        series[i] = corrected_memory(phi, rho, math.log(_mean_ratio(rho, n)), spread, fraction)
+        log_v = math.log(mean_variance_ratio(rho))
+        series[i] = corrected_memory(phi, rho, log_v, spread, fraction)
     alternative = _weak_alternative(series, weak, candidates, n)
     if alternative is None and all(new is old for new, old in zip(series, memory.series)):
         return memory
@@ -420,15 +418,9 @@ def _weak_alternative(series: list, weak: np.ndarray, candidates: list, n: int):
     out, changed = list(series), False
     for i in np.flatnonzero(weak).tolist():
         fraction, phi = candidates[i]
-        if fraction >= FRACTIONS[-1] - 1e-9:
+        rho = None if fraction >= FRACTIONS[-1] - 1e-9 else _longer_memory(phi, fraction, n, out[i])
+        if rho is None:
             continue
-        try:
-            rho = arfima_autocorrelation(phi, fraction, n)
-        except np.linalg.LinAlgError:
-            continue
-        if _mean_ratio(rho, n) <= out[i].mean_ratio(n):
-            continue
-        own = out[i]
-        out[i] = SeriesMemory(phi, rho, own.dof, own.square_dof, fraction)
+        out[i] = SeriesMemory(phi, rho, out[i].dof, out[i].square_dof, fraction)
         changed = True
     return tuple(out) if changed else None

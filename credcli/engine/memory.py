@@ -78,6 +78,53 @@ def max_order(n: int) -> int:
     return int(max(0, min(MAX_ORDER_CAP, n // 4, math.ceil(12.0 * (n / 100.0) ** 0.25))))
 
 
+def aicc_penalty(parameters, epochs):
+    """AICc's charge for ``parameters`` estimated from ``epochs``: 2kT/(T − k − 1), the
+    denominator at least 1 (Hurvich & Tsai 1989).
+
+    Parameters
+    ----------
+    parameters : int or numpy.ndarray of int
+        k.
+    epochs : int
+        T.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The charge, in the shape of ``parameters``.
+
+    Examples
+    --------
+    >>> float(aicc_penalty(2, 100))
+    4.123711340206185
+    """
+    return 2.0 * parameters * epochs / np.maximum(epochs - parameters - 1, 1)
+
+
+def mean_variance_ratio(rho: np.ndarray) -> float:
+    """v_n = n·Var(x̄_n)/γ(0) = 1 + 2 Σ_{0<h<n} (1 − h/n) ρ(h) of a window of n epochs.
+
+    Parameters
+    ----------
+    rho : numpy.ndarray, shape (n,)
+        The autocorrelation ρ(0) … ρ(n − 1) over the window.
+
+    Returns
+    -------
+    float
+        v_n, not floored (an antipersistent model gives less than 1).
+
+    Examples
+    --------
+    >>> mean_variance_ratio(np.array([1.0, 0.5, 0.0, 0.0]))
+    1.75
+    """
+    n = rho.size
+    h = np.arange(1, n)
+    return float(1.0 + 2.0 * np.sum((1.0 - h / n) * rho[1:]))
+
+
 @dataclass(frozen=True)
 class BurgFit:
     """Burg's recursion on k series, each pooled over m equal segments of T epochs.
@@ -102,21 +149,26 @@ class BurgFit:
     epochs: int  # m·T, the epochs behind each fit
     segments: int
 
-    def aicc(self) -> np.ndarray:
+    def aicc(self, extra: int = 0) -> np.ndarray:
         """The corrected AIC (Hurvich & Tsai 1989) of each order.
+
+        Parameters
+        ----------
+        extra : int, default 0
+            Parameters of the model beside the p coefficients and the innovation variance
+            (a fractional order, :mod:`credcli.engine.longmemory`).
 
         Returns
         -------
         numpy.ndarray, shape (k, p_max + 1)
-            AICc(p) = T log σ²_p + 2(p + 1)T/(T − p − 2) per series and order p, with
-            T = :attr:`epochs` (the denominator at least 1).
+            AICc(p) = T log σ²_p + :func:`aicc_penalty` (p + 1 + extra, T) per series and
+            order p, with T = :attr:`epochs`.
         """
         t = self.epochs
         p = np.arange(self.variance.shape[1])
         with np.errstate(divide="ignore"):
             log_var = np.log(self.variance)
-        penalty = 2.0 * (p + 1) * t / np.maximum(t - p - 2, 1)
-        return t * log_var + penalty
+        return t * log_var + aicc_penalty(p + 1 + extra, t)
 
     def orders(self, minimum: int = 0) -> np.ndarray:
         """The order of least AICc per series, at least ``minimum``.
@@ -484,8 +536,7 @@ class SeriesMemory(_Answering):
             v_n < 1.
         """
         rho = self.window(n)
-        h = np.arange(1, n)
-        if 1.0 + 2.0 * np.sum((1.0 - h / n) * rho[1:]) < 1.0:
+        if mean_variance_ratio(rho) < 1.0:
             return np.eye(1, n)[0]
         return rho
 
@@ -507,9 +558,7 @@ class SeriesMemory(_Answering):
             v_n = n·Var(x̄_n)/γ(0) = 1 + 2 Σ_{0<h<n} (1 − h/n) ρ(h), floored at 1 (τ as
             n → ∞).
         """
-        rho = self.window(n)
-        h = np.arange(1, n)
-        return float(max(1.0 + 2.0 * np.sum((1.0 - h / n) * rho[1:]), 1.0))
+        return max(mean_variance_ratio(self.window(n)), 1.0)
 
     @_memoised
     def centred_square_moments(self, n: int) -> tuple[float, float]:
@@ -1155,14 +1204,12 @@ def _common_model(fit, y, orders, minimum, p_max, runs):
     epochs = runs * (t - first)
     own = [_log_mean_square(z[i], fit.coefficients(i, int(orders[i])), first) for i in range(d)]
     params = orders[:d] + 1
-    own_cost = epochs * sum(own) + float(
-        np.sum(2.0 * params * epochs / np.maximum(epochs - params - 1, 1))
-    )
+    own_cost = epochs * sum(own) + float(np.sum(aicc_penalty(params, epochs)))
     own_cost += ROTATION_PENALTY * d * (d - 1) / 2
     common = pooled.coefficients(0, p)
     shared = sum(_log_mean_square(z[i], common, first) for i in range(d))
     count, many = p + d, d * epochs
-    if epochs * shared + 2.0 * count * many / max(many - count - 1, 1) > own_cost:
+    if epochs * shared + aicc_penalty(count, many) > own_cost:
         return None
     return pooled, p
 

@@ -390,3 +390,32 @@ def test_a_memory_lists_its_distinct_models_with_the_directions_they_serve():
         (True, False, (0, 2)),
         (False, True, (1,)),
     ]
+
+
+def test_a_long_run_is_fitted_on_its_first_sieve_epochs(monkeypatch):
+    """Beyond SIEVE_EPOCHS epochs the sieve, its bootstrap and its degrees of freedom are
+    those of the run's first SIEVE_EPOCHS epochs (same coefficients and model error), while
+    the autocorrelation still covers every lag of the whole run that it needs; a segment
+    of at most SIEVE_EPOCHS epochs is fitted whole (the cap changes nothing there). One
+    direction, so that the principal directions of the run and of its prefix agree."""
+    rng = np.random.default_rng(11)
+    s = _ar([1, -0.6], 4096, rng)
+    q = np.sum(s * s, axis=1)
+    q = q - q.mean()
+    whole = mem.fit_memory(s, q)
+    monkeypatch.setattr(mem, "SIEVE_EPOCHS", 512)
+    capped = mem.fit_memory(s, q)
+    prefix = mem.fit_memory(s[:512], q[:512] - q[:512].mean())
+    assert capped.epochs == 4096
+    for got, ref, full in zip(capped.series, prefix.series, whole.series):
+        assert got.order == ref.order >= 1
+        np.testing.assert_allclose(got.phi, ref.phi, rtol=1e-9)
+        assert got.dof == pytest.approx(ref.dof, rel=1e-9)
+        assert got.variance_ratio == pytest.approx(ref.variance_ratio, rel=1e-9)
+        # the whole run's fit is another (and more precise) one
+        assert full.dof > 4 * got.dof
+    monkeypatch.setattr(mem, "SIEVE_EPOCHS", 4096)
+    again = mem.fit_memory(s, q)
+    for got, ref in zip(again.series, whole.series):
+        np.testing.assert_array_equal(got.phi, ref.phi)
+        assert got.dof == ref.dof

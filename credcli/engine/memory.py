@@ -665,6 +665,13 @@ there and costs independent errors little (their fitted τ̂ is near 1)."""
 FORCED_BELOW = 200
 """Runs shorter than this get :data:`MIN_ORDER` in every series; longer ones keep AICc's
 order 0 for a series that shows no memory (known white, no bootstrap)."""
+SIEVE_EPOCHS = 1 << 18
+"""Most epochs of a run the sieve is fitted on (:func:`fit_memory`): a longer run's first
+2^18. Its errors are stationary under the model, and the sieve's τ̂ from 262,144 epochs
+already has a relative standard error of order √(p/N) (Berk 1974), 1.5 % at the largest
+order, 60, so a segment of millions of epochs pays for this many (Burg's recursion makes a
+pass over the series per order) and no more. Every autocorrelation still covers the whole
+segment, and the time-scale check (:func:`time_scales`) reads every epoch."""
 BOOTSTRAP_REPLICATES = 40
 """Series drawn from each fitted model to measure its estimation error (a variance from
 40 draws is within ±22 % at one standard error, which moves a t critical value at 20
@@ -1022,8 +1029,8 @@ def fit_memory(
     principal direction.
 
     The errors are rotated to their :func:`principal_directions`; each direction and q is
-    centred (per run), scaled by a power of two, and fitted by :func:`burg` with the order
-    of least AICc. Where AICc cannot tell the directions' memories apart
+    cut to each run's first :data:`SIEVE_EPOCHS` epochs, centred (per run), scaled by a
+    power of two, and fitted by :func:`burg` with the order of least AICc. Where AICc cannot tell the directions' memories apart
     (:func:`_common_model`), a direction whose own model shows less memory than their
     common model takes the common one: the principal directions are chosen to differ, and
     the one of least long-run variance is fitted too little memory. Where AICc chooses
@@ -1045,7 +1052,8 @@ def fit_memory(
         The runs pooled in ``s`` and ``q``; taken as 1 when it is below 1 or does not
         divide N.
     order : int, optional
-        The largest AR order; default :func:`max_order` of T.
+        The largest AR order; default :func:`max_order` of the epochs fitted,
+        min(T, :data:`SIEVE_EPOCHS`).
     screened : bool, default False
         Whether the caller's lag-1 screening found dependence: then the errors are never
         taken as white, and every series gets at least :data:`MIN_ORDER`.
@@ -1090,12 +1098,14 @@ def fit_memory(
         runs = 1
     t = n // runs
     directions = principal_directions(s, runs)
-    y = (s @ directions).T.reshape(d, runs, t)
-    qs = np.asarray(q, dtype=float).reshape(1, runs, t)
+    # the sieve is fitted on each run's first SIEVE_EPOCHS epochs at most
+    fitted_t = min(t, SIEVE_EPOCHS)
+    y = (s @ directions).T.reshape(d, runs, t)[:, :, :fitted_t]
+    qs = np.asarray(q, dtype=float).reshape(1, runs, t)[:, :, :fitted_t]
     stacked = np.concatenate([y, qs], axis=0)
     stacked = stacked - stacked.mean(axis=2, keepdims=True)
     stacked = stacked / power_of_two_unit(stacked.reshape(d + 1, -1), axis=1)[:, None, None]
-    p_max = max_order(t) if order is None else int(order)
+    p_max = max_order(fitted_t) if order is None else int(order)
     fit = burg(stacked, p_max)
     if not screened and not np.any(fit.orders()):
         white = SeriesMemory(np.zeros(0), np.ones(1), math.inf)
@@ -1110,9 +1120,12 @@ def fit_memory(
         shared_tau = _log_taus(pooled.reflection, [p])[0]
         lifted = np.flatnonzero(_log_taus(fit.reflection[:d], orders[:d]) < shared_tau).tolist()
     keep = [i for i in range(d + 1) if i not in lifted]
-    memories = dict(zip(keep, _fitted_memories(fit, orders, minimum, p_max, n, t, cover, keep)))
+    behind = runs * fitted_t  # the epochs behind the fit, whose error the bootstrap measures
+    memories = dict(
+        zip(keep, _fitted_memories(fit, orders, minimum, p_max, behind, t, cover, keep))
+    )
     if lifted:
-        shared = _fitted_memories(pooled, [p], minimum, p_max, n, t, cover, [0], segments=d)
+        shared = _fitted_memories(pooled, [p], minimum, p_max, behind, t, cover, [0], segments=d)
         memories.update(dict.fromkeys(lifted, shared[0]))
     return Memory(directions, tuple(memories[i] for i in range(d)), memories[d], n, runs)
 

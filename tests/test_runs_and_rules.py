@@ -170,6 +170,27 @@ def test_the_time_scale_check_is_exact_for_white_errors_and_sees_long_memory():
     assert ts.failed_at is not None and ts.observed[-1] > ts.high[-1]
 
 
+def test_the_time_scales_block_sums_are_those_of_consecutive_epochs():
+    """Each scale's observed variance ratio, computed by adding pairs of the half scale's
+    block sums, equals the direct one: the first ⌊N/m⌋·m epochs cut into blocks of m
+    consecutive epochs, summed, centred over the blocks (N not a power of two, so the
+    blocks leave a remainder at most scales)."""
+    rng = np.random.default_rng(8)
+    n = 1000
+    y = rng.standard_normal((n, 2)) * [1.0, 3.0]
+    y -= y.mean(axis=0)
+    model = _white_model(n)
+    ts = mem.time_scales(y, model)
+    variances = np.sum(y * y, axis=0) / (n - 1)  # a white model's expected centred sum
+    assert ts.epochs.tolist() == [2**j for j in range(ts.epochs.size)]
+    for m, observed in zip(ts.epochs.tolist(), ts.observed):
+        k = n // m
+        sums = np.array([y[j * m : (j + 1) * m].sum(axis=0) for j in range(k)])
+        sums -= sums.mean(axis=0)
+        direct = np.mean(np.sum(sums**2, axis=0) / ((k - 1) * m * variances))
+        assert observed == pytest.approx(direct, rel=1e-12)
+
+
 def test_the_lowest_frequency_check_has_the_exact_mean_and_level_and_sees_long_memory():
     """The expected periodogram at 2π/N under an AR(1) model equals the double sum
     Σ_s Σ_t γ(s − t) e^{−iω(s − t)}/N (an independent O(N²) computation); on white errors

@@ -1424,6 +1424,8 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     blocks) and γ̂_i the direction's variance (its sum of squares over the expected
     centred sum, :meth:`SeriesMemory.centred_square_moments`), the statistic at scale m
     is Σ_i Σ_j S_{ji}² / (m γ̂_i v_{i,m}), referred to χ² with d(K − 1) degrees of freedom.
+    The scales are powers of two, so each block sum is the sum of two at half the scale:
+    one pass over the epochs for all scales, where a sum per scale made one each.
     """
     n, d = y.shape
     rotated = y @ memory.directions
@@ -1437,11 +1439,12 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     tau = float(np.max(memory.variance_ratios))
     rows = []
     m = 1
+    block_sums = rotated  # at scale m, each the sum of two at scale m/2
     while n // m >= MIN_SCALE_BLOCKS:
         k = n // m
-        blocks = rotated[: k * m].reshape(k, m, d)
-        sums = blocks.sum(axis=1)
-        sums = sums - sums.mean(axis=0)
+        if m > 1:
+            block_sums = block_sums[: 2 * k].reshape(k, 2, d).sum(axis=1)
+        sums = block_sums - block_sums.mean(axis=0)
         ratios = np.array([series.mean_ratio(m) for series in memory.series])
         per_direction = np.sum(sums**2, axis=0) / ((k - 1) * m * variances)
         observed = float(np.mean(per_direction))

@@ -282,3 +282,25 @@ def test_no_time_offset_without_a_lag(noise):
     for seed in range(4):
         (rec,) = credcli.diagnose_log(_circle_log(seed, noise=noise)).to_dict()
         assert rec["time_offset"] is None, rec["findings"]
+
+
+@pytest.mark.parametrize(("offset_sq", "covered"), [(1.4, True), (6.0, False), (0.2, False)])
+def test_an_offset_the_claim_covers_is_named_beside_pessimism_and_bias(offset_sq, covered):
+    """An offset b over white errors of covariance 0.3 I under a claimed I (d = 2, 200
+    epochs): the label is pessimism+bias whatever b. The total second moment about zero is
+    (0.6 + |b|²)/2 per dimension: 1 for |b|² = 1.4, where the finding says that the claim
+    covers the total error and that one segment cannot tell a bias from a slower error;
+    3.3 and 0.4 for |b|² = 6 and 0.2, where it says nothing. The ANEES it reports is the
+    segment's mean NEES over d."""
+    rng = np.random.default_rng(0)
+    n = 200
+    b = np.full(2, math.sqrt(offset_sq / 2))
+    errors = b + math.sqrt(0.3) * rng.standard_normal((n, 2))
+    d = diagnose_errors(errors, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=1)
+    assert d.label is Label.PESSIMISM_BIAS
+    found = [f for f in d.findings if f.startswith("offset within the claim")]
+    assert bool(found) is covered
+    assert d.anees == pytest.approx(np.mean(np.sum(errors**2, axis=1)) / 2, rel=1e-12)
+    if covered:
+        assert f"mean NEES {d.anees:.3g}·d" in found[0]
+        assert "cannot tell them apart" in found[0]

@@ -304,3 +304,11 @@ def test_an_offset_the_claim_covers_is_named_beside_pessimism_and_bias(offset_sq
     if covered:
         assert f"mean NEES {d.anees:.3g}·d" in found[0]
         assert "cannot tell them apart" in found[0]
+        # a window judged with its run's memory (here the segment's own, as a run's): the
+        # run's model holds the slow parts, so the finding is not given
+        windowed = diagnose_errors(
+            errors, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=1, memory=d.memory
+        )
+        assert windowed.memory_source == "run"
+        assert windowed.label is Label.PESSIMISM_BIAS
+        assert not [f for f in windowed.findings if f.startswith("offset within")]

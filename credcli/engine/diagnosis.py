@@ -474,15 +474,18 @@ def offset_findings(ev: evidence.Evidence, verdict, config: DiagnosisConfig) -> 
     Returns
     -------
     tuple of str
-        One sentence where the label is pessimism+bias, decided on the whole segment, and
-        the ANEES about zero is within the scale test's interval scaled to it (its relative
-        precision) around 1; empty otherwise.
+        One sentence where the label is pessimism+bias, decided on the whole segment with
+        its own memory, and the ANEES about zero is within the scale test's interval scaled
+        to it (its relative precision) around 1; empty otherwise. A window judged with its
+        run's memory gets none: the run's model holds the errors' slow parts, so a bias
+        found under it is no slow error of the run.
     """
     scale = ev.scale
     if (
         not config.calibrated
         or verdict.label is not Label.PESSIMISM_BIAS
         or verdict.by_direction
+        or ev.memory_source == "run"  # judged with its run's memory, slow parts included
         or scale is None
     ):
         return ()

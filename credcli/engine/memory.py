@@ -1030,16 +1030,16 @@ def fit_memory(
 
     The errors are rotated to their :func:`principal_directions`; each direction and q is
     cut to each run's first :data:`SIEVE_EPOCHS` epochs, centred (per run), scaled by a
-    power of two, and fitted by :func:`burg` with the order of least AICc. Where AICc cannot tell the directions' memories apart
-    (:func:`_common_model`), a direction whose own model shows less memory than their
-    common model takes the common one: the principal directions are chosen to differ, and
-    the one of least long-run variance is fitted too little memory. Where AICc chooses
-    order 0 for every series and the caller's lag-1 screening (``screened``) found no
-    dependence either, the errors are taken as independent (the exact tests apply,
-    :attr:`Memory.white`). Otherwise every series gets at least :data:`MIN_ORDER` (on runs
-    shorter than :data:`FORCED_BELOW` epochs, or when ``screened``), and the models'
-    estimation error and bias come from the parametric bootstrap
-    (:func:`bootstrap_spread`).
+    power of two, and fitted by :func:`burg` with the order of least AICc. Where AICc
+    cannot tell the directions' memories apart (:func:`_common_model`), a direction whose
+    own model shows less memory than their common model takes the common one: the
+    principal directions are chosen to differ, and the one of least long-run variance is
+    fitted too little memory. Where AICc chooses order 0 for every series and the caller's
+    lag-1 screening (``screened``) found no dependence either, the errors are taken as
+    independent (the exact tests apply, :attr:`Memory.white`). Otherwise every series gets
+    at least :data:`MIN_ORDER` (on runs shorter than :data:`FORCED_BELOW` epochs, or when
+    ``screened``), and the models' estimation error and bias come from the parametric
+    bootstrap (:func:`bootstrap_spread`).
 
     Parameters
     ----------

@@ -7,7 +7,7 @@ EXTRAS := .[plots,ros,dask,filterpy,stonesoup,fast,docs,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 
-.PHONY: install demo test docs test-oldest lock lint format bench bench-elt bench-versus bench-dask sample-data config clean
+.PHONY: install demo test docs test-oldest lock lint format bench bench-elt bench-versus outputs bench-dask sample-data config clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -78,6 +78,15 @@ bench-versus: $(STAMP)
 	rm -rf /tmp/credcli-versus-base && mkdir -p /tmp/credcli-versus-base
 	git archive $(BASE) credcli | tar -x -C /tmp/credcli-versus-base
 	$(BIN)/python benchmarks/versus.py /tmp/credcli-versus-base $(if $(ONLY),--only '$(ONLY)')
+
+## outputs: every kind of command's output at BASE and here, compared byte for byte (and,
+## for JSON, label by label and key by key): the check of a change that claims none
+outputs: $(STAMP)
+	rm -rf /tmp/credcli-outputs && mkdir -p /tmp/credcli-outputs/base
+	git archive $(BASE) credcli | tar -x -C /tmp/credcli-outputs/base
+	$(BIN)/python benchmarks/outputs.py write /tmp/credcli-outputs/base /tmp/credcli-outputs/old
+	$(BIN)/python benchmarks/outputs.py write . /tmp/credcli-outputs/new
+	$(BIN)/python benchmarks/outputs.py compare /tmp/credcli-outputs/old /tmp/credcli-outputs/new
 
 ## bench-dask: only the Dask rows of make bench (issue 13)
 bench-dask: $(STAMP)

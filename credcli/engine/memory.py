@@ -1098,9 +1098,11 @@ def fit_memory(
         runs = 1
     t = n // runs
     directions = principal_directions(s, runs)
-    # the sieve is fitted on each run's first SIEVE_EPOCHS epochs at most
+    # the sieve is fitted on each run's first SIEVE_EPOCHS epochs at most (only they are
+    # rotated; a segment no longer than that is s itself)
     fitted_t = min(t, SIEVE_EPOCHS)
-    y = (s @ directions).T.reshape(d, runs, t)[:, :, :fitted_t]
+    first = s.reshape(runs, t, d)[:, :fitted_t].reshape(-1, d)
+    y = (first @ directions).T.reshape(d, runs, fitted_t)
     qs = np.asarray(q, dtype=float).reshape(1, runs, t)[:, :, :fitted_t]
     stacked = np.concatenate([y, qs], axis=0)
     stacked = stacked - stacked.mean(axis=2, keepdims=True)

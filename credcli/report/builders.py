@@ -8,7 +8,7 @@ and writes prose; the records and columns, and every key they have, come from
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 
 from credcli.engine.config import LOCATION_CONDITIONS, DiagnosisConfig, Label, Variant
 from credcli.engine.diagnosis import SegmentDiagnosis
@@ -29,6 +29,8 @@ from credcli.report.records import (
     SEGMENT_COLUMNS_ALL,
     UWB_COLUMNS,
     WHITENESS_COLUMN,
+    RecordBatch,
+    Records,
     accuracy_columns,
     accuracy_row,
     anchor_record,
@@ -44,7 +46,7 @@ from credcli.report.records import (
     log_record,
     monte_carlo_record,
     range_record,
-    segment_records,
+    segment_record,
     shown_label,
     simulate_document,
     sweep_columns,
@@ -61,7 +63,7 @@ from credcli.studies.uwb import dropped_text
 
 
 def diagnose_report(
-    results: list[SegmentDiagnosis],
+    results: Iterable,
     config: DiagnosisConfig,
     parameters: dict,
     logs: Mapping[LogId, LogSummary],
@@ -75,10 +77,15 @@ def diagnose_report(
     With segments of more than one log, each row names its log and a second table
     compares the logs (accuracy over all epochs, credible segments).
 
+    The results are read once, in order, and each is dropped once its record and its
+    share of the notes are taken: ``results`` may be an iterator over results as they are
+    diagnosed, and the report then holds a record a segment, not a result.
+
     Parameters
     ----------
-    results : list of SegmentDiagnosis
-        The diagnosed segments, in report order.
+    results : SegmentResults, or iterable of SegmentDiagnosis and ShortSegments
+        The diagnosed segments, in report order (a run of segments too short for a verdict
+        as one :class:`~credcli.engine.short.ShortSegments`, whose items are not made).
     config : DiagnosisConfig
         The rule the results were decided with (the table's caption; the ELT's
         subsample size in the notes).
@@ -105,38 +112,39 @@ def diagnose_report(
         Carlo test) and the document (``version``, ``command``, ``parameters``, ``logs``,
         ``segments`` and, when given, ``monte_carlo``).
     """
-    records = segment_records(results)
+    notes = _SegmentNotes()
+    parts = []
+    for part in _parts(results):
+        parts.append(RecordBatch(part) if isinstance(part, ShortSegments) else segment_record(part))
+        notes.add(part)
+    records = Records(tuple(parts))
     summaries, logs = logs, {log_id: log_record(summary) for log_id, summary in logs.items()}
-    parts = _parts(results)
-    multi = len({part.log for part in parts}) > 1
+    multi = len(notes.logs) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
-    if any(_singles(results, lambda r: r.whiteness is not None)):
+    if notes.whiteness.tested:
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     if multi:
         columns = (LOG_NAME_COLUMN,) + columns
-    notes = []
-    sub = [
-        f"{r.log.name}: {r.segment}" if multi else r.segment  # which log's, among several
-        for r in _singles(results, lambda r: r.diagnosis.elt and r.diagnosis.elt.subsampled)
-    ]
+    lines = []
+    sub = [f"{log.name}: {name}" if multi else name for log, name in notes.subsampled]
     if sub:
-        notes.append(
+        lines.append(
             f"ELT ran on a random subsample of {config.max_elt_epochs} epochs in "
             f"segment(s) {', '.join(sub)} (memory budget; see `max_elt_epochs`)."
         )
     for summary in summaries.values():
         if summary.dropped_rows:
-            notes.append(f"{summary.id.name}: dropped {summary.dropped_rows} row(s) with NaN/Inf.")
-    notes.extend(_advice_lines(results))
-    notes.extend(_finding_lines(results))
-    notes.extend(_whiteness_lines(results))
+            lines.append(f"{summary.id.name}: dropped {summary.dropped_rows} row(s) with NaN/Inf.")
+    lines.extend(notes.advice.lines())
+    lines.extend(notes.findings.lines())
+    lines.extend(notes.whiteness.lines())
     if monte_carlo is not None:
-        notes.append(_monte_carlo_line(monte_carlo))
+        lines.append(_monte_carlo_line(monte_carlo))
     table = Table("credcli diagnose", columns, records, caption=_level_caption(config))
-    tables = [table, _logs_table(logs, results)] if multi else [table]
+    tables = [table, _logs_table(logs, notes)] if multi else [table]
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
     document = diagnose_document(parameters, list(logs.values()), records, mc_record)
-    return Report(tables, document, notes)
+    return Report(tables, document, lines)
 
 
 def _monte_carlo_line(mc: MonteCarlo) -> str:
@@ -152,85 +160,133 @@ def _monte_carlo_line(mc: MonteCarlo) -> str:
     )
 
 
-def _parts(results) -> list:
+def _parts(results) -> Iterable:
     """The results as parts: each a SegmentDiagnosis or a run of segments too short for a
     verdict (:class:`credcli.engine.short.ShortSegments`), whose items are not made."""
-    return list(results.parts) if isinstance(results, SegmentResults) else list(results)
+    return results.parts if isinstance(results, SegmentResults) else results
 
 
-def _singles(results, keep) -> list[SegmentDiagnosis]:
-    """The results that are not part of a run of short segments, where ``keep(result)``."""
-    return [p for p in _parts(results) if not isinstance(p, ShortSegments) and keep(p)]
+class _Advice:
+    """The advice of each segment that has one (:func:`credcli.report.advice.advice`), at
+    most ``limit``, then what each location condition found means; taken a part at a
+    time (:meth:`add`). A run of short segments gives each its reason without making its
+    items."""
+
+    def __init__(self, limit: int = 10):
+        self.limit, self.shown, self.count, self.found = limit, [], 0, set()
+
+    def add(self, part) -> None:
+        if isinstance(part, ShortSegments):
+            self.found.add(Label.INSUFFICIENT.location)
+            for k in range(min(len(part), max(0, self.limit - len(self.shown)))):
+                self.shown.append(f"{part.names[k]}: no verdict: {part.reason(int(part.n[k]))}")
+            self.count += len(part)
+            return
+        self.found.add(part.diagnosis.label.location)
+        line = advice(part)
+        if line:
+            self.count += 1
+            if len(self.shown) < self.limit:
+                self.shown.append(line)
+
+    def lines(self) -> list[str]:
+        lines = list(self.shown)
+        if self.count > self.limit:
+            lines.append(f"... and {self.count - self.limit} more segment(s); see the JSON output")
+        return lines + [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in self.found]
 
 
-def _logs_table(logs: Mapping[LogId, dict], results) -> Table:
-    good: dict[LogId, int] = dict.fromkeys(logs, 0)
-    total: dict[LogId, int] = dict.fromkeys(logs, 0)
-    for part in _parts(results):
-        if part.log not in total:
-            continue
+class _Findings:
+    """The findings the engine reports beside the labels (a slowly varying error, ...),
+    at most ``limit`` lines."""
+
+    def __init__(self, limit: int = 10):
+        self.limit, self.shown, self.count = limit, [], 0
+
+    def add(self, result: SegmentDiagnosis) -> None:
+        for f in result.diagnosis.findings:
+            if len(self.shown) < self.limit:
+                self.shown.append(f"{result.segment}: {f}")
+            self.count += 1
+
+    def lines(self) -> list[str]:
+        if self.count <= self.limit:
+            return list(self.shown)
+        more = f"... and {self.count - self.limit} more finding(s); see the JSON output"
+        return [*self.shown, more]
+
+
+class _Whiteness:
+    """Segments whose innovations are not white at the whiteness test's share of α (the
+    engine's decision, ``Whiteness.rejected``), at most ``limit`` lines; and whether any
+    segment had the test (the table's column)."""
+
+    def __init__(self, limit: int = 10):
+        self.limit, self.shown, self.count, self.tested = limit, [], 0, False
+
+    def add(self, result: SegmentDiagnosis) -> None:
+        white = result.whiteness
+        if white is None:
+            return
+        self.tested = True
+        if not white.rejected:
+            return
+        if self.count < self.limit:
+            self.shown.append(
+                f"{result.segment}: innovations correlated in time (portmanteau p = "
+                f"{format_cell(white.pvalue, 3)}, {white.lags} lags, level "
+                f"{format_cell(white.level, 3)}): the filter's "
+                "model or noise is inconsistent even if the NIS level is right"
+            )
+        self.count += 1
+
+    def lines(self) -> list[str]:
+        if self.count <= self.limit:
+            return list(self.shown)
+        more = f"... and {self.count - self.limit} more segment(s) with correlated innovations"
+        return [*self.shown, more]
+
+
+class _SegmentNotes:
+    """What the `diagnose` report says beside the records, taken a part at a time
+    (:meth:`add`): the advice, findings and whiteness notes, the segments whose ELT ran on
+    a subsample, and each log's segments and credible ones."""
+
+    def __init__(self):
+        self.advice, self.findings, self.whiteness = _Advice(), _Findings(), _Whiteness()
+        self.subsampled: list[tuple[LogId, str]] = []
+        self.logs: dict[LogId, list[int]] = {}  # [credible, segments] by log
+
+    def add(self, part) -> None:
+        counts = self.logs.setdefault(part.log, [0, 0])
+        self.advice.add(part)
         if isinstance(part, ShortSegments):  # insufficient-data, every one
-            total[part.log] += len(part)
-            continue
-        total[part.log] += 1
+            counts[1] += len(part)
+            return
         diag = part.diagnosis
-        good[part.log] += shown_label(diag.label, diag.untested) == Label.CREDIBLE.value
+        counts[0] += shown_label(diag.label, diag.untested) == Label.CREDIBLE.value
+        counts[1] += 1
+        if diag.elt and diag.elt.subsampled:
+            self.subsampled.append((part.log, part.segment))
+        self.findings.add(part)
+        self.whiteness.add(part)
+
+
+def _logs_table(logs: Mapping[LogId, dict], notes: _SegmentNotes) -> Table:
+    counted = {log_id: notes.logs.get(log_id, [0, 0]) for log_id in logs}
     rows = [
-        compared_log_row(entry, f"{good[log_id]} of {total[log_id]}")
+        compared_log_row(entry, f"{counted[log_id][0]} of {counted[log_id][1]}")
         for log_id, entry in logs.items()
     ]
     return Table("logs compared", LOG_COLUMNS, rows, caption="accuracy over all epochs of each log")
 
 
-def _advice_lines(results, limit: int = 10) -> list[str]:
-    """The advice of each segment that has one (:func:`credcli.report.advice.advice`), at
-    most ``limit``, then what each location condition found means. A run of short segments
-    gives each its reason without making its items."""
-    lines, count, found = [], 0, set()
+def _advice_lines(results) -> list[str]:
+    """The advice notes of ``results`` (:class:`_Advice`)."""
+    fold = _Advice()
     for part in _parts(results):
-        if isinstance(part, ShortSegments):
-            found.add(Label.INSUFFICIENT.location)
-            for k in range(min(len(part), max(0, limit - len(lines)))):
-                lines.append(f"{part.names[k]}: no verdict: {part.reason(int(part.n[k]))}")
-            count += len(part)
-            continue
-        found.add(part.diagnosis.label.location)
-        line = advice(part)
-        if line:
-            count += 1
-            if len(lines) < limit:
-                lines.append(line)
-    if count > limit:
-        lines.append(f"... and {count - limit} more segment(s); see the JSON output")
-    lines += [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in found]
-    return lines
-
-
-def _finding_lines(results, limit: int = 10) -> list[str]:
-    """The findings the engine reports beside the labels (a slowly varying error, ...)."""
-    found = _singles(results, lambda r: r.diagnosis.findings)
-    lines = [f"{item.segment}: {f}" for item in found for f in item.diagnosis.findings]
-    if len(lines) > limit:
-        lines = lines[:limit] + [
-            f"... and {len(lines) - limit} more finding(s); see the JSON output"
-        ]
-    return lines
-
-
-def _whiteness_lines(results, limit: int = 10) -> list[str]:
-    """Segments whose innovations are not white at the whiteness test's share of α (the
-    engine's decision, ``Whiteness.rejected``)."""
-    bad = _singles(results, lambda r: r.whiteness is not None and r.whiteness.rejected)
-    lines = [
-        f"{item.segment}: innovations correlated in time (portmanteau p = "
-        f"{format_cell(item.whiteness.pvalue, 3)}, {item.whiteness.lags} lags, level "
-        f"{format_cell(item.whiteness.level, 3)}): the filter's "
-        "model or noise is inconsistent even if the NIS level is right"
-        for item in bad[:limit]
-    ]
-    if len(bad) > limit:
-        lines.append(f"... and {len(bad) - limit} more segment(s) with correlated innovations")
-    return lines
+        fold.add(part)
+    return fold.lines()
 
 
 def _level_caption(config: DiagnosisConfig) -> str:

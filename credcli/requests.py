@@ -34,6 +34,10 @@ class DiagnoseRequest:
         The logs are runs of one scenario, pooled segment by segment.
     figures : bool, default False
         Draw the plots too.
+    keep_results : bool, default True
+        Keep every segment's result in the Run (``--fail-on`` and `gate` read them, as
+        the figures do). False: each result is read into the report as it is diagnosed
+        and dropped, so that memory holds a record a segment, not a result.
     """
 
     logs: tuple[Path, ...]
@@ -43,6 +47,7 @@ class DiagnoseRequest:
     jobs: int = 1
     monte_carlo: bool = False
     figures: bool = False
+    keep_results: bool = True
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from credcli.schedule.plans import (
     PARALLEL_MIN_BYTES,
     diagnose_on_cluster,
     diagnose_plans,
+    diagnosed_parts,
     file_size,
 )
 from credcli.schedule.pool import WorkerPool
@@ -82,7 +83,8 @@ class Run:
     plots : list of Plot
         The figures (empty unless asked for).
     results : list of SegmentDiagnosis
-        The diagnosed segments, in report order (empty for `simulate`).
+        The diagnosed segments, in report order (empty for `simulate`, and for `diagnose`
+        unless the request keeps them: ``DiagnoseRequest.keep_results`` or ``figures``).
     notes : tuple of str
         About the figures: the windows whose figures were skipped.
     """
@@ -114,7 +116,8 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     -------
     Run
         The report, the figures (when ``request.figures``), the results in report order
-        and the notes about the figures.
+        (when ``request.keep_results`` or ``request.figures``; otherwise each is dropped
+        once the report has read it) and the notes about the figures.
 
     Raises
     ------
@@ -126,6 +129,10 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     reading = request.reading
     schema, options, drop_invalid = reading.schema, reading.options, reading.drop_invalid
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
+    keep = request.keep_results or request.figures
+    segmentation = segmentation_name(window, whole)
+    parameters = diagnose_parameters(config, seed, reading, segmentation, monte_carlo=monte_carlo)
+    show_all = config.metrics is MetricsLevel.ALL
     if runner is not None:
         if monte_carlo:
             raise CredcliError("`monte_carlo` runs on this machine: drop `scheduler`")
@@ -146,13 +153,8 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
         plans = None
         mc = None
     else:
-        results, logs, plans, mc = _diagnose_here(request, progress)
-    segmentation = segmentation_name(window, whole)
-    parameters = diagnose_parameters(
-        config, seed, reading, segmentation, monte_carlo=mc is not None
-    )
-    show_all = config.metrics is MetricsLevel.ALL
-    report = diagnose_report(results, config, parameters, logs, show_all, mc)
+        results, logs, plans, mc = _diagnose_here(request, progress, keep)
+    report = diagnose_report(results, config, parameters, logs, show_all, mc)  # reads results
     figures, notes = [], []
     plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here
@@ -181,7 +183,7 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
                 notes.append(f"{log_name}: {note}" if several else note)
             chosen = [result for _, result in drawn]
             figures.extend(segment_figures(log, chosen, segments, prefix, log_name))
-    return Run(report, figures, results, tuple(notes))
+    return Run(report, figures, results if keep else [], tuple(notes))
 
 
 def segment_figures(
@@ -219,9 +221,11 @@ def segment_figures(
     return figs.segment_plots(results, curves, times, log.dim, prefix, log_name)
 
 
-def _diagnose_here(request: DiagnoseRequest, progress):
+def _diagnose_here(request: DiagnoseRequest, progress, keep: bool):
     """Read and diagnose the logs in this process and ``request.jobs`` local worker
-    processes; returns (results, log entries, plans, Monte Carlo test or None)."""
+    processes; returns (results, log entries, plans, Monte Carlo test or None), the
+    results held when ``keep``, else an iterator that diagnoses them as it is read
+    (:func:`credcli.schedule.plans.diagnosed_parts`)."""
     paths, config, jobs, reading = request.logs, request.config, request.jobs, request.reading
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     pool = None
@@ -247,7 +251,8 @@ def _diagnose_here(request: DiagnoseRequest, progress):
     if monte_carlo:
         diagnosed, mc = monte_carlo_plan(loaded, plans, config.alpha)
         runs = len(loaded)
-    results = diagnose_plans(
+    diagnose = diagnose_plans if keep else diagnosed_parts
+    results = diagnose(
         diagnosed, config, request.seed, jobs, progress, pool, reading.options.innovations, runs
     )
     return results, logs, plans, mc

@@ -358,3 +358,48 @@ def test_a_short_diagnosis_does_not_load_numba():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+def test_a_report_reads_each_result_as_it_is_diagnosed(monkeypatch):
+    """Issue 35 item 3: unless the results are kept (``--fail-on``, figures), `diagnose`
+    reads each segment's result into the report before the next segment is diagnosed and
+    keeps none; the report is the one made from the held results, notes and records."""
+    from credcli import workflows
+    from credcli.io.schema import LogReading
+    from credcli.report import builders
+    from credcli.requests import DiagnoseRequest
+    from credcli.schedule import plans as scheduling
+
+    events = []
+    diagnose, record = scheduling.diagnose_segment, builders.segment_record
+
+    def diagnosed(e, c, config, seed, name, *rest):
+        events.append(("diagnosed", name))
+        return diagnose(e, c, config, seed, name, *rest)
+
+    def recorded(result):
+        events.append(("recorded", result.segment))
+        return record(result)
+
+    monkeypatch.setattr(scheduling, "diagnose_segment", diagnosed)
+    monkeypatch.setattr(builders, "segment_record", recorded)
+    log = ROOT / "sample_data" / "estimator_log.csv"
+    reports = {}
+    for keep in (True, False):
+        events.clear()
+        request = DiagnoseRequest((log,), LogReading(window="20s"), keep_results=keep)
+        run = workflows.run_diagnose(request)
+        names = [r["segment"] for r in run.report.document["segments"]]
+        assert len(names) >= 5
+        steps = [step for name in names for step in (("diagnosed", name), ("recorded", name))]
+        if keep:  # every segment diagnosed, then every record made
+            assert events == steps[::2] + steps[1::2]
+            assert [r.segment for r in run.results] == names
+        else:
+            assert events == steps and run.results == []
+        reports[keep] = run.report
+    held, read = reports[True], reports[False]
+    assert read.notes == held.notes and len(read.notes) > 0
+    assert list(read.document["segments"]) == list(held.document["segments"])
+    assert read.document.keys() == held.document.keys()
+    assert [list(t.rows) for t in read.tables] == [list(t.rows) for t in held.tables]

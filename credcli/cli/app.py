@@ -153,7 +153,16 @@ def diagnose(
     check_plotting(plots, report_file)
     figures = plots is not None or report_file is not None
     request = diagnose_request(
-        logs, config, log, segments, rule, seed, run, monte_carlo=monte_carlo, figures=figures
+        logs,
+        config,
+        log,
+        segments,
+        rule,
+        seed,
+        run,
+        monte_carlo=monte_carlo,
+        figures=figures,
+        keep_results=conditions is not None,  # --fail-on reads each result
     )
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner)
@@ -200,7 +209,9 @@ def baseline(
 
     inputs = [log_file, config, log.truth]
     guard_outputs({"--output": output}, inputs)
-    request = diagnose_request([log_file], config, log, segments, rule, seed, run)
+    request = diagnose_request(
+        [log_file], config, log, segments, rule, seed, run, keep_results=False
+    )
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         recorded = run_baseline(request, bar, runner)
     print_notes(recorded)

@@ -488,6 +488,7 @@ def diagnose_request(
     *,
     monte_carlo: bool = False,
     figures: bool = False,
+    keep_results: bool = True,
 ) -> DiagnoseRequest:
     """What `diagnose`, `baseline` and `report` ask for.
 
@@ -511,6 +512,9 @@ def diagnose_request(
         The logs are runs of one scenario, pooled (``--monte-carlo``).
     figures : bool, default False
         Draw the figures too.
+    keep_results : bool, default True
+        Keep every segment's result (for ``--fail-on``); False: each is dropped once it
+        is in the report.
 
     Returns
     -------
@@ -526,7 +530,9 @@ def diagnose_request(
     diagnosis, seed_value = build_diagnosis_config(config, rule_values(rule), seed)
     reading = log_reading(config, log, segments)
     jobs = jobs_value(run.jobs)
-    return DiagnoseRequest(tuple(logs), reading, diagnosis, seed_value, jobs, monte_carlo, figures)
+    return DiagnoseRequest(
+        tuple(logs), reading, diagnosis, seed_value, jobs, monte_carlo, figures, keep_results
+    )
 
 
 def gate_request(

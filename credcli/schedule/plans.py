@@ -6,6 +6,7 @@ segment name) only."""
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -205,27 +206,33 @@ def _chunk_tasks(
         yield (log_id, items, config, seed, innovations, runs, blocks)
 
 
-def _in_order(plans, shorts: dict, diagnosed: list, config: DiagnosisConfig) -> SegmentResults:
-    """Every plan's results in its segments' order: each run of consecutive short segments
-    one part (a slice of the plan's :class:`ShortSegments`), the others from ``diagnosed``."""
-    parts: list = []
-    rest = iter(diagnosed)
+def _in_order(plans, shorts: dict, diagnosed: Iterator, config: DiagnosisConfig) -> Iterator:
+    """Every plan's results in its segments' order, as ``diagnosed`` yields them: each run
+    of consecutive short segments one part (a slice of the plan's :class:`ShortSegments`),
+    the others from ``diagnosed``."""
     for p, (log, segments) in enumerate(plans):
         short = shorts.get(p)
         if short is None:
-            parts.extend(itertools.islice(rest, len(segments)))
+            yield from itertools.islice(diagnosed, len(segments))
             continue
         flags = (seg.lengths(segments) < config.min_n(log.dim)).astype(np.int8)
         edges = np.flatnonzero(np.diff(np.r_[0, flags, 0])).tolist()
         done, at = 0, 0  # short segments taken; segments placed
         for start, stop in zip(edges[::2], edges[1::2]):
-            parts.extend(itertools.islice(rest, start - at))
-            parts.append(
-                short if stop - start == len(short) else short.take(done, done + stop - start)
-            )
+            yield from itertools.islice(diagnosed, start - at)
+            yield short if stop - start == len(short) else short.take(done, done + stop - start)
             done, at = done + stop - start, stop
-        parts.extend(itertools.islice(rest, len(segments) - at))
-    return SegmentResults(tuple(parts))
+        yield from itertools.islice(diagnosed, len(segments) - at)
+
+
+def _arrived(outputs, done: int, total: int, progress) -> Iterator[SegmentDiagnosis]:
+    """The results of each task of ``outputs`` as it arrives, ``progress(done, total)``
+    called with each task (``done``: the segments diagnosed before the first)."""
+    for out in outputs:
+        done += len(out)
+        if progress is not None:
+            progress(done, total)
+        yield from out
 
 
 def diagnose_plans(
@@ -238,13 +245,44 @@ def diagnose_plans(
     innovations: bool = False,
     runs: int = 1,
 ) -> SegmentResults:
-    """Every segment of every (log, segments) plan, in order. From PARALLEL_MIN_EPOCHS on,
-    ``jobs`` processes (``pool`` if given) share the work in chunks of about equal epochs;
-    otherwise segments are diagnosed one by one in this process. Each segment's sign flips
-    depend on (seed, segment name) only, so the results are the same for any ``jobs``.
+    """Every segment of every (log, segments) plan, in order (:func:`diagnosed_parts`,
+    held).
+
+    Parameters
+    ----------
+    plans, config, seed, jobs, progress, pool, innovations, runs
+        As :func:`diagnosed_parts` takes them.
+
+    Returns
+    -------
+    SegmentResults
+        The results, in the plans' order (:class:`credcli.engine.short.SegmentResults`).
+    """
+    return SegmentResults(
+        tuple(diagnosed_parts(plans, config, seed, jobs, progress, pool, innovations, runs))
+    )
+
+
+def diagnosed_parts(
+    plans,
+    config: DiagnosisConfig,
+    seed: int,
+    jobs: int = 1,
+    progress=None,
+    pool=None,
+    innovations: bool = False,
+    runs: int = 1,
+) -> Iterator:
+    """Every segment of every (log, segments) plan, in order, each yielded as soon as it
+    and those before it are diagnosed: a reader that drops each result holds none. From
+    PARALLEL_MIN_EPOCHS on, ``jobs`` processes (``pool`` if given) share the work in
+    chunks of about equal epochs; otherwise segments are diagnosed one by one in this
+    process. Each segment's sign flips depend on (seed, segment name) only, so the results
+    are the same for any ``jobs``.
 
     Segments too short for a verdict are diagnosed together here (not for innovations),
-    and each run of them is one part of the results.
+    and each run of them is one part of the results. The work starts at the first item
+    asked for; closing the iterator stops the workers.
 
     Parameters
     ----------
@@ -267,10 +305,11 @@ def diagnose_plans(
     runs : int, default 1
         The number of pooled Monte Carlo runs each segment holds.
 
-    Returns
-    -------
-    SegmentResults
-        The results, in the plans' order (:class:`credcli.engine.short.SegmentResults`).
+    Yields
+    ------
+    SegmentDiagnosis or ShortSegments
+        Each segment's result, a run of consecutive segments too short for a verdict as
+        one :class:`~credcli.engine.short.ShortSegments`, in the plans' order.
     """
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
@@ -291,15 +330,11 @@ def diagnose_plans(
         outputs = pool.map(_diagnose_chunk, list(tasks))
     else:
         outputs = ordered_map(_diagnose_chunk, tasks, jobs if parallel else 1)
-    diagnosed = []
     try:
-        for out in outputs:
-            diagnosed.extend(out)
-            if progress is not None:
-                progress(len(diagnosed) + done, total_segments)
+        arrived = _arrived(outputs, done, total_segments, progress)
+        yield from _in_order(plans, shorts, arrived, config)
     finally:
         outputs.close()
-    return _in_order(plans, shorts, diagnosed, config)
 
 
 # --- on a Dask cluster: the workers read the logs ----------------------------------------

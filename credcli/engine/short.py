@@ -218,7 +218,7 @@ class PartSequence(Sequence):
         Single items and runs, in order.
     """
 
-    RUN: type = tuple  # the class of a run; a subclass names its own
+    RUN: type | tuple[type, ...] = tuple  # the class(es) of a run; a subclass names its own
 
     def __init__(self, parts: tuple) -> None:
         self.parts = tuple(parts)

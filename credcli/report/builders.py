@@ -19,6 +19,7 @@ from credcli.report.advice import LOCATION_MEANING, advice
 from credcli.report.formats import format_number, format_pvalue
 from credcli.report.records import (
     ANCHOR_COLUMNS,
+    BLOCK_RECORDS,
     CURVE_COLUMNS_GAMMA,
     CURVE_COLUMNS_RHO,
     GATE_COLUMNS,
@@ -46,6 +47,7 @@ from credcli.report.records import (
     log_record,
     monte_carlo_record,
     range_record,
+    record_blocks,
     segment_record,
     shown_label,
     simulate_document,
@@ -79,7 +81,9 @@ def diagnose_report(
 
     The results are read once, in order, and each is dropped once its record and its
     share of the notes are taken: ``results`` may be an iterator over results as they are
-    diagnosed, and the report then holds a record a segment, not a result.
+    diagnosed, and the report then holds a record a segment, not a result, and every
+    :data:`~credcli.report.records.BLOCK_RECORDS` consecutive records as columns
+    (:class:`~credcli.report.records.RecordBlock`).
 
     Parameters
     ----------
@@ -113,11 +117,20 @@ def diagnose_report(
         ``segments`` and, when given, ``monte_carlo``).
     """
     notes = _SegmentNotes()
-    parts = []
+    parts: list = []
+    pending: list[dict] = []  # records since the last block (BLOCK_RECORDS in a row make one)
     for part in _parts(results):
-        parts.append(RecordBatch(part) if isinstance(part, ShortSegments) else segment_record(part))
+        if isinstance(part, ShortSegments):
+            parts.extend(pending)
+            pending = []
+            parts.append(RecordBatch(part))
+        else:
+            pending.append(segment_record(part))
+            if len(pending) == BLOCK_RECORDS:
+                parts.extend(record_blocks(pending))
+                pending = []
         notes.add(part)
-    records = Records(tuple(parts))
+    records = Records((*parts, *pending))
     summaries, logs = logs, {log_id: log_record(summary) for log_id, summary in logs.items()}
     multi = len(notes.logs) > 1
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS

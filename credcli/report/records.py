@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import itertools
 import json
 import math
 import typing
@@ -608,18 +609,163 @@ class _Lists:
         return out
 
 
+BLOCK_RECORDS = 1024
+"""Consecutive records of a report packed into one :class:`RecordBlock` (the report of
+10⁵ segments holds them as columns, not as 10⁵ dicts)."""
+
+_PACKED_KINDS = {"f": float, "i": int, "b": bool}
+"""The numpy kinds a column of record values is packed as, with the one Python type every
+value (or element of a nested list) must have."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Missing:
+    """A packed column with None at some records: ``values`` holds the others (zeros at
+    the missing ones)."""
+
+    values: np.ndarray
+    missing: np.ndarray
+
+    def tolist(self) -> list:
+        out = self.values.tolist()
+        for k in np.flatnonzero(self.missing).tolist():
+            out[k] = None
+        return out
+
+    def item(self, k: int):
+        return None if self.missing[k] else self.values[k].tolist()
+
+
+def _packed(values: list):
+    """``values`` as one numpy array when each is a float, each an int (within int64) or
+    each a bool, or each a list of such of one shape (nested lists alike): the array's
+    ``tolist()`` gives the values back, bit for bit and type for type; such values with
+    None at some records as a :class:`_Missing`. Anything else (strings, mixed types,
+    ragged lists, None at every record) as it is."""
+    present = [v for v in values if v is not None]
+    if len(present) < len(values):
+        packed = _packed(present) if present else present
+        if not isinstance(packed, np.ndarray):
+            return values
+        missing = np.fromiter((v is None for v in values), bool, len(values))
+        full = np.zeros((len(values), *packed.shape[1:]), dtype=packed.dtype)
+        full[~missing] = packed
+        return _Missing(full, missing)
+    try:
+        array = np.array(values)
+    except (ValueError, OverflowError):  # ragged lists, a too large int
+        return values
+    kind = _PACKED_KINDS.get(array.dtype.kind)
+    if kind is None or (kind is not bool and array.dtype.itemsize != 8):
+        return values
+    leaves = values
+    for _ in range(array.ndim - 1):  # every container a list, every leaf of the one type
+        if any(type(v) is not list for v in leaves):
+            return values
+        leaves = [x for v in leaves for x in v]
+    if any(type(v) is not kind for v in leaves):
+        return values
+    return array
+
+
+def _column(column) -> list:
+    """A column of a :class:`RecordBlock` as the list of its values."""
+    return column.tolist() if isinstance(column, (np.ndarray, _Missing)) else column
+
+
+def _value(column, k: int):
+    """Value k of a column of a :class:`RecordBlock`."""
+    if isinstance(column, np.ndarray):
+        return column[k].tolist()
+    return column.item(k) if isinstance(column, _Missing) else column[k]
+
+
+@dataclass(frozen=True, eq=False)
+class RecordBlock(Sequence):
+    """Consecutive records with the same keys held as columns: a numpy array per key whose
+    values are numbers of one type or lists of them of one shape, None at some records
+    allowed (:func:`_packed`), else the list of values. Item k is record k as the dict it was made from, equal key for key
+    and value for value; a record's numbers take 8 bytes each instead of a float object
+    and a dict slot.
+
+    Attributes
+    ----------
+    keys : tuple of str
+        Every record's keys, in order.
+    columns : tuple
+        Each key's values: a numpy array, a list, or a numpy array with the records whose
+        value is None.
+    size : int
+        The number of records.
+    """
+
+    keys: tuple[str, ...]
+    columns: tuple
+    size: int
+
+    @classmethod
+    def of(cls, records: list[dict]) -> RecordBlock:
+        """The block of ``records``, which share their keys in one order.
+
+        Parameters
+        ----------
+        records : list of dict
+            At least one record.
+
+        Returns
+        -------
+        RecordBlock
+            The records as columns.
+        """
+        keys = tuple(records[0])
+        columns = tuple(_packed([r[k] for r in records]) for k in keys)
+        return cls(keys, columns, len(records))
+
+    def __len__(self) -> int:
+        return self.size
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = range(self.size)[k]
+        return dict(zip(self.keys, (_value(c, k) for c in self.columns), strict=True))
+
+    def __iter__(self) -> Iterator[dict]:
+        for values in zip(*map(_column, self.columns), strict=True):
+            yield dict(zip(self.keys, values, strict=True))
+
+
+def record_blocks(records: list[dict]) -> list[RecordBlock]:
+    """``records`` as blocks (:class:`RecordBlock`), one per run of consecutive records
+    with the same keys in the same order.
+
+    Parameters
+    ----------
+    records : list of dict
+        Records, in order.
+
+    Returns
+    -------
+    list of RecordBlock
+        Their blocks, in order.
+    """
+    groups = itertools.groupby(records, key=tuple)  # a dict's tuple is its keys, in order
+    return [RecordBlock.of(list(group)) for _, group in groups]
+
+
 class Records(PartSequence):
     """The records of results, in order (:func:`segment_records`): a sequence of dicts, held
-    as parts, one dict per SegmentDiagnosis and one :class:`RecordBatch` per run of segments
-    too short for a verdict. Item k is the record of result k.
+    as parts, one dict per SegmentDiagnosis (or a :class:`RecordBlock` of consecutive ones)
+    and one :class:`RecordBatch` per run of segments too short for a verdict. Item k is the
+    record of result k.
 
     Parameters
     ----------
     parts : tuple
-        Dicts and RecordBatch, in order.
+        Dicts, RecordBlock and RecordBatch, in order.
     """
 
-    RUN = RecordBatch
+    RUN = (RecordBatch, RecordBlock)
 
     def keys(self) -> list[str]:
         """Every key of the records, in the order they first appear.
@@ -631,7 +777,10 @@ class Records(PartSequence):
         """
         keys: dict[str, None] = {}
         for part in self.parts:
-            keys.update(dict.fromkeys(part.shared if isinstance(part, RecordBatch) else part))
+            if isinstance(part, RecordBatch):
+                keys.update(dict.fromkeys(part.shared))
+            else:
+                keys.update(dict.fromkeys(part.keys if isinstance(part, RecordBlock) else part))
         return list(keys)
 
 

@@ -21,7 +21,7 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
     PVALUE_FLOOR,
     OutputFormat,
 )
-from credcli.report.records import SEGMENTS, RecordBatch, Records
+from credcli.report.records import SEGMENTS, RecordBatch, RecordBlock, Records
 from credcli.report.tables import Report, Table
 
 
@@ -290,10 +290,11 @@ def _record_texts(records: Records) -> Iterator[list[str]]:
     singles: list[str] = []
     for part in records.parts:
         if not isinstance(part, RecordBatch):
-            singles.append(jsontext.encode(part, 2))
-            if len(singles) >= 64:
-                yield singles
-                singles = []
+            for record in part if isinstance(part, RecordBlock) else (part,):
+                singles.append(jsontext.encode(record, 2))
+                if len(singles) >= 64:
+                    yield singles
+                    singles = []
             continue
         yield singles
         singles = []
@@ -381,7 +382,7 @@ def _csv_pieces(report: Report) -> Iterator[str]:
                     if buf.tell() >= TEXT_PIECE:
                         yield _emptied(buf)
             else:
-                for record in row if isinstance(row, RecordBatch) else (row,):
+                for record in row if isinstance(row, (RecordBatch, RecordBlock)) else (row,):
                     writer.writerow([*prefix, *(_csv_cell(record.get(k)) for k in keys)])
                     if buf.tell() >= TEXT_PIECE:
                         yield _emptied(buf)

@@ -4,6 +4,7 @@ the Python API may build them directly."""
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,6 +13,14 @@ from credcli.engine.config import DiagnosisConfig
 from credcli.io.schema import LogReading
 from credcli.report.records import Baseline
 from credcli.studies.settings import CURVE_RUNS, SimulationConfig, UwbSettings
+
+
+class Kept(str, enum.Enum):
+    """What a `diagnose` run keeps of each segment's result once the report has read it."""
+
+    RESULTS = "results"  # every result: gate, the figures and the Python API read them
+    VERDICTS = "verdicts"  # each segment's verdict (SegmentVerdict): --fail-on reads them
+    NOTHING = "nothing"  # the report alone: memory holds a record a segment
 
 
 @dataclass(frozen=True)
@@ -34,10 +43,11 @@ class DiagnoseRequest:
         The logs are runs of one scenario, pooled segment by segment.
     figures : bool, default False
         Draw the plots too.
-    keep_results : bool, default True
-        Keep every segment's result in the Run (``--fail-on`` and `gate` read them, as
-        the figures do). False: each result is read into the report as it is diagnosed
-        and dropped, so that memory holds a record a segment, not a result.
+    keep : Kept, default Kept.RESULTS
+        What the Run keeps of each segment's result ([Kept][credcli.requests.Kept];
+        every result when ``figures``). Short of RESULTS, each result is read into the
+        report as it is diagnosed and dropped, so that memory holds a record a segment,
+        not a result.
     """
 
     logs: tuple[Path, ...]
@@ -47,7 +57,7 @@ class DiagnoseRequest:
     jobs: int = 1
     monte_carlo: bool = False
     figures: bool = False
-    keep_results: bool = True
+    keep: Kept = Kept.RESULTS
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from credcli import segments as seg
 from credcli.ci.gate import check_same_dimension, compare, verdict_line
 from credcli.engine.curves import segment_curves
 from credcli.engine.diagnosis import Label, MetricsLevel, diagnose_segments
+from credcli.engine.short import SegmentResults, ShortSegments
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.io.logs import EstimatorLog, with_unique_ids
@@ -37,7 +38,7 @@ from credcli.report.records import (
     uwb_parameters,
 )
 from credcli.report.tables import Report
-from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
+from credcli.requests import DiagnoseRequest, GateRequest, Kept, SimulateRequest, UwbRequest
 from credcli.schedule import plans as scheduling
 from credcli.schedule.plans import (
     PARALLEL_MIN_BYTES,
@@ -83,8 +84,9 @@ class Run:
     plots : list of Plot
         The figures (empty unless asked for).
     results : list of SegmentDiagnosis
-        The diagnosed segments, in report order (empty for `simulate`, and for `diagnose`
-        unless the request keeps them: ``DiagnoseRequest.keep_results`` or ``figures``).
+        The diagnosed segments, in report order, as the request keeps them
+        (``DiagnoseRequest.keep``: every result, their verdicts (SegmentVerdict) or
+        none); empty for `simulate`.
     notes : tuple of str
         About the figures: the windows whose figures were skipped.
     """
@@ -116,8 +118,8 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     -------
     Run
         The report, the figures (when ``request.figures``), the results in report order
-        (when ``request.keep_results`` or ``request.figures``; otherwise each is dropped
-        once the report has read it) and the notes about the figures.
+        as ``request.keep`` keeps them (every result with the figures; otherwise each is
+        dropped once the report has read it) and the notes about the figures.
 
     Raises
     ------
@@ -129,7 +131,7 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     reading = request.reading
     schema, options, drop_invalid = reading.schema, reading.options, reading.drop_invalid
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
-    keep = request.keep_results or request.figures
+    keep = Kept.RESULTS if request.figures else request.keep
     segmentation = segmentation_name(window, whole)
     parameters = diagnose_parameters(config, seed, reading, segmentation, monte_carlo=monte_carlo)
     show_all = config.metrics is MetricsLevel.ALL
@@ -153,7 +155,10 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
         plans = None
         mc = None
     else:
-        results, logs, plans, mc = _diagnose_here(request, progress, keep)
+        results, logs, plans, mc = _diagnose_here(request, progress, keep is Kept.RESULTS)
+    verdicts: list = []  # what is kept of each result, when its verdict is
+    if keep is Kept.VERDICTS:
+        results = _keeping_verdicts(results, verdicts)
     report = diagnose_report(results, config, parameters, logs, show_all, mc)  # reads results
     figures, notes = [], []
     plots = request.figures
@@ -183,7 +188,17 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
                 notes.append(f"{log_name}: {note}" if several else note)
             chosen = [result for _, result in drawn]
             figures.extend(segment_figures(log, chosen, segments, prefix, log_name))
-    return Run(report, figures, results if keep else [], tuple(notes))
+    kept = {Kept.RESULTS: results, Kept.VERDICTS: SegmentResults(tuple(verdicts))}
+    return Run(report, figures, kept.get(keep, []), tuple(notes))
+
+
+def _keeping_verdicts(parts, verdicts: list):
+    """``parts`` (results, and runs of short segments) as they come, each one's verdict
+    (:meth:`SegmentDiagnosis.verdict`; a run of short segments as it is) added to
+    ``verdicts`` on the way."""
+    for part in parts:
+        verdicts.append(part if isinstance(part, ShortSegments) else part.verdict())
+        yield part
 
 
 def segment_figures(

@@ -361,13 +361,18 @@ def test_a_short_diagnosis_does_not_load_numba():
 
 
 def test_a_report_reads_each_result_as_it_is_diagnosed(monkeypatch):
-    """Issue 35 item 3: unless the results are kept (``--fail-on``, figures), `diagnose`
+    """Issue 35 item 3: unless every result is kept (figures, `gate`, the API), `diagnose`
     reads each segment's result into the report before the next segment is diagnosed and
-    keeps none; the report is the one made from the held results, notes and records."""
+    keeps none, or (``--fail-on``) only its verdict; the report is the one made from the
+    held results, notes and records, and the kept verdicts decide and write ``--fail-on``
+    as the results do."""
     from credcli import workflows
+    from credcli.ci.gate import fail_on_verdict, parse_fail_on
+    from credcli.ci.reports import fail_on_cases
+    from credcli.engine.diagnosis import SegmentVerdict
     from credcli.io.schema import LogReading
     from credcli.report import builders
-    from credcli.requests import DiagnoseRequest
+    from credcli.requests import DiagnoseRequest, Kept
     from credcli.schedule import plans as scheduling
 
     events = []
@@ -384,25 +389,36 @@ def test_a_report_reads_each_result_as_it_is_diagnosed(monkeypatch):
     monkeypatch.setattr(scheduling, "diagnose_segment", diagnosed)
     monkeypatch.setattr(builders, "segment_record", recorded)
     log = ROOT / "sample_data" / "estimator_log.csv"
-    reports = {}
-    for keep in (True, False):
+    runs = {}
+    for keep in Kept:
         events.clear()
-        request = DiagnoseRequest((log,), LogReading(window="20s"), keep_results=keep)
+        request = DiagnoseRequest((log,), LogReading(window="20s"), keep=keep)
         run = workflows.run_diagnose(request)
         names = [r["segment"] for r in run.report.document["segments"]]
         assert len(names) >= 5
         steps = [step for name in names for step in (("diagnosed", name), ("recorded", name))]
-        if keep:  # every segment diagnosed, then every record made
+        if keep is Kept.RESULTS:  # every segment diagnosed, then every record made
             assert events == steps[::2] + steps[1::2]
-            assert [r.segment for r in run.results] == names
         else:
-            assert events == steps and run.results == []
-        reports[keep] = run.report
-    held, read = reports[True], reports[False]
-    assert read.notes == held.notes and len(read.notes) > 0
-    assert list(read.document["segments"]) == list(held.document["segments"])
-    assert read.document.keys() == held.document.keys()
-    assert [list(t.rows) for t in read.tables] == [list(t.rows) for t in held.tables]
+            assert events == steps
+        runs[keep] = run
+    held = runs[Kept.RESULTS]
+    assert runs[Kept.NOTHING].results == []
+    verdicts = runs[Kept.VERDICTS].results
+    assert all(isinstance(v, SegmentVerdict) for v in verdicts)
+    assert list(verdicts) == [r.verdict() for r in held.results]
+    labels = {r.diagnosis.label.value for r in held.results}
+    fail_on = parse_fail_on(",".join(sorted(labels - {"credible"})) or "optimism")
+    for run in runs.values():
+        read = run.report
+        assert read.notes == held.report.notes and len(read.notes) > 0
+        assert list(read.document["segments"]) == list(held.report.document["segments"])
+        assert read.document.keys() == held.report.document.keys()
+        assert [list(t.rows) for t in read.tables] == [list(t.rows) for t in held.report.tables]
+    expected = fail_on_verdict(held.results, fail_on)
+    assert not expected[0] and fail_on_verdict(verdicts, fail_on) == expected
+    cases = fail_on_cases(verdicts, expected[2], fail_on)
+    assert cases == fail_on_cases(held.results, expected[2], fail_on)
 
 
 _VALUES = st.recursive(

@@ -564,9 +564,10 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
 
     Parameters
     ----------
-    results : sequence of SegmentDiagnosis, or SegmentResults
-        The diagnosed segments; a run of short segments is decided on its labels without
-        making its items (``credcli.engine.short.SegmentResults.verdicts``).
+    results : sequence of SegmentDiagnosis or SegmentVerdict, or SegmentResults
+        The diagnosed segments, or what was kept of them (their ``verdict()``); a run of
+        short segments is decided on its labels without making its items
+        (``credcli.engine.short.SegmentResults.verdicts``).
     fail_on : FailOn
         The conditions of ``--fail-on``.
 
@@ -583,7 +584,7 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
     if isinstance(results, SegmentResults):  # a run of short segments without its items
         verdicts = results.verdicts()
     else:
-        verdicts = ((r.diagnosis.label, r.diagnosis.untested) for r in results)
+        verdicts = ((v.label, v.untested) for v in (r.verdict() for r in results))
     decided: dict = {}  # each (label, untested) decided once
 
     def fails(verdict) -> bool:
@@ -595,9 +596,8 @@ def fail_on_verdict(results, fail_on: FailOn) -> tuple[bool, str, list[int]]:
     listed = str(fail_on)
     if bad:
         shown = ", ".join(
-            f"{shortened(results[k].segment)} ({shown_label(d.label, d.untested)})"
-            for k in bad[:5]
-            for d in (results[k].diagnosis,)
+            f"{shortened(v.segment)} ({shown_label(v.label, v.untested)})"
+            for v in (results[k].verdict() for k in bad[:5])
         )
         more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
         return (

@@ -337,8 +337,8 @@ def fail_on_cases(results, failing: list[int], fail_on) -> list[Case | CaseBatch
 
     Parameters
     ----------
-    results : SegmentResults or sequence of SegmentDiagnosis
-        The diagnosed segments, in order.
+    results : SegmentResults or sequence of SegmentDiagnosis or SegmentVerdict
+        The diagnosed segments, or what was kept of them (their ``verdict()``), in order.
     failing : list of int
         The indices of the failing ones.
     fail_on : FailOn
@@ -357,28 +357,29 @@ def fail_on_cases(results, failing: list[int], fail_on) -> list[Case | CaseBatch
     k = 0
     for part in results.parts if isinstance(results, SegmentResults) else results:
         if not isinstance(part, ShortSegments):
-            cases.append(_fail_on_case(part, k in bad, listed))
+            cases.append(_fail_on_case(part.verdict(), k in bad, listed))
             k += 1
             continue
         failed = {i in bad for i in range(k, k + len(part))}
         if len(failed) == 1:  # one case's text with each name
-            case = _fail_on_case(part[0], failed.pop(), listed)
+            case = _fail_on_case(part[0].verdict(), failed.pop(), listed)
             cases.append(CaseBatch(part.names, case.classname, case.failure, case.details))
         else:
-            cases.extend(_fail_on_case(r, i in bad, listed) for i, r in enumerate(part, start=k))
+            cases.extend(
+                _fail_on_case(r.verdict(), i in bad, listed) for i, r in enumerate(part, start=k)
+            )
         k += len(part)
     return cases
 
 
-def _fail_on_case(result, failed: bool, listed: str) -> Case:
-    d = result.diagnosis
-    label = shown_label(d.label, d.untested)
+def _fail_on_case(verdict, failed: bool, listed: str) -> Case:
+    label = shown_label(verdict.label, verdict.untested)
     return Case(
-        result.segment,
-        f"credcli.diagnose.{_classname(result.log.stem)}",
+        verdict.segment,
+        f"credcli.diagnose.{_classname(verdict.log.stem)}",
         f"label {label} matches --fail-on {listed}" if failed else None,
-        f"label {label}, ELT p {_cell(d.elt_pvalue)}, NCI {_cell(d.nci)} dB, "
-        f"ANEES {_cell(d.anees)}",
+        f"label {label}, ELT p {_cell(verdict.elt_pvalue)}, NCI {_cell(verdict.nci)} dB, "
+        f"ANEES {_cell(verdict.anees)}",
     )
 
 

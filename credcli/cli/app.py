@@ -144,6 +144,7 @@ def diagnose(
 ) -> int:
     """Diagnose each segment of one or more estimator logs (calibrated rule by default)."""
     from credcli.cli.settings import diagnose_request
+    from credcli.requests import Kept
     from credcli.workflows import run_diagnose
 
     conditions = fail_on_conditions(ci)
@@ -162,7 +163,7 @@ def diagnose(
         run,
         monte_carlo=monte_carlo,
         figures=figures,
-        keep_results=conditions is not None,  # --fail-on reads each result
+        keep=Kept.NOTHING if conditions is None else Kept.VERDICTS,  # --fail-on reads them
     )
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner)
@@ -205,12 +206,13 @@ def baseline(
 ) -> int:
     """Record a baseline: the JSON of `diagnose` with a schema version and every parameter."""
     from credcli.cli.settings import diagnose_request
+    from credcli.requests import Kept
     from credcli.workflows import run_baseline
 
     inputs = [log_file, config, log.truth]
     guard_outputs({"--output": output}, inputs)
     request = diagnose_request(
-        [log_file], config, log, segments, rule, seed, run, keep_results=False
+        [log_file], config, log, segments, rule, seed, run, keep=Kept.NOTHING
     )
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         recorded = run_baseline(request, bar, runner)

@@ -36,7 +36,7 @@ from credcli.io.files import check_small_input, read_toml
 from credcli.io.logs import LogSchema
 from credcli.io.schema import LogReading, ReadOptions
 from credcli.report.records import read_baseline
-from credcli.requests import DiagnoseRequest, GateRequest, SimulateRequest, UwbRequest
+from credcli.requests import DiagnoseRequest, GateRequest, Kept, SimulateRequest, UwbRequest
 from credcli.schedule.pool import default_jobs
 from credcli.studies.settings import STD_ESTIMATE, SimulationConfig, UwbSettings
 
@@ -488,7 +488,7 @@ def diagnose_request(
     *,
     monte_carlo: bool = False,
     figures: bool = False,
-    keep_results: bool = True,
+    keep: Kept = Kept.RESULTS,
 ) -> DiagnoseRequest:
     """What `diagnose`, `baseline` and `report` ask for.
 
@@ -512,9 +512,8 @@ def diagnose_request(
         The logs are runs of one scenario, pooled (``--monte-carlo``).
     figures : bool, default False
         Draw the figures too.
-    keep_results : bool, default True
-        Keep every segment's result (for ``--fail-on``); False: each is dropped once it
-        is in the report.
+    keep : Kept, default Kept.RESULTS
+        What is kept of each segment's result once it is in the report.
 
     Returns
     -------
@@ -531,7 +530,7 @@ def diagnose_request(
     reading = log_reading(config, log, segments)
     jobs = jobs_value(run.jobs)
     return DiagnoseRequest(
-        tuple(logs), reading, diagnosis, seed_value, jobs, monte_carlo, figures, keep_results
+        tuple(logs), reading, diagnosis, seed_value, jobs, monte_carlo, figures, keep
     )
 
 

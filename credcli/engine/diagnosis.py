@@ -642,6 +642,60 @@ class SegmentDiagnosis:
     diagnosis: Diagnosis
     whiteness: Whiteness | None = None  # of innovations (--innovations)
 
+    def verdict(self) -> SegmentVerdict:
+        """What a CI check reads of this segment
+        ([SegmentVerdict][credcli.engine.diagnosis.SegmentVerdict]).
+
+        Returns
+        -------
+        SegmentVerdict
+            Its log, name, label, untested questions, ELT p-value, NCI and ANEES.
+        """
+        d = self.diagnosis
+        return SegmentVerdict(
+            self.log, self.segment, d.label, d.untested, d.elt_pvalue, d.nci, d.anees
+        )
+
+
+@dataclass(frozen=True)
+class SegmentVerdict:
+    """A segment's verdict and the numbers a CI report gives beside it, without the rest
+    of its diagnosis: what ``diagnose --fail-on`` keeps of each segment (about 0.2 kB,
+    where a SegmentDiagnosis holds some 10 kB).
+
+    Attributes
+    ----------
+    log : LogId
+        Which log.
+    segment : str
+        The segment's name.
+    label : Label
+        Its label.
+    untested : tuple of Question
+        The questions the label leaves open.
+    elt_pvalue, nci, anees : float or None
+        Its ELT p-value, NCI (dB) and ANEES, as its Diagnosis has them.
+    """
+
+    log: LogId
+    segment: str
+    label: Label
+    untested: tuple[Question, ...]
+    elt_pvalue: float | None
+    nci: float | None
+    anees: float | None
+
+    def verdict(self) -> SegmentVerdict:
+        """Itself (as [SegmentDiagnosis.verdict][credcli.engine.diagnosis.SegmentDiagnosis.verdict]
+        gives a result's).
+
+        Returns
+        -------
+        SegmentVerdict
+            This verdict.
+        """
+        return self
+
 
 def diagnose_segments(
     log,

@@ -272,6 +272,6 @@ class SegmentResults(PartSequence):
         return itertools.chain.from_iterable(
             itertools.repeat((Label.INSUFFICIENT, ()), len(part))
             if isinstance(part, ShortSegments)
-            else ((part.diagnosis.label, part.diagnosis.untested),)
+            else ((v.label, v.untested) for v in (part.verdict(),))
             for part in self.parts
         )

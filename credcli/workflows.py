@@ -132,9 +132,6 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     schema, options, drop_invalid = reading.schema, reading.options, reading.drop_invalid
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     keep = Kept.RESULTS if request.figures else request.keep
-    segmentation = segmentation_name(window, whole)
-    parameters = diagnose_parameters(config, seed, reading, segmentation, monte_carlo=monte_carlo)
-    show_all = config.metrics is MetricsLevel.ALL
     if runner is not None:
         if monte_carlo:
             raise CredcliError("`monte_carlo` runs on this machine: drop `scheduler`")
@@ -156,6 +153,11 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
         mc = None
     else:
         results, logs, plans, mc = _diagnose_here(request, progress, keep is Kept.RESULTS)
+    segmentation = segmentation_name(window, whole)  # valid: the logs were cut with it
+    parameters = diagnose_parameters(
+        config, seed, reading, segmentation, monte_carlo=mc is not None
+    )
+    show_all = config.metrics is MetricsLevel.ALL
     verdicts: list = []  # what is kept of each result, when its verdict is
     if keep is Kept.VERDICTS:
         results = _keeping_verdicts(results, verdicts)

@@ -660,7 +660,7 @@ class SegmentDiagnosis:
 @dataclass(frozen=True)
 class SegmentVerdict:
     """A segment's verdict and the numbers a CI report gives beside it, without the rest
-    of its diagnosis: what ``diagnose --fail-on`` keeps of each segment (about 0.2 kB,
+    of its diagnosis: what ``diagnose --fail-on`` keeps of each segment (about 0.5 kB,
     where a SegmentDiagnosis holds some 10 kB).
 
     Attributes

@@ -684,9 +684,9 @@ def _value(column, k: int):
 class RecordBlock(Sequence):
     """Consecutive records with the same keys held as columns: a numpy array per key whose
     values are numbers of one type or lists of them of one shape, None at some records
-    allowed (:func:`_packed`), else the list of values. Item k is record k as the dict it was made from, equal key for key
-    and value for value; a record's numbers take 8 bytes each instead of a float object
-    and a dict slot.
+    allowed (:func:`_packed`), else the list of values. Item k is record k as the dict it
+    was made from, equal key for key and value for value; a record's numbers take 8 bytes
+    each instead of a float object and a dict slot.
 
     Attributes
     ----------

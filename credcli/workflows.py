@@ -6,6 +6,7 @@ Each function is what one command does, minus option parsing and printing.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Generator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -159,9 +160,13 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     )
     show_all = config.metrics is MetricsLevel.ALL
     verdicts: list = []  # what is kept of each result, when its verdict is
-    if keep is Kept.VERDICTS:
-        results = _keeping_verdicts(results, verdicts)
-    report = diagnose_report(results, config, parameters, logs, show_all, mc)  # reads results
+    parts = _keeping_verdicts(results, verdicts) if keep is Kept.VERDICTS else results
+    try:
+        report = diagnose_report(parts, config, parameters, logs, show_all, mc)  # reads them
+    finally:  # an error or Ctrl-C while the report reads them: the workers stop now
+        for source in (parts, results):
+            if isinstance(source, Generator):
+                source.close()
     figures, notes = [], []
     plots = request.figures
     if plots and plans is None:  # the cluster read the logs; the figures need them here

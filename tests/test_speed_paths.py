@@ -484,3 +484,45 @@ def test_record_blocks_pack_numbers_and_write_every_format_alike(monkeypatch):
             assert by_key["anees"].dtype == np.float64 and by_key["n"].dtype == np.int64
         texts[size] = ["".join(text_pieces(report, fmt, 400)) for fmt in OutputFormat]
     assert texts[3] == texts[10**9]
+
+
+@pytest.mark.parametrize("keep", ["nothing", "verdicts"])
+def test_an_error_while_the_report_reads_stops_the_diagnosis_at_once(monkeypatch, keep):
+    """When the report fails while it reads results as they are diagnosed (an error, or
+    Ctrl-C, in the main process), the iterator that diagnoses them is closed before the
+    error leaves `run_diagnose`, so that worker processes stop then, not when the
+    traceback is dropped; no later segment is diagnosed."""
+    from credcli import workflows
+    from credcli.io.schema import LogReading
+    from credcli.report import builders
+    from credcli.requests import DiagnoseRequest, Kept
+    from credcli.schedule import plans as scheduling
+
+    closed, taken = [], []
+    ordered = scheduling.ordered_map
+
+    def watched(*args):
+        inner = ordered(*args)
+        try:
+            for out in inner:
+                taken.append(len(out))
+                yield out
+        finally:
+            closed.append(True)
+            inner.close()
+
+    def failing(result):
+        if len(taken) == 3:
+            raise RuntimeError("the report failed")
+        return record(result)
+
+    record = builders.segment_record
+    monkeypatch.setattr(scheduling, "ordered_map", watched)
+    monkeypatch.setattr(builders, "segment_record", failing)
+    request = DiagnoseRequest(
+        (ROOT / "sample_data" / "estimator_log.csv",), LogReading(window="20s"), keep=Kept(keep)
+    )
+    with pytest.raises(RuntimeError, match="the report failed") as caught:
+        workflows.run_diagnose(request)
+    assert closed == [True] and len(taken) == 3  # closed while the traceback is held
+    assert caught.traceback  # (held until here)

@@ -418,3 +418,24 @@ def test_a_long_run_is_fitted_on_its_first_sieve_epochs(monkeypatch):
         # the whole run's fit is another (and more precise) one
         assert full.dof > 4 * got.dof
         assert not np.array_equal(full.phi, got.phi)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.floats(-1.0, 1.0, allow_nan=False, exclude_max=True, exclude_min=True),
+    st.integers(-320, 0),
+    st.integers(0, 3000),
+)
+def test_an_ar1_decay_horizon_is_the_one_of_its_root(phi, exponent, n):
+    """The AR(1) shortcut of decay_horizon (its root is φ) gives the horizon the general
+    path gives from np.roots, down to subnormal φ, where the root's last bits differ, and
+    a horizon counted from the slowest root's decay (a closed form)."""
+    phi = phi * 10.0**exponent
+    got = mem.decay_horizon(np.array([phi]), n)
+    roots = np.abs(np.roots([1.0, -phi]))
+    r = float(np.max(roots)) if roots.size else 0.0
+    if r <= 0.0:
+        assert got == max(n, 2)
+        return
+    decay = math.log(mem.NEGLIGIBLE) / math.log(min(r, 1.0 - 1e-12))
+    assert got == int(min(mem.MAX_HORIZON, max(n, 2, math.ceil(decay) + 2)))

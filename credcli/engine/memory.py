@@ -414,8 +414,11 @@ def decay_horizon(phi: np.ndarray, n: int) -> int:
     """
     if phi.size == 0:
         return max(n, 1)
-    roots = np.abs(np.roots(np.concatenate([[1.0], -phi])))
-    r = float(np.max(roots)) if roots.size else 0.0
+    if phi.size == 1:  # the root of 1 − φz⁻¹ is φ (np.roots' 1×1 eigenvalue, which moves
+        r = abs(float(phi[0]))  # only below 1e-150, where the horizon is its floor)
+    else:
+        roots = np.abs(np.roots(np.concatenate([[1.0], -phi])))
+        r = float(np.max(roots)) if roots.size else 0.0
     if r <= 0.0:
         return max(n, phi.size + 1)
     decay = math.log(NEGLIGIBLE) / math.log(min(r, 1.0 - 1e-12))

@@ -526,3 +526,35 @@ def test_an_error_while_the_report_reads_stops_the_diagnosis_at_once(monkeypatch
         workflows.run_diagnose(request)
     assert closed == [True] and len(taken) == 3  # closed while the traceback is held
     assert caught.traceback  # (held until here)
+
+
+def test_the_report_lists_ten_findings_and_correlated_innovations_then_counts_the_rest():
+    """The notes read a part at a time (issue 35 item 3) list at most ten findings and ten
+    segments with correlated innovations, in order, then say how many more there were;
+    the table gets its whiteness column once any segment has the test."""
+    from dataclasses import replace
+
+    from credcli import diagnose_log, read_log
+    from credcli.engine.whiteness import Whiteness
+    from credcli.report import builders
+
+    first = diagnose_log(read_log(ROOT / "sample_data" / "estimator_log.csv"))[0]
+    correlated = Whiteness(50.0, 1e-6, 10, 10, 0.01)
+    results = [
+        replace(
+            first,
+            segment=f"s{k}",
+            diagnosis=replace(first.diagnosis, findings=(f"f{k}a", f"f{k}b")),
+            whiteness=correlated if k % 2 else Whiteness(5.0, 0.9, 10, 10, 0.01),
+        )
+        for k in range(30)
+    ]
+    report = builders.diagnose_report(results, DiagnosisConfig(), {}, {}, False)
+    notes = report.notes
+    findings = [f"s{k}: f{k}{x}" for k in range(5) for x in "ab"]
+    assert [n for n in notes if ": f" in n] == findings
+    assert "... and 50 more finding(s); see the JSON output" in notes
+    white = [n for n in notes if "innovations correlated" in n]
+    assert [n.split(":")[0] for n in white] == [f"s{k}" for k in range(1, 21, 2)]
+    assert "... and 5 more segment(s) with correlated innovations" in notes
+    assert "whiteness_pvalue" in [c.key for c in report.tables[0].columns]

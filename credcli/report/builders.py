@@ -179,85 +179,89 @@ def _parts(results) -> Iterable:
     return results.parts if isinstance(results, SegmentResults) else results
 
 
-class _Advice:
+class _Listed:
+    """A note's lines, one per item, at most ``limit`` of them, then how many more there
+    were (``... and N more`` :attr:`MORE`); taken an item at a time (:meth:`listed`)."""
+
+    MORE = "item(s)"
+
+    def __init__(self, limit: int = 10):
+        self.limit, self.shown, self.count = limit, [], 0
+
+    def listed(self, line: str) -> None:
+        if len(self.shown) < self.limit:
+            self.shown.append(line)
+        self.count += 1
+
+    def lines(self) -> list[str]:
+        more = self.count - self.limit
+        return [*self.shown, f"... and {more} more {self.MORE}"] if more > 0 else list(self.shown)
+
+
+class _Advice(_Listed):
     """The advice of each segment that has one (:func:`credcli.report.advice.advice`), at
     most ``limit``, then what each location condition found means; taken a part at a
     time (:meth:`add`). A run of short segments gives each its reason without making its
     items."""
 
+    MORE = "segment(s); see the JSON output"
+
     def __init__(self, limit: int = 10):
-        self.limit, self.shown, self.count, self.found = limit, [], 0, set()
+        super().__init__(limit)
+        self.found: set = set()
 
     def add(self, part) -> None:
         if isinstance(part, ShortSegments):
             self.found.add(Label.INSUFFICIENT.location)
-            for k in range(min(len(part), max(0, self.limit - len(self.shown)))):
-                self.shown.append(f"{part.names[k]}: no verdict: {part.reason(int(part.n[k]))}")
-            self.count += len(part)
+            shown = min(len(part), max(0, self.limit - len(self.shown)))
+            for k in range(shown):
+                self.listed(f"{part.names[k]}: no verdict: {part.reason(int(part.n[k]))}")
+            self.count += len(part) - shown
             return
         self.found.add(part.diagnosis.label.location)
         line = advice(part)
         if line:
-            self.count += 1
-            if len(self.shown) < self.limit:
-                self.shown.append(line)
+            self.listed(line)
 
     def lines(self) -> list[str]:
-        lines = list(self.shown)
-        if self.count > self.limit:
-            lines.append(f"... and {self.count - self.limit} more segment(s); see the JSON output")
-        return lines + [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in self.found]
+        meanings = [LOCATION_MEANING[c] for c in LOCATION_CONDITIONS if c in self.found]
+        return super().lines() + meanings
 
 
-class _Findings:
+class _Findings(_Listed):
     """The findings the engine reports beside the labels (a slowly varying error, ...),
     at most ``limit`` lines."""
 
-    def __init__(self, limit: int = 10):
-        self.limit, self.shown, self.count = limit, [], 0
+    MORE = "finding(s); see the JSON output"
 
     def add(self, result: SegmentDiagnosis) -> None:
         for f in result.diagnosis.findings:
-            if len(self.shown) < self.limit:
-                self.shown.append(f"{result.segment}: {f}")
-            self.count += 1
-
-    def lines(self) -> list[str]:
-        if self.count <= self.limit:
-            return list(self.shown)
-        more = f"... and {self.count - self.limit} more finding(s); see the JSON output"
-        return [*self.shown, more]
+            self.listed(f"{result.segment}: {f}")
 
 
-class _Whiteness:
+class _Whiteness(_Listed):
     """Segments whose innovations are not white at the whiteness test's share of α (the
     engine's decision, ``Whiteness.rejected``), at most ``limit`` lines; and whether any
     segment had the test (the table's column)."""
 
+    MORE = "segment(s) with correlated innovations"
+
     def __init__(self, limit: int = 10):
-        self.limit, self.shown, self.count, self.tested = limit, [], 0, False
+        super().__init__(limit)
+        self.tested = False
 
     def add(self, result: SegmentDiagnosis) -> None:
         white = result.whiteness
         if white is None:
             return
         self.tested = True
-        if not white.rejected:
-            return
-        if self.count < self.limit:
-            self.shown.append(
+        if white.rejected:
+            self.listed(
                 f"{result.segment}: innovations correlated in time (portmanteau p = "
                 f"{format_cell(white.pvalue, 3)}, {white.lags} lags, level "
                 f"{format_cell(white.level, 3)}): the filter's "
                 "model or noise is inconsistent even if the NIS level is right"
             )
-        self.count += 1
-
-    def lines(self) -> list[str]:
-        if self.count <= self.limit:
-            return list(self.shown)
-        more = f"... and {self.count - self.limit} more segment(s) with correlated innovations"
-        return [*self.shown, more]
 
 
 class _SegmentNotes:

@@ -172,7 +172,8 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     blocks) is computed once.
 
     Whole-length intermediates are freed as soon as they are used, to keep the peak memory
-    of long segments down; the probes need ``centred`` and ``chol`` to the end.
+    of long segments down; the probes need ``chol`` to the end, and make the centred errors
+    again (:func:`_centred`) rather than hold them.
 
     Parameters
     ----------
@@ -220,8 +221,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     ks_p = ks_chi2_pvalue(eps, d)
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
-    centred = errors - errors.mean(axis=0)
+    centred = _centred(errors)
     nci_centred = metrics.nci_factored(centred, chol, mse_cholesky(metrics.mse_matrix(centred)))
+    del centred
     modelled = [c for c in configs if reads_memory(c, runs)]
     inverse = np.linalg.inv(chol) if modelled else None  # one factorisation's inverse
     gls = gls_residuals(errors, chol, inverse if chol.ndim == 3 else None)
@@ -270,7 +272,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     if slow is not None:
         model_evidence = {c: _declined(ev, slow) for c, ev in model_evidence.items()}
     if not probes_possible:
-        del centred, chol
+        del chol
     # every scale and mean test now, so the GLS residuals can be freed
     scales: dict = {}
     means: dict = {}
@@ -369,7 +371,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             if scorer is None:
                 scorer = metrics.EnergyScorer(cov)
             absolute = config.srd_form is SrdForm.ABSOLUTE
-            probes = metrics.probes_scored(centred, scorer, chol, config.c, absolute)
+            probes = metrics.probes_scored(_centred(errors), scorer, chol, config.c, absolute)
             scores = (
                 metrics.probes_scored(errors, scorer, chol, config.c, absolute)
                 if everything
@@ -378,6 +380,12 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             evidence = replace(evidence, probes=probes, scores=scores)
         out.append(evidence)
     return out
+
+
+def _centred(errors: np.ndarray) -> np.ndarray:
+    """The errors less their mean, e_k − ē: made where they are used (the same bits each
+    time), not held through the segment's evidence (an (N, d) array)."""
+    return errors - errors.mean(axis=0)
 
 
 def refers_to_batches(config: DiagnosisConfig, dependent: bool) -> bool:

@@ -1451,7 +1451,7 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
             block_sums = block_sums[: 2 * k].reshape(k, 2, d).sum(axis=1)
         sums = block_sums - block_sums.mean(axis=0)
         ratios = np.array([series.mean_ratio(m) for series in memory.series])
-        per_direction = np.sum(sums**2, axis=0) / ((k - 1) * m * variances)
+        per_direction = np.sum(np.square(sums, out=sums), axis=0) / ((k - 1) * m * variances)
         observed = float(np.mean(per_direction))
         predicted = float(np.mean(ratios))
         dof = d * (k - 1)
@@ -1534,9 +1534,22 @@ def lowest_frequency_check(
     """
     n, d = rotated.shape
     h = np.arange(n)
-    phase = np.exp(-2j * np.pi * h / n)
+    # e^{−iω₁h} and (1 − h/N) cos(ω₁h), each made in one array by the operations (and in
+    # the order) of the formulas: on a segment of millions of epochs every temporary is
+    # an array of N numbers
+    phase = np.multiply(-2j * np.pi, h)
+    phase /= n
+    np.exp(phase, out=phase)
     ordinate = np.abs(phase @ rotated) ** 2 / n
-    weights = (1.0 - h[1:] / n) * np.cos(2.0 * np.pi * h[1:] / n)
+    del phase
+    weights = h[1:] / n
+    np.subtract(1.0, weights, out=weights)
+    angle = np.multiply(2.0 * np.pi, h[1:])
+    del h
+    angle /= n
+    np.cos(angle, out=angle)
+    weights *= angle
+    del angle
     expected = np.array([1.0 + 2.0 * float(weights @ m.window(n)[1:]) for m in memory.series])
     # a model whose memory spans the segment predicts almost no power at 2π/N (none for a
     # constant), and the sum above cancels to rounding, or below zero where the bias

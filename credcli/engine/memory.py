@@ -587,9 +587,13 @@ class SeriesMemory(_Answering):
         Var = 2 tr((CRC)²) = 2[tr R² − 2|R1|²/n + (1ᵀR1/n)²] (Isserlis), in O(n).
         """
         rho = self.window(n)
-        h = np.arange(n)
-        weights = np.where(h == 0, 1.0, 2.0)
-        tr_r2 = float(np.sum(weights * (n - h) * rho**2))
+        # tr R² = Σ_h w_h (n − h) ρ(h)², w_0 = 1, w_h = 2: the products in one array
+        weights = np.full(n, 2.0)
+        weights[0] = 1.0
+        np.multiply(weights, np.arange(n, 0, -1), out=weights)
+        weights *= np.square(rho)
+        tr_r2 = float(np.sum(weights))
+        del weights
         row = _toeplitz_row_sums(rho)
         ones_r_ones = float(row.sum())
         mean = n - ones_r_ones / n
@@ -643,10 +647,10 @@ def _toeplitz_row_sums(rho: np.ndarray) -> np.ndarray:
     """R·1 for the symmetric Toeplitz R with first row ρ (n): r_k = Σ_l ρ(|k − l|), from
     cumulative sums (O(n))."""
     c = np.cumsum(rho)
-    n = rho.size
-    k = np.arange(n)
     # Σ_{l≤k} ρ(k − l) = c[k];  Σ_{l>k} ρ(l − k) = c[n − 1 − k] − ρ(0)
-    return c[k] + c[n - 1 - k] - rho[0]
+    out = c + c[::-1]
+    out -= rho[0]
+    return out
 
 
 def _order_memory(fit: BurgFit, series: int, order: int, n: int):

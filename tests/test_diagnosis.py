@@ -202,7 +202,7 @@ def test_shared_covariance_api_equals_per_epoch_covariances(rng):
     assert a.elt_pvalue == b.elt_pvalue
 
 
-@pytest.mark.parametrize("name", ["variant", "srd_form", "metrics"])
+@pytest.mark.parametrize("name", ["variant", "srd_form", "metrics", "slow_errors"])
 def test_a_setting_that_is_no_choice_is_named(name):
     """Every choice of DiagnosisConfig refuses an unknown value the same way: a CredcliError
     naming the setting and its choices (srd_form and metrics raised a bare ValueError)."""

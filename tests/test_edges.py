@@ -250,6 +250,10 @@ def test_labels_do_not_change_when_errors_and_covariance_scale_together(tmp_path
         ("diagnosis = 5\n", "'diagnosis' must be a table"),
         ("[diagnosis]\nflips = 2.5\n", "n_flips must be an integer; got float 2.5"),
         ('[diagnosis]\nvariant = "best"\n', "variant must be one of 'calibrated', 'paper', 'ks'"),
+        (
+            '[diagnosis]\nslow_errors = "never"\n',
+            "slow_errors must be one of 'auto', 'possible', 'excluded'",
+        ),
         ('[segments]\nwhole = "yes"\n', "whole must be true or false"),
     ],
 )

@@ -285,30 +285,59 @@ def test_no_time_offset_without_a_lag(noise):
 
 
 @pytest.mark.parametrize(("offset_sq", "covered"), [(1.4, True), (6.0, False), (0.2, False)])
-def test_an_offset_the_claim_covers_is_named_beside_pessimism_and_bias(offset_sq, covered):
+def test_an_offset_the_claim_covers_is_declined_unless_slow_errors_are_excluded(offset_sq, covered):
     """An offset b over white errors of covariance 0.3 I under a claimed I (d = 2, 200
-    epochs): the label is pessimism+bias whatever b. The total second moment about zero is
-    (0.6 + |b|²)/2 per dimension: 1 for |b|² = 1.4, where the finding says that the claim
-    covers the total error and that one segment cannot tell a bias from a slower error;
-    3.3 and 0.4 for |b|² = 6 and 0.2, where it says nothing. The ANEES it reports is the
-    segment's mean NEES over d."""
+    epochs). The total second moment about zero is (0.6 + |b|²)/2 per dimension: 1 for
+    |b|² = 1.4, where the claim covers the total error and a bias under a too-large
+    covariance cannot be told from an error slower than the segment, so the label is
+    insufficient-data, its reason saying so; pessimism+bias where slow errors are
+    excluded, and for a window judged with its run's memory (which holds the run's slow
+    parts). 3.3 and 0.4 for |b|² = 6 and 0.2: pessimism+bias whatever is known. The ANEES
+    the reason quotes is the segment's mean NEES over d."""
     rng = np.random.default_rng(0)
     n = 200
     b = np.full(2, math.sqrt(offset_sq / 2))
     errors = b + math.sqrt(0.3) * rng.standard_normal((n, 2))
-    d = diagnose_errors(errors, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=1)
-    assert d.label is Label.PESSIMISM_BIAS
-    found = [f for f in d.findings if f.startswith("offset within the claim")]
-    assert bool(found) is covered
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    d = diagnose_errors(errors, cov, rng=1)
+    known = diagnose_errors(errors, cov, DiagnosisConfig(slow_errors="excluded"), rng=1)
+    assert known.label is Label.PESSIMISM_BIAS
     assert d.anees == pytest.approx(np.mean(np.sum(errors**2, axis=1)) / 2, rel=1e-12)
-    if covered:
-        assert f"mean NEES {d.anees:.3g}·d" in found[0]
-        assert "cannot tell them apart" in found[0]
-        # a window judged with its run's memory (here the segment's own, as a run's): the
-        # run's model holds the slow parts, so the finding is not given
-        windowed = diagnose_errors(
-            errors, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=1, memory=d.memory
-        )
-        assert windowed.memory_source == "run"
-        assert windowed.label is Label.PESSIMISM_BIAS
-        assert not [f for f in windowed.findings if f.startswith("offset within")]
+    if not covered:
+        assert d.label is Label.PESSIMISM_BIAS
+        return
+    assert d.label is Label.INSUFFICIENT
+    assert d.reason.startswith("offset within the claim")
+    assert f"mean NEES {d.anees:.3g}·d" in d.reason
+    assert "cannot tell them apart" in d.reason
+    # the same numbers behind both labels: only the reading of the offset differs
+    assert d.scale.scale_factor == known.scale.scale_factor
+    possible = diagnose_errors(errors, cov, DiagnosisConfig(slow_errors="possible"), rng=1)
+    assert possible.label is Label.INSUFFICIENT
+    windowed = diagnose_errors(errors, cov, rng=1, memory=d.memory)
+    assert windowed.memory_source == "run"
+    assert windowed.label is Label.PESSIMISM_BIAS
+
+
+def test_slow_errors_on_the_command_line(tmp_path, capsys):
+    """``--slow-errors excluded`` reads an offset the claim covers as a bias; by default a
+    log's segment with such an offset is insufficient-data with the reason, and the JSON
+    parameters say which reading was asked for."""
+    import pandas as pd
+
+    rng = np.random.default_rng(0)
+    n = 200
+    e = math.sqrt(0.7) + math.sqrt(0.3) * rng.standard_normal((n, 2))
+    frame = pd.DataFrame({"time": np.arange(n) * 0.1, "truth_0": e[:, 0], "truth_1": e[:, 1]})
+    frame = frame.assign(est_0=0.0, est_1=0.0, cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0)
+    path = tmp_path / "offset.csv"
+    frame.to_csv(path, index=False)
+    records = {}
+    for choice in ("auto", "excluded"):
+        assert main(["diagnose", str(path), "-f", "json", "--slow-errors", choice]) == 0
+        doc = json.loads(capsys.readouterr().out)
+        assert doc["parameters"]["slow_errors"] == choice
+        records[choice] = doc["segments"][0]
+    assert records["auto"]["label"] == "insufficient-data"
+    assert records["auto"]["reason"].startswith("offset within the claim")
+    assert records["excluded"]["label"] == "pessimism+bias"

@@ -260,3 +260,30 @@ def test_curves_csv_cells_are_plain_numbers(tmp_path, capsys):
     with out.open(newline="") as f:
         rows = list(csv.DictReader(f))
     assert rows and all(float(r["rho"]) > 0 and float(r["gamma"]) >= 0 for r in rows)
+
+
+def test_the_study_reads_an_offset_by_what_it_draws():
+    """Independent draws (the paper's protocol) hold no memory slower than a trial, so
+    with ``slow_errors`` auto an offset the claim covers is pess+smm there; AR(1) draws may
+    hold such memory; a choice that was given stays. Judged as a log's errors (possible),
+    the paper's pess+smm trials lose exactly those whose offset the claim covers, to
+    insufficient-data: every other count of the confusion row is the same."""
+    from dataclasses import replace
+
+    from credcli.engine.config import DiagnosisConfig, SlowErrors
+    from credcli.studies.settings import SimulationConfig
+
+    assert SimulationConfig().judged_by.slow_errors is SlowErrors.EXCLUDED
+    assert SimulationConfig(ar=0.5).judged_by.slow_errors is SlowErrors.POSSIBLE
+    given = SimulationConfig(diagnosis=DiagnosisConfig(slow_errors="possible"))
+    assert given.judged_by.slow_errors is SlowErrors.POSSIBLE
+
+    truth = Label.PESSIMISM_SMM
+    study = SimulationConfig(trials=40, seed=2)
+    known = sim.run_study(study, [truth]).confusion[truth]
+    as_log = sim.run_study(replace(study, diagnosis=given.diagnosis), [truth]).confusion[truth]
+    declined = as_log[Label.INSUFFICIENT] - known[Label.INSUFFICIENT]
+    assert declined > 0
+    assert known[truth] - as_log[truth] == declined
+    others = [lab for lab in known if lab not in (truth, Label.INSUFFICIENT)]
+    assert [known[lab] for lab in others] == [as_log[lab] for lab in others]

@@ -21,7 +21,7 @@ from typing import Annotated
 import typer
 
 from credcli.ci.thresholds import Thresholds
-from credcli.engine.config import DiagnosisConfig, MetricsLevel, SrdForm, Variant
+from credcli.engine.config import DiagnosisConfig, MetricsLevel, SlowErrors, SrdForm, Variant
 from credcli.io.schema import (
     Alignment,
     CovKind,
@@ -246,6 +246,18 @@ ExactOpt = Annotated[
         "--exact-pvalue",
         help="Evaluate all B sign flips (default: stop once the ELT cannot reject; the label "
         "is the same, the p-value then sequential).",
+        rich_help_panel=RULE,
+    ),
+]
+SlowErrorsOpt = Annotated[
+    SlowErrors | None,
+    typer.Option(
+        "--slow-errors",
+        help="Whether the errors may hold memory slower than a segment: possible (an "
+        "offset the claimed covariance covers is insufficient-data, since a bias and such "
+        "an error give the same data), excluded (it is a bias: pessimism+bias), or auto "
+        "(possible for a log; simulate knows its draws) "
+        f"[default: {_D.slow_errors.value}].",
         rich_help_panel=RULE,
     ),
 ]
@@ -649,6 +661,9 @@ class RuleOptions:
         The level of the NEES baseline's chi-squared test.
     exact_pvalue : bool or None
         Evaluate all B sign flips instead of stopping once the ELT cannot reject.
+    slow_errors : SlowErrors or None
+        Whether the errors may hold memory slower than a segment (auto, possible,
+        excluded).
     """
 
     tau: TauOpt = None
@@ -664,6 +679,7 @@ class RuleOptions:
     ks_alpha: KsAlphaOpt = None
     nees_alpha: NeesAlphaOpt = None
     exact_pvalue: ExactOpt = None
+    slow_errors: SlowErrorsOpt = None
 
 
 @dataclass(frozen=True)

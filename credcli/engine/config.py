@@ -294,6 +294,37 @@ class SrdForm(str, enum.Enum):
     ABSOLUTE = "absolute"
 
 
+class SlowErrors(str, enum.Enum):
+    """What is known of errors slower than a segment (``DiagnosisConfig.slow_errors``).
+
+    One segment cannot tell a constant bias from a zero-mean error slower than the
+    segment, which stays near one value over its epochs: a slowly varying error under
+    white noise gives an offset and a narrow spread around it, as a bias under a
+    too-large covariance does. Where the claimed covariance matches the errors' spread
+    about zero, bias included, the two readings disagree (pessimism with SMM, or
+    credible), and this setting says which the rule may take.
+
+    Attributes
+    ----------
+    AUTO : "auto"
+        What the data source knows: nothing for a log (as ``possible``); ``simulate``
+        knows its draws, independent epochs (``excluded``) unless ``--ar`` gives them
+        memory (``possible``).
+    POSSIBLE : "possible"
+        The errors may hold memory slower than the segment: such a segment is
+        insufficient-data, its reason saying why (windows of one run, or more runs, can
+        tell the two apart).
+    EXCLUDED : "excluded"
+        The errors are known to hold no memory slower than the segment (independent
+        Monte Carlo draws, as in the paper's Section IV): the offset is a bias
+        (pessimism with SMM).
+    """
+
+    AUTO = "auto"
+    POSSIBLE = "possible"
+    EXCLUDED = "excluded"
+
+
 class MetricsLevel(str, enum.Enum):
     """Which NLL/ES probes are computed (``DiagnosisConfig.metrics``).
 
@@ -357,12 +388,16 @@ class DiagnosisConfig:
         Evaluate all B sign flips. By default flipping stops once the ELT can no longer
         reject at its level (the decision is the exhaustive test's; the p-value is then
         the sequential one, and ``elt_flips_used`` says how many flips were evaluated).
+    slow_errors : SlowErrors or str
+        ``"auto"``, ``"possible"`` or ``"excluded"``: whether a segment whose offset the
+        claimed covariance covers may be an error slower than the segment, so that the
+        calibrated rule declines it, or is a bias (``SlowErrors``).
 
     Raises
     ------
     CredcliError
         For a setting of the wrong type or out of its range, or a ``variant``,
-        ``srd_form`` or ``metrics`` that is not one of its names, naming it
+        ``srd_form``, ``metrics`` or ``slow_errors`` that is not one of its names, naming it
         (``parameter``); for an ``alpha`` too small to test with ``MAX_FLIPS`` sign
         flips, or ``n_flips`` too few for the ELT's p-value to reach its level.
 
@@ -395,6 +430,7 @@ class DiagnosisConfig:
     max_elt_epochs: int = DEFAULT_MAX_EPOCHS
     metrics: MetricsLevel = MetricsLevel.NEEDED
     exact_pvalue: bool = False
+    slow_errors: SlowErrors = SlowErrors.AUTO
 
     def __post_init__(self) -> None:
         reals = ("tau_nci", "alpha", "c", "ks_alpha", "nees_alpha")
@@ -416,7 +452,12 @@ class DiagnosisConfig:
                 f"invalid setting: `exact_pvalue` must be true or false; got {self.exact_pvalue!r}",
                 "exact_pvalue",
             )
-        for name, kind in (("variant", Variant), ("srd_form", SrdForm), ("metrics", MetricsLevel)):
+        for name, kind in (
+            ("variant", Variant),
+            ("srd_form", SrdForm),
+            ("metrics", MetricsLevel),
+            ("slow_errors", SlowErrors),
+        ):
             value = getattr(self, name)
             try:
                 object.__setattr__(self, name, kind(value))

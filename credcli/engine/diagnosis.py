@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import math
 import zlib
 from dataclasses import dataclass, field, replace
 
@@ -405,8 +404,7 @@ def _diagnosis(ev: evidence.Evidence, config: DiagnosisConfig) -> Diagnosis:
         "time_scales": ev.time_scales,
         # a window judged with its run's model leaves long memory to the run's own segment
         "findings": (memory_findings(ev.memory) if ev.memory_source != "run" else ())
-        + episode_findings(ev, verdict, config)
-        + offset_findings(ev, verdict, config),
+        + episode_findings(ev, verdict, config),
     }
     if verdict.label is Label.INSUFFICIENT:
         return Diagnosis(label=Label.INSUFFICIENT, **common)
@@ -447,61 +445,6 @@ def memory_findings(memory) -> tuple[str, ...]:
         f"{len(fractions)} directions better than any short-memory one, so the variance of "
         f"a mean of N epochs falls as N^{2 * largest - 1:.2g}, not 1/N: longer segments "
         "settle a bias or a scale more slowly than their length suggests",
-    )
-
-
-def offset_findings(ev: evidence.Evidence, verdict, config: DiagnosisConfig) -> tuple[str, ...]:
-    """Where a covariance too large for the errors' spread comes with a bias that it
-    covers: the errors' second moment about zero, bias included, is what the claim says.
-
-    One segment cannot tell a constant bias from an error slower than the segment, which
-    stays near one value over its epochs (a slowly varying error under white noise): both
-    give an offset and a narrow spread around it. Where the claimed covariance matches the
-    total, the second reading would make the claim right, so the finding says so beside
-    the label, which keeps the paper's reading (pessimism with SMM, Section IV: its Monte
-    Carlo study draws such biases, and in about one trial in six of its pess+smm scenario
-    the claim covers the total).
-
-    Parameters
-    ----------
-    ev : Evidence
-        The segment's statistics (the ANEES about zero, the scale test).
-    verdict : Verdict
-        The rule's verdict.
-    config : DiagnosisConfig
-        The configuration (the calibrated rule only).
-
-    Returns
-    -------
-    tuple of str
-        One sentence where the label is pessimism+bias, decided on the whole segment with
-        its own memory, and the ANEES about zero is within the scale test's interval scaled
-        to it (its relative precision) around 1; empty otherwise. A window judged with its
-        run's memory gets none: the run's model holds the errors' slow parts, so a bias
-        found under it is no slow error of the run.
-    """
-    scale = ev.scale
-    if (
-        not config.calibrated
-        or verdict.label is not Label.PESSIMISM_BIAS
-        or verdict.by_direction
-        or ev.memory_source == "run"  # judged with its run's memory, slow parts included
-        or scale is None
-    ):
-        return ()
-    factor, low, high = scale.scale_factor, scale.scale_factor_low, scale.scale_factor_high
-    if not (factor > 0 and math.isfinite(low) and math.isfinite(high)):
-        return ()
-    low, high = ev.anees * low / factor, ev.anees * high / factor
-    if not low <= 1.0 <= high:
-        return ()
-    return (
-        f"offset within the claim: about zero, bias included, the errors spread as the "
-        f"claimed covariance says (mean NEES {ev.anees:.3g}·d, {low:.3g}–{high:.3g} at the "
-        "scale test's precision): the covariance covers the total error, which sits off "
-        "centre in this segment. A bias under a too-large covariance and an error slower "
-        f"than the segment (near one value over its {ev.n} epochs) give the same data, and "
-        "one segment cannot tell them apart (windows of one run, or more runs, can)",
     )
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import episodes, metrics
-from credcli.engine.config import DiagnosisConfig, Label, Question, Variant
+from credcli.engine.config import DiagnosisConfig, Label, Question, SlowErrors, Variant
 from credcli.engine.evidence import Evidence
 from credcli.engine.scale import DirectionScales, ScaleTest
 
@@ -122,7 +122,64 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     else:
         label = label_without_smm(evidence.nci, evidence.ks_pvalue, config)
     located = None if Question.LOCATION in untested else smm
+    if config.calibrated and label is Label.PESSIMISM_BIAS and not by_direction:
+        covered = offset_covered(evidence, config)
+        if covered is not None:
+            return Verdict(Label.INSUFFICIENT, (), covered, None, by_direction)
     return Verdict(label, untested, reason, located, by_direction, by_median)
+
+
+def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
+    """Why a segment labelled pessimism with a bias may be credible instead, or None.
+
+    One segment cannot tell a constant bias from an error slower than the segment, which
+    stays near one value over its epochs (a slowly varying error under white noise):
+    both give an offset and a narrow spread around it. Where the claimed covariance
+    matches the errors' second moment about zero, bias included, the second reading makes
+    the claim right, and the data cannot choose. The paper's Monte Carlo study draws such
+    segments as pessimism with SMM (in about one trial in six of its pess+smm scenario
+    the claim covers the total), knowing its epochs independent; a log's errors are not
+    known to be (:class:`credcli.engine.config.SlowErrors`).
+
+    Parameters
+    ----------
+    evidence : Evidence
+        The segment's statistics (the ANEES about zero, the scale test).
+    config : DiagnosisConfig
+        The configuration: ``slow_errors`` excluded reads the offset as a bias.
+
+    Returns
+    -------
+    str or None
+        The reason, where the memory was fitted on this segment (a window judged with its
+        run's model has the run's slow parts in it, and a fixed block length declares the
+        memory), slow errors are not excluded, and the ANEES about zero is within the
+        scale test's interval scaled to it (its relative precision) around 1; None
+        otherwise.
+    """
+    scale = evidence.scale
+    if (
+        config.slow_errors is SlowErrors.EXCLUDED
+        or evidence.memory_source != "segment"
+        or scale is None
+    ):
+        return None
+    factor, low, high = scale.scale_factor, scale.scale_factor_low, scale.scale_factor_high
+    if not (factor > 0 and math.isfinite(low) and math.isfinite(high)):
+        return None
+    low, high = evidence.anees * low / factor, evidence.anees * high / factor
+    if not low <= 1.0 <= high:
+        return None
+    return (
+        f"offset within the claim: the errors sit off zero with a spread κ̂ "
+        f"{factor:.3g} of the claim's, but about zero, bias included, they spread as the "
+        f"claimed covariance says (mean NEES {evidence.anees:.3g}·d, {low:.3g}–{high:.3g} "
+        "at the scale test's precision). A bias under a too-large covariance and an error "
+        f"slower than the segment (near one value over its {evidence.n} epochs) give the "
+        "same data, and one segment cannot tell them apart: windows of one run or more "
+        "runs can, and `slow_errors` excluded reads the offset as a bias where the errors "
+        "are known to hold no memory slower than the segment"
+    )
 
 
 def median_optimism(evidence: Evidence, config: DiagnosisConfig) -> bool:

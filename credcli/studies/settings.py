@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-from credcli.engine.config import DiagnosisConfig, Label
+from credcli.engine.config import DiagnosisConfig, Label, SlowErrors
 from credcli.errors import CredcliError
 from credcli.io.schema import RangeReading
 
@@ -220,6 +220,17 @@ class SimulationConfig:
     def error_model(self) -> ErrorModel:
         """The :class:`ErrorModel` of ``noise`` and ``ar``."""
         return ErrorModel.parse(self.noise, self.ar)
+
+    @property
+    def judged_by(self) -> DiagnosisConfig:
+        """The rule's settings for this study's trials: ``diagnosis``, with ``slow_errors``
+        auto resolved from what the study draws. Independent epochs (``ar`` 0, Section
+        IV's protocol) hold no memory slower than a trial, so an offset the claim covers
+        is a bias (excluded); AR(1) errors may (possible)."""
+        if self.diagnosis.slow_errors is not SlowErrors.AUTO:
+            return self.diagnosis
+        known = SlowErrors.EXCLUDED if self.ar == 0 else SlowErrors.POSSIBLE
+        return replace(self.diagnosis, slow_errors=known)
 
     def __post_init__(self) -> None:
         checks = [

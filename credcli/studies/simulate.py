@@ -199,11 +199,12 @@ def _run_chunk(args) -> list[TrialResult]:
     stream = _stream_key(spec)
     model = config.error_model
     model = None if model == ErrorModel() else model
+    judged_by = config.judged_by
     out = []
     for trial in range(start, stop):
         gen = np.random.default_rng(trial_seed(config.seed, stream, trial))
         errors, cov = draw_trial(spec, config.n, config.dim, config.eigenvalues, gen, model)
-        labels = diagnose_variants(errors, cov, VARIANT_ORDER, config.diagnosis, gen)
+        labels = diagnose_variants(errors, cov, VARIANT_ORDER, judged_by, gen)
         ks = labels[Variant.KS]
         out.append(
             TrialResult(

@@ -888,8 +888,9 @@ SCREENED_BELOW = 200
 """Segments shorter than this are screened for weak memory by their lag-1 autocorrelation
 as well as by AICc, which chooses order 0 for weakly dependent errors on short windows
 too often (the mean test then loses its level on the windows it left white); on longer
-segments AICc alone sees such memory, and the screen would send many independent segments
-to the bootstrap (docs/measured.md)."""
+segments the sieve's criteria alone see such memory (BIC whether there is any, AICc its
+order), and the screen would send many independent segments to the bootstrap
+(docs/measured.md)."""
 MIN_MEAN_DOF = 3
 """Fewest denominator degrees of freedom of the mean test's F (as for batch means, K − d)."""
 
@@ -899,7 +900,8 @@ def memory_evidence(
 ) -> ModelEvidence:
     """The calibrated rule's evidence under the dependence model ``memory``.
 
-    A white model (every AIC order 0, fitted on this segment) keeps the exact tests for
+    A white model (no memory in any series, fitted on this segment: by BIC from 200
+    epochs, by AICc below, :func:`credcli.engine.memory.fit_memory`) keeps the exact tests for
     independent epochs: the χ² scale test with its tail factor, Hotelling's mean test, the
     ELT with single-epoch signs. Otherwise the scale test and the GLS mean test are referred
     to their distributions under the model (:func:`credcli.engine.scale.memory_scale_test`,

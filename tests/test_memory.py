@@ -462,7 +462,7 @@ def test_independent_errors_of_a_thousand_epochs_are_taken_as_white():
     """Whether there is memory at all is BIC's question on runs of 200 epochs or more: of
     100 segments of 1,000 independent epochs (d = 2: two directions and q, each white by
     BIC in about 99 %) about 97 % are taken as independent (the exact tests), where AICc
-    sent about 3 in 4 to the memory model's path; AR(1) φ = 0.5 errors never are."""
+    took 34 of these 100 as independent; AR(1) φ = 0.5 errors never are."""
     rng = np.random.default_rng(12)
     white = 0
     for _ in range(100):

@@ -459,7 +459,8 @@ def test_bic_finds_no_memory_where_there_is_none_and_finds_memory_that_is_there(
 
 
 def test_independent_errors_of_a_thousand_epochs_are_taken_as_white():
-    """Whether there is memory at all is BIC's question on runs of 200 epochs or more: of
+    """Whether there is memory at all is BIC's question (with the lag-1 screening on short
+    segments): of
     100 segments of 1,000 independent epochs (d = 2: two directions and q, each white by
     BIC in about 99 %) about 97 % are taken as independent (the exact tests), where AICc
     took 34 of these 100 as independent; AR(1) φ = 0.5 errors never are."""

@@ -886,10 +886,10 @@ MIN_MODEL_DOF = 4
 with 3 has a 0.6 % tail at 5.5 standard errors, beyond which an interval says nothing."""
 SCREENED_BELOW = 200
 """Segments shorter than this are screened for weak memory by their lag-1 autocorrelation
-as well as by AICc, which chooses order 0 for weakly dependent errors on short windows
-too often (the mean test then loses its level on the windows it left white); on longer
-segments the sieve's criteria alone see such memory (BIC whether there is any, AICc its
-order), and the screen would send many independent segments to the bootstrap
+as well as by the sieve's criteria (BIC whether there is any memory, AICc its order),
+which find no memory in weakly dependent errors on short windows too often (the mean test
+then loses its level on the windows it left white); on longer segments the criteria alone
+see such memory, and the screen would send many independent segments to the bootstrap
 (docs/measured.md)."""
 MIN_MEAN_DOF = 3
 """Fewest denominator degrees of freedom of the mean test's F (as for batch means, K − d)."""
@@ -900,8 +900,8 @@ def memory_evidence(
 ) -> ModelEvidence:
     """The calibrated rule's evidence under the dependence model ``memory``.
 
-    A white model (no memory in any series, fitted on this segment: by BIC from 200
-    epochs, by AICc below, :func:`credcli.engine.memory.fit_memory`) keeps the exact tests for
+    A white model (no memory in any series by BIC, fitted on this segment,
+    :func:`credcli.engine.memory.fit_memory`) keeps the exact tests for
     independent epochs: the χ² scale test with its tail factor, Hotelling's mean test, the
     ELT with single-epoch signs. Otherwise the scale test and the GLS mean test are referred
     to their distributions under the model (:func:`credcli.engine.scale.memory_scale_test`,

@@ -685,14 +685,14 @@ def _order_memory(fit: BurgFit, series: int, order: int, n: int):
 
 
 MIN_ORDER = 1
-"""The sieve's smallest order. AICc chooses order 0 on short windows of weakly dependent
-errors too often, and the tests for independent epochs then lose their level there
-(docs/measured.md); an AR(1) at least, its estimation error bootstrapped, keeps the level
-there and costs independent errors little (their fitted τ̂ is near 1)."""
+"""The sieve's smallest order on short runs that have memory (by BIC or the lag-1
+screening). AICc chooses order 0 on short windows of weakly dependent errors too often,
+and the tests for independent epochs then lose their level there (docs/measured.md); an
+AR(1) at least, its estimation error bootstrapped, keeps the level there."""
 FORCED_BELOW = 200
-"""Runs shorter than this get :data:`MIN_ORDER` in every series; longer ones keep AICc's
-order 0 for a series that shows no memory (known white, no bootstrap), and are taken as
-independent where BIC finds no memory in any series (:meth:`BurgFit.bic`)."""
+"""Runs shorter than this that have memory get :data:`MIN_ORDER` in every series; longer
+ones keep AICc's order 0 for a series that shows no memory (known white, no bootstrap).
+Whether a run has memory at all is BIC's question (:meth:`BurgFit.bic`)."""
 SIEVE_EPOCHS = 1 << 18
 """Most epochs of a run the sieve is fitted on (:func:`fit_memory`): a longer run's first
 2^18. Its errors are stationary under the model, and the sieve's τ̂ from 262,144 epochs
@@ -1062,13 +1062,11 @@ def fit_memory(
     cannot tell the directions' memories apart (:func:`_common_model`), a direction whose
     own model shows less memory than their common model takes the common one: the
     principal directions are chosen to differ, and the one of least long-run variance is
-    fitted too little memory. Where no series shows memory and the caller's lag-1
-    screening (``screened``) found no dependence either, the errors are taken as
-    independent (the exact tests apply, :attr:`Memory.white`): by BIC, whose choice of
-    order 0 is consistent, on runs of :data:`FORCED_BELOW` epochs or more, and by AICc on
-    shorter ones (which BIC would leave white more often, where weak memory already
-    costs the mean test its level). AICc, an efficient criterion for a sieve (Shibata
-    1980), chooses the order of each series that has memory. Otherwise every series gets
+    fitted too little memory. Where BIC, whose choice of order 0 is consistent, finds no
+    memory in any series and the caller's lag-1 screening (``screened``, on short
+    segments) found no dependence either, the errors are taken as independent (the exact
+    tests apply, :attr:`Memory.white`). AICc, an efficient criterion for a sieve (Shibata
+    1980), chooses the order of each series where there is memory. Otherwise every series gets
     at least :data:`MIN_ORDER` (on runs shorter than :data:`FORCED_BELOW` epochs, or when
     ``screened``), and the models' estimation error and bias come from the parametric
     bootstrap (:func:`bootstrap_spread`).
@@ -1146,8 +1144,7 @@ def fit_memory(
     stacked = stacked / power_of_two_unit(stacked.reshape(d + 1, -1), axis=1)[:, None, None]
     p_max = max_order(fitted_t) if order is None else int(order)
     fit = burg(stacked, p_max)
-    any_memory = fit.orders() if t < FORCED_BELOW else np.argmin(fit.bic(), axis=1)
-    if not screened and not np.any(any_memory):
+    if not screened and not np.any(np.argmin(fit.bic(), axis=1)):
         white = SeriesMemory(np.zeros(0), np.ones(1), math.inf)
         return Memory(directions, (white,) * d, white, n, runs)
     # short or screened: every series at least AR(1); else AICc's order, 0 included

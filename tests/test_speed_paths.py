@@ -4,6 +4,7 @@ any number of processes against one, the blocked pair matrix against the direct 
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -104,9 +105,9 @@ def test_jobs_do_not_change_the_output(tmp_path, monkeypatch):
     mapped = []  # the tasks each pool was given
 
     class Pool(workflows.WorkerPool):
-        def map(self, func, tasks):
+        def map(self, func, tasks, before_fork=None):
             mapped.append(len(tasks))
-            return super().map(func, tasks)
+            return super().map(func, tasks, before_fork)
 
     monkeypatch.setattr(workflows, "WorkerPool", Pool)
     frame = pd.concat([pd.read_csv(ROOT / "sample_data" / "estimator_log.csv")] * 3)
@@ -358,6 +359,86 @@ def test_a_short_diagnosis_does_not_load_numba():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+_LOADED: list = []  # what a before_fork call loaded in the test's process
+
+
+def _load() -> None:
+    _LOADED.append("kernels")
+
+
+def _loaded(_) -> int:
+    return len(_LOADED)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="workers are forked on Linux only")
+def test_what_is_loaded_just_before_the_fork_every_worker_has(monkeypatch):
+    """Issue 30 (two workers' numba start-up): ``before_fork`` runs once, here, before the
+    workers fork, and every worker then has what it loaded; spawned workers would not
+    inherit it, so it is not called for them."""
+    from credcli.schedule import pool
+
+    monkeypatch.setattr(pool, "start_method", lambda: "fork")
+    _LOADED.clear()
+    try:
+        assert list(pool.ordered_map(_loaded, range(6), 2, before_fork=_load)) == [1] * 6
+        assert _LOADED == ["kernels"]
+        _LOADED.clear()
+        assert list(pool.ordered_map(_loaded, range(6), 1, before_fork=_load)) == [0] * 6
+        monkeypatch.setattr(pool, "start_method", lambda: "spawn")
+        assert list(pool.WorkerPool(2).map(_loaded, [], _load)) == [] and _LOADED == []
+    finally:
+        _LOADED.clear()
+
+
+def test_the_kernels_are_warmed_before_the_fork_where_each_worker_would_load_them(
+    monkeypatch,
+):
+    """Each worker's share of the ELTs' pairs decides: 1,000 segments of 1,000 epochs give
+    two workers 249,750,000 pairs each, above KERNEL_PAIRS (40,000,000); 100 such segments
+    among 16 workers give each 3,121,875; an ELT sees at most max_elt_epochs epochs."""
+    from credcli.schedule import plans as scheduling
+    from credcli.segments import Segments
+
+    calls = []
+    monkeypatch.setattr(scheduling.compiled, "warm", lambda: calls.append(1))
+    config = DiagnosisConfig()
+
+    def plan(segments, epochs):
+        bounds = np.arange(segments + 1) * epochs
+        names = [str(i) for i in range(segments)]
+        return (None, Segments(names, np.arange(bounds[-1]), bounds, None, None))
+
+    scheduling._warm_kernels([plan(1000, 1000)], config, 2)
+    assert calls == [1]
+    scheduling._warm_kernels([plan(100, 1000)], config, 16)
+    assert calls == [1]
+    huge = replace(config, max_elt_epochs=2000)  # one segment of 10^6 epochs: 1,999,000 pairs
+    scheduling._warm_kernels([plan(1, 1_000_000)], huge, 2)
+    assert calls == [1]
+    assert flips.kernel_repaid(40_000_001) and not flips.kernel_repaid(40_000_000)
+
+
+def test_warmed_kernels_are_used_from_the_first_pair_with_numpys_bits():
+    """After ``compiled.warm`` (numba loaded), the ELT takes the compiled kernel at once,
+    not after KERNEL_PAIRS pairs, and gives the numpy path's bits (in a fresh process, so
+    that this one's count of pairs is not involved)."""
+    import subprocess
+
+    code = (
+        "import numpy as np\n"
+        "from credcli.engine import compiled, flips\n"
+        "s = np.random.default_rng(3).standard_normal((300, 2))\n"
+        "before = flips._band_kernel(300) is None\n"
+        "a = flips.pair_matrix(s)\n"
+        "print(before, compiled.warm(), flips._band_kernel(300) is not None,"
+        " bool(np.array_equal(a, flips.pair_matrix(s))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    if "False" in out.stdout.split()[1:2]:
+        pytest.skip("numba is not installed (the extra `fast`)")
+    assert out.stdout.split() == ["True", "True", "True", "True"]
 
 
 def test_a_report_reads_each_result_as_it_is_diagnosed(monkeypatch):

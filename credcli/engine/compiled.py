@@ -13,6 +13,8 @@ from __future__ import annotations
 import functools
 import math
 
+_warm = [False]  # warm() ran in this process or in the parent it was forked from
+
 
 @functools.lru_cache(maxsize=1)
 def pair_band_kernel():
@@ -108,3 +110,38 @@ def burg_update_kernel():
     except ImportError:  # the numpy path
         return None
     return numba.njit(cache=True, nogil=True, error_model="numpy")(_burg_update)
+
+
+def warm() -> bool:
+    """Load both kernels and call each once on a few entries, so that they are ready in
+    this process and in every process forked from it.
+
+    numba's import and the load of each kernel's compiled code at its first call cost
+    about 0.7 s of CPU in each process that uses them; worker processes forked after this
+    call inherit the loaded kernels instead of each paying for them. The calls take the
+    argument types of :mod:`credcli.engine.flips` and :mod:`credcli.engine.memory`
+    (C-ordered float64 arrays, a float32 matrix, integers), whose compiled code they load.
+
+    Returns
+    -------
+    bool
+        Whether the kernels are loaded (False where numba cannot be imported).
+    """
+    pair, update = pair_band_kernel(), burg_update_kernel()
+    if pair is None or update is None:
+        return False
+    if not _warm[0]:
+        import numpy as np
+
+        sq = np.ones(4)
+        pair(sq, np.zeros((2, 4)), 2, 0, np.empty((2, 4)), 0, 0, np.empty((4, 4), np.float32))
+        pair(sq, np.zeros((2, 4)), 2, 0, np.empty((2, 4)), 0, 0, np.zeros((0, 0), np.float32))
+        update(np.zeros((1, 1, 4)), np.zeros((1, 1, 4)), np.zeros(1), 1)
+        _warm[0] = True
+    return True
+
+
+def warmed() -> bool:
+    """Whether :func:`warm` loaded the kernels in this process (or in its parent before
+    this process was forked): then a caller need not wait until they repay their load."""
+    return _warm[0]

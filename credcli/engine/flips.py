@@ -190,12 +190,30 @@ _pairs_built = [0]  # pairs this process has built (forked workers start from th
 
 
 def _band_kernel(n: int):
-    """The compiled band kernel, once this process has built ``KERNEL_PAIRS`` pairs; None
-    before that, or without numba (the numpy path, the same bits)."""
+    """The compiled band kernel, once this process has built ``KERNEL_PAIRS`` pairs or
+    where it is loaded already (:func:`credcli.engine.compiled.warm`); None before that, or
+    without numba (the numpy path, the same bits)."""
     _pairs_built[0] += n * (n - 1) // 2
-    if _pairs_built[0] <= KERNEL_PAIRS:
+    if _pairs_built[0] <= KERNEL_PAIRS and not compiled.warmed():
         return None
     return compiled.pair_band_kernel()
+
+
+def kernel_repaid(pairs: int) -> bool:
+    """Whether a process that builds ``pairs`` pairs of epochs turns to the compiled kernel
+    (more than :data:`KERNEL_PAIRS`), and so pays numba's start-up anyway.
+
+    Parameters
+    ----------
+    pairs : int
+        Pairs of epochs, Σ N(N − 1)/2 over the ELTs a process will run.
+
+    Returns
+    -------
+    bool
+        True above :data:`KERNEL_PAIRS`.
+    """
+    return pairs > KERNEL_PAIRS
 
 
 def _pair_rows(

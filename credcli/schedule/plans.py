@@ -5,6 +5,7 @@ segment name) only."""
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Iterator
 from dataclasses import replace
@@ -13,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli import segments as seg
+from credcli.engine import compiled, flips
 from credcli.engine.diagnosis import (
     DiagnosisConfig,
     SegmentDiagnosis,
@@ -206,6 +208,20 @@ def _chunk_tasks(
         yield (log_id, items, config, seed, innovations, runs, blocks)
 
 
+def _warm_kernels(plans, config: DiagnosisConfig, jobs: int) -> None:
+    """Load the compiled kernels here, before the ``jobs`` workers fork, where each worker
+    would load them anyway (:func:`credcli.engine.flips.kernel_repaid` of its share of
+    the ELTs' pairs): then this process pays numba's start-up once instead of every worker
+    paying it (:func:`credcli.engine.compiled.warm`). The kernels give the numpy path's
+    bits, so the results do not change."""
+    pairs = 0
+    for _, segments in plans:
+        sizes = np.minimum(seg.lengths(segments), config.max_elt_epochs).astype(np.int64)
+        pairs += int((sizes * (sizes - 1) // 2).sum())
+    if flips.kernel_repaid(pairs // max(jobs, 1)):
+        compiled.warm()
+
+
 def _in_order(plans, shorts: dict, diagnosed: Iterator, config: DiagnosisConfig) -> Iterator:
     """Every plan's results in its segments' order, as ``diagnosed`` yields them: each run
     of consecutive short segments one part (a slice of the plan's :class:`ShortSegments`),
@@ -326,10 +342,11 @@ def diagnosed_parts(
                 shorts[p] = short
     done = sum(len(short) for short in shorts.values())
     tasks = _chunk_tasks(plans, config, seed, target, innovations, runs, shorts)
+    warm = functools.partial(_warm_kernels, plans, config, jobs)
     if pool is not None:
-        outputs = pool.map(_diagnose_chunk, list(tasks))
+        outputs = pool.map(_diagnose_chunk, list(tasks), warm)
     else:
-        outputs = ordered_map(_diagnose_chunk, tasks, jobs if parallel else 1)
+        outputs = ordered_map(_diagnose_chunk, tasks, jobs if parallel else 1, warm)
     try:
         arrived = _arrived(outputs, done, total_segments, progress)
         yield from _in_order(plans, shorts, arrived, config)

@@ -184,6 +184,7 @@ class WorkerPool:
         from concurrent.futures import ProcessPoolExecutor
 
         method = start_method()
+        self.forked = method == "fork"
         if method == "fork":
             _import_threadpoolctl()
         saved = {k: os.environ.get(k) for k in _BLAS_THREAD_VARIABLES}
@@ -202,7 +203,7 @@ class WorkerPool:
                 else:
                     os.environ[key] = value
 
-    def map(self, func: Callable, tasks: list) -> Iterator:
+    def map(self, func: Callable, tasks: list, before_fork: Callable | None = None) -> Iterator:
         """Results in task order; the workers are shut down at the end, and stopped at once
         when the map ends early (an error, Ctrl-C, SIGTERM).
 
@@ -212,6 +213,10 @@ class WorkerPool:
             A top-level function (the workers import it).
         tasks : list
             Its arguments, one task each.
+        before_fork : callable, optional
+            Called here, with no arguments, just before forked workers start (at the first
+            task): what it loads, every worker has without loading it again. Not called
+            where the workers are spawned.
 
         Yields
         ------
@@ -219,6 +224,8 @@ class WorkerPool:
             ``func(task)`` for each task, in task order.
         """
         try:
+            if before_fork is not None and self.forked:
+                before_fork()
             yield from self.executor.map(func, tasks)
         except BaseException:
             self.stop()
@@ -282,7 +289,9 @@ def _quiet_cancelled_futures() -> None:
     threading.excepthook = hook
 
 
-def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
+def ordered_map(
+    func: Callable, tasks: Iterable, jobs: int, before_fork: Callable | None = None
+) -> Iterator:
     """``map(func, tasks)`` in ``jobs`` worker processes (in this process for jobs <= 1).
 
     ``func`` must be a top-level function (workers import it). Every task is submitted at
@@ -298,6 +307,8 @@ def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
     jobs : int
         The number of worker processes; at most one per task is started. With
         ``jobs <= 1`` or a single task, the tasks run here with BLAS on one thread.
+    before_fork : callable, optional
+        As :meth:`WorkerPool.map` takes it (not called when the tasks run here).
 
     Yields
     ------
@@ -310,4 +321,4 @@ def ordered_map(func: Callable, tasks: Iterable, jobs: int) -> Iterator:
         with one_blas_thread():
             yield from map(func, tasks)
         return
-    yield from WorkerPool(min(jobs, len(tasks))).map(func, tasks)
+    yield from WorkerPool(min(jobs, len(tasks))).map(func, tasks, before_fork)

@@ -313,8 +313,13 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
     )
     jobs, plots = request.jobs, request.figures
     scenarios = sim.parse_scenarios(request.scenario)
+    # the settings the trials are judged by (slow_errors resolved from ar), unless a sweep
+    # varies ar, which resolves it point by point
+    shown = config
+    if sweep is None or curves or sim.Sweep.parse(sweep).parameter is not sim.SweepParameter.AR:
+        shown = dataclasses.replace(config, diagnosis=config.judged_by)
     parameters = simulate_parameters(  # the curves, a sweep or the study: one of them
-        config,
+        shown,
         scenarios,
         curve_runs=curve_runs if curves else None,
         sweep=None if curves else sweep,

@@ -287,3 +287,21 @@ def test_the_study_reads_an_offset_by_what_it_draws():
     assert known[truth] - as_log[truth] == declined
     others = [lab for lab in known if lab not in (truth, Label.INSUFFICIENT)]
     assert [known[lab] for lab in others] == [as_log[lab] for lab in others]
+
+
+@pytest.mark.parametrize(
+    ("args", "shown"),
+    [
+        ([], "excluded"),
+        (["--ar", "0.5"], "possible"),
+        (["--slow-errors", "possible"], "possible"),
+        (["--sweep", "ar=0,0.5"], "auto"),
+    ],
+)
+def test_the_json_names_the_slow_errors_the_trials_were_judged_by(args, shown, capsys):
+    """`simulate`'s parameters say how its trials read an offset: `auto` resolved from
+    ``ar`` (independent draws: excluded; AR(1): possible), a given choice as given, and
+    `auto` only where a sweep of ``ar`` resolves it at each point."""
+    code = main(["simulate", "--trials", "2", "--scenario", "credible", "-f", "json", *args])
+    assert code == 0
+    assert json.loads(capsys.readouterr().out)["parameters"]["slow_errors"] == shown

@@ -285,6 +285,70 @@ SYNTHETIC: dict[str, _Synthetic] = {
 }
 
 
+# --------------------------------------------------------------------------- oracle
+def _arma_rho(phi, theta, n: int) -> np.ndarray:
+    """ρ(0 … n − 1) of a stationary ARMA: the autocorrelation of its ψ weights (FFT)."""
+    psi = _psi(phi, theta, _psi_length(phi) + n)
+    size = 1 << int(2 * psi.size - 1).bit_length()
+    gamma = np.fft.irfft(np.abs(np.fft.rfft(psi, size)) ** 2, size)[:n]
+    return gamma / gamma[0]
+
+
+def direction_rhos(family: str, n: int) -> list[np.ndarray] | None:
+    """The autocorrelation ρ(0 … n − 1) of each whitened direction of a synthetic family
+    (the directions are independent), or None where it is not a fixed scalar sequence
+    (Kalman and library families)."""
+    if family == "iid":
+        return [np.r_[1.0, np.zeros(n - 1)]] * 2
+    if family.startswith("ar1-"):
+        return [_arma_rho((float(family[4:]),), (), n)] * 2
+    if family in ("ar2-complex", "ar2-smooth"):
+        return [_arma_rho(_AR2_COMPLEX if family == "ar2-complex" else _AR2_SMOOTH, (), n)] * 2
+    if family == "arma11":
+        return [_arma_rho((0.9,), (-0.5,), n)] * 2
+    if family.startswith("slow-white-"):
+        phi, w = (float(x) for x in family.split("-")[2:])
+        rho = (1.0 - w) * _arma_rho((phi,), (), n)
+        rho[0] = 1.0
+        return [rho] * 2
+    if family == "arfima-0.3":
+        return [_arfima_rho(0.3, n)] * 2
+    if family == "slow-and-white-dirs":
+        return [_arma_rho((0.98,), (), n), np.r_[1.0, np.zeros(n - 1)]]
+    if family in ("rotating-cov", "resized-cov"):  # AR(1) 0.9 whitened by the true Σ_k
+        return [_arma_rho((0.9,), (), n)] * 2
+    return None
+
+
+def oracle_scale_decided(rhos: list[np.ndarray], n: int, level: float) -> tuple[float, float]:
+    """What the scale question can decide with the dependence known: the share of credible
+    Gaussian segments of n epochs whose 1 − ``level`` interval of κ lies within [1/2, 2]
+    (the calibrated rule's "decided" for the scale), and the Satterthwaite degrees of
+    freedom ν behind it.
+
+    The centred sum of squares T = Σ_i x_iᵀ M x_i (M = I − 11ᵀ/n, direction i with
+    Toeplitz correlation R_i) has E = Σ tr(M R_i) and V = 2 Σ tr((M R_i)²); with T/c ~ χ²_ν,
+    c = V/(2E), ν = 2E²/V (Satterthwaite 1946) and κ̂ = T/E, the interval of κ is
+    [X/q₊, X/q₋] for X = T/c and q± the χ²_ν quantiles at 1 − level/2 and level/2, so the
+    question is decided with probability F_ν(2q₋) − F_ν(q₊/2) at κ = 1. The rule estimates
+    the dependence, so it decides less often.
+    """
+    from scipy import stats
+
+    h = np.arange(1, n)
+    e = v = 0.0
+    for rho in rhos:
+        rho = np.asarray(rho, dtype=float)[:n]
+        ones_r_ones = n + 2.0 * float(np.sum((n - h) * rho[1:]))
+        r_ones = linalg.toeplitz(rho) @ np.ones(n)
+        tr_r2 = n + 2.0 * float(np.sum((n - h) * rho[1:] ** 2))
+        e += n - ones_r_ones / n
+        v += 2.0 * (tr_r2 - 2.0 * float(r_ones @ r_ones) / n + (ones_r_ones / n) ** 2)
+    nu = 2.0 * e * e / v
+    q_low, q_high = stats.chi2.ppf([level / 2, 1 - level / 2], nu)
+    return max(0.0, float(stats.chi2.cdf(2 * q_low, nu) - stats.chi2.cdf(q_high / 2, nu))), nu
+
+
 # --------------------------------------------------------------------------- Kalman
 R_2D = np.array([[1.0, 0.6], [0.6, 2.0]])
 """Position measurement noise (m²) of the 2-D Kalman families: correlated axes, so that P

@@ -44,3 +44,30 @@ def test_credible_families_are_decided_at_the_level(family, n, share):
         decided += d.label is not Label.INSUFFICIENT and not d.untested
     assert wrong / 40 <= 0.06 + 2 * math.sqrt(0.06 * 0.94 / 40), wrong
     assert decided / 40 >= share, decided
+
+
+@pytest.mark.parametrize(("family", "n"), [("ar2-complex", 200), ("ar1-0.9", 150), ("iid", 12)])
+def test_the_oracle_decides_the_scale_as_the_known_model_does(family, n):
+    """zoo.oracle_scale_decided against a Monte Carlo of 3,000 Gaussian segments drawn with
+    the family's autocorrelation (Cholesky of its Toeplitz matrix): the centred sum of
+    squares T has the oracle's mean E and variance V (Satterthwaite's ν = 2E²/V), and the
+    share whose interval [X/q₊, X/q₋] of κ (X = T·2E/V) lies within [1/2, 2] is the
+    oracle's, within 3 standard errors and 0.02 for the χ² approximation of T."""
+    from scipy import linalg, stats
+
+    zoo = _zoo()
+    level = 1 - math.sqrt(0.95)
+    rhos = zoo.direction_rhos(family, n)
+    share, nu = zoo.oracle_scale_decided(rhos, n, level)
+    rng = np.random.default_rng(7)
+    total = np.zeros(3000)
+    for rho in rhos:
+        x = rng.standard_normal((3000, n)) @ linalg.cholesky(linalg.toeplitz(rho)).T
+        total += ((x - x.mean(axis=1, keepdims=True)) ** 2).sum(axis=1)
+    e, v = total.mean(), total.var()
+    assert abs(e * e * 2 / v - nu) < 0.1 * nu
+    x = total * 2 * e / v
+    q_low, q_high = stats.chi2.ppf([level / 2, 1 - level / 2], nu)
+    decided = np.mean((x / q_high > 0.5) & (x / q_low < 2))
+    se = math.sqrt(max(share * (1 - share), 0.01) / 3000)
+    assert abs(decided - share) < 3 * se + 0.02, (decided, share)

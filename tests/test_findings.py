@@ -32,16 +32,22 @@ def test_chi2_interval_against_scipy_and_without_degrees_of_freedom():
 def test_a_ten_epoch_segment_with_no_degrees_of_freedom_degrades():
     """Every variant diagnoses the three segments; where the scale reference has less than
     one degree of freedom (the lag-1 route of paper and ks, here) the interval is (0, ∞) and
-    the p-values NaN, so nothing is decided from it; elsewhere the interval holds κ̂."""
+    the p-values NaN, so nothing is decided from it; where the segment's memory leaves the
+    scale untested (the calibrated rule's "memory comparable to the segment"), there is no
+    interval and the scale is named untested; elsewhere the interval holds κ̂."""
     cov = np.broadcast_to(np.eye(2), (10, 2, 2))
     degenerate = 0
     for variant in Variant:
         for k in FEW_DOF_SEEDS:
             e = np.random.default_rng(k).standard_normal((10, 2))
-            scale = diagnose_errors(e, cov, DiagnosisConfig(variant=variant), rng=0).scale
+            diagnosis = diagnose_errors(e, cov, DiagnosisConfig(variant=variant), rng=0)
+            scale = diagnosis.scale
             if scale is None:
                 continue
-            if scale.dof < MIN_REFERENCE_DOF:
+            if math.isnan(scale.dof):
+                assert diagnosis.label is Label.INSUFFICIENT and diagnosis.reason
+                assert math.isnan(scale.scale_factor_low) and math.isnan(scale.pvalue_upper)
+            elif scale.dof < MIN_REFERENCE_DOF:
                 degenerate += 1
                 assert (scale.scale_factor_low, scale.scale_factor_high) == (0.0, math.inf)
                 assert math.isnan(scale.pvalue_upper) and math.isnan(scale.pvalue_lower)

@@ -143,5 +143,12 @@ def warm() -> bool:
 
 def warmed() -> bool:
     """Whether :func:`warm` loaded the kernels in this process (or in its parent before
-    this process was forked): then a caller need not wait until they repay their load."""
+    this process was forked).
+
+    Returns
+    -------
+    bool
+        True once :func:`warm` has run: a caller need not wait until the kernels repay
+        their load.
+    """
     return _warm[0]

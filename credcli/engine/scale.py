@@ -794,7 +794,8 @@ def memory_scale_test(
     spread = 0.0
     for model, served in memory.models():
         v = sum(moments[i][1] for i in served)
-        spread += v * v / model.square_dof
+        # ν 0: a refit of the bootstrap had no finite τ₂, so nothing bounds the reference
+        spread += v * v / model.square_dof if model.square_dof > 0 else math.inf
     kappa = total / expected
     gaussian *= memory_tail_factor(residuals, memory) if tail is None else tail
     # ν of V = Σ V_i from each model's ν (Satterthwaite)

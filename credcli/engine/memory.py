@@ -1025,8 +1025,9 @@ def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     together (Cardoso & Souloumiac 1996), each matrix scaled to unit trace and Γ₀ weighted
     by √(2H/3), the ratio of the two estimates' relative standard errors (a Bartlett Ω
     with bandwidth H has Var Ω̂/Ω² ≈ 4H/(3T), Andrews 1991; Γ̂₀ has about 2/T), so that
-    each counts by what it knows. Under the null Γ₀ = I, and the rotation is Ω's
-    eigenvectors, as before; where Ω cannot tell directions apart, Γ₀ decides. That is
+    each counts by what it knows. Under the null Γ₀ ≈ I holds no direction, and the
+    rotation is close to Ω's eigenvectors, as before; where Ω cannot tell directions
+    apart, Γ₀ decides. That is
     the case of a short segment with one slow and one white direction: centring takes
     most of the slow direction's variance, its long-run variance is then no larger than
     the white one's, and Ω's eigenvectors alone mixed the two (N = 50, the slow one's

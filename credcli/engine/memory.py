@@ -1090,6 +1090,21 @@ off-diagonal sum settles in its third digit within 2–4 sweeps (d = 6 and 15, m
 and two directions (d = 2) take one."""
 
 
+def _round_robin(d: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The pairs (p, q) of d indices in d − 1 rounds (d rounds for odd d) of disjoint
+    pairs: the circle method, index 0 fixed and the others turning one place a round."""
+    m = d + d % 2
+    others = list(range(1, m))
+    rounds = []
+    for _ in range(m - 1):
+        ring = [0, *others]
+        pairs = [(ring[i], ring[m - 1 - i]) for i in range(m // 2)]
+        pairs = [(min(a, b), max(a, b)) for a, b in pairs if a < d and b < d]
+        rounds.append((np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])))
+        others = others[-1:] + others[:-1]
+    return rounds
+
+
 def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray:
     """The rotation V that makes symmetric matrices as diagonal as one rotation can.
 
@@ -1097,7 +1112,9 @@ def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray
     the angle that minimises the sum of the squared (p, q) entries of VᵀM_kV over the
     matrices: with h_k = (M_pp − M_qq, 2M_pq) and G = Σ h_k h_kᵀ, a quarter of the angle of
     G's principal axis (Cardoso & Souloumiac 1996), until no turn has a sine above
-    ``tolerance``.
+    ``tolerance``. A sweep takes the pairs in rounds of disjoint pairs (the circle
+    method), each round's turns at once: a turn in the plane (p, q) moves rows and
+    columns p and q only, so a round's turns do not meet.
 
     Parameters
     ----------
@@ -1125,23 +1142,25 @@ def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray
     d = a.shape[1]
     _, v = np.linalg.eigh(a.sum(axis=0))
     a = v.T @ a @ v
+    rounds = _round_robin(d)
     for _ in range(JACOBI_SWEEPS):
         turned = False
-        for p in range(d - 1):
-            for q in range(p + 1, d):
-                hx = a[:, p, p] - a[:, q, q]
-                hy = 2.0 * a[:, p, q]
-                angle = 0.25 * math.atan2(2.0 * float(hx @ hy), float(hx @ hx - hy @ hy))
-                sin = math.sin(angle)
-                if abs(sin) <= tolerance:
-                    continue
-                cos = math.cos(angle)
-                turned = True
-                for m in (a, a.swapaxes(1, 2)):  # columns p, q, then rows p, q
-                    mp, mq = m[..., p].copy(), m[..., q].copy()
-                    m[..., p], m[..., q] = cos * mp + sin * mq, cos * mq - sin * mp
-                vp, vq = v[:, p].copy(), v[:, q].copy()
-                v[:, p], v[:, q] = cos * vp + sin * vq, cos * vq - sin * vp
+        for p, q in rounds:
+            hx = a[:, p, p] - a[:, q, q]
+            hy = 2.0 * a[:, p, q]
+            angle = 0.25 * np.arctan2(
+                2.0 * np.sum(hx * hy, axis=0), np.sum(hx * hx - hy * hy, axis=0)
+            )
+            sin = np.sin(angle)
+            if not np.any(np.abs(sin) > tolerance):
+                continue
+            cos = np.cos(angle)
+            turned = True
+            for m in (a, a.swapaxes(1, 2)):  # columns p, q, then rows p, q
+                mp, mq = m[..., p], m[..., q]
+                m[..., p], m[..., q] = cos * mp + sin * mq, cos * mq - sin * mp
+            vp, vq = v[:, p], v[:, q]
+            v[:, p], v[:, q] = cos * vp + sin * vq, cos * vq - sin * vp
         if not turned:
             break
     return v

@@ -192,9 +192,8 @@ def test_a_short_slow_direction_is_found_beside_a_white_one():
 def test_joint_rotation_diagonalises_matrices_with_common_eigenvectors():
     """Three symmetric 5 × 5 matrices with one random orthonormal eigenbasis: the rotation
     found makes each diagonal to 1e-9 (the eigenbasis up to order and sign); with a
-    noise matrix added to one, the other two stay nearly diagonal (the sum of squared
-    off-diagonal entries is the least over rotations, so no larger than at the true
-    basis)."""
+    noise matrix added to one, the sum of squared off-diagonal entries at the rotation
+    found is no larger than at the true basis (the rotation minimises it)."""
     rng = np.random.default_rng(2)
     q = np.linalg.qr(rng.standard_normal((5, 5)))[0]
     m = np.stack([q @ np.diag(rng.uniform(0.5, 5.0, 5)) @ q.T for _ in range(3)])
@@ -221,7 +220,7 @@ def test_joint_rotation_diagonalises_matrices_with_common_eigenvectors():
     constant=st.booleans(),
 )
 def test_principal_directions_are_orthonormal_for_any_errors(d, seed, constant):
-    """Any d, any scales, a component without variance (Γ₀ singular: Ω's eigenvectors)."""
+    """Any d, any scales, a component without variance (Γ₀ singular)."""
     rng = np.random.default_rng(seed)
     s = _ar([1, -0.7], 80, rng, burn=50, cols=d) * rng.uniform(0.01, 100.0, d)
     if constant:

@@ -1108,7 +1108,8 @@ def _round_robin(d: int) -> list[tuple[np.ndarray, np.ndarray]]:
 def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray:
     """The rotation V that makes symmetric matrices as diagonal as one rotation can.
 
-    From the eigenvectors of their sum, Jacobi sweeps over the pairs (p, q) each turn by
+    From the eigenvectors of their sum (from the identity for d = 2, where one turn is
+    exact), Jacobi sweeps over the pairs (p, q) each turn by
     the angle that minimises the sum of the squared (p, q) entries of VᵀM_kV over the
     matrices: with h_k = (M_pp − M_qq, 2M_pq) and G = Σ h_k h_kᵀ, a quarter of the angle of
     G's principal axis (Cardoso & Souloumiac 1996), until no turn has a sine above
@@ -1140,6 +1141,11 @@ def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray
     """
     a = np.array(matrices, dtype=float)
     d = a.shape[1]
+    if d == 2:  # one pair: its turn from the identity is the optimum, in closed form
+        hx, hy = a[:, 0, 0] - a[:, 1, 1], 2.0 * a[:, 0, 1]
+        angle = 0.25 * math.atan2(2.0 * float(hx @ hy), float(hx @ hx - hy @ hy))
+        cos, sin = math.cos(angle), math.sin(angle)
+        return np.array([[cos, -sin], [sin, cos]])
     _, v = np.linalg.eigh(a.sum(axis=0))
     a = v.T @ a @ v
     rounds = _round_robin(d)

@@ -679,7 +679,10 @@ def _order_memory(fit: BurgFit, series: int, order: int, n: int):
     sigma2 = float(fit.variance[series, order])
     gamma = autocovariance_of_ar(phi, sigma2, decay_horizon(phi, n))
     g0 = float(gamma[0])
-    rho = gamma / g0 if g0 > 0 else np.eye(1, gamma.size)[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        rho = gamma / g0 if g0 > 0 else np.eye(1, gamma.size)[0]
+    if not np.all(np.abs(rho) <= 1.0 + 1e-9):  # a root on the unit circle, to precision
+        raise np.linalg.LinAlgError("the fitted model's autocorrelation is not bounded by 1")
     log_tau = math.log(max(1.0 + 2.0 * float(np.sum(rho[1:])), 1.0))
     return phi, rho, log_tau
 

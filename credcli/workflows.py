@@ -313,10 +313,11 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
     )
     jobs, plots = request.jobs, request.figures
     scenarios = sim.parse_scenarios(request.scenario)
+    spec = None if sweep is None or curves else sim.Sweep.parse(sweep)
     # the settings the trials are judged by (slow_errors resolved from ar), unless a sweep
     # varies ar, which resolves it point by point
     shown = config
-    if sweep is None or curves or sim.Sweep.parse(sweep).parameter is not sim.SweepParameter.AR:
+    if spec is None or spec.parameter is not sim.SweepParameter.AR:
         shown = dataclasses.replace(config, diagnosis=config.judged_by)
     parameters = simulate_parameters(  # the curves, a sweep or the study: one of them
         shown,
@@ -336,8 +337,7 @@ def run_simulate(request: SimulateRequest, progress=None, runner=None) -> tuple[
         return Run(curves_report(by_rho, by_gamma, curve_runs, parameters), figures), (
             f"Fig. 1 curves: {len(by_rho)} values of ρ and {len(by_gamma)} of γ, {curve_runs} runs each"
         )
-    if sweep is not None:
-        spec = sim.Sweep.parse(sweep)
+    if spec is not None:
         points = sim.run_sweep(spec, config, scenarios, jobs, progress, runner)
         n_trials = sum(p.trials for p in points)
         if plots:

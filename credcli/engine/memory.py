@@ -1075,10 +1075,11 @@ def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     sums = c[:, band + 1 :] - c[:, : -band - 1]
     omega = np.einsum("mti,mtj->ij", sums, sums) / (band + 1)
     gamma = np.einsum("mti,mtj->ij", x, x)
-    scaled = [m / t for m, t in ((gamma, np.trace(gamma)), (omega, np.trace(omega))) if t > 0]
-    if len(scaled) == 2:
-        scaled[0] = scaled[0] * math.sqrt(2.0 * band / 3.0)
-    rotation = joint_rotation(np.stack(scaled)) if scaled else np.eye(d)
+    traces = float(np.trace(gamma)), float(np.trace(omega))
+    if not min(traces) > 0:  # no spread to rotate
+        return np.eye(d)
+    weighted = math.sqrt(2.0 * band / 3.0) * gamma / traces[0]
+    rotation = joint_rotation(np.stack([weighted, omega / traces[1]]))
     with np.errstate(divide="ignore", invalid="ignore"):
         taus = np.sum(rotation * (omega @ rotation), axis=0) / np.sum(
             rotation * (gamma @ rotation), axis=0
@@ -1106,6 +1107,15 @@ def _round_robin(d: int) -> list[tuple[np.ndarray, np.ndarray]]:
         rounds.append((np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])))
         others = others[-1:] + others[:-1]
     return rounds
+
+
+def _turn_angles(a: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The Jacobi angle of each pair (p_j, q_j) for the matrices ``a`` (K, d, d): with
+    h_k = (M_pp − M_qq, 2M_pq) and G = Σ_k h_k h_kᵀ, a quarter of the angle of G's
+    principal axis (Cardoso & Souloumiac 1996)."""
+    hx = a[:, p, p] - a[:, q, q]
+    hy = 2.0 * a[:, p, q]
+    return 0.25 * np.arctan2(2.0 * np.sum(hx * hy, axis=0), np.sum(hx * hx - hy * hy, axis=0))
 
 
 def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray:
@@ -1145,8 +1155,7 @@ def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray
     a = np.array(matrices, dtype=float)
     d = a.shape[1]
     if d == 2:  # one pair: its turn from the identity is the optimum, in closed form
-        hx, hy = a[:, 0, 0] - a[:, 1, 1], 2.0 * a[:, 0, 1]
-        angle = 0.25 * math.atan2(2.0 * float(hx @ hy), float(hx @ hx - hy @ hy))
+        angle = float(_turn_angles(a, np.array([0]), np.array([1]))[0])
         cos, sin = math.cos(angle), math.sin(angle)
         return np.array([[cos, -sin], [sin, cos]])
     _, v = np.linalg.eigh(a.sum(axis=0))
@@ -1155,11 +1164,7 @@ def joint_rotation(matrices: np.ndarray, tolerance: float = 1e-12) -> np.ndarray
     for _ in range(JACOBI_SWEEPS):
         turned = False
         for p, q in rounds:
-            hx = a[:, p, p] - a[:, q, q]
-            hy = 2.0 * a[:, p, q]
-            angle = 0.25 * np.arctan2(
-                2.0 * np.sum(hx * hy, axis=0), np.sum(hx * hx - hy * hy, axis=0)
-            )
+            angle = _turn_angles(a, p, q)
             sin = np.sin(angle)
             if not np.any(np.abs(sin) > tolerance):
                 continue

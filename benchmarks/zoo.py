@@ -168,6 +168,14 @@ def arma_tau(phi, theta) -> float:
     return _arma_setup(tuple(map(float, phi)), tuple(map(float, theta)))[4]
 
 
+def _arma_rho(phi, theta, n: int) -> np.ndarray:
+    """ρ(0 … n − 1) of a stationary ARMA: the autocorrelation of its ψ weights (FFT)."""
+    psi = _psi(phi, theta, _psi_length(phi) + n)
+    size = 1 << int(2 * psi.size - 1).bit_length()
+    gamma = np.fft.irfft(np.abs(np.fft.rfft(psi, size)) ** 2, size)[:n]
+    return gamma / gamma[0]
+
+
 # --------------------------------------------------------------------------- ARFIMA
 def _arfima_rho(d_frac: float, n: int) -> np.ndarray:
     h = np.arange(1, n)
@@ -231,6 +239,29 @@ class _Synthetic:
     white: Callable  # (n, rng) -> (n, d) whitened, unit-variance
     cov: Callable  # (n, rng) -> (n, d, d)
     tau: Callable  # n -> tau
+    rhos: Callable  # n -> each whitened direction's ρ(0 … n − 1) (independent directions)
+
+
+def _white_rho(n: int) -> np.ndarray:
+    return np.r_[1.0, np.zeros(n - 1)]
+
+
+def _both(rho: Callable) -> Callable:
+    """Two directions of the same autocorrelation ``rho(n)``."""
+    return lambda n: [rho(n)] * 2
+
+
+def _arma_rhos(phi, theta=()) -> Callable:
+    return _both(functools.partial(_arma_rho, tuple(phi), tuple(theta)))
+
+
+def _slow_white_rho(phi: float, w: float) -> Callable:
+    def rho(n):
+        out = (1.0 - w) * _arma_rho((phi,), (), n)
+        out[0] = 1.0
+        return out
+
+    return _both(rho)
 
 
 def _ar(phi):
@@ -254,70 +285,72 @@ _AR2_COMPLEX = (2 * 0.95 * math.cos(0.3), -(0.95**2))
 _AR2_SMOOTH = (1.9, -0.9025)
 
 SYNTHETIC: dict[str, _Synthetic] = {
-    "iid": _Synthetic(lambda n, rng: rng.standard_normal((n, 2)), _fixed_cov, lambda n: 1.0),
+    "iid": _Synthetic(
+        lambda n, rng: rng.standard_normal((n, 2)), _fixed_cov, lambda n: 1.0, _both(_white_rho)
+    ),
     **{
         f"ar1-{phi}": _Synthetic(
-            _ar((phi,)), _fixed_cov, functools.partial(lambda n, p: arma_tau((p,), ()), p=phi)
+            _ar((phi,)),
+            _fixed_cov,
+            functools.partial(lambda n, p: arma_tau((p,), ()), p=phi),
+            _arma_rhos((phi,)),
         )
         for phi in (0.5, 0.9, 0.99)
     },
-    "ar2-complex": _Synthetic(_ar(_AR2_COMPLEX), _fixed_cov, lambda n: arma_tau(_AR2_COMPLEX, ())),
-    "ar2-smooth": _Synthetic(_ar(_AR2_SMOOTH), _fixed_cov, lambda n: arma_tau(_AR2_SMOOTH, ())),
+    "ar2-complex": _Synthetic(
+        _ar(_AR2_COMPLEX),
+        _fixed_cov,
+        lambda n: arma_tau(_AR2_COMPLEX, ()),
+        _arma_rhos(_AR2_COMPLEX),
+    ),
+    "ar2-smooth": _Synthetic(
+        _ar(_AR2_SMOOTH), _fixed_cov, lambda n: arma_tau(_AR2_SMOOTH, ()), _arma_rhos(_AR2_SMOOTH)
+    ),
     "arma11": _Synthetic(
         lambda n, rng: arma((0.9,), (-0.5,), n, 2, rng),
         _fixed_cov,
         lambda n: arma_tau((0.9,), (-0.5,)),
+        _arma_rhos((0.9,), (-0.5,)),
     ),
     "slow-white-0.95-0.5": _Synthetic(
-        _slow_white(0.95, 0.5), _fixed_cov, lambda n: 0.5 * arma_tau((0.95,), ()) + 0.5
+        _slow_white(0.95, 0.5),
+        _fixed_cov,
+        lambda n: 0.5 * arma_tau((0.95,), ()) + 0.5,
+        _slow_white_rho(0.95, 0.5),
     ),
     "slow-white-0.99-0.3": _Synthetic(
-        _slow_white(0.99, 0.3), _fixed_cov, lambda n: 0.7 * arma_tau((0.99,), ()) + 0.3
+        _slow_white(0.99, 0.3),
+        _fixed_cov,
+        lambda n: 0.7 * arma_tau((0.99,), ()) + 0.3,
+        _slow_white_rho(0.99, 0.3),
     ),
     "arfima-0.3": _Synthetic(
-        lambda n, rng: arfima(0.3, n, 2, rng), _fixed_cov, lambda n: arfima_tau_n(0.3, n)
+        lambda n, rng: arfima(0.3, n, 2, rng),
+        _fixed_cov,
+        lambda n: arfima_tau_n(0.3, n),
+        _both(functools.partial(_arfima_rho, 0.3)),
     ),
     "slow-and-white-dirs": _Synthetic(
-        _slow_and_white_dirs, _fixed_cov, lambda n: arma_tau((0.98,), ())
+        _slow_and_white_dirs,
+        _fixed_cov,
+        lambda n: arma_tau((0.98,), ()),
+        lambda n: [_arma_rho((0.98,), (), n), _white_rho(n)],
     ),
-    "rotating-cov": _Synthetic(_ar((0.9,)), _rotating_cov, lambda n: arma_tau((0.9,), ())),
-    "resized-cov": _Synthetic(_ar((0.9,)), _resized_cov, lambda n: arma_tau((0.9,), ())),
+    # whitened by the true Σ_k: AR(1) 0.9 in both directions
+    "rotating-cov": _Synthetic(
+        _ar((0.9,)), _rotating_cov, lambda n: arma_tau((0.9,), ()), _arma_rhos((0.9,))
+    ),
+    "resized-cov": _Synthetic(
+        _ar((0.9,)), _resized_cov, lambda n: arma_tau((0.9,), ()), _arma_rhos((0.9,))
+    ),
 }
 
 
 # --------------------------------------------------------------------------- oracle
-def _arma_rho(phi, theta, n: int) -> np.ndarray:
-    """ρ(0 … n − 1) of a stationary ARMA: the autocorrelation of its ψ weights (FFT)."""
-    psi = _psi(phi, theta, _psi_length(phi) + n)
-    size = 1 << int(2 * psi.size - 1).bit_length()
-    gamma = np.fft.irfft(np.abs(np.fft.rfft(psi, size)) ** 2, size)[:n]
-    return gamma / gamma[0]
-
-
 def direction_rhos(family: str, n: int) -> list[np.ndarray] | None:
     """The autocorrelation ρ(0 … n − 1) of each whitened direction of a synthetic family
-    (the directions are independent), or None where it is not a fixed scalar sequence
-    (Kalman and library families)."""
-    if family == "iid":
-        return [np.r_[1.0, np.zeros(n - 1)]] * 2
-    if family.startswith("ar1-"):
-        return [_arma_rho((float(family[4:]),), (), n)] * 2
-    if family in ("ar2-complex", "ar2-smooth"):
-        return [_arma_rho(_AR2_COMPLEX if family == "ar2-complex" else _AR2_SMOOTH, (), n)] * 2
-    if family == "arma11":
-        return [_arma_rho((0.9,), (-0.5,), n)] * 2
-    if family.startswith("slow-white-"):
-        phi, w = (float(x) for x in family.split("-")[2:])
-        rho = (1.0 - w) * _arma_rho((phi,), (), n)
-        rho[0] = 1.0
-        return [rho] * 2
-    if family == "arfima-0.3":
-        return [_arfima_rho(0.3, n)] * 2
-    if family == "slow-and-white-dirs":
-        return [_arma_rho((0.98,), (), n), np.r_[1.0, np.zeros(n - 1)]]
-    if family in ("rotating-cov", "resized-cov"):  # AR(1) 0.9 whitened by the true Σ_k
-        return [_arma_rho((0.9,), (), n)] * 2
-    return None
+    (the directions are independent), or None for the Kalman and library families."""
+    return SYNTHETIC[family].rhos(n) if family in SYNTHETIC else None
 
 
 def oracle_scale_decided(rhos: list[np.ndarray], n: int, level: float) -> tuple[float, float]:

@@ -12,7 +12,7 @@ from scipy import integrate, special
 from credcli.engine import evidence, longmemory
 from credcli.engine.config import Label
 from credcli.engine.diagnosis import diagnose_errors, memory_ratio
-from credcli.engine.memory import fit_memory
+from credcli.engine.memory import SeriesMemory, fit_memory
 from credcli.report.records import diagnosis_record
 
 
@@ -262,3 +262,25 @@ def test_fractional_noise_of_ar_order_zero_is_not_white():
     memory = replace(plain, series=(fractional, fractional), squares=white)
     assert not memory.white
     assert replace(memory, series=(white, white)).white
+
+
+def test_the_long_memory_alternative_reaches_every_direction():
+    """A weakly chosen fractional model (AICc prefers it, BIC does not) in one direction is
+    the alternative of every direction whose own model implies less memory over the
+    segment: ρ(1) = d/(1 − d) of fractional noise (Hosking 1981) in both; a direction
+    with more memory of its own keeps it; no weak direction, no alternative."""
+    n = 300
+    white = SeriesMemory(np.zeros(0), np.ones(1), math.inf)
+    slow = SeriesMemory(np.array([0.99]), 0.99 ** np.arange(n), 50.0)
+    candidates = [(0.3, np.zeros(0)), (0.05, np.zeros(0))]
+    out = longmemory._weak_alternative([white, white], np.array([True, False]), candidates, n)
+    assert [m.fraction for m in out] == [0.3, 0.3]
+    assert out[1].rho[1] == pytest.approx(0.3 / 0.7, rel=1e-12)
+    assert out[1].mean_ratio(n) > white.mean_ratio(n)
+    kept = longmemory._weak_alternative([white, slow], np.array([True, False]), candidates, n)
+    assert kept[0].fraction == 0.3 and kept[1] is slow
+    assert (
+        longmemory._weak_alternative([white, white], np.array([False, False]), candidates, n)
+        is None
+    )
+

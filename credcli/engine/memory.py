@@ -944,9 +944,10 @@ class Memory(_Answering):
     segments : int, default 1
         The runs the fit pooled.
     alternative : Memory or None, default None
-        The same model with long memory in the directions where AICc prefers a fractional
-        model and BIC does not (:mod:`credcli.engine.longmemory`): a location finding must
-        hold under it as well. None where there is no such direction.
+        The same model with long memory where AICc prefers a fractional model and BIC does
+        not, in every direction with less memory of its own
+        (:mod:`credcli.engine.longmemory`): a location or scale finding must hold under it
+        as well. None where there is no such direction.
     """
 
     directions: np.ndarray

@@ -284,3 +284,44 @@ def test_the_long_memory_alternative_reaches_every_direction():
         is None
     )
 
+
+def test_a_scale_finding_must_hold_under_the_long_memory_the_data_do_not_exclude(monkeypatch):
+    """ARFIMA(0, 0.3, 0) errors of 300 epochs (the 58th of the seeded stream above): AICc
+    prefers long memory in one direction and BIC does not; the alternative gives both
+    directions d̂ 0.3. Under the short-memory model the centred sum of squares says
+    pessimism (κ̂ 0.79, interval [0.68, 0.93]); long memory lowers its expectation, so
+    under both models the interval reaches past 1 and no misfit is claimed. Without the
+    check the same segment says pessimism."""
+    rng = np.random.default_rng(11)
+    n = 300
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    gamma = longmemory.fractional_autocovariance(0.3, n)
+    for _ in range(58):
+        errors = longmemory._circulant_draws(gamma, 2, rng).T / math.sqrt(gamma[0])
+    checked = diagnose_errors(errors, cov, rng=36)
+    assert [m.fraction > 0 for m in checked.memory.alternative.series] == [True, True]
+    assert not checked.label.conditions
+    assert checked.scale.scale_factor_low < checked.scale.scale_factor < 1.0
+    assert checked.scale.scale_factor_high > 1.0
+    monkeypatch.setattr(evidence, "under_either", lambda test, other: test)
+    alone = diagnose_errors(errors, cov, rng=36)
+    assert "pessimism" in alone.label.conditions and alone.scale.scale_factor_high < 1.0
+
+
+def test_a_scale_test_under_either_model_is_the_union_of_the_two():
+    """under_either: the interval holding both intervals, each one-sided p-value the larger
+    (NaN, no test, where either is none), the fewer model degrees of freedom."""
+    from dataclasses import replace
+
+    from credcli.engine.scale import under_either
+
+    x = np.random.default_rng(13).standard_normal((200, 2))
+    test = diagnose_errors(x, np.broadcast_to(np.eye(2), (200, 2, 2)), rng=0).scale
+    a = replace(test, scale_factor_low=0.7, scale_factor_high=0.9, pvalue_upper=0.99)
+    a = replace(a, pvalue_lower=0.001, model_dof=40.0)
+    b = replace(a, scale_factor_low=0.8, scale_factor_high=1.2, pvalue_lower=0.2)
+    b = replace(b, pvalue_upper=math.nan, model_dof=math.inf)
+    both = under_either(a, b)
+    assert (both.scale_factor_low, both.scale_factor_high) == (0.7, 1.2)
+    assert both.pvalue_lower == 0.2 and math.isnan(both.pvalue_upper)
+    assert both.model_dof == 40.0 and both.scale_factor == a.scale_factor

@@ -34,10 +34,12 @@ from credcli.engine.scale import (
     ScaleTest,
     batch_scale_test,
     direction_scales,
+    directions_under_either,
     gls_residuals,
     memory_scale_test,
     memory_tail_factor,
     scale_test,
+    under_either,
     untested_scale,
 )
 from credcli.errors import CredcliError
@@ -910,7 +912,11 @@ def memory_evidence(
     (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or
     adjacent blocks. The scale is untested when the model has fewer than
     :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
-    :data:`MIN_MEAN_DOF`.
+    :data:`MIN_MEAN_DOF`. Where the model has a long-memory alternative (a fractional model
+    AICc prefers and BIC does not, :attr:`credcli.engine.memory.Memory.alternative`), a
+    finding must hold under it as well: the scale's and the directions' intervals are the
+    union of the two models' (:func:`credcli.engine.scale.under_either`), and a bias the
+    mean test finds must be found under both (:func:`_held_under_long_memory`).
 
     Parameters
     ----------
@@ -943,6 +949,10 @@ def memory_evidence(
         return ModelEvidence(scale, None, directions, plan)
     tail = memory_tail_factor(gls, memory)
     scale = memory_scale_test(gls, memory, level, tail)
+    alternative = memory.alternative
+    if alternative is not None:  # a scale finding must hold under long memory as well
+        other_tail = memory_tail_factor(gls, alternative)
+        scale = under_either(scale, memory_scale_test(gls, alternative, level, other_tail))
     mean, stderr = batches.memory_mean_test(gls, memory, inverse)
     scale = replace(scale, bias_stderr=stderr)
     tau = float(np.max(memory.variance_ratios))
@@ -957,6 +967,9 @@ def memory_evidence(
         )
     else:
         directions = direction_scales(gls, level, 0, memory, tail) if d > 1 else None
+        if directions is not None and alternative is not None:
+            other = direction_scales(gls, level, 0, alternative, other_tail)
+            directions = directions_under_either(directions, other)
         scale_reason = None
     why_not = None
     if not mean.dof[1] >= MIN_MEAN_DOF:

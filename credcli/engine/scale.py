@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import special
@@ -836,6 +836,47 @@ def memory_scale_test(
         bias_mahalanobis=residuals.bias_mahalanobis,
         model_dof=dof_model,
     )
+
+
+def under_either(test: ScaleTest, other: ScaleTest) -> ScaleTest:
+    """``test`` (the fitted model's) as a finding that must hold under ``other`` (a model
+    the data do not exclude) as well: each one-sided p-value the larger of the two, the
+    interval the smallest one that holds both (an intersection–union test: its level
+    holds under either model; R. L. Berger, "Multiparameter hypothesis testing and
+    acceptance sampling", Technometrics 24(4), 1982).
+
+    Parameters
+    ----------
+    test, other : ScaleTest
+        The scale test of the same residuals under the fitted model and under the other.
+
+    Returns
+    -------
+    ScaleTest
+        ``test`` with the union interval, the larger p-values (NaN where either is) and
+        the fewer model degrees of freedom; κ̂ stays the fitted model's.
+    """
+    return replace(
+        test,
+        scale_factor_low=min(test.scale_factor_low, other.scale_factor_low),
+        scale_factor_high=max(test.scale_factor_high, other.scale_factor_high),
+        pvalue_upper=_larger(test.pvalue_upper, other.pvalue_upper),
+        pvalue_lower=_larger(test.pvalue_lower, other.pvalue_lower),
+        model_dof=min(test.model_dof, other.model_dof),
+    )
+
+
+def directions_under_either(scales: DirectionScales, other: DirectionScales) -> DirectionScales:
+    """:func:`under_either` for the factors of the same principal directions (those of the
+    residuals, whichever the model): each interval the smallest one that holds both."""
+    return replace(
+        scales, low=np.minimum(scales.low, other.low), high=np.maximum(scales.high, other.high)
+    )
+
+
+def _larger(a: float, b: float) -> float:
+    """The larger p-value, NaN (no test) where either is."""
+    return math.nan if math.isnan(a) or math.isnan(b) else max(a, b)
 
 
 def _studentized_chi2(x: float, dof: float, dof_model: float) -> tuple[float, float]:

@@ -868,7 +868,19 @@ def under_either(test: ScaleTest, other: ScaleTest) -> ScaleTest:
 
 def directions_under_either(scales: DirectionScales, other: DirectionScales) -> DirectionScales:
     """:func:`under_either` for the factors of the same principal directions (those of the
-    residuals, whichever the model): each interval the smallest one that holds both."""
+    residuals, whichever the model): each interval the smallest one that holds both.
+
+    Parameters
+    ----------
+    scales, other : DirectionScales
+        The directions' factors of the same residuals under the fitted model and under the
+        other.
+
+    Returns
+    -------
+    DirectionScales
+        ``scales`` with each direction's interval the union of the two.
+    """
     return replace(
         scales, low=np.minimum(scales.low, other.low), high=np.maximum(scales.high, other.high)
     )

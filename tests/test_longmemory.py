@@ -230,17 +230,22 @@ def test_windows_judged_with_a_long_memory_run_leave_the_finding_to_the_run():
     assert not any(f.startswith("long memory") for f in window.findings)
 
 
+def _fractional_draw(k: int, n: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    """The k-th of a seeded stream of two independent unit ARFIMA(0, 0.3, 0) components of
+    ``n`` epochs, with identity covariances (credible)."""
+    rng = np.random.default_rng(11)
+    gamma = longmemory.fractional_autocovariance(0.3, n)
+    for _ in range(k):
+        errors = longmemory._circulant_draws(gamma, 2, rng).T / math.sqrt(gamma[0])
+    return errors, np.broadcast_to(np.eye(2), (n, 2, 2))
+
+
 def test_a_bias_must_hold_under_the_long_memory_the_data_do_not_exclude(monkeypatch):
-    """ARFIMA(0, 0.3, 0) errors of 300 epochs (the 37th of a seeded stream, the one of 60
-    where it matters): AICc prefers a fractional model and BIC does not, and the mean test
+    """ARFIMA(0, 0.3, 0) errors of 300 epochs (the 37th of :func:`_fractional_draw`'s
+    stream): AICc prefers a fractional model and BIC does not, and the mean test
     finds a bias under the sieve's model but not under the fractional one, so the location
     is untested instead of a bias; without the check the same segment says "bias"."""
-    rng = np.random.default_rng(11)
-    n = 300
-    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
-    gamma = longmemory.fractional_autocovariance(0.3, n)
-    for _ in range(37):
-        errors = longmemory._circulant_draws(gamma, 2, rng).T / math.sqrt(gamma[0])
+    errors, cov = _fractional_draw(37)
     checked = diagnose_errors(errors, cov, rng=36)
     assert checked.memory.alternative is not None
     assert checked.label is Label.CREDIBLE and checked.untested
@@ -286,18 +291,13 @@ def test_the_long_memory_alternative_reaches_every_direction():
 
 
 def test_a_scale_finding_must_hold_under_the_long_memory_the_data_do_not_exclude(monkeypatch):
-    """ARFIMA(0, 0.3, 0) errors of 300 epochs (the 58th of the seeded stream above): AICc
+    """ARFIMA(0, 0.3, 0) errors of 300 epochs (the 58th of :func:`_fractional_draw`'s stream): AICc
     prefers long memory in one direction and BIC does not; the alternative gives both
     directions d̂ 0.3. Under the short-memory model the centred sum of squares says
     pessimism (κ̂ 0.79, interval [0.68, 0.93]); long memory lowers its expectation, so
     under both models the interval reaches past 1 and no misfit is claimed. Without the
     check the same segment says pessimism."""
-    rng = np.random.default_rng(11)
-    n = 300
-    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
-    gamma = longmemory.fractional_autocovariance(0.3, n)
-    for _ in range(58):
-        errors = longmemory._circulant_draws(gamma, 2, rng).T / math.sqrt(gamma[0])
+    errors, cov = _fractional_draw(58)
     checked = diagnose_errors(errors, cov, rng=36)
     assert [m.fraction > 0 for m in checked.memory.alternative.series] == [True, True]
     assert not checked.label.conditions

@@ -10,7 +10,7 @@ import pytest
 from scipy import integrate, special
 
 from credcli.engine import evidence, longmemory
-from credcli.engine.config import Label
+from credcli.engine.config import Label, Question
 from credcli.engine.diagnosis import diagnose_errors, memory_ratio
 from credcli.engine.memory import SeriesMemory, fit_memory
 from credcli.report.records import diagnosis_record
@@ -325,3 +325,17 @@ def test_a_scale_test_under_either_model_is_the_union_of_the_two():
     assert (both.scale_factor_low, both.scale_factor_high) == (0.7, 1.2)
     assert both.pvalue_lower == 0.2 and math.isnan(both.pvalue_upper)
     assert both.model_dof == 40.0 and both.scale_factor == a.scale_factor
+
+
+def test_a_scale_left_open_by_long_memory_says_so():
+    """The 110th draw of :func:`_fractional_draw`'s stream: the short-memory model's scale
+    interval lies within [½, 2], the long-memory alternative's reaches past 2, so the scale
+    is untested, and the reason names the short-memory interval and the long memory
+    instead of too few epochs."""
+    errors, cov = _fractional_draw(110)
+    checked = diagnose_errors(errors, cov, rng=36)
+    low, high = checked.scale.short_memory_interval
+    assert 0.5 <= low and high <= 2.0 < checked.scale.scale_factor_high
+    assert Question.SCALE in checked.untested
+    assert "under the errors' short-memory model alone it is" in checked.reason
+    assert "too few independent epochs" not in checked.reason

@@ -410,10 +410,17 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     low, high = scale.scale_factor_low, scale.scale_factor_high
     if low >= 1.0 / CREDIBLE_FACTOR and high <= CREDIBLE_FACTOR:
         return None
+    why = "too few independent epochs or batches for a tighter interval"
+    own = scale.short_memory_interval
+    if own is not None and own[0] >= 1.0 / CREDIBLE_FACTOR and own[1] <= CREDIBLE_FACTOR:
+        why = (
+            f"under the errors' short-memory model alone it is [{own[0]:.3g}, {own[1]:.3g}], "
+            "but a long-memory model fits them almost as well (AICc prefers it, BIC does "
+            "not), and one segment cannot tell the two apart"
+        )
     return (
         f"scale inconclusive: κ̂ {scale.scale_factor:.3g} with interval [{low:.3g}, {high:.3g}] "
-        f"finds no misfit but does not exclude one of a factor {CREDIBLE_FACTOR:g} "
-        "(too few independent epochs or batches for a tighter interval)"
+        f"finds no misfit but does not exclude one of a factor {CREDIBLE_FACTOR:g} ({why})"
     )
 
 

@@ -71,6 +71,9 @@ class ScaleTest:
     model_dof : float
         ν_Ω, the degrees of freedom of the dependence model behind the reference
         (``memory_scale_test``); inf when the reference assumes no estimated memory.
+    short_memory_interval : tuple of float or None
+        The fitted model's own interval where a long-memory alternative the data do not
+        exclude widened it (:func:`under_either`); None otherwise.
 
     References
     ----------
@@ -101,6 +104,7 @@ class ScaleTest:
     bias_mahalanobis: float
     batches: int = 0
     model_dof: float = float("inf")  # ν_Ω of a dependence model's reference (inf: none)
+    short_memory_interval: tuple[float, float] | None = None
 
     @property
     def pvalue(self) -> float:
@@ -854,15 +858,20 @@ def under_either(test: ScaleTest, other: ScaleTest) -> ScaleTest:
     -------
     ScaleTest
         ``test`` with the union interval, the larger p-values (NaN where either is) and
-        the fewer model degrees of freedom; κ̂ stays the fitted model's.
+        the fewer model degrees of freedom, and its own interval as
+        ``short_memory_interval`` where the union is wider; κ̂ stays the fitted model's.
     """
+    low = min(test.scale_factor_low, other.scale_factor_low)
+    high = max(test.scale_factor_high, other.scale_factor_high)
+    own = (test.scale_factor_low, test.scale_factor_high)
     return replace(
         test,
-        scale_factor_low=min(test.scale_factor_low, other.scale_factor_low),
-        scale_factor_high=max(test.scale_factor_high, other.scale_factor_high),
+        scale_factor_low=low,
+        scale_factor_high=high,
         pvalue_upper=_larger(test.pvalue_upper, other.pvalue_upper),
         pvalue_lower=_larger(test.pvalue_lower, other.pvalue_lower),
         model_dof=min(test.model_dof, other.model_dof),
+        short_memory_interval=own if (low, high) != own else None,
     )
 
 

@@ -73,7 +73,7 @@ class ScaleTest:
         (``memory_scale_test``); inf when the reference assumes no estimated memory.
     short_memory_interval : tuple of float or None
         The fitted model's own interval where a long-memory alternative the data do not
-        exclude widened it (:func:`under_either`); None otherwise.
+        exclude widened it (``under_either``); None otherwise.
 
     References
     ----------

@@ -254,10 +254,11 @@ def _diagnose_here(request: DiagnoseRequest, progress, keep: bool):
     if jobs > 1 and sum(file_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
         pool = WorkerPool(jobs, warm=scheduling.__name__)  # workers import while the logs are read
     try:
-        loaded = [
-            seg.checked_log(open_log(p, reading.schema, reading.options, reading.drop_invalid))
-            for p in paths
-        ]
+        with scheduling.kernels_loading(pool):
+            loaded = [
+                seg.checked_log(open_log(p, reading.schema, reading.options, reading.drop_invalid))
+                for p in paths
+            ]
         loaded = with_unique_ids(loaded)
         if monte_carlo:  # a log with a run column holds several runs
             loaded = [run for log in loaded for run in split_runs(log)]

@@ -420,6 +420,53 @@ def test_the_kernels_are_warmed_before_the_fork_where_each_worker_would_load_the
     assert flips.kernel_repaid(40_000_001) and not flips.kernel_repaid(40_000_000)
 
 
+def test_the_kernels_load_in_a_thread_while_the_logs_are_read_and_before_any_fork(
+    monkeypatch, capsys
+):
+    """With a forked pool, ``kernels_loading`` runs ``compiled.warm`` in another thread
+    during its body and joins it when the body ends, also when the body raises; an error
+    in the thread is dropped (the warm() that needs the kernels reports it); without a
+    pool or with spawned workers nothing is loaded."""
+    import importlib.util
+    import threading
+    import time
+    from types import SimpleNamespace
+
+    from credcli.schedule import plans as scheduling
+
+    if importlib.util.find_spec("numba") is None:
+        pytest.skip("numba is not installed (the extra `fast`)")
+    seen = []
+
+    def slow_warm():
+        time.sleep(0.05)
+        seen.append(threading.current_thread() is not threading.main_thread())
+        return True
+
+    monkeypatch.setattr(scheduling.compiled, "_warm", [False])
+    monkeypatch.setattr(scheduling.compiled, "warm", slow_warm)
+    forked, spawned = SimpleNamespace(forked=True), SimpleNamespace(forked=False)
+    with scheduling.kernels_loading(forked):
+        pass
+    assert seen == [True]
+    with pytest.raises(KeyError), scheduling.kernels_loading(forked):
+        raise KeyError("a log that cannot be read")
+    assert seen == [True, True]
+    for pool in (None, spawned):
+        with scheduling.kernels_loading(pool):
+            pass
+    assert seen == [True, True]
+
+    def failing_warm():
+        raise RuntimeError("numba's cache is unreadable")
+
+    monkeypatch.setattr(scheduling.compiled, "warm", failing_warm)
+    with scheduling.kernels_loading(forked):
+        pass
+    assert capsys.readouterr().err == ""
+    assert all(t.name != "credcli-kernels" for t in threading.enumerate())
+
+
 def test_warmed_kernels_are_used_from_the_first_pair_with_numpys_bits():
     """After ``compiled.warm`` (numba loaded), the ELT takes the compiled kernel at once,
     not after KERNEL_PAIRS pairs, and gives the numpy path's bits (in a fresh process, so

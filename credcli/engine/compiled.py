@@ -141,6 +141,34 @@ def warm() -> bool:
     return True
 
 
+def warm_in_background():
+    """Start :func:`warm` in a thread of this process, so that numba's start-up overlaps
+    work that releases the interpreter (reading a log with Arrow). The caller joins the
+    thread before any process forks (no thread may run through a fork). An error in the
+    thread is dropped: :func:`warm`, called again where the kernels are wanted, reports it.
+
+    Returns
+    -------
+    threading.Thread or None
+        The started thread; None where numba is not installed.
+    """
+    import importlib.util
+    import threading
+
+    if _warm[0] or importlib.util.find_spec("numba") is None:
+        return None
+    thread = threading.Thread(target=_warm_quietly, name="credcli-kernels", daemon=True)
+    thread.start()
+    return thread
+
+
+def _warm_quietly() -> None:
+    try:
+        warm()
+    except Exception:  # noqa: BLE001 - reported by the warm() that needs the kernels
+        pass
+
+
 def warmed() -> bool:
     """Whether :func:`warm` loaded the kernels in this process (or in its parent before
     this process was forked).

@@ -11,7 +11,9 @@ happens (never on the command line's start-up path).
 from __future__ import annotations
 
 import functools
+import importlib.util
 import math
+import threading
 
 _warm = [False]  # warm() ran in this process or in the parent it was forked from
 
@@ -152,9 +154,6 @@ def warm_in_background():
     threading.Thread or None
         The started thread; None where numba is not installed.
     """
-    import importlib.util
-    import threading
-
     if _warm[0] or importlib.util.find_spec("numba") is None:
         return None
     thread = threading.Thread(target=_warm_quietly, name="credcli-kernels", daemon=True)

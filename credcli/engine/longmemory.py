@@ -270,11 +270,18 @@ def _longer_memory(phi: np.ndarray, fraction: float, n: int, own) -> np.ndarray 
     where it implies more memory over the segment than the direction's model ``own`` (a
     larger v_n); None where it does not, or where its AR part has a root on the unit
     circle."""
+    rho = _fractional_rho(phi, fraction, n)
+    return rho if rho is not None and mean_variance_ratio(rho) > own.mean_ratio(n) else None
+
+
+def _fractional_rho(phi: np.ndarray, fraction: float, n: int) -> np.ndarray | None:
+    """ρ over ``n`` lags of the ARFIMA(p, d, 0) with AR part ``phi`` and d = ``fraction``
+    (:func:`arfima_autocorrelation`); None where its AR part has a root on the unit
+    circle."""
     try:
-        rho = arfima_autocorrelation(phi, fraction, n)
+        return arfima_autocorrelation(phi, fraction, n)
     except np.linalg.LinAlgError:
         return None
-    return rho if mean_variance_ratio(rho) > own.mean_ratio(n) else None
 
 
 def _circulant_draws(gamma: np.ndarray, count: int, gen: np.random.Generator) -> np.ndarray:
@@ -414,8 +421,9 @@ def _weak_alternative(series: list, weak: np.ndarray, candidates: list, n: int):
     Each weakly chosen fractional model (AICc prefers it, BIC does not) is a memory the
     segment cannot rule out, and not in its own direction only: the principal directions
     are ordered by their fitted memory, so a direction that shares the long memory shows
-    it less by selection (two independent ARFIMA(0, 0.3, 0) components of 300 epochs: the
-    second direction's fit gives v_N 2–5, the truth 28). So each direction takes, of the
+    it less by selection (two independent ARFIMA(0, 0.3, 0) components of 300 epochs: on
+    the segments whose mean was called a bias, the second direction's fit gave v_N 2–5,
+    the truth 28). So each direction takes, of the
     weakly chosen models, the one that implies the most memory over the segment
     (:func:`mean_variance_ratio`), where that is more than its own model's.
 
@@ -427,13 +435,9 @@ def _weak_alternative(series: list, weak: np.ndarray, candidates: list, n: int):
     fitted = []
     for i in np.flatnonzero(weak).tolist():
         fraction, phi = candidates[i]
-        if fraction >= FRACTIONS[-1] - 1e-9:
-            continue
-        try:
-            rho = arfima_autocorrelation(phi, fraction, n)
-        except np.linalg.LinAlgError:  # an AR part with a root on the unit circle
-            continue
-        fitted.append((mean_variance_ratio(rho), fraction, phi, rho))
+        rho = None if fraction >= FRACTIONS[-1] - 1e-9 else _fractional_rho(phi, fraction, n)
+        if rho is not None:
+            fitted.append((mean_variance_ratio(rho), fraction, phi, rho))
     if not fitted:
         return None
     ratio, fraction, phi, rho = max(fitted, key=lambda f: f[0])

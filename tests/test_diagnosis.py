@@ -22,7 +22,7 @@ PLANTED = {
     Label.PESSIMISM: (4.0, None),
     Label.BIAS: (1.0, [2.0, -1.0]),
     Label.OPTIMISM_BIAS: (0.2, [2.0, -1.0]),
-    Label.PESSIMISM_BIAS: (5.0, [2.0, -1.0]),
+    Label.PESSIMISM_BIAS: (5.0, [8.0, -4.0]),  # an offset no slow error within the claim draws
 }
 
 

@@ -31,13 +31,17 @@ class PlantedSegment:
     rho : float
         Claimed over true covariance scale ρ: below 1 optimism, above 1 pessimism.
     bias : tuple of float
-        Mean error μ (2,), in units of the true std (added to the whitened errors); zero
-        for no bias.
+        Mean error μ (2,), in units of the true std (added to the whitened errors, so it
+        turns with the covariance's axes); zero for no bias.
+    offset : tuple of float, default (0, 0)
+        A constant error (2,) in the log's units (m), added to every epoch's error: a
+        bias that stays put while the covariance turns.
     """
 
     name: str
     rho: float  # claimed / true covariance scale
     bias: tuple[float, float]  # mean error μ in units of the true std
+    offset: tuple[float, float] = (0.0, 0.0)  # constant error in metres
 
 
 GOOD_SEGMENTS = (
@@ -45,7 +49,7 @@ GOOD_SEGMENTS = (
     PlantedSegment("turn", 0.35, (0.0, 0.0)),
     PlantedSegment("hover", 3.0, (0.0, 0.0)),
     PlantedSegment("gps-multipath", 1.0, (1.2, -0.9)),
-    PlantedSegment("tunnel", 4.0, (1.0, 1.0)),
+    PlantedSegment("tunnel", 4.0, (0.0, 0.0), offset=(6.0, 0.0)),
     PlantedSegment("urban", 0.3, (0.9, -0.8)),
 )
 
@@ -53,7 +57,7 @@ GOOD_SEGMENTS = (
 REGRESSED_SEGMENTS = (
     PlantedSegment("cruise", 0.4, (0.0, 0.0)),  # credible -> optimism
     GOOD_SEGMENTS[1],
-    PlantedSegment("hover", 3.0, (1.0, 0.8)),  # pessimism -> pessimism+smm
+    PlantedSegment("hover", 3.0, (0.0, 0.0), offset=(5.0, 0.0)),  # pessimism -> pessimism+smm
     *GOOD_SEGMENTS[3:],
 )
 """The sample log after a change that broke two segments (for `credcli gate`). The random
@@ -68,8 +72,8 @@ def estimator_log(
 
     The truth moves on a circle of radius 50 m at 0.05 rad/s; the true error covariance
     Σ_k has 1-σ axes of 1.5 m and 0.6 m turning with the heading. Each epoch's error is
-    e_k = L_k (z_k + μ), L_k L_kᵀ = Σ_k, z_k ~ N(0, I), and the claimed covariance is
-    ρ Σ_k. Segments follow each other in time, one epoch interval apart.
+    e_k = L_k (z_k + μ) + o, L_k L_kᵀ = Σ_k, z_k ~ N(0, I), with o the segment's constant
+    offset, and the claimed covariance is ρ Σ_k. Segments follow each other in time, one epoch interval apart.
 
     Parameters
     ----------
@@ -114,7 +118,7 @@ def estimator_log(
         true_cov = rot @ np.diag(sig**2) @ np.swapaxes(rot, 1, 2)
         chol = np.linalg.cholesky(true_cov)
         white = rng.standard_normal((n, 2))
-        error = np.einsum("nij,nj->ni", chol, white + np.asarray(seg.bias))
+        error = np.einsum("nij,nj->ni", chol, white + np.asarray(seg.bias)) + seg.offset
         estimate = truth - error  # e = x - x̂
         claimed = seg.rho * true_cov
         frames.append(

@@ -290,28 +290,45 @@ def test_no_time_offset_without_a_lag(noise):
         assert rec["time_offset"] is None, rec["findings"]
 
 
-@pytest.mark.parametrize(("offset_sq", "covered"), [(1.4, True), (6.0, False), (0.2, False)])
-def test_an_offset_the_claim_covers_is_declined_unless_slow_errors_are_excluded(offset_sq, covered):
+def _offset_over_white(offset_sq: float, n: int, seed: int = 0):
+    """White errors of covariance 0.3 I under a claimed I (d = 2), shifted so that their
+    GLS mean (their mean, the covariance being constant) has ‖μ̂‖² = ``offset_sq``."""
+    rng = np.random.default_rng(seed)
+    white = math.sqrt(0.3) * rng.standard_normal((n, 2))
+    white -= white.mean(axis=0)
+    errors = white + math.sqrt(offset_sq / 2)
+    return errors, np.broadcast_to(np.eye(2), (n, 2, 2))
+
+
+def _covered_offsets(d) -> tuple[float, float]:
+    """The ‖μ̂‖² an error slower than the segment explains at the mean test's level α
+    (closed form, from scipy.stats): the slow part's covariance is the claim less the
+    fast part's, 1 − κ_j along direction j, so (1 − κ)·χ²_d at α/2 with κ the largest
+    direction's high end, and at 1 − α/2 with κ the smallest direction's low end."""
+    from scipy import stats
+
+    level = d.config.mean_level
+    low, high = min(d.directions.low), max(d.directions.high)
+    return (
+        (1 - high) * stats.chi2.ppf(level / 2, 2),
+        (1 - low) * stats.chi2.ppf(1 - level / 2, 2),
+    )
+
+
+@pytest.mark.parametrize("offset_sq", [0.2, 1.4, 4.0])
+def test_an_offset_the_claim_covers_is_declined_unless_slow_errors_are_excluded(offset_sq):
     """An offset b over white errors of covariance 0.3 I under a claimed I (d = 2, 200
-    epochs). The total second moment about zero is (0.6 + |b|²)/2 per dimension: 1 for
-    |b|² = 1.4, where the claim covers the total error and a bias under a too-large
-    covariance cannot be told from an error slower than the segment, so the label is
-    insufficient-data, its reason saying so; pessimism+bias where slow errors are
-    excluded, and for a window judged with its run's memory (which holds the run's slow
-    parts). 3.3 and 0.4 for |b|² = 6 and 0.2: pessimism+bias whatever is known. The ANEES
-    the reason quotes is the segment's mean NEES over d."""
-    rng = np.random.default_rng(0)
-    n = 200
-    b = np.full(2, math.sqrt(offset_sq / 2))
-    errors = b + math.sqrt(0.3) * rng.standard_normal((n, 2))
-    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    epochs). An error slower than the segment holding the rest of the claim, 0.7 I, puts
+    ‖μ̂‖² anywhere in 0.7·χ²_2's region (about 0.01 to 7 at the mean test's level), so a
+    bias under a too-large covariance cannot be told from it: insufficient-data, its reason saying so; pessimism+bias where slow errors
+    are excluded, and for a window judged with its run's memory (which holds the run's
+    slow parts). The ANEES the reason quotes is the segment's mean NEES over d."""
+    errors, cov = _offset_over_white(offset_sq, 200)
     d = diagnose_errors(errors, cov, rng=1)
     known = diagnose_errors(errors, cov, DiagnosisConfig(slow_errors="excluded"), rng=1)
     assert known.label is Label.PESSIMISM_BIAS
     assert d.anees == pytest.approx(np.mean(np.sum(errors**2, axis=1)) / 2, rel=1e-12)
-    if not covered:
-        assert d.label is Label.PESSIMISM_BIAS
-        return
+    assert d.scale.bias_mahalanobis**2 == pytest.approx(offset_sq, rel=1e-9)
     assert d.label is Label.INSUFFICIENT
     assert d.reason.startswith("offset within the claim")
     assert f"mean NEES {d.anees:.3g}·d" in d.reason
@@ -323,6 +340,23 @@ def test_an_offset_the_claim_covers_is_declined_unless_slow_errors_are_excluded(
     windowed = diagnose_errors(errors, cov, rng=1, memory=d.memory)
     assert windowed.memory_source == "run"
     assert windowed.label is Label.PESSIMISM_BIAS
+
+
+@pytest.mark.parametrize(("n", "end"), [(200, 1), (5_000, 0)])
+def test_an_offset_beyond_what_a_slow_error_explains_is_a_bias(n, end):
+    """The same errors with ‖μ̂‖² 2 % inside and 2 % outside the closed-form region's end
+    (the centred errors, and so κ̂ and its interval, do not depend on the offset): within
+    it insufficient-data, outside it pessimism+bias. The upper end at 200 epochs (an
+    offset larger than the claim's slow part draws); at the lower end (an offset of about
+    0.09σ, smaller than a slow error holding 0.7 of the claim draws) 5,000 epochs make it
+    a significant bias."""
+    errors, cov = _offset_over_white(1.0, n)
+    ends = _covered_offsets(diagnose_errors(errors, cov, rng=1))
+    labels = []
+    for shift in (0.98, 1.02) if end else (1.02, 0.98):
+        errors, cov = _offset_over_white(ends[end] * shift, n)
+        labels.append(diagnose_errors(errors, cov, rng=1).label)
+    assert labels == [Label.INSUFFICIENT, Label.PESSIMISM_BIAS]
 
 
 def test_slow_errors_on_the_command_line(tmp_path, capsys):

@@ -85,9 +85,11 @@ def _slow_white(n, phi, white, rng, d=2):
 
 def test_windows_share_the_runs_model_and_the_run_names_a_slow_error():
     """A run of slow + white errors (φ = 0.998, 10 % white; credible by construction) cut
-    into 40-epoch windows: alone, a window reads a near-constant offset over small white
-    noise as a misfit (pessimism+smm); the run names the slowly varying error, and its
-    windows get no label that holds only for their fast part."""
+    into 40-epoch windows: alone, a window can read a near-constant offset over small
+    white noise as a misfit (pessimism where the offset is small, bias where the white
+    part is not small enough to say pessimism: 8 of these 40 windows; an offset that a
+    slow error within the claim draws is insufficient-data); the run names the slowly
+    varying error, and its windows get no label that holds only for their fast part."""
     rng = np.random.default_rng(1)
     e = _slow_white(4000, 0.998, 0.1, rng)
     cov = np.broadcast_to(np.eye(2), (4000, 2, 2))
@@ -98,7 +100,7 @@ def test_windows_share_the_runs_model_and_the_run_names_a_slow_error():
         diagnose_errors(e[index], cov[index], rng=k).label.conditions != frozenset()
         for k, index in enumerate(windows[:40])
     )
-    assert alone > 20
+    assert alone >= 5
     d = diagnose_segment(
         e[windows[0]], cov[windows[0]], DiagnosisConfig(), 0, "w001",
         memory=run.memory, declined=run.window_reason,

@@ -300,9 +300,10 @@ class SlowErrors(str, enum.Enum):
     One segment cannot tell a constant bias from a zero-mean error slower than the
     segment, which stays near one value over its epochs: a slowly varying error under
     white noise gives an offset and a narrow spread around it, as a bias under a
-    too-large covariance does. Where the claimed covariance matches the errors' spread
-    about zero, bias included, the two readings disagree (pessimism with SMM, or
-    credible), and this setting says which the rule may take.
+    too-large covariance does. Where the offset is one that an error slower than the
+    segment, holding what the claimed covariance leaves over the spread, draws at the mean
+    test's level (``credcli.engine.rules.offset_covered``), the two readings disagree
+    (pessimism with SMM, or credible), and this setting says which the rule may take.
 
     Attributes
     ----------

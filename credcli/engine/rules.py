@@ -134,17 +134,25 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
 
     One segment cannot tell a constant bias from an error slower than the segment, which
     stays near one value over its epochs (a slowly varying error under white noise):
-    both give an offset and a narrow spread around it. Where the claimed covariance
-    matches the errors' second moment about zero, bias included, the second reading makes
-    the claim right, and the data cannot choose. The paper's Monte Carlo study draws such
-    segments as pessimism with SMM (in about one trial in six of its pess+smm scenario
-    the claim covers the total), knowing its epochs independent; a log's errors are not
-    known to be (:class:`credcli.engine.config.SlowErrors`).
+    both give an offset and a narrow spread around it. The second reading is credible
+    where the claimed covariance is the errors' total: the spread about the mean is then
+    the fast part, Σ_f (κ_j of the claim along principal direction j, in whitened
+    coordinates), and the mean μ̂ one draw of the slow part, whose covariance is the rest,
+    Σ_s = Σ − Σ_f (within a segment the slow part's own drift counts in Σ_f). So
+    Q = μ̂ᵀ Σ_s⁻¹ μ̂ is χ²_d, and since Σ_s's eigenvalues are the 1 − κ_j (in σ of the
+    claim), Q lies between ‖μ̂‖²/(1 − min κ_j) and ‖μ̂‖²/(1 − max κ_j). The offset is one
+    the claim covers where, for some κ_j < 1 in their intervals (the directions' where
+    they were tested, the scale test's otherwise), Q lies within χ²_d's two-sided region
+    at the mean test's level (a κ_j of 1 leaves no room along j, and Q unbounded); only
+    outside it do the data reject a credible slow error, and pessimism with a bias is a
+    claim at that level. The paper's Monte Carlo study draws its epochs independent and
+    reads every such offset as SMM; a log's errors are not known to be (:class:`credcli.engine.config.SlowErrors`).
 
     Parameters
     ----------
     evidence : Evidence
-        The segment's statistics (the ANEES about zero, the scale test).
+        The segment's statistics (the scale test and its bias in σ, the directions' scale
+        factors, the mean test's level).
     config : DiagnosisConfig
         The configuration: ``slow_errors`` excluded reads the offset as a bias.
 
@@ -153,32 +161,43 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
     str or None
         The reason, where the memory was fitted on this segment (a window judged with its
         run's model has the run's slow parts in it, and a fixed block length declares the
-        memory), slow errors are not excluded, and the ANEES about zero is within the
-        scale test's interval scaled to it (its relative precision) around 1; None
-        otherwise.
+        memory), slow errors are not excluded, and a credible slow error explains the
+        offset at the mean test's level; None otherwise.
     """
     scale = evidence.scale
     if (
         config.slow_errors is SlowErrors.EXCLUDED
         or evidence.memory_source != "segment"
         or scale is None
+        or not 0.0 < evidence.mean_level < 1.0
     ):
         return None
-    factor, low, high = scale.scale_factor, scale.scale_factor_low, scale.scale_factor_high
-    if not (factor > 0 and math.isfinite(low) and math.isfinite(high)):
+    factor = scale.scale_factor
+    lows, highs = np.array([scale.scale_factor_low]), np.array([scale.scale_factor_high])
+    where = ""
+    if evidence.directions is not None:
+        lows, highs, where = evidence.directions.low, evidence.directions.high, " by direction"
+    low, high = float(np.min(lows)), float(np.max(highs))
+    # the slow part needs room in every direction: some κ_j < 1 in each interval
+    if not (factor > 0 and np.all(np.isfinite(lows)) and math.isfinite(high)):
         return None
-    low, high = evidence.anees * low / factor, evidence.anees * high / factor
-    if not low <= 1.0 <= high:
+    if not np.max(lows) < 1.0:
+        return None
+    offset_sq, level, d = scale.bias_mahalanobis**2, evidence.mean_level, evidence.dim
+    least = special.chdtri(d, 1.0 - level / 2) * max(0.0, 1.0 - high)  # 0: no room, Q → ∞
+    most = special.chdtri(d, level / 2) * (1.0 - low)
+    if not least <= offset_sq <= most:
         return None
     return (
-        f"offset within the claim: the errors sit off zero with a spread κ̂ "
-        f"{factor:.3g} of the claim's, but about zero, bias included, they spread as the "
-        f"claimed covariance says (mean NEES {evidence.anees:.3g}·d, {low:.3g}–{high:.3g} "
-        "at the scale test's precision). A bias under a too-large covariance and an error "
-        f"slower than the segment (near one value over its {evidence.n} epochs) give the "
-        "same data, and one segment cannot tell them apart: windows of one run or more "
-        "runs can, and `slow_errors` excluded reads the offset as a bias where the errors "
-        "are known to hold no memory slower than the segment"
+        f"offset within the claim: the errors sit {scale.bias_mahalanobis:.3g}σ off zero "
+        f"with a spread κ̂ {factor:.3g} of the claim's ({low:.3g}–{high:.3g}{where}), "
+        f"and an error slower than the segment (near one value over its {evidence.n} "
+        "epochs) holding the rest of the claimed covariance puts an offset "
+        f"of this size within {1 - level:.4g} of its draws (mean NEES "
+        f"{evidence.anees:.3g}·d). A bias under a too-large covariance and such a slow "
+        "error give the same data, and one segment cannot tell them apart: windows of one "
+        "run or more runs can, and `slow_errors` excluded reads the offset as a bias where "
+        "the errors are known to hold no memory slower than the segment"
     )
 
 

@@ -320,9 +320,10 @@ def test_an_offset_the_claim_covers_is_declined_unless_slow_errors_are_excluded(
     """An offset b over white errors of covariance 0.3 I under a claimed I (d = 2, 200
     epochs). An error slower than the segment holding the rest of the claim, 0.7 I, puts
     ‖μ̂‖² anywhere in 0.7·χ²_2's region (about 0.01 to 7 at the mean test's level), so a
-    bias under a too-large covariance cannot be told from it: insufficient-data, its reason saying so; pessimism+bias where slow errors
-    are excluded, and for a window judged with its run's memory (which holds the run's
-    slow parts). The ANEES the reason quotes is the segment's mean NEES over d."""
+    bias under a too-large covariance cannot be told from it: insufficient-data, its
+    reason saying so; pessimism+bias where slow errors are excluded, and for a window
+    judged with its run's memory (which holds the run's slow parts). The ANEES the reason
+    quotes is the segment's mean NEES over d."""
     errors, cov = _offset_over_white(offset_sq, 200)
     d = diagnose_errors(errors, cov, rng=1)
     known = diagnose_errors(errors, cov, DiagnosisConfig(slow_errors="excluded"), rng=1)

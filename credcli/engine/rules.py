@@ -146,7 +146,8 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
     at the mean test's level (a κ_j of 1 leaves no room along j, and Q unbounded); only
     outside it do the data reject a credible slow error, and pessimism with a bias is a
     claim at that level. The paper's Monte Carlo study draws its epochs independent and
-    reads every such offset as SMM; a log's errors are not known to be (:class:`credcli.engine.config.SlowErrors`).
+    reads every such offset as SMM; a log's errors are not known to be
+    (:class:`credcli.engine.config.SlowErrors`).
 
     Parameters
     ----------

@@ -73,7 +73,8 @@ def estimator_log(
     The truth moves on a circle of radius 50 m at 0.05 rad/s; the true error covariance
     Σ_k has 1-σ axes of 1.5 m and 0.6 m turning with the heading. Each epoch's error is
     e_k = L_k (z_k + μ) + o, L_k L_kᵀ = Σ_k, z_k ~ N(0, I), with o the segment's constant
-    offset, and the claimed covariance is ρ Σ_k. Segments follow each other in time, one epoch interval apart.
+    offset, and the claimed covariance is ρ Σ_k. Segments follow each other in time, one
+    epoch interval apart.
 
     Parameters
     ----------

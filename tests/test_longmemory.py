@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import integrate, special
 
-from credcli.engine import evidence, longmemory
+from credcli.engine import evidence, longmemory, rules
 from credcli.engine.config import Label, Question
 from credcli.engine.diagnosis import diagnose_errors, memory_ratio
 from credcli.engine.memory import SeriesMemory, fit_memory
@@ -296,7 +296,8 @@ def test_a_scale_finding_must_hold_under_the_long_memory_the_data_do_not_exclude
     directions d̂ 0.3. Under the short-memory model the centred sum of squares says
     pessimism (κ̂ 0.79, interval [0.68, 0.93]); long memory lowers its expectation, so
     under both models the interval reaches past 1 and no misfit is claimed. Without the
-    check the same segment says pessimism."""
+    check the pessimism stands, and is declined only by the offset rule (its mean is a
+    bias long memory leaves unconfirmed); without both, the segment says pessimism."""
     errors, cov = _fractional_draw(58)
     checked = diagnose_errors(errors, cov, rng=36)
     assert [m.fraction > 0 for m in checked.memory.alternative.series] == [True, True]
@@ -304,6 +305,10 @@ def test_a_scale_finding_must_hold_under_the_long_memory_the_data_do_not_exclude
     assert checked.scale.scale_factor_low < checked.scale.scale_factor < 1.0
     assert checked.scale.scale_factor_high > 1.0
     monkeypatch.setattr(evidence, "under_either", lambda test, other: test)
+    # the segment's mean is a bias under short memory that long memory leaves unconfirmed,
+    # so the offset rule would decline that pessimism as well: without both, it is claimed
+    assert diagnose_errors(errors, cov, rng=36).label is Label.INSUFFICIENT
+    monkeypatch.setattr(rules, "offset_covered", lambda evidence, config: None)
     alone = diagnose_errors(errors, cov, rng=36)
     assert "pessimism" in alone.label.conditions and alone.scale.scale_factor_high < 1.0
 
@@ -339,3 +344,21 @@ def test_a_scale_left_open_by_long_memory_says_so():
     assert Question.SCALE in checked.untested
     assert "under the errors' short-memory model alone it is" in checked.reason
     assert "too few independent epochs" not in checked.reason
+
+
+def test_a_long_memory_within_two_of_aicc_is_an_alternative(monkeypatch):
+    """The 5th draw of :func:`_fractional_draw`'s stream at 50 epochs: AICc does not
+    prefer the fractional model, but it is within 2 of the sieve's (substantial support,
+    Burnham & Anderson 2002), so it is the alternative, and the bias that the short-memory
+    model finds does not hold under it: the location is untested. With the margin 0 the
+    same segment has no alternative and says "bias"."""
+    errors, cov = _fractional_draw(5, n=50)
+    supported = diagnose_errors(errors, cov, rng=36)
+    assert supported.memory.alternative is not None
+    assert supported.label is Label.CREDIBLE and supported.untested
+    assert supported.reason.startswith("location untested: the mean test finds a bias")
+    assert "its AICc within 2 of theirs" in supported.reason
+    monkeypatch.setattr(longmemory, "SUPPORT", 0.0)
+    preferred_only = diagnose_errors(errors, cov, rng=36)
+    assert preferred_only.memory.alternative is None
+    assert preferred_only.label is Label.BIAS

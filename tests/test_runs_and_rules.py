@@ -77,6 +77,32 @@ def test_the_rule_decides_on_evidence_written_by_hand():
     assert verdict.label is Label.INSUFFICIENT and "planted" in verdict.reason
 
 
+def test_an_offset_long_memory_leaves_unconfirmed_is_judged_as_one_found():
+    """Pessimism (κ̂ 0.3, interval [0.25, 0.36]) whose bias the mean test found under the
+    short-memory model and the long-memory alternative did not confirm (location
+    untested): the errors still sit off zero, so an offset that a slow error within the
+    claim draws makes the segment insufficient-data, as it does pessimism+bias (‖μ̂‖ 1σ:
+    within 0.64–0.75 · χ²_2's region); an offset of 4σ is beyond it, and pessimism stays,
+    with the location untested. Without the declined bias the offset is not looked at."""
+    config = DiagnosisConfig()
+    pessimistic = replace(_scale(0.3, 0.25, 0.36, 1.0, 1e-9), bias_mahalanobis=1.0)
+    declined = replace(
+        _evidence(pessimistic, None),
+        mean_level=config.mean_level,
+        memory_source="segment",
+        bias_declined=True,
+        location_reason="location untested: the mean test finds a bias (planted)",
+    )
+    verdict = decide(declined, config)
+    assert verdict.label is Label.INSUFFICIENT
+    assert verdict.reason.startswith("offset within the claim: the errors sit 1σ off zero")
+    far = replace(declined, scale=replace(pessimistic, bias_mahalanobis=4.0))
+    verdict = decide(far, config)
+    assert verdict.label is Label.PESSIMISM and verdict.untested == (Question.LOCATION,)
+    unseen = replace(declined, bias_declined=False)
+    assert decide(unseen, config).label is Label.PESSIMISM
+
+
 def _slow_white(n, phi, white, rng, d=2):
     slow = lfilter([1.0], [1.0, -phi], rng.standard_normal((n + 3000, d)), axis=0)[3000:]
     slow *= math.sqrt(1 - phi**2)

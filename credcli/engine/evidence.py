@@ -82,7 +82,8 @@ class Evidence:
     mean_test : MeanTest or None
         The GLS mean test (calibrated rule), None when it did not run.
     mean_level : float
-        The mean test's level (0.0 when it did not run).
+        The mean test's level (0.0 when it did not run; the level it ran at where its
+        bias was declined).
     elt : ELTResult or None
         The empirical location test, None when it did not run.
     elt_level : float or None
@@ -106,6 +107,9 @@ class Evidence:
         Where the NEES leaves its band (Page's CUSUM).
     divergence : Divergence or None, default None
         Errors growing beyond any plausible tuning (calibrated rule).
+    bias_declined : bool, default False
+        A bias the mean test found under the short-memory model and the long-memory
+        alternative does not confirm (the location is then untested).
     """
 
     n: int
@@ -134,6 +138,7 @@ class Evidence:
     q_median: float | None = None
     bursts: tuple[Burst, ...] = ()
     divergence: Divergence | None = None
+    bias_declined: bool = False
 
     @property
     def mean_rejected(self) -> bool:
@@ -358,6 +363,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             elt=elt,
             elt_level=plan.elt_level,
             location_reason=plan.reason,
+            bias_declined=plan.bias_declined,
             memory=memory if config in model_evidence else None,
             memory_source=source if config in model_evidence else None,
             time_scales=scales_check if config in model_evidence else None,
@@ -565,11 +571,16 @@ class LocationPlan:
     mean_test : MeanTest or None
         The GLS mean test, None when it does not run.
     mean_level : float
-        Its level (0.0 when it does not run).
+        Its level (0.0 when it does not run; the level it ran at when its bias was
+        declined).
     elt_level : float or None
         The ELT's level (None: the ELT does not run).
     reason : str or None
         Why a location test does not run (None: the plan is complete).
+    bias_declined : bool, default False
+        The mean test found a bias under the short-memory model that the long-memory
+        alternative does not confirm (:func:`_held_under_long_memory`): the errors sit off
+        zero, whatever the cause.
     """
 
     block: int
@@ -577,6 +588,7 @@ class LocationPlan:
     mean_level: float
     elt_level: float | None
     reason: str | None
+    bias_declined: bool = False
 
 
 def location_plan(config: DiagnosisConfig, n, tau, means, dependent, runs) -> LocationPlan:
@@ -913,8 +925,8 @@ def memory_evidence(
     adjacent blocks. The scale is untested when the model has fewer than
     :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
     :data:`MIN_MEAN_DOF`. Where the model has a long-memory alternative (a fractional model
-    AICc prefers and BIC does not, :attr:`credcli.engine.memory.Memory.alternative`), a
-    finding must hold under it as well: the scale's and the directions' intervals are the
+    the data support and BIC does not take, :attr:`credcli.engine.memory.Memory.alternative`),
+    a finding must hold under it as well: the scale's and the directions' intervals are the
     union of the two models' (:func:`credcli.engine.scale.under_either`), and a bias the
     mean test finds must be found under both (:func:`_held_under_long_memory`).
 
@@ -988,7 +1000,8 @@ def memory_evidence(
 def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
     """``plan``, or the location declined where its mean test finds a bias that the
     model's long-memory alternative (:attr:`credcli.engine.memory.Memory.alternative`)
-    does not: where AICc prefers a fractional model and BIC does not, one segment cannot
+    does not: where the data support a fractional model (its AICc within
+    ``longmemory.SUPPORT`` of the sieve's) and BIC does not take it, one segment cannot
     tell short memory from long, and a mean off by that much is within what long memory
     lets a mean wander."""
     alternative = memory.alternative
@@ -1002,10 +1015,10 @@ def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) ->
     reason = (
         f"location untested: the mean test finds a bias (p {test.pvalue:.2g}) under the "
         f"errors' short-memory model, but not under a long-memory one (d̂ {fraction:.2g}) "
-        "that fits them almost as well (AICc prefers it, BIC does not); one segment cannot "
-        "tell the two apart (a longer segment, or more runs, can)"
+        "that fits them almost as well (its AICc within 2 of theirs, BIC not taking it); one "
+        "segment cannot tell the two apart (a longer segment, or more runs, can)"
     )
-    return LocationPlan(plan.block, None, 0.0, None, reason)
+    return LocationPlan(plan.block, None, plan.mean_level, None, reason, bias_declined=True)
 
 
 _MEMORY_BLOCKS = "the errors' memory needs sign blocks of {block} epochs, which"

@@ -944,8 +944,9 @@ class Memory(_Answering):
     segments : int, default 1
         The runs the fit pooled.
     alternative : Memory or None, default None
-        The same model with long memory where AICc prefers a fractional model and BIC does
-        not, in every direction with less memory of its own
+        The same model with long memory where the data support a fractional model (its
+        AICc within ``longmemory.SUPPORT`` of the sieve's) and BIC does not take it, in
+        every direction with less memory of its own
         (:mod:`credcli.engine.longmemory`): a location or scale finding must hold under it
         as well. None where there is no such direction.
     """

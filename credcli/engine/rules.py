@@ -122,7 +122,10 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     else:
         label = label_without_smm(evidence.nci, evidence.ks_pvalue, config)
     located = None if Question.LOCATION in untested else smm
-    if config.calibrated and label is Label.PESSIMISM_BIAS and not by_direction:
+    offset = label is Label.PESSIMISM_BIAS or (
+        label is Label.PESSIMISM and evidence.bias_declined
+    )  # an offset found (under short memory, where long memory leaves it unconfirmed)
+    if config.calibrated and offset and not by_direction:
         covered = offset_covered(evidence, config)
         if covered is not None:
             return Verdict(Label.INSUFFICIENT, (), covered, None, by_direction)
@@ -130,7 +133,9 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
 
 
 def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
-    """Why a segment labelled pessimism with a bias may be credible instead, or None.
+    """Why a segment labelled pessimism with a bias may be credible instead, or None; also
+    pessimism where the mean test's bias was declined because a long-memory alternative
+    does not confirm it (``Evidence.bias_declined``): the errors sit off zero either way.
 
     One segment cannot tell a constant bias from an error slower than the segment, which
     stays near one value over its epochs (a slowly varying error under white noise):
@@ -435,8 +440,8 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     if own is not None and own[0] >= 1.0 / CREDIBLE_FACTOR and own[1] <= CREDIBLE_FACTOR:
         why = (
             f"under the errors' short-memory model alone it is [{own[0]:.3g}, {own[1]:.3g}], "
-            "but a long-memory model fits them almost as well (AICc prefers it, BIC does "
-            "not), and one segment cannot tell the two apart"
+            "but a long-memory model fits them almost as well (its AICc within 2 of theirs, "
+            "BIC not taking it), and one segment cannot tell the two apart"
         )
     return (
         f"scale inconclusive: κ̂ {scale.scale_factor:.3g} with interval [{low:.3g}, {high:.3g}] "

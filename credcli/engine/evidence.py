@@ -20,7 +20,7 @@ from credcli.engine import batches, correlation, dependence, episodes, metrics
 from credcli.engine.config import SMM_CONDITION, DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.episodes import Burst, Divergence
-from credcli.engine.longmemory import with_long_memory
+from credcli.engine.longmemory import SUPPORT, with_long_memory
 from credcli.engine.memory import (
     Memory,
     NoFiniteMemory,
@@ -1015,8 +1015,9 @@ def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) ->
     reason = (
         f"location untested: the mean test finds a bias (p {test.pvalue:.2g}) under the "
         f"errors' short-memory model, but not under a long-memory one (d̂ {fraction:.2g}) "
-        "that fits them almost as well (its AICc within 2 of theirs, BIC not taking it); one "
-        "segment cannot tell the two apart (a longer segment, or more runs, can)"
+        f"that fits them almost as well (its AICc within {SUPPORT:g} of theirs, BIC not "
+        "taking it); one segment cannot tell the two apart (a longer segment, or more runs, "
+        "can)"
     )
     return LocationPlan(plan.block, None, plan.mean_level, None, reason, bias_declined=True)
 

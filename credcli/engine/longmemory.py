@@ -85,9 +85,9 @@ SUPPORT = 2.0
 """AICc margin within which a fractional model that BIC does not take is still a memory the
 data support, and so the model's ``alternative``: a model within 2 of the best has
 substantial support (Burnham & Anderson 2002, Sec. 2.6). With the margin 0 (AICc prefers
-it) the zoo's ARFIMA d = 0.3 segments of 50 and 300 epochs said "bias" in 27 and 23 % (seed
-20240), with 2 in 13 and 13 %, at 5 of 490 detections of a 1σ bias at N/τ >= 30 on each of
-two seeds (docs/measured.md)."""
+it) 27 and 23 % of the zoo's credible ARFIMA d = 0.3 segments of 50 and 300 epochs were
+false alarms (seed 20240), with the margin 2 13 and 13 %, at a cost of 5 of 490 detections
+of a 1σ bias at N/τ >= 30 on each of two seeds (docs/measured.md)."""
 
 
 def fractional_difference(x: np.ndarray, d: float) -> np.ndarray:

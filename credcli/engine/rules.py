@@ -13,6 +13,7 @@ from scipy import special
 from credcli.engine import episodes, metrics
 from credcli.engine.config import DiagnosisConfig, Label, Question, SlowErrors, Variant
 from credcli.engine.evidence import Evidence
+from credcli.engine.longmemory import SUPPORT
 from credcli.engine.scale import DirectionScales, ScaleTest
 
 
@@ -440,8 +441,8 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     if own is not None and own[0] >= 1.0 / CREDIBLE_FACTOR and own[1] <= CREDIBLE_FACTOR:
         why = (
             f"under the errors' short-memory model alone it is [{own[0]:.3g}, {own[1]:.3g}], "
-            "but a long-memory model fits them almost as well (its AICc within 2 of theirs, "
-            "BIC not taking it), and one segment cannot tell the two apart"
+            f"but a long-memory model fits them almost as well (its AICc within {SUPPORT:g} of "
+            "theirs, BIC not taking it), and one segment cannot tell the two apart"
         )
     return (
         f"scale inconclusive: κ̂ {scale.scale_factor:.3g} with interval [{low:.3g}, {high:.3g}] "

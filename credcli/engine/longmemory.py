@@ -86,7 +86,7 @@ SUPPORT = 2.0
 data support, and so the model's ``alternative``: a model within 2 of the best has
 substantial support (Burnham & Anderson 2002, Sec. 2.6). With the margin 0 (AICc prefers
 it) 27 and 23 % of the zoo's credible ARFIMA d = 0.3 segments of 50 and 300 epochs were
-false alarms (seed 20240), with the margin 2 13 and 13 %, at a cost of 5 of 490 detections
+false alarms (seed 20240); with the margin 2, 13 and 13 %, at a cost of 5 of 490 detections
 of a 1σ bias at N/τ >= 30 on each of two seeds (docs/measured.md)."""
 
 

@@ -430,13 +430,12 @@ def _weak_alternative(series: list, weak: np.ndarray, candidates: list, n: int):
     None where no direction has it.
 
     Each weakly chosen fractional model (AICc within :data:`SUPPORT` of the sieve's, BIC
-    not taking it) is a memory the
-    segment cannot rule out, and not in its own direction only: the principal directions
-    are ordered by their fitted memory, so a direction that shares the long memory shows
-    it less by selection (two independent ARFIMA(0, 0.3, 0) components of 300 epochs: on
-    the segments whose mean was called a bias, the second direction's fit gave v_N 2–5,
-    the truth 28). So each direction takes, of the
-    weakly chosen models, the one that implies the most memory over the segment
+    not taking it) is a memory the segment cannot rule out, and not in its own direction
+    only: the principal directions are ordered by their fitted memory, so a direction
+    that shares the long memory shows it less by selection (two independent
+    ARFIMA(0, 0.3, 0) components of 300 epochs: on the segments whose mean was called a
+    bias, the second direction's fit gave v_N 2–5, the truth 28). So each direction takes,
+    of the weakly chosen models, the one that implies the most memory over the segment
     (:func:`mean_variance_ratio`), where that is more than its own model's.
 
     Its degrees of freedom are the direction's own (no bootstrap): the alternative serves

@@ -186,9 +186,7 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
         lows, highs, where = evidence.directions.low, evidence.directions.high, " by direction"
     low, high = float(np.min(lows)), float(np.max(highs))
     # the slow part needs room in every direction: some κ_j < 1 in each interval
-    if not (factor > 0 and np.all(np.isfinite(lows)) and math.isfinite(high)):
-        return None
-    if not np.max(lows) < 1.0:
+    if not (factor > 0 and np.all(np.isfinite(lows)) and math.isfinite(high) and lows.max() < 1):
         return None
     offset_sq, level, d = scale.bias_mahalanobis**2, evidence.mean_level, evidence.dim
     least = special.chdtri(d, 1.0 - level / 2) * max(0.0, 1.0 - high)  # 0: no room, Q → ∞

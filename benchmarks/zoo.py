@@ -355,14 +355,15 @@ def direction_rhos(family: str, n: int) -> list[np.ndarray] | None:
 
 def oracle_scale_decided(rhos: list[np.ndarray], n: int, level: float) -> tuple[float, float]:
     """What the scale question can decide with the dependence known: the share of credible
-    Gaussian segments of n epochs whose 1 − ``level`` interval of κ lies within [1/2, 2]
-    (the calibrated rule's "decided" for the scale), and the Satterthwaite degrees of
-    freedom ν behind it.
+    Gaussian segments of n epochs whose one-sided 1 − ``level`` bounds of κ lie within
+    [1/2, 2] (the calibrated rule's "decided" for the scale: two one-sided tests at α_S,
+    :data:`credcli.engine.rules.CREDIBLE_FACTOR`), and the Satterthwaite degrees of freedom
+    ν behind it.
 
     The centred sum of squares T = Σ_i x_iᵀ M x_i (M = I − 11ᵀ/n, direction i with
     Toeplitz correlation R_i) has E = Σ tr(M R_i) and V = 2 Σ tr((M R_i)²); with T/c ~ χ²_ν,
-    c = V/(2E), ν = 2E²/V (Satterthwaite 1946) and κ̂ = T/E, the interval of κ is
-    [X/q₊, X/q₋] for X = T/c and q± the χ²_ν quantiles at 1 − level/2 and level/2, so the
+    c = V/(2E), ν = 2E²/V (Satterthwaite 1946) and κ̂ = T/E, the bounds of κ are
+    [X/q₊, X/q₋] for X = T/c and q± the χ²_ν quantiles at 1 − level and level, so the
     question is decided with probability F_ν(2q₋) − F_ν(q₊/2) at κ = 1. The rule estimates
     the dependence, so it decides less often.
     """
@@ -378,7 +379,7 @@ def oracle_scale_decided(rhos: list[np.ndarray], n: int, level: float) -> tuple[
         e += n - ones_r_ones / n
         v += 2.0 * (tr_r2 - 2.0 * float(r_ones @ r_ones) / n + (ones_r_ones / n) ** 2)
     nu = 2.0 * e * e / v
-    q_low, q_high = stats.chi2.ppf([level / 2, 1 - level / 2], nu)
+    q_low, q_high = stats.chi2.ppf([level, 1 - level], nu)
     return max(0.0, float(stats.chi2.cdf(2 * q_low, nu) - stats.chi2.cdf(q_high / 2, nu))), nu
 
 

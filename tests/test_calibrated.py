@@ -96,6 +96,66 @@ def test_interval_matches_chi_square_quantiles():
     assert r.pvalue == pytest.approx(2 * min(special.chdtr(58, t), special.chdtrc(58, t)))
 
 
+@pytest.mark.parametrize(
+    ("end", "inside"),
+    [("upper", 0.99), ("upper", 1.01), ("lower", 1.01), ("lower", 0.99)],
+)
+def test_a_credible_scale_is_two_one_sided_tests_at_alpha_s(end, inside):
+    """The scale is credible where κ's one-sided 1 − α_S bounds lie within [½, 2]
+    (Schuirmann's two one-sided tests at α_S): 12 independent epochs, d = 2, ν = 22, T ~
+    κχ²_22, so the bounds are [T/q₊, T/q₋], q± the χ²_22 quantiles at 1 − α_S and α_S, and
+    the scale is decided for T between q₊/2 and 2q₋ (18.4 and 22.0). T is set 1 % inside
+    or outside either end (the 1 − α_S two-sided interval, q at α_S/2, would decide
+    neither: 2q₋ is then 20.6)."""
+    from credcli.engine import rules
+    from credcli.engine.config import DiagnosisConfig
+
+    n, nu, level = 12, 22, ALPHA_S
+    end_value = (
+        2 * special.chdtri(nu, 1 - level) if end == "upper" else special.chdtri(nu, level) / 2
+    )
+    below = inside < 1 if end == "upper" else inside > 1  # which side is within the margin
+    e = np.random.default_rng(5).standard_normal((n, 2))
+    e -= e.mean(axis=0)
+    e *= math.sqrt(end_value * inside / float((e**2).sum()))
+    test = scale_test(gls_residuals(e, np.eye(2)), level)
+    assert test.statistic == pytest.approx(end_value * inside, rel=1e-12)
+    assert test.equivalence_interval == pytest.approx(
+        (
+            test.statistic / special.chdtri(nu, level),
+            test.statistic / special.chdtri(nu, 1 - level),
+        ),
+        rel=1e-12,
+    )
+    decided = rules.inconclusive_scale(test, DiagnosisConfig()) is None
+    assert decided is below
+    assert test.scale_factor_high > 2.0 or test.scale_factor_low < 0.5  # α_S/2 each side
+
+
+def test_the_credible_scale_holds_its_level_on_dependent_errors():
+    """A covariance half the errors' (κ = 2, the margin), AR(1) errors φ = 0.5, N = 40,
+    d = 2, 600 segments: the rule claims the scale credible (within a factor 2) in at most
+    α_S + 3 standard errors of them, its studentized bounds under the fitted memory holding
+    the two one-sided tests' level (measured 8 of 600)."""
+    from credcli.engine.config import Question
+
+    rng = np.random.default_rng(11)
+    n, reps, phi = 40, 600, 0.5
+    z = rng.standard_normal((reps, n + 100, 2))
+    x = np.zeros_like(z)
+    x[:, 0] = z[:, 0]
+    for k in range(1, n + 100):  # a loop over 140 epochs, vectorized over the segments
+        x[:, k] = phi * x[:, k - 1] + math.sqrt(1 - phi**2) * z[:, k]
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    claimed = 0
+    for r in range(reps):
+        d = diagnose_errors(x[r, 100:] * math.sqrt(2.0), cov, rng=r)
+        named = {"optimism", "pessimism"} & set(str(d.label).split("+"))
+        tested = d.label is not Label.INSUFFICIENT and Question.SCALE not in d.untested
+        claimed += tested and not named
+    assert claimed / reps <= ALPHA_S + 3 * math.sqrt(ALPHA_S * (1 - ALPHA_S) / reps), claimed
+
+
 def test_andrews_bandwidth_published_formula():
     """Andrews (1991), Eq. (6.4): S = 1.1447 (α(1) T)^(1/3), α(1) = 4ρ²/((1−ρ)²(1+ρ)²)."""
     alpha1 = 4 * 0.25 / (0.25 * 2.25)

@@ -333,16 +333,16 @@ def test_a_scale_test_under_either_model_is_the_union_of_the_two():
 
 
 def test_a_scale_left_open_by_long_memory_says_so():
-    """The 110th draw of :func:`_fractional_draw`'s stream: the short-memory model's scale
-    interval lies within [½, 2], the long-memory alternative's reaches past 2, so the scale
-    is untested, and the reason names the short-memory interval and the long memory
-    instead of too few epochs."""
+    """The 110th draw of :func:`_fractional_draw`'s stream: the short-memory model's
+    one-sided scale bounds lie within [½, 2], the long-memory alternative's reach past 2,
+    so the scale is untested, and the reason names the short-memory bounds and the long
+    memory instead of too few epochs."""
     errors, cov = _fractional_draw(110)
     checked = diagnose_errors(errors, cov, rng=36)
     low, high = checked.scale.short_memory_interval
-    assert 0.5 <= low and high <= 2.0 < checked.scale.scale_factor_high
+    assert 0.5 <= low and high <= 2.0 < checked.scale.equivalence_interval[1]
     assert Question.SCALE in checked.untested
-    assert "under the errors' short-memory model alone it is" in checked.reason
+    assert "under the errors' short-memory model alone they are" in checked.reason
     assert "too few independent epochs" not in checked.reason
 
 

@@ -51,7 +51,7 @@ def test_the_oracle_decides_the_scale_as_the_known_model_does(family, n):
     """zoo.oracle_scale_decided against a Monte Carlo of 3,000 Gaussian segments drawn with
     the family's autocorrelation (Cholesky of its Toeplitz matrix): the centred sum of
     squares T has the oracle's mean E and variance V (Satterthwaite's ν = 2E²/V), and the
-    share whose interval [X/q₊, X/q₋] of κ (X = T·2E/V) lies within [1/2, 2] is the
+    share whose one-sided bounds [X/q₊, X/q₋] of κ (X = T·2E/V) lie within [1/2, 2] is the
     oracle's, within 3 standard errors and 0.02 for the χ² approximation of T."""
     from scipy import linalg, stats
 
@@ -67,7 +67,7 @@ def test_the_oracle_decides_the_scale_as_the_known_model_does(family, n):
     e, v = total.mean(), total.var()
     assert abs(e * e * 2 / v - nu) < 0.1 * nu
     x = total * 2 * e / v
-    q_low, q_high = stats.chi2.ppf([level / 2, 1 - level / 2], nu)
+    q_low, q_high = stats.chi2.ppf([level, 1 - level], nu)
     decided = np.mean((x / q_high > 0.5) & (x / q_low < 2))
     se = math.sqrt(max(share * (1 - share), 0.01) / 3000)
     assert abs(decided - share) < 3 * se + 0.02, (decided, share)

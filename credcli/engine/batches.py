@@ -201,6 +201,9 @@ class BatchScale:
         The one-sided p-value of κ = 1 against κ > 1 (small: optimism).
     pvalue_lower : float
         The one-sided p-value of κ = 1 against κ < 1 (small: pessimism).
+    equivalence_interval : tuple of float
+        κ's one-sided 1 − level bounds (the
+        [ScaleTest][credcli.engine.scale.ScaleTest]'s ``equivalence_interval``).
     """
 
     batches: int
@@ -209,6 +212,7 @@ class BatchScale:
     scale_factor_high: float
     pvalue_upper: float
     pvalue_lower: float
+    equivalence_interval: tuple[float, float]
 
 
 def batch_scale(
@@ -277,7 +281,7 @@ def batch_scale(
     factors = np.add.reduceat(q, starts) / (sizes * dim * kept)
     mean = float(factors.mean())
     if not mean > 0:
-        return BatchScale(k, mean, 0.0, math.inf, 1.0, 1.0)
+        return BatchScale(k, mean, 0.0, math.inf, 1.0, 1.0, (0.0, math.inf))
     if np.all(factors > 0):  # Cox's interval for a log-normal mean (Land 1972)
         logs = np.log(factors)
         v = float(logs.var(ddof=1))
@@ -289,6 +293,7 @@ def batch_scale(
     if se == 0:
         se = np.finfo(float).tiny
     crit = float(special.stdtrit(k - 1, 1 - level / 2))
+    one_sided = float(special.stdtrit(k - 1, max(1 - level, 0.5)))
     t = centre / se
     return BatchScale(
         batches=k,
@@ -297,6 +302,7 @@ def batch_scale(
         scale_factor_high=math.exp(centre + crit * se),
         pvalue_upper=float(special.stdtr(k - 1, -t)),
         pvalue_lower=float(special.stdtr(k - 1, t)),
+        equivalence_interval=(math.exp(centre - one_sided * se), math.exp(centre + one_sided * se)),
     )
 
 

@@ -334,11 +334,13 @@ def nci_baseline(nci_value: float, tau: float = 0.5) -> Label:
 
 
 CREDIBLE_FACTOR = 2.0
-"""The calibrated rule calls a scale credible only when its 1 − α_S interval lies within
-[1/2, 2] (3 dB): then a misfit by a factor 2 or more is excluded at level α_S/2 on either
-side (two one-sided tests). A wider interval that contains 1 is inconclusive, and the scale
-question untested, not credible: never a guess behind a label. On the paper's protocol
-(N = 100, d = 2, independent) the interval is about [0.8, 1.27]: every segment is decided."""
+"""The calibrated rule calls a scale credible only when κ's one-sided 1 − α_S bounds (its
+1 − 2α_S interval) lie within [1/2, 2] (3 dB): then a misfit by a factor 2 or more is
+excluded at the scale test's level α_S, by two one-sided tests (Schuirmann 1987), as a
+misfit is claimed at α_S. Bounds that reach past it around 1 are inconclusive, and the
+scale question untested, not credible: never a guess behind a label. On the paper's
+protocol (N = 100, d = 2, independent) the bounds are about [0.83, 1.23]: every segment is
+decided."""
 
 
 def bias_margin(dim: int) -> float:
@@ -415,6 +417,11 @@ def inconclusive_location(evidence: Evidence) -> str | None:
 def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     """Why a scale test that finds no misfit still does not support "credible", or None.
 
+    The claim "within a factor F" is two one-sided tests at the scale test's level α_S
+    (Schuirmann 1987): κ ≥ F and κ ≤ 1/F are each rejected where κ's one-sided 1 − α_S
+    bounds (:attr:`credcli.engine.scale.ScaleTest.equivalence_interval`, the 1 − 2α_S
+    interval) lie within [1/F, F]; a test without them uses its 1 − α_S interval.
+
     Parameters
     ----------
     scale : ScaleTest
@@ -425,27 +432,35 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     Returns
     -------
     str or None
-        The reason when the test finds no misfit (:func:`noise` is None) and κ̂'s interval
-        is not within [1/F, F], F = :data:`CREDIBLE_FACTOR`; None when the test finds a
-        misfit or the interval is within the margin.
+        The reason when the test finds no misfit (:func:`noise` is None) and κ̂'s
+        one-sided bounds are not within [1/F, F], F = :data:`CREDIBLE_FACTOR`; None when
+        the test finds a misfit or the bounds are within the margin.
     """
     if noise(scale, config) is not None:
         return None
-    low, high = scale.scale_factor_low, scale.scale_factor_high
-    if low >= 1.0 / CREDIBLE_FACTOR and high <= CREDIBLE_FACTOR:
+    two_sided = (scale.scale_factor_low, scale.scale_factor_high)
+    low, high = scale.equivalence_interval or two_sided
+    if _within_margin(low, high):
         return None
     why = "too few independent epochs or batches for a tighter interval"
     own = scale.short_memory_interval
-    if own is not None and own[0] >= 1.0 / CREDIBLE_FACTOR and own[1] <= CREDIBLE_FACTOR:
+    if own is not None and _within_margin(*own):
         why = (
-            f"under the errors' short-memory model alone it is [{own[0]:.3g}, {own[1]:.3g}], "
+            f"under the errors' short-memory model alone they are [{own[0]:.3g}, {own[1]:.3g}], "
             f"but a long-memory model fits them almost as well (its AICc within {SUPPORT:g} of "
             "theirs, BIC not taking it), and one segment cannot tell the two apart"
         )
     return (
-        f"scale inconclusive: κ̂ {scale.scale_factor:.3g} with interval [{low:.3g}, {high:.3g}] "
-        f"finds no misfit but does not exclude one of a factor {CREDIBLE_FACTOR:g} ({why})"
+        f"scale inconclusive: κ̂ {scale.scale_factor:.3g} (interval [{two_sided[0]:.3g}, "
+        f"{two_sided[1]:.3g}]) finds no misfit, but its one-sided {1 - config.scale_level:.4g} "
+        f"bounds [{low:.3g}, {high:.3g}] do not exclude one of a factor {CREDIBLE_FACTOR:g} "
+        f"({why})"
     )
+
+
+def _within_margin(low: float, high: float) -> bool:
+    """Whether [low, high] lies within [1/F, F], F = :data:`CREDIBLE_FACTOR`."""
+    return low >= 1.0 / CREDIBLE_FACTOR and high <= CREDIBLE_FACTOR
 
 
 def mixed(directions: DirectionScales, config: DiagnosisConfig) -> bool:

@@ -71,14 +71,22 @@ class ScaleTest:
     model_dof : float
         ν_Ω, the degrees of freedom of the dependence model behind the reference
         (``memory_scale_test``); inf when the reference assumes no estimated memory.
+    equivalence_interval : tuple of float or None
+        κ's one-sided 1 − level bounds, lower and upper (the equal-tailed 1 − 2·level
+        interval): where they lie within [1/F, F] the two one-sided tests of κ ≤ 1/F and
+        κ ≥ F each reject at the test's level, so a misfit by F or more is excluded at that
+        level (Schuirmann 1987; [CREDIBLE_FACTOR][credcli.engine.rules.CREDIBLE_FACTOR]). None where
+        the test has no interval.
     short_memory_interval : tuple of float or None
-        The fitted model's own interval where a long-memory alternative the data do not
-        exclude widened it (``under_either``); None otherwise.
+        The fitted model's own ``equivalence_interval`` where a long-memory alternative the
+        data do not exclude widened it (``under_either``); None otherwise.
 
     References
     ----------
     F. E. Satterthwaite, "An approximate distribution of estimates of variance
-    components", *Biometrics Bulletin* 2(6), 1946.
+    components", *Biometrics Bulletin* 2(6), 1946. D. J. Schuirmann, "A comparison of the
+    two one-sided tests procedure and the power approach for assessing the equivalence of
+    average bioavailability", *J. Pharmacokinetics and Biopharmaceutics* 15(6), 1987.
 
     Examples
     --------
@@ -104,6 +112,7 @@ class ScaleTest:
     bias_mahalanobis: float
     batches: int = 0
     model_dof: float = float("inf")  # ν_Ω of a dependence model's reference (inf: none)
+    equivalence_interval: tuple[float, float] | None = None
     short_memory_interval: tuple[float, float] | None = None
 
     @property
@@ -396,6 +405,7 @@ def scale_test(
         bias=mean,
         bias_stderr=stderr,
         bias_mahalanobis=residuals.bias_mahalanobis,
+        equivalence_interval=chi2_interval(x, dof, _one_sided(level)),
     )
 
 
@@ -436,6 +446,12 @@ def chi2_interval(x: float, dof: float, level: float) -> tuple[float, float]:
     """
     upper = float(special.chdtri(dof, level / 2))
     return _interval(x, dof, upper, float(special.chdtri(dof, 1 - level / 2)))
+
+
+def _one_sided(level: float) -> float:
+    """The two-sided level whose equal-tailed interval gives one-sided bounds at ``level``:
+    2·level (at most 1, where the interval is the median's point)."""
+    return min(2.0 * level, 1.0)
 
 
 def _interval(x: float, dof: float, upper: float, lower: float) -> tuple[float, float]:
@@ -519,6 +535,7 @@ def batch_scale_test(
         bias_stderr=stderr,
         bias_mahalanobis=residuals.bias_mahalanobis,
         batches=k,
+        equivalence_interval=result.equivalence_interval,
     )
 
 
@@ -820,12 +837,8 @@ def memory_scale_test(
     upper, lower = _studentized_chi2(x, dof, dof_model)
     if not dof >= MIN_REFERENCE_DOF:
         upper = lower = math.nan
-    low, high = _interval(
-        x,
-        dof,
-        _studentized_chi2_quantile(dof, dof_model, level / 2, upper=True),
-        _studentized_chi2_quantile(dof, dof_model, level / 2, upper=False),
-    )
+    low, high = _studentized_interval(x, dof, dof_model, level)
+    equivalence = _studentized_interval(x, dof, dof_model, _one_sided(level))
     return ScaleTest(
         statistic=total,
         dof=dof,
@@ -839,6 +852,7 @@ def memory_scale_test(
         bias_stderr=np.full(d, np.nan),  # filled by the model's mean test
         bias_mahalanobis=residuals.bias_mahalanobis,
         model_dof=dof_model,
+        equivalence_interval=equivalence,
     )
 
 
@@ -857,22 +871,30 @@ def under_either(test: ScaleTest, other: ScaleTest) -> ScaleTest:
     Returns
     -------
     ScaleTest
-        ``test`` with the union interval, the larger p-values (NaN where either is) and
-        the fewer model degrees of freedom, and its own interval as
-        ``short_memory_interval`` where the union is wider; κ̂ stays the fitted model's.
+        ``test`` with the union interval and union one-sided bounds, the larger p-values
+        (NaN where either is) and the fewer model degrees of freedom, and its own one-sided
+        bounds as ``short_memory_interval`` where the union's are wider; κ̂ stays the
+        fitted model's.
     """
-    low = min(test.scale_factor_low, other.scale_factor_low)
-    high = max(test.scale_factor_high, other.scale_factor_high)
-    own = (test.scale_factor_low, test.scale_factor_high)
+    own = test.equivalence_interval
+    equivalence = _union(own, other.equivalence_interval)
     return replace(
         test,
-        scale_factor_low=low,
-        scale_factor_high=high,
+        scale_factor_low=min(test.scale_factor_low, other.scale_factor_low),
+        scale_factor_high=max(test.scale_factor_high, other.scale_factor_high),
         pvalue_upper=_larger(test.pvalue_upper, other.pvalue_upper),
         pvalue_lower=_larger(test.pvalue_lower, other.pvalue_lower),
         model_dof=min(test.model_dof, other.model_dof),
-        short_memory_interval=own if (low, high) != own else None,
+        equivalence_interval=equivalence,
+        short_memory_interval=own if equivalence != own else None,
     )
+
+
+def _union(a: tuple[float, float] | None, b: tuple[float, float] | None):
+    """The smallest interval holding both (None where either is None: no bounds)."""
+    if a is None or b is None:
+        return None
+    return min(a[0], b[0]), max(a[1], b[1])
 
 
 def directions_under_either(scales: DirectionScales, other: DirectionScales) -> DirectionScales:
@@ -906,6 +928,17 @@ def _studentized_chi2(x: float, dof: float, dof_model: float) -> tuple[float, fl
     z_upper = -float(special.ndtri(max(float(special.chdtrc(dof, x)), 1e-300)))
     z_lower = -float(special.ndtri(max(float(special.chdtr(dof, x)), 1e-300)))
     return studentized_tail(z_upper, dof_model), studentized_tail(z_lower, dof_model)
+
+
+def _studentized_interval(x: float, dof: float, dof_model: float, level: float):
+    """The equal-tailed 1 − ``level`` interval of κ inverted from the studentized p-values
+    (:func:`_studentized_chi2`)."""
+    return _interval(
+        x,
+        dof,
+        _studentized_chi2_quantile(dof, dof_model, level / 2, upper=True),
+        _studentized_chi2_quantile(dof, dof_model, level / 2, upper=False),
+    )
 
 
 def _studentized_chi2_quantile(dof: float, dof_model: float, p: float, upper: bool) -> float:

@@ -378,6 +378,9 @@ def test_json_record_equals_the_library_result(tmp_path, capsys):
     assert [rec["scale_factor_low"], rec["scale_factor_high"]] == pytest.approx(
         [d.scale.scale_factor_low, d.scale.scale_factor_high], rel=1e-12
     )
+    low, high = d.scale.equivalence_interval
+    assert d.scale.scale_factor_low < low < high < d.scale.scale_factor_high
+    assert rec["scale_factor_bounds"] == pytest.approx([low, high], rel=1e-12)
     assert rec["bias"] == pytest.approx(list(d.scale.bias), rel=1e-10, abs=1e-14)
     assert rec["bias_stderr"] == pytest.approx(list(d.scale.bias_stderr), rel=1e-12)
     assert rec["block_length"] == d.block_length and rec["reason"] is None

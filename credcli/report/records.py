@@ -201,6 +201,7 @@ def diagnosis_record(diag: Diagnosis) -> dict:
         "scale_factor": None if sc is None else sc.scale_factor,
         "scale_factor_low": None if sc is None else sc.scale_factor_low,
         "scale_factor_high": None if sc is None else sc.scale_factor_high,
+        "scale_factor_bounds": _floats(None if sc is None else sc.equivalence_interval),
         "scale_pvalue": None if sc is None else sc.pvalue,
         "scale_batches": None if sc is None else sc.batches,
         "bias": None if sc is None else _floats(sc.bias),

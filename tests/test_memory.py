@@ -530,3 +530,22 @@ def test_independent_errors_of_a_thousand_epochs_are_taken_as_white():
     assert white >= 90
     s = lfilter([math.sqrt(0.75)], [1.0, -0.5], rng.standard_normal((1100, 2)), axis=0)[100:]
     assert not mem.fit_memory(s, np.sum(s**2, axis=1) - 2.0).white
+
+
+@pytest.mark.parametrize("k", [-300, -201, -30, 0, 7, 199, 201, 300])
+def test_mean_free_is_exact_whatever_the_units_of_the_inverse(k):
+    """The whitened residuals less s_k ≈ m + L_k⁻¹b are the same bits when every L_k⁻¹ is
+    scaled by 2^k (b scales by 2^−k): within SAFE_UNIT the sums are taken on the inverse
+    and divided after, beyond it on a rescaled copy; both are exact rescalings. Against
+    the least-squares fit of numpy's lstsq on the stacked regressors."""
+    rng = np.random.default_rng(4)
+    n, d = 60, 2
+    a = rng.standard_normal((n, d, d)) * 0.3 + np.eye(d)
+    inverse = np.tril(a)
+    s = rng.standard_normal((n, d)) + 0.5
+    out = mem.mean_free(s, inverse)
+    assert np.array_equal(mem.mean_free(s, inverse * 2.0**k), out)
+    design = np.concatenate([np.tile(np.eye(d), (n, 1)), inverse.reshape(n * d, d)], axis=1)
+    coef = np.linalg.lstsq(design, s.reshape(-1), rcond=None)[0]
+    expected = s.reshape(-1) - design @ coef
+    np.testing.assert_allclose(out.reshape(-1), expected, rtol=0, atol=1e-12)

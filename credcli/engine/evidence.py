@@ -1046,7 +1046,8 @@ def memory_residuals(gls, inverse) -> np.ndarray:
     if inverse.ndim == 2:
         z = gls.whitened + inverse @ gls.mean
     else:
-        z = gls.whitened + np.einsum("nij,j->ni", inverse, gls.mean)
+        z = np.einsum("nij,j->ni", inverse, gls.mean)
+        z += gls.whitened
     return mean_free(z, inverse)
 
 

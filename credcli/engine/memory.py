@@ -1483,16 +1483,29 @@ def mean_free(s: np.ndarray, inverse: np.ndarray) -> np.ndarray:
     n, d = s.shape
     if inverse.ndim == 2:  # one covariance: the two constants are one
         return s - s.mean(axis=0)
+    # the sums are those of inverse/unit, whose squares cannot overflow; within SAFE_UNIT
+    # of 1 they are taken on the inverse and divided after, which gives the same bits
+    # (rounding commutes with a power of two) without a copy of the inverse
     unit = power_of_two_unit(inverse)
-    inv = inverse / unit
+    safe = 1.0 / SAFE_UNIT <= unit <= SAFE_UNIT
+    inv = inverse if safe else inverse / unit
+    after = unit if safe else 1.0
     normal = np.empty((2 * d, 2 * d))
     normal[:d, :d] = n * np.eye(d)
-    normal[:d, d:] = inv.sum(axis=0)
+    normal[:d, d:] = inv.sum(axis=0) / after
     normal[d:, :d] = normal[:d, d:].T
-    normal[d:, d:] = np.einsum("nki,nkj->ij", inv, inv)
-    rhs = np.concatenate([s.sum(axis=0), np.einsum("nki,nk->i", inv, s)])
+    normal[d:, d:] = np.einsum("nki,nkj->ij", inv, inv) / (after * after)
+    rhs = np.concatenate([s.sum(axis=0), np.einsum("nki,nk->i", inv, s) / after])
     coef = np.linalg.lstsq(normal, rhs, rcond=None)[0]
-    return s - coef[:d] - np.einsum("nij,j->ni", inv, coef[d:])
+    out = s - coef[:d]
+    out -= np.einsum("nij,j->ni", inv, coef[d:] / after)
+    return out
+
+
+SAFE_UNIT = 2.0**200
+"""Largest power-of-two unit of an inverse factor whose sums of squares :func:`mean_free`
+takes without rescaling: products of entries up to 2^400 and down to 2^-400 stay far
+from overflow and from subnormals, where dividing by the unit would change their bits."""
 
 
 SCALE_CHECK_LEVEL = 0.01
@@ -1706,19 +1719,19 @@ def lowest_frequency_check(
     # e^{−iω₁h} and (1 − h/N) cos(ω₁h), each made in one array by the operations (and in
     # the order) of the formulas: on a segment of millions of epochs every temporary is
     # an array of N numbers
-    phase = np.multiply(-2j * np.pi, h)
-    phase /= n
-    np.exp(phase, out=phase)
-    ordinate = np.abs(phase @ rotated) ** 2 / n
-    del phase
-    weights = h[1:] / n
-    np.subtract(1.0, weights, out=weights)
-    angle = np.multiply(2.0 * np.pi, h[1:])
-    del h
+    # |Σ x_t e^{−iω₁t}|² as (Σ x_t cos ω₁t)² + (Σ x_t sin ω₁t)²: two real products, where
+    # one complex product made a complex copy of the series (three arrays of N × d)
+    angle = np.multiply(2.0 * np.pi, h)
     angle /= n
-    np.cos(angle, out=angle)
-    weights *= angle
+    cosine = np.cos(angle)
+    np.sin(angle, out=angle)
+    ordinate = ((cosine @ rotated) ** 2 + (angle @ rotated) ** 2) / n
     del angle
+    weights = h[1:] / n
+    del h
+    np.subtract(1.0, weights, out=weights)
+    weights *= cosine[1:]
+    del cosine
     expected = np.array([1.0 + 2.0 * float(weights @ m.window(n)[1:]) for m in memory.series])
     # a model whose memory spans the segment predicts almost no power at 2π/N (none for a
     # constant), and the sum above cancels to rounding, or below zero where the bias

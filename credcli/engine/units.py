@@ -34,7 +34,7 @@ def power_of_two_unit(a, axis: int | None = None):
     a = np.asarray(a, dtype=float)
     if a.size == 0:
         return 1.0 if axis is None else np.ones(np.delete(a.shape, axis))
-    peak = np.max(np.abs(a), axis=axis)
+    peak = np.maximum(np.max(a, axis=axis), -np.min(a, axis=axis))  # max |a|, no |a| array
     ok = np.isfinite(peak) & (peak > 0)
     unit = np.exp2(np.round(np.log2(np.where(ok, peak, 1.0))))
     return float(unit) if axis is None else unit

@@ -1503,9 +1503,11 @@ def mean_free(s: np.ndarray, inverse: np.ndarray) -> np.ndarray:
 
 
 SAFE_UNIT = 2.0**200
-"""Largest power-of-two unit of an inverse factor whose sums of squares :func:`mean_free`
-takes without rescaling: products of entries up to 2^400 and down to 2^-400 stay far
-from overflow and from subnormals, where dividing by the unit would change their bits."""
+"""Largest power-of-two unit (and 1/SAFE_UNIT the smallest) of the inverse factors whose
+sums of products :func:`mean_free` takes without rescaling them: the largest products, near
+the unit squared, then stay far inside float64's range (2^±400 of 2^±1022), and the sums
+divided by the unit after are the bits of the sums of the rescaled copy wherever no product
+leaves the normal range, which only products too small to change a sum's bits can."""
 
 
 SCALE_CHECK_LEVEL = 0.01
@@ -1716,11 +1718,10 @@ def lowest_frequency_check(
     """
     n, d = rotated.shape
     h = np.arange(n)
-    # e^{−iω₁h} and (1 − h/N) cos(ω₁h), each made in one array by the operations (and in
-    # the order) of the formulas: on a segment of millions of epochs every temporary is
-    # an array of N numbers
     # |Σ x_t e^{−iω₁t}|² as (Σ x_t cos ω₁t)² + (Σ x_t sin ω₁t)²: two real products, where
-    # one complex product made a complex copy of the series (three arrays of N × d)
+    # one complex product made a complex copy of the series; on a segment of millions of
+    # epochs every temporary is an array of N numbers, so the angles, their sines and
+    # (1 − h/N) cos(ω₁h) are made in place
     angle = np.multiply(2.0 * np.pi, h)
     angle /= n
     cosine = np.cos(angle)

@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import special
 
 from credcli.cli import main
@@ -463,3 +465,35 @@ def test_the_block_count_checked_is_the_block_count_tested():
     assert d.elt is None and "ELT not run: its budget of 4000 epochs" in d.reason
     assert "leaves 7 of the 9" in d.reason and d.mean_test.batches == 12
     assert d.label is not Label.INSUFFICIENT and not d.untested
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    n=st.integers(12, 400),
+    scale=st.floats(0.2, 5.0),
+    k=st.integers(2, 12),
+    seed=st.integers(0, 2**16),
+)
+def test_the_one_sided_bounds_nest_inside_the_interval(n, scale, k, seed):
+    """κ's one-sided 1 − α_S bounds (the 1 − 2α_S interval) lie inside its 1 − α_S interval,
+    for the χ² reference and for batch means, and each bound is the interval at level
+    2α_S: the χ² quantiles at α_S and 1 − α_S, Student's t at 1 − α_S."""
+    from credcli.engine.batches import batch_scale
+
+    rng = np.random.default_rng(seed)
+    e = rng.standard_normal((n, 2)) * scale
+    test = scale_test(gls_residuals(e, np.eye(2)), ALPHA_S)
+    low, high = test.equivalence_interval
+    assert test.scale_factor_low < low < high < test.scale_factor_high
+    nu = 2 * (n - 1)
+    assert high == pytest.approx(test.statistic / special.chdtri(nu, 1 - ALPHA_S), rel=1e-12)
+    assert low == pytest.approx(test.statistic / special.chdtri(nu, ALPHA_S), rel=1e-12)
+    batch = batch_scale(rng.chisquare(2, n) * scale, 2, min(k, n // 2), ALPHA_S)
+    b_low, b_high = batch.equivalence_interval
+    assert batch.scale_factor_low < b_low < b_high < batch.scale_factor_high
+    crit = special.stdtrit(batch.batches - 1, 1 - ALPHA_S / 2)
+    one = special.stdtrit(batch.batches - 1, 1 - ALPHA_S)
+    log_mid = math.log(b_high * b_low) / 2  # both intervals share the log-scale centre
+    assert math.log(b_high) - log_mid == pytest.approx(
+        (math.log(batch.scale_factor_high) - log_mid) * one / crit, rel=1e-9
+    )

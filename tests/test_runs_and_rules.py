@@ -63,7 +63,7 @@ def test_the_rule_decides_on_evidence_written_by_hand():
     verdict = decide(_evidence(wide, 0.5), config)
     assert verdict.label is Label.CREDIBLE and verdict.untested == (Question.SCALE,)
     # a mean test that finds no bias but whose region reaches past 1σ: location
-    # inconclusive (F(2, 98) at 1 − 0.0127 is 4.5, the radius √(2.02·4.5·v); margin √2)
+    # inconclusive (F(2, 98) at 1 − α_L is 3.82, the radius √(2.02·3.82·v); margin √2)
     assert decide(_evidence(credible, 0.5, spread=0.01), config).untested == ()
     verdict = decide(_evidence(credible, 0.5, spread=0.5), config)
     assert verdict.label is Label.CREDIBLE and verdict.untested == (Question.LOCATION,)

@@ -347,7 +347,7 @@ def test_a_slow_error_within_the_claim_is_called_a_bias_at_most_at_the_level():
     """Monte Carlo size check: 200 segments of 100 epochs (d = 2) whose error is one
     constant draw of a slow part, N(0, 0.7 I), over white noise of 0.3 I, under a claimed
     I: credible by construction. pessimism+bias is claimed in at most the mean test's
-    level α_L (1.3 %) plus three standard errors: 2.5 + 4.8, so at most 7 (the check
+    level (α_L/2, 1.27 %) plus three standard errors: 2.5 + 4.8, so at most 7 (the check
     before this rule's χ²_d said pessimism+bias in 154 of these 200)."""
     rng = np.random.default_rng(5)
     n, reps = 100, 200

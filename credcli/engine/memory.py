@@ -1720,8 +1720,8 @@ def lowest_frequency_check(
     h = np.arange(n)
     # |Σ x_t e^{−iω₁t}|² as (Σ x_t cos ω₁t)² + (Σ x_t sin ω₁t)²: two real products, where
     # one complex product made a complex copy of the series; on a segment of millions of
-    # epochs every temporary is an array of N numbers, so the angles, their sines and
-    # (1 − h/N) cos(ω₁h) are made in place
+    # epochs every temporary is an array of N numbers, so the sines overwrite the angles
+    # and (1 − h/N) cos(ω₁h) is made in the array of h/N
     angle = np.multiply(2.0 * np.pi, h)
     angle /= n
     cosine = np.cos(angle)

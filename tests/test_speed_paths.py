@@ -257,8 +257,8 @@ def test_segments_too_short_for_a_verdict_are_diagnosed_together():
 def test_gls_residuals_from_given_inverses_are_those_computed_in_chunks():
     """The diagnosis inverts the Cholesky factors once and hands them to the GLS residuals;
     over several epoch chunks (per-epoch 3 × 3 covariances) that gives what the residuals
-    compute themselves, to the bit (the same LAPACK inverse of each matrix)."""
-    from credcli.engine.linalg import EPOCH_CHUNK
+    compute themselves, to the bit (the same forward substitution of each matrix)."""
+    from credcli.engine.linalg import EPOCH_CHUNK, lower_inverse
     from credcli.engine.scale import gls_residuals
 
     rng = np.random.default_rng(1)
@@ -266,9 +266,51 @@ def test_gls_residuals_from_given_inverses_are_those_computed_in_chunks():
     a = rng.standard_normal((n, 3, 3))
     chol = np.linalg.cholesky(a @ a.transpose(0, 2, 1) + np.eye(3))
     e = rng.standard_normal((n, 3))
-    own, given = gls_residuals(e, chol), gls_residuals(e, chol, np.linalg.inv(chol))
+    own, given = gls_residuals(e, chol), gls_residuals(e, chol, lower_inverse(chol))
     for name in ("mean", "whitened", "precision_sum", "scores"):
         np.testing.assert_array_equal(getattr(own, name), getattr(given, name))
+
+
+@pytest.mark.parametrize("d", [1, 2, 3, 6, 15])
+def test_lower_inverse_inverts_each_factor(d):
+    """L⁻¹ by forward substitution (one per segment, issue 35): L·X = I to rounding times
+    the condition number, X lower triangular, and for d = 2 the closed form
+    [[1/a, 0], [−b/(ac), 1/c]] of L = [[a, 0], [b, c]]."""
+    from credcli.engine.linalg import lower_inverse
+
+    rng = np.random.default_rng(d)
+    a = rng.standard_normal((500, d, d))
+    cov = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(d)
+    chol = np.linalg.cholesky(cov)
+    x = lower_inverse(chol)
+    assert np.all(np.triu(x, 1) == 0.0)
+    cond = np.linalg.cond(chol)
+    residual = np.abs(chol @ x - np.eye(d)).max(axis=(1, 2))
+    assert np.all(residual <= 1e-14 * d * cond)
+    if d == 2:
+        p, q, r = chol[:, 0, 0], chol[:, 1, 0], chol[:, 1, 1]
+        np.testing.assert_allclose(x[:, 1, 0], -q / (p * r), rtol=1e-13)
+        np.testing.assert_allclose(x[:, [0, 1], [0, 1]], 1.0 / chol[:, [0, 1], [0, 1]], rtol=0)
+
+
+def test_nees_from_the_inverse_is_the_triangular_solve_s():
+    """The diagnosis's NEES, ‖L_k⁻¹ e_k‖² with the segment's one inverse, agrees with the
+    triangular solve of :func:`credcli.engine.metrics.nees_factored` to 1e-12 (Eq. (1)),
+    and so does the ANEES the diagnosis reports."""
+    from credcli.engine import metrics
+    from credcli.engine.diagnosis import diagnose_errors
+    from credcli.engine.linalg import lower_inverse, whitened_by
+
+    rng = np.random.default_rng(4)
+    a = rng.standard_normal((3000, 3, 3))
+    cov = a @ a.transpose(0, 2, 1) + 0.2 * np.eye(3)
+    chol = np.linalg.cholesky(cov)
+    e = np.einsum("nij,nj->ni", chol, rng.standard_normal((3000, 3)))
+    z = whitened_by(lower_inverse(chol), e)
+    eps = metrics.nees_factored(e, chol)
+    np.testing.assert_allclose(np.einsum("ni,ni->n", z, z), eps, rtol=1e-12)
+    got = diagnose_errors(e, cov, rng=1)
+    assert got.anees == pytest.approx(eps.mean() / 3, rel=1e-13)
 
 
 def test_the_pool_threads_errors_after_a_stop_are_quiet_and_others_shown(monkeypatch):
@@ -686,3 +728,24 @@ def test_the_report_lists_ten_findings_and_correlated_innovations_then_counts_th
     assert [n.split(":")[0] for n in white] == [f"s{k}" for k in range(1, 21, 2)]
     assert "... and 5 more segment(s) with correlated innovations" in notes
     assert "whiteness_pvalue" in [c.key for c in report.tables[0].columns]
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1.0, 1e200])
+def test_closed_form_inverse_square_root_is_eigh_s(scale):
+    """Σ^{-1/2} of 2 × 2 covariances in closed form (the ELT's whitening, Eq. (12)): within
+    rounding times the condition number of the eigendecomposition's U Λ^{-1/2} Uᵀ, at any
+    scale, symmetric, and W Σ W = I."""
+    from credcli.engine.linalg import inverse_sqrt_2x2
+
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((2000, 2, 2))
+    cov = (a @ a.transpose(0, 2, 1) + 1e-6 * np.eye(2)) * scale
+    w = inverse_sqrt_2x2(cov)
+    lam, vecs = np.linalg.eigh(cov)
+    expected = np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)
+    cond = lam[:, 1] / lam[:, 0]
+    error = np.abs(w - expected).max(axis=(1, 2)) / np.abs(expected).max(axis=(1, 2))
+    assert np.all(error <= 1e-15 * 50 * cond)
+    np.testing.assert_array_equal(w, w.transpose(0, 2, 1))
+    identity = np.einsum("nij,njk,nkl->nil", w, cov, w)
+    assert np.all(np.abs(identity - np.eye(2)).max(axis=(1, 2)) <= 1e-15 * 50 * cond)

@@ -845,8 +845,9 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
     errors, cov = linalg.check_errors_cov(errors, cov)
     d = errors.shape[1]
     chol = _cholesky(cov)
-    gls = gls_residuals(errors, chol)
-    z = evidence.memory_residuals(gls, np.linalg.inv(chol))
+    inverse = linalg.lower_inverse(chol)
+    gls = gls_residuals(errors, chol, inverse)
+    z = evidence.memory_residuals(gls, inverse)
     parts, means, sizes = [], [], []
     for index in windows:
         w = z[index]
@@ -1078,10 +1079,10 @@ def block_scales(
         e = errors[:, idx]
         c = cov[:, idx[:, None], idx[None, :]]
         chol = _cholesky(c)
-        gls = gls_residuals(e, chol)
+        inverse = linalg.lower_inverse(chol)
+        gls = gls_residuals(e, chol, inverse)
         s = whiten(e, c)
         if evidence.reads_memory(config, runs):  # the block's memory, fitted as a segment's
-            inverse = np.linalg.inv(chol)
             try:
                 memory, _ = evidence.segment_memory(gls, inverse, s)
             except NoFiniteMemory:

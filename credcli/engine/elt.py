@@ -88,7 +88,8 @@ class ELTResult:
 def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k`, Eq. (12).
 
-    With the symmetric inverse square root (from ``eigh``), computed in chunks of epochs.
+    With the symmetric inverse square root, computed in chunks of epochs: in closed form
+    for d = 2 (:func:`credcli.engine.linalg.inverse_sqrt_2x2`), from ``eigh`` otherwise.
     Nothing is validated here (``location_test`` does that).
 
     Parameters
@@ -110,6 +111,9 @@ def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """
     out = np.empty(errors.shape)
     for sl in epoch_chunks(errors.shape[0]):
+        if errors.shape[1] == 2:
+            out[sl] = np.einsum("nij,nj->ni", linalg.inverse_sqrt_2x2(cov[sl]), errors[sl])
+            continue
         lam, vecs = np.linalg.eigh(cov[sl])
         rotated = np.einsum("nji,nj->ni", vecs, errors[sl]) / np.sqrt(lam)
         out[sl] = np.einsum("nij,nj->ni", vecs, rotated)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import special
 
-from credcli.engine import batches, correlation, dependence, episodes, metrics
+from credcli.engine import batches, correlation, dependence, episodes, linalg, metrics
 from credcli.engine.config import SMM_CONDITION, DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.episodes import Burst, Divergence
@@ -218,8 +218,11 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     """
     n, d = errors.shape
     probes_possible = any(not c.calibrated or c.metrics is MetricsLevel.ALL for c in configs)
+    # the one factorisation's inverse L_k⁻¹: the NEES, the GLS residuals and the memory's
+    inverse = linalg.lower_inverse(chol) if chol.ndim == 3 else linalg.lower_inverse(chol[None])[0]
     with np.errstate(over="ignore", invalid="ignore"):
-        eps = metrics.nees_factored(errors, chol)
+        z = linalg.whitened_by(inverse, errors)
+        eps = np.einsum("ni,ni->n", z, z)
     if not np.all(np.isfinite(eps)):
         raise CredcliError(_overflow_message(errors, chol, eps))
     given = mse is not None
@@ -229,10 +232,11 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
     centred = _centred(errors)
-    nci_centred = metrics.nci_factored(centred, chol, mse_cholesky(metrics.mse_matrix(centred)))
-    del centred
+    z -= linalg.whitened_by(inverse, errors.mean(axis=0))  # L_k⁻¹(e_k − ē)
+    centred_mse = mse_cholesky(metrics.mse_matrix(centred))
+    nci_centred = metrics.nci_factored(centred, chol, centred_mse, np.einsum("ni,ni->n", z, z))
+    del centred, z
     modelled = [c for c in configs if reads_memory(c, runs)]
-    inverse = np.linalg.inv(chol) if modelled else None  # one factorisation's inverse
     gls = gls_residuals(errors, chol, inverse if chol.ndim == 3 else None)
     s = whiten(errors, cov)
     r1 = correlation.autocorrelation(s)

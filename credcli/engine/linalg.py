@@ -146,6 +146,64 @@ def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
         ) from None
 
 
+def lower_inverse(chol: np.ndarray) -> np.ndarray:
+    """L⁻¹ of lower-triangular factors, by forward substitution over the d rows, each row
+    a batched product over the epochs (no per-matrix LAPACK call, no pivoting).
+
+    From L X = I, row by row: X_ii = 1/L_ii and X_ij = −(Σ_{j<=k<i} L_ik X_kj)/L_ii for
+    j < i (X is lower triangular). One such inverse per segment serves the NEES, the GLS
+    residuals and the memory's residuals (issue 35: one factorisation per segment); it
+    costs d batched products over the epochs where ``numpy.linalg.inv`` factors every
+    matrix again.
+
+    Parameters
+    ----------
+    chol : numpy.ndarray, shape (N, d, d)
+        Lower-triangular factors with a positive diagonal (:func:`cholesky`).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d, d)
+        Their inverses, lower triangular.
+
+    Examples
+    --------
+    >>> lower_inverse(np.array([[[2.0, 0.0], [1.0, 4.0]]])).tolist()
+    [[[0.5, 0.0], [-0.125, 0.25]]]
+    """
+    n, d, _ = chol.shape
+    out = np.zeros(chol.shape)
+    for sl in epoch_chunks(n):  # bounded temporaries
+        lower, inverse = chol[sl], out[sl]
+        for i in range(d):
+            inverse[:, i, i] = 1.0 / lower[:, i, i]
+            if i:
+                row = np.einsum("nk,nkj->nj", lower[:, i, :i], inverse[:, :i, :i])
+                inverse[:, i, :i] = -row / lower[:, i, i, None]
+    return out
+
+
+def whitened_by(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """L_k⁻¹ v_k for every epoch k: the Cholesky-whitened vectors.
+
+    Parameters
+    ----------
+    inverse : numpy.ndarray, shape (N, d, d) or (d, d)
+        L_k⁻¹ per epoch (:func:`lower_inverse`), or one shared.
+    vectors : numpy.ndarray, shape (N, d) or (d,)
+        v_k per epoch, or one v at every epoch.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+        L_k⁻¹ v_k, a row per epoch.
+    """
+    if inverse.ndim == 2:
+        return vectors @ inverse.T
+    spec = "nij,nj->ni" if vectors.ndim == 2 else "nij,j->ni"
+    return np.einsum(spec, inverse, vectors)
+
+
 SEMIDEFINITE_RTOL = 1e-12
 """A symmetric matrix counts as positive semidefinite when no eigenvalue is below
 −SEMIDEFINITE_RTOL × its largest eigenvalue magnitude (rounding of a singular covariance)."""
@@ -231,3 +289,47 @@ def eigenvalues_2x2(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         big[sl] = unit * larger
         small[sl] = unit * np.divide(det, larger, out=np.zeros_like(det), where=larger > 0)
     return big, small
+
+
+def inverse_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
+    """The symmetric inverse square roots Σ^{-1/2} of positive definite 2×2 matrices, in
+    closed form.
+
+    For A = [[p, q], [q, r]] with s = √det A and t = √(tr A + 2s), √A = (A + sI)/t
+    (Cayley–Hamilton: (A + sI)² = A² + 2sA + s²I = (tr A + 2s)A), and since
+    det(A + sI) = s·t², A^{-1/2} = [[r + s, −q], [−q, p + s]]/(s·t). Each matrix is first
+    scaled by a power of 4 near its largest entry (exactly: no overflow or underflow at any
+    scale, and no rounding from the scaling), and det A taken as
+    the product of the closed-form eigenvalues (:func:`eigenvalues_2x2`), so no
+    cancellation beyond theirs. Five vector operations per epoch where ``eigh`` makes a
+    LAPACK call (issue 35).
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, 2, 2)
+        Symmetric positive definite matrices.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 2, 2)
+        Σ_k^{-1/2}, symmetric, with Σ^{-1/2} Σ Σ^{-1/2} = I.
+
+    Examples
+    --------
+    >>> w = inverse_sqrt_2x2(np.array([[[4.0, 0.0], [0.0, 9.0]], [[2.0, 1.0], [1.0, 2.0]]]))
+    >>> np.abs(w[0]).round(12).tolist()
+    [[0.5, 0.0], [0.0, 0.333333333333]]
+    >>> (w[1] @ np.array([[2.0, 1.0], [1.0, 2.0]]) @ w[1]).round(12).tolist()
+    [[1.0, 0.0], [0.0, 1.0]]
+    """
+    _, exponent = np.frexp(np.abs(cov).max(axis=(1, 2)))
+    unit = np.ldexp(1.0, exponent + exponent % 2)  # 4^k: exact scaling, exact √unit
+    big, small = eigenvalues_2x2(cov)
+    p, q, r = cov[:, 0, 0] / unit, cov[:, 0, 1] / unit, cov[:, 1, 1] / unit
+    root = np.sqrt(big / unit) * np.sqrt(small / unit)  # √det of the scaled matrix
+    denominator = root * np.sqrt(p + r + 2.0 * root) * np.sqrt(unit)
+    out = np.empty(cov.shape)
+    out[:, 0, 0] = (r + root) / denominator
+    out[:, 1, 1] = (p + root) / denominator
+    out[:, 0, 1] = out[:, 1, 0] = -q / denominator
+    return out

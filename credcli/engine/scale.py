@@ -30,7 +30,7 @@ from scipy import special
 
 from credcli.engine import correlation
 from credcli.engine.batches import batch_mean_test, batch_scale, boundary_inflation, bounds
-from credcli.engine.linalg import EPOCH_CHUNK, epoch_chunks
+from credcli.engine.linalg import EPOCH_CHUNK, epoch_chunks, lower_inverse
 from credcli.engine.memory import studentized_quantile, studentized_tail
 from credcli.engine.units import power_of_two_unit
 
@@ -189,7 +189,7 @@ def gls_residuals(
     """
     n, d = errors.shape
     if chol.ndim == 2:
-        inv = np.linalg.solve(chol, np.eye(d))  # L⁻¹
+        inv = lower_inverse(chol[None])[0]  # L⁻¹
         z = errors @ inv.T
         precision_sum = n * (inv.T @ inv)
         scores = z @ inv
@@ -202,7 +202,7 @@ def gls_residuals(
     weighted = np.zeros(d)
     single = n <= EPOCH_CHUNK  # then the one chunk's L_k⁻¹ is kept for the second pass
     for sl in epoch_chunks(n):  # chunks of epochs: bounded temporaries
-        inv = np.linalg.inv(chol[sl]) if inverse is None else inverse[sl]  # batched L_k⁻¹
+        inv = lower_inverse(chol[sl]) if inverse is None else inverse[sl]  # L_k⁻¹
         z[sl] = np.einsum("nij,nj->ni", inv, errors[sl])
         precision_sum += np.einsum("nki,nkj->ij", inv, inv)
         scores[sl] = np.einsum("nki,nk->ni", inv, z[sl])
@@ -212,7 +212,7 @@ def gls_residuals(
         if inverse is not None:
             inv = inverse[sl]
         elif not single:
-            inv = np.linalg.inv(chol[sl])
+            inv = lower_inverse(chol[sl])
         z[sl] -= np.einsum("nij,j->ni", inv, mean)
     return GlsResiduals(mean, z, precision_sum, scores)
 

@@ -333,3 +333,24 @@ def inverse_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
     out[:, 1, 1] = (p + root) / denominator
     out[:, 0, 1] = out[:, 1, 0] = -q / denominator
     return out
+
+
+def inverse_sqrt(cov: np.ndarray) -> np.ndarray:
+    """The symmetric inverse square roots Σ_k^{-1/2} = U Λ^{-1/2} Uᵀ of positive definite
+    matrices: the ELT's whitening, Eq. (12), and the time offset's.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, d, d)
+        Symmetric positive definite matrices.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d, d)
+        Σ_k^{-1/2}: in closed form for d = 2 (:func:`inverse_sqrt_2x2`), from ``eigh``
+        otherwise.
+    """
+    if cov.shape[-1] == 2:
+        return inverse_sqrt_2x2(cov)
+    lam, vecs = np.linalg.eigh(cov)
+    return np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)

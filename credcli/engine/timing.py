@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
+from credcli.engine.linalg import inverse_sqrt
+
 OFFSET_LEVEL = 0.001
 """Two-sided level of the offset's significance: a finding that reorders the advice."""
 
@@ -123,8 +125,7 @@ def time_offset(
         return None
     # Σ̂_k^{-1/2}, the symmetric root (as :func:`credcli.engine.elt.whiten` takes it): the
     # constant's whitened regressors, and what whitens the errors and the velocities
-    lam, vecs = np.linalg.eigh(cov)
-    roots = np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)  # (N, d, d)
+    roots = inverse_sqrt(cov)  # (N, d, d)
     z = np.einsum("nij,nj->ni", roots, errors)
     w = np.einsum("nij,nj->ni", roots, velocity)
     # GLS of z_k = R_k μ + w_k δ: the normal equations in (μ, δ)

@@ -749,3 +749,17 @@ def test_closed_form_inverse_square_root_is_eigh_s(scale):
     np.testing.assert_array_equal(w, w.transpose(0, 2, 1))
     identity = np.einsum("nij,njk,nkl->nil", w, cov, w)
     assert np.all(np.abs(identity - np.eye(2)).max(axis=(1, 2)) <= 1e-15 * 50 * cond)
+
+
+def test_closed_form_inverse_square_root_of_near_singular_covariances_is_finite():
+    """Covariances of condition near 1/ε that Cholesky still factors: wherever ``eigh``
+    finds both eigenvalues positive, Σ^{-1/2} is finite (the closed form's determinant can
+    cancel to zero there, and ``eigh`` takes over)."""
+    from credcli.engine.linalg import inverse_sqrt_2x2
+
+    theta = np.random.default_rng(5).uniform(0.0, np.pi, 20_000)
+    u = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    cov = u[:, :, None] * u[:, None, :] + 1e-16 * np.eye(2)
+    positive = np.linalg.eigvalsh(cov)[:, 0] > 0
+    w = inverse_sqrt_2x2(cov[positive])
+    assert positive.sum() > 19_000 and np.isfinite(w).all()

@@ -302,7 +302,8 @@ def inverse_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
     scale, and no rounding from the scaling), and det A taken as
     the product of the closed-form eigenvalues (:func:`eigenvalues_2x2`), so no
     cancellation beyond theirs. Five vector operations per epoch where ``eigh`` makes a
-    LAPACK call (issue 35).
+    LAPACK call (issue 35). Where that smaller eigenvalue is not positive (a condition
+    number near 1/ε, which a Cholesky factor may still pass), ``eigh`` takes over.
 
     Parameters
     ----------
@@ -329,10 +330,21 @@ def inverse_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
     root = np.sqrt(big / unit) * np.sqrt(small / unit)  # √det of the scaled matrix
     denominator = root * np.sqrt(p + r + 2.0 * root) * np.sqrt(unit)
     out = np.empty(cov.shape)
-    out[:, 0, 0] = (r + root) / denominator
-    out[:, 1, 1] = (p + root) / denominator
-    out[:, 0, 1] = out[:, 1, 0] = -q / denominator
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[:, 0, 0] = (r + root) / denominator
+        out[:, 1, 1] = (p + root) / denominator
+        out[:, 0, 1] = out[:, 1, 0] = -q / denominator
+    # near-singular (condition near 1/ε): det's cancellation leaves no positive root
+    lost = ~(small > 0)
+    if lost.any():
+        out[lost] = _inverse_sqrt_eigh(cov[lost])
     return out
+
+
+def _inverse_sqrt_eigh(cov: np.ndarray) -> np.ndarray:
+    """U Λ^{-1/2} Uᵀ from ``eigh``."""
+    lam, vecs = np.linalg.eigh(cov)
+    return np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)
 
 
 def inverse_sqrt(cov: np.ndarray) -> np.ndarray:
@@ -350,7 +362,4 @@ def inverse_sqrt(cov: np.ndarray) -> np.ndarray:
         Σ_k^{-1/2}: in closed form for d = 2 (:func:`inverse_sqrt_2x2`), from ``eigh``
         otherwise.
     """
-    if cov.shape[-1] == 2:
-        return inverse_sqrt_2x2(cov)
-    lam, vecs = np.linalg.eigh(cov)
-    return np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)
+    return inverse_sqrt_2x2(cov) if cov.shape[-1] == 2 else _inverse_sqrt_eigh(cov)

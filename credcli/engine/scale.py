@@ -169,7 +169,8 @@ class GlsResiduals:
 def gls_residuals(
     errors: np.ndarray, chol: np.ndarray, inverse: np.ndarray | None = None
 ) -> GlsResiduals:
-    """μ̂ = (Σ W_k)⁻¹ Σ W_k e_k and the whitened residuals, by triangular solves.
+    """μ̂ = (Σ W_k)⁻¹ Σ W_k e_k and the whitened residuals, with L_k⁻¹ from
+    :func:`credcli.engine.linalg.lower_inverse`.
 
     Parameters
     ----------

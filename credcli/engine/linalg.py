@@ -195,7 +195,7 @@ def whitened_by(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    numpy.ndarray, shape (N, d)
+    numpy.ndarray, shape (N, d), or (d,) for one inverse and one vector
         L_k⁻¹ v_k, a row per epoch.
     """
     if inverse.ndim == 2:

@@ -290,7 +290,7 @@ def test_lower_inverse_inverts_each_factor(d):
     if d == 2:
         p, q, r = chol[:, 0, 0], chol[:, 1, 0], chol[:, 1, 1]
         np.testing.assert_allclose(x[:, 1, 0], -q / (p * r), rtol=1e-13)
-        np.testing.assert_allclose(x[:, [0, 1], [0, 1]], 1.0 / chol[:, [0, 1], [0, 1]], rtol=0)
+        np.testing.assert_allclose(x[:, [0, 1], [0, 1]], 1.0 / chol[:, [0, 1], [0, 1]], rtol=1e-15)
 
 
 def test_nees_from_the_inverse_is_the_triangular_solve_s():

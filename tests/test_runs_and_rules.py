@@ -28,8 +28,13 @@ from credcli.engine.whiteness import innovation_levels
 
 
 def _scale(kappa: float, low: float, high: float, up: float, down: float) -> ScaleTest:
+    """A scale test whose one-sided bounds (what a credible scale is read from) are
+    [low, high] too."""
     zero = np.zeros(2)
-    return ScaleTest(1.0, 100.0, 1.0, kappa, low, high, up, down, zero, zero, 0.0)
+    return ScaleTest(
+        1.0, 100.0, 1.0, kappa, low, high, up, down, zero, zero, 0.0,
+        equivalence_interval=(low, high),
+    )  # fmt: skip
 
 
 def _evidence(scale: ScaleTest, mean_p: float | None, scale_reason=None, spread=0.01) -> Evidence:
@@ -62,6 +67,9 @@ def test_the_rule_decides_on_evidence_written_by_hand():
     wide = _scale(1.0, 0.4, 2.5, 0.5, 0.5)
     verdict = decide(_evidence(wide, 0.5), config)
     assert verdict.label is Label.CREDIBLE and verdict.untested == (Question.SCALE,)
+    # a test without one-sided bounds claims no credible scale, however narrow its interval
+    unbounded = replace(credible, equivalence_interval=None)
+    assert decide(_evidence(unbounded, 0.5), config).untested == (Question.SCALE,)
     # a mean test that finds no bias but whose region reaches past 1σ: location
     # inconclusive (F(2, 98) at 1 − α_L is 3.82, the radius √(2.02·3.82·v); margin √2)
     assert decide(_evidence(credible, 0.5, spread=0.01), config).untested == ()

@@ -294,23 +294,26 @@ def test_lower_inverse_inverts_each_factor(d):
 
 
 def test_nees_from_the_inverse_is_the_triangular_solve_s():
-    """The diagnosis's NEES, ‖L_k⁻¹ e_k‖² with the segment's one inverse, agrees with the
-    triangular solve of :func:`credcli.engine.metrics.nees_factored` to 1e-12 (Eq. (1)),
-    and so does the ANEES the diagnosis reports."""
+    """The NEES from inverse Cholesky factors (the diagnosis's one inverse per segment, and
+    ``metrics.nees`` chunk by chunk) agrees with LAPACK's triangular solve, an independent
+    computation, to 1e-12 (Eq. (1)); the diagnosis's ANEES is ``metrics.anees``."""
     from credcli.engine import metrics
     from credcli.engine.diagnosis import diagnose_errors
-    from credcli.engine.linalg import lower_inverse, whitened_by
 
     rng = np.random.default_rng(4)
     a = rng.standard_normal((3000, 3, 3))
     cov = a @ a.transpose(0, 2, 1) + 0.2 * np.eye(3)
     chol = np.linalg.cholesky(cov)
     e = np.einsum("nij,nj->ni", chol, rng.standard_normal((3000, 3)))
-    z = whitened_by(lower_inverse(chol), e)
-    eps = metrics.nees_factored(e, chol)
-    np.testing.assert_allclose(np.einsum("ni,ni->n", z, z), eps, rtol=1e-12)
+    z = np.linalg.solve(chol, e[:, :, None])[:, :, 0]
+    np.testing.assert_allclose(metrics.nees(e, cov), np.einsum("ni,ni->n", z, z), rtol=1e-12)
+    shared = np.linalg.cholesky(cov[0])
+    z0 = np.linalg.solve(shared, e.T).T
+    np.testing.assert_allclose(
+        metrics.nees_factored(e, shared), np.einsum("ni,ni->n", z0, z0), rtol=1e-12
+    )
     got = diagnose_errors(e, cov, rng=1)
-    assert got.anees == pytest.approx(eps.mean() / 3, rel=1e-13)
+    assert got.anees == pytest.approx(metrics.anees(e, cov), rel=1e-14)
 
 
 def test_the_pool_threads_errors_after_a_stop_are_quiet_and_others_shown(monkeypatch):

@@ -221,8 +221,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     # the one factorisation's inverse L_k⁻¹: the NEES, the GLS residuals and the memory's
     inverse = linalg.lower_inverse(chol) if chol.ndim == 3 else linalg.lower_inverse(chol[None])[0]
     with np.errstate(over="ignore", invalid="ignore"):
-        z = linalg.whitened_by(inverse, errors)
-        eps = np.einsum("ni,ni->n", z, z)
+        eps = metrics.nees_inverse(errors, inverse)
     if not np.all(np.isfinite(eps)):
         raise CredcliError(_overflow_message(errors, chol, eps))
     given = mse is not None
@@ -232,10 +231,10 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
     centred = _centred(errors)
-    z -= linalg.whitened_by(inverse, errors.mean(axis=0))  # L_k⁻¹(e_k − ē)
     centred_mse = mse_cholesky(metrics.mse_matrix(centred))
-    nci_centred = metrics.nci_factored(centred, chol, centred_mse, np.einsum("ni,ni->n", z, z))
-    del centred, z
+    centred_eps = metrics.nees_inverse(centred, inverse)
+    nci_centred = metrics.nci_factored(centred, chol, centred_mse, centred_eps)
+    del centred, centred_eps
     modelled = [c for c in configs if reads_memory(c, runs)]
     gls = gls_residuals(errors, chol, inverse if chol.ndim == 3 else None)
     s = whiten(errors, cov)

@@ -11,7 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from credcli.engine.linalg import check_errors_cov, check_semidefinite, cholesky, epoch_chunks
+from credcli.engine.linalg import (
+    check_errors_cov,
+    check_semidefinite,
+    cholesky,
+    epoch_chunks,
+    lower_inverse,
+    whitened_by,
+)
 from credcli.engine.quadrature import centred_norm, expected_norms
 from credcli.errors import CredcliError
 
@@ -59,7 +66,8 @@ def nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 
 def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
-    """The NEES e_kᵀ (L Lᵀ)⁻¹ e_k from Cholesky factors, by triangular solves.
+    """The NEES e_kᵀ (L Lᵀ)⁻¹ e_k from Cholesky factors, by their inverses
+    (:func:`credcli.engine.linalg.lower_inverse`, chunk by chunk).
 
     Parameters
     ----------
@@ -75,13 +83,31 @@ def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
         ε_k, Eq. (1).
     """
     if chol.ndim == 2:
-        z = np.linalg.solve(chol, errors.T).T
-        return np.einsum("ni,ni->n", z, z)
+        return nees_inverse(errors, lower_inverse(chol[None])[0])
     out = np.empty(errors.shape[0])
     for sl in epoch_chunks(errors.shape[0]):  # bounded temporaries
-        z = np.linalg.solve(chol[sl], errors[sl, :, None])[..., 0]
-        out[sl] = np.einsum("ni,ni->n", z, z)
+        out[sl] = nees_inverse(errors[sl], lower_inverse(chol[sl]))
     return out
+
+
+def nees_inverse(errors: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """The NEES ‖L_k⁻¹ e_k‖² from the inverse Cholesky factors: where a segment holds them
+    already (the diagnosis's one inverse), the same numbers as :func:`nees_factored`.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k.
+    inverse : numpy.ndarray, shape (N, d, d) or (d, d)
+        L_k⁻¹ (:func:`credcli.engine.linalg.lower_inverse`), or one shared.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        ε_k, Eq. (1).
+    """
+    z = whitened_by(inverse, errors)
+    return np.einsum("ni,ni->n", z, z)
 
 
 def anees(errors: np.ndarray, cov: np.ndarray) -> float:

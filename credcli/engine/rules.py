@@ -420,7 +420,8 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     The claim "within a factor F" is two one-sided tests at the scale test's level α_S
     (Schuirmann 1987): κ ≥ F and κ ≤ 1/F are each rejected where κ's one-sided 1 − α_S
     bounds (:attr:`credcli.engine.scale.ScaleTest.equivalence_interval`, the 1 − 2α_S
-    interval) lie within [1/F, F]; a test without them uses its 1 − α_S interval.
+    interval) lie within [1/F, F]; a test without them (an untested scale) is never
+    credible.
 
     Parameters
     ----------
@@ -439,7 +440,7 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     if noise(scale, config) is not None:
         return None
     two_sided = (scale.scale_factor_low, scale.scale_factor_high)
-    low, high = scale.equivalence_interval or two_sided
+    low, high = scale.equivalence_interval or (math.nan, math.nan)  # no bounds: not credible
     if _within_margin(low, high):
         return None
     why = "too few independent epochs or batches for a tighter interval"

@@ -62,6 +62,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/libraries.py
 	$(BIN)/python benchmarks/memory.py --quick
 	$(BIN)/python benchmarks/memory.py --quick --windows 13 --lengths 50,300
+	$(BIN)/python benchmarks/kf_variants.py
 	$(BIN)/python benchmarks/se3.py
 	$(BIN)/python benchmarks/findings.py
 

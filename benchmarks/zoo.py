@@ -40,7 +40,7 @@ Conventions
   recursion's fixed point, P_true = A P_true Aᵀ + (I−KH) Q_true (I−KH)ᵀ + K R_true Kᵀ, and
   truth_factor = trace(P_true)/trace(P_claimed) over the reported components (constant over
   epochs at steady state).
-- Library families (filterpy UKF/EKF, Stone Soup EKF, a bootstrap particle filter, a GTSAM
+- Library families (filterpy UKF/EKF, Stone Soup EKF and UKF, a bootstrap particle filter, a GTSAM
   smoother, the SE(3) EKF, invariant EKF and UKF of ``se3_filters.py`` and navlie's) are
   run as their users run them, right-tuned, after a burn-in; they are only
   approximately credible, so truth_factor is NaN for "none" and "bias1", and 4 / 0.25
@@ -490,8 +490,12 @@ KF_MODELS = {
     "kf-cv-1hz": (lambda: _cv_model(1.0), 1.0),
     "kf-cv-10hz": (lambda: _cv_model(10.0), 10.0),
     "kf-cv-100hz": (lambda: _cv_model(100.0), 100.0),
+    "kf-ca-1hz": (lambda: _ca_model(1.0), 1.0),
     "kf-ca-10hz": (lambda: _ca_model(10.0), 10.0),
+    "kf-ca-100hz": (lambda: _ca_model(100.0), 100.0),
+    "kf-rw-1hz": (lambda: _rw_model(1.0), 1.0),
     "kf-rw-10hz": (lambda: _rw_model(10.0), 10.0),
+    "kf-rw-100hz": (lambda: _rw_model(100.0), 100.0),
     "kf-cv-10hz-mistuned": (lambda: _cv_model(10.0), 10.0),
 }
 MISTUNE = {"small4": (1 / 8, 1 / 2), "large4": (8.0, 2.0)}
@@ -513,6 +517,7 @@ LIBRARY_TAU = {
     "filterpy-ukf-pendulum": 3.6,  # 3.4 / 3.6 / 3.7 / 3.4
     "filterpy-ekf-range": 14.4,  # 14.5 / 14.5 / 14.4 / 14.4
     "stonesoup-ekf-radar": 25.0,  # 23.1 / 27.1 / 24.7 / 25.7
+    "stonesoup-ukf-radar": 25.0,  # 23.1 / 27.2 / 24.8 / 25.9 (the EKF's truth and measurements)
     "pf-1d": 1.0,  # 1.0 / 1.0 / 1.0 / 0.9 (whitened variance 15: rare collapses, see below)
     "gtsam-pose2-smoother": 48.0,  # 31.7 / 42.3 / 48.5 / 48.4
     # the SE(3) filters agree to millimetres, so their τ do (max |whitened cov − I| ≤ 0.046):
@@ -527,6 +532,7 @@ LIBRARY_RATE = {
     "filterpy-ukf-pendulum": 20.0,
     "filterpy-ekf-range": 10.0,
     "stonesoup-ekf-radar": 1.0,
+    "stonesoup-ukf-radar": 1.0,
     "pf-1d": 1.0,
     "gtsam-pose2-smoother": 10.0,
     **{f: 100.0 for f in ("se3-ekf", "se3-iekf", "se3-ukf")},
@@ -536,6 +542,7 @@ BURN_IN = {
     "filterpy-ukf-pendulum": 200,
     "filterpy-ekf-range": 200,
     "stonesoup-ekf-radar": 50,
+    "stonesoup-ukf-radar": 50,
     "pf-1d": 20,
     "gtsam-pose2-smoother": 0,
     **{f: 100 for f in ("se3-ekf", "se3-iekf", "se3-ukf")},  # 1 s: ten updates
@@ -630,13 +637,16 @@ def _run_ekf_range(steps: int, rng: np.random.Generator):
     return err, cov
 
 
-def _run_stonesoup_radar(steps: int, rng: np.random.Generator):
-    """Stone Soup KalmanPredictor + ExtendedKalmanUpdater with CartesianToBearingRange
+def _run_stonesoup_radar(steps: int, rng: np.random.Generator, filt: str = "ekf"):
+    """Stone Soup KalmanPredictor + ExtendedKalmanUpdater (``filt`` "ekf") or
+    UnscentedKalmanPredictor + UnscentedKalmanUpdater with their default sigma points
+    (``filt`` "ukf") with CartesianToBearingRange
     (σ_bearing = 0.01 rad, σ_range = 5 m) of a radar at the origin, on a nearly constant
     velocity target (q = 0.05 m²/s³ per axis) starting 10 km away at 10 m/s across the line
-    of sight, 1 Hz. The updater symmetrises its covariance and uses the Joseph form (with
-    the defaults P loses symmetry by ~2% over 2000 updates and stops being positive
-    definite). Bearings are Stone Soup ``Bearing``s (wrapped). Errors: position (d = 2)."""
+    of sight, 1 Hz. The updater symmetrises its covariance, and the EKF's uses the Joseph
+    form (with the defaults P loses symmetry by ~2% over 2000 updates and stops being
+    positive definite; the UKF's has no measurement matrix for it). Bearings are Stone Soup ``Bearing``s (wrapped). Errors: position (d = 2).
+    Both filters see the same truth and measurements for the same ``rng``."""
     import datetime as dt_
 
     from stonesoup.models.measurement.nonlinear import CartesianToBearingRange
@@ -644,20 +654,24 @@ def _run_stonesoup_radar(steps: int, rng: np.random.Generator):
         CombinedLinearGaussianTransitionModel,
         ConstantVelocity,
     )
-    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.predictor.kalman import KalmanPredictor, UnscentedKalmanPredictor
     from stonesoup.types.angle import Bearing
     from stonesoup.types.array import StateVector
     from stonesoup.types.detection import Detection
     from stonesoup.types.hypothesis import SingleHypothesis
     from stonesoup.types.state import GaussianState
-    from stonesoup.updater.kalman import ExtendedKalmanUpdater
+    from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
 
     q = 0.05
     transition = CombinedLinearGaussianTransitionModel([ConstantVelocity(q), ConstantVelocity(q)])
     r = np.diag([0.01**2, 5.0**2])
     meas = CartesianToBearingRange(ndim_state=4, mapping=(0, 2), noise_covar=r)
-    predictor = KalmanPredictor(transition)
-    updater = ExtendedKalmanUpdater(meas, force_symmetric_covariance=True, use_joseph_cov=True)
+    if filt == "ekf":
+        predictor = KalmanPredictor(transition)
+        updater = ExtendedKalmanUpdater(meas, force_symmetric_covariance=True, use_joseph_cov=True)
+    else:
+        predictor = UnscentedKalmanPredictor(transition)
+        updater = UnscentedKalmanUpdater(meas, force_symmetric_covariance=True)
     f, qm, *_ = _cv_model(1.0, q=q)
     chol_q = np.linalg.cholesky(qm)
     p0 = np.diag([100.0, 25.0, 100.0, 25.0])
@@ -802,6 +816,7 @@ LIBRARY_RUNS = {
     "filterpy-ukf-pendulum": _run_ukf_pendulum,
     "filterpy-ekf-range": _run_ekf_range,
     "stonesoup-ekf-radar": _run_stonesoup_radar,
+    "stonesoup-ukf-radar": functools.partial(_run_stonesoup_radar, filt="ukf"),
     "pf-1d": _run_pf_1d,
     "gtsam-pose2-smoother": _run_gtsam_pose2,
     **{f"se3-{f}": functools.partial(_run_se3, filt=f, navlie=False) for f in se3_filters.FILTERS},

@@ -40,9 +40,9 @@ Conventions
   recursion's fixed point, P_true = A P_true Aᵀ + (I−KH) Q_true (I−KH)ᵀ + K R_true Kᵀ, and
   truth_factor = trace(P_true)/trace(P_claimed) over the reported components (constant over
   epochs at steady state).
-- Library families (filterpy UKF/EKF, Stone Soup EKF and UKF, a bootstrap particle filter, a GTSAM
-  smoother, the SE(3) EKF, invariant EKF and UKF of ``se3_filters.py`` and navlie's) are
-  run as their users run them, right-tuned, after a burn-in; they are only
+- Library families (filterpy UKF/EKF, Stone Soup EKF and UKF, a bootstrap particle
+  filter, a GTSAM smoother, the SE(3) EKF, invariant EKF and UKF of ``se3_filters.py``
+  and navlie's) are run as their users run them, right-tuned, after a burn-in; they are only
   approximately credible, so truth_factor is NaN for "none" and "bias1", and 4 / 0.25
   *relative to the right-tuned filter* for "small4" / "large4" (claimed P rescaled). Their τ
   is a constant measured once by batch means (see ``LIBRARY_TAU``). Runs are cached in the
@@ -645,8 +645,10 @@ def _run_stonesoup_radar(steps: int, rng: np.random.Generator, filt: str = "ekf"
     velocity target (q = 0.05 m²/s³ per axis) starting 10 km away at 10 m/s across the line
     of sight, 1 Hz. The updater symmetrises its covariance, and the EKF's uses the Joseph
     form (with the defaults P loses symmetry by ~2% over 2000 updates and stops being
-    positive definite; the UKF's has no measurement matrix for it). Bearings are Stone Soup ``Bearing``s (wrapped). Errors: position (d = 2).
-    Both filters see the same truth and measurements for the same ``rng``."""
+    positive definite; the UKF's has no measurement matrix for it, and its P stays
+    positive definite: smallest eigenvalue 6.46 m² over 2,000 updates in three runs).
+    Bearings are Stone Soup ``Bearing``s (wrapped). Errors: position (d = 2). Both filters
+    see the same truth and measurements for the same ``rng``."""
     import datetime as dt_
 
     from stonesoup.models.measurement.nonlinear import CartesianToBearingRange

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import kf_variants  # noqa: E402
 import memory as zoo_memory  # noqa: E402
 import zoo  # noqa: E402
 
@@ -38,6 +39,7 @@ CASES = (
     ("arma11", 2000),
     ("slow-white-0.95-0.5", 2000),
     ("kf-cv-10hz", 600),
+    ("kf-cv-10hz-q-x10", 198),
     ("kf-cv-100hz", 2000),
     ("kf-ca-10hz", 2000),
     ("kf-rw-10hz", 300),
@@ -93,6 +95,7 @@ def main() -> None:
     ap.add_argument("--width", type=float, default=4.0)
     ap.add_argument("--kernel", choices=("parzen", "bartlett"), default="parzen")
     args = ap.parse_args()
+    zoo.KF_MODELS.update(kf_variants.VARIANTS)
     print(
         f"# prewhitened kernel correction: {args.kernel}, M = {args.width:g} τ̂_AR, "
         f"{args.reps} segments, seed {args.seed}"

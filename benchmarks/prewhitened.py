@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import cross_terms  # noqa: E402
 import kf_variants  # noqa: E402
 import memory as zoo_memory  # noqa: E402
 import zoo  # noqa: E402
@@ -89,22 +90,12 @@ def correction(x: np.ndarray, width: float, kind: str) -> tuple[float, ...]:
     )
 
 
-def kf_truth(family: str, lags: int = 20_000) -> tuple[float, float]:
+def kf_truth(family: str) -> tuple[float, float]:
     """τ and Σρ² of a Kalman family's whitened error along its direction of largest
-    long-run variance, exactly: R(h) = W C Aʰ P Cᵀ Wᵀ of the error recursion (W the claimed
-    covariance's inverse Cholesky factor)."""
-    kf = zoo._kf(family)
-    w = np.linalg.inv(np.linalg.cholesky(kf.claimed))
-    left, power = w @ kf.C, kf.P_true @ kf.C.T @ w.T
-    cov = []
-    for _ in range(lags):
-        cov.append(left @ power)
-        power = kf.A @ power
-    cov = np.array(cov)
-    long_run = cov[0] + cov[1:].sum(axis=0) + cov[1:].sum(axis=0).T
-    values, vectors = np.linalg.eig(np.linalg.solve(cov[0], long_run))
-    v = np.real(vectors[:, np.argmax(np.real(values))])
-    rho = np.einsum("i,hij,j->h", v, cov, v) / (v @ cov[0] @ v)
+    long-run variance, exactly (:func:`cross_terms.lagged_covariances`, whose directions
+    come in increasing long-run variance)."""
+    r = cross_terms.lagged_covariances(family)
+    rho = r[:, -1, -1] / r[0, -1, -1]
     return float(1.0 + 2.0 * rho[1:].sum()), float(1.0 + 2.0 * np.sum(rho[1:] ** 2))
 
 

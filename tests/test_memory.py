@@ -313,11 +313,16 @@ def test_a_pickled_model_leaves_its_answers_behind_and_answers_the_same():
     assert sent.series[0].centred_square_moments(50) == before[1]
 
 
-def test_the_scale_tests_model_dof_pools_the_directions_fits():
+def test_the_scale_tests_model_dof_pools_the_directions_fits(monkeypatch):
     """Each direction's τ₂ is fitted apart, so the model's ν for V = Σ V_i is Satterthwaite's
     (Σ V_i)²/Σ(V_i²/ν_i): twice ν for two equal directions of ν each, four times ν when the
-    other direction is known (ν = ∞); it was the least certain direction's ν."""
+    other direction is known (ν = ∞); it was the least certain direction's ν. (The
+    directions' cross-lag term, estimated from these independent errors, is set aside:
+    its own test is below.)"""
+    from credcli.engine import scale
     from credcli.engine.scale import gls_residuals, memory_scale_test
+
+    monkeypatch.setattr(scale, "cross_lag_variance", lambda residuals, memory: (0.0, 0.0))
 
     rng = np.random.default_rng(31)
     u = rng.standard_normal((2_000, 2))
@@ -330,11 +335,15 @@ def test_the_scale_tests_model_dof_pools_the_directions_fits():
         assert test.model_dof == pytest.approx(expected, rel=1e-12)
 
 
-def test_directions_that_share_one_model_share_its_error():
+def test_directions_that_share_one_model_share_its_error(monkeypatch):
     """Two directions holding one model (the same object, :func:`memory._common_model`)
     have one estimation error, not two independent ones: the scale test's model ν is that
-    model's ν, where two equal but separately fitted models give 2ν."""
+    model's ν, where two equal but separately fitted models give 2ν (the cross-lag term
+    set aside, as above)."""
+    from credcli.engine import scale
     from credcli.engine.scale import gls_residuals, memory_scale_test
+
+    monkeypatch.setattr(scale, "cross_lag_variance", lambda residuals, memory: (0.0, 0.0))
 
     rng = np.random.default_rng(31)
     u = rng.standard_normal((2_000, 2))
@@ -549,3 +558,25 @@ def test_mean_free_is_exact_whatever_the_units_of_the_inverse(k):
     coef = np.linalg.lstsq(design, s.reshape(-1), rcond=None)[0]
     expected = s.reshape(-1) - design @ coef
     np.testing.assert_allclose(out.reshape(-1), expected, rtol=0, atol=1e-12)
+
+
+def test_the_scale_variance_holds_the_directions_lagged_cross_covariances():
+    """x₁ = z_t and x₂ = (z_{t−1} + w_t)/√2 (z, w white): each is white or MA(1) and they are
+    uncorrelated at lag 0, but c₁₂(1) = 1/√2. In the principal directions (x₁ ± x₂)/√2,
+    R̃_12(±1)² + R̃_21(±1)² = 1/4 at each of the two lags, so
+    Σ_{i≠j} Cov(T_i, T_j) = 2 Σ_h (N − |h|) Σ_{i≠j} R̃_ij(h)² = N − 1, against N·2.5 per
+    direction (ρ̃_i(1)² = 1/8): a fifth of the sum of squares' variance, which the
+    directions' own models leave out. Independent x₂ = w_t: nothing is added."""
+    from credcli.engine.scale import cross_lag_variance, gls_residuals
+
+    n = 20_000
+    rng = np.random.default_rng(0)
+    z, w = rng.standard_normal(n + 1), rng.standard_normal(n)
+    for x2, expected in (((z[:-1] + w) / math.sqrt(2.0), n - 1.0), (w, 0.0)):
+        u = np.column_stack([z[1:], x2])
+        residuals = gls_residuals(u, np.broadcast_to(np.eye(2), (n, 2, 2)))
+        model = mem.fit_memory(residuals.whitened, residuals.q)
+        cross, spread = cross_lag_variance(residuals, model)
+        standard_error = math.sqrt(2.0 * spread)
+        assert abs(cross - expected) <= 3.0 * standard_error + 1e-9
+        assert standard_error <= 0.03 * n

@@ -763,6 +763,93 @@ def memory_tail_factor(residuals: GlsResiduals, memory) -> float:
     return tail_factor(standardized(residuals.whitened), memory_ratio=quartic_ratio(memory, n))
 
 
+CROSS_REACH = 3.0
+"""Lags over which :func:`cross_lag_variance` sums the directions' cross-covariances, in
+units of the directions' largest τ̂: on the zoo's CA Kalman filters (position and
+velocity, whose lagged cross-covariances are 26 % of the sum of squares' variance) 3τ
+holds 99.7–99.9 % of Σ_h c_ij(h)², 2τ 97 % (``benchmarks/cross_terms.py``)."""
+
+
+CROSS_EPOCHS = 1 << 18
+"""Most epochs on which :func:`cross_lag_variance` reads the cross-correlations (the first
+of a longer segment, as the sieve is fitted on its first ``memory.SIEVE_EPOCHS``): one
+FFT of a 2,000,000-epoch segment's directions costs about 0.9 s; of 2^18, 0.1 s."""
+CROSS_SIGNIFICANCE = 2.0
+"""Standard errors (under independent directions) by which the cross-lag term must exceed 0
+to enter the scale test, as the centred NEES's own variance must exceed the directions'
+(:func:`memory_scale_test`): below it the term is noise, whose variance would only take
+degrees of freedom from the test (between slow or long-memory directions the sample
+cross-correlations are large and noisy)."""
+
+
+def cross_lag_variance(residuals: GlsResiduals, memory) -> tuple[float, float]:
+    r"""What the principal directions' lagged cross-covariances add to the variance of the
+    centred sum of squares, which the directions' own models treat as independent.
+
+    For Gaussian errors Cov(T_i, T_j) = 2 Σ_{s,t} c_ij(t − s)², T_i the direction's sum of
+    squares and c_ij its cross-covariance with direction j (Isserlis). The directions
+    diagonalise the lag-0 and the long-run covariance, not every lag: position and
+    velocity errors stay correlated across lags (``benchmarks/cross_terms.py``). The sum
+    is estimated from the residuals' sample cross-correlations r̂_ij(h) on the first
+    m = min(N, :data:`CROSS_EPOCHS`) epochs over |h| <= H = :data:`CROSS_REACH`·max τ̂_i (at
+    most m/4), each less its expectation where the directions are independent,
+    E r̂_ij(h)² = Σ_k ρ_i(k)ρ_j(k)/m (Bartlett 1946), with the directions' fitted ρ. The
+    total counts only where it exceeds :data:`CROSS_SIGNIFICANCE` of its standard errors
+    under independent directions; then its own error enters the scale test's model degrees
+    of freedom beside the directions' models': Var r̂_ij(h)² is about
+    2b²/m² + 4c_ij(h)²b/m with b = Σ_k ρ_i(k)ρ_j(k), the lags taken as independent.
+
+    Parameters
+    ----------
+    residuals : GlsResiduals
+        The GLS residuals.
+    memory : Memory
+        The dependence model: its directions and their autocorrelations.
+
+    Returns
+    -------
+    cross, spread : tuple of float
+        Σ_{i≠j} Cov(T_i, T_j) in the units of
+        :meth:`credcli.engine.memory.SeriesMemory.centred_square_moments` (unit-variance
+        directions), and half its estimate's variance (the form of the scale test's
+        ``spread``); (0, 0) where it is not significant, for d = 1 or fewer than 16 epochs.
+
+    References
+    ----------
+    M. S. Bartlett, "On the theoretical specification and sampling properties of
+    autocorrelated time-series", J. R. Stat. Soc. Suppl. 8(1), 1946.
+    """
+    n, d = residuals.whitened.shape
+    if d < 2 or n < 16:
+        return 0.0, 0.0
+    m = min(n, CROSS_EPOCHS)  # the correlations are read on the first m epochs
+    x = residuals.whitened[:m] @ memory.directions
+    x = x - x.mean(axis=0)
+    scale = np.sqrt(np.mean(x * x, axis=0))
+    if not np.all(scale > 0):
+        return 0.0, 0.0
+    x = x / scale
+    reach = max(float(np.max(memory.variance_ratios)), 1.0)
+    lags = int(min(math.ceil(CROSS_REACH * reach), m // 4))
+    size = 1 << (2 * m - 1).bit_length()
+    spectra = np.fft.rfft(x, size, axis=0)
+    counts = n - np.abs(np.arange(-lags, lags + 1))
+    rhos = [series.window(m) for series in memory.series]
+    total = independent = signal = 0.0
+    for i in range(d):
+        for j in range(i + 1, d):
+            cross = np.fft.irfft(spectra[:, i] * spectra[:, j].conj(), size) / m
+            r = np.concatenate([cross[size - lags :], cross[: lags + 1]])  # lags −H … H
+            null = 1.0 + 2.0 * float(np.dot(rhos[i][1:], rhos[j][1:]))
+            excess = r * r - null / m
+            total += 4.0 * float(np.sum(counts * excess))
+            independent += 32.0 * null**2 * float(np.sum(counts**2)) / m**2
+            signal += 64.0 * null * float(np.sum(counts**2 * np.maximum(excess, 0.0))) / m
+    if not total > CROSS_SIGNIFICANCE * math.sqrt(independent):
+        return 0.0, 0.0
+    return total, (independent + signal) / 2.0
+
+
 def memory_scale_test(
     residuals: GlsResiduals, memory, level: float, tail: float | None = None
 ) -> ScaleTest:
@@ -819,6 +906,10 @@ def memory_scale_test(
         # ν 0: a refit of the bootstrap had no finite τ₂, so nothing bounds the reference
         spread += v * v / model.square_dof if model.square_dof > 0 else math.inf
     kappa = total / expected
+    # the directions' lagged cross-covariances, which their models leave out
+    cross, cross_spread = cross_lag_variance(residuals, memory)
+    gaussian += cross
+    spread += cross_spread
     gaussian *= memory_tail_factor(residuals, memory) if tail is None else tail
     # ν of V = Σ V_i from each model's ν (Satterthwaite)
     dof_model = gaussian * gaussian / spread if spread > 0 else math.inf

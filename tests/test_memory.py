@@ -333,6 +333,9 @@ def test_the_scale_tests_model_dof_pools_the_directions_fits(monkeypatch):
         model = mem.Memory(np.eye(2), series, white, 2_000)
         test = memory_scale_test(residuals, model, 0.05)
         assert test.model_dof == pytest.approx(expected, rel=1e-12)
+        # a tail factor scales V and its error alike: ν stays (it was multiplied by f²)
+        heavy = memory_scale_test(residuals, model, 0.05, tail=2.0)
+        assert heavy.model_dof == pytest.approx(expected, rel=1e-12)
 
 
 def test_directions_that_share_one_model_share_its_error(monkeypatch):

@@ -910,9 +910,10 @@ def memory_scale_test(
     cross, cross_spread = cross_lag_variance(residuals, memory)
     gaussian += cross
     spread += cross_spread
-    gaussian *= memory_tail_factor(residuals, memory) if tail is None else tail
-    # ν of V = Σ V_i from each model's ν (Satterthwaite)
+    # ν of V = Σ V_i from each model's ν (Satterthwaite); the tail factor scales V and its
+    # error alike, so it leaves ν as it is
     dof_model = gaussian * gaussian / spread if spread > 0 else math.inf
+    gaussian *= memory_tail_factor(residuals, memory) if tail is None else tail
     variance = gaussian
     if kappa > 0:
         q_mean = total / n

@@ -568,8 +568,8 @@ def test_the_scale_variance_holds_the_directions_lagged_cross_covariances():
     uncorrelated at lag 0, but c₁₂(1) = 1/√2. In the principal directions (x₁ ± x₂)/√2,
     R̃_12(±1)² + R̃_21(±1)² = 1/4 at each of the two lags, so
     Σ_{i≠j} Cov(T_i, T_j) = 2 Σ_h (N − |h|) Σ_{i≠j} R̃_ij(h)² = N − 1, against N·2.5 per
-    direction (ρ̃_i(1)² = 1/8): a fifth of the sum of squares' variance, which the
-    directions' own models leave out. Independent x₂ = w_t: nothing is added."""
+    direction (ρ̃_i(1)² = 1/8): a fifth more than the directions' own variances, which
+    their models alone leave out. Independent x₂ = w_t: nothing is added."""
     from credcli.engine.scale import cross_lag_variance, gls_residuals
 
     n = 20_000

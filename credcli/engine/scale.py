@@ -829,23 +829,44 @@ def cross_lag_variance(residuals: GlsResiduals, memory) -> tuple[float, float]:
     x = x / scale
     reach = max(float(np.max(memory.variance_ratios)), 1.0)
     lags = int(min(math.ceil(CROSS_REACH * reach), m // 4))
-    size = 1 << (2 * m - 1).bit_length()
-    spectra = np.fft.rfft(x, size, axis=0)
-    counts = n - np.abs(np.arange(-lags, lags + 1))
-    rhos = [series.window(m) for series in memory.series]
-    total = independent = signal = 0.0
-    for i in range(d):
-        for j in range(i + 1, d):
-            cross = np.fft.irfft(spectra[:, i] * spectra[:, j].conj(), size) / m
-            r = np.concatenate([cross[size - lags :], cross[: lags + 1]])  # lags −H … H
-            null = 1.0 + 2.0 * float(np.dot(rhos[i][1:], rhos[j][1:]))
-            excess = r * r - null / m
-            total += 4.0 * float(np.sum(counts * excess))
-            independent += 32.0 * null**2 * float(np.sum(counts**2)) / m**2
-            signal += 64.0 * null * float(np.sum(counts**2 * np.maximum(excess, 0.0))) / m
+    r = _lagged_correlations(x, lags)  # r[h]_ij = r̂_ij(h), h = 0 … H
+    counts = (n - np.arange(lags + 1)).astype(float)
+    windows = np.array([series.window(m)[1:] for series in memory.series])
+    null = (1.0 + 2.0 * windows @ windows.T) / m  # E r̂_ij(h)², independent directions
+    excess = r * r - null
+    # lag h > 0 of the pair (i, j) is r[h]_ij, lag −h is r[h]_ji; lag 0 once
+    folded = excess + np.swapaxes(excess, 1, 2)
+    folded[0] = excess[0]
+    squared = counts**2
+    positive = np.maximum(excess, 0.0)
+    positive = positive + np.swapaxes(positive, 1, 2)
+    positive[0] = np.maximum(excess[0], 0.0)
+    pairs = np.triu_indices(d, 1)
+    total = 4.0 * float(np.einsum("h,hij->ij", counts, folded)[pairs].sum())
+    # Var r̂² ≈ 2b²/m² + 4c²b/m per lag, b = m·null: over both signs of every lag
+    independent = 32.0 * float(np.sum(null[pairs] ** 2)) * float(squared[0] + 2 * squared[1:].sum())
+    signal = 64.0 * float(np.sum(null[pairs] * np.einsum("h,hij->ij", squared, positive)[pairs]))
     if not total > CROSS_SIGNIFICANCE * math.sqrt(independent):
         return 0.0, 0.0
     return total, (independent + signal) / 2.0
+
+
+def _lagged_correlations(x: np.ndarray, lags: int) -> np.ndarray:
+    """r[h] = x[:m − h]ᵀ x[h:]/m for h = 0 … ``lags`` (x: m × d, centred, unit variance):
+    by products of the lagged series where there are few lags, by FFT where there are many
+    (cost (H + 1)·m·d² against about d²·2m·log₂(2m))."""
+    m, d = x.shape
+    size = 1 << (2 * m - 1).bit_length()
+    out = np.empty((lags + 1, d, d))
+    if lags + 1 <= 2 * size.bit_length():
+        for h in range(lags + 1):
+            out[h] = x[: m - h].T @ x[h:]
+        return out / m
+    spectra = np.fft.rfft(x, size, axis=0)
+    for i in range(d):  # a row of pairs at a time: (size, d), not (size, d, d)
+        row = np.fft.irfft(spectra[:, i, None].conj() * spectra, size, axis=0)
+        out[:, i, :] = row[: lags + 1]
+    return out / m
 
 
 def memory_scale_test(

@@ -159,6 +159,13 @@ class GlsResiduals:
         estimates of a segment all read it)."""
         return np.einsum("ni,ni->n", self.whitened, self.whitened)
 
+    @functools.cached_property
+    def tail_quantiles(self) -> np.ndarray:
+        """The quantiles at ``_TAIL_PROBS`` of the :func:`standardized` residuals' pooled
+        components, computed once (the overall, per-direction and model scale tests all
+        read their tails, :func:`tail_factor`)."""
+        return tail_quantiles(standardized(self.whitened))
+
     @property
     def bias_mahalanobis(self) -> float:
         """‖μ̂‖ in the metric of the mean claimed precision, Σ W_k / N: the bias in σ."""
@@ -229,7 +236,29 @@ errors (one-sided 10 %); below that the tails are taken as normal. The value tra
 alarms on heavy tails against accuracy on Gaussian errors (measured in docs/measured.md)."""
 
 
-def tail_factor(u: np.ndarray, gate: float = TAIL_GATE, memory_ratio: float = 1.0) -> float:
+def tail_quantiles(u: np.ndarray) -> np.ndarray:
+    """The quantiles at ``_TAIL_PROBS`` (2.5, 25, 75 and 97.5 %) of the pooled components
+    of ``u``: what :func:`tail_factor` reads.
+
+    Parameters
+    ----------
+    u : numpy.ndarray, shape (N, d)
+        The standardized residuals (:func:`standardized`).
+
+    Returns
+    -------
+    numpy.ndarray, shape (4,)
+        The four quantiles, increasing.
+    """
+    return np.quantile(u.ravel(), _TAIL_PROBS)
+
+
+def tail_factor(
+    u: np.ndarray,
+    gate: float = TAIL_GATE,
+    memory_ratio: float = 1.0,
+    quantiles: np.ndarray | None = None,
+) -> float:
     """Variance factor of q_k = ‖u_k‖² implied by the tails of the whitened residuals u (N, d).
 
     The ratio R = (Q.975 − Q.025)/(Q.75 − Q.25) of the pooled components is 2.906 for the
@@ -253,6 +282,9 @@ def tail_factor(u: np.ndarray, gate: float = TAIL_GATE, memory_ratio: float = 1.
         with Σρ⁴, not with τ = Σρ or Σρ² (measured: 0.53–0.66 × (1 + 2Σ_{h>0} ρ(h)⁴) for
         AR(1) φ 0.5–0.97 and AR(2) with complex or double roots). Ignoring it, the gate
         opened on 14–20 % of Gaussian AR(2) windows (roots 0.95∠±0.3), not 10 %.
+    quantiles : numpy.ndarray, optional
+        :func:`tail_quantiles` of ``u``, where the caller has them already (the same
+        numbers: ``GlsResiduals.tail_quantiles``).
 
     Returns
     -------
@@ -262,7 +294,7 @@ def tail_factor(u: np.ndarray, gate: float = TAIL_GATE, memory_ratio: float = 1.
     """
     n, d = u.shape
     m = u.size
-    q = np.quantile(u.ravel(), _TAIL_PROBS)
+    q = tail_quantiles(u) if quantiles is None else quantiles
     inner = q[2] - q[1]
     if not inner > 0:
         return 1.0
@@ -384,7 +416,7 @@ def scale_test(
         else:
             omega = float(correlation.long_run_variance(q / q_mean)[0])
         factor = max(1.0, nu0 * omega / (2.0 * n))
-        factor = max(factor, tail_factor(standardized(residuals.whitened)))
+        factor = max(factor, tail_factor(residuals.whitened, quantiles=residuals.tail_quantiles))
         inflation = float(tau.max())
     nu0 = max(nu0, 1.0)
     dof = nu0 / factor
@@ -682,7 +714,7 @@ def direction_scales(
             r = batch_scale(w2[:, i], 1, batches, each)
             low[i], high[i] = r.scale_factor_low, r.scale_factor_high
     else:
-        f = tail_factor(standardized(u))
+        f = tail_factor(u, quantiles=residuals.tail_quantiles)
         for i in range(d):
             low[i], high[i] = chi2_interval(values[i] * (n - 1) / f, (n - 1) / f, each)
     return DirectionScales(vectors, values, low, high, sphericity_pvalue(residuals, batches))
@@ -759,8 +791,9 @@ def memory_tail_factor(residuals: GlsResiduals, memory) -> float:
     float
         f >= 1.
     """
-    n = residuals.whitened.shape[0]
-    return tail_factor(standardized(residuals.whitened), memory_ratio=quartic_ratio(memory, n))
+    u = residuals.whitened
+    ratio = quartic_ratio(memory, u.shape[0])
+    return tail_factor(u, memory_ratio=ratio, quantiles=residuals.tail_quantiles)
 
 
 CROSS_REACH = 3.0

@@ -271,12 +271,15 @@ def _diagnose_here(request: DiagnoseRequest, progress, keep: bool):
         raise
     logs = {log.id: log_summary(log, segments) for log, segments in plans}
     runs, mc, diagnosed = 1, None, plans
+    # a segment that is a whole log takes the accuracy its summary has (not for pooled runs)
+    accuracies = {i: summary.accuracy for i, summary in logs.items()}
     if monte_carlo:
         diagnosed, mc = monte_carlo_plan(loaded, plans, config.alpha)
-        runs = len(loaded)
+        runs, accuracies = len(loaded), None
     diagnose = diagnose_plans if keep else diagnosed_parts
+    innovations = reading.options.innovations
     results = diagnose(
-        diagnosed, config, request.seed, jobs, progress, pool, reading.options.innovations, runs
+        diagnosed, config, request.seed, jobs, progress, pool, innovations, runs, accuracies
     )
     return results, logs, plans, mc
 

@@ -766,3 +766,31 @@ def test_closed_form_inverse_square_root_of_near_singular_covariances_is_finite(
     positive = np.linalg.eigvalsh(cov)[:, 0] > 0
     w = inverse_sqrt_2x2(cov[positive])
     assert positive.sum() > 19_000 and np.isfinite(w).all()
+
+
+def test_a_segment_that_is_the_whole_log_takes_the_summary_accuracy():
+    """The accuracy of a whole log is made once, for its summary, and its one segment
+    reports those figures; segments that are parts of a log compute their own."""
+    from credcli import log_from_arrays
+    from credcli.engine import metrics
+    from credcli.schedule.plans import diagnose_plans
+    from credcli.segments import log_summary, split
+
+    e = np.random.default_rng(4).standard_normal((300, 2)) * [1.0, 3.0]
+    whole = log_from_arrays(errors=e, cov=np.eye(2))
+    parts = log_from_arrays(errors=e, cov=np.eye(2), segment=np.repeat(["a", "b"], 150))
+    config = DiagnosisConfig()
+    for log, count in ((whole, 1), (parts, 2)):
+        plan = split(log)
+        summary = log_summary(log, plan)
+        assert len(plan) == count and summary.accuracy.max_norm > 0
+        marked = replace(summary.accuracy, max_norm=-1.0)  # no error has this figure
+        results = diagnose_plans([(log, plan)], config, seed=1, accuracies={log.id: marked})
+        found = [r.diagnosis.accuracy for r in results]
+        if count == 1:
+            assert found == [marked]
+        else:
+            own = [metrics.accuracy(e[:150]), metrics.accuracy(e[150:])]
+            for got, want in zip(found, own, strict=True):
+                assert got.max_norm == want.max_norm > 0
+                np.testing.assert_array_equal(got.median, want.median)

@@ -276,10 +276,13 @@ def diagnose_errors(
     return _diagnose_checked(errors, cov, config, rng, mse, runs, memory)
 
 
-def _diagnose_checked(errors, cov, config, rng, mse=None, runs=1, memory=None) -> Diagnosis:
+def _diagnose_checked(
+    errors, cov, config, rng, mse=None, runs=1, memory=None, accuracy=None
+) -> Diagnosis:
     """:func:`diagnose_errors` on errors and covariances already validated (once: the
-    check is a pass over every covariance)."""
-    return _diagnose_variants(errors, cov, [config], as_generator(rng), mse, runs, memory)[0]
+    check is a pass over every covariance); ``accuracy``: the errors' own, where known."""
+    gen = as_generator(rng)
+    return _diagnose_variants(errors, cov, [config], gen, mse, runs, memory, accuracy)[0]
 
 
 def _cholesky(cov: np.ndarray) -> np.ndarray:
@@ -355,26 +358,30 @@ def _variant_configs(config: DiagnosisConfig, variants: tuple[Variant, ...]):
     return tuple(replace(config, variant=v) for v in variants)
 
 
-def _diagnose_variants(errors, cov, configs, gen, mse, runs=1, memory=None) -> list[Diagnosis]:
+def _diagnose_variants(
+    errors, cov, configs, gen, mse, runs=1, memory=None, accuracy=None
+) -> list[Diagnosis]:
     """Validate, gather the evidence once (:func:`credcli.engine.evidence.gather`), then
-    decide by each configuration's rule (:func:`credcli.engine.rules.decide`). The
-    Cholesky factors are made here, so that nothing else holds them once they are freed."""
+    decide by each configuration's rule (:func:`credcli.engine.rules.decide`); the errors'
+    accuracy is ``accuracy`` where the caller knows it (the whole log's). The
+    Cholesky factors are made as gather's argument, so that gather holds the only reference
+    and frees them once it no longer needs them (N × d × d values)."""
     n, d = errors.shape
-    chol = _cholesky(cov)
     if n < min(c.min_n(d) for c in configs):
+        _cholesky(cov)  # a covariance that is not positive definite is named all the same
         found = [_too_short(n, d, c) for c in configs]
     else:
         try:
-            gathered = evidence.gather(errors, cov, chol, configs, gen, mse, runs, memory)
+            gathered = evidence.gather(errors, cov, _cholesky(cov), configs, gen, mse, runs, memory)
         except evidence.Undecidable as exc:
             gathered = None
             found = [
                 Diagnosis(Label.INSUFFICIENT, n, d, reason=exc.reason, config=c) for c in configs
             ]
-        del chol
         if gathered is not None:
             found = [_diagnosis(ev, config) for ev, config in zip(gathered, configs)]
-    accuracy = metrics.accuracy(errors) if n else None
+    if accuracy is None and n:
+        accuracy = metrics.accuracy(errors)
     return [replace(found_one, accuracy=accuracy) for found_one in found]
 
 
@@ -901,6 +908,7 @@ def diagnose_segment(
     declined: str | None = None,
     velocity: np.ndarray | None = None,
     fitted_mean: str | None = None,
+    accuracy: metrics.Accuracy | None = None,
 ) -> Diagnosis:
     """Diagnose one named segment of a log, its sign flips from :func:`segment_seed`.
 
@@ -938,6 +946,9 @@ def diagnose_segment(
     fitted_mean : str, optional
         Why the errors' mean is no evidence (an alignment fitted it), which leaves the
         location question open (:func:`without_location`).
+    accuracy : Accuracy, optional
+        The accuracy of ``errors``, where it is known already (the whole log's, made for
+        its summary); None: computed here.
 
     Returns
     -------
@@ -956,7 +967,7 @@ def diagnose_segment(
         if n < config.min_n(d):  # checked as diagnose_errors checks, without a random stream
             return too_short_batch(errors, cov, np.array([n]), config)[0]
         diag = _diagnose_checked(
-            errors, cov, config, segment_seed(seed, name), runs=runs, memory=memory
+            errors, cov, config, segment_seed(seed, name), None, runs, memory, accuracy
         )
         if blocks and config.calibrated:
             diag = replace(diag, blocks=block_scales(errors, cov, blocks, config, runs))

@@ -237,6 +237,8 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     del centred, centred_eps
     modelled = [c for c in configs if reads_memory(c, runs)]
     gls = gls_residuals(errors, chol, inverse if chol.ndim == 3 else None)
+    if not probes_possible:  # the factors' last use without the probes
+        del chol
     s = whiten(errors, cov)
     r1 = correlation.autocorrelation(s)
     if len(modelled) < len(configs):  # the lag-1 screening of paper, ks and fixed blocks
@@ -281,8 +283,6 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         slow = _unresolved_memory(memory, n)
     if slow is not None:
         model_evidence = {c: _declined(ev, slow) for c, ev in model_evidence.items()}
-    if not probes_possible:
-        del chol
     # every scale and mean test now, so the GLS residuals can be freed
     scales: dict = {}
     means: dict = {}

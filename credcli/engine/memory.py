@@ -1071,12 +1071,17 @@ def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     x = x - x.mean(axis=1, keepdims=True)
     t = x.shape[1]
     band = max(1, min(t - 1, math.ceil(math.sqrt(t))))
-    # the Bartlett estimate with bandwidth H is, up to the ends, the covariance of sums of
-    # H + 1 consecutive epochs over H + 1: one cumulative sum, no loop over lags
-    c = np.concatenate([np.zeros((runs, 1, d)), np.cumsum(x, axis=1)], axis=1)
-    sums = c[:, band + 1 :] - c[:, : -band - 1]
-    omega = np.einsum("mti,mtj->ij", sums, sums) / (band + 1)
     gamma = np.einsum("mti,mtj->ij", x, x)
+    # the Bartlett estimate with bandwidth H is, up to the ends, the covariance of sums of
+    # H + 1 consecutive epochs over H + 1: one cumulative sum C (in place of x), no loop
+    # over lags; the sums are C_{k+H} − C_{k−1}, C_{−1} = 0 (two copies of N × d, not four)
+    c = np.cumsum(x, axis=1, out=x)
+    sums = np.empty((runs, t - band, d))
+    sums[:, :1] = c[:, band : band + 1]  # (none when T = 1)
+    np.subtract(c[:, band + 1 :], c[:, : t - band - 1], out=sums[:, 1:])
+    del x, c
+    omega = np.einsum("mti,mtj->ij", sums, sums) / (band + 1)
+    del sums
     traces = float(np.trace(gamma)), float(np.trace(omega))
     if not min(traces) > 0:  # no spread to rotate
         return np.eye(d)

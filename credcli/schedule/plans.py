@@ -24,6 +24,7 @@ from credcli.engine.diagnosis import (
     innovation_whiteness,
     run_model,
 )
+from credcli.engine.metrics import Accuracy
 from credcli.engine.short import SegmentResults, ShortSegments, short_segments
 from credcli.engine.timing import truth_velocity
 from credcli.errors import CredcliError
@@ -72,7 +73,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     log_id, items, config, seed, innovations, runs, blocks = task
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
-    for name, t0, t1, e, c, memory, findings, declined, velocity, fitted in items:
+    for name, t0, t1, e, c, memory, findings, declined, velocity, fitted, known in items:
         white = innovation_whiteness(e, c, level) if innovations else None
         # innovations are tested under their white null unless the whiteness test rejects;
         # correlated innovations are then a finding, and the two questions are answered
@@ -96,6 +97,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             declined,
             velocity,
             fitted,
+            known,
         )
         out.append(SegmentDiagnosis(log_id, name, t0, t1, diag, white))
     return out
@@ -112,25 +114,33 @@ def _as_slice(index: np.ndarray):
 
 
 def _item(
-    segment: seg.Segment, log, run=None, velocity=None, errors: np.ndarray | None = None
+    segment: seg.Segment,
+    log,
+    run=None,
+    velocity=None,
+    errors: np.ndarray | None = None,
+    accuracy: Accuracy | None = None,
 ) -> tuple:
     """A segment of ``log`` as a task item: (name, t_start, t_end, errors, covariances, the
     run's dependence model for a window, the run's findings for the run's own segment, why a
     window gets no verdict of its own, the truth's velocity or None, why its mean is no
-    evidence or None), the arrays as views when the segment is contiguous. ``errors``: the
-    log's, when already taken."""
+    evidence or None, its accuracy where it is the whole log's, in order, or None), the
+    arrays as views when the segment is contiguous. ``errors``: the log's, when already
+    taken; ``accuracy``: the whole log's, when already made (for its summary)."""
     errors = log.errors if errors is None else errors
     cov = log.cov
     whole = segment.index.size == log.n
     fitted = log.fitted_mean if whole else None
     index = _as_slice(segment.index)
+    # the log's summary has the accuracy of these very errors (the same rows, in order)
+    known = accuracy if isinstance(index, slice) and index == slice(0, log.n) else None
     window = run is not None and segment.window
     memory = run.memory if window else None
     declined = run.window_reason if window else None
     findings = run.findings if run is not None and not segment.window else ()  # the run's
     item = (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
     moving = None if velocity is None else velocity[index]
-    return (*item, memory, findings, declined, moving, fitted)
+    return (*item, memory, findings, declined, moving, fitted, known)
 
 
 def _run_model(log, segments, config: DiagnosisConfig):
@@ -183,13 +193,22 @@ def _long_indices(segments, config: DiagnosisConfig, short: ShortSegments | None
 
 
 def _chunk_tasks(
-    plans, config: DiagnosisConfig, seed: int, target: int, innovations=False, runs=1, shorts=None
+    plans,
+    config: DiagnosisConfig,
+    seed: int,
+    target: int,
+    innovations=False,
+    runs=1,
+    shorts=None,
+    accuracies=None,
 ):
     """Tasks of consecutive segments of one log, each closing once it holds ``target``
     epochs (one segment per task for target 0); made as they are consumed. ``shorts``: the
-    segments of each plan diagnosed already (:func:`_short_segments`), by plan, left out."""
+    segments of each plan diagnosed already (:func:`_short_segments`), by plan, left out;
+    ``accuracies``: the logs' accuracies made already, by log id."""
     items, size, log_id, blocks = [], 0, None, ()
     shorts = shorts or {}
+    accuracies = accuracies or {}
     for p, (log, segments) in enumerate(plans):
         todo = _long_indices(segments, config, shorts.get(p), log.dim)
         if not todo:
@@ -203,7 +222,7 @@ def _chunk_tasks(
                 yield (log_id, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
             log_id, blocks = log.id, log.blocks
-            items.append(_item(segment, log, model, velocity, errors))
+            items.append(_item(segment, log, model, velocity, errors, accuracies.get(log.id)))
             size += len(segment.index)
     if items:
         yield (log_id, items, config, seed, innovations, runs, blocks)
@@ -289,13 +308,14 @@ def diagnose_plans(
     pool=None,
     innovations: bool = False,
     runs: int = 1,
+    accuracies=None,
 ) -> SegmentResults:
     """Every segment of every (log, segments) plan, in order (:func:`diagnosed_parts`,
     held).
 
     Parameters
     ----------
-    plans, config, seed, jobs, progress, pool, innovations, runs
+    plans, config, seed, jobs, progress, pool, innovations, runs, accuracies
         As :func:`diagnosed_parts` takes them.
 
     Returns
@@ -304,7 +324,11 @@ def diagnose_plans(
         The results, in the plans' order (:class:`credcli.engine.short.SegmentResults`).
     """
     return SegmentResults(
-        tuple(diagnosed_parts(plans, config, seed, jobs, progress, pool, innovations, runs))
+        tuple(
+            diagnosed_parts(
+                plans, config, seed, jobs, progress, pool, innovations, runs, accuracies
+            )
+        )
     )
 
 
@@ -317,6 +341,7 @@ def diagnosed_parts(
     pool=None,
     innovations: bool = False,
     runs: int = 1,
+    accuracies=None,
 ) -> Iterator:
     """Every segment of every (log, segments) plan, in order, each yielded as soon as it
     and those before it are diagnosed: a reader that drops each result holds none. From
@@ -349,6 +374,10 @@ def diagnosed_parts(
         tested under the white null unless that test rejects.
     runs : int, default 1
         The number of pooled Monte Carlo runs each segment holds.
+    accuracies : Mapping of LogId to Accuracy, optional
+        The accuracy of each log's errors where it is made already (for the log's
+        summary): a segment that is the whole log, its rows in order, takes it instead of
+        computing it again.
 
     Yields
     ------
@@ -370,7 +399,7 @@ def diagnosed_parts(
             if short is not None:
                 shorts[p] = short
     done = sum(len(short) for short in shorts.values())
-    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs, shorts)
+    tasks = _chunk_tasks(plans, config, seed, target, innovations, runs, shorts, accuracies)
     warm = functools.partial(_warm_kernels, plans, config, jobs)
     if pool is not None:
         outputs = pool.map(_diagnose_chunk, list(tasks), warm)

@@ -146,6 +146,7 @@ def test_a_fractional_model_never_shortens_memory(monkeypatch):
         return longmemory._Choice(
             np.array([0.05, 0.4]), np.array([0, 0]), [white, white],
             np.array([False, False]), [(0.05, white), (0.4, white)],
+            np.array([False, False]), [],
         )  # fmt: skip
 
     monkeypatch.setattr(longmemory, "_fractional_fits", weak_and_strong)
@@ -362,3 +363,63 @@ def test_a_long_memory_within_two_of_aicc_is_an_alternative(monkeypatch):
     preferred_only = diagnose_errors(errors, cov, rng=36)
     assert preferred_only.memory.alternative is None
     assert preferred_only.label is Label.BIAS
+
+
+def test_an_ar1_under_white_noise_is_short_memory_beside_arma(monkeypatch):
+    """An AR(1) (φ 0.9, 30 % of the variance) under white noise is an ARMA(1, 1) with
+    θ ≈ −0.73, whose nearly cancelling roots the AR sieve needs many lags for, and which
+    fractional noise mimics with one parameter. 200 such series of 300 epochs: with the
+    ARMA(p, 1) competitor a fractional model is taken (BIC) for at most 11 % of them
+    (measured 7.5 %) and the ARMA is a supported alternative for at least 70 % (measured
+    81.5 %); without it the fractional model is taken for at least 12 % (measured 17 %)."""
+    rng = np.random.default_rng(8)
+    n, count, burn = 300, 200, 200
+    z = rng.standard_normal((n + burn, count)) * math.sqrt(1 - 0.81)
+    slow = longmemory.ar_filter(np.array([0.9]), z)[burn:].T
+    x = math.sqrt(0.3) * slow + math.sqrt(0.7) * rng.standard_normal((count, n))
+    x = x - x.mean(axis=1, keepdims=True)
+    choice = longmemory._fractional_fits(x, 12)
+    assert np.mean(choice.fractions > 0) <= 0.11
+    assert np.mean(choice.arma_weak) >= 0.7
+    monkeypatch.setattr(
+        longmemory, "_moving_average_fits", lambda x, p: (np.full(len(x), np.inf), [])
+    )
+    assert np.mean(longmemory._fractional_fits(x, 12).fractions > 0) >= 0.12
+
+
+def test_a_bias_must_hold_under_a_supported_arma_with_more_memory(monkeypatch):
+    """A slow + white segment (AR(1) φ 0.9 with 30 % of the variance, 300 epochs, seed
+    [30, 101]) biased by 1σ in one direction: the second direction's sieve model implies
+    v_N 1.8, the ARMA(1, 1) the data prefer (θ̂ −0.7, within 2 of the best AICc) 10.9,
+    the truth 6.4; the bias the mean test finds under the sieve does not hold under the
+    ARMA, so the location is untested and the reason names it. Without the ARMA
+    competitor the same segment says "bias"."""
+    rng = np.random.default_rng([30, 101])
+    n = 300
+    z = rng.standard_normal((n + 200, 2)) * math.sqrt(1 - 0.81)
+    slow = longmemory.ar_filter(np.array([0.9]), z)[200:]
+    errors = math.sqrt(0.3) * slow + math.sqrt(0.7) * rng.standard_normal((n, 2)) + [1.0, 0.0]
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    found = diagnose_errors(errors, cov, rng=0)
+    assert found.memory.alternative is not None
+    assert found.memory.alternative.series[1].moving == pytest.approx(-0.7)
+    assert found.label is Label.CREDIBLE and Question.LOCATION in found.untested
+    assert "but not under an ARMA one (θ̂ -0.7) with more memory" in found.reason
+    monkeypatch.setattr(
+        longmemory, "_moving_average_fits", lambda x, p: (np.full(len(x), np.inf), [])
+    )
+    assert diagnose_errors(errors, cov, rng=0).label is Label.BIAS
+
+
+@pytest.mark.parametrize(("phi", "theta"), [((), -0.6), ((0.9,), -0.73), ((0.5, -0.3), 0.4)])
+def test_arma_autocorrelation_is_the_ma_representation(phi, theta):
+    """ρ of an ARMA(p, 1) against its ψ weights (the impulse response, 4,000 terms):
+    γ(h) = Σ_j ψ_j ψ_{j+h}."""
+    phi = np.array(phi, dtype=float)
+    impulse = np.zeros(4000)
+    impulse[0], impulse[1] = 1.0, theta
+    psi = longmemory.ar_filter(phi, impulse) if phi.size else impulse
+    gamma = np.array([psi[: psi.size - h] @ psi[h:] for h in range(30)])
+    np.testing.assert_allclose(
+        longmemory.arma_autocorrelation(phi, theta, 30), gamma / gamma[0], atol=1e-12
+    )

@@ -928,9 +928,10 @@ def memory_evidence(
     (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or
     adjacent blocks. The scale is untested when the model has fewer than
     :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
-    :data:`MIN_MEAN_DOF`. Where the model has a long-memory alternative (a fractional model
-    the data support and BIC does not take, :attr:`credcli.engine.memory.Memory.alternative`),
-    a finding must hold under it as well: the scale's and the directions' intervals are the
+    :data:`MIN_MEAN_DOF`. Where the model has an alternative with more memory (a fractional
+    model the data support and BIC does not take, or an ARMA(p, 1) they prefer to the
+    sieve: :attr:`credcli.engine.memory.Memory.alternative`), a finding must hold under it
+    as well: the scale's and the directions' intervals are the
     union of the two models' (:func:`credcli.engine.scale.under_either`), and a bias the
     mean test finds must be found under both (:func:`_held_under_long_memory`).
 
@@ -1003,11 +1004,11 @@ def memory_evidence(
 
 def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
     """``plan``, or the location declined where its mean test finds a bias that the
-    model's long-memory alternative (:attr:`credcli.engine.memory.Memory.alternative`)
+    model's alternative with more memory (:attr:`credcli.engine.memory.Memory.alternative`)
     does not: where the data support a fractional model (its AICc within
-    ``longmemory.SUPPORT`` of the sieve's) and BIC does not take it, one segment cannot
-    tell short memory from long, and a mean off by that much is within what long memory
-    lets a mean wander."""
+    ``longmemory.SUPPORT`` of the sieve's) and BIC does not take it, or an ARMA(p, 1) with
+    more memory than the sieve's, one segment cannot tell the two memories apart, and a
+    mean off by that much is within what the longer memory lets a mean wander."""
     alternative = memory.alternative
     test = plan.mean_test
     if alternative is None or test is None or not test.pvalue < plan.mean_level:
@@ -1015,13 +1016,11 @@ def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) ->
     other, _ = batches.memory_mean_test(gls, alternative, inverse)
     if other.dof[1] >= MIN_MEAN_DOF and other.pvalue < plan.mean_level:
         return plan
-    fraction = max(m.fraction for m in alternative.series)
     reason = (
         f"location untested: the mean test finds a bias (p {test.pvalue:.2g}) under the "
-        f"errors' short-memory model, but not under a long-memory one (d̂ {fraction:.2g}) "
-        f"that fits them almost as well (its AICc within {SUPPORT:g} of theirs, BIC not "
-        "taking it); one segment cannot tell the two apart (a longer segment, or more runs, "
-        "can)"
+        f"errors' short-memory model, but not under {memory.alternative_name} that fits them "
+        f"almost as well (its AICc within {SUPPORT:g} of theirs, BIC not taking it); one "
+        "segment cannot tell the two apart (a longer segment, or more runs, can)"
     )
     return LocationPlan(plan.block, None, plan.mean_level, None, reason, bias_declined=True)
 

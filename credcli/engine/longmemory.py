@@ -18,8 +18,12 @@ by conditional sums of squares (Chung & Baillie 1993; Beran 1995): for d on a gr
 (1 − B)^d truncated at the series' start) and fitted by Burg's recursion, p and d by the
 corrected AIC. Whether the memory is short or long is decided by BIC's charge for d
 (:func:`_fractional_fits`), so short-memory errors keep their AR model (none of 200 white
-series; no SE(3) filter run of ``benchmarks/se3.py``) while 79 of 100 ARFIMA d = 0.3
-series of 2,000 epochs (23 of 100 at 300) take the fractional one. Where it is chosen and
+series; no SE(3) filter run of ``benchmarks/se3.py``) while most ARFIMA d = 0.3 series of
+2,000 epochs take the fractional one. Short memory has a second shape beside the sieve's,
+the ARMA(p, 1) (:func:`_moving_average_fits`): an AR(1) under white noise, the slow + white
+errors of issue 30, is an ARMA(1, 1) whose nearly cancelling roots the sieve needs many
+lags for, and fractional noise mimics it with one parameter; so a fractional model is
+taken only where it also fits better than the best ARMA(p, 1). Where it is chosen and
 implies more memory over the segment than the direction's own model, the direction takes
 it (:func:`with_long_memory`); a direction's memory is never shortened. Where the data
 support the fractional model (its AICc within :data:`SUPPORT` of the sieve's, Burnham &
@@ -62,6 +66,7 @@ from credcli.engine.memory import (
     Memory,
     NoFiniteMemory,
     SeriesMemory,
+    ar_filter,
     autocovariance_of_ar,
     burg,
     corrected_memory,
@@ -88,6 +93,14 @@ substantial support (Burnham & Anderson 2002, Sec. 2.6). With the margin 0 (AICc
 it) 27 and 23 % of the zoo's credible ARFIMA d = 0.3 segments of 50 and 300 epochs were
 false alarms (seed 20240); with the margin 2, 13 and 13 %, at a cost of 5 of 490 detections
 of a 1σ bias at N/τ >= 30 on each of two seeds (docs/measured.md)."""
+
+
+MOVING_AVERAGES = np.array([-0.9, -0.8, -0.7, -0.6, -0.45, -0.3, -0.15, 0.15, 0.3, 0.45])
+"""The grid of θ of the short-memory ARMA(p, 1) candidate that a fractional model has to
+beat (:func:`_moving_average_fits`): an AR(1) plus white noise, the slow + white mixture of
+issue 30, is an ARMA(1, 1) whose θ is negative (−0.73 for φ 0.9 with 70 % white), and its
+near-cancelling roots are what an AR sieve needs many lags for and fractional noise
+mimics with one parameter."""
 
 
 def fractional_difference(x: np.ndarray, d: float) -> np.ndarray:
@@ -182,12 +195,88 @@ def arfima_autocorrelation(phi: np.ndarray, d: float, lags: int) -> np.ndarray:
     return gamma / gamma[0]
 
 
+def _moving_average_fits(x: np.ndarray, p_max: int) -> tuple[np.ndarray, list]:
+    """Each series' best ARMA(p, 1) model, θ on the grid :data:`MOVING_AVERAGES` and
+    p = 0 … ``p_max``, fitted as the fractional candidates are: the series is filtered by
+    (1 + θB)⁻¹ from a zero state (conditional sums of squares) and fitted by Burg's
+    recursion, θ charged as one more parameter.
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (k, T)
+        Centred series.
+    p_max : int
+        The largest AR order.
+
+    Returns
+    -------
+    costs : numpy.ndarray, shape (k,)
+        The least AICc of each series over θ and p.
+    models : list of (float, numpy.ndarray)
+        (θ, φ) of each series' model of least AICc.
+    """
+    k, t = x.shape
+    # (1 + θB)u = x is u_t = x_t − θ u_{t−1}: the AR filter with coefficient −θ
+    filtered = np.stack([ar_filter(np.array([-theta]), x.T).T for theta in MOVING_AVERAGES])
+    fit = burg(filtered.reshape(-1, 1, t), p_max)
+    flat = fit.aicc(extra=1).reshape(MOVING_AVERAGES.size, k, p_max + 1)
+    flat = flat.transpose(1, 0, 2).reshape(k, -1)
+    best = np.argmin(flat, axis=1)
+    grid, orders = np.divmod(best, p_max + 1)
+    models = [
+        (float(MOVING_AVERAGES[g]), fit.coefficients(int(g) * k + j, int(p)))
+        for j, (g, p) in enumerate(zip(grid.tolist(), orders.tolist()))
+    ]
+    return flat[np.arange(k), best], models
+
+
+def arma_autocorrelation(phi: np.ndarray, theta: float, lags: int) -> np.ndarray:
+    """ρ(0) … ρ(lags − 1) of the ARMA(p, 1) A(B) x = (1 + θB) u.
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,)
+        The AR part's coefficients (stationary; empty: an MA(1)).
+    theta : float
+        The MA coefficient θ.
+    lags : int
+        How many lags (at least 1).
+
+    Returns
+    -------
+    numpy.ndarray, shape (lags,)
+        The autocorrelation.
+
+    Notes
+    -----
+    x is the MA filter 1 + θB applied to the AR process y = u/A(B), so
+    γ_x(h) = (1 + θ²) γ_y(h) + θ (γ_y(|h − 1|) + γ_y(h + 1)).
+
+    Examples
+    --------
+    An MA(1) has ρ(1) = θ/(1 + θ²) and nothing beyond:
+
+    >>> arma_autocorrelation(np.zeros(0), 0.5, 3).round(12).tolist()
+    [1.0, 0.4, 0.0]
+    """
+    if phi.size:
+        gamma = autocovariance_of_ar(phi, 1.0, lags + 1)
+    else:
+        gamma = np.r_[1.0, np.zeros(lags)]
+    previous = np.r_[gamma[1], gamma[: lags - 1]]  # γ_y(|h − 1|)
+    x = (1.0 + theta * theta) * gamma[:lags] + theta * (previous + gamma[1 : lags + 1])
+    return x / x[0]
+
+
 def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     """Each series' model: the AR sieve (d = 0) or ARFIMA(p, d, 0), d on the grid
     :data:`FRACTIONS`, orders 0 … ``p_max``.
 
-    Within each class the order (and d) is the one of least AICc, as in the sieve. Between
-    the classes, d costs BIC's log T instead of AICc's 2: whether the memory is short or
+    Within each class the order (and d) is the one of least AICc, as in the sieve. A
+    fractional model is taken only where its AICc is also below the best ARMA(p, 1)'s
+    (:func:`_moving_average_fits`, θ charged as d is): short memory that an MA part
+    describes is no evidence of long memory. Between the classes, d costs BIC's log T
+    instead of AICc's 2: whether the memory is short or
     long is a yes-or-no question, which BIC answers consistently (Schwarz 1978) where AIC
     keeps choosing the larger class with a fixed probability when the smaller one holds.
     On real filter errors, whose spectra are sums of a few AR shapes, AICc's 2 took a
@@ -215,7 +304,9 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
         Per series: d (0: the AR sieve), p and φ of the model taken (its AR part where
         d > 0); whether the choice was weak (the fractional model's AICc within
         :data:`SUPPORT` of the sieve's, BIC not taking it); the best fractional model's
-        (d, φ), taken or not.
+        (d, φ), taken or not; whether the best ARMA(p, 1) is a supported alternative (its
+        AICc below the sieve's and within :data:`SUPPORT` of the best of the three), and
+        its (θ, φ).
     """
     k, t = x.shape
     step = float(FRACTIONS[1] - FRACTIONS[0])
@@ -240,10 +331,18 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     flat = costs.transpose(1, 0, 2).reshape(k, -1)
     chosen = np.argmin(flat, axis=1)
     which, orders = np.divmod(chosen, p_max + 1)
-    # the class (short or long memory) by BIC's charge for d, log T, where AICc charges 2
+    # the class (short or long memory) by BIC: d costs log T where AICc charges 2, and so
+    # does the MA coefficient of the short-memory ARMA(p, 1) models (an AR(1) under white
+    # noise, which fractional noise mimics on a few hundred epochs and the sieve needs many
+    # lags for), so a fractional model is taken where it beats the sieve by log T − 2 and
+    # the ARMA models outright
     cost = flat[np.arange(k), chosen]
+    moving, arma = _moving_average_fits(x, p_max) if choose else (np.full(k, np.inf), [])
+    # (at the grid's top the errors are no more stationary than d = 1/2 allows, whatever
+    # an ARMA with a root near the unit circle makes of them: no finite memory)
+    top = fractions[which, np.arange(k)] >= FRACTIONS[-1] - 1e-9
     preferred = cost < plain + SUPPORT
-    taken = cost + (math.log(t) - 2.0) < plain
+    taken = (cost + (math.log(t) - 2.0) < plain) & ((cost < moving) | top)
     if not choose:
         taken[:] = True
     candidates = []
@@ -254,6 +353,8 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
             phi = near.coefficients(k * (int(which[j]) - 1) + j, int(orders[j]))
         candidates.append((float(fractions[which[j], j]), phi))
     sieve = np.argmin(sieve_cost, axis=1)
+    # an ARMA(p, 1) the data prefer to the sieve, within SUPPORT of the best model of all
+    arma_weak = (moving < plain) & (moving < np.minimum(plain, cost) + SUPPORT)
     return _Choice(
         np.where(taken, [c[0] for c in candidates], 0.0),
         np.where(taken, orders, sieve),
@@ -263,6 +364,8 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
         ],
         preferred & ~taken,
         candidates,
+        arma_weak,
+        arma,
     )
 
 
@@ -274,6 +377,8 @@ class _Choice(NamedTuple):
     coefficients: list  # its AR coefficients
     weak: np.ndarray  # AICc within SUPPORT of the sieve's, BIC does not take it
     candidates: list  # (d, φ) of the best fractional model, taken or not
+    arma_weak: np.ndarray  # the best ARMA(p, 1) beats the sieve, AICc within SUPPORT of the best
+    arma: list  # (θ, φ) of the best ARMA(p, 1) (empty without the class choice)
 
 
 def _longer_memory(phi: np.ndarray, fraction: float, n: int, own) -> np.ndarray | None:
@@ -348,7 +453,7 @@ def fractional_spread(
     rho = arfima_autocorrelation(phi, d, n)
     draws = _circulant_draws(rho, BOOTSTRAP_REPLICATES, gen)
     draws -= draws.mean(axis=1, keepdims=True)
-    fractions, _, coefficients, _, _ = _fractional_fits(draws, p_max, choose=False)
+    fractions, _, coefficients, *_ = _fractional_fits(draws, p_max, choose=False)
     logs, squares = np.empty(draws.shape[0]), np.empty(draws.shape[0])
     for i, (g, refit) in enumerate(zip(fractions, coefficients)):
         r = arfima_autocorrelation(refit, float(g), n)
@@ -401,7 +506,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     # the fractional part carries the memory the sieve's orders were reaching for, so its
     # AR part needs no more lags than the bootstrap's search beyond the directions' own
     search = min(max_order(n), 2 * max(m.order for m in memory.series) + 4)
-    fractions, orders, coefficients, weak, candidates = _fractional_fits(x, search)
+    fractions, orders, coefficients, weak, candidates, arma_weak, arma = _fractional_fits(x, search)
     if np.any(fractions >= FRACTIONS[-1] - 1e-9):
         raise NoFiniteMemory(
             f"a fractional order at the grid's top, {FRACTIONS[-1]:g}: the errors are no "
@@ -416,7 +521,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
         spread = fractional_spread(phi, fraction, n, search, int(orders[i]) + i)
         log_v = math.log(mean_variance_ratio(rho))
         series[i] = corrected_memory(phi, rho, log_v, spread, fraction)
-    alternative = _weak_alternative(series, weak, candidates, n)
+    alternative = _weak_alternative(series, weak, candidates, n, arma_weak, arma)
     if alternative is None and all(new is old for new, old in zip(series, memory.series)):
         return memory
     chosen = replace(memory, series=tuple(series))
@@ -425,9 +530,16 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     return replace(chosen, alternative=replace(chosen, series=alternative))
 
 
-def _weak_alternative(series: list, weak: np.ndarray, candidates: list, n: int):
+def _weak_alternative(
+    series: list, weak: np.ndarray, candidates: list, n: int, arma_weak=None, arma=()
+):
     """The directions' models with the weakly chosen long memory in every direction, or
     None where no direction has it.
+
+    An ARMA(p, 1) that the data prefer to the sieve and that is within :data:`SUPPORT` of
+    the best model (``arma_weak``, ``arma``: :func:`_fractional_fits`) is such a memory too
+    (an AR(1) under white noise, whose slow part a short segment's sieve fits too little,
+    or long memory that an ARMA with a root near the unit circle describes as well).
 
     Each weakly chosen fractional model (AICc within :data:`SUPPORT` of the sieve's, BIC
     not taking it) is a memory the segment cannot rule out, and not in its own direction
@@ -448,13 +560,21 @@ def _weak_alternative(series: list, weak: np.ndarray, candidates: list, n: int):
         fraction, phi = candidates[i]
         rho = None if fraction >= FRACTIONS[-1] - 1e-9 else _fractional_rho(phi, fraction, n)
         if rho is not None:
-            fitted.append((mean_variance_ratio(rho), fraction, phi, rho))
+            fitted.append((mean_variance_ratio(rho), fraction, 0.0, phi, rho))
+    for i in np.flatnonzero(arma_weak if arma_weak is not None else []).tolist():
+        theta, phi = arma[i]
+        try:
+            rho = arma_autocorrelation(phi, theta, n)
+        except np.linalg.LinAlgError:  # a root on the unit circle: no ARMA memory to hold
+            continue
+        if np.all(np.isfinite(rho)):
+            fitted.append((mean_variance_ratio(rho), 0.0, theta, phi, rho))
     if not fitted:
         return None
-    ratio, fraction, phi, rho = max(fitted, key=lambda f: f[0])
+    ratio, fraction, theta, phi, rho = max(fitted, key=lambda f: f[0])
     out, changed = list(series), False
     for i, own in enumerate(series):
         if ratio > own.mean_ratio(n):
-            out[i] = SeriesMemory(phi, rho, own.dof, own.square_dof, fraction)
+            out[i] = SeriesMemory(phi, rho, own.dof, own.square_dof, fraction, theta)
             changed = True
     return tuple(out) if changed else None

@@ -498,6 +498,9 @@ class SeriesMemory(_Answering):
         d of a long-memory model (1 − B)^d A(B) x = u, whose AR part is ``phi``
         (:mod:`credcli.engine.longmemory`); 0 for the AR sieve's models. Its ``rho`` spans
         every lag of the segment.
+    moving : float, default 0
+        θ of a short-memory ARMA(p, 1) model A(B) x = (1 + θB) u whose AR part is ``phi``,
+        a model's alternative only (:mod:`credcli.engine.longmemory`); 0 otherwise.
     """
 
     phi: np.ndarray
@@ -505,6 +508,7 @@ class SeriesMemory(_Answering):
     dof: float
     square_dof: float = math.inf
     fraction: float = 0.0
+    moving: float = 0.0
 
     @property
     def order(self) -> int:
@@ -944,9 +948,10 @@ class Memory(_Answering):
     segments : int, default 1
         The runs the fit pooled.
     alternative : Memory or None, default None
-        The same model with long memory where the data support a fractional model (its
-        AICc within ``longmemory.SUPPORT`` of the sieve's) and BIC does not take it, in
-        every direction with less memory of its own
+        The same model with more memory where the data support one: a fractional model
+        (its AICc within ``longmemory.SUPPORT`` of the sieve's) that BIC does not take, or
+        an ARMA(p, 1) preferred to the sieve and within ``longmemory.SUPPORT`` of the best,
+        whichever implies the most memory, in every direction with less memory of its own
         (:mod:`credcli.engine.longmemory`): a location or scale finding must hold under it
         as well. None where there is no such direction.
     """
@@ -964,6 +969,19 @@ class Memory(_Answering):
         tests for independent epochs apply. A long-memory model of AR order 0 (fractional
         noise) is not white."""
         return all(m.order == 0 and m.fraction == 0 for m in (*self.series, self.squares))
+
+    @property
+    def alternative_name(self) -> str | None:
+        """The :attr:`alternative` in words, as the reasons name it ("a long-memory one
+        (d̂ 0.3)", "an ARMA one (θ̂ −0.7) with more memory"); None without one."""
+        if self.alternative is None:
+            return None
+        series = self.alternative.series
+        fraction = max(m.fraction for m in series)
+        if fraction > 0:
+            return f"a long-memory one (d̂ {fraction:.2g})"
+        theta = max((m.moving for m in series), key=abs)
+        return f"an ARMA one (θ̂ {theta:.2g}) with more memory"
 
     @functools.cached_property
     def variance_ratios(self) -> np.ndarray:

@@ -448,8 +448,9 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     if own is not None and _within_margin(*own):
         why = (
             f"under the errors' short-memory model alone they are [{own[0]:.3g}, {own[1]:.3g}], "
-            f"but a long-memory model fits them almost as well (its AICc within {SUPPORT:g} of "
-            "theirs, BIC not taking it), and one segment cannot tell the two apart"
+            "but a model with more memory (long memory, or a slower ARMA) fits them almost as "
+            f"well (its AICc within {SUPPORT:g} of theirs, BIC not taking it), and one segment "
+            "cannot tell the two apart"
         )
     return (
         f"scale inconclusive: κ̂ {scale.scale_factor:.3g} (interval [{two_sided[0]:.3g}, "

@@ -63,6 +63,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/memory.py --quick
 	$(BIN)/python benchmarks/memory.py --quick --windows 13 --lengths 50,300
 	$(BIN)/python benchmarks/kf_variants.py
+	$(BIN)/python benchmarks/variants.py
 	$(BIN)/python benchmarks/se3.py
 	$(BIN)/python benchmarks/findings.py
 

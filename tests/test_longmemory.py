@@ -251,7 +251,7 @@ def test_a_bias_must_hold_under_the_long_memory_the_data_do_not_exclude(monkeypa
     assert checked.memory.alternative is not None
     assert checked.label is Label.CREDIBLE and checked.untested
     assert checked.reason.startswith("location untested: the mean test finds a bias")
-    monkeypatch.setattr(evidence, "_held_under_long_memory", lambda plan, *args: plan)
+    monkeypatch.setattr(evidence, "_held_under_alternative", lambda plan, *args: plan)
     assert "bias" in diagnose_errors(errors, cov, rng=36).label.value
 
 
@@ -423,3 +423,25 @@ def test_arma_autocorrelation_is_the_ma_representation(phi, theta):
     np.testing.assert_allclose(
         longmemory.arma_autocorrelation(phi, theta, 30), gamma / gamma[0], atol=1e-12
     )
+
+
+def test_the_alternative_is_named_by_the_directions_it_changes():
+    """A direction whose own model is fractional keeps it in the alternative; the reason
+    names what the alternative changed (here an ARMA in the other direction), and a model
+    holding an MA(1) series is not white."""
+    from dataclasses import replace
+
+    from credcli.engine.memory import Memory
+
+    rho = np.array([1.0, 0.5, 0.25])
+    long = SeriesMemory(np.zeros(0), rho, math.inf, fraction=0.3)
+    short = SeriesMemory(np.array([0.5]), rho, 10.0)
+    arma = SeriesMemory(np.array([0.9]), rho, 10.0, moving=-0.7)
+    model = Memory(np.eye(2), (long, short), short, 300)
+    model = replace(model, alternative=replace(model, series=(long, arma)))
+    assert model.alternative_changes == [arma]
+    assert model.alternative_name == "an ARMA one (θ̂ -0.7) with more memory"
+    moving_average = SeriesMemory(np.zeros(0), np.array([1.0, 0.4]), 10.0, moving=0.5)
+    white = SeriesMemory(np.zeros(0), np.array([1.0]), math.inf)
+    assert Memory(np.eye(1), (white,), white, 300).white
+    assert not Memory(np.eye(1), (moving_average,), white, 300).white

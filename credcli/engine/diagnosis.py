@@ -365,7 +365,8 @@ def _diagnose_variants(
     decide by each configuration's rule (:func:`credcli.engine.rules.decide`); the errors'
     accuracy is ``accuracy`` where the caller knows it (the whole log's). The
     Cholesky factors are made as gather's argument, so that gather holds the only reference
-    and frees them once it no longer needs them (N × d × d values)."""
+    and frees them once it no longer needs them (N × d × d values; CPython 3.11 and later,
+    where a call's arguments leave the caller's stack)."""
     n, d = errors.shape
     if n < min(c.min_n(d) for c in configs):
         _cholesky(cov)  # a covariance that is not positive definite is named all the same

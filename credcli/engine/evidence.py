@@ -108,8 +108,8 @@ class Evidence:
     divergence : Divergence or None, default None
         Errors growing beyond any plausible tuning (calibrated rule).
     bias_declined : bool, default False
-        A bias the mean test found under the short-memory model and the long-memory
-        alternative does not confirm (the location is then untested).
+        A bias the mean test found under the fitted model and its alternative with more
+        memory does not confirm (the location is then untested).
     """
 
     n: int
@@ -581,9 +581,9 @@ class LocationPlan:
     reason : str or None
         Why a location test does not run (None: the plan is complete).
     bias_declined : bool, default False
-        The mean test found a bias under the short-memory model that the long-memory
-        alternative does not confirm (:func:`_held_under_long_memory`): the errors sit off
-        zero, whatever the cause.
+        The mean test found a bias under the fitted model that its alternative with more
+        memory does not confirm (:func:`_held_under_alternative`): the errors sit off zero,
+        whatever the cause.
     """
 
     block: int
@@ -933,7 +933,7 @@ def memory_evidence(
     sieve: :attr:`credcli.engine.memory.Memory.alternative`), a finding must hold under it
     as well: the scale's and the directions' intervals are the
     union of the two models' (:func:`credcli.engine.scale.under_either`), and a bias the
-    mean test finds must be found under both (:func:`_held_under_long_memory`).
+    mean test finds must be found under both (:func:`_held_under_alternative`).
 
     Parameters
     ----------
@@ -967,7 +967,7 @@ def memory_evidence(
     tail = memory_tail_factor(gls, memory)
     scale = memory_scale_test(gls, memory, level, tail)
     alternative = memory.alternative
-    if alternative is not None:  # a scale finding must hold under long memory as well
+    if alternative is not None:  # a scale finding must hold under more memory as well
         other_tail = memory_tail_factor(gls, alternative)
         scale = under_either(scale, memory_scale_test(gls, alternative, level, other_tail))
     mean, stderr = batches.memory_mean_test(gls, memory, inverse)
@@ -998,11 +998,11 @@ def memory_evidence(
     block = memory.block_length(MEMORY_BLOCK_LOSS)
     plan = split_location(config, n, block, 1, mean, why_not, _MEMORY_BLOCKS.format(block=block))
     return ModelEvidence(
-        scale, scale_reason, directions, _held_under_long_memory(plan, gls, memory, inverse)
+        scale, scale_reason, directions, _held_under_alternative(plan, gls, memory, inverse)
     )
 
 
-def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
+def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
     """``plan``, or the location declined where its mean test finds a bias that the
     model's alternative with more memory (:attr:`credcli.engine.memory.Memory.alternative`)
     does not: where the data support a fractional model (its AICc within
@@ -1016,11 +1016,18 @@ def _held_under_long_memory(plan: LocationPlan, gls, memory: Memory, inverse) ->
     other, _ = batches.memory_mean_test(gls, alternative, inverse)
     if other.dof[1] >= MIN_MEAN_DOF and other.pvalue < plan.mean_level:
         return plan
+    fractional = max(m.fraction for m in memory.alternative_changes) > 0
+    support = (
+        f"that fits them almost as well (its AICc within {SUPPORT:g} of theirs, not taken as "
+        "the model)"
+        if fractional
+        else f"that fits them better (its AICc below theirs, within {SUPPORT:g} of the best)"
+    )
     reason = (
         f"location untested: the mean test finds a bias (p {test.pvalue:.2g}) under the "
-        f"errors' short-memory model, but not under {memory.alternative_name} that fits them "
-        f"almost as well (its AICc within {SUPPORT:g} of theirs, BIC not taking it); one "
-        "segment cannot tell the two apart (a longer segment, or more runs, can)"
+        f"errors' short-memory model, but not under {memory.alternative_name} "
+        f"{support}; one segment cannot tell the two apart (a longer segment, or more runs, "
+        "can)"
     )
     return LocationPlan(plan.block, None, plan.mean_level, None, reason, bias_declined=True)
 

@@ -27,9 +27,11 @@ taken only where it also fits better than the best ARMA(p, 1). Where it is chose
 implies more memory over the segment than the direction's own model, the direction takes
 it (:func:`with_long_memory`); a direction's memory is never shortened. Where the data
 support the fractional model (its AICc within :data:`SUPPORT` of the sieve's, Burnham &
-Anderson 2002) and BIC does not take it, the model keeps it as its ``alternative``, in every
-direction that has less memory of its own (:func:`_weak_alternative`), under which a bias
-and a scale finding must hold as well (:func:`credcli.engine.evidence.memory_evidence`).
+Anderson 2002) and it is not taken, or an ARMA(p, 1) that fits better than the sieve and
+within :data:`SUPPORT` of the best, the model keeps the one implying the most memory as its
+``alternative``, in every direction that has less memory of its own
+(:func:`_weak_alternative`), under which a bias and a scale finding must hold as well
+(:func:`credcli.engine.evidence.memory_evidence`).
 
 The model's autocorrelation is exact (:func:`arfima_autocorrelation`), so every test of
 the engine reads the variance of a window mean, of a centred sum of squares and of sign
@@ -375,7 +377,7 @@ class _Choice(NamedTuple):
     fractions: np.ndarray  # d of the model taken (0: the AR sieve)
     orders: np.ndarray  # its AR order
     coefficients: list  # its AR coefficients
-    weak: np.ndarray  # AICc within SUPPORT of the sieve's, BIC does not take it
+    weak: np.ndarray  # AICc within SUPPORT of the sieve's, not taken as the model
     candidates: list  # (d, φ) of the best fractional model, taken or not
     arma_weak: np.ndarray  # the best ARMA(p, 1) beats the sieve, AICc within SUPPORT of the best
     arma: list  # (θ, φ) of the best ARMA(p, 1) (empty without the class choice)
@@ -486,8 +488,8 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
         ``memory`` itself where no direction changes (white errors, pooled runs, segments
         shorter than :data:`FEWEST_EPOCHS`, or the AR sieve chosen everywhere); else a copy
         whose changed directions hold a :class:`~credcli.engine.memory.SeriesMemory` with
-        ``fraction`` d > 0, and whose ``alternative`` holds the fractional models AICc
-        prefers and BIC does not (:func:`_weak_alternative`), where there are any.
+        ``fraction`` d > 0, and whose ``alternative`` holds the weakly chosen fractional
+        or ARMA(p, 1) model of most memory (:func:`_weak_alternative`), where there is one.
 
     Raises
     ------
@@ -533,16 +535,16 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
 def _weak_alternative(
     series: list, weak: np.ndarray, candidates: list, n: int, arma_weak=None, arma=()
 ):
-    """The directions' models with the weakly chosen long memory in every direction, or
-    None where no direction has it.
+    """The directions' models with the weakly chosen memory in every direction, or None
+    where no direction has any.
 
     An ARMA(p, 1) that the data prefer to the sieve and that is within :data:`SUPPORT` of
     the best model (``arma_weak``, ``arma``: :func:`_fractional_fits`) is such a memory too
     (an AR(1) under white noise, whose slow part a short segment's sieve fits too little,
     or long memory that an ARMA with a root near the unit circle describes as well).
 
-    Each weakly chosen fractional model (AICc within :data:`SUPPORT` of the sieve's, BIC
-    not taking it) is a memory the segment cannot rule out, and not in its own direction
+    Each weakly chosen fractional model (AICc within :data:`SUPPORT` of the sieve's, not
+    taken as the model) is a memory the segment cannot rule out, and not in its own direction
     only: the principal directions are ordered by their fitted memory, so a direction
     that shares the long memory shows it less by selection (two independent
     ARFIMA(0, 0.3, 0) components of 300 epochs: on the segments whose mean was called a
@@ -551,7 +553,7 @@ def _weak_alternative(
     (:func:`mean_variance_ratio`), where that is more than its own model's.
 
     Its degrees of freedom are the direction's own (no bootstrap): the alternative serves
-    only to check that a location or scale finding holds under long memory as well
+    only to check that a location or scale finding holds under more memory as well
     (:func:`credcli.engine.evidence.memory_evidence`), and more degrees of freedom make
     that check reject more readily, so it declines no more findings than a bootstrap
     would."""

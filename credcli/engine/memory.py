@@ -968,19 +968,30 @@ class Memory(_Answering):
         """Whether the errors are taken as independent (:func:`fit_memory`): then the exact
         tests for independent epochs apply. A long-memory model of AR order 0 (fractional
         noise) is not white."""
-        return all(m.order == 0 and m.fraction == 0 for m in (*self.series, self.squares))
+        return all(
+            m.order == 0 and m.fraction == 0 and m.moving == 0 for m in (*self.series, self.squares)
+        )
+
+    @property
+    def alternative_changes(self) -> list[SeriesMemory]:
+        """The directions' models that the :attr:`alternative` replaces (empty without
+        one)."""
+        if self.alternative is None:
+            return []
+        return [a for a, m in zip(self.alternative.series, self.series) if a is not m]
 
     @property
     def alternative_name(self) -> str | None:
         """The :attr:`alternative` in words, as the reasons name it ("a long-memory one
-        (d̂ 0.3)", "an ARMA one (θ̂ −0.7) with more memory"); None without one."""
+        (d̂ 0.3)", "an ARMA one (θ̂ -0.7) with more memory"), from the directions it
+        changed; None without one."""
         if self.alternative is None:
             return None
-        series = self.alternative.series
-        fraction = max(m.fraction for m in series)
+        changed = self.alternative_changes
+        fraction = max((m.fraction for m in changed), default=0.0)
         if fraction > 0:
             return f"a long-memory one (d̂ {fraction:.2g})"
-        theta = max((m.moving for m in series), key=abs)
+        theta = max((m.moving for m in changed), key=abs, default=0.0)
         return f"an ARMA one (θ̂ {theta:.2g}) with more memory"
 
     @functools.cached_property
@@ -1094,7 +1105,7 @@ def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     # H + 1 consecutive epochs over H + 1: one cumulative sum C (in place of x), no loop
     # over lags; the sums are C_{k+H} − C_{k−1}, C_{−1} = 0 (two copies of N × d, not four)
     c = np.cumsum(x, axis=1, out=x)
-    sums = np.empty((runs, t - band, d))
+    sums = np.empty((runs, max(t - band, 0), d))
     sums[:, :1] = c[:, band : band + 1]  # (none when T = 1)
     np.subtract(c[:, band + 1 :], c[:, : t - band - 1], out=sums[:, 1:])
     del x, c

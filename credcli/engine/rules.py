@@ -135,8 +135,8 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
 
 def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
     """Why a segment labelled pessimism with a bias may be credible instead, or None; also
-    pessimism where the mean test's bias was declined because a long-memory alternative
-    does not confirm it (``Evidence.bias_declined``): the errors sit off zero either way.
+    pessimism where the mean test's bias was declined because the model's alternative with
+    more memory does not confirm it (``Evidence.bias_declined``): the errors sit off zero either way.
 
     One segment cannot tell a constant bias from an error slower than the segment, which
     stays near one value over its epochs (a slowly varying error under white noise):
@@ -448,9 +448,9 @@ def inconclusive_scale(scale: ScaleTest, config: DiagnosisConfig) -> str | None:
     if own is not None and _within_margin(*own):
         why = (
             f"under the errors' short-memory model alone they are [{own[0]:.3g}, {own[1]:.3g}], "
-            "but a model with more memory (long memory, or a slower ARMA) fits them almost as "
-            f"well (its AICc within {SUPPORT:g} of theirs, BIC not taking it), and one segment "
-            "cannot tell the two apart"
+            "but a model with more memory fits them about as well (a long-memory one with its "
+            f"AICc within {SUPPORT:g} of theirs, or an ARMA one within {SUPPORT:g} of the "
+            "best), and one segment cannot tell the two apart"
         )
     return (
         f"scale inconclusive: κ̂ {scale.scale_factor:.3g} (interval [{two_sided[0]:.3g}, "

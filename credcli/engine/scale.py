@@ -78,8 +78,9 @@ class ScaleTest:
         level (Schuirmann 1987; [CREDIBLE_FACTOR][credcli.engine.rules.CREDIBLE_FACTOR]). None where
         the test has no interval.
     short_memory_interval : tuple of float or None
-        The fitted model's own ``equivalence_interval`` where a long-memory alternative the
-        data do not exclude widened it (``under_either``); None otherwise.
+        The fitted model's own ``equivalence_interval`` where an alternative with more
+        memory that the data do not exclude (long memory, or an ARMA) widened it
+        (``under_either``); None otherwise.
 
     References
     ----------
@@ -283,8 +284,9 @@ def tail_factor(
         AR(1) φ 0.5–0.97 and AR(2) with complex or double roots). Ignoring it, the gate
         opened on 14–20 % of Gaussian AR(2) windows (roots 0.95∠±0.3), not 10 %.
     quantiles : numpy.ndarray, optional
-        :func:`tail_quantiles` of ``u``, where the caller has them already (the same
-        numbers: ``GlsResiduals.tail_quantiles``).
+        The :func:`tail_quantiles` the ratio is read from, where the caller has them
+        already (``GlsResiduals.tail_quantiles``, of the standardized residuals); ``u`` then
+        gives only the shape (N, d).
 
     Returns
     -------

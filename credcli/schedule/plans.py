@@ -387,6 +387,7 @@ def diagnosed_parts(
     """
     total_segments = sum(len(s) for _, s in plans)
     total_epochs = sum(log.n for log, _ in plans)
+    accuracies = accuracies if runs == 1 else None  # a pooled log is not its runs' log
     parallel = jobs > 1 and total_epochs >= PARALLEL_MIN_EPOCHS and total_segments > 1
     if pool is not None and not parallel:
         pool.close()

@@ -28,7 +28,7 @@ import zoo  # noqa: E402
 def lagged_covariances(family: str, lags: int = 20_000) -> np.ndarray:
     """R(0) … R(lags − 1) of a Kalman family's whitened errors (W the claimed
     covariance's inverse Cholesky factor), rotated to its principal directions."""
-    kf = zoo._kf(family)
+    kf = zoo.filter_of(family)
     w = np.linalg.inv(np.linalg.cholesky(kf.claimed))
     left, power = w @ kf.C, kf.P_true @ kf.C.T @ w.T
     out = np.empty((lags, kf.C.shape[0], kf.C.shape[0]))
@@ -52,7 +52,7 @@ def main() -> None:
         diagonal = np.einsum("hii->hi", r) ** 2
         per_direction = float(diagonal[0].sum() + 2.0 * diagonal[1:].sum())
         full = float(np.sum(r[0] ** 2) + 2.0 * np.sum(r[1:] ** 2))
-        tau = zoo._kf(family).tau
+        tau = zoo.filter_of(family).tau
         print(
             f"| {family} | {tau:.3g} | {per_direction:.3g} | {full:.3g} | {full / per_direction:.3f} |"
         )

@@ -24,9 +24,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import zoo  # noqa: E402
 
 VARIANTS = {
-    "kf-cv-50hz": (lambda: zoo._cv_model(50.0), 50.0),
-    "kf-cv-10hz-q-x10": (lambda: zoo._cv_model(10.0, q=5.0), 10.0),
-    "kf-ca-10hz-r-x0.1": (lambda: zoo._ca_model(10.0, r=0.1), 10.0),
+    "kf-cv-50hz": (lambda: zoo.cv_model(50.0), 50.0),
+    "kf-cv-10hz-q-x10": (lambda: zoo.cv_model(10.0, q=5.0), 10.0),
+    "kf-ca-10hz-r-x0.1": (lambda: zoo.ca_model(10.0, r=0.1), 10.0),
     "kf-ca-1hz": zoo.KF_MODELS["kf-ca-1hz"],
     "kf-ca-100hz": zoo.KF_MODELS["kf-ca-100hz"],
     "kf-rw-1hz": zoo.KF_MODELS["kf-rw-1hz"],
@@ -54,7 +54,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     start = time.process_time()
     for name in VARIANTS:
-        tau = zoo._kf(name).tau
+        tau = zoo.filter_of(name).tau
         for ratio in ratios:
             n = max(50, int(round(ratio * tau)))
             alarms = decided = 0

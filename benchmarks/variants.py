@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import zoo  # noqa: E402
-from zoo import _Synthetic  # noqa: E402
+from zoo import Synthetic  # noqa: E402
 
 
 def _ar2(radius: float, angle: float) -> tuple[float, float]:
@@ -35,49 +35,49 @@ def _ar2(radius: float, angle: float) -> tuple[float, float]:
     return (2.0 * radius * math.cos(angle), -radius * radius)
 
 
-def _arma_family(phi: tuple, theta: tuple = ()) -> _Synthetic:
-    return _Synthetic(
+def _arma_family(phi: tuple, theta: tuple = ()) -> Synthetic:
+    return Synthetic(
         lambda n, rng: zoo.arma(phi, theta, n, 2, rng),
-        zoo._fixed_cov,
+        zoo.fixed_cov,
         lambda n: zoo.arma_tau(phi, theta),
-        zoo._arma_rhos(phi, theta),
+        zoo.arma_rhos(phi, theta),
     )
 
 
-def _slow_white_family(phi: float, white: float) -> _Synthetic:
-    return _Synthetic(
-        zoo._slow_white(phi, white),
-        zoo._fixed_cov,
+def _slow_white_family(phi: float, white: float) -> Synthetic:
+    return Synthetic(
+        zoo.slow_white(phi, white),
+        zoo.fixed_cov,
         lambda n: (1.0 - white) * zoo.arma_tau((phi,), ()) + white,
-        zoo._slow_white_rho(phi, white),
+        zoo.slow_white_rho(phi, white),
     )
 
 
-def _arfima_family(fraction: float) -> _Synthetic:
-    return _Synthetic(
+def _arfima_family(fraction: float) -> Synthetic:
+    return Synthetic(
         lambda n, rng: zoo.arfima(fraction, n, 2, rng),
-        zoo._fixed_cov,
+        zoo.fixed_cov,
         lambda n: zoo.arfima_tau_n(fraction, n),
-        zoo._both(functools.partial(zoo._arfima_rho, fraction)),
+        zoo.both_directions(functools.partial(zoo.arfima_rho, fraction)),
     )
 
 
-def _slow_and_white_dirs(phi: float) -> _Synthetic:
-    return _Synthetic(
+def _slow_and_white_dirs(phi: float) -> Synthetic:
+    return Synthetic(
         lambda n, rng: np.c_[zoo.arma((phi,), (), n, 1, rng), rng.standard_normal((n, 1))],
-        zoo._fixed_cov,
+        zoo.fixed_cov,
         lambda n: zoo.arma_tau((phi,), ()),
-        lambda n: [zoo._arma_rho((phi,), (), n), zoo._white_rho(n)],
+        lambda n: [zoo.arma_rho((phi,), (), n), zoo.white_rho(n)],
     )
 
 
-def _moving_cov(cov, phi: float) -> _Synthetic:
-    return _Synthetic(
-        zoo._ar((phi,)), cov, lambda n: zoo.arma_tau((phi,), ()), zoo._arma_rhos((phi,))
+def _moving_cov(cov, phi: float) -> Synthetic:
+    return Synthetic(
+        zoo.ar_errors((phi,)), cov, lambda n: zoo.arma_tau((phi,), ()), zoo.arma_rhos((phi,))
     )
 
 
-VARIANTS: dict[str, _Synthetic] = {
+VARIANTS: dict[str, Synthetic] = {
     "ar1-0.7": _arma_family((0.7,)),
     "ar1-0.95": _arma_family((0.95,)),
     "ar2-0.9∠0.8": _arma_family(_ar2(0.9, 0.8)),
@@ -92,8 +92,8 @@ VARIANTS: dict[str, _Synthetic] = {
     "arfima-0.2": _arfima_family(0.2),
     "arfima-0.4": _arfima_family(0.4),
     "slow-and-white-dirs-0.95": _slow_and_white_dirs(0.95),
-    "rotating-cov-0.7": _moving_cov(zoo._rotating_cov, 0.7),
-    "resized-cov-0.95": _moving_cov(zoo._resized_cov, 0.95),
+    "rotating-cov-0.7": _moving_cov(zoo.rotating_cov, 0.7),
+    "resized-cov-0.95": _moving_cov(zoo.resized_cov, 0.95),
 }
 """Sixteen families the zoo does not hold, each a shape it does hold at other parameters."""
 

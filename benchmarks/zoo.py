@@ -168,7 +168,7 @@ def arma_tau(phi, theta) -> float:
     return _arma_setup(tuple(map(float, phi)), tuple(map(float, theta)))[4]
 
 
-def _arma_rho(phi, theta, n: int) -> np.ndarray:
+def arma_rho(phi, theta, n: int) -> np.ndarray:
     """ρ(0 … n − 1) of a stationary ARMA: the autocorrelation of its ψ weights (FFT)."""
     psi = _psi(phi, theta, _psi_length(phi) + n)
     size = 1 << int(2 * psi.size - 1).bit_length()
@@ -177,14 +177,14 @@ def _arma_rho(phi, theta, n: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- ARFIMA
-def _arfima_rho(d_frac: float, n: int) -> np.ndarray:
+def arfima_rho(d_frac: float, n: int) -> np.ndarray:
     h = np.arange(1, n)
     return np.r_[1.0, np.cumprod((h - 1 + d_frac) / (h - d_frac))]
 
 
 @functools.lru_cache(maxsize=16)
 def _davies_harte(d_frac: float, n: int):
-    r = _arfima_rho(d_frac, n + 1)
+    r = arfima_rho(d_frac, n + 1)
     c = np.r_[r[: n + 1], r[n - 1 : 0 : -1]]
     lam = np.fft.fft(c).real
     if lam.min() < -1e-9 * lam.max():
@@ -208,17 +208,17 @@ def arfima(d_frac: float, n: int, dim: int, rng: np.random.Generator) -> np.ndar
 
 def arfima_tau_n(d_frac: float, n: int) -> float:
     """τ_N = N·Var(mean)/γ(0) = 1 + 2Σ_{h<N}(1 − h/N)ρ(h) (τ itself is infinite)."""
-    rho = _arfima_rho(d_frac, n)
+    rho = arfima_rho(d_frac, n)
     h = np.arange(1, n)
     return float(1.0 + 2.0 * np.sum((1.0 - h / n) * rho[1:]))
 
 
 # --------------------------------------------------------------------------- covariances
-def _fixed_cov(n: int, rng) -> np.ndarray:
+def fixed_cov(n: int, rng) -> np.ndarray:
     return np.broadcast_to(FIXED_COV, (n, 2, 2))
 
 
-def _rotating_cov(n: int, rng, anisotropy: float = 20.0, period: float = 400.0):
+def rotating_cov(n: int, rng, anisotropy: float = 20.0, period: float = 400.0):
     """Axes of std ``anisotropy`` and 1, turning once every ``period`` epochs (random phase)."""
     angle = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(n) / period
     c, s = np.cos(angle), np.sin(angle)
@@ -226,7 +226,7 @@ def _rotating_cov(n: int, rng, anisotropy: float = 20.0, period: float = 400.0):
     return rot @ np.diag([anisotropy**2, 1.0]) @ np.swapaxes(rot, 1, 2)
 
 
-def _resized_cov(n: int, rng, ratio: float = 10.0, period: float = 300.0):
+def resized_cov(n: int, rng, ratio: float = 10.0, period: float = 300.0):
     """FIXED_COV × s_k, s_k = ratio^{(1 + sin)/2} in [1, ratio], period ``period`` epochs."""
     phase = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(n) / period
     s = ratio ** ((1 + np.sin(phase)) / 2)
@@ -235,40 +235,40 @@ def _resized_cov(n: int, rng, ratio: float = 10.0, period: float = 300.0):
 
 # --------------------------------------------------------------------------- synthetic
 @dataclass(frozen=True)
-class _Synthetic:
+class Synthetic:
     white: Callable  # (n, rng) -> (n, d) whitened, unit-variance
     cov: Callable  # (n, rng) -> (n, d, d)
     tau: Callable  # n -> tau
     rhos: Callable  # n -> each whitened direction's ρ(0 … n − 1) (independent directions)
 
 
-def _white_rho(n: int) -> np.ndarray:
+def white_rho(n: int) -> np.ndarray:
     return np.r_[1.0, np.zeros(n - 1)]
 
 
-def _both(rho: Callable) -> Callable:
+def both_directions(rho: Callable) -> Callable:
     """Two directions of the same autocorrelation ``rho(n)``."""
     return lambda n: [rho(n)] * 2
 
 
-def _arma_rhos(phi, theta=()) -> Callable:
-    return _both(functools.partial(_arma_rho, tuple(phi), tuple(theta)))
+def arma_rhos(phi, theta=()) -> Callable:
+    return both_directions(functools.partial(arma_rho, tuple(phi), tuple(theta)))
 
 
-def _slow_white_rho(phi: float, w: float) -> Callable:
+def slow_white_rho(phi: float, w: float) -> Callable:
     def rho(n):
-        out = (1.0 - w) * _arma_rho((phi,), (), n)
+        out = (1.0 - w) * arma_rho((phi,), (), n)
         out[0] = 1.0
         return out
 
-    return _both(rho)
+    return both_directions(rho)
 
 
-def _ar(phi):
+def ar_errors(phi):
     return lambda n, rng: arma(phi, (), n, 2, rng)
 
 
-def _slow_white(phi, w):
+def slow_white(phi, w):
     def gen(n, rng):
         return math.sqrt(1 - w) * arma((phi,), (), n, 2, rng) + math.sqrt(w) * rng.standard_normal(
             (n, 2)
@@ -284,64 +284,70 @@ def _slow_and_white_dirs(n, rng):
 _AR2_COMPLEX = (2 * 0.95 * math.cos(0.3), -(0.95**2))
 _AR2_SMOOTH = (1.9, -0.9025)
 
-SYNTHETIC: dict[str, _Synthetic] = {
-    "iid": _Synthetic(
-        lambda n, rng: rng.standard_normal((n, 2)), _fixed_cov, lambda n: 1.0, _both(_white_rho)
+SYNTHETIC: dict[str, Synthetic] = {
+    "iid": Synthetic(
+        lambda n, rng: rng.standard_normal((n, 2)),
+        fixed_cov,
+        lambda n: 1.0,
+        both_directions(white_rho),
     ),
     **{
-        f"ar1-{phi}": _Synthetic(
-            _ar((phi,)),
-            _fixed_cov,
+        f"ar1-{phi}": Synthetic(
+            ar_errors((phi,)),
+            fixed_cov,
             functools.partial(lambda n, p: arma_tau((p,), ()), p=phi),
-            _arma_rhos((phi,)),
+            arma_rhos((phi,)),
         )
         for phi in (0.5, 0.9, 0.99)
     },
-    "ar2-complex": _Synthetic(
-        _ar(_AR2_COMPLEX),
-        _fixed_cov,
+    "ar2-complex": Synthetic(
+        ar_errors(_AR2_COMPLEX),
+        fixed_cov,
         lambda n: arma_tau(_AR2_COMPLEX, ()),
-        _arma_rhos(_AR2_COMPLEX),
+        arma_rhos(_AR2_COMPLEX),
     ),
-    "ar2-smooth": _Synthetic(
-        _ar(_AR2_SMOOTH), _fixed_cov, lambda n: arma_tau(_AR2_SMOOTH, ()), _arma_rhos(_AR2_SMOOTH)
+    "ar2-smooth": Synthetic(
+        ar_errors(_AR2_SMOOTH),
+        fixed_cov,
+        lambda n: arma_tau(_AR2_SMOOTH, ()),
+        arma_rhos(_AR2_SMOOTH),
     ),
-    "arma11": _Synthetic(
+    "arma11": Synthetic(
         lambda n, rng: arma((0.9,), (-0.5,), n, 2, rng),
-        _fixed_cov,
+        fixed_cov,
         lambda n: arma_tau((0.9,), (-0.5,)),
-        _arma_rhos((0.9,), (-0.5,)),
+        arma_rhos((0.9,), (-0.5,)),
     ),
-    "slow-white-0.95-0.5": _Synthetic(
-        _slow_white(0.95, 0.5),
-        _fixed_cov,
+    "slow-white-0.95-0.5": Synthetic(
+        slow_white(0.95, 0.5),
+        fixed_cov,
         lambda n: 0.5 * arma_tau((0.95,), ()) + 0.5,
-        _slow_white_rho(0.95, 0.5),
+        slow_white_rho(0.95, 0.5),
     ),
-    "slow-white-0.99-0.3": _Synthetic(
-        _slow_white(0.99, 0.3),
-        _fixed_cov,
+    "slow-white-0.99-0.3": Synthetic(
+        slow_white(0.99, 0.3),
+        fixed_cov,
         lambda n: 0.7 * arma_tau((0.99,), ()) + 0.3,
-        _slow_white_rho(0.99, 0.3),
+        slow_white_rho(0.99, 0.3),
     ),
-    "arfima-0.3": _Synthetic(
+    "arfima-0.3": Synthetic(
         lambda n, rng: arfima(0.3, n, 2, rng),
-        _fixed_cov,
+        fixed_cov,
         lambda n: arfima_tau_n(0.3, n),
-        _both(functools.partial(_arfima_rho, 0.3)),
+        both_directions(functools.partial(arfima_rho, 0.3)),
     ),
-    "slow-and-white-dirs": _Synthetic(
+    "slow-and-white-dirs": Synthetic(
         _slow_and_white_dirs,
-        _fixed_cov,
+        fixed_cov,
         lambda n: arma_tau((0.98,), ()),
-        lambda n: [_arma_rho((0.98,), (), n), _white_rho(n)],
+        lambda n: [arma_rho((0.98,), (), n), white_rho(n)],
     ),
     # whitened by the true Σ_k: AR(1) 0.9 in both directions
-    "rotating-cov": _Synthetic(
-        _ar((0.9,)), _rotating_cov, lambda n: arma_tau((0.9,), ()), _arma_rhos((0.9,))
+    "rotating-cov": Synthetic(
+        ar_errors((0.9,)), rotating_cov, lambda n: arma_tau((0.9,), ()), arma_rhos((0.9,))
     ),
-    "resized-cov": _Synthetic(
-        _ar((0.9,)), _resized_cov, lambda n: arma_tau((0.9,), ()), _arma_rhos((0.9,))
+    "resized-cov": Synthetic(
+        ar_errors((0.9,)), resized_cov, lambda n: arma_tau((0.9,), ()), arma_rhos((0.9,))
     ),
 }
 
@@ -389,7 +395,7 @@ R_2D = np.array([[1.0, 0.6], [0.6, 2.0]])
 is not diagonal."""
 
 
-def _cv_model(rate_hz: float, q: float = 0.5):
+def cv_model(rate_hz: float, q: float = 0.5):
     dt = 1.0 / rate_hz
     f1 = np.array([[1.0, dt], [0.0, 1.0]])
     q1 = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
@@ -398,7 +404,7 @@ def _cv_model(rate_hz: float, q: float = 0.5):
     return f, qm, h, R_2D, h  # outputs: positions
 
 
-def _ca_model(rate_hz: float, q: float = 0.5, r: float = 1.0):
+def ca_model(rate_hz: float, q: float = 0.5, r: float = 1.0):
     dt = 1.0 / rate_hz
     f = np.array([[1.0, dt, dt**2 / 2], [0, 1.0, dt], [0, 0, 1.0]])
     qm = q * np.array(
@@ -412,7 +418,7 @@ def _ca_model(rate_hz: float, q: float = 0.5, r: float = 1.0):
     return f, qm, h, np.array([[r]]), np.array([[1.0, 0, 0], [0, 1.0, 0]])  # position, velocity
 
 
-def _rw_model(rate_hz: float, q: float = 1.0):
+def rw_model(rate_hz: float, q: float = 1.0):
     dt = 1.0 / rate_hz
     return np.eye(2), q * dt * np.eye(2), np.eye(2), R_2D, np.eye(2)
 
@@ -487,16 +493,16 @@ def kf_errors(kf: _LinearKF, n: int, rng: np.random.Generator) -> np.ndarray:
 
 
 KF_MODELS = {
-    "kf-cv-1hz": (lambda: _cv_model(1.0), 1.0),
-    "kf-cv-10hz": (lambda: _cv_model(10.0), 10.0),
-    "kf-cv-100hz": (lambda: _cv_model(100.0), 100.0),
-    "kf-ca-1hz": (lambda: _ca_model(1.0), 1.0),
-    "kf-ca-10hz": (lambda: _ca_model(10.0), 10.0),
-    "kf-ca-100hz": (lambda: _ca_model(100.0), 100.0),
-    "kf-rw-1hz": (lambda: _rw_model(1.0), 1.0),
-    "kf-rw-10hz": (lambda: _rw_model(10.0), 10.0),
-    "kf-rw-100hz": (lambda: _rw_model(100.0), 100.0),
-    "kf-cv-10hz-mistuned": (lambda: _cv_model(10.0), 10.0),
+    "kf-cv-1hz": (lambda: cv_model(1.0), 1.0),
+    "kf-cv-10hz": (lambda: cv_model(10.0), 10.0),
+    "kf-cv-100hz": (lambda: cv_model(100.0), 100.0),
+    "kf-ca-1hz": (lambda: ca_model(1.0), 1.0),
+    "kf-ca-10hz": (lambda: ca_model(10.0), 10.0),
+    "kf-ca-100hz": (lambda: ca_model(100.0), 100.0),
+    "kf-rw-1hz": (lambda: rw_model(1.0), 1.0),
+    "kf-rw-10hz": (lambda: rw_model(10.0), 10.0),
+    "kf-rw-100hz": (lambda: rw_model(100.0), 100.0),
+    "kf-cv-10hz-mistuned": (lambda: cv_model(10.0), 10.0),
 }
 MISTUNE = {"small4": (1 / 8, 1 / 2), "large4": (8.0, 2.0)}
 """(Q, R) factors of the filter in ``kf-cv-10hz-mistuned``: its noise level 4× off (the
@@ -504,7 +510,7 @@ geometric mean of the factors) and its Q/R ratio 4× off, the same way."""
 
 
 @functools.cache
-def _kf(family: str, q_factor: float = 1.0, r_factor: float = 1.0) -> _LinearKF:
+def filter_of(family: str, q_factor: float = 1.0, r_factor: float = 1.0) -> _LinearKF:
     return linear_kf(KF_MODELS[family][0](), q_factor=q_factor, r_factor=r_factor)
 
 
@@ -606,7 +612,7 @@ def _run_ekf_range(steps: int, rng: np.random.Generator):
     ranged from four beacons at (±1 km, ±1 km) (σ = 1 m each) at 10 Hz. Errors: position."""
     from filterpy.kalman import ExtendedKalmanFilter
 
-    f, qm, *_ = _cv_model(10.0, q=0.05)
+    f, qm, *_ = cv_model(10.0, q=0.05)
     r = np.eye(len(BEACONS))
     p0 = np.diag([25.0, 1.0, 25.0, 1.0])
     ekf = ExtendedKalmanFilter(dim_x=4, dim_z=len(BEACONS))
@@ -674,7 +680,7 @@ def _run_stonesoup_radar(steps: int, rng: np.random.Generator, filt: str = "ekf"
     else:
         predictor = UnscentedKalmanPredictor(transition)
         updater = UnscentedKalmanUpdater(meas, force_symmetric_covariance=True)
-    f, qm, *_ = _cv_model(1.0, q=q)
+    f, qm, *_ = cv_model(1.0, q=q)
     chol_q = np.linalg.cholesky(qm)
     p0 = np.diag([100.0, 25.0, 100.0, 25.0])
     mean0 = np.array([10000.0, 0.0, 0.0, 10.0])
@@ -894,11 +900,11 @@ def make(family: str, n: int, rng: np.random.Generator, misfit: str = "none") ->
     elif k == "kf":
         rate = KF_MODELS[family][1]
         if family == "kf-cv-10hz-mistuned" and misfit in MISTUNE:
-            kf = _kf(family, *MISTUNE[misfit])
+            kf = filter_of(family, *MISTUNE[misfit])
             factor = float(np.trace(kf.true_out) / np.trace(kf.claimed))
             cov = np.broadcast_to(kf.claimed, (n, *kf.claimed.shape))
         else:
-            kf = _kf(family)
+            kf = filter_of(family)
             cov, factor = _misfit_cov(np.broadcast_to(kf.claimed, (n, *kf.claimed.shape)), misfit)
         errors = kf_errors(kf, n, rng)
         tau = kf.tau

@@ -794,3 +794,42 @@ def test_a_segment_that_is_the_whole_log_takes_the_summary_accuracy():
             for got, want in zip(found, own, strict=True):
                 assert got.max_norm == want.max_norm > 0
                 np.testing.assert_array_equal(got.median, want.median)
+
+
+def test_a_log_that_is_surely_one_segment_starts_no_workers(tmp_path, monkeypatch):
+    """A local Parquet log without a segment or run column is one segment whatever the
+    jobs (`io.ingest.one_segment`, read from its metadata): no worker pool is started for
+    it, and so no compiled kernels are loaded on speculation; the same log with a segment
+    column, or cut into windows, does start one."""
+    from credcli import workflows
+    from credcli.io.ingest import one_segment
+    from credcli.io.schema import LogReading, ReadOptions
+    from credcli.requests import DiagnoseRequest
+
+    n = 2_000
+    e = np.random.default_rng(3).standard_normal((n, 2))
+    frame = pd.DataFrame({"time": np.arange(n) * 0.01, "truth_0": e[:, 0], "truth_1": e[:, 1]})
+    frame = frame.assign(est_0=0.0, est_1=0.0, cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0)
+    one, cut = tmp_path / "one.parquet", tmp_path / "cut.parquet"
+    frame.to_parquet(one)
+    frame.assign(segment=np.arange(n) // 1_000).to_parquet(cut)
+    frame.to_csv(tmp_path / "one.csv", index=False)
+    monkeypatch.setattr(workflows, "PARALLEL_MIN_BYTES", 0)  # any log is large enough
+    assert one_segment(one, None, None)
+    assert not one_segment(cut, None, None)
+    assert not one_segment(tmp_path / "one.csv", None, None)  # not told without reading
+    assert not one_segment(one, None, ReadOptions(truth=str(one)))  # paired: its own rows
+    started = []
+
+    class Pool:
+        def __init__(self, jobs, warm=None):
+            started.append(jobs)
+            raise RuntimeError("stop here")
+
+    monkeypatch.setattr(workflows, "WorkerPool", Pool)
+    workflows.run_diagnose(DiagnoseRequest((one,), jobs=2))
+    assert started == []
+    for path, reading in ((cut, LogReading()), (one, LogReading(window="5s"))):
+        with pytest.raises(RuntimeError, match="stop here"):
+            workflows.run_diagnose(DiagnoseRequest((path,), reading, jobs=2))
+    assert started == [2, 2]

@@ -102,6 +102,41 @@ def open_log(
     return log
 
 
+def one_segment(path, schema: LogSchema | None, reading: ReadOptions | None) -> bool:
+    """Whether the log at ``path`` is surely one segment, known before it is read: a local
+    Parquet credcli log, not paired with a separate truth, whose columns hold neither the
+    segment column nor the run column (read from its metadata, no data). False where that
+    cannot be told without reading it (other formats, a URL, standard input).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The log as given.
+    schema : LogSchema or None
+        Its column names (the segment and run columns).
+    reading : ReadOptions or None
+        How it is read (a separate truth pairs it).
+
+    Returns
+    -------
+    bool
+        True only where the log has no column that could cut it into segments or runs.
+    """
+    path = Path(path)
+    if (reading is not None and reading.paired) or path.suffix.lower() != ".parquet":
+        return False
+    if not path.is_file():
+        return False
+    import pyarrow.parquet as pq
+
+    schema = schema or LogSchema()
+    try:
+        names = set(pq.ParquetFile(path).schema_arrow.names)
+    except (OSError, ValueError):  # the reader says what is wrong with it
+        return False
+    return schema.segment not in names and schema.run not in names
+
+
 def _read_log(path: Path, schema, reading, drop_invalid: bool) -> EstimatorLog:
     schema = schema or LogSchema()
     reading = reading or ReadOptions()

@@ -251,18 +251,15 @@ def _diagnose_here(request: DiagnoseRequest, progress, keep: bool):
     paths, config, jobs, reading = request.logs, request.config, request.jobs, request.reading
     window, whole, monte_carlo = reading.window, reading.whole, request.monte_carlo
     pool = None
-    # one log that is surely one segment has nothing to share among workers: no pool, and
-    # no compiled kernels loaded on speculation (about 90 MB and 0.4 s of CPU)
-    if (
-        jobs > 1
-        and sum(file_size(p) for p in paths) >= PARALLEL_MIN_BYTES
-        and not (
-            len(paths) == 1
-            and window is None
-            and (whole or one_segment(paths[0], reading.schema, reading.options))
-        )
-    ):
+    if jobs > 1 and sum(file_size(p) for p in paths) >= PARALLEL_MIN_BYTES:
         pool = WorkerPool(jobs, warm=scheduling.__name__)  # workers import while the logs are read
+        # one log that is surely one segment has nothing to share among workers: no pool,
+        # and no compiled kernels loaded on speculation (about 90 MB and 0.4 s of CPU); asked
+        # after the pool chose fork or spawn, since the question loads pyarrow
+        if len(paths) == 1 and window is None:
+            if whole or one_segment(paths[0], reading.schema, reading.options):
+                pool.close()  # forked workers start at the first task: none has
+                pool = None
     try:
         with scheduling.kernels_loading(pool):
             loaded = [

@@ -819,17 +819,27 @@ def test_a_log_that_is_surely_one_segment_starts_no_workers(tmp_path, monkeypatc
     assert not one_segment(cut, None, None)
     assert not one_segment(tmp_path / "one.csv", None, None)  # not told without reading
     assert not one_segment(one, None, ReadOptions(truth=str(one)))  # paired: its own rows
-    started = []
+    given = []
 
-    class Pool:
+    class Pool:  # stands for the workers, started before the log is read
+        forked = True
+
         def __init__(self, jobs, warm=None):
-            started.append(jobs)
-            raise RuntimeError("stop here")
+            self.closed = False
+
+        def close(self):
+            self.closed = True
+
+        stop = close
+
+    def kernels_loading(pool):  # what the read is given: stop there
+        given.append((pool, pool is not None and pool.closed))
+        raise RuntimeError("stop here")
 
     monkeypatch.setattr(workflows, "WorkerPool", Pool)
-    workflows.run_diagnose(DiagnoseRequest((one,), jobs=2))
-    assert started == []
-    for path, reading in ((cut, LogReading()), (one, LogReading(window="5s"))):
+    monkeypatch.setattr(workflows.scheduling, "kernels_loading", kernels_loading)
+    for path, reading in ((one, LogReading()), (cut, LogReading()), (one, LogReading(window="5s"))):
         with pytest.raises(RuntimeError, match="stop here"):
             workflows.run_diagnose(DiagnoseRequest((path,), reading, jobs=2))
-    assert started == [2, 2]
+    assert given[0] == (None, False)
+    assert all(isinstance(pool, Pool) and not closed for pool, closed in given[1:])

@@ -279,14 +279,21 @@ def test_the_long_memory_alternative_reaches_every_direction():
     white = SeriesMemory(np.zeros(0), np.ones(1), math.inf)
     slow = SeriesMemory(np.array([0.99]), 0.99 ** np.arange(n), 50.0)
     candidates = [(0.3, np.zeros(0)), (0.05, np.zeros(0))]
-    out = longmemory._weak_alternative([white, white], np.array([True, False]), candidates, n)
+    none = np.array([False, False])  # no ARMA alternative
+    out = longmemory._weak_alternative(
+        [white, white], np.array([True, False]), candidates, n, none, []
+    )
     assert [m.fraction for m in out] == [0.3, 0.3]
     assert out[1].rho[1] == pytest.approx(0.3 / 0.7, rel=1e-12)
     assert out[1].mean_ratio(n) > white.mean_ratio(n)
-    kept = longmemory._weak_alternative([white, slow], np.array([True, False]), candidates, n)
+    kept = longmemory._weak_alternative(
+        [white, slow], np.array([True, False]), candidates, n, none, []
+    )
     assert kept[0].fraction == 0.3 and kept[1] is slow
     assert (
-        longmemory._weak_alternative([white, white], np.array([False, False]), candidates, n)
+        longmemory._weak_alternative(
+            [white, white], np.array([False, False]), candidates, n, none, []
+        )
         is None
     )
 

@@ -1016,11 +1016,10 @@ def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) ->
     other, _ = batches.memory_mean_test(gls, alternative, inverse)
     if other.dof[1] >= MIN_MEAN_DOF and other.pvalue < plan.mean_level:
         return plan
-    fractional = max(m.fraction for m in memory.alternative_changes) > 0
     support = (
         f"that fits them almost as well (its AICc within {SUPPORT:g} of theirs, not taken as "
         "the model)"
-        if fractional
+        if memory.alternative_fraction > 0
         else f"that fits them better (its AICc below theirs, within {SUPPORT:g} of the best)"
     )
     reason = (

@@ -533,7 +533,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
 
 
 def _weak_alternative(
-    series: list, weak: np.ndarray, candidates: list, n: int, arma_weak=None, arma=()
+    series: list, weak: np.ndarray, candidates: list, n: int, arma_weak: np.ndarray, arma: list
 ):
     """The directions' models with the weakly chosen memory in every direction, or None
     where no direction has any.
@@ -563,7 +563,7 @@ def _weak_alternative(
         rho = None if fraction >= FRACTIONS[-1] - 1e-9 else _fractional_rho(phi, fraction, n)
         if rho is not None:
             fitted.append((mean_variance_ratio(rho), fraction, 0.0, phi, rho))
-    for i in np.flatnonzero(arma_weak if arma_weak is not None else []).tolist():
+    for i in np.flatnonzero(arma_weak).tolist():
         theta, phi = arma[i]
         try:
             rho = arma_autocorrelation(phi, theta, n)

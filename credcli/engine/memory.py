@@ -981,17 +981,21 @@ class Memory(_Answering):
         return [a for a, m in zip(self.alternative.series, self.series) if a is not m]
 
     @property
+    def alternative_fraction(self) -> float:
+        """The largest d among the directions' models the :attr:`alternative` replaces: > 0
+        for a long-memory alternative, 0 for an ARMA one or none."""
+        return max((m.fraction for m in self.alternative_changes), default=0.0)
+
+    @property
     def alternative_name(self) -> str | None:
         """The :attr:`alternative` in words, as the reasons name it ("a long-memory one
         (d̂ 0.3)", "an ARMA one (θ̂ -0.7) with more memory"), from the directions it
         changed; None without one."""
         if self.alternative is None:
             return None
-        changed = self.alternative_changes
-        fraction = max((m.fraction for m in changed), default=0.0)
-        if fraction > 0:
-            return f"a long-memory one (d̂ {fraction:.2g})"
-        theta = max((m.moving for m in changed), key=abs, default=0.0)
+        if self.alternative_fraction > 0:
+            return f"a long-memory one (d̂ {self.alternative_fraction:.2g})"
+        theta = max((m.moving for m in self.alternative_changes), key=abs, default=0.0)
         return f"an ARMA one (θ̂ {theta:.2g}) with more memory"
 
     @functools.cached_property

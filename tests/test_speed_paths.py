@@ -843,3 +843,47 @@ def test_a_log_that_is_surely_one_segment_starts_no_workers(tmp_path, monkeypatc
             workflows.run_diagnose(DiagnoseRequest((path,), reading, jobs=2))
     assert given[0] == (None, False)
     assert all(isinstance(pool, Pool) and not closed for pool, closed in given[1:])
+
+
+_ENTRIES = st.sampled_from([0.0, -0.0, 1.5, -2.25, 3e300, -1e-300, np.inf, -np.inf, np.nan])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.integers(0, 40),
+    st.sampled_from([(1,), (2,), (3,), (2, 2), (3, 3), (0,)]),
+    st.data(),
+)
+def test_folds_over_an_epochs_entries_and_a_columns_epochs_are_numpys_reductions(n, shape, data):
+    """``per_epoch`` and ``per_column`` give numpy's reductions (max and min up to the sign
+    of a zero, which none of their callers reads), NaN and infinities included."""
+    from credcli.engine.linalg import per_column, per_epoch
+
+    size = n * int(np.prod(shape))
+    values = data.draw(st.lists(_ENTRIES, min_size=size, max_size=size))
+    a = np.array(values, dtype=float).reshape((n, *shape))
+    axes = tuple(range(1, a.ndim))
+    for ufunc in (np.logical_and, np.logical_or):
+        np.testing.assert_array_equal(per_epoch(ufunc, a > 0), ufunc.reduce(a > 0, axis=axes))
+    if shape == (0,):
+        return
+    for ufunc in (np.maximum, np.minimum):
+        np.testing.assert_array_equal(per_epoch(ufunc, a), ufunc.reduce(a, axis=axes))
+        if n and a.ndim == 2:
+            np.testing.assert_array_equal(per_column(ufunc, a), ufunc.reduce(a, axis=0))
+
+
+def test_a_tall_arrays_power_of_two_units_are_the_whole_arrays_reductions():
+    """The per-column path of ``power_of_two_unit`` gives the units of numpy's reductions,
+    a zero, an infinite and a NaN column included."""
+    from credcli.engine.units import power_of_two_unit
+
+    a = np.random.default_rng(5).standard_normal((5000, 6)) * [1e-200, 1.0, 3.0, 1e200, 1, 1]
+    a[:, 4] = 0.0
+    a[7, 5] = np.inf
+    a[9, 2] = np.nan
+    peak = np.maximum(a.max(axis=0), -a.min(axis=0))
+    ok = np.isfinite(peak) & (peak > 0)
+    expected = np.exp2(np.round(np.log2(np.where(ok, peak, 1.0))))
+    np.testing.assert_array_equal(power_of_two_unit(a, axis=0), expected)
+    assert expected[4] == expected[5] == expected[2] == 1.0 and expected[3] > 1e199

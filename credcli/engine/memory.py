@@ -1670,7 +1670,7 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     while n // m >= MIN_SCALE_BLOCKS:
         k = n // m
         if m > 1:
-            block_sums = block_sums[: 2 * k].reshape(k, 2, d).sum(axis=1)
+            block_sums = block_sums[0 : 2 * k : 2] + block_sums[1 : 2 * k : 2]
         sums = block_sums - block_sums.mean(axis=0)
         ratios = np.array([series.mean_ratio(m) for series in memory.series])
         per_direction = np.sum(np.square(sums, out=sums), axis=0) / ((k - 1) * m * variances)

@@ -622,20 +622,32 @@ def accuracy_columns(errors: np.ndarray, lengths: np.ndarray) -> AccuracyColumns
     )
 
 
+COLUMN_PARTITION = 1 << 14
+"""Rows from which a group's median is taken column by column (each column's copy
+contiguous: about 3× faster on 10⁶ rows) rather than by one partition of its rows (faster
+on a few thousand, where the calls cost more than the strides)."""
+
+
 def _grouped_median(values: np.ndarray, group: np.ndarray, starts, lengths) -> np.ndarray:
     """The median of each group's rows, per column: (groups, columns). An even count
     averages its two middle values, as ``np.median`` does. Long groups (64 rows or more on
     average) select their two middle values by ``np.partition``, in linear time, group by
-    group; many short ones take one sort of (group, value) per column. Both pick the same
-    order statistics, so the result is the same to the bit."""
+    group (column by column from :data:`COLUMN_PARTITION` rows); many short ones take one
+    sort of (group, value) per column. All pick the same order statistics, so the result is
+    the same to the bit."""
     if lengths.size == values.shape[0]:  # groups of one epoch: (v + v) / 2, as below
         return (values + values) / 2
     out = np.empty((lengths.size, values.shape[1]))
     if lengths.size * 64 <= values.shape[0]:
         for g, (start, length) in enumerate(zip(starts.tolist(), lengths.tolist())):
             middle = sorted({(length - 1) // 2, length // 2})
-            part = np.partition(values[start : start + length], middle, axis=0)
-            out[g] = (part[(length - 1) // 2] + part[length // 2]) / 2
+            if length < COLUMN_PARTITION:
+                part = np.partition(values[start : start + length], middle, axis=0)
+                out[g] = (part[(length - 1) // 2] + part[length // 2]) / 2
+                continue
+            for j in range(values.shape[1]):
+                part = np.partition(values[start : start + length, j], middle)
+                out[g, j] = (part[(length - 1) // 2] + part[length // 2]) / 2
         return out
     low, high = starts + (lengths - 1) // 2, starts + lengths // 2
     for j in range(values.shape[1]):  # a few columns, each one sort of all rows

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from credcli.engine.config import Perturbation
-from credcli.engine.linalg import SYMMETRY_RTOL, eigenvalues_2x2, epoch_chunks
+from credcli.engine.linalg import SYMMETRY_RTOL, eigenvalues_2x2, epoch_chunks, per_epoch
 from credcli.errors import CredcliError
 from credcli.io.files import check_covariance_memory
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
@@ -918,7 +918,7 @@ def log_from_frame(
     rows = np.arange(1, n + 1)
     bad = np.zeros(n, dtype=bool)
     for block in blocks:
-        bad |= ~np.isfinite(block).all(axis=1)
+        bad |= ~per_epoch(np.logical_and, np.isfinite(block))
     dropped = 0
     if bad.any():
         if not drop_invalid:
@@ -939,7 +939,7 @@ def log_from_frame(
     cov_notes: list[str] = []
     cov = validated_cov(build_cov(cov_values, kind, d), rows, source, kind, notes=cov_notes)
     if kind is CovKind.STD:
-        negative = (cov_values < 0).any(axis=1)
+        negative = per_epoch(np.logical_or, cov_values < 0)
         if negative.any():
             i = int(np.argmax(negative))
             raise CredcliError(
@@ -1217,7 +1217,7 @@ def validated_cov(
         return epoch(i) if epoch is not None else f"{source}: row {rows[i]}"
 
     diag = np.diagonal(cov, axis1=1, axis2=2)
-    infinite = ~np.isfinite(diag).all(axis=1)
+    infinite = ~per_epoch(np.logical_and, np.isfinite(diag))
     if infinite.any():
         i = int(np.argmax(infinite))
         what = "the square of a std column" if kind is CovKind.STD else "a variance"
@@ -1266,9 +1266,9 @@ def validated_cov(
             for sl in _matrix_chunks(cov.shape[0], d):
                 cov[sl] = 0.5 * cov[sl] + 0.5 * cov[sl].transpose(0, 2, 1)
     else:
-        scale = np.abs(diag).max(axis=1)  # the largest entry of a PD matrix is diagonal
+        scale = per_epoch(np.maximum, np.abs(diag))  # a PD matrix's largest entry is diagonal
     if kind in (CovKind.VAR, CovKind.STD):
-        min_eig = diag.min(axis=1)
+        min_eig = per_epoch(np.minimum, diag)
     elif cov.shape[1] == 2:  # closed form, scale-free, no cancellation
         min_eig = eigenvalues_2x2(cov)[1]
     else:

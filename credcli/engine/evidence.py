@@ -254,9 +254,10 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     source = "run" if memory is not None else "segment"
     scales_check = None
     drifting = None
+    fitted_on = None  # the residuals of the segment's own model, for its time-scale check
     if modelled and memory is None:
         try:
-            memory, scales_check = segment_memory(gls, inverse, s, r1)
+            memory, fitted_on = segment_memory(gls, inverse, s, r1)
         except NoFiniteMemory:
             drifting = _drift_evidence(gls, n)
             source = None
@@ -267,6 +268,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             c: memory_evidence(gls, inverse, c, memory, n) for c in dict.fromkeys(modelled)
         }
     del inverse
+    if fitted_on is not None:
+        scales_check = time_scales(fitted_on, memory)
+        del fitted_on
     squares_ratio = memory.squares.variance_ratio if memory is not None else tau_q
     found_bursts = episodes.bursts(eps, d, squares_ratio)
     q_median = float(np.median(gls.q))
@@ -1136,9 +1140,10 @@ def _declined(ev: ModelEvidence, reason: str) -> ModelEvidence:
     return ModelEvidence(ev.scale, reason, None, plan)
 
 
-def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
-    """The dependence model fitted on one segment (or run) and its check at every
-    averaging time.
+def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, np.ndarray]:
+    """The dependence model fitted on one segment (or run), and the residuals it was
+    fitted on, for its check at every averaging time (:func:`time_scales`), which the
+    caller makes once the per-epoch inverses are freed (a long segment's peak memory).
 
     Below :data:`SCREENED_BELOW` epochs the sieve is also told of memory that the lag-1
     autocorrelation of the whitened errors ``s`` shows, centred or about zero, at
@@ -1161,8 +1166,8 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
     -------
     memory : Memory
         The fitted model (:func:`credcli.engine.memory.fit_memory`).
-    time_scales : TimeScales
-        Its check at every averaging time (:func:`credcli.engine.memory.time_scales`).
+    residuals : numpy.ndarray, shape (N, d)
+        The mean-free whitened residuals it was fitted on (:func:`memory_residuals`).
     """
     n = s.shape[0]
     r1 = correlation.autocorrelation(s) if r1 is None else r1
@@ -1173,8 +1178,7 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, TimeScales]:
         )
     )
     residuals = memory_residuals(gls, inverse)
-    memory = with_long_memory(fit_memory(residuals, gls.q, screened=screened), residuals)
-    return memory, time_scales(residuals, memory)
+    return with_long_memory(fit_memory(residuals, gls.q, screened=screened), residuals), residuals
 
 
 def segment_memory_of(residuals: np.ndarray, q: np.ndarray, cover: int | None = None) -> Memory:

@@ -161,6 +161,32 @@ def test_the_vectorised_smirnov_tail_is_scipys_exact_sum(above):
     assert evidence.smirnov_tail(n, 0.0) == 1.0 and evidence.smirnov_tail(n, 1.0) == 0.0
 
 
+def test_the_ks_statistic_and_smirnov_sum_in_chunks_are_the_whole_arrays(rng):
+    """Past a chunk of epochs (linalg.EPOCH_CHUNK) the KS statistic and the Birnbaum–Tingey
+    sum are taken chunk by chunk; each is, to the bit, the one-array form."""
+    from credcli.engine import evidence, linalg
+
+    n = linalg.EPOCH_CHUNK + 40_000
+    eps = rng.chisquare(2, size=n) * 1.002
+    x = np.sort(eps)
+    cdf = special.chdtr(2, x)
+    i = np.arange(1, n + 1)
+    d_stat = max(float(np.max(i / n - cdf)), float(np.max(cdf - (i - 1) / n)))
+    j = np.arange(math.floor(n * (1.0 - d_stat)) + 1, dtype=float)
+    assert j.size > linalg.EPOCH_CHUNK
+    log_terms = (
+        special.gammaln(n + 1.0)
+        - special.gammaln(j + 1.0)
+        - special.gammaln(n - j + 1.0)
+        + (n - j) * np.log1p(-(d_stat + j / n))
+        + (j - 1.0) * np.log(d_stat + j / n)
+    )
+    top = float(np.max(log_terms))
+    tail = float(d_stat * math.exp(top) * np.sum(np.exp(log_terms - top)))
+    assert evidence.smirnov_tail(n, d_stat) == tail
+    assert dg.ks_chi2_pvalue(eps, 2) == float(min(1.0, 2.0 * tail))
+
+
 def test_result_carries_every_intermediate_number(rng):
     errors, cov = gaussian_segment(rng, n=200, d=2, rho=0.2, bias=[2, 0])
     d = dg.diagnose_errors(errors, cov, DiagnosisConfig(metrics="all"), rng=1)

@@ -229,6 +229,28 @@ def test_principal_directions_are_orthonormal_for_any_errors(d, seed, constant):
     np.testing.assert_allclose(directions.T @ directions, np.eye(d), atol=1e-9)
 
 
+@settings(max_examples=150, deadline=None)
+@given(
+    runs=st.integers(1, 3),
+    t=st.integers(1, 90),
+    width=st.integers(1, 40),
+    d=st.integers(1, 3),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_moving_sums_in_place_are_the_cumulative_sums_differences(runs, t, width, d, seed):
+    """The in-place moving sums are, bit for bit, C_{k+w−1} − C_{k−1} of a separate
+    cumulative sum (the form principal_directions used before), at every length, the
+    lengths shorter than the window included."""
+    x = np.random.default_rng(seed).standard_normal((runs, t, d)) * 1e3
+    c = np.cumsum(x, axis=1)
+    expected = np.empty((runs, max(t - width + 1, 0), d))
+    expected[:, :1] = c[:, width - 1 : width]
+    np.subtract(c[:, width:], c[:, : max(t - width, 0)], out=expected[:, 1:])
+    got = mem.moving_sums(x.copy(), width)
+    assert got.shape == expected.shape
+    np.testing.assert_array_equal(got, expected)
+
+
 def test_max_order_follows_schwert():
     assert mem.max_order(100) == 12
     assert mem.max_order(20) == 5  # at most N/4

@@ -887,3 +887,14 @@ def test_a_tall_arrays_power_of_two_units_are_the_whole_arrays_reductions():
     expected = np.exp2(np.round(np.log2(np.where(ok, peak, 1.0))))
     np.testing.assert_array_equal(power_of_two_unit(a, axis=0), expected)
     assert expected[4] == expected[5] == expected[2] == 1.0 and expected[3] > 1e199
+
+
+def test_tail_quantiles_selected_in_place_are_those_of_a_copy():
+    """``overwrite`` reorders the standardized residuals, and gives the same quantiles."""
+    from credcli.engine.scale import standardized, tail_quantiles
+
+    u = standardized(np.random.default_rng(8).standard_t(4, size=(10_001, 3)))
+    expected = tail_quantiles(u)
+    scratch = u.copy()
+    np.testing.assert_array_equal(tail_quantiles(scratch, overwrite=True), expected)
+    assert not np.array_equal(scratch, u)  # it was the scratch copy that was reordered

@@ -1052,6 +1052,38 @@ class Memory(_Answering):
         return max(1, lag, math.ceil(worst / loss - 1e-9))
 
 
+def moving_sums(x: np.ndarray, width: int) -> np.ndarray:
+    """The sums of ``width`` consecutive epochs of each run, computed in place of ``x``.
+
+    One cumulative sum C over the epochs, then C_{k+w−1} − C_{k−1} (C_{−1} = 0) written
+    over C from its end in pieces of w epochs, each reading epochs not yet written: the
+    values of ``np.cumsum`` and one subtraction, without a second array.
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (R, T, d)
+        R runs of T epochs; overwritten.
+    width : int
+        w >= 1 epochs per sum.
+
+    Returns
+    -------
+    numpy.ndarray, shape (R, max(T − w + 1, 0), d)
+        A view of ``x``: the sum of epochs k … k + w − 1 of each run, k = 0 … T − w.
+
+    Examples
+    --------
+    >>> moving_sums(np.arange(5.0).reshape(1, 5, 1), 2)[0, :, 0].tolist()
+    [1.0, 3.0, 5.0, 7.0]
+    """
+    t = x.shape[1]
+    c = np.cumsum(x, axis=1, out=x)
+    for stop in range(t, width, -width):
+        start = max(width, stop - width)
+        np.subtract(c[:, start:stop], c[:, start - width : stop - width], out=c[:, start:stop])
+    return c[:, width - 1 :]
+
+
 def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     """Orthonormal directions of the whitened errors ``s`` in which they are uncorrelated
     both at lag 0 and in the long run, as nearly as one rotation allows, slowest first.
@@ -1106,13 +1138,10 @@ def principal_directions(s: np.ndarray, runs: int = 1) -> np.ndarray:
     band = max(1, min(t - 1, math.ceil(math.sqrt(t))))
     gamma = np.einsum("mti,mtj->ij", x, x)
     # the Bartlett estimate with bandwidth H is, up to the ends, the covariance of sums of
-    # H + 1 consecutive epochs over H + 1: one cumulative sum C (in place of x), no loop
-    # over lags; the sums are C_{k+H} − C_{k−1}, C_{−1} = 0 (two copies of N × d, not four)
-    c = np.cumsum(x, axis=1, out=x)
-    sums = np.empty((runs, max(t - band, 0), d))
-    sums[:, :1] = c[:, band : band + 1]  # (none when T = 1)
-    np.subtract(c[:, band + 1 :], c[:, : t - band - 1], out=sums[:, 1:])
-    del x, c
+    # H + 1 consecutive epochs over H + 1: no loop over lags, no second copy of N × d
+    sums = moving_sums(x, band + 1)
+    sums = sums if runs == 1 else np.ascontiguousarray(sums)
+    del x
     omega = np.einsum("mti,mtj->ij", sums, sums) / (band + 1)
     del sums
     traces = float(np.trace(gamma)), float(np.trace(omega))

@@ -165,7 +165,8 @@ class GlsResiduals:
         """The quantiles at ``_TAIL_PROBS`` of the :func:`standardized` residuals' pooled
         components, computed once (the overall, per-direction and model scale tests all
         read their tails, :func:`tail_factor`)."""
-        return tail_quantiles(standardized(self.whitened))
+        u = standardized(self.whitened)
+        return tail_quantiles(u, overwrite=u is not self.whitened)  # a copy: select in it
 
     @property
     def bias_mahalanobis(self) -> float:
@@ -237,7 +238,7 @@ errors (one-sided 10 %); below that the tails are taken as normal. The value tra
 alarms on heavy tails against accuracy on Gaussian errors (measured in docs/measured.md)."""
 
 
-def tail_quantiles(u: np.ndarray) -> np.ndarray:
+def tail_quantiles(u: np.ndarray, overwrite: bool = False) -> np.ndarray:
     """The quantiles at ``_TAIL_PROBS`` (2.5, 25, 75 and 97.5 %) of the pooled components
     of ``u``: what :func:`tail_factor` reads.
 
@@ -245,13 +246,16 @@ def tail_quantiles(u: np.ndarray) -> np.ndarray:
     ----------
     u : numpy.ndarray, shape (N, d)
         The standardized residuals (:func:`standardized`).
+    overwrite : bool, default False
+        Select the quantiles in ``u`` itself, reordering it, rather than in a copy (the
+        same values; no second N × d array).
 
     Returns
     -------
     numpy.ndarray, shape (4,)
         The four quantiles, increasing.
     """
-    return np.quantile(u.ravel(), _TAIL_PROBS)
+    return np.quantile(u.ravel(), _TAIL_PROBS, overwrite_input=overwrite)
 
 
 def tail_factor(
@@ -353,7 +357,9 @@ def standardized(u: np.ndarray) -> np.ndarray:
         return u
     values, vectors = np.linalg.eigh(u.T @ u / max(n - 1, 1))
     scale = np.sqrt(np.maximum(values, np.finfo(float).tiny))
-    return (u @ vectors) / scale
+    rotated = u @ vectors
+    rotated /= scale  # in place: one N × d array
+    return rotated
 
 
 def scale_test(

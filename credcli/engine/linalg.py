@@ -47,6 +47,32 @@ SYMMETRY_RTOL = 1e-6
 """Largest relative asymmetry |Σ_ij − Σ_ji| / max|Σ| of a claimed covariance."""
 
 
+def as_slice(index: np.ndarray):
+    """``index`` as a slice when it is a contiguous increasing range, else as it is.
+
+    Parameters
+    ----------
+    index : numpy.ndarray of int
+        Epochs.
+
+    Returns
+    -------
+    slice or numpy.ndarray
+        ``slice(first, last + 1)``, or ``index`` itself.
+
+    Examples
+    --------
+    >>> as_slice(np.array([3, 4, 5])), as_slice(np.array([3, 5])).tolist()
+    (slice(3, 6, None), [3, 5])
+    """
+    size = index.size
+    if size == 1:  # one epoch: no difference to take (a log of 10⁶ one-epoch segments)
+        return slice(int(index[0]), int(index[0]) + 1)
+    if size and index[-1] - index[0] + 1 == size and np.all(np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
+    return index
+
+
 def per_epoch(ufunc: np.ufunc, a: np.ndarray) -> np.ndarray:
     """``ufunc.reduce`` over every axis of ``a`` but the first (the epochs'), as a fold over
     the few entries of an epoch: for ``maximum``, ``minimum``, ``logical_and`` and

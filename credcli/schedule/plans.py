@@ -24,6 +24,7 @@ from credcli.engine.diagnosis import (
     innovation_whiteness,
     run_model,
 )
+from credcli.engine.linalg import as_slice
 from credcli.engine.metrics import Accuracy
 from credcli.engine.short import SegmentResults, ShortSegments, short_segments
 from credcli.engine.timing import truth_velocity
@@ -103,16 +104,6 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     return out
 
 
-def _as_slice(index: np.ndarray):
-    """``index`` as a slice when it is a contiguous increasing range, else as it is."""
-    size = index.size
-    if size == 1:  # one epoch: no difference to take (a log of 10⁶ one-epoch segments)
-        return slice(int(index[0]), int(index[0]) + 1)
-    if size and index[-1] - index[0] + 1 == size and np.all(np.diff(index) == 1):
-        return slice(int(index[0]), int(index[-1]) + 1)
-    return index
-
-
 def _item(
     segment: seg.Segment,
     log,
@@ -131,7 +122,7 @@ def _item(
     cov = log.cov
     whole = segment.index.size == log.n
     fitted = log.fitted_mean if whole else None
-    index = _as_slice(segment.index)
+    index = as_slice(segment.index)
     # the log's summary has the accuracy of these very errors (the same rows, in order)
     known = accuracy if isinstance(index, slice) and index == slice(0, log.n) else None
     window = run is not None and segment.window

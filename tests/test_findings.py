@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from credcli.cli import main
@@ -400,3 +402,35 @@ def test_slow_errors_on_the_command_line(tmp_path, capsys):
     assert records["auto"]["label"] == "insufficient-data"
     assert records["auto"]["reason"].startswith("offset within the claim")
     assert records["excluded"]["label"] == "pessimism+bias"
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    n=st.integers(3, 40),
+    uniform=st.sampled_from(["all", "none", "one part"]),
+    cuts=st.lists(st.integers(0, 40), max_size=4),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_a_parts_velocity_is_the_whole_logs_gradient_there(n, uniform, cuts, seed):
+    """Motion.part(...).velocity() is, to the bit, np.gradient of the whole log's truth at
+    the part's epochs: with equal steps (numpy's uniform formula), unequal ones, and
+    unequal ones but for a stretch that is equal (the part must not switch formulas); at
+    the log's ends and inside; for slices and for indices."""
+    from credcli.engine.timing import motion, truth_velocity
+
+    rng = np.random.default_rng(seed)
+    truth = rng.standard_normal((n, 2)) * 10.0
+    steps = np.full(n - 1, 0.125) if uniform != "none" else rng.uniform(0.05, 0.2, n - 1)
+    if uniform == "one part":
+        steps[: n // 2] = rng.uniform(0.05, 0.2, n // 2)
+    time = 3.0 + np.concatenate([[0.0], np.cumsum(steps)])
+    whole = truth_velocity(truth, time)
+    log_motion = motion(truth, time)
+    assert (log_motion.step is not None) == (uniform == "all")
+    edges = sorted({0, n, *(min(c, n) for c in cuts)})
+    for start, stop in zip(edges[:-1], edges[1:]):
+        part = log_motion.part(slice(start, stop))
+        np.testing.assert_array_equal(part.velocity(), whole[start:stop])
+    index = np.flatnonzero(rng.random(n) < 0.5)
+    np.testing.assert_array_equal(log_motion.part(index).velocity(), whole[index])
+    assert motion(truth, time[::-1]) is None and truth_velocity(truth, time[::-1]) is None

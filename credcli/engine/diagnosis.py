@@ -689,7 +689,7 @@ def diagnose_segments(
     errors = log.errors
     windows = [seg.index for seg in segments if getattr(seg, "window", False)]
     run = run_model(errors, log.cov, windows, config) if windows else RunModel(None)
-    velocity = timing.truth_velocity(log.truth, log.time)
+    moving = timing.motion(log.truth, log.time)
     out = []
     for done, seg in enumerate(segments, start=1):
         window = getattr(seg, "window", False)
@@ -704,7 +704,7 @@ def diagnose_segments(
             memory=run.memory if window else None,
             findings=run.findings if windows and not window else (),  # the run's own
             declined=run.window_reason if window else None,
-            velocity=None if velocity is None else velocity[seg.index],
+            motion=None if moving is None else moving.part(linalg.as_slice(seg.index)),
         )
         out.append(SegmentDiagnosis(log.id, seg.name, seg.t_start, seg.t_end, diag))
         if progress is not None:
@@ -907,7 +907,7 @@ def diagnose_segment(
     memory: Memory | None = None,
     findings: tuple[str, ...] = (),
     declined: str | None = None,
-    velocity: np.ndarray | None = None,
+    motion: timing.Motion | None = None,
     fitted_mean: str | None = None,
     accuracy: metrics.Accuracy | None = None,
 ) -> Diagnosis:
@@ -940,10 +940,10 @@ def diagnose_segment(
     declined : str, optional
         Why a window of a run gets no label of its own (:attr:`RunModel.window_reason`):
         the numbers stay, the label is insufficient-data.
-    velocity : numpy.ndarray, shape (N, d), optional
-        The truth's velocity (:func:`credcli.engine.timing.truth_velocity`), to look for a
-        time offset that explains a misfit (:func:`credcli.engine.timing.time_offset`),
-        named first among the findings.
+    motion : Motion, optional
+        The segment's truth and time stamps (:meth:`credcli.engine.timing.Motion.part`),
+        whose velocity is taken to look for a time offset that explains a misfit
+        (:func:`credcli.engine.timing.time_offset`), named first among the findings.
     fitted_mean : str, optional
         Why the errors' mean is no evidence (an alignment fitted it), which leaves the
         location question open (:func:`without_location`).
@@ -974,8 +974,8 @@ def diagnose_segment(
             diag = replace(diag, blocks=block_scales(errors, cov, blocks, config, runs))
         if findings:
             diag = replace(diag, findings=diag.findings + findings)
-        if velocity is not None and diag.label.conditions and declined is None:
-            offset = timing.time_offset(errors, cov, velocity, memory_ratio(diag))
+        if motion is not None and diag.label.conditions and declined is None:
+            offset = timing.time_offset(errors, cov, motion.velocity(), memory_ratio(diag))
             if offset is not None:
                 diag = replace(
                     diag, time_offset=offset, findings=(offset.describe(),) + diag.findings

@@ -17,6 +17,7 @@ finding comes first, before any covariance advice.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -93,6 +94,130 @@ def truth_velocity(truth: np.ndarray | None, time: np.ndarray | None) -> np.ndar
     return np.gradient(np.asarray(truth, dtype=float), t, axis=0)
 
 
+@dataclass(frozen=True)
+class Motion:
+    """The truth of a log, or of a segment with one epoch beyond each end where the log has
+    one, and its time stamps: what :meth:`velocity` differentiates, only where a segment's
+    label names a misfit and a time offset is looked for (a log's velocities are N × d
+    numbers, otherwise held for its whole diagnosis).
+
+    Attributes
+    ----------
+    truth : numpy.ndarray, shape (M, d)
+        The true states, floats.
+    time : numpy.ndarray, shape (M,)
+        Their time stamps, finite and increasing.
+    first : int
+        The row of ``truth`` that is the segment's first epoch (0 or 1).
+    n : int
+        The segment's epochs.
+    step : float or None
+        The log's time step where every step is the same (``np.gradient``'s uniform case,
+        decided on the whole log), else None.
+    known : numpy.ndarray or None
+        The velocities themselves, for epochs that are not one slice of the log (then
+        ``truth`` and ``time`` are empty).
+    """
+
+    truth: np.ndarray
+    time: np.ndarray
+    first: int
+    n: int
+    step: float | None
+    known: np.ndarray | None = None
+
+    def part(self, index) -> Motion:
+        """The motion of the epochs ``index`` of this whole log's motion.
+
+        Parameters
+        ----------
+        index : slice or numpy.ndarray
+            A slice (step 1) of the log's epochs, or their indices.
+
+        Returns
+        -------
+        Motion
+            The slice with one epoch beyond each end where there is one; for indices that
+            are not a slice, their velocities, taken from the whole log's.
+        """
+        if not isinstance(index, slice):
+            empty = np.zeros(0)
+            return Motion(empty, empty, 0, len(index), None, self._velocities[index])
+        start, stop, _ = index.indices(self.n)
+        low, high = max(start - 1, 0), min(stop + 1, self.n)
+        return Motion(
+            self.truth[low:high], self.time[low:high], start - low, stop - start, self.step
+        )
+
+    @functools.cached_property
+    def _velocities(self) -> np.ndarray:
+        return self.velocity()
+
+    def velocity(self) -> np.ndarray:
+        """ẋ at the segment's epochs: to the bit ``np.gradient`` of the whole log's truth
+        at them (:func:`truth_velocity`), whose formula at an epoch reads only its two
+        neighbours (central differences; one-sided at the log's ends), the uniform one
+        where the whole log's steps are all equal.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, d)
+            The velocities.
+        """
+        if self.known is not None:
+            return self.known
+        f, last = self.truth, self.truth.shape[0] - 1
+        rows = np.arange(self.first, self.first + self.n)
+        out = np.empty((self.n, f.shape[1]))
+        inner = (rows > 0) & (rows < last)
+        k = rows[inner]
+        if self.step is not None:
+            out[inner] = (f[k + 1] - f[k - 1]) / (2.0 * self.step)
+        else:
+            dx = np.diff(self.time)
+            dx1, dx2 = dx[k - 1][:, None], dx[k][:, None]
+            a = -(dx2) / (dx1 * (dx1 + dx2))
+            b = (dx2 - dx1) / (dx1 * dx2)
+            c = dx1 / (dx2 * (dx1 + dx2))
+            out[inner] = a * f[k - 1] + b * f[k] + c * f[k + 1]
+        # the log's own ends: a part's extra epochs make every other end an inner epoch
+        if self.n and rows[0] == 0:
+            step = self.step if self.step is not None else self.time[1] - self.time[0]
+            out[0] = (f[1] - f[0]) / step
+        if self.n and rows[-1] == last:
+            step = self.step if self.step is not None else self.time[-1] - self.time[-2]
+            out[-1] = (f[-1] - f[-2]) / step
+        return out
+
+
+def motion(truth: np.ndarray | None, time: np.ndarray | None) -> Motion | None:
+    """The whole log's :class:`Motion`, or None where :func:`truth_velocity` gives None
+    (no truth or time, fewer than 3 epochs, time stamps not finite or not increasing).
+
+    Parameters
+    ----------
+    truth : numpy.ndarray or None, shape (N, d)
+        The true states x(t_k).
+    time : numpy.ndarray or None, shape (N,)
+        The time stamps t_k.
+
+    Returns
+    -------
+    Motion or None
+        Holding the arrays themselves (no copy of float arrays).
+    """
+    if truth is None or time is None or truth.shape[0] < 3:
+        return None
+    t = np.asarray(time, dtype=float)
+    if not np.all(np.isfinite(t)):
+        return None
+    dx = np.diff(t)
+    if np.any(dx <= 0):
+        return None
+    step = float(dx[0]) if bool((dx == dx[0]).all()) else None
+    return Motion(np.asarray(truth, dtype=float), t, 0, truth.shape[0], step)
+
+
 def time_offset(
     errors: np.ndarray, cov: np.ndarray, velocity: np.ndarray, memory_ratio: float = 1.0
 ) -> TimeOffset | None:
@@ -106,7 +231,7 @@ def time_offset(
         The claimed covariances Σ̂_k, positive definite; the errors and velocities are
         whitened by their symmetric inverse square roots.
     velocity : numpy.ndarray, shape (N, d)
-        The truth's velocity ẋ_k (``truth_velocity``).
+        The truth's velocity ẋ_k (:meth:`Motion.velocity`).
     memory_ratio : float
         τ, the errors' largest variance ratio; the standard error is inflated by
         √max(τ, 1) (default 1: independent epochs).

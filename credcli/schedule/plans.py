@@ -27,7 +27,7 @@ from credcli.engine.diagnosis import (
 from credcli.engine.linalg import as_slice
 from credcli.engine.metrics import Accuracy
 from credcli.engine.short import SegmentResults, ShortSegments, short_segments
-from credcli.engine.timing import truth_velocity
+from credcli.engine.timing import motion
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.logid import LogId, unique_ids
@@ -74,7 +74,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     log_id, items, config, seed, innovations, runs, blocks = task
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
-    for name, t0, t1, e, c, memory, findings, declined, velocity, fitted, known in items:
+    for name, t0, t1, e, c, memory, findings, declined, moving, fitted, known in items:
         white = innovation_whiteness(e, c, level) if innovations else None
         # innovations are tested under their white null unless the whiteness test rejects;
         # correlated innovations are then a finding, and the two questions are answered
@@ -96,7 +96,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             memory,
             findings,
             declined,
-            velocity,
+            moving,
             fitted,
             known,
         )
@@ -108,13 +108,13 @@ def _item(
     segment: seg.Segment,
     log,
     run=None,
-    velocity=None,
+    moving=None,
     errors: np.ndarray | None = None,
     accuracy: Accuracy | None = None,
 ) -> tuple:
     """A segment of ``log`` as a task item: (name, t_start, t_end, errors, covariances, the
     run's dependence model for a window, the run's findings for the run's own segment, why a
-    window gets no verdict of its own, the truth's velocity or None, why its mean is no
+    window gets no verdict of its own, its truth's motion or None, why its mean is no
     evidence or None, its accuracy where it is the whole log's, in order, or None), the
     arrays as views when the segment is contiguous. ``errors``: the log's, when already
     taken; ``accuracy``: the whole log's, when already made (for its summary)."""
@@ -130,7 +130,7 @@ def _item(
     declined = run.window_reason if window else None
     findings = run.findings if run is not None and not segment.window else ()  # the run's
     item = (segment.name, segment.t_start, segment.t_end, errors[index], cov[index])
-    moving = None if velocity is None else velocity[index]
+    moving = None if moving is None else moving.part(index)
     return (*item, memory, findings, declined, moving, fitted, known)
 
 
@@ -206,14 +206,14 @@ def _chunk_tasks(
             continue
         errors = log.errors
         model = None if innovations else _run_model(log, segments, config)
-        velocity = None if innovations else truth_velocity(log.truth, log.time)
+        moving = None if innovations else motion(log.truth, log.time)
         for i in todo:
             segment = segments[i]
             if items and (size >= target or log_id != log.id):
                 yield (log_id, items, config, seed, innovations, runs, blocks)
                 items, size = [], 0
             log_id, blocks = log.id, log.blocks
-            items.append(_item(segment, log, model, velocity, errors, accuracies.get(log.id)))
+            items.append(_item(segment, log, model, moving, errors, accuracies.get(log.id)))
             size += len(segment.index)
     if items:
         yield (log_id, items, config, seed, innovations, runs, blocks)
@@ -446,10 +446,10 @@ def _segments_task(task) -> list[SegmentDiagnosis]:
     if config not in models:  # the run's model, once per worker and configuration
         models[config] = None if innovations else _run_model(log, segments, config)
     model = models[config]
-    if "velocity" not in models:  # the truth's, once per worker
-        models["velocity"] = truth_velocity(log.truth, log.time)
-    velocity = None if innovations else models["velocity"]
-    items = [_item(segment, log, model, velocity, errors) for segment in segments[first:stop]]
+    if "motion" not in models:  # the truth's, once per worker
+        models["motion"] = motion(log.truth, log.time)
+    moving = None if innovations else models["motion"]
+    items = [_item(segment, log, model, moving, errors) for segment in segments[first:stop]]
     return _diagnose_chunk((log_id, items, config, seed, innovations, 1, log.blocks))
 
 

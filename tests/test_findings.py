@@ -416,7 +416,7 @@ def test_a_parts_velocity_is_the_whole_logs_gradient_there(n, uniform, cuts, see
     the part's epochs: with equal steps (numpy's uniform formula), unequal ones, and
     unequal ones but for a stretch that is equal (the part must not switch formulas); at
     the log's ends and inside; for slices and for indices."""
-    from credcli.engine.timing import motion, truth_velocity
+    from credcli.engine.timing import motion
 
     rng = np.random.default_rng(seed)
     truth = rng.standard_normal((n, 2)) * 10.0
@@ -424,7 +424,7 @@ def test_a_parts_velocity_is_the_whole_logs_gradient_there(n, uniform, cuts, see
     if uniform == "one part":
         steps[: n // 2] = rng.uniform(0.05, 0.2, n // 2)
     time = 3.0 + np.concatenate([[0.0], np.cumsum(steps)])
-    whole = truth_velocity(truth, time)
+    whole = np.gradient(truth, time, axis=0)
     log_motion = motion(truth, time)
     assert (log_motion.step is not None) == (uniform == "all")
     edges = sorted({0, n, *(min(c, n) for c in cuts)})
@@ -432,5 +432,40 @@ def test_a_parts_velocity_is_the_whole_logs_gradient_there(n, uniform, cuts, see
         part = log_motion.part(slice(start, stop))
         np.testing.assert_array_equal(part.velocity(), whole[start:stop])
     index = np.flatnonzero(rng.random(n) < 0.5)
-    np.testing.assert_array_equal(log_motion.part(index).velocity(), whole[index])
-    assert motion(truth, time[::-1]) is None and truth_velocity(truth, time[::-1]) is None
+    np.testing.assert_array_equal(log_motion.part(index), whole[index])
+    assert motion(truth, time[::-1]) is None and motion(truth[:2], time[:2]) is None
+    with pytest.raises(ValueError):
+        log_motion.part(slice(1, n)).part(slice(0, 1))  # a part is cut from a whole log
+
+
+def test_interleaved_and_contiguous_segments_find_the_offset_of_the_whole_logs_gradient():
+    """diagnose_segments passes each segment its motion (a stretch) or its velocities
+    (interleaved epochs): the time offsets are those found with np.gradient of the whole
+    log, segment by segment, at the log's ends and inside."""
+    from credcli.engine.diagnosis import diagnose_segment, diagnose_segments
+    from credcli.segments import Segment
+
+    log = _circle_log(3, lag=0.3, n=900)
+    velocity = np.gradient(log.truth, log.time, axis=0)
+    index = np.arange(900)
+    segments = [
+        Segment("even", index[::2]),
+        Segment("odd", index[1::2]),
+        Segment("head", index[:300]),
+        Segment("middle", index[300:600]),
+        Segment("tail", index[600:]),
+    ]
+    found = 0
+    for seg, result in zip(segments, diagnose_segments(log, segments, seed=1)):
+        alone = diagnose_segment(
+            log.errors[seg.index],
+            log.cov[seg.index],
+            DiagnosisConfig(),
+            1,
+            seg.name,
+            log.id,
+            motion=velocity[seg.index],
+        )
+        assert result.diagnosis.time_offset == alone.time_offset, seg.name
+        found += alone.time_offset is not None
+    assert found >= 3  # the lag is found on most of them: the comparison is not vacuous

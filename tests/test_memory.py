@@ -605,3 +605,27 @@ def test_the_scale_variance_holds_the_directions_lagged_cross_covariances():
         standard_error = math.sqrt(2.0 * spread)
         assert abs(cross - expected) <= 3.0 * standard_error + 1e-9
         assert standard_error <= 0.03 * n
+
+
+@pytest.mark.parametrize("n", [8, 1000, 4099])
+def test_time_scales_are_the_variances_of_block_means_at_each_scale(n):
+    """The time scales' observed ratios (block sums made from the half scale's pairs) are,
+    at every scale m, m times the variance of the means of consecutive m-epoch blocks,
+    each direction in units of its own variance, computed here by a reshape."""
+    rng = np.random.default_rng(n)
+    y = _ar([1, -0.6], n, rng, burn=200, cols=2)
+    y -= y.mean(axis=0)
+    memory = mem.fit_memory(y, np.sum(y * y, axis=1))
+    scales = mem.time_scales(y, memory)
+    rotated = y @ memory.directions
+    variances = [
+        float(rotated[:, i] @ rotated[:, i]) / series.centred_square_moments(n)[0]
+        for i, series in enumerate(memory.series)
+    ]
+    assert scales.epochs.size >= 1
+    for m, observed in zip(scales.epochs, scales.observed):
+        k = n // m
+        sums = rotated[: k * m].reshape(k, m, 2).sum(axis=1)
+        sums -= sums.mean(axis=0)
+        expected = np.mean(np.sum(sums**2, axis=0) / ((k - 1) * m * np.array(variances)))
+        assert observed == pytest.approx(expected, rel=1e-12)

@@ -438,3 +438,23 @@ def test_argument_errors_of_engine_helpers_are_credcli_errors():
         running_mean(np.ones(3), 4)
     with pytest.raises(CredcliError, match="loss must be in"):
         block_length(2.0, loss=1.5)
+
+
+def test_a_long_groups_median_column_by_column_is_the_row_partitions(monkeypatch):
+    """From COLUMN_PARTITION rows a group's median is taken column by column: the same
+    order statistics, to the bit, as one partition of its rows (ties, NaN and −0 among
+    them), and numpy's median where there is no NaN."""
+    rng = np.random.default_rng(9)
+    values = np.round(rng.standard_normal((metrics.COLUMN_PARTITION + 1001, 3)), 1)
+    values[::97, 0] = -0.0
+    lengths = np.array([values.shape[0] - 5, 5])
+    starts = np.r_[0, lengths[0]]
+    group = np.repeat([0, 1], lengths)
+    columns = metrics._grouped_median(values, group, starts, lengths)
+    np.testing.assert_array_equal(columns[0], np.median(values[: lengths[0]], axis=0))
+    values[::501, 2] = np.nan
+    columns = metrics._grouped_median(values, group, starts, lengths)
+    monkeypatch.setattr(metrics, "COLUMN_PARTITION", 10**9)
+    rows = metrics._grouped_median(values, group, starts, lengths)
+    np.testing.assert_array_equal(columns, rows)
+    assert np.array_equal(np.signbit(columns), np.signbit(rows))

@@ -855,8 +855,10 @@ _ENTRIES = st.sampled_from([0.0, -0.0, 1.5, -2.25, 3e300, -1e-300, np.inf, -np.i
     st.data(),
 )
 def test_folds_over_an_epochs_entries_and_a_columns_epochs_are_numpys_reductions(n, shape, data):
-    """``per_epoch`` and ``per_column`` give numpy's reductions (max and min up to the sign
-    of a zero, which none of their callers reads), NaN and infinities included."""
+    """``per_epoch`` and ``per_column`` give numpy's reductions, NaN and infinities
+    included, folded up to FOLDED_ENTRIES entries and numpy's own beyond (the (3, 3)
+    case); ``assert_array_equal`` does not tell −0 from 0, which max and min may order
+    differently."""
     from credcli.engine.linalg import per_column, per_epoch
 
     size = n * int(np.prod(shape))

@@ -812,7 +812,7 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
     r"""The dependence model against which the windows of one run are judged, and the run's
     homogeneity finding.
 
-    The model is fitted once on every window (:func:`credcli.engine.evidence.segment_memory`
+    The model is fitted once on every window (:func:`credcli.engine.evidence.segment_memory_of`
     on the windows' whitened errors, each window less its own mean and divided by its own
     root mean square, one after the other): the memory within a window, estimated from
     the whole run, so that short windows are judged with a model they could not fit
@@ -907,7 +907,7 @@ def diagnose_segment(
     memory: Memory | None = None,
     findings: tuple[str, ...] = (),
     declined: str | None = None,
-    motion: timing.Motion | None = None,
+    motion: timing.Motion | np.ndarray | None = None,
     fitted_mean: str | None = None,
     accuracy: metrics.Accuracy | None = None,
 ) -> Diagnosis:
@@ -940,10 +940,11 @@ def diagnose_segment(
     declined : str, optional
         Why a window of a run gets no label of its own (:attr:`RunModel.window_reason`):
         the numbers stay, the label is insufficient-data.
-    motion : Motion, optional
-        The segment's truth and time stamps (:meth:`credcli.engine.timing.Motion.part`),
-        whose velocity is taken to look for a time offset that explains a misfit
-        (:func:`credcli.engine.timing.time_offset`), named first among the findings.
+    motion : Motion or numpy.ndarray, optional
+        The segment's truth and time stamps, or its velocities themselves
+        (:meth:`credcli.engine.timing.Motion.part`), to look for a time offset that
+        explains a misfit (:func:`credcli.engine.timing.time_offset`), named first among
+        the findings; the velocity is taken only then.
     fitted_mean : str, optional
         Why the errors' mean is no evidence (an alignment fitted it), which leaves the
         location question open (:func:`without_location`).
@@ -975,7 +976,8 @@ def diagnose_segment(
         if findings:
             diag = replace(diag, findings=diag.findings + findings)
         if motion is not None and diag.label.conditions and declined is None:
-            offset = timing.time_offset(errors, cov, motion.velocity(), memory_ratio(diag))
+            velocity = motion.velocity() if isinstance(motion, timing.Motion) else motion
+            offset = timing.time_offset(errors, cov, velocity, memory_ratio(diag))
             if offset is not None:
                 diag = replace(
                     diag, time_offset=offset, findings=(offset.describe(),) + diag.findings

@@ -797,14 +797,15 @@ def ks_chi2_pvalue(eps: np.ndarray, dim: int) -> float:
     >>> ks_chi2_pvalue(eps, 2) > 0.05, ks_chi2_pvalue(4.0 * eps, 2) < 1e-6
     (True, True)
     """
-    cdf = np.sort(eps)
+    cdf = np.sort(np.asarray(eps, dtype=float))
     n = cdf.size
     special.chdtr(dim, cdf, out=cdf)
-    d_stat = -math.inf
-    for sl in linalg.epoch_chunks(n):  # D⁺ and D⁻ by chunks: no N-long temporaries
+    largest = []  # D⁺ and D⁻ by chunks: no N-long temporaries; a NaN stays a NaN
+    for sl in linalg.epoch_chunks(n):
         i = np.arange(sl.start + 1, min(sl.stop, n) + 1)
         part = cdf[sl]
-        d_stat = max(d_stat, float(np.max(i / n - part)), float(np.max(part - (i - 1) / n)))
+        largest += [np.max(i / n - part), np.max(part - (i - 1) / n)]
+    d_stat = float(np.max(largest))
     return float(min(1.0, 2.0 * smirnov_tail(n, d_stat)))
 
 

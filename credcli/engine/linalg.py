@@ -1,6 +1,7 @@
 """Per-epoch linear algebra every layer may use: the one validation of errors and
-claimed covariances, their Cholesky factors, closed-form 2×2 eigenvalues, and the chunks of
-epochs that keep temporaries bounded on long segments.
+claimed covariances, their Cholesky factors, closed-form 2×2 eigenvalues, the chunks of
+epochs that keep temporaries bounded on long segments, an index as a slice, and fast exact
+reductions of tall arrays (over an epoch's few entries, or column by column).
 
 Readers (``credcli.io``) use it to check a covariance as they read it; the engine uses it
 at every public entry. It imports nothing of credcli but ``errors``.
@@ -47,7 +48,7 @@ SYMMETRY_RTOL = 1e-6
 """Largest relative asymmetry |Σ_ij − Σ_ji| / max|Σ| of a claimed covariance."""
 
 
-def as_slice(index: np.ndarray):
+def as_slice(index: np.ndarray) -> slice | np.ndarray:
     """``index`` as a slice when it is a contiguous increasing range, else as it is.
 
     Parameters
@@ -73,12 +74,19 @@ def as_slice(index: np.ndarray):
     return index
 
 
+FOLDED_ENTRIES = 8
+"""Most entries per epoch (or columns) that :func:`per_epoch` (:func:`per_column`) fold
+one by one; wider arrays take numpy's own reduction, faster there (break-even near 36)."""
+
+
 def per_epoch(ufunc: np.ufunc, a: np.ndarray) -> np.ndarray:
     """``ufunc.reduce`` over every axis of ``a`` but the first (the epochs'), as a fold over
     the few entries of an epoch: for ``maximum``, ``minimum``, ``logical_and`` and
     ``logical_or`` numpy's own values (they do not depend on the order, but for the sign of
-    a zero), in a fraction of its time on tall arrays, where numpy's reduction over a short
-    axis makes an inner loop of two or four entries per epoch (docs/performance.md).
+    a zero, which numpy's reduction of such short rows takes in the same order), in a
+    fraction of its time on tall arrays, where numpy's reduction over a short axis makes an
+    inner loop of two or four entries per epoch (docs/performance.md). Above
+    :data:`FOLDED_ENTRIES` entries, numpy's reduction itself.
 
     Parameters
     ----------
@@ -98,7 +106,7 @@ def per_epoch(ufunc: np.ufunc, a: np.ndarray) -> np.ndarray:
     [3.0]
     """
     flat = a.reshape(a.shape[0], math.prod(a.shape[1:]))
-    if flat.shape[1] == 0:  # no entries: numpy's identity (an error for maximum)
+    if not 0 < flat.shape[1] <= FOLDED_ENTRIES:  # none (numpy's identity), or many
         return ufunc.reduce(flat, axis=1)
     out = flat[:, 0].copy()
     for j in range(1, flat.shape[1]):
@@ -110,7 +118,8 @@ def per_column(ufunc: np.ufunc, a: np.ndarray) -> np.ndarray:
     """``ufunc.reduce(a, axis=0)`` of a tall (N, m) array, column by column: for
     ``maximum`` and ``minimum`` numpy's own values (they do not depend on the order, but for
     the sign of a zero), in a fraction of its time, where numpy's reduction over the epochs
-    makes an inner loop of m entries per epoch.
+    makes an inner loop of m entries per epoch; above :data:`FOLDED_ENTRIES` columns,
+    numpy's reduction itself.
 
     Parameters
     ----------
@@ -129,6 +138,8 @@ def per_column(ufunc: np.ufunc, a: np.ndarray) -> np.ndarray:
     >>> per_column(np.minimum, np.array([[1.0, 5.0], [-2.0, 7.0]])).tolist()
     [-2.0, 5.0]
     """
+    if a.shape[1] > FOLDED_ENTRIES:
+        return ufunc.reduce(a, axis=0)
     return np.array([ufunc.reduce(a[:, j]) for j in range(a.shape[1])], dtype=a.dtype)
 
 

@@ -17,7 +17,6 @@ finding comes first, before any covariance advice.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -69,37 +68,19 @@ class TimeOffset:
         )
 
 
-def truth_velocity(truth: np.ndarray | None, time: np.ndarray | None) -> np.ndarray | None:
-    """ẋ (N, d) by central differences in time (``np.gradient``; one-sided at the ends).
-
-    Parameters
-    ----------
-    truth : numpy.ndarray or None, shape (N, d)
-        The true states x(t_k).
-    time : numpy.ndarray or None, shape (N,)
-        The time stamps t_k.
-
-    Returns
-    -------
-    numpy.ndarray or None
-        The velocities (N, d) in the states' units per time unit; None without truth or
-        time, with fewer than 3 epochs, or when a time stamp is not finite or the times
-        do not strictly increase.
-    """
-    if truth is None or time is None or truth.shape[0] < 3:
-        return None
-    t = np.asarray(time, dtype=float)
-    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        return None
-    return np.gradient(np.asarray(truth, dtype=float), t, axis=0)
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Motion:
-    """The truth of a log, or of a segment with one epoch beyond each end where the log has
-    one, and its time stamps: what :meth:`velocity` differentiates, only where a segment's
-    label names a misfit and a time offset is looked for (a log's velocities are N × d
-    numbers, otherwise held for its whole diagnosis).
+    """The truth of a log, or of one contiguous stretch of its epochs with one epoch beyond
+    each end where the log has one, and its time stamps: what :meth:`velocity`
+    differentiates, only where a segment's label names a misfit and a time offset is looked
+    for (the velocities of a whole log are N × d numbers held for its whole diagnosis
+    otherwise).
+
+    The velocity is ``np.gradient(truth, time, axis=0)`` of the whole log (central
+    differences; one-sided at the log's ends) at the stretch's epochs, to the bit: each
+    epoch's value reads only its two neighbours, and the formula is numpy's uniform one
+    where every step of the whole log is equal (numpy decides that on the array it is
+    given, which a stretch could not tell).
 
     Attributes
     ----------
@@ -108,15 +89,12 @@ class Motion:
     time : numpy.ndarray, shape (M,)
         Their time stamps, finite and increasing.
     first : int
-        The row of ``truth`` that is the segment's first epoch (0 or 1).
+        The row of ``truth`` that is the stretch's first epoch (0 for a whole log; 1 where
+        the log has an epoch before the stretch).
     n : int
-        The segment's epochs.
+        The stretch's epochs.
     step : float or None
-        The log's time step where every step is the same (``np.gradient``'s uniform case,
-        decided on the whole log), else None.
-    known : numpy.ndarray or None
-        The velocities themselves, for epochs that are not one slice of the log (then
-        ``truth`` and ``time`` are empty).
+        The whole log's time step where every step is the same, else None.
     """
 
     truth: np.ndarray
@@ -124,75 +102,87 @@ class Motion:
     first: int
     n: int
     step: float | None
-    known: np.ndarray | None = None
 
-    def part(self, index) -> Motion:
-        """The motion of the epochs ``index`` of this whole log's motion.
+    @property
+    def whole(self) -> bool:
+        """Whether this is a whole log's motion (what :meth:`part` cuts from)."""
+        return self.first == 0 and self.n == self.truth.shape[0]
+
+    def part(self, index: slice | np.ndarray) -> Motion | np.ndarray:
+        """The motion of some of this whole log's epochs.
 
         Parameters
         ----------
-        index : slice or numpy.ndarray
-            A slice (step 1) of the log's epochs, or their indices.
+        index : slice or numpy.ndarray of int
+            A slice of the epochs (step 1), or the epochs' indices.
 
         Returns
         -------
-        Motion
-            The slice with one epoch beyond each end where there is one; for indices that
-            are not a slice, their velocities, taken from the whole log's.
+        Motion or numpy.ndarray
+            For a slice, its :class:`Motion` (views of this one's arrays, one epoch
+            beyond each end where there is one); for indices, their velocities, taken now
+            (an interleaved segment's epochs are no stretch of the log).
         """
+        if not self.whole:
+            raise ValueError("Motion.part cuts from a whole log's motion")
         if not isinstance(index, slice):
-            empty = np.zeros(0)
-            return Motion(empty, empty, 0, len(index), None, self._velocities[index])
-        start, stop, _ = index.indices(self.n)
+            index = np.asarray(index, dtype=np.intp)
+            return _velocities(self.truth, self.time, self.step, index)
+        start, stop, stride = index.indices(self.n)
+        if stride != 1:
+            raise ValueError("Motion.part takes a slice of step 1")
         low, high = max(start - 1, 0), min(stop + 1, self.n)
         return Motion(
             self.truth[low:high], self.time[low:high], start - low, stop - start, self.step
         )
 
-    @functools.cached_property
-    def _velocities(self) -> np.ndarray:
-        return self.velocity()
-
     def velocity(self) -> np.ndarray:
-        """ẋ at the segment's epochs: to the bit ``np.gradient`` of the whole log's truth
-        at them (:func:`truth_velocity`), whose formula at an epoch reads only its two
-        neighbours (central differences; one-sided at the log's ends), the uniform one
-        where the whole log's steps are all equal.
+        """ẋ at the stretch's epochs (the class docstring says how).
 
         Returns
         -------
         numpy.ndarray, shape (n, d)
             The velocities.
         """
-        if self.known is not None:
-            return self.known
-        f, last = self.truth, self.truth.shape[0] - 1
-        rows = np.arange(self.first, self.first + self.n)
-        out = np.empty((self.n, f.shape[1]))
-        inner = (rows > 0) & (rows < last)
-        k = rows[inner]
-        if self.step is not None:
-            out[inner] = (f[k + 1] - f[k - 1]) / (2.0 * self.step)
-        else:
-            dx = np.diff(self.time)
-            dx1, dx2 = dx[k - 1][:, None], dx[k][:, None]
-            a = -(dx2) / (dx1 * (dx1 + dx2))
-            b = (dx2 - dx1) / (dx1 * dx2)
-            c = dx1 / (dx2 * (dx1 + dx2))
-            out[inner] = a * f[k - 1] + b * f[k] + c * f[k + 1]
-        # the log's own ends: a part's extra epochs make every other end an inner epoch
-        if self.n and rows[0] == 0:
-            step = self.step if self.step is not None else self.time[1] - self.time[0]
-            out[0] = (f[1] - f[0]) / step
-        if self.n and rows[-1] == last:
-            step = self.step if self.step is not None else self.time[-1] - self.time[-2]
-            out[-1] = (f[-1] - f[-2]) / step
-        return out
+        return _velocities(self.truth, self.time, self.step, slice(self.first, self.first + self.n))
+
+
+def _velocities(f: np.ndarray, t: np.ndarray, step: float | None, rows) -> np.ndarray:
+    """``np.gradient(f, t, axis=0)[rows]`` where ``f`` and ``t`` hold every neighbour of
+    ``rows`` and their first and last rows are the log's ends: numpy's operations, in its
+    order, on the rows asked for only (a slice reads views, indices copy n rows)."""
+    last = f.shape[0] - 1
+    if isinstance(rows, slice):
+        at = np.arange(rows.start, rows.stop)
+        lo, hi = max(rows.start, 1), min(rows.stop, last)  # the inner stretch
+        inner = slice(lo - rows.start, max(hi - rows.start, 0))
+        before, here, after = slice(lo - 1, hi - 1), slice(lo, hi), slice(lo + 1, hi + 1)
+    else:
+        at = rows
+        keep = (rows > 0) & (rows < last)
+        inner = np.flatnonzero(keep)
+        here = rows[keep]
+        before, after = here - 1, here + 1
+    out = np.empty((at.size, f.shape[1]))
+    if step is not None:  # numpy's uniform formula
+        out[inner] = (f[after] - f[before]) / (2.0 * step)
+    else:
+        dx1 = (t[here] - t[before])[:, None]
+        dx2 = (t[after] - t[here])[:, None]
+        a = -(dx2) / (dx1 * (dx1 + dx2))
+        b = (dx2 - dx1) / (dx1 * dx2)
+        c = dx1 / (dx2 * (dx1 + dx2))
+        out[inner] = a * f[before] + b * f[here] + c * f[after]
+    for k in np.flatnonzero(at == 0):  # the log's first epoch: one-sided
+        out[k] = (f[1] - f[0]) / (step if step is not None else t[1] - t[0])
+    for k in np.flatnonzero(at == last):  # and its last
+        out[k] = (f[-1] - f[-2]) / (step if step is not None else t[-1] - t[-2])
+    return out
 
 
 def motion(truth: np.ndarray | None, time: np.ndarray | None) -> Motion | None:
-    """The whole log's :class:`Motion`, or None where :func:`truth_velocity` gives None
-    (no truth or time, fewer than 3 epochs, time stamps not finite or not increasing).
+    """The whole log's :class:`Motion`, or None where the velocity is not defined: no truth
+    or time, fewer than 3 epochs, time stamps not finite or not increasing.
 
     Parameters
     ----------

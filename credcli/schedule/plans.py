@@ -114,7 +114,8 @@ def _item(
 ) -> tuple:
     """A segment of ``log`` as a task item: (name, t_start, t_end, errors, covariances, the
     run's dependence model for a window, the run's findings for the run's own segment, why a
-    window gets no verdict of its own, its truth's motion or None, why its mean is no
+    window gets no verdict of its own, its truth's motion (its velocities where its epochs
+    are not one stretch of the log) or None, why its mean is no
     evidence or None, its accuracy where it is the whole log's, in order, or None), the
     arrays as views when the segment is contiguous. ``errors``: the log's, when already
     taken; ``accuracy``: the whole log's, when already made (for its summary)."""

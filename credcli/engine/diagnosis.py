@@ -28,7 +28,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
 )
 from credcli.engine.elt import ELTResult, whiten
 from credcli.engine.evidence import ks_chi2_pvalue  # noqa: F401 (re-exported)
-from credcli.engine.memory import Memory, NoFiniteMemory, TimeScales
+from credcli.engine.memory import Memory, NoFiniteMemory, TimeScales, time_scales
 from credcli.engine.rng import RngLike, as_generator
 from credcli.engine.rules import nci_baseline, nees_baseline  # noqa: F401 (re-exported)
 from credcli.engine.scale import DirectionScales, ScaleTest, gls_residuals, untested_scale
@@ -1098,7 +1098,9 @@ def block_scales(
         s = whiten(e, c)
         if evidence.reads_memory(config, runs):  # the block's memory, fitted as a segment's
             try:
-                memory, _ = evidence.segment_memory(gls, inverse, s)
+                memory, residuals = evidence.segment_memory(gls, inverse, s)
+                scales = time_scales(residuals, memory)
+                memory = evidence.white_refit(memory, residuals, gls.q, scales) or memory
             except NoFiniteMemory:
                 test = untested_scale(gls)  # no interval: the block's errors drift
             else:

@@ -1167,10 +1167,14 @@ def _inverse(chol: np.ndarray) -> np.ndarray:
 
 WHITE_REFIT_LEVEL = 0.05
 """Level at which the time scales of errors taken as independent (BIC took no memory)
-reject them, so that the sieve is fitted again as on a screened segment (:func:`white_refit`)."""
+reject them, so that the sieve is fitted again as on a screened segment
+(:func:`white_refit`): the rule's α; on independent errors about 4 % of the segments BIC
+takes as white are fitted again (the check is Bonferroni's, conservative)."""
 
 
-def white_refit(memory: Memory, residuals: np.ndarray, q: np.ndarray, scales: TimeScales):
+def white_refit(
+    memory: Memory, residuals: np.ndarray, q: np.ndarray, scales: TimeScales
+) -> Memory | None:
     """The sieve fitted again as on a screened segment (AICc's order, at least AR(1), its
     estimation error bootstrapped; :func:`credcli.engine.memory.fit_memory`), where BIC
     took no memory but the variance at longer averaging times rejects independent errors
@@ -1178,9 +1182,9 @@ def white_refit(memory: Memory, residuals: np.ndarray, q: np.ndarray, scales: Ti
 
     Weak memory that lasts escapes BIC on hundreds of epochs: an ARMA(1, 1) with nearly
     cancelling roots (0.8 and −0.7: lag-1 autocorrelation 0.1, τ 2.25) was taken as
-    independent on 300 epochs, and then its mean test lost its level (6 of 60 credible
-    segments called biased or pessimistic) or the time scales declined both questions (6
-    more), where its memory, once fitted, decides them (docs/measured.md).
+    independent on 300 epochs, and then 6 of 60 credible segments got a misfit's label (4
+    after the refit) and the time scales declined both questions on 6 more (none after),
+    where the memory, once fitted, decides them (docs/measured.md).
 
     Parameters
     ----------

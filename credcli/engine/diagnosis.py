@@ -1099,8 +1099,9 @@ def block_scales(
         if evidence.reads_memory(config, runs):  # the block's memory, fitted as a segment's
             try:
                 memory, residuals = evidence.segment_memory(gls, inverse, s)
-                scales = time_scales(residuals, memory)
-                memory = evidence.white_refit(memory, residuals, gls.q, scales) or memory
+                if memory.white:  # the time scales only where they can refit (white_refit)
+                    scales = time_scales(residuals, memory)
+                    memory = evidence.white_refit(memory, residuals, gls.q, scales) or memory
             except NoFiniteMemory:
                 test = untested_scale(gls)  # no interval: the block's errors drift
             else:

@@ -200,6 +200,7 @@ def test_a_random_walk_has_no_finite_memory_and_counts_as_one_epoch():
     diagnosis = diagnose_errors(errors, np.broadcast_to(np.eye(2), (2000, 2, 2)), rng=0)
     assert diagnosis.label is Label.INSUFFICIENT
     assert diagnosis.reason.startswith("no finite memory")
+    assert diagnosis.reason.count("no finite memory") == 1  # both questions, said once
     assert memory_ratio(diagnosis) == 2000
 
 

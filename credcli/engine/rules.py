@@ -106,7 +106,8 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     )
     if Question.LOCATION in untested and location_reason is None and scale_reason is None:
         location_reason = declined  # one reason declined both; the scale was decided after
-    reason = "; ".join(r for r in (scale_reason, location_reason) if r) or None
+    # one reason that declined both questions is said once
+    reason = "; ".join(dict.fromkeys(r for r in (scale_reason, location_reason) if r)) or None
     by_direction = noise_override is not None
     if by_median:
         noise_override = "optimism"

@@ -20,7 +20,7 @@ from credcli.engine import batches, correlation, dependence, episodes, linalg, m
 from credcli.engine.config import SMM_CONDITION, DiagnosisConfig, MetricsLevel, SrdForm
 from credcli.engine.elt import ELTResult, tested_blocks, whiten, whitened_location_test
 from credcli.engine.episodes import Burst, Divergence
-from credcli.engine.longmemory import SUPPORT, with_long_memory
+from credcli.engine.longmemory import SUPPORT, white_alternative, with_long_memory
 from credcli.engine.memory import (
     Memory,
     NoFiniteMemory,
@@ -945,7 +945,8 @@ def memory_evidence(
     A white model (no memory in any series by BIC, fitted on this segment,
     :func:`credcli.engine.memory.fit_memory`) keeps the exact tests for
     independent epochs: the χ² scale test with its tail factor, Hotelling's mean test, the
-    ELT with single-epoch signs. Otherwise the scale test and the GLS mean test are referred
+    ELT with single-epoch signs; a bias that mean test finds must hold under the
+    alternative with more memory that the residuals support as well (:func:`_held_if_white`). Otherwise the scale test and the GLS mean test are referred
     to their distributions under the model (:func:`credcli.engine.scale.memory_scale_test`,
     :func:`credcli.engine.batches.memory_mean_test`), and the ELT flips blocks long enough
     to lose at most ε of the variance under the model
@@ -987,7 +988,7 @@ def memory_evidence(
         directions = direction_scales(gls, level, 0) if d > 1 else None
         mean = batches.independent_mean_test(gls, 1.0)
         plan = split_location(config, n, 1, 1, mean, None, _MEMORY_BLOCKS.format(block=1))
-        return ModelEvidence(scale, None, directions, plan)
+        return ModelEvidence(scale, None, directions, _held_if_white(plan, gls, memory, inverse))
     tail = memory_tail_factor(gls, memory)
     scale = memory_scale_test(gls, memory, level, tail)
     alternative = memory.alternative
@@ -1024,6 +1025,18 @@ def memory_evidence(
     return ModelEvidence(
         scale, scale_reason, directions, _held_under_alternative(plan, gls, memory, inverse)
     )
+
+
+def _held_if_white(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
+    """``plan`` of a white model, with a bias its mean test finds checked under the
+    alternative with more memory that the residuals support
+    (:func:`credcli.engine.longmemory.white_alternative`, fitted only then), as
+    :func:`_held_under_alternative` checks a modelled segment's."""
+    test = plan.mean_test
+    if test is None or not test.pvalue < plan.mean_level:
+        return plan
+    alternative = white_alternative(memory, memory_residuals(gls, inverse))
+    return plan if alternative is None else _held_under_alternative(plan, gls, alternative, inverse)
 
 
 def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:

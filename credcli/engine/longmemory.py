@@ -559,12 +559,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     n = residuals.shape[0]
     if memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
         return memory
-    x = (residuals[:FIT_EPOCHS] @ memory.directions).T
-    x = x - x.mean(axis=1, keepdims=True)
-    x = x / power_of_two_unit(x, axis=1)[:, None]
-    # the fractional part carries the memory the sieve's orders were reaching for, so its
-    # AR part needs no more lags than the bootstrap's search beyond the directions' own
-    search = min(max_order(n), 2 * max(m.order for m in memory.series) + 4)
+    x, search = _direction_series(memory, residuals)
     fractions, orders, coefficients, weak, candidates, arma_weak, arma = _fractional_fits(x, search)
     if np.any(fractions >= FRACTIONS[-1] - 1e-9):
         raise NoFiniteMemory(
@@ -587,6 +582,61 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     if alternative is None:
         return chosen
     return replace(chosen, alternative=replace(chosen, series=alternative))
+
+
+def white_alternative(memory: Memory, residuals: np.ndarray) -> Memory | None:
+    """``memory``, a white model (BIC takes no memory in any direction), with the
+    alternative with more memory that its residuals support, or None where they support
+    none (or the model is not white, pools runs, or has fewer than
+    :data:`FEWEST_EPOCHS` epochs).
+
+    The candidates are those of :func:`with_long_memory` (fractional noise that AICc
+    supports or BIC takes, an ARMA(p, 1) that AICc prefers to the sieve), but the model
+    stays white: BIC took no memory, and the alternative serves only to check that a bias
+    the independent mean test finds holds under more memory as well
+    (:func:`credcli.engine.evidence.memory_evidence`). Weak memory that lasts, an ARMA(1, 1)
+    with nearly cancelling roots such as a slow part under 90 % white noise, is what BIC
+    misses on hundreds of epochs and what makes an independent mean test reject too often.
+    Fitted only where that test rejects, so a credible segment pays nothing for it.
+
+    Parameters
+    ----------
+    memory : Memory
+        The white model.
+    residuals : numpy.ndarray, shape (N, d)
+        The mean-free whitened residuals it was fitted on.
+
+    Returns
+    -------
+    Memory or None
+        ``memory`` with its ``alternative``, or None.
+    """
+    n = residuals.shape[0]
+    if not memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
+        return None
+    x, search = _direction_series(memory, residuals)
+    choice = _fractional_fits(x, search)
+    weak = choice.weak | (choice.fractions > 0)  # a fractional model BIC takes: more so
+    series = list(memory.series)
+    alternative = _weak_alternative(
+        series, weak, choice.candidates, n, choice.arma_weak, choice.arma
+    )
+    if alternative is None:
+        return None
+    return replace(memory, alternative=replace(memory, series=alternative))
+
+
+def _direction_series(memory: Memory, residuals: np.ndarray) -> tuple[np.ndarray, int]:
+    """The residuals in the model's principal directions, centred and scaled to a unit of
+    their own (a row per direction, at most :data:`FIT_EPOCHS` epochs), and the largest AR
+    order of the candidates fitted to them."""
+    x = (residuals[:FIT_EPOCHS] @ memory.directions).T
+    x = x - x.mean(axis=1, keepdims=True)
+    x = x / power_of_two_unit(x, axis=1)[:, None]
+    # the fractional part carries the memory the sieve's orders were reaching for, so its
+    # AR part needs no more lags than the bootstrap's search beyond the directions' own
+    search = min(max_order(residuals.shape[0]), 2 * max(m.order for m in memory.series) + 4)
+    return x, search
 
 
 def _weak_alternative(

@@ -945,9 +945,10 @@ def memory_evidence(
     A white model (no memory in any series by BIC, fitted on this segment,
     :func:`credcli.engine.memory.fit_memory`) keeps the exact tests for
     independent epochs: the χ² scale test with its tail factor, Hotelling's mean test, the
-    ELT with single-epoch signs; a bias that mean test finds must hold under the
-    alternative with more memory that the residuals support as well (:func:`_held_if_white`). Otherwise the scale test and the GLS mean test are referred
-    to their distributions under the model (:func:`credcli.engine.scale.memory_scale_test`,
+    ELT with single-epoch signs; a bias that mean test finds must hold as well under the
+    alternative with more memory that the residuals support (:func:`_held_if_white`).
+    Otherwise the scale test and the GLS mean test are referred to their distributions
+    under the model (:func:`credcli.engine.scale.memory_scale_test`,
     :func:`credcli.engine.batches.memory_mean_test`), and the ELT flips blocks long enough
     to lose at most ε of the variance under the model
     (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or

@@ -368,7 +368,7 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     # an ARMA with a root near the unit circle makes of them: no finite memory; unless an
     # ARMA fits them better with a root the series settles from)
     top = fractions[which, np.arange(k)] >= FRACTIONS[-1] - 1e-9
-    if choose and top.any():  # unless an ARMA fits better with a settled root
+    if choose and top.any():
         rows = np.flatnonzero(top)
         edge, edge_arma = _moving_average_fits(x[rows], p_max, NEAR_UNIT_MOVING_AVERAGES)
         for i, j in enumerate(rows.tolist()):

@@ -79,7 +79,9 @@ def rotating_table(segments: int = 100) -> None:
             diagnose_errors(*rotating_bias_log(2000, bias, seed=s), rng=s) for s in range(segments)
         ]
         smm = sum(d.label.location is not None for d in diags)
-        mean = sum(d.mean_test.pvalue < d.config.mean_level for d in diags)
+        mean = sum(
+            d.mean_test is not None and d.mean_test.pvalue < d.config.mean_level for d in diags
+        )
         elt = sum(d.elt is not None and d.elt.pvalue < d.config.elt_level for d in diags)
         print(f"  bias {bias:g}σ: smm {smm}/{segments} (GLS mean test {mean}, ELT {elt})")
 

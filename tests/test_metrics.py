@@ -44,6 +44,26 @@ def test_nci_accepts_one_mse_matrix_or_one_per_epoch(rng):
     assert metrics.nci(errors, cov) == shared  # the default estimates the same matrix
 
 
+def test_nci_leaves_out_epochs_whose_error_is_exactly_zero(rng):
+    """An epoch with e_k = 0 (a filter started at the truth) has ε_k = ε*_k = 0 and no
+    ratio in Eq. (4): the NCI is the mean over the other epochs, computed here term by term
+    with explicit inverses; NaN when every error is zero. (It was NaN, with a warning that
+    numbers overflowed, for one zero epoch.)"""
+    errors, cov = gaussian_segment(rng, n=60, d=2, rho=2.0, varying=True)
+    errors[[0, 17, 41]] = 0.0
+    mse = metrics.mse_matrix(errors)
+    terms = [
+        np.log10(e @ np.linalg.inv(c) @ e) - np.log10(e @ np.linalg.inv(mse) @ e)
+        for e, c in zip(errors, cov)
+        if np.any(e != 0)
+    ]
+    with np.errstate(all="raise"):
+        nci = metrics.nci(errors, cov, mse=mse)
+    assert len(terms) == 57
+    assert nci == pytest.approx(10 * np.mean(terms), rel=1e-10)
+    assert np.isnan(metrics.nci(np.zeros((5, 2)), cov[:5], mse=np.eye(2)))
+
+
 def test_nci_with_estimated_mse_is_close_to_closed_form(rng):
     errors, cov = gaussian_segment(rng, n=5000, d=2, rho=3.0)
     assert metrics.nci(errors, cov) == pytest.approx(-10 * np.log10(3.0), abs=0.1)

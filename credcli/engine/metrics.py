@@ -7,6 +7,7 @@ claimed covariances ``cov`` have shape ``(N, d, d)``. Errors follow the paper,
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -251,9 +252,23 @@ def nci_factored(
     -------
     float
         10/N Σ_k (log₁₀ ε_k − log₁₀ ε*_k): positive for optimism, negative for pessimism.
+        An epoch whose error is exactly zero (a filter started at the truth, or quantised
+        values) has ε_k = ε*_k = 0 and no ratio, so it is left out of the mean (N counts the
+        others); NaN when every epoch is such.
+
+    Examples
+    --------
+    >>> e = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]])
+    >>> round(nci_factored(e, np.eye(2), np.diag([0.5, 2.0])), 6)  # (log 2 + log 0.5)/2
+    0.0
     """
     eps = nees_factored(errors, chol) if eps is None else eps
     eps_star = nees_factored(errors, chol_mse)
+    defined = (eps > 0) & (eps_star > 0)
+    if not defined.all():  # zero errors: no ratio at those epochs
+        if not defined.any():
+            return math.nan
+        eps, eps_star = eps[defined], eps_star[defined]
     return float(10.0 * np.mean(np.log(eps) - np.log(eps_star)) / _LOG10)
 
 

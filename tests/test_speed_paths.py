@@ -768,6 +768,48 @@ def test_closed_form_inverse_square_root_of_near_singular_covariances_is_finite(
     assert positive.sum() > 19_000 and np.isfinite(w).all()
 
 
+@pytest.mark.parametrize("scale", [1e-300, 1.0, 1e300])
+def test_closed_form_cholesky_of_2x2_covariances_is_lapacks(scale):
+    """The 2 × 2 Cholesky factors in closed form: lower triangular, L Lᵀ = Σ, and within
+    a few ulps of LAPACK's (``numpy.linalg.cholesky``) at any scale, correlation near ±1
+    included."""
+    from credcli.engine.linalg import cholesky_2x2
+
+    rng = np.random.default_rng(8)
+    a = rng.standard_normal((5000, 2, 3))
+    cov = a @ a.transpose(0, 2, 1)
+    cov[:100, 1, 1] = cov[:100, 1, 0] ** 2 / cov[:100, 0, 0] * (1 + 1e-9)  # ρ² = 1 − 10⁻⁹
+    cov[:100, 0, 1] = cov[:100, 1, 0]
+    cov = cov * scale
+    got, want = cholesky_2x2(cov), np.linalg.cholesky(cov)
+    assert np.all(got[:, 0, 1] == 0)
+    unit = np.abs(want).max(axis=(1, 2), keepdims=True)
+    np.testing.assert_allclose(got / unit, want / unit, rtol=0, atol=1e-12)
+    back = np.einsum("nij,nkj->nik", got, got)
+    np.testing.assert_allclose(back / (unit * unit), cov / (unit * unit), rtol=0, atol=1e-12)
+
+
+def test_a_covariance_the_closed_form_cannot_factor_is_named_as_lapacks_would_be():
+    """Where a pivot is not positive (Σ₁₁ ≤ 0, |ρ| ≥ 1, NaN) the closed form declines and
+    LAPACK decides, as before it: ``cholesky`` names the first epoch that is not positive
+    definite (a NaN LAPACK passes through; the validation rejects it before any
+    factorisation); a positive definite stack is factored."""
+    from credcli.engine.linalg import cholesky, cholesky_2x2
+    from credcli.errors import CredcliError
+
+    good = np.broadcast_to(np.array([[4.0, 2.0], [2.0, 5.0]]), (6, 2, 2)).copy()
+    np.testing.assert_array_equal(cholesky(good)[0], [[2.0, 0.0], [1.0, 2.0]])
+    for bad in ([[-1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [1.0, 1.0]], [[np.nan, 0], [0, 1]]):
+        stack = good.copy()
+        stack[3] = bad
+        assert cholesky_2x2(stack) is None
+        if np.isnan(stack).any():
+            assert np.isnan(cholesky(stack)[3]).any()
+            continue
+        with pytest.raises(CredcliError, match=r"cov\[3\] is not positive definite"):
+            cholesky(stack)
+
+
 def test_a_segment_that_is_the_whole_log_takes_the_summary_accuracy():
     """The accuracy of a whole log is made once, for its summary, and its one segment
     reports those figures; segments that are parts of a log compute their own."""

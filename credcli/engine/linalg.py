@@ -232,6 +232,10 @@ def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
         If a matrix is not positive definite, naming ``name`` and the first such epoch
         (``cov[k]``).
     """
+    if np.ndim(matrices) == 3 and np.shape(matrices)[1:] == (2, 2):
+        factors = cholesky_2x2(np.asarray(matrices, dtype=float))
+        if factors is not None:
+            return factors
     try:
         return np.linalg.cholesky(matrices)
     except np.linalg.LinAlgError:
@@ -243,6 +247,50 @@ def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
         raise CredcliError(
             f"{where} is not positive definite (a claimed covariance must be)", name
         ) from None
+
+
+def cholesky_2x2(cov: np.ndarray) -> np.ndarray | None:
+    """Cholesky factors of symmetric 2×2 matrices in closed form, or None where one is
+    not positive definite.
+
+    L = [[l₁₁, 0], [l₂₁, l₂₂]] with l₁₁ = √Σ₁₁, l₂₁ = Σ₂₁·(1/l₁₁) and
+    l₂₂ = √(Σ₂₂ − l₂₁²): the operations of LAPACK's unblocked factorisation (``potf2``,
+    which scales the column by the reciprocal of its pivot), reading the lower triangle as
+    ``numpy.linalg.cholesky`` does, in three vector operations per epoch where numpy makes
+    one LAPACK call per matrix (issue 35: a third of the factorisation's time on 2×10⁶
+    epochs). A matrix is positive definite here exactly where LAPACK finds it so: both
+    pivots positive (NaN is not).
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, 2, 2)
+        Symmetric matrices.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 2, 2), or None
+        The lower-triangular factors, L Lᵀ = Σ; None when a pivot is not positive (the
+        caller finds and names that epoch).
+
+    Examples
+    --------
+    >>> cholesky_2x2(np.array([[[4.0, 2.0], [2.0, 5.0]]])).tolist()
+    [[[2.0, 0.0], [1.0, 2.0]]]
+    >>> cholesky_2x2(np.array([[[1.0, 2.0], [2.0, 1.0]]])) is None
+    True
+    """
+    out = np.zeros(cov.shape)
+    for sl in epoch_chunks(cov.shape[0]):  # bounded temporaries
+        with np.errstate(invalid="ignore"):  # √ of a negative Σ₁₁ is NaN: caught below
+            first = np.sqrt(cov[sl, 0, 0], out=out[sl, 0, 0])
+        if not np.all(first > 0):
+            return None
+        lower = np.multiply(cov[sl, 1, 0], 1.0 / first, out=out[sl, 1, 0])
+        pivot = cov[sl, 1, 1] - lower * lower
+        if not np.all(pivot > 0):
+            return None
+        np.sqrt(pivot, out=out[sl, 1, 1])
+    return out
 
 
 def lower_inverse(chol: np.ndarray) -> np.ndarray:

@@ -469,12 +469,11 @@ def test_a_long_groups_median_column_by_column_is_the_row_partitions(monkeypatch
     values[::97, 0] = -0.0
     lengths = np.array([values.shape[0] - 5, 5])
     starts = np.r_[0, lengths[0]]
-    group = np.repeat([0, 1], lengths)
-    columns = metrics._grouped_median(values, group, starts, lengths)
+    columns = metrics._grouped_median(list(values.T), starts, lengths)
     np.testing.assert_array_equal(columns[0], np.median(values[: lengths[0]], axis=0))
     values[::501, 2] = np.nan
-    columns = metrics._grouped_median(values, group, starts, lengths)
+    columns = metrics._grouped_median(list(values.T), starts, lengths)
     monkeypatch.setattr(metrics, "COLUMN_PARTITION", 10**9)
-    rows = metrics._grouped_median(values, group, starts, lengths)
+    rows = metrics._grouped_median(list(values.T), starts, lengths)
     np.testing.assert_array_equal(columns, rows)
     assert np.array_equal(np.signbit(columns), np.signbit(rows))

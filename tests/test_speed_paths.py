@@ -810,6 +810,29 @@ def test_a_covariance_the_closed_form_cannot_factor_is_named_as_lapacks_would_be
             cholesky(stack)
 
 
+def test_the_in_place_covariance_and_residuals_are_numpys():
+    """The mean test's covariance made in the scores' own copy is ``np.cov``'s, and the
+    memory's residuals made in place (chunk by chunk) are those made beside the input;
+    the input is overwritten only where asked."""
+    from credcli.engine.batches import _covariance_overwriting
+    from credcli.engine.linalg import lower_inverse
+    from credcli.engine.memory import mean_free
+
+    rng = np.random.default_rng(12)
+    x = rng.standard_normal((5000, 3)) @ rng.standard_normal((3, 3)) + [1.0, -2.0, 3.0]
+    want = np.cov(x, rowvar=False)
+    np.testing.assert_allclose(_covariance_overwriting(x.copy()), want, rtol=1e-12)
+    a = rng.standard_normal((5000, 2, 2))
+    inverse = lower_inverse(np.linalg.cholesky(a @ a.transpose(0, 2, 1) + np.eye(2)))
+    s = rng.standard_normal((5000, 2))
+    kept = s.copy()
+    beside = mean_free(s, inverse)
+    np.testing.assert_array_equal(s, kept)
+    inside = mean_free(s, inverse, overwrite=True)
+    assert inside is s
+    np.testing.assert_allclose(inside, beside, rtol=0, atol=1e-12)
+
+
 def test_a_segment_that_is_the_whole_log_takes_the_summary_accuracy():
     """The accuracy of a whole log is made once, for its summary, and its one segment
     reports those figures; segments that are parts of a log compute their own."""

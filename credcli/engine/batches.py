@@ -431,7 +431,7 @@ def independent_mean_test(residuals: GlsResiduals, inflation: float = 1.0) -> Me
     """
     scores = residuals.scores
     n, d = scores.shape
-    scores = scores / power_of_two_unit(scores)  # T² is scale-free; exact, and finite
+    scores = scores / power_of_two_unit(scores)  # T² is scale-free; exact, finite; a copy
     total = scores.sum(axis=0)
     try:
         b = float(total @ np.linalg.solve(scores.T @ scores, total)) / n
@@ -440,9 +440,21 @@ def independent_mean_test(residuals: GlsResiduals, inflation: float = 1.0) -> Me
     t2 = (n - 1) * b / (1.0 - b) if b < 1.0 else math.inf
     f = (n - d) * t2 / (d * (n - 1) * inflation)
     p = float(special.fdtrc(d, n - d, f)) if math.isfinite(f) else 0.0
-    spread = _centred_spread(residuals, n * np.cov(scores, rowvar=False).reshape(d, d))
+    spread = _centred_spread(residuals, n * _covariance_overwriting(scores))
     t2_per_f = d * (n - 1) * inflation / (n - d)
     return MeanTest(f, (float(d), float(n - d)), p, 0, spread, t2_per_f)
+
+
+def _covariance_overwriting(x: np.ndarray) -> np.ndarray:
+    """``np.cov(x, rowvar=False)`` of the rows of ``x`` (N, d), computed in ``x`` itself,
+    which it overwrites: np.cov's own steps on its own layout (the transpose of the rows,
+    their mean, the centred product), without the copy of the N × d values np.cov makes
+    first (a segment of millions of epochs holds one copy of its scores, not two)."""
+    columns = x.T
+    columns -= np.average(columns, axis=1)[:, None]
+    product = np.dot(columns, columns.T.conj())
+    product *= np.true_divide(1, x.shape[0] - 1)
+    return product
 
 
 def _centred_spread(residuals: GlsResiduals, cov_sum: np.ndarray) -> float:

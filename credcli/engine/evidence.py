@@ -239,8 +239,12 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     gls = gls_residuals(errors, chol, inverse if chol.ndim == 3 else None)
     if not probes_possible:  # the factors' last use without the probes
         del chol
-    s = whiten(errors, cov)
-    r1 = correlation.autocorrelation(s)
+    # the ELT's whitening: where only the memory model reads the errors' dependence and the
+    # segment is too long for the lag-1 screening, it is made after the model's tests,
+    # when the per-epoch inverses and the model's residuals are freed (the peak memory)
+    early = len(modelled) < len(configs) or n < SCREENED_BELOW
+    s = whiten(errors, cov) if early else None
+    r1 = correlation.autocorrelation(s) if early else None
     if len(modelled) < len(configs):  # the lag-1 screening of paper, ks and fixed blocks
         dep = dependence.serial_dependence(s, gls.q, r1)
         located, tau_location = dependence.location_dependence(s, r1, dep)
@@ -249,8 +253,6 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         dep = dependence.SerialDependence(False, ones, ones, 1.0, None)
         located, tau_location = False, ones
     dependent, tau_point, tau, tau_q = dep.dependent, dep.tau_point, dep.tau, dep.tau_q
-    autocorr = float(np.max(r1))
-    effective_n = float(n / max(1.0, float(np.max(tau_point))))
     source = "run" if memory is not None else "segment"
     scales_check = None
     drifting = None
@@ -283,6 +285,11 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             del inverse
             scales_check = time_scales(fitted_on, memory)
         del fitted_on
+    if s is None:
+        s = whiten(errors, cov)
+        r1 = correlation.autocorrelation(s)
+    autocorr = float(np.max(r1))
+    effective_n = float(n / max(1.0, float(np.max(tau_point))))
     squares_ratio = memory.squares.variance_ratio if memory is not None else tau_q
     found_bursts = episodes.bursts(eps, d, squares_ratio)
     q_median = float(np.median(gls.q))
@@ -1095,7 +1102,7 @@ def memory_residuals(gls, inverse) -> np.ndarray:
     else:
         z = np.einsum("nij,j->ni", inverse, gls.mean)
         z += gls.whitened
-    return mean_free(z, inverse)
+    return mean_free(z, inverse, overwrite=True)
 
 
 def _slow_memory(scales: TimeScales | None, memory: Memory) -> str | None:
@@ -1244,8 +1251,9 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, np.ndarray]:
         :func:`memory_residuals` and their ``q``).
     inverse : numpy.ndarray, shape (d, d) or (N, d, d)
         L⁻¹, or L_k⁻¹ per epoch.
-    s : numpy.ndarray, shape (N, d)
-        The whitened errors, for the lag-1 screening.
+    s : numpy.ndarray, shape (N, d), or None
+        The whitened errors, for the lag-1 screening (None for a segment of
+        :data:`SCREENED_BELOW` epochs or more, which is not screened).
     r1 : numpy.ndarray, shape (d,), optional
         Their lag-1 autocorrelations, if already computed.
 
@@ -1256,10 +1264,11 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, np.ndarray]:
     residuals : numpy.ndarray, shape (N, d)
         The mean-free whitened residuals it was fitted on (:func:`memory_residuals`).
     """
-    n = s.shape[0]
-    r1 = correlation.autocorrelation(s) if r1 is None else r1
+    n = gls.whitened.shape[0]
     screened = n < SCREENED_BELOW and (
-        correlation.serially_dependent(r1, n, correlation.SCREENING_LEVEL)
+        correlation.serially_dependent(
+            correlation.autocorrelation(s) if r1 is None else r1, n, correlation.SCREENING_LEVEL
+        )
         or correlation.serially_dependent(
             correlation.autocorrelation(s, about_zero=True), n, correlation.SCREENING_LEVEL
         )

@@ -46,6 +46,7 @@ from scipy import special
 from scipy.linalg import lapack
 
 from credcli.engine import compiled
+from credcli.engine.linalg import epoch_chunks
 from credcli.engine.units import power_of_two_unit
 
 MAX_ORDER_CAP = 60
@@ -1525,7 +1526,7 @@ def studentized_quantile(p: float, dof: float) -> float:
     return float(-special.stdtrit(dof, p))
 
 
-def mean_free(s: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+def mean_free(s: np.ndarray, inverse: np.ndarray, overwrite: bool = False) -> np.ndarray:
     r"""The whitened errors less their fitted constants: the residuals the memory is fitted on.
 
     The least-squares fit is by a constant in whitened space and a constant in the log's
@@ -1541,6 +1542,9 @@ def mean_free(s: np.ndarray, inverse: np.ndarray) -> np.ndarray:
         The whitened errors s_k = L_k⁻¹e_k.
     inverse : numpy.ndarray, shape (d, d) or (N, d, d)
         L⁻¹, one inverse Cholesky factor for every epoch, or L_k⁻¹ per epoch.
+    overwrite : bool, default False
+        Whether the residuals may be made in ``s`` itself (a caller's own copy: a
+        segment of millions of epochs then holds one array of them, not three).
 
     Returns
     -------
@@ -1565,8 +1569,10 @@ def mean_free(s: np.ndarray, inverse: np.ndarray) -> np.ndarray:
     normal[d:, d:] = np.einsum("nki,nkj->ij", inv, inv) / (after * after)
     rhs = np.concatenate([s.sum(axis=0), np.einsum("nki,nk->i", inv, s) / after])
     coef = np.linalg.lstsq(normal, rhs, rcond=None)[0]
-    out = s - coef[:d]
-    out -= np.einsum("nij,j->ni", inv, coef[d:] / after)
+    out = np.subtract(s, coef[:d], out=s if overwrite else None)
+    constant = coef[d:] / after
+    for sl in epoch_chunks(n):  # bounded temporaries; each epoch's product is its own
+        out[sl] -= np.einsum("nij,j->ni", inv[sl], constant)
     return out
 
 

@@ -1700,14 +1700,18 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     )
     variances = np.where(variances > 0, variances, 1.0)
     tau = float(np.max(memory.variance_ratios))
+    lowest_ratio, lowest_pvalue = lowest_frequency_check(rotated, memory, variances)
     rows = []
     m = 1
     block_sums = rotated  # at scale m, each the sum of two at scale m/2
     while n // m >= MIN_SCALE_BLOCKS:
         k = n // m
-        if m > 1:
-            block_sums = block_sums[0 : 2 * k : 2] + block_sums[1 : 2 * k : 2]
-        sums = block_sums - block_sums.mean(axis=0)
+        sums = block_sums
+        half = n // (2 * m)
+        if half >= MIN_SCALE_BLOCKS:  # the next scale's sums, before these are centred
+            block_sums = sums[0 : 2 * half : 2] + sums[1 : 2 * half : 2]
+        # centred and squared in place: no copy of the N × d residuals at the scale of one
+        sums = np.subtract(sums, sums.mean(axis=0), out=sums)
         ratios = np.array([series.mean_ratio(m) for series in memory.series])
         per_direction = np.sum(np.square(sums, out=sums), axis=0) / ((k - 1) * m * variances)
         observed = float(np.mean(per_direction))
@@ -1725,7 +1729,6 @@ def time_scales(y: np.ndarray, memory: Memory, level: float = SCALE_CHECK_LEVEL)
     epochs = table[:, 0].astype(int)
     tested = epochs >= max(2.0, 2.0 * tau)
     pvalues = table[:, 5]
-    lowest_ratio, lowest_pvalue = lowest_frequency_check(rotated, memory, variances)
     family = np.append(pvalues[tested], lowest_pvalue)
     pvalue = float(min(1.0, family.min() * family.size))
     return TimeScales(
@@ -1791,19 +1794,20 @@ def lowest_frequency_check(
     the spectral density as mean).
     """
     n, d = rotated.shape
-    h = np.arange(n)
     # |Σ x_t e^{−iω₁t}|² as (Σ x_t cos ω₁t)² + (Σ x_t sin ω₁t)²: two real products, where
     # one complex product made a complex copy of the series; on a segment of millions of
-    # epochs every temporary is an array of N numbers, so the sines overwrite the angles
-    # and (1 − h/N) cos(ω₁h) is made in the array of h/N
-    angle = np.multiply(2.0 * np.pi, h)
+    # epochs every temporary is an array of N numbers, so the lags are floats from the
+    # start (exact below 2⁵³), the sines overwrite the angles and (1 − h/N) cos(ω₁h) is
+    # made in the array of h/N
+    angle = np.arange(n, dtype=float)
+    angle *= 2.0 * np.pi
     angle /= n
     cosine = np.cos(angle)
     np.sin(angle, out=angle)
     ordinate = ((cosine @ rotated) ** 2 + (angle @ rotated) ** 2) / n
     del angle
-    weights = h[1:] / n
-    del h
+    weights = np.arange(1, n, dtype=float)
+    weights /= n
     np.subtract(1.0, weights, out=weights)
     weights *= cosine[1:]
     del cosine

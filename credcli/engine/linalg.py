@@ -212,7 +212,8 @@ def check_errors_cov(errors: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, n
 
 
 def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
-    """Cholesky factors of (N, d, d) (or (d, d)) positive definite matrices.
+    """Cholesky factors of (N, d, d) (or (d, d)) positive definite matrices: a stack of
+    2 × 2 float64 matrices in closed form (:func:`cholesky_2x2`), others by LAPACK.
 
     Parameters
     ----------
@@ -232,8 +233,9 @@ def cholesky(matrices: np.ndarray, name: str = "cov") -> np.ndarray:
         If a matrix is not positive definite, naming ``name`` and the first such epoch
         (``cov[k]``).
     """
-    if np.ndim(matrices) == 3 and np.shape(matrices)[1:] == (2, 2):
-        factors = cholesky_2x2(np.asarray(matrices, dtype=float))
+    values = np.asarray(matrices)
+    if values.ndim == 3 and values.shape[1:] == (2, 2) and values.dtype == np.float64:
+        factors = cholesky_2x2(values)  # LAPACK's numbers without its call per matrix
         if factors is not None:
             return factors
     try:

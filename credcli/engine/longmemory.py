@@ -27,8 +27,9 @@ taken only where it also fits better than the best ARMA(p, 1). Where it is chose
 implies more memory over the segment than the direction's own model, the direction takes
 it (:func:`with_long_memory`); a direction's memory is never shortened. Where the data
 support the fractional model (its AICc within :data:`SUPPORT` of the sieve's, Burnham &
-Anderson 2002) and it is not taken, or an ARMA(p, 1) that fits better than the sieve and
-within :data:`SUPPORT` of the best, the model keeps the one implying the most memory as its
+Anderson 2002, and no ARMA(p, 1) beating it by BIC's margin) and it is not taken, or an
+ARMA(p, 1) that fits better than the sieve and within :data:`SUPPORT` of the best, the
+model keeps the one implying the most memory as its
 ``alternative``, in every direction that has less memory of its own
 (:func:`_weak_alternative`), under which a bias and a scale finding must hold as well
 (:func:`credcli.engine.evidence.memory_evidence`).
@@ -94,7 +95,9 @@ data support, and so the model's ``alternative``: a model within 2 of the best h
 substantial support (Burnham & Anderson 2002, Sec. 2.6). With the margin 0 (AICc prefers
 it) 27 and 23 % of the zoo's credible ARFIMA d = 0.3 segments of 50 and 300 epochs were
 false alarms (seed 20240); with the margin 2, 13 and 13 %, at a cost of 5 of 490 detections
-of a 1σ bias at N/τ >= 30 on each of two seeds (docs/measured.md)."""
+of a 1σ bias at N/τ >= 30 on each of two seeds (docs/measured.md). It loses that
+support where an ARMA(p, 1) fits better by BIC's margin (log T − 2 beyond AICc's), evidence
+against long memory as firm as what takes a fractional model over the sieve (session 24)."""
 
 
 MOVING_AVERAGES = np.array([-0.9, -0.8, -0.7, -0.6, -0.45, -0.3, -0.15, 0.15, 0.3, 0.45])
@@ -329,7 +332,9 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     _Choice
         Per series: d (0: the AR sieve), p and φ of the model taken (its AR part where
         d > 0); whether the choice was weak (the fractional model's AICc within
-        :data:`SUPPORT` of the sieve's, BIC not taking it); the best fractional model's
+        :data:`SUPPORT` of the sieve's, BIC not taking it, and no ARMA(p, 1) beating it by
+        BIC's margin, log T − 2 beyond AICc's: the evidence that takes a fractional model
+        over the sieve, here against long memory); the best fractional model's
         (d, φ), taken or not; whether the best ARMA(p, 1) is a supported alternative (its
         AICc below the sieve's and within :data:`SUPPORT` of the best of the three), and
         its (θ, φ).
@@ -376,7 +381,10 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
                 continue  # fractional noise at the top fits better: no finite memory
             phi = edge_arma[i][1] if edge[i] < moving[j] else arma[j][1]
             top[j] = t * (1.0 - slowest_root(phi)) < UNIT_ROOT_MARGIN
-    preferred = cost < plain + SUPPORT
+    # a fractional model the data support, unless an ARMA(p, 1) beats it by the margin that
+    # takes a fractional model over the sieve (BIC's log T − 2 beyond AICc): short memory
+    # the data choose as firmly as they would choose long memory over the sieve
+    preferred = (cost < plain + SUPPORT) & ~(moving + (math.log(t) - 2.0) < cost)
     taken = (cost + (math.log(t) - 2.0) < plain) & ((cost < moving) | top)
     if not choose:
         taken[:] = True
@@ -433,7 +441,7 @@ class _Choice(NamedTuple):
     fractions: np.ndarray  # d of the model taken (0: the AR sieve)
     orders: np.ndarray  # its AR order
     coefficients: list  # its AR coefficients
-    weak: np.ndarray  # AICc within SUPPORT of the sieve's, not taken as the model
+    weak: np.ndarray  # AICc within SUPPORT of the sieve's, not taken, no ARMA far better
     candidates: list  # (d, φ) of the best fractional model, taken or not
     arma_weak: np.ndarray  # the best ARMA(p, 1) beats the sieve, AICc within SUPPORT of the best
     arma: list  # (θ, φ) of the best ARMA(p, 1) (empty without the class choice)
@@ -651,13 +659,14 @@ def _weak_alternative(
     or long memory that an ARMA with a root near the unit circle describes as well).
 
     Each weakly chosen fractional model (AICc within :data:`SUPPORT` of the sieve's, not
-    taken as the model) is a memory the segment cannot rule out, and not in its own direction
-    only: the principal directions are ordered by their fitted memory, so a direction
-    that shares the long memory shows it less by selection (two independent
-    ARFIMA(0, 0.3, 0) components of 300 epochs: on the segments whose mean was called a
-    bias, the second direction's fit gave v_N 2–5, the truth 28). So each direction takes,
-    of the weakly chosen models, the one that implies the most memory over the segment
-    (:func:`mean_variance_ratio`), where that is more than its own model's.
+    taken as the model, no ARMA(p, 1) beating it by BIC's margin) is a memory the segment
+    cannot rule out, and not in its own direction only: the principal directions are
+    ordered by their fitted memory, so a direction that shares the long memory shows it
+    less by selection (two independent ARFIMA(0, 0.3, 0) components of 300 epochs: on the
+    segments whose mean was called a bias, the second direction's fit gave v_N 2–5, the
+    truth 28). So each direction takes, of the weakly chosen models, the one that implies
+    the most memory over the segment (:func:`mean_variance_ratio`), where that is more than
+    its own model's.
 
     Its degrees of freedom are the direction's own (no bootstrap): the alternative serves
     only to check that a location or scale finding holds under more memory as well

@@ -1052,9 +1052,9 @@ def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) ->
     model's alternative with more memory (:attr:`credcli.engine.memory.Memory.alternative`)
     does not: where the data support a fractional model (its AICc within
     ``longmemory.SUPPORT`` of the sieve's, no ARMA(p, 1) better by BIC's margin) and BIC
-    does not take it, or an ARMA(p, 1) with
-    more memory than the sieve's, one segment cannot tell the two memories apart, and a
-    mean off by that much is within what the longer memory lets a mean wander."""
+    does not take it, or an ARMA(p, 1) with more memory than the sieve's, one segment
+    cannot tell the two memories apart, and a mean off by that much is within what the
+    longer memory lets a mean wander."""
     alternative = memory.alternative
     test = plan.mean_test
     if alternative is None or test is None or not test.pvalue < plan.mean_level:

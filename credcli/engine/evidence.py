@@ -266,8 +266,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     if drifting is not None:
         model_evidence = dict.fromkeys(modelled, drifting)
     else:
-        model_evidence = {
-            c: memory_evidence(gls, inverse, c, memory, n) for c in dict.fromkeys(modelled)
+        model_evidence = {  # the segment's own residuals where its model was fitted here
+            c: memory_evidence(gls, inverse, c, memory, n, residuals=fitted_on)
+            for c in dict.fromkeys(modelled)
         }
     del inverse
     if fitted_on is not None:
@@ -280,7 +281,8 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         if refit is not None:  # the factors again, for the model's tests (rarely needed)
             memory, inverse = refit, _inverse(linalg.cholesky(cov))
             model_evidence = {
-                c: memory_evidence(gls, inverse, c, memory, n) for c in dict.fromkeys(modelled)
+                c: memory_evidence(gls, inverse, c, memory, n, residuals=fitted_on)
+                for c in dict.fromkeys(modelled)
             }
             del inverse
             scales_check = time_scales(fitted_on, memory)
@@ -945,7 +947,13 @@ MIN_MEAN_DOF = 3
 
 
 def memory_evidence(
-    gls, inverse, config: DiagnosisConfig, memory: Memory, n: int, level: float | None = None
+    gls,
+    inverse,
+    config: DiagnosisConfig,
+    memory: Memory,
+    n: int,
+    level: float | None = None,
+    residuals: np.ndarray | None = None,
 ) -> ModelEvidence:
     """The calibrated rule's evidence under the dependence model ``memory``.
 
@@ -982,6 +990,9 @@ def memory_evidence(
         Epochs in the segment.
     level : float, optional
         The scale test's level; default α_S.
+    residuals : numpy.ndarray or None, optional
+        The residuals the model was fitted on (:func:`memory_residuals`) where the caller
+        holds them; None: made again where a white model's bias needs them.
 
     Returns
     -------
@@ -996,7 +1007,8 @@ def memory_evidence(
         directions = direction_scales(gls, level, 0) if d > 1 else None
         mean = batches.independent_mean_test(gls, 1.0)
         plan = split_location(config, n, 1, 1, mean, None, _MEMORY_BLOCKS.format(block=1))
-        return ModelEvidence(scale, None, directions, _held_if_white(plan, gls, memory, inverse))
+        held = _held_if_white(plan, gls, memory, inverse, residuals)
+        return ModelEvidence(scale, None, directions, held)
     tail = memory_tail_factor(gls, memory)
     scale = memory_scale_test(gls, memory, level, tail)
     alternative = memory.alternative
@@ -1035,15 +1047,20 @@ def memory_evidence(
     )
 
 
-def _held_if_white(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
+def _held_if_white(
+    plan: LocationPlan, gls, memory: Memory, inverse, residuals: np.ndarray | None = None
+) -> LocationPlan:
     """``plan`` of a white model, with a bias its mean test finds checked under the
     alternative with more memory that the residuals support
     (:func:`credcli.engine.longmemory.white_alternative`, fitted only then), as
-    :func:`_held_under_alternative` checks a modelled segment's."""
+    :func:`_held_under_alternative` checks a modelled segment's; ``residuals``: those the
+    model was fitted on, where the caller holds them (else made here)."""
     test = plan.mean_test
     if test is None or not test.pvalue < plan.mean_level:
         return plan
-    alternative = white_alternative(memory, memory_residuals(gls, inverse))
+    if residuals is None:
+        residuals = memory_residuals(gls, inverse)
+    alternative = white_alternative(memory, residuals)
     return plan if alternative is None else _held_under_alternative(plan, gls, alternative, inverse)
 
 

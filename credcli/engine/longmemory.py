@@ -30,8 +30,8 @@ support the fractional model (its AICc within :data:`SUPPORT` of the sieve's, Bu
 Anderson 2002, and no ARMA(p, 1) beating it by BIC's margin) and it is not taken, or an
 ARMA(p, 1) that fits better than the sieve and within :data:`SUPPORT` of the best, the
 model keeps the one implying the most memory as its ``alternative``, in every direction
-that has less memory of its own (:func:`_weak_alternative`), under which a bias and a scale finding must hold as well
-(:func:`credcli.engine.evidence.memory_evidence`).
+that has less memory of its own (:func:`_weak_alternative`), under which a bias and a
+scale finding must hold as well (:func:`credcli.engine.evidence.memory_evidence`).
 
 The model's autocorrelation is exact (:func:`arfima_autocorrelation`), so every test of
 the engine reads the variance of a window mean, of a centred sum of squares and of sign

@@ -952,9 +952,10 @@ class Memory(_Answering):
         The same model with more memory where the data support one: a fractional model
         (its AICc within ``longmemory.SUPPORT`` of the sieve's, no ARMA(p, 1) better by
         BIC's margin) that BIC does not take, or an ARMA(p, 1) preferred to the sieve and
-        within ``longmemory.SUPPORT`` of the best, whichever implies the most memory, in every direction with less memory of its own
-        (:mod:`credcli.engine.longmemory`): a location or scale finding must hold under it
-        as well. None where there is no such direction.
+        within ``longmemory.SUPPORT`` of the best, whichever implies the most memory, in
+        every direction with less memory of its own (:mod:`credcli.engine.longmemory`): a
+        location or scale finding must hold under it as well. None where there is no such
+        direction.
     """
 
     directions: np.ndarray

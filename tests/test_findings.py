@@ -469,3 +469,101 @@ def test_interleaved_and_contiguous_segments_find_the_offset_of_the_whole_logs_g
         assert result.diagnosis.time_offset == alone.time_offset, seg.name
         found += alone.time_offset is not None
     assert found >= 3  # the lag is found on most of them: the comparison is not vacuous
+
+
+def _slow_reading_reference(scale, mean, d):
+    """The slow reading's p-value by scipy.stats and a bounded optimiser over κ, the fast
+    share: Fisher's combination of the scale's studentized upper tail at κ and the mean's
+    χ²_d tail with variance 1 − κ + κ s²/κ̂ (s² = ‖x̂‖²/T²)."""
+    from scipy import optimize
+
+    kappa_hat, dof, dof_model = scale.scale_factor, scale.dof, scale.model_dof
+    offset_sq = scale.bias_mahalanobis**2
+    s2 = offset_sq / (mean.t2_per_f * mean.statistic)
+
+    def combined(k):
+        z = stats.norm.isf(stats.chi2.sf(kappa_hat * dof / k, dof))
+        log_p1 = stats.norm.logsf(z) if math.isinf(dof_model) else stats.t.logsf(z, dof_model)
+        log_p2 = stats.chi2.logsf(offset_sq / (1 - k + k * s2 / kappa_hat), d)
+        return stats.chi2.sf(-2 * (log_p1 + log_p2), 4)
+
+    grid = np.linspace(0.01, 1.0, 100)
+    start = grid[int(np.argmax([combined(k) for k in grid]))]
+    found = optimize.minimize_scalar(
+        lambda k: -combined(k),
+        bounds=(max(1e-6, start - 0.01), min(1.0, start + 0.01)),
+        method="bounded",
+        options={"xatol": 1e-9},
+    )
+    return -found.fun, found.x
+
+
+@pytest.mark.parametrize(
+    ("offset_sq", "spread", "n"), [(0.3, 0.8, 50), (1.0, 1.0, 300), (0.6, 0.5, 120)]
+)
+def test_the_slow_reading_against_an_independent_computation(offset_sq, spread, n):
+    """slow_offset_pvalue on a grid of 400 fast shares against scipy.stats and a bounded
+    optimiser: the same supremum within the grid's step (p within 1 % relative, κ within
+    0.005)."""
+    from credcli.engine.scale import slow_offset_pvalue
+
+    rng = np.random.default_rng(3)
+    white = math.sqrt(spread) * rng.standard_normal((n, 2))
+    errors = white - white.mean(axis=0) + math.sqrt(offset_sq / 2)
+    d = diagnose_errors(errors, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=1)
+    p, share = slow_offset_pvalue(d.scale, d.mean_test, 2)
+    want_p, want_share = _slow_reading_reference(d.scale, d.mean_test, 2)
+    assert p == pytest.approx(want_p, rel=0.01)
+    assert share == pytest.approx(want_share, abs=0.005)
+
+
+@pytest.mark.parametrize("fast", [0.8, 1.0])
+def test_the_slow_reading_is_rejected_at_most_at_its_level(fast):
+    """Monte Carlo size check: 300 segments of 100 epochs (d = 2) made as the reading says,
+    a constant draw N(0, (1 − κ)I) over white noise of κI under a claimed I (κ 0.8, and 1:
+    no slow part at all). Its p-value falls below the mean test's level α (1.27 %) in at
+    most α plus three standard errors of the 300 (3.8 + 5.8): the supremum over κ keeps
+    the level at every true share."""
+    from credcli.engine.scale import slow_offset_pvalue
+
+    rng = np.random.default_rng(11)
+    n, reps = 100, 300
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    level = DiagnosisConfig().mean_level
+    rejected = 0
+    for k in range(reps):
+        errors = math.sqrt(1 - fast) * rng.standard_normal(2)
+        errors = errors + math.sqrt(fast) * rng.standard_normal((n, 2))
+        d = diagnose_errors(errors, cov, rng=k)
+        if d.mean_test is not None:  # no mean test (memory the segment cannot resolve)
+            rejected += slow_offset_pvalue(d.scale, d.mean_test, 2)[0] < level
+    assert rejected <= reps * level + 3 * math.sqrt(reps * level * (1 - level))
+
+
+def test_a_bias_a_slow_error_explains_says_so():
+    """A bias label holds under the segment's memory; where an error slower than the
+    segment explains the offset and the spread together, a finding says so with its
+    p-value and the label stands: an offset of 0.55σ over a spread of 0.85 of the claim
+    (50 epochs) has it; 3σ over the full spread (200 epochs) is a bias no slow error
+    within the claim draws; slow errors excluded, and a window judged with its run's
+    memory (which holds the run's slow parts), have no such finding."""
+
+    def slow(d):
+        return [f for f in d.findings if f.startswith("the bias may be an error slower")]
+
+    rng = np.random.default_rng(2)
+    white = math.sqrt(0.85) * rng.standard_normal((50, 2))
+    errors = white - white.mean(axis=0) + 0.55 / math.sqrt(2)
+    cov = np.broadcast_to(np.eye(2), (50, 2, 2))
+    d = diagnose_errors(errors, cov, rng=1)
+    assert d.label is Label.BIAS
+    (finding,) = slow(d)
+    assert "explains the offset of 0.55σ" in finding
+    excluded = diagnose_errors(errors, cov, DiagnosisConfig(slow_errors="excluded"), rng=1)
+    assert excluded.label is Label.BIAS and not slow(excluded)
+    windowed = diagnose_errors(errors, cov, rng=1, memory=d.memory)
+    assert windowed.memory_source == "run" and not slow(windowed)
+    far = rng.standard_normal((200, 2))
+    far = far - far.mean(axis=0) + 3.0 / math.sqrt(2)
+    d = diagnose_errors(far, np.broadcast_to(np.eye(2), (200, 2, 2)), rng=1)
+    assert d.label is Label.BIAS and not slow(d)

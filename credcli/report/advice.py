@@ -188,8 +188,9 @@ def _smm_hint(diag) -> str:
 LOCATION_MEANING = {
     "bias": (
         "bias: the errors have a mean that no covariance allows for, so retuning the noise "
-        "will not fix it; look for a model mismatch: an unmodelled sensor bias, lever arm, "
-        "time offset, frame or motion model"
+        "will not fix it (unless a finding names an error slower than the segment, which "
+        "the claim may cover); look for a model mismatch: an unmodelled sensor bias, lever "
+        "arm, time offset, frame or motion model"
     ),
     "asymmetric": (
         "asymmetric: the errors are not symmetric about zero though the mean test finds no "

@@ -345,21 +345,24 @@ def test_an_offset_the_claim_covers_is_declined_unless_slow_errors_are_excluded(
     assert windowed.label is Label.PESSIMISM_BIAS
 
 
+def _slow_over_white(fast: float, n: int, reps: int, seed: int):
+    """Diagnoses of ``reps`` credible segments of ``n`` epochs (d = 2, claim I): one
+    constant draw N(0, (1 − fast) I) of a slow part over white noise of ``fast`` I."""
+    rng = np.random.default_rng(seed)
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    for k in range(reps):
+        slow = math.sqrt(1 - fast) * rng.standard_normal(2)
+        yield diagnose_errors(slow + math.sqrt(fast) * rng.standard_normal((n, 2)), cov, rng=k)
+
+
 def test_a_slow_error_within_the_claim_is_called_a_bias_at_most_at_the_level():
     """Monte Carlo size check: 200 segments of 100 epochs (d = 2) whose error is one
     constant draw of a slow part, N(0, 0.7 I), over white noise of 0.3 I, under a claimed
     I: credible by construction. pessimism+bias is claimed in at most the mean test's
     level (α_L/2, 1.27 %) plus three standard errors: 2.5 + 4.8, so at most 7 (the check
     before this rule's χ²_d said pessimism+bias in 154 of these 200)."""
-    rng = np.random.default_rng(5)
-    n, reps = 100, 200
-    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
-    level = DiagnosisConfig().mean_level
-    claimed = 0
-    for k in range(reps):
-        slow = math.sqrt(0.7) * rng.standard_normal(2)
-        errors = slow + math.sqrt(0.3) * rng.standard_normal((n, 2))
-        claimed += diagnose_errors(errors, cov, rng=k).label is Label.PESSIMISM_BIAS
+    reps, level = 200, DiagnosisConfig().mean_level
+    claimed = sum(d.label is Label.PESSIMISM_BIAS for d in _slow_over_white(0.3, 100, reps, 5))
     assert claimed <= reps * level + 3 * math.sqrt(reps * level * (1 - level))
 
 
@@ -526,17 +529,12 @@ def test_the_slow_reading_is_rejected_at_most_at_its_level(fast):
     the level at every true share."""
     from credcli.engine.scale import slow_offset_pvalue
 
-    rng = np.random.default_rng(11)
-    n, reps = 100, 300
-    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
-    level = DiagnosisConfig().mean_level
-    rejected = 0
-    for k in range(reps):
-        errors = math.sqrt(1 - fast) * rng.standard_normal(2)
-        errors = errors + math.sqrt(fast) * rng.standard_normal((n, 2))
-        d = diagnose_errors(errors, cov, rng=k)
-        if d.mean_test is not None:  # no mean test (memory the segment cannot resolve)
-            rejected += slow_offset_pvalue(d.scale, d.mean_test, 2)[0] < level
+    reps, level = 300, DiagnosisConfig().mean_level
+    rejected = sum(
+        slow_offset_pvalue(d.scale, d.mean_test, 2)[0] < level
+        for d in _slow_over_white(fast, 100, reps, 11)
+        if d.mean_test is not None  # no mean test: memory the segment cannot resolve
+    )
     assert rejected <= reps * level + 3 * math.sqrt(reps * level * (1 - level))
 
 

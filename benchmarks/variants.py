@@ -2,6 +2,7 @@
 sets "built the same way" as the zoo, never tuned on), with the oracle beside each cell.
 
     python benchmarks/variants.py [--lengths 50,300,2000] [--reps 60] [--seed 4242]
+        [--slow-errors auto]
 
 Each variant is one of ``zoo.py``'s synthetic shapes (AR(1), oscillating AR(2), ARMA(1,1),
 slow + white mixtures, ARFIMA, a slow and a white direction, rotating and resized
@@ -122,12 +123,15 @@ def main() -> None:
     ap.add_argument("--lengths", default="50,300,2000")
     ap.add_argument("--reps", type=int, default=60)
     ap.add_argument("--seed", type=int, default=4242)
+    ap.add_argument("--slow-errors", default="auto", help="the rule's slow_errors setting")
     args = ap.parse_args()
+    config = DiagnosisConfig(slow_errors=args.slow_errors)
     zoo.SYNTHETIC.update(VARIANTS)  # zoo.make finds a family by its name there
     level = DiagnosisConfig().scale_level
     lengths = [int(n) for n in args.lengths.split(",")]
     print(
         f"# Synthetic variants, N = {args.lengths}, R = {args.reps} (R/3 at 2000), seed {args.seed}"
+        + ("" if args.slow_errors == "auto" else f", slow_errors {args.slow_errors}")
     )
     print()
     print(
@@ -149,7 +153,7 @@ def main() -> None:
                 for rep in range(reps):
                     rng = np.random.default_rng([args.seed, rep, n, index])
                     case = zoo.make(name, n, rng, misfit)
-                    result = diagnose_errors(case.errors, case.cov, rng=rep)
+                    result = diagnose_errors(case.errors, case.cov, config, rng=rep)
                     label = result.label.value
                     if misfit == "none":
                         alarms += bool(result.label.conditions)

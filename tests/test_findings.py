@@ -384,9 +384,9 @@ def test_an_offset_beyond_what_a_slow_error_explains_is_a_bias(n, end):
 
 
 def test_slow_errors_on_the_command_line(tmp_path, capsys):
-    """``--slow-errors excluded`` reads an offset the claim covers as a bias; by default a
-    log's segment with such an offset is insufficient-data with the reason, and the JSON
-    parameters say which reading was asked for."""
+    """``--slow-errors excluded`` reads an offset the claim covers as a bias; by default
+    (and with ``expected``) a log's segment with such an offset is insufficient-data with
+    the reason, and the JSON parameters say which reading was asked for."""
     import pandas as pd
 
     rng = np.random.default_rng(0)
@@ -397,7 +397,7 @@ def test_slow_errors_on_the_command_line(tmp_path, capsys):
     path = tmp_path / "offset.csv"
     frame.to_csv(path, index=False)
     records = {}
-    for choice in ("auto", "excluded"):
+    for choice in ("auto", "excluded", "expected"):
         assert main(["diagnose", str(path), "-f", "json", "--slow-errors", choice]) == 0
         doc = json.loads(capsys.readouterr().out)
         assert doc["parameters"]["slow_errors"] == choice
@@ -405,6 +405,7 @@ def test_slow_errors_on_the_command_line(tmp_path, capsys):
     assert records["auto"]["label"] == "insufficient-data"
     assert records["auto"]["reason"].startswith("offset within the claim")
     assert records["excluded"]["label"] == "pessimism+bias"
+    assert records["expected"]["reason"] == records["auto"]["reason"]
 
 
 @settings(max_examples=200, deadline=None)
@@ -565,3 +566,35 @@ def test_a_bias_a_slow_error_explains_says_so():
     far = far - far.mean(axis=0) + 3.0 / math.sqrt(2)
     d = diagnose_errors(far, np.broadcast_to(np.eye(2), (200, 2, 2)), rng=1)
     assert d.label is Label.BIAS and not slow(d)
+
+
+def test_where_slow_errors_are_expected_a_bias_they_explain_is_declined():
+    """``slow_errors`` expected: the bias of 0.55σ over a spread of 0.85 (above) is
+    insufficient-data, its reason the slow reading's share and p-value (the finding's,
+    computed independently here), and no finding beside it; 3σ over the full spread stays
+    a bias; pessimism with a bias is judged by the offset check as with ``possible``."""
+    from credcli.engine.scale import slow_offset_pvalue
+
+    expected = DiagnosisConfig(slow_errors="expected")
+    rng = np.random.default_rng(2)
+    white = math.sqrt(0.85) * rng.standard_normal((50, 2))
+    errors = white - white.mean(axis=0) + 0.55 / math.sqrt(2)
+    cov = np.broadcast_to(np.eye(2), (50, 2, 2))
+    possible = diagnose_errors(errors, cov, rng=1)
+    d = diagnose_errors(errors, cov, expected, rng=1)
+    assert possible.label is Label.BIAS and d.label is Label.INSUFFICIENT
+    want_p, want_share = _slow_reading_reference(possible.scale, possible.mean_test, 2)
+    p, share = slow_offset_pvalue(possible.scale, possible.mean_test, 2)
+    assert p == pytest.approx(want_p, rel=0.01) and p >= d.config.mean_level
+    assert d.reason.startswith("offset within the claim: the errors sit 0.55σ off zero")
+    assert f"holding {1 - share:.2g} of the claimed covariance" in d.reason
+    assert f"(p {p:.2g}, not below" in d.reason
+    assert not [f for f in d.findings if f.startswith("the bias may be")]
+    far = rng.standard_normal((200, 2))
+    far = far - far.mean(axis=0) + 3.0 / math.sqrt(2)
+    far_cov = np.broadcast_to(np.eye(2), (200, 2, 2))
+    assert diagnose_errors(far, far_cov, expected, rng=1).label is Label.BIAS
+    offset, offset_cov = _offset_over_white(1.4, 200)
+    both = [diagnose_errors(offset, offset_cov, c, rng=1) for c in (expected, DiagnosisConfig())]
+    assert [b.label for b in both] == [Label.INSUFFICIENT] * 2
+    assert both[0].reason == both[1].reason

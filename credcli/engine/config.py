@@ -319,11 +319,19 @@ class SlowErrors(str, enum.Enum):
         The errors are known to hold no memory slower than the segment (independent
         Monte Carlo draws, as in the paper's Section IV): the offset is a bias
         (pessimism with SMM).
+    EXPECTED : "expected"
+        The errors are expected to hold memory slower than the segment (one run of a
+        filter whose errors follow a slowly changing geometry): a bias under a scale that
+        is not pessimistic is declined as well where such an error explains the offset
+        and the spread together (``credcli.engine.scale.slow_offset_pvalue``), where
+        ``possible`` names that reading in a finding beside the label; fewer false alarms
+        on slow errors, less power for a small bias (docs/measured.md).
     """
 
     AUTO = "auto"
     POSSIBLE = "possible"
     EXCLUDED = "excluded"
+    EXPECTED = "expected"
 
 
 class MetricsLevel(str, enum.Enum):
@@ -390,9 +398,9 @@ class DiagnosisConfig:
         reject at its level (the decision is the exhaustive test's; the p-value is then
         the sequential one, and ``elt_flips_used`` says how many flips were evaluated).
     slow_errors : SlowErrors or str
-        ``"auto"``, ``"possible"`` or ``"excluded"``: whether a segment whose offset the
-        claimed covariance covers may be an error slower than the segment, so that the
-        calibrated rule declines it, or is a bias (``SlowErrors``).
+        ``"auto"``, ``"possible"``, ``"excluded"`` or ``"expected"``: whether a segment
+        whose offset the claimed covariance covers may be an error slower than the
+        segment, so that the calibrated rule declines it, or is a bias (``SlowErrors``).
 
     Raises
     ------

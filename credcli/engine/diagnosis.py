@@ -477,11 +477,12 @@ def slow_offset_findings(ev: evidence.Evidence, label: Label, config: DiagnosisC
     Pessimism with a bias is not looked at here: the rule itself weighs the slow reading
     there, and declines the segment where it holds (:func:`credcli.engine.rules.offset_covered`).
 
-    Declining a plain bias the same way was measured and not kept (docs/measured.md): on
-    ``benchmarks/variants.py`` it cut the false alarms of slow + white errors at 50 epochs
-    from 20 to 4 of 60, and found a 1σ bias at N/τ >= 30 in 620 of 1,180 segments instead
-    of 1,055; a scale pinned near 1 over a few hundred dependent epochs leaves room for a
-    slow part of a sixth of the claim, whose draws reach 1σ.
+    ``slow_errors`` expected declines such a bias instead (``rules.offset_covered``); not by
+    default, measured (docs/measured.md): on ``benchmarks/variants.py`` it cuts the false
+    alarms of slow + white errors at 50 epochs from 20 to 4 of 60, and finds a 1σ bias at
+    N/τ >= 30 in 620 of 1,180 segments instead of 1,055; a scale pinned near 1 over a few
+    hundred dependent epochs leaves room for a slow part of a sixth of the claim, whose
+    draws reach 1σ.
 
     Parameters
     ----------
@@ -517,7 +518,8 @@ def slow_offset_findings(ev: evidence.Evidence, label: Label, config: DiagnosisC
         f"epochs, with the rest fast, explains the offset of {ev.scale.bias_mahalanobis:.3g}σ "
         f"and the spread κ̂ {ev.scale.scale_factor:.3g} together (p {pvalue:.2g}, not "
         f"below the mean test's {ev.mean_level:.3g}); windows of one run or more runs tell "
-        "the two apart, and `slow_errors` excluded states that the errors hold no such error",
+        "the two apart; `slow_errors` expected declines such a bias, and excluded states "
+        "that the errors hold no such error",
     )
 
 

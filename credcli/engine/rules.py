@@ -14,7 +14,7 @@ from credcli.engine import episodes, metrics
 from credcli.engine.config import DiagnosisConfig, Label, Question, SlowErrors, Variant
 from credcli.engine.evidence import Evidence
 from credcli.engine.longmemory import SUPPORT
-from credcli.engine.scale import DirectionScales, ScaleTest
+from credcli.engine.scale import DirectionScales, ScaleTest, slow_offset_pvalue
 
 
 @dataclass(frozen=True)
@@ -127,17 +127,22 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     offset = label is Label.PESSIMISM_BIAS or (
         label is Label.PESSIMISM and evidence.bias_declined
     )  # an offset found (under short memory, where long memory leaves it unconfirmed)
-    if config.calibrated and offset and not by_direction:
-        covered = offset_covered(evidence, config)
+    expected = label is Label.BIAS and config.slow_errors is SlowErrors.EXPECTED
+    if config.calibrated and (offset or expected) and not by_direction:
+        covered = offset_covered(evidence, config, jointly=expected)
         if covered is not None:
             return Verdict(Label.INSUFFICIENT, (), covered, None, by_direction)
     return Verdict(label, untested, reason, located, by_direction, by_median)
 
 
-def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
+def offset_covered(
+    evidence: Evidence, config: DiagnosisConfig, jointly: bool = False
+) -> str | None:
     """Why a segment labelled pessimism with a bias may be credible instead, or None; also
     pessimism where the mean test's bias was declined because the model's alternative with
-    more memory does not confirm it (``Evidence.bias_declined``): the errors sit off zero either way.
+    more memory does not confirm it (``Evidence.bias_declined``): the errors sit off zero either way;
+    and, with ``jointly`` (a bias under a scale that is not pessimistic, where slow errors
+    are expected), a bias.
 
     One segment cannot tell a constant bias from an error slower than the segment, which
     stays near one value over its epochs (a slowly varying error under white noise):
@@ -156,6 +161,13 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
     reads every such offset as SMM; a log's errors are not known to be
     (:class:`credcli.engine.config.SlowErrors`).
 
+    A scale that is not pessimistic leaves κ_j = 1 inside the intervals, and so no room
+    for a slow part by the check above; there the scale and the mean are weighed together
+    (``jointly``: :func:`credcli.engine.scale.slow_offset_pvalue`, whose p-value at or
+    above the mean test's level declines the bias). Only where slow errors are expected
+    (``SlowErrors.EXPECTED``): elsewhere a finding names that reading beside the label
+    (:func:`credcli.engine.diagnosis.slow_offset_findings`).
+
     Parameters
     ----------
     evidence : Evidence
@@ -163,6 +175,9 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
         factors, the mean test's level).
     config : DiagnosisConfig
         The configuration: ``slow_errors`` excluded reads the offset as a bias.
+    jointly : bool, default False
+        Weigh the scale and the mean together (a bias without pessimism), instead of the
+        offset against the scale's intervals.
 
     Returns
     -------
@@ -180,6 +195,8 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
         or not 0.0 < evidence.mean_level < 1.0
     ):
         return None
+    if jointly:
+        return _bias_covered(evidence)
     factor = scale.scale_factor
     lows, highs = np.array([scale.scale_factor_low]), np.array([scale.scale_factor_high])
     where = ""
@@ -204,6 +221,28 @@ def offset_covered(evidence: Evidence, config: DiagnosisConfig) -> str | None:
         "error give the same data, and one segment cannot tell them apart: windows of one "
         "run or more runs can, and `slow_errors` excluded reads the offset as a bias where "
         "the errors are known to hold no memory slower than the segment"
+    )
+
+
+def _bias_covered(evidence: Evidence) -> str | None:
+    """Why a bias without pessimism may be a credible slow error, or None: the scale and
+    the mean weighed together (:func:`credcli.engine.scale.slow_offset_pvalue`) do not
+    reject that reading at the mean test's level."""
+    scale, test = evidence.scale, evidence.mean_test
+    if test is None:
+        return None
+    pvalue, share = slow_offset_pvalue(scale, test, evidence.dim)
+    if not pvalue >= evidence.mean_level:
+        return None
+    return (
+        f"offset within the claim: the errors sit {scale.bias_mahalanobis:.3g}σ off zero "
+        f"with a spread κ̂ {scale.scale_factor:.3g} of the claim's, and an error slower than "
+        f"the segment (near one value over its {evidence.n} epochs) holding "
+        f"{1.0 - share:.2g} of the claimed covariance, the rest fast, explains both "
+        f"(p {pvalue:.2g}, not below the mean test's {evidence.mean_level:.3g}; mean NEES "
+        f"{evidence.anees:.3g}·d). A bias and such a slow error give the same data, and "
+        "one segment cannot tell them apart: windows of one run or more runs can, and "
+        "`slow_errors` possible or excluded reads the offset as a bias"
     )
 
 

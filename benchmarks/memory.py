@@ -26,6 +26,7 @@ with ``.label`` (a :class:`Label`) and ``.untested``.
 from __future__ import annotations
 
 import argparse
+import functools
 import glob
 import hashlib
 import math
@@ -327,6 +328,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--reps", type=int, help="R (default 100, 30 with --quick)")
     ap.add_argument("--misfits", default=",".join(zoo.MISFITS))
     ap.add_argument("--seed", type=int, default=SEED)
+    ap.add_argument("--slow-errors", default="auto", help="the rule's slow_errors setting")
     ap.add_argument(
         "--windows",
         type=int,
@@ -347,10 +349,15 @@ def main(argv: list[str] | None = None) -> None:
             f"long runs, as reps_for), seed {args.seed}; counts per window"
         )
     else:
-        rows = run(fams, lengths, reps, misfits, seed=args.seed, progress=True)
+        from credcli.engine.diagnosis import DiagnosisConfig
+
+        config = DiagnosisConfig(slow_errors=args.slow_errors)
+        diagnose = functools.partial(diagnose_errors, config=config)
+        rows = run(fams, lengths, reps, misfits, diagnose, seed=args.seed, progress=True)
         print(
             f"# Calibrated rule on the zoo: {len(fams)} families, N = {lengths}, R = {reps} "
             f"(R = {reps_for(max(lengths), reps)} at N = {max(lengths)}), seed {args.seed}"
+            + ("" if args.slow_errors == "auto" else f", slow_errors {args.slow_errors}")
         )
     print(f"# {engine_fingerprint()}")
     print(report(rows))

@@ -383,6 +383,37 @@ def test_an_offset_beyond_what_a_slow_error_explains_is_a_bias(n, end):
     assert labels == [Label.INSUFFICIENT, Label.PESSIMISM_BIAS]
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_where_slow_errors_are_expected_a_pessimism_needs_an_offset_too_small_for_them(seed):
+    """``slow_errors`` expected: white errors of covariance 0.5 I under a claimed I (100
+    epochs, pessimism), centred and shifted so that ‖μ̂‖² is 2 % below and above the
+    closed-form end (1 − κ)·χ²_d at α one-sided, κ the largest direction's high end: a
+    slow part holding the rest of the claim draws a smaller offset with probability α.
+    Below it the pessimism stands; above it the segment is insufficient-data (the offset
+    check's reason). By default both are pessimism: the offset is no bias (the mean
+    test's T² is about 2)."""
+    from scipy import stats
+
+    level = DiagnosisConfig().mean_level
+    expected = DiagnosisConfig(slow_errors="expected")
+    rng = np.random.default_rng(seed)
+    white = math.sqrt(0.5) * rng.standard_normal((100, 2))
+    white -= white.mean(axis=0)
+    cov = np.broadcast_to(np.eye(2), (100, 2, 2))
+    d = diagnose_errors(white, cov, rng=1)
+    assert d.label is Label.PESSIMISM
+    high = max(d.directions.high) if d.directions is not None else d.scale.scale_factor_high
+    end = (1 - high) * stats.chi2.ppf(level, 2)
+    labels, default = [], []
+    for shift in (0.98, 1.02):
+        errors = white + math.sqrt(end * shift / 2)
+        labels.append(diagnose_errors(errors, cov, expected, rng=1))
+        default.append(diagnose_errors(errors, cov, rng=1).label)
+    assert [x.label for x in labels] == [Label.PESSIMISM, Label.INSUFFICIENT]
+    assert labels[1].reason.startswith("offset within the claim")
+    assert default == [Label.PESSIMISM, Label.PESSIMISM]
+
+
 def test_slow_errors_on_the_command_line(tmp_path, capsys):
     """``--slow-errors excluded`` reads an offset the claim covers as a bias; by default
     (and with ``expected``) a log's segment with such an offset is insufficient-data with

@@ -413,7 +413,7 @@ def test_a_scale_finding_must_hold_under_the_long_memory_the_data_do_not_exclude
     # the segment's mean is a bias under short memory that long memory leaves unconfirmed,
     # so the offset rule would decline that pessimism as well: without both, it is claimed
     assert diagnose_errors(errors, cov, rng=36).label is Label.INSUFFICIENT
-    monkeypatch.setattr(rules, "offset_covered", lambda evidence, config: None)
+    monkeypatch.setattr(rules, "offset_covered", lambda evidence, config, label: None)
     alone = diagnose_errors(errors, cov, rng=36)
     assert "pessimism" in alone.label.conditions and alone.scale.scale_factor_high < 1.0
 

@@ -256,7 +256,7 @@ SlowErrorsOpt = Annotated[
         help="Whether the errors may hold memory slower than a segment: possible (an "
         "offset the claimed covariance covers is insufficient-data, since a bias and such "
         "an error give the same data), excluded (it is a bias: pessimism+bias), expected "
-        "(a bias is declined too where such an error explains it with the spread), or "
+        "(a pessimism or a bias alone is declined too where such an error explains it), or "
         "auto (possible for a log; simulate knows its draws) "
         f"[default: {_D.slow_errors.value}].",
         rich_help_panel=RULE,

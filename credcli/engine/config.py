@@ -321,11 +321,12 @@ class SlowErrors(str, enum.Enum):
         (pessimism with SMM).
     EXPECTED : "expected"
         The errors are expected to hold memory slower than the segment (one run of a
-        filter whose errors follow a slowly changing geometry): a bias under a scale that
-        is not pessimistic is declined as well where such an error explains the offset
-        and the spread together (``credcli.engine.scale.slow_offset_pvalue``), where
-        ``possible`` names that reading in a finding beside the label; fewer false alarms
-        on slow errors, less power for a small bias (docs/measured.md).
+        filter whose errors follow a slowly changing geometry): a pessimism and a bias
+        alone are declined as well where such an error explains them (a bias: the offset
+        and the spread together, ``credcli.engine.scale.slow_offset_pvalue``, a reading
+        that ``possible`` names in a finding beside the label); fewer false alarms on slow
+        errors, less power for a small bias and a short segment's pessimism
+        (docs/measured.md).
     """
 
     AUTO = "auto"

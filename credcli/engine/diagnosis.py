@@ -464,7 +464,9 @@ def memory_findings(memory) -> tuple[str, ...]:
     )
 
 
-def slow_offset_findings(ev: evidence.Evidence, label: Label, config: DiagnosisConfig):
+def slow_offset_findings(
+    ev: evidence.Evidence, label: Label, config: DiagnosisConfig
+) -> tuple[str, ...]:
     """A bias that an error slower than the segment explains as well, where it does.
 
     A bias label holds under the memory fitted on the segment, which sees no error slower
@@ -478,11 +480,11 @@ def slow_offset_findings(ev: evidence.Evidence, label: Label, config: DiagnosisC
     there, and declines the segment where it holds (:func:`credcli.engine.rules.offset_covered`).
 
     ``slow_errors`` expected declines such a bias instead (``rules.offset_covered``); not by
-    default, measured (docs/measured.md): on ``benchmarks/variants.py`` it cuts the false
-    alarms of slow + white errors at 50 epochs from 20 to 4 of 60, and finds a 1σ bias at
-    N/τ >= 30 in 620 of 1,180 segments instead of 1,055; a scale pinned near 1 over a few
-    hundred dependent epochs leaves room for a slow part of a sixth of the claim, whose
-    draws reach 1σ.
+    default, measured (docs/measured.md): on ``benchmarks/variants.py`` declining it cuts
+    the false alarms of slow + white (0.97, 75 %) errors at 50 epochs from 20 to 2 of 60,
+    and finds a 1σ bias at N/τ >= 30 in 620 of 1,180 segments instead of 1,055; a scale
+    pinned near 1 over a few hundred dependent epochs leaves room for a slow part of a
+    sixth of the claim, whose draws reach 1σ.
 
     Parameters
     ----------

@@ -629,3 +629,44 @@ def test_where_slow_errors_are_expected_a_bias_they_explain_is_declined():
     both = [diagnose_errors(offset, offset_cov, c, rng=1) for c in (expected, DiagnosisConfig())]
     assert [b.label for b in both] == [Label.INSUFFICIENT] * 2
     assert both[0].reason == both[1].reason
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    kappa=st.floats(0.3, 1.6),
+    offset=st.floats(0.05, 3.0),
+    grow=st.floats(1.0, 3.0),
+    dof=st.floats(20.0, 2000.0),
+    model_dof=st.sampled_from([math.inf, 15.0, 200.0]),
+    variance=st.floats(1e-3, 0.2),
+)
+def test_the_slow_reading_is_less_likely_the_larger_the_offset_or_the_spread(
+    kappa, offset, grow, dof, model_dof, variance
+):
+    """slow_offset_pvalue on constructed tests: a p-value and a share in range, and no
+    larger for a larger offset (the mean's variance along it, s², held: T² grows with
+    ‖x̂‖²) or a larger spread κ̂ (less room for a slow part, and a smaller mean variance
+    per unit of fast share)."""
+    from dataclasses import replace
+
+    from credcli.engine.batches import MeanTest
+    from credcli.engine.scale import slow_offset_pvalue
+
+    d = diagnose_errors(np.random.default_rng(0).standard_normal((100, 2)), _eye(100), rng=1)
+    base = replace(
+        d.scale, scale_factor=kappa, dof=dof, model_dof=model_dof, bias_mahalanobis=offset
+    )
+
+    def mean(norm):  # T² = ‖x̂‖²/s², F = T²/t2_per_f
+        return MeanTest(norm**2 / variance / 2.0, (2.0, 50.0), 0.0, 0, math.nan, 2.0)
+
+    p, share = slow_offset_pvalue(base, mean(offset), 2)
+    assert 0.0 <= p <= 1.0 and 0.0 < share <= 1.0
+    farther = replace(base, bias_mahalanobis=offset * grow)
+    assert slow_offset_pvalue(farther, mean(offset * grow), 2)[0] <= p * (1 + 1e-9) + 1e-15
+    wider = replace(base, scale_factor=kappa * grow)
+    assert slow_offset_pvalue(wider, mean(offset), 2)[0] <= p * (1 + 1e-9) + 1e-15
+
+
+def _eye(n):
+    return np.broadcast_to(np.eye(2), (n, 2, 2))

@@ -275,8 +275,10 @@ def test_the_study_reads_an_offset_by_what_it_draws():
 
     assert SimulationConfig().judged_by.slow_errors is SlowErrors.EXCLUDED
     assert SimulationConfig(ar=0.5).judged_by.slow_errors is SlowErrors.POSSIBLE
-    given = SimulationConfig(diagnosis=DiagnosisConfig(slow_errors="possible"))
-    assert given.judged_by.slow_errors is SlowErrors.POSSIBLE
+    for choice in SlowErrors:
+        if choice is not SlowErrors.AUTO:
+            given = SimulationConfig(diagnosis=DiagnosisConfig(slow_errors=choice.value))
+            assert given.judged_by.slow_errors is choice
 
     truth = Label.PESSIMISM_SMM
     study = SimulationConfig(trials=40, seed=2)

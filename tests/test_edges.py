@@ -252,7 +252,7 @@ def test_labels_do_not_change_when_errors_and_covariance_scale_together(tmp_path
         ('[diagnosis]\nvariant = "best"\n', "variant must be one of 'calibrated', 'paper', 'ks'"),
         (
             '[diagnosis]\nslow_errors = "never"\n',
-            "slow_errors must be one of 'auto', 'possible', 'excluded'",
+            "slow_errors must be one of 'auto', 'possible', 'excluded', 'expected'; got str",
         ),
         ('[segments]\nwhole = "yes"\n', "whole must be true or false"),
     ],

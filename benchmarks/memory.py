@@ -135,11 +135,13 @@ def run_windows(
     misfits: Iterable[str] = zoo.MISFITS,
     seed: int = SEED,
     progress: bool = False,
+    config=None,
 ) -> list[dict]:
     """As :func:`run`, for windows of one run (``credcli diagnose --window``): each case is
     a run of ``windows`` × N epochs, cut into windows of N epochs that are judged against
     the run's dependence model; the counts are per window (``reps`` = R × windows). The
-    run's own label is counted apart (``run_flagged``, ``run_power``, ``run_decided``)."""
+    run's own label is counted apart (``run_flagged``, ``run_power``, ``run_decided``).
+    ``config``: the rule's settings (default: the calibrated defaults)."""
     from credcli.api import log_from_arrays
     from credcli.engine.diagnosis import diagnose_segments
     from credcli.segments import split
@@ -160,7 +162,8 @@ def run_windows(
                     info.setdefault(m, case)
                     log = log_from_arrays(errors=case.errors, cov=case.cov)
                     plan = split(log, str(n), False)
-                    for segment, result in zip(plan, diagnose_segments(log, plan, seed=diag_seed)):
+                    results = diagnose_segments(log, plan, config, seed=diag_seed)
+                    for segment, result in zip(plan, results):
                         _tally((acc if segment.window else whole)[m], result.diagnosis, m)
             seconds = time.process_time() - t0
             rows += [
@@ -341,17 +344,18 @@ def main(argv: list[str] | None = None) -> None:
     reps = args.reps or (30 if args.quick else 100)
     misfits = args.misfits.split(",")
     t0, w0 = time.process_time(), time.time()
+    from credcli.engine.diagnosis import DiagnosisConfig
+
+    config = DiagnosisConfig(slow_errors=args.slow_errors)
     if args.windows:
-        rows = run_windows(fams, lengths, reps, args.windows, misfits, args.seed, True)
+        rows = run_windows(fams, lengths, reps, args.windows, misfits, args.seed, True, config)
         print(
             f"# Calibrated rule on windows of one run: {len(fams)} families, runs of "
             f"{args.windows} windows of N = {lengths} epochs, R = {reps} runs (fewer for "
             f"long runs, as reps_for), seed {args.seed}; counts per window"
+            + ("" if args.slow_errors == "auto" else f"; slow_errors {args.slow_errors}")
         )
     else:
-        from credcli.engine.diagnosis import DiagnosisConfig
-
-        config = DiagnosisConfig(slow_errors=args.slow_errors)
         diagnose = functools.partial(diagnose_errors, config=config)
         rows = run(fams, lengths, reps, misfits, diagnose, seed=args.seed, progress=True)
         print(

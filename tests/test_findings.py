@@ -506,6 +506,13 @@ def test_interleaved_and_contiguous_segments_find_the_offset_of_the_whole_logs_g
     assert found >= 3  # the lag is found on most of them: the comparison is not vacuous
 
 
+def _off_centre(spread: float, offset: float, n: int, rng):
+    """White errors of covariance ``spread`` I (d = 2), centred, then shifted by ``offset``
+    σ of the claim I (equally along both axes), and the claim's stack."""
+    white = math.sqrt(spread) * rng.standard_normal((n, 2))
+    return white - white.mean(axis=0) + offset / math.sqrt(2), _eye(n)
+
+
 def _slow_reading_reference(scale, mean, d):
     """The slow reading's p-value by scipy.stats and a bounded optimiser over κ, the fast
     share: Fisher's combination of the scale's studentized upper tail at κ and the mean's
@@ -542,10 +549,8 @@ def test_the_slow_reading_against_an_independent_computation(offset_sq, spread, 
     0.005)."""
     from credcli.engine.scale import slow_offset_pvalue
 
-    rng = np.random.default_rng(3)
-    white = math.sqrt(spread) * rng.standard_normal((n, 2))
-    errors = white - white.mean(axis=0) + math.sqrt(offset_sq / 2)
-    d = diagnose_errors(errors, np.broadcast_to(np.eye(2), (n, 2, 2)), rng=1)
+    errors, cov = _off_centre(spread, math.sqrt(offset_sq), n, np.random.default_rng(3))
+    d = diagnose_errors(errors, cov, rng=1)
     p, share = slow_offset_pvalue(d.scale, d.mean_test, 2)
     want_p, want_share = _slow_reading_reference(d.scale, d.mean_test, 2)
     assert p == pytest.approx(want_p, rel=0.01)
@@ -582,9 +587,7 @@ def test_a_bias_a_slow_error_explains_says_so():
         return [f for f in d.findings if f.startswith("the bias may be an error slower")]
 
     rng = np.random.default_rng(2)
-    white = math.sqrt(0.85) * rng.standard_normal((50, 2))
-    errors = white - white.mean(axis=0) + 0.55 / math.sqrt(2)
-    cov = np.broadcast_to(np.eye(2), (50, 2, 2))
+    errors, cov = _off_centre(0.85, 0.55, 50, rng)
     d = diagnose_errors(errors, cov, rng=1)
     assert d.label is Label.BIAS
     (finding,) = slow(d)
@@ -593,9 +596,7 @@ def test_a_bias_a_slow_error_explains_says_so():
     assert excluded.label is Label.BIAS and not slow(excluded)
     windowed = diagnose_errors(errors, cov, rng=1, memory=d.memory)
     assert windowed.memory_source == "run" and not slow(windowed)
-    far = rng.standard_normal((200, 2))
-    far = far - far.mean(axis=0) + 3.0 / math.sqrt(2)
-    d = diagnose_errors(far, np.broadcast_to(np.eye(2), (200, 2, 2)), rng=1)
+    d = diagnose_errors(*_off_centre(1.0, 3.0, 200, rng), rng=1)
     assert d.label is Label.BIAS and not slow(d)
 
 
@@ -608,9 +609,7 @@ def test_where_slow_errors_are_expected_a_bias_they_explain_is_declined():
 
     expected = DiagnosisConfig(slow_errors="expected")
     rng = np.random.default_rng(2)
-    white = math.sqrt(0.85) * rng.standard_normal((50, 2))
-    errors = white - white.mean(axis=0) + 0.55 / math.sqrt(2)
-    cov = np.broadcast_to(np.eye(2), (50, 2, 2))
+    errors, cov = _off_centre(0.85, 0.55, 50, rng)
     possible = diagnose_errors(errors, cov, rng=1)
     d = diagnose_errors(errors, cov, expected, rng=1)
     assert possible.label is Label.BIAS and d.label is Label.INSUFFICIENT
@@ -621,10 +620,7 @@ def test_where_slow_errors_are_expected_a_bias_they_explain_is_declined():
     assert f"holding {1 - share:.2g} of the claimed covariance" in d.reason
     assert f"(p {p:.2g}, not below" in d.reason
     assert not [f for f in d.findings if f.startswith("the bias may be")]
-    far = rng.standard_normal((200, 2))
-    far = far - far.mean(axis=0) + 3.0 / math.sqrt(2)
-    far_cov = np.broadcast_to(np.eye(2), (200, 2, 2))
-    assert diagnose_errors(far, far_cov, expected, rng=1).label is Label.BIAS
+    assert diagnose_errors(*_off_centre(1.0, 3.0, 200, rng), expected, rng=1).label is Label.BIAS
     offset, offset_cov = _offset_over_white(1.4, 200)
     both = [diagnose_errors(offset, offset_cov, c, rng=1) for c in (expected, DiagnosisConfig())]
     assert [b.label for b in both] == [Label.INSUFFICIENT] * 2

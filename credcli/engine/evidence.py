@@ -230,6 +230,12 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     ks_p = ks_chi2_pvalue(eps, d)
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
+    # the NEES of a segment longer than one chunk of epochs is made again for its bursts
+    # once the model's tests are done, not held through them (its peak memory: 2·10⁶
+    # epochs: 577 → 561 MiB resident); the same numbers, for one more pass over the inverses
+    again = n > linalg.EPOCH_CHUNK and inverse.ndim == 3
+    if again:
+        del eps
     centred = _centred(errors)
     centred_mse = mse_cholesky(metrics.mse_matrix(centred))
     centred_eps = metrics.nees_inverse(centred, inverse)
@@ -270,6 +276,8 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
             c: memory_evidence(gls, inverse, c, memory, n, residuals=fitted_on)
             for c in dict.fromkeys(modelled)
         }
+    if again:
+        eps = metrics.nees_inverse(errors, inverse)  # the same numbers as at the start
     del inverse
     if fitted_on is not None:
         scales_check = time_scales(fitted_on, memory)

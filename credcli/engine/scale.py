@@ -37,7 +37,7 @@ from credcli.engine.batches import (
     bounds,
 )
 from credcli.engine.linalg import EPOCH_CHUNK, epoch_chunks, lower_inverse
-from credcli.engine.memory import studentized_quantile, studentized_tail
+from credcli.engine.memory import studentized_quantile
 from credcli.engine.units import power_of_two_unit
 
 
@@ -1084,9 +1084,16 @@ def _larger(a: float, b: float) -> float:
 def _studentized_chi2(x: float, dof: float, dof_model: float) -> tuple[float, float]:
     """(P upper, P lower) of x against χ²_dof, each turned into a normal score and referred
     to Student's t with ``dof_model`` degrees of freedom (the reference's own uncertainty)."""
-    z_upper = -float(special.ndtri(max(float(special.chdtrc(dof, x)), 1e-300)))
-    z_lower = -float(special.ndtri(max(float(special.chdtr(dof, x)), 1e-300)))
-    return studentized_tail(z_upper, dof_model), studentized_tail(z_lower, dof_model)
+    upper = _studentized(special.chdtrc(dof, x), dof_model)
+    return float(upper), float(_studentized(special.chdtr(dof, x), dof_model))
+
+
+def _studentized(tail, dof_model: float):
+    """A χ² tail probability (or an array of them) as a normal score referred to Student's
+    t with ``dof_model`` degrees of freedom (:func:`credcli.engine.memory.studentized_tail`,
+    elementwise)."""
+    z = -special.ndtri(np.maximum(tail, 1e-300))
+    return special.ndtr(-z) if not math.isfinite(dof_model) else special.stdtr(dof_model, -z)
 
 
 def _studentized_interval(x: float, dof: float, dof_model: float, level: float):
@@ -1173,10 +1180,7 @@ def slow_offset_pvalue(test: ScaleTest, mean: MeanTest, d: int) -> tuple[float, 
     if math.isnan(test.pvalue_upper):
         upper = np.ones(share.size)
     else:
-        x = kappa_hat * test.dof / share
-        z = -special.ndtri(np.maximum(special.chdtrc(test.dof, x), 1e-300))
-        dof_model = test.model_dof
-        upper = special.ndtr(-z) if not math.isfinite(dof_model) else special.stdtr(dof_model, -z)
+        upper = _studentized(special.chdtrc(test.dof, kappa_hat * test.dof / share), test.model_dof)
     spread = 1.0 - share + share * (offset_sq / t2) / kappa_hat
     located = special.chdtrc(d, offset_sq / spread)
     with np.errstate(divide="ignore"):

@@ -967,3 +967,23 @@ def test_tail_quantiles_selected_in_place_are_those_of_a_copy():
     scratch = u.copy()
     np.testing.assert_array_equal(tail_quantiles(scratch, overwrite=True), expected)
     assert not np.array_equal(scratch, u)  # it was the scratch copy that was reordered
+
+
+def test_a_long_segments_nees_made_again_gives_the_same_bursts(monkeypatch):
+    """A segment longer than one chunk of epochs makes its NEES again for the bursts after
+    the model's tests (evidence.gather, for its peak memory): the same findings, NEES and
+    labels as holding it throughout (the chunk made longer than the segment), here with a
+    burst of 200 epochs at 3× the claimed spread planted in 270,000."""
+    from credcli.engine import linalg
+
+    rng = np.random.default_rng(5)
+    n = linalg.EPOCH_CHUNK + 8_000
+    errors = rng.standard_normal((n, 2))
+    errors[100_000:100_200] *= 3.0
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    again = diagnose_errors(errors, cov, rng=1)
+    assert any(f.startswith("burst: epochs 100001") for f in again.findings), again.findings
+    monkeypatch.setattr(linalg, "EPOCH_CHUNK", n)
+    held = diagnose_errors(errors, cov, rng=1)
+    assert held.findings == again.findings
+    assert (held.label, held.anees, held.nees_label) == (again.label, again.anees, again.nees_label)

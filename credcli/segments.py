@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from credcli.engine.convention import convention_warning
+from credcli.engine.linalg import index_range
 from credcli.engine.metrics import Accuracy, accuracy
 from credcli.engine.montecarlo import anees_test
 from credcli.engine.short import ColumnRows
@@ -335,7 +336,9 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
     stops = np.r_[bounds, n]
     width = max(3, len(str(int(k[-1]) + 1)))
     return [
-        Segment(f"w{int(k[a]) + 1:0{width}d}", np.arange(a, b), *_span(time, np.arange(a, b)), True)
+        Segment(
+            f"w{int(k[a]) + 1:0{width}d}", index_range(a, b), *_span(time, index_range(a, b)), True
+        )
         for a, b in zip(starts, stops)
     ]
 
@@ -355,7 +358,7 @@ def whole(n: int, time: np.ndarray | None) -> list[Segment]:
     list of Segment
         One segment, ``all``, holding epochs 0 … N − 1.
     """
-    idx = np.arange(n)
+    idx = index_range(0, n)
     return [Segment("all", idx, *_span(time, idx))]
 
 
@@ -414,7 +417,7 @@ def static_periods(
     out = []
     for a, b in zip(starts, stops):
         if t[b - 1] - t[a] >= min_duration:
-            out.append(Segment(f"P{len(out) + 1}", np.arange(a, b), float(t[a]), float(t[b - 1])))
+            out.append(Segment(f"P{len(out) + 1}", index_range(a, b), float(t[a]), float(t[b - 1])))
     return out, speed
 
 
@@ -507,7 +510,9 @@ def split(
                 "epochs"
             )
         if len(out) > 1:  # the run's own verdict beside its windows
-            out.append(Segment(RUN_SEGMENT, np.arange(log.n), *_span(log.time, np.arange(log.n))))
+            out.append(
+                Segment(RUN_SEGMENT, index_range(0, log.n), *_span(log.time, index_range(0, log.n)))
+            )
         return out
     if log.segment is not None:
         return by_column(log.segment, log.time)
@@ -594,7 +599,7 @@ def pool_runs(runs: list[EstimatorLog], segments) -> tuple[EstimatorLog, list]:
     )
     starts = np.cumsum([0] + [m * len(s.index) for s in segments])
     pooled_segments = [
-        Segment(s.name, np.arange(a, b), s.t_start, s.t_end)
+        Segment(s.name, index_range(a, b), s.t_start, s.t_end)
         for s, a, b in zip(segments, starts[:-1], starts[1:])
     ]
     return pooled, pooled_segments

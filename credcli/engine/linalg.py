@@ -48,6 +48,32 @@ SYMMETRY_RTOL = 1e-6
 """Largest relative asymmetry |Σ_ij − Σ_ji| / max|Σ| of a claimed covariance."""
 
 
+def index_range(start: int, stop: int) -> np.ndarray:
+    """``np.arange(start, stop)`` in 32-bit integers where they hold every value, else in
+    64-bit: a long log's row numbers and its segments' epoch indices in half the memory
+    (2·10⁶ epochs: 7.6 MiB each), the same values.
+
+    Parameters
+    ----------
+    start, stop : int
+        The first value and one past the last.
+
+    Returns
+    -------
+    numpy.ndarray of int32 or int64, shape (stop − start,)
+        start, start + 1, …, stop − 1.
+
+    Examples
+    --------
+    >>> index_range(2, 5).tolist(), index_range(0, 3).dtype.name
+    ([2, 3, 4], 'int32')
+    >>> index_range(2**31 - 1, 2**31 + 1).tolist(), index_range(2**31 - 1, 2**31 + 1).dtype.name
+    ([2147483647, 2147483648], 'int64')
+    """
+    small = stop - 1 <= np.iinfo(np.int32).max and start >= np.iinfo(np.int32).min
+    return np.arange(start, stop, dtype=np.int32 if small else np.int64)
+
+
 def as_slice(index: np.ndarray) -> slice | np.ndarray:
     """``index`` as a slice when it is a contiguous increasing range, else as it is.
 

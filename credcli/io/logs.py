@@ -17,7 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from credcli.engine.config import Perturbation
-from credcli.engine.linalg import SYMMETRY_RTOL, eigenvalues_2x2, epoch_chunks, per_epoch
+from credcli.engine.linalg import (
+    SYMMETRY_RTOL,
+    eigenvalues_2x2,
+    epoch_chunks,
+    index_range,
+    per_epoch,
+)
 from credcli.errors import CredcliError
 from credcli.io.files import check_covariance_memory
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
@@ -121,7 +127,7 @@ class EstimatorLog:
 
     def __post_init__(self) -> None:
         if self.rows is None:
-            object.__setattr__(self, "rows", np.arange(1, self.cov.shape[0] + 1))
+            object.__setattr__(self, "rows", index_range(1, self.cov.shape[0] + 1))
 
     @property
     def source(self) -> str:
@@ -915,7 +921,7 @@ def log_from_frame(
         numeric_columns(frame, cols, source, out=block)
     if time_col:
         time_note = _time_column(frame, time_col, source, blocks[3][:, 0])
-    rows = np.arange(1, n + 1)
+    rows = index_range(1, n + 1)
     bad = np.zeros(n, dtype=bool)
     for block in blocks:
         bad |= ~per_epoch(np.logical_and, np.isfinite(block))

@@ -987,3 +987,72 @@ def test_a_long_segments_nees_made_again_gives_the_same_bursts(monkeypatch):
     held = diagnose_errors(errors, cov, rng=1)
     assert held.findings == again.findings
     assert (held.label, held.anees, held.nees_label) == (again.label, again.anees, again.nees_label)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_factors_made_by_chunks_give_the_whole_segments_numbers(d):
+    """A long segment makes its inverse factors, NEES and GLS scores again a chunk of epochs
+    at a time rather than hold them (evidence.gather): over several chunks, the bits of the
+    factors made once (linalg.inverse_factors, metrics.nees_chunked,
+    scale.per_epoch_scores), and GLS residuals whose scores come from the covariances when
+    read are those made with them."""
+    from credcli.engine import linalg, metrics
+    from credcli.engine.scale import gls_residuals, per_epoch_scores
+
+    rng = np.random.default_rng(d)
+    n = linalg.EPOCH_CHUNK + 17
+    a = rng.standard_normal((n, d, d))
+    cov = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(d)
+    e = rng.standard_normal((n, d))
+    chol = linalg.cholesky(cov)
+    inverse = linalg.lower_inverse(chol)
+    np.testing.assert_array_equal(linalg.inverse_factors(cov), inverse)
+    np.testing.assert_array_equal(metrics.nees_chunked(e, cov), metrics.nees_inverse(e, inverse))
+    made = gls_residuals(e, chol)
+    np.testing.assert_array_equal(per_epoch_scores(e, cov), made.scores)
+    read = gls_residuals(e, None, inverse, cov)
+    for name in ("mean", "whitened", "precision_sum", "scores"):
+        np.testing.assert_array_equal(getattr(read, name), getattr(made, name))
+    read.release_scores()  # made again when read again: the same numbers
+    np.testing.assert_array_equal(read.scores, made.scores)
+
+
+def _ar1(rng, n: int, phi: float) -> np.ndarray:
+    """Two independent AR(1) series of unit variance, (n, 2)."""
+    z = rng.standard_normal((n + 200, 2)) * np.sqrt(1.0 - phi * phi)
+    x = np.empty_like(z)
+    x[0] = rng.standard_normal(2)
+    for k in range(1, z.shape[0]):
+        x[k] = phi * x[k - 1] + z[k]
+    return x[200:]
+
+
+@pytest.mark.parametrize(
+    "case", ["credible", "white with a bias", "memory with a bias", "memory, too small"]
+)
+def test_a_long_segments_route_gives_the_short_routes_diagnosis(monkeypatch, case):
+    """Past one chunk of epochs gather frees the inverse factors through the model's fit
+    and checks, makes them again only where a test reads them, makes the GLS scores when
+    read and the NEES again by chunks (the peak memory of a 2·10⁶-epoch segment): with the
+    chunk made shorter than a 3,000-epoch segment, every number of its record is that of
+    the route that holds them, for a white model (labelled credible, and bias: its
+    long-memory check re-makes the residuals) and an AR(1) model (bias, and optimism
+    under a covariance 4× too small)."""
+    from credcli.engine import linalg
+    from credcli.report.records import diagnosis_record
+
+    rng = np.random.default_rng(len(case))
+    n = 3_000
+    shape = np.array([[1.0, 0.2], [0.2, 1.5]])
+    unit = _ar1(rng, n, 0.6) if case.startswith("memory") else rng.standard_normal((n, 2))
+    errors = unit @ np.linalg.cholesky(shape).T
+    if "bias" in case:
+        errors += np.array([0.3, -0.2])
+    scale = 0.25 if "small" in case else 1.0
+    cov = np.broadcast_to(scale * shape, (n, 2, 2)).copy()
+    cov[::7] *= 1.3  # per-epoch covariances: the per-epoch route
+    errors[::7] *= np.sqrt(1.3)
+    held = json.dumps(diagnosis_record(diagnose_errors(errors, cov, rng=3)))
+    monkeypatch.setattr(linalg, "EPOCH_CHUNK", 1_000)
+    freed = json.dumps(diagnosis_record(diagnose_errors(errors, cov, rng=3)))
+    assert freed == held

@@ -81,7 +81,7 @@ def autocorrelation(x: np.ndarray, about_zero: bool = False) -> np.ndarray:
     x = x.reshape(x.shape[0], -1)
     x = x / power_of_two_unit(x, axis=0)  # exact; the squares cannot overflow
     if not about_zero:
-        x = x - x.mean(axis=0)
+        x -= x.mean(axis=0)  # in the quotient: no second N × p array
     if x.shape[0] < 2:
         return np.zeros(x.shape[1])
     g1 = np.einsum("tp,tp->p", x[1:], x[:-1])

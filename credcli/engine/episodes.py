@@ -185,9 +185,13 @@ def bursts(eps: np.ndarray, dim: int, squares_ratio: float = 1.0) -> tuple[Burst
         return ()
     k1 = BURST_FACTOR
     step = (-0.5 * dim * math.log(k1) + 0.5 * (1.0 - 1.0 / k1) * eps) / max(squares_ratio, 1.0)
-    walk = np.cumsum(step)
-    floor = np.minimum(np.minimum.accumulate(walk), 0.0)
-    s = walk - floor
+    # the walk, its running floor and S made in two arrays of N (a segment of millions of
+    # epochs holds little else at this point)
+    walk = np.cumsum(step, out=step)
+    floor = np.minimum.accumulate(walk)
+    np.minimum(floor, 0.0, out=floor)
+    s = np.subtract(walk, floor, out=walk)
+    del floor
     h = math.log(n / BURST_LEVEL)
     above = s > h
     if not above.any():

@@ -224,26 +224,36 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         eps = metrics.nees_inverse(errors, inverse)
     if not np.all(np.isfinite(eps)):
         raise CredcliError(_overflow_message(errors, chol, eps))
+    per_epoch = inverse.ndim == 3
+    if per_epoch and not probes_possible:  # the factors' last use without the probes: their
+        del chol  # inverses stand in for them (2·10⁶ epochs: 61 MiB fewer through the NCI)
     given = mse is not None
     mse = np.asarray(mse, dtype=float) if given else metrics.mse_matrix(errors)
-    nci_raw = metrics.nci_factored(errors, chol, mse_cholesky(mse, given), eps)
+    nci_raw = metrics.nci_of(eps, metrics.nees_factored(errors, mse_cholesky(mse, given)))
     ks_p = ks_chi2_pvalue(eps, d)
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
     # the NEES of a segment longer than one chunk of epochs is made again for its bursts
     # once the model's tests are done, not held through them (its peak memory: 2·10⁶
     # epochs: 577 → 561 MiB resident); the same numbers, for one more pass over the inverses
-    again = n > linalg.EPOCH_CHUNK and inverse.ndim == 3
+    again = n > linalg.EPOCH_CHUNK and per_epoch
     if again:
         del eps
     centred = _centred(errors)
     centred_mse = mse_cholesky(metrics.mse_matrix(centred))
+    centred_star = metrics.nees_factored(centred, centred_mse)  # (its temporaries first)
     centred_eps = metrics.nees_inverse(centred, inverse)
-    nci_centred = metrics.nci_factored(centred, chol, centred_mse, centred_eps)
-    del centred, centred_eps
+    del centred
+    nci_centred = metrics.nci_of(centred_eps, centred_star)
+    del centred_eps, centred_star
     modelled = [c for c in configs if reads_memory(c, runs)]
-    gls = gls_residuals(errors, chol, inverse if chol.ndim == 3 else None)
-    if not probes_possible:  # the factors' last use without the probes
+    # a long segment's scores are made where its model's tests read them, from cov
+    gls = (
+        gls_residuals(errors, None, inverse, cov if again else None)
+        if per_epoch
+        else gls_residuals(errors, chol)
+    )
+    if not probes_possible and not per_epoch:  # the shared factor's last use
         del chol
     # the ELT's whitening: where only the memory model reads the errors' dependence and the
     # segment is too long for the lag-1 screening, it is made after the model's tests,
@@ -264,42 +274,41 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     drifting = None
     fitted_on = None  # the residuals of the segment's own model, for its time-scale check
     if modelled and memory is None:
+        fitted_on = memory_residuals(gls, inverse)
+        if again:  # the inverses are made again where the model's tests read them, not
+            inverse = None  # held through its fit and checks (2·10⁶ epochs: 61 MiB)
         try:
-            memory, fitted_on = segment_memory(gls, inverse, s, r1)
+            memory = segment_memory(gls, None, s, r1, residuals=fitted_on)[0]
         except NoFiniteMemory:
             drifting = _drift_evidence(gls, n)
-            source = None
-    if drifting is not None:
-        model_evidence = dict.fromkeys(modelled, drifting)
-    else:
-        model_evidence = {  # the segment's own residuals where its model was fitted here
-            c: memory_evidence(gls, inverse, c, memory, n, residuals=fitted_on)
-            for c in dict.fromkeys(modelled)
-        }
-    if again:
-        eps = metrics.nees_inverse(errors, inverse)  # the same numbers as at the start
-    del inverse
-    if fitted_on is not None:
+            source, fitted_on = None, None
+    if fitted_on is not None:  # the model's check at every averaging time, and its refit
         scales_check = time_scales(fitted_on, memory)
         try:
             refit = white_refit(memory, fitted_on, gls.q, scales_check)
         except NoFiniteMemory:
             refit, memory, scales_check, source = None, None, None, None
-            model_evidence = dict.fromkeys(modelled, _drift_evidence(gls, n))
-        if refit is not None:  # the factors again, for the model's tests (rarely needed)
-            memory, inverse = refit, _inverse(linalg.cholesky(cov))
-            model_evidence = {
-                c: memory_evidence(gls, inverse, c, memory, n, residuals=fitted_on)
-                for c in dict.fromkeys(modelled)
-            }
-            del inverse
+            drifting = _drift_evidence(gls, n)
+        if refit is not None:
+            memory = refit
             scales_check = time_scales(fitted_on, memory)
-        del fitted_on
-    if s is None:
-        s = whiten(errors, cov)
-        r1 = correlation.autocorrelation(s)
-    autocorr = float(np.max(r1))
-    effective_n = float(n / max(1.0, float(np.max(tau_point))))
+    # the model's tests read the segment's own residuals where a white model's bias needs
+    # them; a long segment's are made again there (rarely) rather than held
+    residuals = None if again else fitted_on
+    del fitted_on
+    if inverse is None:
+        inverse = Inverses(cov)  # made again only where a test reads them
+    if drifting is not None:
+        model_evidence = dict.fromkeys(modelled, drifting)
+    else:
+        model_evidence = {
+            c: memory_evidence(gls, inverse, c, memory, n, residuals=residuals)
+            for c in dict.fromkeys(modelled)
+        }
+    del residuals, inverse
+    if again:  # the NEES as at the start, its factors made a chunk at a time
+        eps = metrics.nees_chunked(errors, cov)
+        gls.release_scores()  # made again if read again (the model's rule does not)
     squares_ratio = memory.squares.variance_ratio if memory is not None else tau_q
     found_bursts = episodes.bursts(eps, d, squares_ratio)
     q_median = float(np.median(gls.q))
@@ -308,7 +317,12 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         for c in configs
         if c.calibrated
     }
-    del eps
+    del eps  # before the ELT's whitened errors are made (a long segment's peak memory)
+    if s is None:
+        s = whiten(errors, cov)
+        r1 = correlation.autocorrelation(s)
+    autocorr = float(np.max(r1))
+    effective_n = float(n / max(1.0, float(np.max(tau_point))))
     if any(diverging.values()):  # the divergence names the run-away tail: not a burst
         found_bursts = tuple(b for b in found_bursts if b.stop < n)
     slow = _slow_memory(scales_check, memory) if memory is not None else None
@@ -954,6 +968,30 @@ MIN_MEAN_DOF = 3
 """Fewest denominator degrees of freedom of the mean test's F (as for batch means, K − d)."""
 
 
+class Inverses:
+    """L_k⁻¹ of a segment's covariances, made when a model's test first reads them.
+
+    A white model's tests read them only for a bias they find, so a long credible segment
+    does not make and hold N × d × d numbers it has no use for (2·10⁶ epochs, d = 2:
+    61 MiB at the peak of its diagnosis); the numbers are those of the factors made at the
+    start (:func:`credcli.engine.linalg.inverse_factors`).
+    """
+
+    def __init__(self, cov: np.ndarray) -> None:
+        self._cov = cov
+        self._made: np.ndarray | None = None
+
+    def __call__(self) -> np.ndarray:
+        if self._made is None:
+            self._made = linalg.inverse_factors(self._cov)
+        return self._made
+
+
+def _read(inverse) -> np.ndarray:
+    """``inverse`` itself, or the factors an :class:`Inverses` makes."""
+    return inverse() if isinstance(inverse, Inverses) else inverse
+
+
 def memory_evidence(
     gls,
     inverse,
@@ -988,8 +1026,8 @@ def memory_evidence(
     ----------
     gls : GlsResiduals
         The segment's GLS residuals.
-    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        L⁻¹, or L_k⁻¹ per epoch.
+    inverse : numpy.ndarray, shape (d, d) or (N, d, d), or Inverses
+        L⁻¹, or L_k⁻¹ per epoch, or the :class:`Inverses` that makes them where read.
     config : DiagnosisConfig
         The configuration (calibrated).
     memory : Memory
@@ -1023,7 +1061,7 @@ def memory_evidence(
     if alternative is not None:  # a scale finding must hold under more memory as well
         other_tail = memory_tail_factor(gls, alternative)
         scale = under_either(scale, memory_scale_test(gls, alternative, level, other_tail))
-    mean, stderr = batches.memory_mean_test(gls, memory, inverse)
+    mean, stderr = batches.memory_mean_test(gls, memory, _read(inverse))
     scale = replace(scale, bias_stderr=stderr)
     tau = float(np.max(memory.variance_ratios))
     if scale.model_dof < MIN_MODEL_DOF:
@@ -1067,7 +1105,7 @@ def _held_if_white(
     if test is None or not test.pvalue < plan.mean_level:
         return plan
     if residuals is None:
-        residuals = memory_residuals(gls, inverse)
+        residuals = memory_residuals(gls, _read(inverse))
     alternative = white_alternative(memory, residuals)
     return plan if alternative is None else _held_under_alternative(plan, gls, alternative, inverse)
 
@@ -1084,7 +1122,7 @@ def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) ->
     test = plan.mean_test
     if alternative is None or test is None or not test.pvalue < plan.mean_level:
         return plan
-    other, _ = batches.memory_mean_test(gls, alternative, inverse)
+    other, _ = batches.memory_mean_test(gls, alternative, _read(inverse))
     if other.dof[1] >= MIN_MEAN_DOF and other.pvalue < plan.mean_level:
         return plan
     support = (
@@ -1260,7 +1298,7 @@ def white_refit(
     return with_long_memory(fit_memory(residuals, q, screened=True), residuals)
 
 
-def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, np.ndarray]:
+def segment_memory(gls, inverse, s, r1=None, residuals=None) -> tuple[Memory, np.ndarray]:
     """The dependence model fitted on one segment (or run), and the residuals it was
     fitted on, for its check at every averaging time (:func:`time_scales`), which the
     caller makes once the per-epoch inverses are freed (a long segment's peak memory).
@@ -1282,6 +1320,9 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, np.ndarray]:
         :data:`SCREENED_BELOW` epochs or more, which is not screened).
     r1 : numpy.ndarray, shape (d,), optional
         Their lag-1 autocorrelations, if already computed.
+    residuals : numpy.ndarray, shape (N, d), optional
+        :func:`memory_residuals` of ``gls`` and ``inverse``, where the caller has made
+        them (``inverse`` is not read then).
 
     Returns
     -------
@@ -1299,7 +1340,8 @@ def segment_memory(gls, inverse, s, r1=None) -> tuple[Memory, np.ndarray]:
             correlation.autocorrelation(s, about_zero=True), n, correlation.SCREENING_LEVEL
         )
     )
-    residuals = memory_residuals(gls, inverse)
+    if residuals is None:
+        residuals = memory_residuals(gls, inverse)
     return with_long_memory(fit_memory(residuals, gls.q, screened=screened), residuals), residuals
 
 

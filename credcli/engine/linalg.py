@@ -358,6 +358,32 @@ def lower_inverse(chol: np.ndarray) -> np.ndarray:
     return out
 
 
+def inverse_factors(cov: np.ndarray) -> np.ndarray:
+    """L_k⁻¹ of positive definite (N, d, d) matrices, a chunk of epochs at a time: the
+    numbers of ``lower_inverse(cholesky(cov))`` without their N × d × d factors beside them.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, d, d)
+        Positive definite matrices (checked already: a failure names the epoch within
+        its chunk).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d, d)
+        The inverse Cholesky factors, lower triangular.
+
+    Examples
+    --------
+    >>> inverse_factors(np.array([[[4.0, 2.0], [2.0, 17.0]]])).tolist()
+    [[[0.5, 0.0], [-0.125, 0.25]]]
+    """
+    out = np.empty(cov.shape)
+    for sl in epoch_chunks(cov.shape[0]):
+        out[sl] = lower_inverse(cholesky(cov[sl]))
+    return out
+
+
 def whitened_by(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """L_k⁻¹ v_k for every epoch k: the Cholesky-whitened vectors.
 

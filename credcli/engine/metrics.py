@@ -17,6 +17,7 @@ from credcli.engine.linalg import (
     check_semidefinite,
     cholesky,
     epoch_chunks,
+    inverse_factors,
     lower_inverse,
     whitened_by,
 )
@@ -107,8 +108,42 @@ def nees_inverse(errors: np.ndarray, inverse: np.ndarray) -> np.ndarray:
     numpy.ndarray, shape (N,)
         ε_k, Eq. (1).
     """
-    z = whitened_by(inverse, errors)
-    return np.einsum("ni,ni->n", z, z)
+    if inverse.ndim == 2:
+        z = whitened_by(inverse, errors)
+        return np.einsum("ni,ni->n", z, z)
+    eps = np.empty(errors.shape[0])
+    for sl in epoch_chunks(errors.shape[0]):  # no N × d temporary beside the result
+        z = whitened_by(inverse[sl], errors[sl])
+        eps[sl] = np.einsum("ni,ni->n", z, z)
+    return eps
+
+
+def nees_chunked(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """The NEES of :func:`nees_inverse` with L_k⁻¹ made from ``cov`` a chunk of epochs at a
+    time (:func:`credcli.engine.linalg.inverse_factors`): the same numbers without the
+    N × d × d factors.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k.
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances (positive definite: checked already).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        ε_k, Eq. (1).
+
+    Examples
+    --------
+    >>> nees_chunked(np.array([[2.0, 0.0]]), np.array([[[4.0, 0.0], [0.0, 1.0]]])).tolist()
+    [1.0]
+    """
+    eps = np.empty(errors.shape[0])
+    for sl in epoch_chunks(errors.shape[0]):
+        eps[sl] = nees_inverse(errors[sl], inverse_factors(cov[sl]))
+    return eps
 
 
 def anees(errors: np.ndarray, cov: np.ndarray) -> float:
@@ -263,13 +298,36 @@ def nci_factored(
     0.0
     """
     eps = nees_factored(errors, chol) if eps is None else eps
-    eps_star = nees_factored(errors, chol_mse)
+    return nci_of(eps, nees_factored(errors, chol_mse))
+
+
+def nci_of(eps: np.ndarray, eps_star: np.ndarray) -> float:
+    """The NCI in dB, Eq. (4), from the NEES under the claimed covariances and under the
+    MSE matrix.
+
+    Parameters
+    ----------
+    eps, eps_star : numpy.ndarray, shape (N,)
+        ε_k with the claimed covariances, ε*_k with the MSE matrix.
+
+    Returns
+    -------
+    float
+        As :func:`nci_factored`: epochs where either is 0 left out; NaN when every one is.
+
+    Examples
+    --------
+    >>> round(nci_of(np.array([0.0, 2.0, 4.0]), np.array([0.0, 1.0, 8.0])), 6)
+    0.0
+    """
     defined = (eps > 0) & (eps_star > 0)
     if not defined.all():  # zero errors: no ratio at those epochs
         if not defined.any():
             return math.nan
         eps, eps_star = eps[defined], eps_star[defined]
-    return float(10.0 * np.mean(np.log(eps) - np.log(eps_star)) / _LOG10)
+    ratio = np.log(eps)
+    ratio -= np.log(eps_star)  # in place: two arrays of N, not three
+    return float(10.0 * np.mean(ratio) / _LOG10)
 
 
 def gaussian_nll(errors: np.ndarray, cov: np.ndarray, scale: float = 1.0) -> np.ndarray:

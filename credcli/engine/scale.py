@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import special
@@ -36,7 +37,7 @@ from credcli.engine.batches import (
     boundary_inflation,
     bounds,
 )
-from credcli.engine.linalg import EPOCH_CHUNK, epoch_chunks, lower_inverse
+from credcli.engine.linalg import EPOCH_CHUNK, epoch_chunks, inverse_factors, lower_inverse
 from credcli.engine.memory import studentized_quantile
 from credcli.engine.units import power_of_two_unit
 
@@ -151,14 +152,25 @@ class GlsResiduals:
         u_k = L_k⁻¹(e_k − μ̂) (N, d), the whitened residuals.
     precision_sum : numpy.ndarray
         Σ W_k (d, d), W_k = Σ̂_k⁻¹.
-    scores : numpy.ndarray
-        g_k = W_k e_k (N, d), so that Σ g_k = (Σ W_k) μ̂.
+    make_scores : callable
+        Returns the scores g_k = W_k e_k (N, d), so that Σ g_k = (Σ W_k) μ̂: those made
+        with the residuals, or made when first read (:attr:`scores`).
     """
 
     mean: np.ndarray  # μ̂ (d,)
     whitened: np.ndarray  # u_k = L_k⁻¹(e_k − μ̂), (N, d)
     precision_sum: np.ndarray  # Σ W_k (d, d)
-    scores: np.ndarray  # g_k = W_k e_k (N, d): Σ g_k = (Σ W_k) μ̂
+    make_scores: Callable[[], np.ndarray] = field(repr=False, compare=False)
+
+    @functools.cached_property
+    def scores(self) -> np.ndarray:
+        """g_k = W_k e_k (N, d), so that Σ g_k = (Σ W_k) μ̂: the mean tests' scores."""
+        return self.make_scores()
+
+    def release_scores(self) -> None:
+        """Forget :attr:`scores` where they were made when first read (they are made
+        again if read again): a long segment does not hold them past its mean tests."""
+        vars(self).pop("scores", None)
 
     @functools.cached_property
     def q(self) -> np.ndarray:
@@ -182,7 +194,10 @@ class GlsResiduals:
 
 
 def gls_residuals(
-    errors: np.ndarray, chol: np.ndarray, inverse: np.ndarray | None = None
+    errors: np.ndarray,
+    chol: np.ndarray | None,
+    inverse: np.ndarray | None = None,
+    cov: np.ndarray | None = None,
 ) -> GlsResiduals:
     """μ̂ = (Σ W_k)⁻¹ Σ W_k e_k and the whitened residuals, with L_k⁻¹ from
     :func:`credcli.engine.linalg.lower_inverse`.
@@ -191,12 +206,17 @@ def gls_residuals(
     ----------
     errors : numpy.ndarray, shape (N, d)
         The errors e_k (clean).
-    chol : numpy.ndarray, shape (N, d, d) or (d, d)
-        The Cholesky factors L_k of Σ̂_k, or one shared factor.
+    chol : numpy.ndarray, shape (N, d, d) or (d, d), or None
+        The Cholesky factors L_k of Σ̂_k, or one shared factor; None where ``inverse``
+        is given (not read then).
     inverse : numpy.ndarray or None, shape (N, d, d)
         Their inverses L_k⁻¹ where the caller has them already (the same matrices, so the
         same result); None (default): computed here chunk by chunk. Not read with a
         shared factor.
+    cov : numpy.ndarray or None, shape (N, d, d)
+        The covariances, where the scores are to be made from them when first read
+        (:func:`per_epoch_scores`: the same numbers; a long segment's model fit and
+        checks then do not hold them); None (default): made here.
 
     Returns
     -------
@@ -204,16 +224,18 @@ def gls_residuals(
         μ̂, the whitened residuals u_k, Σ W_k and the scores W_k e_k.
     """
     n, d = errors.shape
-    if chol.ndim == 2:
+    if inverse is None and chol.ndim == 2:
         inv = lower_inverse(chol[None])[0]  # L⁻¹
         z = errors @ inv.T
         precision_sum = n * (inv.T @ inv)
         scores = z @ inv
         weighted = inv.T @ z.sum(axis=0)
         mean = np.linalg.solve(precision_sum, weighted)
-        return GlsResiduals(mean, z - inv @ mean, precision_sum, scores)
+        return GlsResiduals(
+            mean, z - inv @ mean, precision_sum, functools.partial(_as_made, scores)
+        )
     z = np.empty((n, d))
-    scores = np.empty((n, d))
+    scores = np.empty((n, d)) if cov is None else None
     precision_sum = np.zeros((d, d))
     weighted = np.zeros(d)
     single = n <= EPOCH_CHUNK  # then the one chunk's L_k⁻¹ is kept for the second pass
@@ -221,7 +243,8 @@ def gls_residuals(
         inv = lower_inverse(chol[sl]) if inverse is None else inverse[sl]  # L_k⁻¹
         z[sl] = np.einsum("nij,nj->ni", inv, errors[sl])
         precision_sum += np.einsum("nki,nkj->ij", inv, inv)
-        scores[sl] = np.einsum("nki,nk->ni", inv, z[sl])
+        if scores is not None:
+            scores[sl] = np.einsum("nki,nk->ni", inv, z[sl])
         weighted += np.einsum("nki,nk->i", inv, z[sl])
     mean = np.linalg.solve(precision_sum, weighted)
     for sl in epoch_chunks(n):
@@ -230,7 +253,39 @@ def gls_residuals(
         elif not single:
             inv = lower_inverse(chol[sl])
         z[sl] -= np.einsum("nij,j->ni", inv, mean)
-    return GlsResiduals(mean, z, precision_sum, scores)
+    if scores is None:
+        return GlsResiduals(
+            mean, z, precision_sum, functools.partial(per_epoch_scores, errors, cov)
+        )
+    return GlsResiduals(mean, z, precision_sum, functools.partial(_as_made, scores))
+
+
+def _as_made(scores: np.ndarray) -> np.ndarray:
+    """The scores made with the residuals (:attr:`GlsResiduals.make_scores`)."""
+    return scores
+
+
+def per_epoch_scores(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """The GLS scores g_k = W_k e_k = L_k⁻ᵀ(L_k⁻¹e_k), with L_k⁻¹ made from ``cov`` a chunk
+    of epochs at a time: the numbers :func:`gls_residuals` makes with its factors.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k.
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances (positive definite: checked already).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+        g_k per epoch.
+    """
+    scores = np.empty(errors.shape)
+    for sl in epoch_chunks(errors.shape[0]):
+        inv = inverse_factors(cov[sl])
+        scores[sl] = np.einsum("nki,nk->ni", inv, np.einsum("nij,nj->ni", inv, errors[sl]))
+    return scores
 
 
 _TAIL_PROBS = (0.025, 0.25, 0.75, 0.975)

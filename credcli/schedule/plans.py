@@ -24,14 +24,14 @@ from credcli.engine.diagnosis import (
     innovation_whiteness,
     run_model,
 )
-from credcli.engine.linalg import as_slice
+from credcli.engine.linalg import EPOCH_CHUNK, as_slice
 from credcli.engine.metrics import Accuracy
 from credcli.engine.short import SegmentResults, ShortSegments, short_segments
 from credcli.engine.timing import motion
 from credcli.errors import CredcliError
 from credcli.io.ingest import open_log
 from credcli.logid import LogId, unique_ids
-from credcli.schedule.pool import ordered_map, prepare_worker
+from credcli.schedule.pool import allocator_for, ordered_map, prepare_worker
 from credcli.segments import LogSummary, checked_log, log_summary, split
 
 PARALLEL_MIN_EPOCHS = 50_000
@@ -72,6 +72,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose a chunk of segments of the log ``log_id`` (top level, so processes
     can import it)."""
     log_id, items, config, seed, innovations, runs, blocks = task
+    allocator_for(any(item[3].shape[0] > EPOCH_CHUNK for item in items))
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
     for name, t0, t1, e, c, memory, findings, declined, moving, fitted, known in items:

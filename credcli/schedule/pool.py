@@ -95,25 +95,58 @@ def _import_threadpoolctl() -> None:
 _LIMITED = []
 
 MMAP_THRESHOLD = 64 << 20
-"""glibc allocations below this come from the heap, not from a fresh mmap (bytes)."""
+"""glibc allocations below this come from the heap, not from a fresh mmap (bytes), while a
+task's segments are no longer than one chunk of epochs (:func:`allocator_for`)."""
+
+LONG_MMAP_THRESHOLD = 8 << 20
+"""The threshold while logs are read and while a segment longer than one chunk of epochs
+(:data:`credcli.engine.linalg.EPOCH_CHUNK`) is diagnosed: whole columns, and a long
+segment's arrays of N numbers (2·10⁶ epochs, d = 2: 15–61 MiB), are mapped and given back
+when freed; under 64 MiB they came from the heap, and the holes they left were kept (the
+2·10⁶-epoch segment peaked at 561 MiB resident, 50–120 MiB of the heap free by malloc's
+own count). Not for shorter segments: those of 2,000–4,000 epochs, whose N × N pairs were
+then mapped afresh each time, took 3–6 % more wall time (docs/performance.md)."""
+
+_OWNED = []  # non-empty in a process whose allocator credcli set (copied into forked workers)
 
 
 def keep_freed_memory() -> None:
-    """Keep the memory of freed arrays below 64 MiB in glibc's heap, for the next ones: in
-    the processes credcli owns (the command line's and the workers'), not a library caller's.
+    """Keep the memory of freed arrays below a threshold in glibc's heap, for the next ones:
+    in the processes credcli owns (the command line's and the workers'), not a library
+    caller's. The threshold is :data:`LONG_MMAP_THRESHOLD` until a task sets it
+    (:func:`allocator_for`).
 
     By default glibc maps a fresh block for each array above a threshold it adapts, and
     gives the top of its heap back to the system once more than twice that is free: the
     diagnosis's temporaries (the pair matrix, its float32 copy, the flipped products: a
     few MiB per segment, made and freed segment after segment) would be mapped again each
     time, and touching fresh pages costs about as much as the arithmetic
-    (docs/performance.md). A larger array (a 2,000,000-epoch segment's) is still mapped
-    and unmapped. This also undoes ``MALLOC_TRIM_THRESHOLD_``, which Dask's nannies set to
-    64 KiB (and which slows the diagnosis in Dask workers). Not glibc: nothing to do."""
+    (docs/performance.md). A larger array is still mapped and unmapped. This also undoes
+    ``MALLOC_TRIM_THRESHOLD_``, which Dask's nannies set to 64 KiB (and which slows the
+    diagnosis in Dask workers). Not glibc: nothing to do."""
+    _OWNED[:] = [True]
+    _set_threshold(LONG_MMAP_THRESHOLD)
+
+
+def allocator_for(long_segments: bool) -> None:
+    """Set the threshold for a task, in a process whose allocator credcli set
+    (:func:`keep_freed_memory`); elsewhere nothing.
+
+    Parameters
+    ----------
+    long_segments : bool
+        The task holds a segment longer than one chunk of epochs: the threshold is then
+        :data:`LONG_MMAP_THRESHOLD`, else :data:`MMAP_THRESHOLD`.
+    """
+    if _OWNED:
+        _set_threshold(LONG_MMAP_THRESHOLD if long_segments else MMAP_THRESHOLD)
+
+
+def _set_threshold(threshold: int) -> None:
     try:
         c = libc()
-        c.mallopt(-3, MMAP_THRESHOLD)  # M_MMAP_THRESHOLD
-        c.mallopt(-1, 2 * MMAP_THRESHOLD)  # M_TRIM_THRESHOLD
+        c.mallopt(-3, threshold)  # M_MMAP_THRESHOLD
+        c.mallopt(-1, 2 * threshold)  # M_TRIM_THRESHOLD
     except (OSError, AttributeError):
         pass
 

@@ -99,13 +99,13 @@ MMAP_THRESHOLD = 64 << 20
 task's segments are no longer than one chunk of epochs (:func:`allocator_for`)."""
 
 LONG_MMAP_THRESHOLD = 8 << 20
-"""The threshold while logs are read and while a segment longer than one chunk of epochs
-(:data:`credcli.engine.linalg.EPOCH_CHUNK`) is diagnosed: whole columns, and a long
-segment's arrays of N numbers (2·10⁶ epochs, d = 2: 15–61 MiB), are mapped and given back
-when freed; under 64 MiB they came from the heap, and the holes they left were kept (the
-2·10⁶-epoch segment peaked at 561 MiB resident, 50–120 MiB of the heap free by malloc's
-own count). Not for shorter segments: those of 2,000–4,000 epochs, whose N × N pairs were
-then mapped afresh each time, took 3–6 % more wall time (docs/performance.md)."""
+"""The threshold while a task holding a segment longer than one chunk of epochs
+(:data:`credcli.engine.linalg.EPOCH_CHUNK`) is diagnosed: its arrays of N numbers (2·10⁶
+epochs, d = 2: 15–61 MiB) are mapped and given back when freed; under 64 MiB they came
+from the heap, and the holes they left were kept (the 2·10⁶-epoch segment peaked at
+561 MiB resident, 50–120 MiB of the heap free by malloc's own count). Not for shorter
+segments: those of 2,000–4,000 epochs, whose N × N pairs were then mapped afresh each
+time, took 3–6 % more wall time (docs/performance.md)."""
 
 _OWNED = []  # non-empty in a process whose allocator credcli set (copied into forked workers)
 
@@ -113,7 +113,7 @@ _OWNED = []  # non-empty in a process whose allocator credcli set (copied into f
 def keep_freed_memory() -> None:
     """Keep the memory of freed arrays below a threshold in glibc's heap, for the next ones:
     in the processes credcli owns (the command line's and the workers'), not a library
-    caller's. The threshold is :data:`LONG_MMAP_THRESHOLD` until a task sets it
+    caller's. The threshold is :data:`MMAP_THRESHOLD` until a task sets it
     (:func:`allocator_for`).
 
     By default glibc maps a fresh block for each array above a threshold it adapts, and
@@ -125,7 +125,7 @@ def keep_freed_memory() -> None:
     ``MALLOC_TRIM_THRESHOLD_``, which Dask's nannies set to 64 KiB (and which slows the
     diagnosis in Dask workers). Not glibc: nothing to do."""
     _OWNED[:] = [True]
-    _set_threshold(LONG_MMAP_THRESHOLD)
+    _set_threshold(MMAP_THRESHOLD)
 
 
 def allocator_for(long_segments: bool) -> None:

@@ -1056,3 +1056,54 @@ def test_a_long_segments_route_gives_the_short_routes_diagnosis(monkeypatch, cas
     monkeypatch.setattr(linalg, "EPOCH_CHUNK", 1_000)
     freed = json.dumps(diagnosis_record(diagnose_errors(errors, cov, rng=3)))
     assert freed == held
+
+
+_MAPPED_PROBE = """
+import ctypes, sys
+import numpy as np
+from credcli.schedule import pool
+
+class Info(ctypes.Structure):
+    _fields_ = [(f, ctypes.c_size_t) for f in
+                "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()]
+
+libc = ctypes.CDLL("libc.so.6")
+libc.mallinfo2.restype = Info
+
+def mapped(size):
+    a = np.ones(size // 8)  # a fresh array, alive while glibc is asked where it lies
+    return libc.mallinfo2().hblkhd >= size
+
+steps = []
+pool.allocator_for(False)  # a library caller's process: left as glibc has it
+steps.append(mapped(16 << 20))
+pool.keep_freed_memory()  # the command line's own process
+steps.append(mapped(16 << 20))
+pool.allocator_for(True)  # a task holding a segment longer than one chunk of epochs
+steps.append(mapped(24 << 20))  # (more than the heap holds free: glibc reuses a hole first)
+steps.append(mapped(4 << 20))
+pool.allocator_for(False)
+steps.append(mapped(32 << 20))
+print(steps)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's allocator")
+def test_the_allocator_maps_a_long_segments_arrays_only_in_credclis_processes():
+    """pool.allocator_for: in a process whose allocator credcli set, a task holding a
+    segment longer than one chunk of epochs has a 24 MiB array mapped (given back when
+    freed) and a 4 MiB one from the heap, while other tasks take 16 and 32 MiB from the
+    heap (the 64 MiB threshold); in a library caller's process nothing is changed (glibc
+    maps 16 MiB itself). Run in a child: the setting is process-wide."""
+    import subprocess
+
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6").mallinfo2  # noqa: B018 (glibc 2.33 or later)
+    except (OSError, AttributeError):
+        pytest.skip("not glibc 2.33 or later")
+    out = subprocess.run(
+        [sys.executable, "-c", _MAPPED_PROBE], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "[True, False, True, False, False]"

@@ -993,11 +993,11 @@ def test_a_long_segments_nees_made_again_gives_the_same_bursts(monkeypatch):
 def test_factors_made_by_chunks_give_the_whole_segments_numbers(d):
     """A long segment makes its inverse factors, NEES and GLS scores again a chunk of epochs
     at a time rather than hold them (evidence.gather): over several chunks, the bits of the
-    factors made once (linalg.inverse_factors, metrics.nees_chunked,
-    scale.per_epoch_scores), and GLS residuals whose scores come from the covariances when
+    factors made once (linalg.inverse_factors, linalg.by_inverse_chunks,
+    scale._per_epoch_scores), and GLS residuals whose scores come from the covariances when
     read are those made with them."""
     from credcli.engine import linalg, metrics
-    from credcli.engine.scale import gls_residuals, per_epoch_scores
+    from credcli.engine.scale import _per_epoch_scores, gls_residuals
 
     rng = np.random.default_rng(d)
     n = linalg.EPOCH_CHUNK + 17
@@ -1007,9 +1007,10 @@ def test_factors_made_by_chunks_give_the_whole_segments_numbers(d):
     chol = linalg.cholesky(cov)
     inverse = linalg.lower_inverse(chol)
     np.testing.assert_array_equal(linalg.inverse_factors(cov), inverse)
-    np.testing.assert_array_equal(metrics.nees_chunked(e, cov), metrics.nees_inverse(e, inverse))
+    chunked = linalg.by_inverse_chunks(metrics.nees_inverse, e, cov)
+    np.testing.assert_array_equal(chunked, metrics.nees_inverse(e, inverse))
     made = gls_residuals(e, chol)
-    np.testing.assert_array_equal(per_epoch_scores(e, cov), made.scores)
+    np.testing.assert_array_equal(_per_epoch_scores(e, cov), made.scores)
     read = gls_residuals(e, None, inverse, cov)
     for name in ("mean", "whitened", "precision_sum", "scores"):
         np.testing.assert_array_equal(getattr(read, name), getattr(made, name))

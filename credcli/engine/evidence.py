@@ -307,7 +307,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         }
     del residuals, inverse
     if again:  # the NEES as at the start, its factors made a chunk at a time
-        eps = metrics.nees_chunked(errors, cov)
+        eps = linalg.by_inverse_chunks(metrics.nees_inverse, errors, cov)
         gls.release_scores()  # made again if read again (the model's rule does not)
     squares_ratio = memory.squares.variance_ratio if memory is not None else tau_q
     found_bursts = episodes.bursts(eps, d, squares_ratio)

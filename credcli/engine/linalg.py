@@ -384,6 +384,41 @@ def inverse_factors(cov: np.ndarray) -> np.ndarray:
     return out
 
 
+def by_inverse_chunks(func, errors: np.ndarray, cov: np.ndarray, trailing=()) -> np.ndarray:
+    """``func(e, L⁻¹)`` of each chunk of epochs, with L_k⁻¹ made there from ``cov``
+    (:func:`inverse_factors`' numbers): what a per-epoch function of the inverse factors
+    gives on the whole segment, without its N × d × d factors held.
+
+    Parameters
+    ----------
+    func : callable
+        ``func(errors, inverse)`` of a chunk's (n, d) errors and (n, d, d) factors, an
+        array of n rows.
+    errors : numpy.ndarray, shape (N, d)
+        The errors e_k.
+    cov : numpy.ndarray, shape (N, d, d)
+        The claimed covariances (positive definite: checked already).
+    trailing : tuple of int, default ()
+        The shape of ``func``'s row.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, *trailing)
+        The rows of every chunk, in order.
+
+    Examples
+    --------
+    >>> cov = np.array([[[4.0, 0.0], [0.0, 1.0]]])
+    >>> whiten = lambda e, inverse: whitened_by(inverse, e)
+    >>> by_inverse_chunks(whiten, np.array([[2.0, 3.0]]), cov, (2,)).tolist()
+    [[1.0, 3.0]]
+    """
+    out = np.empty((errors.shape[0], *trailing))
+    for sl in epoch_chunks(errors.shape[0]):
+        out[sl] = func(errors[sl], inverse_factors(cov[sl]))
+    return out
+
+
 def whitened_by(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """L_k⁻¹ v_k for every epoch k: the Cholesky-whitened vectors.
 

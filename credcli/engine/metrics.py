@@ -17,7 +17,6 @@ from credcli.engine.linalg import (
     check_semidefinite,
     cholesky,
     epoch_chunks,
-    inverse_factors,
     lower_inverse,
     whitened_by,
 )
@@ -115,34 +114,6 @@ def nees_inverse(errors: np.ndarray, inverse: np.ndarray) -> np.ndarray:
     for sl in epoch_chunks(errors.shape[0]):  # no N × d temporary beside the result
         z = whitened_by(inverse[sl], errors[sl])
         eps[sl] = np.einsum("ni,ni->n", z, z)
-    return eps
-
-
-def nees_chunked(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """The NEES of :func:`nees_inverse` with L_k⁻¹ made from ``cov`` a chunk of epochs at a
-    time (:func:`credcli.engine.linalg.inverse_factors`): the same numbers without the
-    N × d × d factors.
-
-    Parameters
-    ----------
-    errors : numpy.ndarray, shape (N, d)
-        The errors e_k.
-    cov : numpy.ndarray, shape (N, d, d)
-        The claimed covariances (positive definite: checked already).
-
-    Returns
-    -------
-    numpy.ndarray, shape (N,)
-        ε_k, Eq. (1).
-
-    Examples
-    --------
-    >>> nees_chunked(np.array([[2.0, 0.0]]), np.array([[[4.0, 0.0], [0.0, 1.0]]])).tolist()
-    [1.0]
-    """
-    eps = np.empty(errors.shape[0])
-    for sl in epoch_chunks(errors.shape[0]):
-        eps[sl] = nees_inverse(errors[sl], inverse_factors(cov[sl]))
     return eps
 
 

@@ -37,7 +37,7 @@ from credcli.engine.batches import (
     boundary_inflation,
     bounds,
 )
-from credcli.engine.linalg import EPOCH_CHUNK, epoch_chunks, inverse_factors, lower_inverse
+from credcli.engine.linalg import EPOCH_CHUNK, by_inverse_chunks, epoch_chunks, lower_inverse
 from credcli.engine.memory import studentized_quantile
 from credcli.engine.units import power_of_two_unit
 
@@ -215,7 +215,7 @@ def gls_residuals(
         shared factor.
     cov : numpy.ndarray or None, shape (N, d, d)
         The covariances, where the scores are to be made from them when first read
-        (:func:`per_epoch_scores`: the same numbers; a long segment's model fit and
+        (a chunk of epochs at a time: the same numbers; a long segment's model fit and
         checks then do not hold them); None (default): made here.
 
     Returns
@@ -255,7 +255,7 @@ def gls_residuals(
         z[sl] -= np.einsum("nij,j->ni", inv, mean)
     if scores is None:
         return GlsResiduals(
-            mean, z, precision_sum, functools.partial(per_epoch_scores, errors, cov)
+            mean, z, precision_sum, functools.partial(_per_epoch_scores, errors, cov)
         )
     return GlsResiduals(mean, z, precision_sum, functools.partial(_as_made, scores))
 
@@ -265,27 +265,16 @@ def _as_made(scores: np.ndarray) -> np.ndarray:
     return scores
 
 
-def per_epoch_scores(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """The GLS scores g_k = W_k e_k = L_k⁻ᵀ(L_k⁻¹e_k), with L_k⁻¹ made from ``cov`` a chunk
-    of epochs at a time: the numbers :func:`gls_residuals` makes with its factors.
+def _per_epoch_scores(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """The GLS scores g_k = W_k e_k = L_k⁻ᵀ(L_k⁻¹e_k) (N, d), with L_k⁻¹ made from ``cov``
+    a chunk of epochs at a time (:func:`credcli.engine.linalg.by_inverse_chunks`): the
+    numbers :func:`gls_residuals` makes with its factors."""
+    return by_inverse_chunks(_scores_of, errors, cov, errors.shape[1:])
 
-    Parameters
-    ----------
-    errors : numpy.ndarray, shape (N, d)
-        The errors e_k.
-    cov : numpy.ndarray, shape (N, d, d)
-        The claimed covariances (positive definite: checked already).
 
-    Returns
-    -------
-    numpy.ndarray, shape (N, d)
-        g_k per epoch.
-    """
-    scores = np.empty(errors.shape)
-    for sl in epoch_chunks(errors.shape[0]):
-        inv = inverse_factors(cov[sl])
-        scores[sl] = np.einsum("nki,nk->ni", inv, np.einsum("nij,nj->ni", inv, errors[sl]))
-    return scores
+def _scores_of(errors: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """g_k = L_k⁻ᵀ(L_k⁻¹e_k), as :func:`gls_residuals` makes them."""
+    return np.einsum("nki,nk->ni", inverse, np.einsum("nij,nj->ni", inverse, errors))
 
 
 _TAIL_PROBS = (0.025, 0.25, 0.75, 0.975)

@@ -180,7 +180,10 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
 
     Whole-length intermediates are freed as soon as they are used, to keep the peak memory
     of long segments down; the probes need ``chol`` to the end, and make the centred errors
-    again (:func:`_centred`) rather than hold them.
+    again (:func:`_centred`) rather than hold them. Past one chunk of epochs
+    (:data:`credcli.engine.linalg.EPOCH_CHUNK`) the inverse factors, the GLS scores and
+    the NEES are made again, with the same bits, where they are read
+    (:class:`Inverses`, :func:`credcli.engine.linalg.by_inverse_chunks`).
 
     Parameters
     ----------
@@ -233,9 +236,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     ks_p = ks_chi2_pvalue(eps, d)
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
-    # the NEES of a segment longer than one chunk of epochs is made again for its bursts
-    # once the model's tests are done, not held through them (its peak memory: 2·10⁶
-    # epochs: 577 → 561 MiB resident); the same numbers, for one more pass over the inverses
+    # past one chunk of epochs the NEES, the inverses and the GLS scores are made again
+    # (the same bits) where they are read rather than held through the model's fit, checks
+    # and tests (2·10⁶ epochs: peak 561 → 459 MiB resident, docs/performance.md)
     again = n > linalg.EPOCH_CHUNK and per_epoch
     if again:
         del eps

@@ -72,7 +72,8 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose a chunk of segments of the log ``log_id`` (top level, so processes
     can import it)."""
     log_id, items, config, seed, innovations, runs, blocks = task
-    allocator_for(any(item[3].shape[0] > EPOCH_CHUNK for item in items))
+    longest = max(errors.shape[0] for _, _, _, errors, *_ in items)  # (an item: _item)
+    allocator_for(longest > EPOCH_CHUNK)
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []
     for name, t0, t1, e, c, memory, findings, declined, moving, fitted, known in items:

@@ -314,17 +314,20 @@ class SlowErrors(str, enum.Enum):
     POSSIBLE : "possible"
         The errors may hold memory slower than the segment: such a segment is
         insufficient-data, its reason saying why (windows of one run, or more runs, can
-        tell the two apart).
+        tell the two apart); so is a bias alone on a segment shorter than
+        ``credcli.engine.rules.SLOW_READING_BELOW`` epochs whose slow reading (the offset
+        and the spread together, ``credcli.engine.scale.slow_offset_pvalue``) fits with a
+        p-value of at least ``credcli.engine.rules.SLOW_READING_FIT``; a bias whose slow
+        reading is not rejected at the mean test's level otherwise has a finding naming it.
     EXCLUDED : "excluded"
         The errors are known to hold no memory slower than the segment (independent
         Monte Carlo draws, as in the paper's Section IV): the offset is a bias
         (pessimism with SMM).
     EXPECTED : "expected"
         The errors are expected to hold memory slower than the segment (one run of a
-        filter whose errors follow a slowly changing geometry): a pessimism and a bias
-        alone are declined as well where such an error explains them (a bias: the offset
-        and the spread together, ``credcli.engine.scale.slow_offset_pvalue``, a reading
-        that ``possible`` names in a finding beside the label); fewer false alarms on slow
+        filter whose errors follow a slowly changing geometry): a pessimism alone, and a
+        bias alone whose slow reading is not rejected at the mean test's level, are
+        declined as well where such an error explains them; fewer false alarms on slow
         errors, less power for a small bias and a short segment's pessimism
         (docs/measured.md).
     """

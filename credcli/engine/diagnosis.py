@@ -479,12 +479,18 @@ def slow_offset_findings(
     Pessimism with a bias is not looked at here: the rule itself weighs the slow reading
     there, and declines the segment where it holds (:func:`credcli.engine.rules.offset_covered`).
 
-    ``slow_errors`` expected declines such a bias instead (``rules.offset_covered``); not by
-    default, measured (docs/measured.md): on ``benchmarks/variants.py`` declining it cuts
-    the false alarms of slow + white (0.97, 75 %) errors at 50 epochs from 20 to 2 of 60,
-    and finds a 1σ bias at N/τ >= 30 in 620 of 1,180 segments instead of 1,055; a scale
-    pinned near 1 over a few hundred dependent epochs leaves room for a slow part of a
-    sixth of the claim, whose draws reach 1σ.
+    On a segment shorter than :data:`credcli.engine.rules.SLOW_READING_BELOW` epochs
+    where the slow reading fits with a p-value of at least
+    :data:`credcli.engine.rules.SLOW_READING_FIT` the rule declines the bias
+    (``rules.offset_covered``), so this finding stands beside a bias whose slow reading's
+    p-value lies between the mean test's level and that, or beside a longer segment's.
+    ``slow_errors`` expected declines those too; not by default, measured
+    (docs/measured.md): on ``benchmarks/variants.py`` declining every such bias cuts the
+    false alarms of slow + white (0.97, 75 %) errors at 50 epochs to 2 of 60 (8 by
+    default, 20 without declining), and finds a 1σ bias at N/τ >= 30 in 620 of 1,180
+    segments (1,039 by default, 1,055 without); a scale pinned near 1 over a few hundred
+    dependent epochs leaves room for a slow part of a sixth of the claim, whose draws
+    reach 1σ.
 
     Parameters
     ----------

@@ -247,18 +247,19 @@ SLOW_READING_FIT = 0.3
 at and above which the bias of a segment shorter than :data:`SLOW_READING_BELOW` epochs is
 declined where slow errors are possible (``SlowErrors`` auto or possible): the slow
 reading then fits the offset and the spread as well as three in ten of its own draws
-would. Between the mean test's level and this, and on longer segments, the slow reading
-is not rejected either, and the label stands with a finding naming it
+would. Where the p-value lies between the mean test's level and this, or the segment is
+longer, the label stands and a finding names the reading
 (:func:`credcli.engine.diagnosis.slow_offset_findings`); ``SlowErrors.EXPECTED`` declines
-there too. Chosen on three sets of synthetic families (``benchmarks/variants.py``, seeds
+every bias whose p-value is not below the mean test's level. Chosen on three sets of synthetic families (``benchmarks/variants.py``, seeds
 4242, 9191 and 777, docs/measured.md) as the smallest of 0.05, 0.1, 0.2, 0.3 and 0.5 that
 keeps the share of a 1σ bias found at N/τ >= 30 within 3 points of never declining it."""
 SLOW_READING_BELOW = FORCED_BELOW
 """Segments shorter than this (epochs) have their bias weighed against the slow reading by
-:data:`SLOW_READING_FIT`. There the sieve's order is forced (:data:`credcli.engine.memory.
-FORCED_BELOW`) and the time-scale check, which finds errors slower than the fitted memory
-on a longer segment (:func:`credcli.engine.memory.time_scales`), has a few batches at most;
-a longer segment's offset that a slow error explains is a bias with a finding. Measured
+:data:`SLOW_READING_FIT`: the sieve's short-run bound (:data:`credcli.engine.memory.
+FORCED_BELOW`, below which AICc's choice of no memory is not taken), where the time-scale
+check that finds errors slower than the fitted memory on a longer segment
+(:func:`credcli.engine.memory.time_scales`) has few batches at its longer averaging times.
+A longer segment's offset that a slow error explains is a bias with a finding. Measured
 (docs/measured.md): false alarms 191 → 152 of 3,220, 71 → 61 of 1,400 and 75 → 54 of
 1,680 on the three sets; a 1σ bias at N/τ >= 30 found in 1,055 → 1,039 of 1,180, 379 → 379
 of 420 and 699 → 684 of 760; without the bound (every length) 143, 57 and 53 false alarms

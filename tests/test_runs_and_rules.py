@@ -22,7 +22,7 @@ from credcli.engine.diagnosis import (
 )
 from credcli.engine.elt import ELTResult
 from credcli.engine.evidence import Evidence
-from credcli.engine.rules import decide
+from credcli.engine.rules import SLOW_READING_FIT, decide
 from credcli.engine.scale import ScaleTest
 from credcli.engine.whiteness import innovation_levels
 
@@ -91,7 +91,13 @@ def test_an_offset_long_memory_leaves_unconfirmed_is_judged_as_one_found():
     untested): the errors still sit off zero, so an offset that a slow error within the
     claim draws makes the segment insufficient-data, as it does pessimism+bias (‖μ̂‖ 1σ:
     within 0.64–0.75 · χ²_2's region); an offset of 4σ is beyond it, and pessimism stays,
-    with the location untested. Without the declined bias the offset is not looked at."""
+    with the location untested. Without the declined bias, a pessimism alone is weighed by
+    its lower tail: under a mean test whose model gives the mean a variance s² of 0.2 (T²
+    = ‖x̂‖²/s², not rejecting), the mean varies by v = 0.64 + 0.36·0.2/0.3 = 0.88 under the
+    slow reading at κ 0.36, and 1σ is what it draws in P(χ²_2 <= 1/0.88) = 0.43 of its
+    draws (at least rules.SLOW_READING_FIT: "spread within the claim"), 0.3σ in 0.050
+    (pessimism stays); without a mean test, or with slow errors excluded, pessimism
+    stays."""
     config = DiagnosisConfig()
     pessimistic = replace(_scale(0.3, 0.25, 0.36, 1.0, 1e-9), bias_mahalanobis=1.0)
     declined = replace(
@@ -107,8 +113,23 @@ def test_an_offset_long_memory_leaves_unconfirmed_is_judged_as_one_found():
     far = replace(declined, scale=replace(pessimistic, bias_mahalanobis=4.0))
     verdict = decide(far, config)
     assert verdict.label is Label.PESSIMISM and verdict.untested == (Question.LOCATION,)
-    unseen = replace(declined, bias_declined=False)
-    assert decide(unseen, config).label is Label.PESSIMISM
+    assert decide(replace(declined, bias_declined=False), config).label is Label.PESSIMISM
+
+    def tested(offset):  # a mean test whose model gives the mean a variance of 0.2
+        t2 = offset**2 / 0.2
+        mean = MeanTest(t2 / (198 / 98), (2.0, 98.0), 0.5, 0, 0.01, 198 / 98)
+        scale = replace(pessimistic, bias_mahalanobis=offset)
+        return replace(declined, bias_declined=False, mean_test=mean, scale=scale)
+
+    verdict = decide(tested(1.0), config)
+    assert verdict.label is Label.INSUFFICIENT
+    want = 1.0 - math.exp(-1.0 / 0.88 / 2.0)  # χ²_2's distribution function
+    assert verdict.reason.startswith("spread within the claim")
+    assert f"smaller in {want:.2g} of its draws" in verdict.reason
+    assert 1.0 - math.exp(-0.09 / 0.88 / 2.0) < SLOW_READING_FIT
+    assert decide(tested(0.3), config).label is Label.PESSIMISM
+    excluded = DiagnosisConfig(slow_errors="excluded")
+    assert decide(tested(1.0), excluded).label is Label.PESSIMISM
 
 
 def _slow_white(n, phi, white, rng, d=2):

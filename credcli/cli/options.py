@@ -255,10 +255,10 @@ SlowErrorsOpt = Annotated[
         "--slow-errors",
         help="Whether the errors may hold memory slower than a segment: possible (an "
         "offset the claimed covariance covers is insufficient-data, since a bias and such "
-        "an error give the same data, and so is a short segment's bias such an error fits "
-        "well), excluded (it is a bias: pessimism+bias), expected (a pessimism, or a bias "
-        "such an error explains at the mean test's level, is declined too), or auto "
-        "(possible for a log; simulate knows its draws) "
+        "an error give the same data, and so are a short segment's bias and a pessimism "
+        "such an error fits well), excluded (it is a bias: pessimism+bias), expected (a "
+        "pessimism, or a bias such an error explains at the mean test's level, is declined "
+        "too), or auto (possible for a log; simulate knows its draws) "
         f"[default: {_D.slow_errors.value}].",
         rich_help_panel=RULE,
     ),

@@ -317,17 +317,20 @@ class SlowErrors(str, enum.Enum):
         tell the two apart); so is a bias alone on a segment shorter than
         ``credcli.engine.rules.SLOW_READING_BELOW`` epochs whose slow reading (the offset
         and the spread together, ``credcli.engine.scale.slow_offset_pvalue``) fits with a
-        p-value of at least ``credcli.engine.rules.SLOW_READING_FIT``; a bias whose slow
-        reading is not rejected at the mean test's level otherwise has a finding naming it.
+        p-value of at least ``credcli.engine.rules.SLOW_READING_FIT``, and a pessimism
+        alone whose offset such an error draws as small or smaller with that p-value
+        (``credcli.engine.rules._spread_covered``); a bias whose slow reading is not
+        rejected at the mean test's level otherwise has a finding naming it.
     EXCLUDED : "excluded"
         The errors are known to hold no memory slower than the segment (independent
         Monte Carlo draws, as in the paper's Section IV): the offset is a bias
         (pessimism with SMM).
     EXPECTED : "expected"
         The errors are expected to hold memory slower than the segment (one run of a
-        filter whose errors follow a slowly changing geometry): a pessimism alone, and a
-        bias alone whose slow reading is not rejected at the mean test's level, are
-        declined as well where such an error explains them; fewer false alarms on slow
+        filter whose errors follow a slowly changing geometry): a pessimism alone unless its
+        offset is too small for such an error at the mean test's level (by direction), and
+        a bias alone whose slow reading is not rejected at that level, are declined as
+        well; fewer false alarms on slow
         errors, less power for a small bias and a short segment's pessimism
         (docs/measured.md).
     """

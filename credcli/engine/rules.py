@@ -128,11 +128,9 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     offset = label is Label.PESSIMISM_BIAS or (
         label is Label.PESSIMISM and evidence.bias_declined
     )  # an offset found (under short memory, where long memory leaves it unconfirmed)
-    # a bias alone may be one as well (the scale and the mean weighed together), and where
-    # slow errors are expected a pessimism alone too
-    weighed = label is Label.BIAS or (
-        config.slow_errors is SlowErrors.EXPECTED and label is Label.PESSIMISM
-    )
+    # a bias alone may be one as well (the scale and the mean weighed together), and so
+    # may a pessimism alone (its spread and its offset)
+    weighed = label in (Label.BIAS, Label.PESSIMISM)
     if config.calibrated and (offset or weighed) and not by_direction:
         covered = offset_covered(evidence, config, label)
         if covered is not None:
@@ -146,8 +144,8 @@ def offset_covered(
     """Why a segment labelled pessimism with a bias may be credible instead, or None; also
     pessimism where the mean test's bias was declined because the model's alternative with
     more memory does not confirm it (``Evidence.bias_declined``): the errors sit off zero either way;
-    a bias under a scale that is not pessimistic; and, where slow errors are expected
-    (``SlowErrors.EXPECTED``), pessimism alone.
+    a bias under a scale that is not pessimistic; and pessimism alone (:func:`_spread_covered`;
+    where slow errors are expected, ``SlowErrors.EXPECTED``, by the test below).
 
     One segment cannot tell a constant bias from an error slower than the segment, which
     stays near one value over its epochs (a slowly varying error under white noise):
@@ -172,9 +170,10 @@ def offset_covered(
     shorter than :data:`SLOW_READING_BELOW` epochs a p-value of at least
     :data:`SLOW_READING_FIT` declines the bias (where slow errors are expected: one not
     below the mean test's level, at any length); otherwise a finding names that reading
-    beside the label (:func:`credcli.engine.diagnosis.slow_offset_findings`). Where slow
-    errors are expected (``SlowErrors.EXPECTED``) one more label is weighed: a pessimism
-    without a bias may be a slow part holding what the spread leaves of the claim that
+    beside the label (:func:`credcli.engine.diagnosis.slow_offset_findings`). A pessimism
+    without a bias is weighed by :func:`_spread_covered`; where slow errors are expected
+    (``SlowErrors.EXPECTED``), by the directions' intervals at the mean test's level: it
+    may be a slow part holding what the spread leaves of the claim that
     drew a small offset; only an offset smaller than such a part draws at the mean test's
     level, one-sided (Q below χ²_d's α quantile for every κ_j in the intervals), rejects
     that reading, as a covariance 4× too large over many independent epochs does (its
@@ -214,6 +213,8 @@ def offset_covered(
     if label is Label.BIAS:
         return _bias_covered(evidence, config.slow_errors)
     alone = label is Label.PESSIMISM and not evidence.bias_declined  # no bias found: no upper end
+    if alone and config.slow_errors is not SlowErrors.EXPECTED:
+        return _spread_covered(evidence)
     factor = scale.scale_factor
     lows, highs = np.array([scale.scale_factor_low]), np.array([scale.scale_factor_high])
     where = ""
@@ -242,10 +243,57 @@ def offset_covered(
     )
 
 
+def _spread_covered(evidence: Evidence) -> str | None:
+    """Why a pessimism without an offset the mean test finds may be a credible slow error,
+    or None.
+
+    The reading is :func:`credcli.engine.scale.slow_offset_pvalue`'s: in the claim's
+    whitened coordinates the errors are s + f_k, s ~ N(0, (1 − κ)I) one value over the
+    segment and f_k the fitted model's process at scale κ, so that the claimed covariance
+    is the errors' total and the spread about the mean is κ of it; the mean is then
+    x̂ ~ N(0, v(κ)I), v(κ) = 1 − κ + κ s²/κ̂ (s² the model's variance of the mean along x̂
+    at the fitted scale, from the mean test; without a mean test it is not known, and the
+    pessimism stands). An offset too small for a slow part of 1 − κ rejects the reading:
+    the lower tail P(χ²_d <= ‖x̂‖²/v(κ)) is largest at the largest κ the scale test allows,
+    the upper end of κ̂'s interval (at 1 no slow part is needed, and nothing rejects the
+    reading). A p-value of at least :data:`SLOW_READING_FIT` declines the pessimism, at
+    any length, as it declines a short segment's bias. A covariance 4× too large over a
+    few hundred independent epochs leaves an offset of about 0.03σ where the reading asks
+    for one near 1σ (p about 0.002); measured (docs/measured.md), no 4× too large
+    covariance at N/τ >= 30 of the zoo or the three synthetic sets was declined, and
+    false alarms fell 38 → 29 of 1,610 on the zoo and 152 → 129 of 3,220 on
+    ``variants.py``. ``SlowErrors.EXPECTED`` reads the directions' intervals at the mean
+    test's level instead (:func:`offset_covered`), declining more.
+    """
+    scale, test = evidence.scale, evidence.mean_test
+    factor, high = float(scale.scale_factor), float(scale.scale_factor_high)
+    offset_sq = float(scale.bias_mahalanobis) ** 2
+    if test is None or not (factor > 0 and math.isfinite(offset_sq) and not math.isnan(high)):
+        return None
+    t2 = float(test.t2_per_f) * float(test.statistic)
+    mean_var = offset_sq / t2 if t2 > 0 and math.isfinite(t2) else 0.0  # s²
+    spread = 1.0 - high + high * mean_var / factor  # v(κ) at κ = the interval's upper end
+    pvalue = float(special.chdtr(evidence.dim, offset_sq / spread)) if high < 1 else 1.0
+    if not pvalue >= SLOW_READING_FIT:
+        return None
+    return (
+        f"spread within the claim: the errors' spread about their mean is κ̂ {factor:.3g} "
+        f"of the claim's (interval {scale.scale_factor_low:.3g}–{high:.3g}) and they sit "
+        f"{scale.bias_mahalanobis:.3g}σ off zero; an error slower than the segment (near "
+        f"one value over its {evidence.n} epochs) holding the rest of the claimed "
+        f"covariance draws an offset this small or smaller in {pvalue:.2g} of its draws "
+        f"(at least {SLOW_READING_FIT:.2g}; mean NEES {evidence.anees:.3g}·d). A too-large "
+        "covariance and such a slow error give the same data, and one segment cannot tell "
+        "them apart: windows of one run or more runs can, and `slow_errors` excluded reads "
+        "the spread as pessimism"
+    )
+
+
 SLOW_READING_FIT = 0.3
 """The p-value of the slow reading of a bias (:func:`credcli.engine.scale.slow_offset_pvalue`)
 at and above which the bias of a segment shorter than :data:`SLOW_READING_BELOW` epochs is
-declined where slow errors are possible (``SlowErrors`` auto or possible): the slow
+declined where slow errors are possible (``SlowErrors`` auto or possible), and so is a
+pessimism alone at any length (:func:`_spread_covered`): the slow
 reading then fits the offset and the spread as well as three in ten of its own draws
 would. Where the p-value lies between the mean test's level and this, or the segment is
 longer, the label stands and a finding names the reading

@@ -670,12 +670,11 @@ def test_a_pessimism_a_slow_error_fits_is_declined():
     slower than the segment, holding what the spread leaves of the claim, draws an offset
     this small or smaller with a p-value of at least rules.SLOW_READING_FIT. 200 credible
     segments made as that reading says (a constant N(0, 0.5 I) over a fast AR(1) 0.8 part
-    of 0.5 I, 100 epochs, claim I): every pessimism has the reading's p-value, computed
-    here with scipy.stats at the upper end of κ̂'s interval, below 0.3 (where a mean test
-    ran) and every
-    "spread within the claim" one at or above it; at least 15 are declined (the rule
-    before declined none: 45 of these were pessimism, 24 now); slow errors excluded
-    decline none. Pessimism is named in at most the share the reading allows, 0.3 plus
+    of 0.5 I, 100 epochs, claim I): where a mean test ran, every pessimism has the
+    reading's p-value, computed here with scipy.stats at the upper end of κ̂'s interval,
+    below 0.3 and every "spread within the claim" one at or above it; at least 15 are
+    declined (the rule before declined none: 45 of these were pessimism, 24 now); slow
+    errors excluded decline none. Pessimism is named in at most the share the reading allows, 0.3 plus
     the scale's upper tail (0.0127), plus three standard errors (62.5 + 19.7). A
     covariance 4× too large over 300 independent epochs (100 segments) is still pessimism
     in at least 95 % of them less three standard errors (95 − 6.5)."""

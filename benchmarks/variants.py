@@ -2,7 +2,7 @@
 sets "built the same way" as the zoo, never tuned on), with the oracle beside each cell.
 
     python benchmarks/variants.py [--lengths 50,300,2000] [--reps 60] [--seed 4242]
-        [--slow-errors auto]
+        [--slow-errors auto] [--set variants|third|fourth]
 
 Each variant is one of ``zoo.py``'s synthetic shapes (AR(1), oscillating AR(2), ARMA(1,1),
 slow + white mixtures, ARFIMA, a slow and a white direction, rotating and resized
@@ -112,6 +112,41 @@ VARIANTS: dict[str, Synthetic] = {
 """Twenty-three families the zoo does not hold, each a shape it does hold at other
 parameters."""
 
+THIRD: dict[str, Synthetic] = {
+    "ar1-0.6": _arma_family((0.6,)),
+    "ar2-0.9∠0.4": _arma_family(_ar2(0.9, 0.4)),
+    "arma-0.85,0.3": _arma_family((0.85,), (0.3,)),
+    "arma-0.8,-0.5": _arma_family((0.8,), (-0.5,)),
+    "slow-white-0.96-0.8": _slow_white_family(0.96, 0.8),
+    "slow-white-0.99-0.5": _slow_white_family(0.99, 0.5),
+    "arfima-0.25": _arfima_family(0.25),
+    "slow-and-white-dirs-0.97": _slow_and_white_dirs(0.97),
+    "rotating-cov-0.9": _moving_cov(zoo.rotating_cov, 0.9),
+    "resized-cov-0.8": _moving_cov(zoo.resized_cov, 0.8),
+}
+"""Session 25's third set (run with ``--seed 9191``): ten families at parameters neither the
+zoo nor :data:`VARIANTS` uses, first run after the rule they measure was written."""
+
+FOURTH: dict[str, Synthetic] = {
+    "iid": _arma_family(()),
+    "ar1-0.8": _arma_family((0.8,)),
+    "ar2-0.85∠1.0": _arma_family(_ar2(0.85, 1.0)),
+    "ar2-0.95∠0.3": _arma_family(_ar2(0.95, 0.3)),
+    "arma-0.9,0.4": _arma_family((0.9,), (0.4,)),
+    "arma-0.9,-0.8": _arma_family((0.9,), (-0.8,)),
+    "slow-white-0.98-0.7": _slow_white_family(0.98, 0.7),
+    "slow-white-0.96-0.9": _slow_white_family(0.96, 0.9),
+    "slow-white-0.92-0.5": _slow_white_family(0.92, 0.5),
+    "arfima-0.3": _arfima_family(0.3),
+    "slow-and-white-dirs-0.9": _slow_and_white_dirs(0.9),
+    "rotating-cov-0.5": _moving_cov(zoo.rotating_cov, 0.5),
+}
+"""Session 27's fourth set (run with ``--seed 777``): twelve more families at new
+parameters, on which the slow readings' threshold (``rules.SLOW_READING_FIT``) was chosen
+together with the other two."""
+
+SETS = {"variants": VARIANTS, "third": THIRD, "fourth": FOURTH}
+
 EXPECTED = {"small4": "optimism", "large4": "pessimism", "bias1": "bias"}
 
 
@@ -124,14 +159,17 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=60)
     ap.add_argument("--seed", type=int, default=4242)
     ap.add_argument("--slow-errors", default="auto", help="the rule's slow_errors setting")
+    ap.add_argument("--set", choices=tuple(SETS), default="variants", help="the families")
     args = ap.parse_args()
     config = DiagnosisConfig(slow_errors=args.slow_errors)
-    zoo.SYNTHETIC.update(VARIANTS)  # zoo.make finds a family by its name there
+    families = SETS[args.set]
+    zoo.SYNTHETIC.update(families)  # zoo.make finds a family by its name there
     level = DiagnosisConfig().scale_level
     lengths = [int(n) for n in args.lengths.split(",")]
     print(
         f"# Synthetic variants, N = {args.lengths}, R = {args.reps} (R/3 at 2000), seed {args.seed}"
         + ("" if args.slow_errors == "auto" else f", slow_errors {args.slow_errors}")
+        + ("" if args.set == "variants" else f", set {args.set}")
     )
     print()
     print(
@@ -141,7 +179,7 @@ def main() -> None:
     start = time.process_time()
     alarms_all = cells_all = decided_all = cells_decidable = 0
     found_all = dict.fromkeys(EXPECTED, 0)
-    for index, (name, family) in enumerate(VARIANTS.items()):
+    for index, (name, family) in enumerate(families.items()):
         for n in lengths:
             reps = args.reps if n <= 300 else max(1, args.reps // 3)
             ratio = n / family.tau(n)

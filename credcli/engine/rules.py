@@ -203,18 +203,15 @@ def offset_covered(
         None otherwise.
     """
     scale = evidence.scale
-    if (
-        config.slow_errors is SlowErrors.EXCLUDED
-        or evidence.memory_source != "segment"
-        or scale is None
-        or not 0.0 < evidence.mean_level < 1.0
-    ):
+    if config.slow_errors is SlowErrors.EXCLUDED or evidence.memory_source != "segment":
+        return None
+    alone = label is Label.PESSIMISM and not evidence.bias_declined  # no bias found: no upper end
+    if alone and scale is not None and config.slow_errors is not SlowErrors.EXPECTED:
+        return _spread_covered(evidence)  # needs no mean test's level
+    if scale is None or not 0.0 < evidence.mean_level < 1.0:
         return None
     if label is Label.BIAS:
         return _bias_covered(evidence, config.slow_errors)
-    alone = label is Label.PESSIMISM and not evidence.bias_declined  # no bias found: no upper end
-    if alone and config.slow_errors is not SlowErrors.EXPECTED:
-        return _spread_covered(evidence)
     factor = scale.scale_factor
     lows, highs = np.array([scale.scale_factor_low]), np.array([scale.scale_factor_high])
     where = ""
@@ -252,26 +249,33 @@ def _spread_covered(evidence: Evidence) -> str | None:
     segment and f_k the fitted model's process at scale κ, so that the claimed covariance
     is the errors' total and the spread about the mean is κ of it; the mean is then
     x̂ ~ N(0, v(κ)I), v(κ) = 1 − κ + κ s²/κ̂ (s² the model's variance of the mean along x̂
-    at the fitted scale, from the mean test; without a mean test it is not known, and the
-    pessimism stands). An offset too small for a slow part of 1 − κ rejects the reading:
-    the lower tail P(χ²_d <= ‖x̂‖²/v(κ)) is largest at the largest κ the scale test allows,
-    the upper end of κ̂'s interval (at 1 no slow part is needed, and nothing rejects the
-    reading). A p-value of at least :data:`SLOW_READING_FIT` declines the pessimism, at
+    at the fitted scale, from the mean test; where the model's memory leaves a mean test
+    too few degrees of freedom, κ̂τ̂/N of its most persistent direction; without a memory
+    model the pessimism stands). An offset too small for a slow part of 1 − κ rejects the
+    reading: the lower tail P(χ²_d <= ‖x̂‖²/v(κ)) is largest at the largest κ the scale
+    test allows, the upper end of κ̂'s interval (at 1 no slow part is needed, and nothing
+    rejects the reading). A p-value of at least :data:`SLOW_READING_FIT` declines the pessimism, at
     any length, as it declines a short segment's bias. A covariance 4× too large over a
     few hundred independent epochs leaves an offset of about 0.03σ where the reading asks
     for one near 1σ (p about 0.002); measured (docs/measured.md), no 4× too large
     covariance at N/τ >= 30 of the zoo or the three synthetic sets was declined, and
-    false alarms fell 38 → 29 of 1,610 on the zoo and 152 → 129 of 3,220 on
+    false alarms fell 38 → 27 of 1,610 on the zoo and 152 → 123 of 3,220 on
     ``variants.py``. ``SlowErrors.EXPECTED`` reads the directions' intervals at the mean
     test's level instead (:func:`offset_covered`), declining more.
     """
     scale, test = evidence.scale, evidence.mean_test
     factor, high = float(scale.scale_factor), float(scale.scale_factor_high)
     offset_sq = float(scale.bias_mahalanobis) ** 2
-    if test is None or not (factor > 0 and math.isfinite(offset_sq) and not math.isnan(high)):
+    if not (factor > 0 and math.isfinite(offset_sq) and not math.isnan(high)):
         return None
-    t2 = float(test.t2_per_f) * float(test.statistic)
-    mean_var = offset_sq / t2 if t2 > 0 and math.isfinite(t2) else 0.0  # s²
+    if test is not None:
+        t2 = float(test.t2_per_f) * float(test.statistic)
+        mean_var = offset_sq / t2 if t2 > 0 and math.isfinite(t2) else 0.0  # s²
+    elif evidence.memory is not None:  # too few degrees of freedom for a mean test: the
+        # model's variance of the mean, its most persistent direction's, at the fitted scale
+        mean_var = factor * float(np.max(evidence.memory.variance_ratios)) / evidence.n
+    else:
+        return None
     spread = 1.0 - high + high * mean_var / factor  # v(κ) at κ = the interval's upper end
     pvalue = float(special.chdtr(evidence.dim, offset_sq / spread)) if high < 1 else 1.0
     if not pvalue >= SLOW_READING_FIT:

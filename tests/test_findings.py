@@ -674,7 +674,7 @@ def test_a_pessimism_a_slow_error_fits_is_declined():
     here with scipy.stats at the upper end of κ̂'s interval (the mean's variance from the
     mean test, or from the model's longest memory where none ran), below 0.3 and every
     "spread within the claim" one at or above it; at least 15 are
-    declined (the rule before declined none: 45 of these were pessimism, 24 now); slow
+    declined (the rule before declined none: 45 of these were pessimism, 20 now); slow
     errors excluded decline none. Pessimism is named in at most the share the reading allows, 0.3 plus
     the scale's upper tail (0.0127), plus three standard errors (62.5 + 19.7). A
     covariance 4× too large over 300 independent epochs (100 segments) is still pessimism

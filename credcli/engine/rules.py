@@ -15,7 +15,12 @@ from credcli.engine.config import DiagnosisConfig, Label, Question, SlowErrors, 
 from credcli.engine.evidence import Evidence
 from credcli.engine.longmemory import SUPPORT
 from credcli.engine.memory import FORCED_BELOW
-from credcli.engine.scale import DirectionScales, ScaleTest, slow_offset_pvalue
+from credcli.engine.scale import (
+    DirectionScales,
+    ScaleTest,
+    slow_offset_pvalue,
+    slow_spread_pvalue,
+)
 
 
 @dataclass(frozen=True)
@@ -244,40 +249,33 @@ def _spread_covered(evidence: Evidence) -> str | None:
     """Why a pessimism without an offset the mean test finds may be a credible slow error,
     or None.
 
-    The reading is :func:`credcli.engine.scale.slow_offset_pvalue`'s: in the claim's
-    whitened coordinates the errors are s + f_k, s ~ N(0, (1 − κ)I) one value over the
-    segment and f_k the fitted model's process at scale κ, so that the claimed covariance
-    is the errors' total and the spread about the mean is κ of it; the mean is then
-    x̂ ~ N(0, v(κ)I), v(κ) = 1 − κ + κ s²/κ̂ (s² the model's variance of the mean along x̂
-    at the fitted scale, from the mean test; where the model's memory leaves a mean test
-    too few degrees of freedom, κ̂τ̂/N of its most persistent direction; without a memory
-    model the pessimism stands). An offset too small for a slow part of 1 − κ rejects the
-    reading: the lower tail P(χ²_d <= ‖x̂‖²/v(κ)) is largest at the largest κ the scale
-    test allows, the upper end of κ̂'s interval (at 1 no slow part is needed, and nothing
-    rejects the reading). A p-value of at least :data:`SLOW_READING_FIT` declines the pessimism, at
-    any length, as it declines a short segment's bias. A covariance 4× too large over a
-    few hundred independent epochs leaves an offset of about 0.03σ where the reading asks
-    for one near 1σ (p about 0.002); measured (docs/measured.md), no 4× too large
-    covariance at N/τ >= 30 of the zoo or the three synthetic sets was declined, and
-    false alarms fell 38 → 27 of 1,610 on the zoo and 152 → 123 of 3,220 on
-    ``variants.py``. ``SlowErrors.EXPECTED`` reads the directions' intervals at the mean
-    test's level instead (:func:`offset_covered`), declining more.
+    The reading is :func:`credcli.engine.scale.slow_offset_pvalue`'s (a slow part holding
+    1 − κ of the claim, one value over the segment, over the fitted model's process at
+    scale κ), weighed by the lower tail of the offset it draws
+    (:func:`credcli.engine.scale.slow_spread_pvalue`): s², the model's variance of the
+    mean along x̂, comes from the mean test, or, where the model's memory leaves a mean
+    test too few degrees of freedom, is κ̂τ̂/N of its most persistent direction; without
+    a memory model the pessimism stands. A p-value of at least :data:`SLOW_READING_FIT`
+    declines the pessimism, at any length. A covariance 4× too large over a few hundred
+    independent epochs leaves an offset of about 0.03σ where the reading asks for one near
+    1σ (p about 0.002); measured (docs/measured.md), no 4× too large covariance at
+    N/τ >= 30 of the zoo or the three synthetic sets was declined, and false alarms fell
+    38 → 27 of 1,610 on the zoo and 152 → 123 of 3,220 on ``variants.py``.
+    ``SlowErrors.EXPECTED`` reads the directions' intervals at the mean test's level
+    instead (:func:`offset_covered`), declining more.
     """
     scale, test = evidence.scale, evidence.mean_test
     factor, high = float(scale.scale_factor), float(scale.scale_factor_high)
-    offset_sq = float(scale.bias_mahalanobis) ** 2
-    if not (factor > 0 and math.isfinite(offset_sq) and not math.isnan(high)):
-        return None
     if test is not None:
         t2 = float(test.t2_per_f) * float(test.statistic)
+        offset_sq = float(scale.bias_mahalanobis) ** 2
         mean_var = offset_sq / t2 if t2 > 0 and math.isfinite(t2) else 0.0  # s²
     elif evidence.memory is not None:  # too few degrees of freedom for a mean test: the
         # model's variance of the mean, its most persistent direction's, at the fitted scale
         mean_var = factor * float(np.max(evidence.memory.variance_ratios)) / evidence.n
     else:
         return None
-    spread = 1.0 - high + high * mean_var / factor  # v(κ) at κ = the interval's upper end
-    pvalue = float(special.chdtr(evidence.dim, offset_sq / spread)) if high < 1 else 1.0
+    pvalue = slow_spread_pvalue(scale, mean_var, evidence.dim)
     if not pvalue >= SLOW_READING_FIT:
         return None
     return (

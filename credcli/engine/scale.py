@@ -1165,6 +1165,39 @@ FAST_SHARES = np.linspace(0.0, 1.0, 401)[1:]
 :func:`slow_offset_pvalue` takes its supremum (steps of 0.0025)."""
 
 
+def slow_mean_variance(share, mean_var, kappa_hat):
+    """v(κ) = 1 − κ + κ s²/κ̂: the variance of the mean, in σ² of the claim, of errors made
+    of a slow part holding 1 − κ of the claim (one value over the segment) and a fast part
+    of scale κ whose mean varies by s² at the fitted scale κ̂ (the slow reading of
+    :func:`slow_offset_pvalue` and :func:`slow_spread_pvalue`)."""
+    return 1.0 - share + share * mean_var / kappa_hat
+
+
+def slow_spread_pvalue(test: ScaleTest, mean_var: float, d: int) -> float:
+    """The p-value of the reading that a pessimism is credible errors with a slow part: the
+    lower tail P(χ²_d <= ‖x̂‖²/v(κ)) at the upper end κ of κ̂'s interval, where it is
+    largest (:func:`slow_mean_variance`; at an end of 1 or more no slow part is needed,
+    and the p-value is 1). An offset too small for a slow part of 1 − κ rejects the
+    reading; NaN where κ̂ or the offset is not a number to read.
+
+    Parameters
+    ----------
+    test : ScaleTest
+        The segment's scale test (κ̂, its interval, ‖x̂‖ as ``bias_mahalanobis``).
+    mean_var : float
+        s², the fitted model's variance of the mean along x̂ at the fitted scale.
+    d : int
+        The state dimension.
+    """
+    factor, high = float(test.scale_factor), float(test.scale_factor_high)
+    offset_sq = float(test.bias_mahalanobis) ** 2
+    if not (factor > 0 and math.isfinite(offset_sq) and not math.isnan(high)):
+        return math.nan
+    if not high < 1:
+        return 1.0
+    return float(special.chdtr(d, offset_sq / slow_mean_variance(high, mean_var, factor)))
+
+
 def slow_offset_pvalue(test: ScaleTest, mean: MeanTest, d: int) -> tuple[float, float]:
     r"""The p-value of the reading that a segment's offset is a credible error slower than
     the segment, and the fast share κ at which the reading fits best.
@@ -1225,7 +1258,7 @@ def slow_offset_pvalue(test: ScaleTest, mean: MeanTest, d: int) -> tuple[float, 
         upper = np.ones(share.size)
     else:
         upper = _studentized(special.chdtrc(test.dof, kappa_hat * test.dof / share), test.model_dof)
-    spread = 1.0 - share + share * (offset_sq / t2) / kappa_hat
+    spread = slow_mean_variance(share, offset_sq / t2, kappa_hat)
     located = special.chdtrc(d, offset_sq / spread)
     with np.errstate(divide="ignore"):
         combined = special.chdtrc(4, -2.0 * (np.log(upper) + np.log(located)))

@@ -1169,7 +1169,22 @@ def slow_mean_variance(share, mean_var, kappa_hat):
     """v(κ) = 1 − κ + κ s²/κ̂: the variance of the mean, in σ² of the claim, of errors made
     of a slow part holding 1 − κ of the claim (one value over the segment) and a fast part
     of scale κ whose mean varies by s² at the fitted scale κ̂ (the slow reading of
-    :func:`slow_offset_pvalue` and :func:`slow_spread_pvalue`)."""
+    :func:`slow_offset_pvalue` and :func:`slow_spread_pvalue`).
+
+    Parameters
+    ----------
+    share : float or numpy.ndarray
+        κ, the fast part's share of the claim.
+    mean_var : float
+        s², the fitted model's variance of the mean along x̂ at the fitted scale.
+    kappa_hat : float
+        κ̂, the fitted scale.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        v(κ), the shape of ``share``.
+    """
     return 1.0 - share + share * mean_var / kappa_hat
 
 
@@ -1188,6 +1203,11 @@ def slow_spread_pvalue(test: ScaleTest, mean_var: float, d: int) -> float:
         s², the fitted model's variance of the mean along x̂ at the fitted scale.
     d : int
         The state dimension.
+
+    Returns
+    -------
+    float
+        The p-value; 1 where the interval reaches 1, NaN where it cannot be read.
     """
     factor, high = float(test.scale_factor), float(test.scale_factor_high)
     offset_sq = float(test.bias_mahalanobis) ** 2

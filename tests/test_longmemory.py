@@ -341,15 +341,63 @@ def _fractional_draw(k: int, n: int = 300) -> tuple[np.ndarray, np.ndarray]:
 def test_a_bias_must_hold_under_the_long_memory_the_data_do_not_exclude(monkeypatch):
     """ARFIMA(0, 0.3, 0) errors of 300 epochs (the 37th of :func:`_fractional_draw`'s
     stream): AICc prefers a fractional model and BIC does not, and the mean test
-    finds a bias under the sieve's model but not under the fractional one, so the location
-    is untested instead of a bias; without the check the same segment says "bias"."""
+    finds a bias under the sieve's model but not under the fractional one, so no bias is
+    claimed: the location is judged under the fractional model, whose region (0.645σ off
+    zero, reaching 1.42σ) does not exclude the margin √2σ, so it is untested; without the
+    check the same segment says "bias"."""
     errors, cov = _fractional_draw(37)
     checked = diagnose_errors(errors, cov, rng=36)
     assert checked.memory.alternative is not None
-    assert checked.label is Label.CREDIBLE and checked.untested
-    assert checked.reason.startswith("location untested: the mean test finds a bias")
+    assert checked.label is Label.CREDIBLE and checked.untested == (Question.LOCATION,)
+    assert checked.reason.startswith("location inconclusive: the bias is 0.645σ")
+    assert "the mean test finds a bias (p" in checked.reason
+    assert "judged under the latter" in checked.reason
+    assert checked.mean_test.pvalue >= 0.0253  # the fractional model's test, at its level
     monkeypatch.setattr(evidence, "_held_under_alternative", lambda plan, *args: plan)
     assert "bias" in diagnose_errors(errors, cov, rng=36).label.value
+
+
+def _slow_under_white(i: int, shift: float = 0.0, n: int = 300) -> np.ndarray:
+    """The i-th of a seeded stream of slow + white errors, d = 2: an AR(1) part (φ 0.95,
+    10 % of the claim) under white noise, unit total variance per axis, plus ``shift``σ
+    on each axis (the claim: identity covariances)."""
+    phi, white = 0.95, 0.9
+    rng = np.random.default_rng([28, i])
+    z = rng.standard_normal((n + 400, 2)) * math.sqrt((1 - white) * (1 - phi * phi))
+    slow = longmemory.ar_filter(np.array([phi]), z)[400:]
+    return slow + math.sqrt(white) * rng.standard_normal((n, 2)) + shift
+
+
+def test_a_location_the_long_memory_leaves_near_zero_is_judged_under_it(monkeypatch):
+    """The 2nd of :func:`_slow_under_white`'s stream (credible, τ 4.8 epochs, N/τ 62): the
+    sieve finds no memory and its mean test a bias (p 0.006), the fractional alternative
+    (d̂ 0.15) does not; its confidence region, the wider, excludes the margin √2σ, so the
+    location is decided, credible, whichever memory is right, where it was untested
+    before. Without the check the same segment says "bias"."""
+    cov = np.broadcast_to(np.eye(2), (300, 2, 2))
+    errors = _slow_under_white(1)
+    judged = diagnose_errors(errors, cov, rng=1)
+    assert judged.label is Label.CREDIBLE and judged.untested == ()
+    assert "judged under the latter" in judged.reason
+    test = judged.mean_test  # the alternative's: no bias at its level, margin excluded
+    assert test.pvalue > 0.2
+    bound = test.bias_bound(judged.scale.bias_mahalanobis, 0.05 * 0.5)
+    assert bound < rules.bias_margin(2)
+    monkeypatch.setattr(evidence, "_held_under_alternative", lambda plan, *args: plan)
+    assert diagnose_errors(errors, cov, rng=1).label is Label.BIAS
+
+
+def test_a_bias_of_the_margin_is_rarely_called_a_credible_location():
+    """The size of "no bias of the margin" judged under either memory: 30 segments of
+    :func:`_slow_under_white` shifted by 1σ per axis (‖b‖ = √2σ, the margin for d = 2): a
+    credible location is the equivalence claim's error, at most α_L·½ (2.5 %) of them:
+    bounded by 30·0.025 + 3 standard errors, 3."""
+    cov = np.broadcast_to(np.eye(2), (300, 2, 2))
+    wrong = 0
+    for i in range(30):
+        result = diagnose_errors(_slow_under_white(i, 1.0), cov, rng=i)
+        wrong += Question.LOCATION not in result.untested and "bias" not in result.label.value
+    assert wrong <= 3
 
 
 def test_fractional_noise_of_ar_order_zero_is_not_white():
@@ -461,8 +509,8 @@ def test_a_long_memory_within_two_of_aicc_is_an_alternative(monkeypatch):
     errors, cov = _fractional_draw(5, n=50)
     supported = diagnose_errors(errors, cov, rng=36)
     assert supported.memory.alternative is not None
-    assert supported.label is Label.CREDIBLE and supported.untested
-    assert supported.reason.startswith("location untested: the mean test finds a bias")
+    assert supported.label is Label.CREDIBLE and Question.LOCATION in supported.untested
+    assert "the mean test finds a bias (p" in supported.reason
     assert "its AICc within 2 of theirs" in supported.reason
     monkeypatch.setattr(longmemory, "SUPPORT", 0.0)
     preferred_only = diagnose_errors(errors, cov, rng=36)

@@ -109,7 +109,8 @@ class Evidence:
         Errors growing beyond any plausible tuning (calibrated rule).
     bias_declined : bool, default False
         A bias the mean test found under the fitted model and its alternative with more
-        memory does not confirm (the location is then untested).
+        memory does not confirm (the location is then answered under the alternative, or
+        untested).
     """
 
     n: int
@@ -1114,19 +1115,30 @@ def _held_if_white(
 
 
 def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) -> LocationPlan:
-    """``plan``, or the location declined where its mean test finds a bias that the
-    model's alternative with more memory (:attr:`credcli.engine.memory.Memory.alternative`)
-    does not: where the data support a fractional model (its AICc within
-    ``longmemory.SUPPORT`` of the sieve's, no ARMA(p, 1) better by BIC's margin) and BIC
-    does not take it, or an ARMA(p, 1) with more memory than the sieve's, one segment
+    """``plan``, or the location answered under the model's alternative with more memory
+    (:attr:`credcli.engine.memory.Memory.alternative`) where the mean test finds a bias
+    that the alternative does not: where the data support a fractional model (its AICc
+    within ``longmemory.SUPPORT`` of the sieve's, no ARMA(p, 1) better by BIC's margin) and
+    BIC does not take it, or an ARMA(p, 1) with more memory than the sieve's, one segment
     cannot tell the two memories apart, and a mean off by that much is within what the
-    longer memory lets a mean wander."""
+    longer memory lets a mean wander.
+
+    A bias is then not claimed, and "no bias of the margin's size"
+    (:func:`credcli.engine.rules.inconclusive_location`) is claimed only as the
+    alternative's mean test supports it: its confidence region, about the same centre and
+    at the same level, is the wider of the two (the alternative has more memory in every
+    direction), so where it excludes the margin so does the fitted model's, and the claim
+    holds whichever memory is right, as the scale's interval covers both
+    (:func:`directions_under_either`). The ELT, whose sign blocks the longer memory would
+    lengthen, does not run. Where the alternative's region is not the wider one, or its
+    test has too few degrees of freedom, the location is untested."""
     alternative = memory.alternative
     test = plan.mean_test
     if alternative is None or test is None or not test.pvalue < plan.mean_level:
         return plan
     other, _ = batches.memory_mean_test(gls, alternative, _read(inverse))
-    if other.dof[1] >= MIN_MEAN_DOF and other.pvalue < plan.mean_level:
+    usable = other.dof[1] >= MIN_MEAN_DOF
+    if usable and other.pvalue < plan.mean_level:
         return plan
     support = (
         f"that fits them almost as well (its AICc within {SUPPORT:g} of theirs, not taken as "
@@ -1134,11 +1146,21 @@ def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) ->
         if memory.alternative_fraction > 0
         else f"that fits them better (its AICc below theirs, within {SUPPORT:g} of the best)"
     )
+    found = (
+        f"the mean test finds a bias (p {test.pvalue:.2g}) under the errors' short-memory "
+        f"model, but not under {memory.alternative_name} {support}"
+    )
+    radius = other.bias_bound(0.0, plan.mean_level)  # the region's reach about its centre
+    if usable and radius >= test.bias_bound(0.0, plan.mean_level):
+        reason = (
+            f"{found} (p {other.pvalue:.2g}); one segment cannot tell the two apart, so the "
+            "location is judged under the latter, whose wider confidence region holds "
+            "under either (ELT not run)"
+        )
+        return LocationPlan(plan.block, other, plan.mean_level, None, reason, bias_declined=True)
     reason = (
-        f"location untested: the mean test finds a bias (p {test.pvalue:.2g}) under the "
-        f"errors' short-memory model, but not under {memory.alternative_name} "
-        f"{support}; one segment cannot tell the two apart (a longer segment, or more runs, "
-        "can)"
+        f"location untested: {found}; one segment cannot tell the two apart (a longer "
+        "segment, or more runs, can)"
     )
     return LocationPlan(plan.block, None, plan.mean_level, None, reason, bias_declined=True)
 

@@ -18,6 +18,7 @@ from credcli.engine.memory import FORCED_BELOW
 from credcli.engine.scale import (
     DirectionScales,
     ScaleTest,
+    offset_mean_variance,
     slow_offset_pvalue,
     slow_spread_pvalue,
 )
@@ -267,9 +268,8 @@ def _spread_covered(evidence: Evidence) -> str | None:
     scale, test = evidence.scale, evidence.mean_test
     factor, high = float(scale.scale_factor), float(scale.scale_factor_high)
     if test is not None:
-        t2 = float(test.t2_per_f) * float(test.statistic)
-        offset_sq = float(scale.bias_mahalanobis) ** 2
-        mean_var = offset_sq / t2 if t2 > 0 and math.isfinite(t2) else 0.0  # s²
+        mean_var = offset_mean_variance(scale, test)  # s²; none to read: no fast part's
+        mean_var = 0.0 if math.isnan(mean_var) else mean_var
     elif evidence.memory is not None:  # too few degrees of freedom for a mean test: the
         # model's variance of the mean, its most persistent direction's, at the fitted scale
         mean_var = factor * float(np.max(evidence.memory.variance_ratios)) / evidence.n

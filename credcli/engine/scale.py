@@ -1188,6 +1188,29 @@ def slow_mean_variance(share, mean_var, kappa_hat):
     return 1.0 - share + share * mean_var / kappa_hat
 
 
+def offset_mean_variance(test: ScaleTest, mean: MeanTest) -> float:
+    """s² = ‖x̂‖²/T²: the fitted model's variance of the mean along x̂, at the fitted
+    scale, read from the mean test (T² = ``t2_per_f`` · F), as the slow readings use it
+    (:func:`slow_mean_variance`).
+
+    Parameters
+    ----------
+    test : ScaleTest
+        The segment's scale test (‖x̂‖ as ``bias_mahalanobis``).
+    mean : MeanTest
+        The segment's mean test.
+
+    Returns
+    -------
+    float
+        s²; NaN where T² is not positive and finite.
+    """
+    t2 = float(mean.t2_per_f) * float(mean.statistic)
+    if not (t2 > 0 and math.isfinite(t2)):
+        return math.nan
+    return float(test.bias_mahalanobis) ** 2 / t2
+
+
 def slow_spread_pvalue(test: ScaleTest, mean_var: float, d: int) -> float:
     """The p-value of the reading that a pessimism is credible errors with a slow part: the
     lower tail P(χ²_d <= ‖x̂‖²/v(κ)) at the upper end κ of κ̂'s interval, where it is
@@ -1269,16 +1292,16 @@ def slow_offset_pvalue(test: ScaleTest, mean: MeanTest, d: int) -> tuple[float, 
     Technometrics 24(4), 1982 (a union of nulls rejected where each is).
     """
     offset_sq = float(test.bias_mahalanobis) ** 2
-    t2 = float(mean.t2_per_f) * float(mean.statistic)
+    mean_var = offset_mean_variance(test, mean)
     kappa_hat = float(test.scale_factor)
-    if not (t2 > 0 and math.isfinite(t2) and kappa_hat > 0 and math.isfinite(kappa_hat)):
+    if math.isnan(mean_var) or not (kappa_hat > 0 and math.isfinite(kappa_hat)):
         return math.nan, math.nan
     share = FAST_SHARES
     if math.isnan(test.pvalue_upper):
         upper = np.ones(share.size)
     else:
         upper = _studentized(special.chdtrc(test.dof, kappa_hat * test.dof / share), test.model_dof)
-    spread = slow_mean_variance(share, offset_sq / t2, kappa_hat)
+    spread = slow_mean_variance(share, mean_var, kappa_hat)
     located = special.chdtrc(d, offset_sq / spread)
     with np.errstate(divide="ignore"):
         combined = special.chdtrc(4, -2.0 * (np.log(upper) + np.log(located)))

@@ -72,7 +72,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
     """Worker: diagnose a chunk of segments of the log ``log_id`` (top level, so processes
     can import it)."""
     log_id, items, config, seed, innovations, runs, blocks = task
-    longest = max(errors.shape[0] for _, _, _, errors, *_ in items)  # (an item: _item)
+    longest = max((errors.shape[0] for _, _, _, errors, *_ in items), default=0)  # (an item: _item)
     allocator_for(longest > EPOCH_CHUNK)
     white_null, level = innovation_config(config) if innovations else (config, None)
     out = []

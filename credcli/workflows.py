@@ -26,6 +26,7 @@ from credcli.report.builders import (
     diagnose_report,
     gate_report,
     simulate_report,
+    streamed_diagnose_report,
     sweep_report,
     uwb_report,
 )
@@ -98,12 +99,18 @@ class Run:
     notes: tuple[str, ...] = ()  # about the figures: the windows whose figures were skipped
 
 
-def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
+def run_diagnose(request: DiagnoseRequest, progress=None, runner=None, write=None) -> Run:
     """Load, segment and diagnose every log of ``request``; return the `diagnose` report
     (and the figures, when asked for). Local worker processes share the segments; the
     output is the same for any number. Monte Carlo runs (``request.monte_carlo``) are
     pooled segment by segment (see :func:`monte_carlo_plan`) and the report adds
     Bar-Shalom's per-epoch ANEES test.
+
+    With ``write``, the report is the document alone
+    (:func:`credcli.report.builders.streamed_diagnose_report`), handed to ``write`` before
+    any segment is diagnosed: the segments are diagnosed as ``write`` writes it, and each
+    record is dropped once written, so that the memory does not grow with the number of
+    segments.
 
     Parameters
     ----------
@@ -114,13 +121,17 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     runner : DaskRunner, optional
         A `credcli.schedule.cluster.DaskRunner`: the segments are diagnosed on a Dask cluster whose
         workers read the logs themselves. None: in this process and local workers.
+    write : callable, optional
+        Called once as ``write(report)`` with the streamed report, to write its JSON
+        (:func:`credcli.report.render.text_pieces`); None: the report is made whole.
 
     Returns
     -------
     Run
-        The report, the figures (when ``request.figures``), the results in report order
-        as ``request.keep`` keeps them (every result with the figures; otherwise each is
-        dropped once the report has read it) and the notes about the figures.
+        The report (with ``write``: the streamed one, already written), the figures (when
+        ``request.figures``), the results in report order as ``request.keep`` keeps them
+        (every result with the figures; otherwise each is dropped once the report has read
+        it) and the notes about the figures.
 
     Raises
     ------
@@ -162,7 +173,11 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None) -> Run:
     verdicts: list = []  # what is kept of each result, when its verdict is
     parts = _keeping_verdicts(results, verdicts) if keep is Kept.VERDICTS else results
     try:
-        report = diagnose_report(parts, config, parameters, logs, show_all, mc)  # reads them
+        if write is None:
+            report = diagnose_report(parts, config, parameters, logs, show_all, mc)  # reads them
+        else:  # the segments are diagnosed as their records are written
+            report = streamed_diagnose_report(parts, parameters, logs, mc)
+            write(report)
     finally:  # an error or Ctrl-C while the report reads them: the workers stop now
         for source in (parts, results):
             if isinstance(source, Generator):

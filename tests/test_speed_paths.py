@@ -701,6 +701,95 @@ def test_an_error_while_the_report_reads_stops_the_diagnosis_at_once(monkeypatch
     assert caught.traceback  # (held until here)
 
 
+def test_a_json_file_is_written_as_its_segments_are_diagnosed(monkeypatch):
+    """Issue 35 item 3: with ``write`` (`diagnose -f json -o FILE`), the writer has each
+    segment's text before the segment after next is diagnosed (the encoder holds one piece
+    back), so that at most two records exist at a time, and nothing is held after; the
+    text is the whole report's, byte for byte, and `--fail-on`'s verdicts are kept."""
+    from credcli import workflows
+    from credcli.engine.diagnosis import SegmentVerdict
+    from credcli.io.schema import LogReading
+    from credcli.report import records, render
+    from credcli.report.formats import OutputFormat
+    from credcli.requests import DiagnoseRequest, Kept
+    from credcli.schedule import plans as scheduling
+
+    diagnose, record = scheduling.diagnose_segment, records.segment_record
+    counts = {"diagnosed": 0, "recorded": 0, "written": 0}
+    ahead: list[int] = []  # segments diagnosed whose text the writer has not had yet
+
+    def diagnosed(e, c, config, seed, name, *rest):
+        counts["diagnosed"] += 1
+        ahead.append(counts["diagnosed"] - counts["written"])
+        return diagnose(e, c, config, seed, name, *rest)
+
+    def recorded(result):
+        counts["recorded"] += 1
+        return record(result)
+
+    monkeypatch.setattr(scheduling, "diagnose_segment", diagnosed)
+    monkeypatch.setattr(records, "segment_record", recorded)
+    log = ROOT / "sample_data" / "estimator_log.csv"
+    held = workflows.run_diagnose(DiagnoseRequest((log,), LogReading(window="20s")))
+    whole = "".join(render.text_pieces(held.report, OutputFormat.JSON))
+    names = [r["segment"] for r in json.loads(whole)["segments"]]
+    assert len(names) >= 5
+    monkeypatch.setattr(render, "TEXT_PIECE", 1)  # a piece as soon as a record's text is made
+    monkeypatch.setattr(render, "TEXT_RECORDS", 1)
+    written: list[str] = []
+
+    def write(report):
+        for piece in render.text_pieces(report, OutputFormat.JSON):
+            counts["written"] += sum(f'"segment": "{n}"' in piece for n in names)
+            written.append(piece)
+
+    for keep in (Kept.NOTHING, Kept.VERDICTS):  # (`--fail-on` keeps the verdicts)
+        counts.update(dict.fromkeys(counts, 0))
+        ahead.clear()
+        written.clear()
+        request = DiagnoseRequest((log,), LogReading(window="20s"), keep=keep)
+        run = workflows.run_diagnose(request, write=write)
+        assert "".join(written) == whole
+        assert counts == dict.fromkeys(counts, len(names))
+        assert ahead[:2] == [1, 2] and max(ahead) == 2  # the one held back, and this one
+        assert list(run.report.document["segments"].parts) == []  # read once, nothing held
+    assert all(isinstance(v, SegmentVerdict) for v in run.results)
+    assert list(run.results) == [r.verdict() for r in held.results]
+
+
+def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_was(tmp_path, capsys):
+    """A later segment's error while `diagnose -f json -o FILE` streams the document (a
+    NEES that overflows) exits 2 with one line naming the segment; the file is as it was,
+    and none beside it is left."""
+    from credcli.cli import main
+
+    rng = np.random.default_rng(4)
+    e = rng.standard_normal((60, 2))
+    e[45, 0] = 1e200
+    frame = pd.DataFrame({"time": np.arange(60) * 0.1, "segment": ["a"] * 30 + ["b"] * 30})
+    frame = frame.assign(truth_0=e[:, 0], truth_1=e[:, 1], est_0=0.0, est_1=0.0)
+    log = tmp_path / "log.csv"
+    frame.assign(cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_csv(log, index=False)
+    out = tmp_path / "out.json"
+    out.write_text("before\n")
+    code = main(["diagnose", str(log), "-f", "json", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "segment 'b'" in err and "overflows" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert out.read_text() == "before\n" and sorted(tmp_path.iterdir()) == [log, out]
+    out.unlink()
+    assert main(["diagnose", str(log), "-f", "json", "-o", str(out)]) == 2
+    assert not out.exists()
+
+
+def test_the_streamed_json_of_no_records_is_an_empty_list():
+    """Texts of no record (a streamed document whose results are none) write ``[]``, as
+    the encoder writes an empty list."""
+    document = {"version": 1, "segments": [], "tail": {"a": 1}}
+    expected = json.JSONEncoder(indent=2).encode(document)
+    assert "".join(jsontext.iterencode(document, "segments", 1, iter([[], []]))) == expected
+
+
 def test_the_report_lists_ten_findings_and_correlated_innovations_then_counts_the_rest():
     """The notes read a part at a time (issue 35 item 3) list at most ten findings and ten
     segments with correlated innovations, in order, then say how many more there were;

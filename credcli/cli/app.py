@@ -28,6 +28,7 @@ from credcli.cli.emit import (
     guard_outputs,
     print_notes,
     stderr_console,
+    streamed_writer,
     write_html,
     write_plots,
 )
@@ -165,10 +166,12 @@ def diagnose(
         figures=figures,
         keep=Kept.NOTHING if conditions is None else Kept.VERDICTS,  # --fail-on reads them
     )
+    write = streamed_writer(out, plots, report_file, ci, inputs)  # JSON as it is diagnosed
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
-        result = run_diagnose(request, bar, runner)
-    title = "credcli diagnose: " + ", ".join(p.name for p in logs)
-    emit_run(result, out, plots, report_file, title, logs, inputs, keep)
+        result = run_diagnose(request, bar, runner, write)
+    if write is None:
+        title = "credcli diagnose: " + ", ".join(p.name for p in logs)
+        emit_run(result, out, plots, report_file, title, logs, inputs, keep)
     passed = emit_fail_on(result, conditions, ci, inputs)
     return 0 if passed else 1
 

@@ -443,6 +443,49 @@ def emit_run(
         write_html(report_file, title, run, sources, inputs)
 
 
+def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, inputs):
+    """How `diagnose` writes a JSON file while its segments are diagnosed, or None where the
+    whole report is needed first.
+
+    The JSON to a regular file (``-f json -o FILE``) is written as the results arrive
+    (:func:`credcli.workflows.run_diagnose`'s ``write``), so that its memory does not grow
+    with the number of segments; the file is complete or absent, as always
+    (:func:`credcli.io.files.write_atomic`). The tables and their notes, the figures
+    (``--plots``, ``--report``) and ``--summary`` read every result, and a device or FIFO
+    would show half a document if a later segment failed: they get the whole report.
+
+    Parameters
+    ----------
+    out : OutputOptions
+        ``--format`` and ``--output``.
+    plots, report_file : Path or None
+        ``--plots`` and ``--report``.
+    ci : VerdictOptions
+        ``--summary`` among them.
+    inputs : iterable of Path
+        The command's input files, which the output may not overwrite.
+
+    Returns
+    -------
+    callable or None
+        ``write(report)``: the reading notes on stderr, then the document to the file, then
+        "wrote FILE" (:func:`emit`); None.
+    """
+    from credcli.io.streams import is_stream
+
+    output = out.output
+    if out.fmt is not OutputFormat.JSON or output is None or is_stream(output):
+        return None
+    if plots is not None or report_file is not None or ci.summary is not None:
+        return None
+
+    def write(report) -> None:
+        print_notes(report)
+        emit(report, out.fmt, output, inputs=inputs)
+
+    return write
+
+
 def fail_on_conditions(ci):
     """The --fail-on conditions (None without --fail-on), checked before any work.
 

@@ -32,6 +32,7 @@ from credcli.report.records import (
     WHITENESS_COLUMN,
     RecordBatch,
     Records,
+    StreamedRecords,
     accuracy_columns,
     accuracy_row,
     anchor_record,
@@ -158,6 +159,39 @@ def diagnose_report(
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
     document = diagnose_document(parameters, list(logs.values()), records, mc_record)
     return Report(tables, document, lines)
+
+
+def streamed_diagnose_report(
+    results: Iterable,
+    parameters: dict,
+    logs: Mapping[LogId, LogSummary],
+    monte_carlo: MonteCarlo | None = None,
+) -> Report:
+    """The `credcli diagnose` document alone, its segments' records made as a writer reads
+    them (:class:`~credcli.report.records.StreamedRecords`): written as JSON, it is the
+    document :func:`diagnose_report` makes of the same results, byte for byte, while no
+    more than the record being written is held. It has no tables and no notes (the JSON
+    has neither), and it can be written once.
+
+    Parameters
+    ----------
+    results : SegmentResults, or iterable of SegmentDiagnosis and ShortSegments
+        The diagnosed segments, in report order; read only as the document is written.
+    parameters : dict
+        The document's ``parameters``.
+    logs : Mapping of LogId to LogSummary
+        Each log's summary by its id, in order (the document's ``logs``).
+    monte_carlo : MonteCarlo, optional
+        The per-epoch ANEES test of Monte Carlo runs (the document's ``monte_carlo``).
+
+    Returns
+    -------
+    Report
+        No tables, no notes, and the document.
+    """
+    entries = [log_record(summary) for summary in logs.values()]
+    mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
+    return Report([], diagnose_document(parameters, entries, StreamedRecords(results), mc_record))
 
 
 def _monte_carlo_line(mc: MonteCarlo) -> str:

@@ -260,7 +260,8 @@ def iterencode(
         first record boundary past it, so it may be longer).
     texts : iterable of list of str, optional
         The streamed list's items' texts (each as :func:`encode` writes it at level 2), in
-        lists of consecutive items, when the caller makes them (:func:`encode_rows`).
+        lists of consecutive items, when the caller makes them (:func:`encode_rows`); the
+        streamed value is then not read, and texts of no item write ``[]``.
 
     Yields
     ------
@@ -297,7 +298,8 @@ def iterencode(
         else:
             out.append(head + "[")
             chunks = texts if texts is not None else ([encode(item, 2)] for item in value)
-            separator, before = ",\n" + INDENT * 2, "\n" + INDENT * 2
+            separator, first = ",\n" + INDENT * 2, "\n" + INDENT * 2
+            before = first
             for chunk in chunks:
                 if not chunk:
                     continue
@@ -308,7 +310,10 @@ def iterencode(
                 if size >= piece:
                     yield "".join(out)
                     out, size = [], 0
-            out.append(inner + "]")
+            if before is first:  # texts of no item (streamed ones): the empty list
+                out[-1] = head + "[]"
+            else:
+                out.append(inner + "]")
         if size >= piece:
             yield "".join(out)
             out, size = [], 0

@@ -800,12 +800,34 @@ def segment_records(results) -> Records:
         Their records.
     """
     parts = results.parts if isinstance(results, SegmentResults) else tuple(results)
-    return Records(
-        tuple(
-            RecordBatch(part) if isinstance(part, ShortSegments) else segment_record(part)
-            for part in parts
-        )
-    )
+    return Records(tuple(_record_part(part) for part in parts))
+
+
+def _record_part(part):
+    """The record of a SegmentDiagnosis, or a run of segments too short for a verdict as
+    one :class:`RecordBatch`."""
+    return RecordBatch(part) if isinstance(part, ShortSegments) else segment_record(part)
+
+
+class StreamedRecords:
+    """The records of results made as the results arrive and read once: a document written
+    while its segments are diagnosed holds a record only until it is written, so that its
+    memory does not grow with the number of segments.
+
+    ``parts`` is an iterator of the parts :class:`Records` holds (a dict per
+    SegmentDiagnosis, a :class:`RecordBatch` per run of segments too short for a verdict),
+    each made when the writer asks for it; a second reading finds none left.
+
+    Parameters
+    ----------
+    results : SegmentResults or iterable of SegmentDiagnosis and ShortSegments
+        The results, in report order: typically a generator that diagnoses them as it is
+        read.
+    """
+
+    def __init__(self, results) -> None:
+        source = results.parts if isinstance(results, SegmentResults) else results
+        self.parts: Iterator = map(_record_part, source)
 
 
 def log_record(summary) -> dict:
@@ -870,7 +892,10 @@ a time (:func:`credcli.report.render.text_pieces`)."""
 
 
 def diagnose_document(
-    parameters: dict, logs: list[dict], segments: Records, monte_carlo: dict | None = None
+    parameters: dict,
+    logs: list[dict],
+    segments: Records | StreamedRecords,
+    monte_carlo: dict | None = None,
 ) -> dict:
     """The JSON document of `credcli diagnose`.
 
@@ -880,8 +905,9 @@ def diagnose_document(
         The run's settings (:func:`diagnose_parameters`).
     logs : list of dict
         Each log's entry (:func:`log_record`), in order.
-    segments : Records
-        The segments' records (:func:`segment_records`).
+    segments : Records or StreamedRecords
+        The segments' records (:func:`segment_records`), or their records as a writer reads
+        them.
     monte_carlo : dict, optional
         The per-epoch ANEES test (:func:`monte_carlo_record`); None: none.
 

@@ -21,7 +21,7 @@ from credcli.report.formats import (  # noqa: F401 (OutputFormat, PVALUE_FLOOR r
     PVALUE_FLOOR,
     OutputFormat,
 )
-from credcli.report.records import SEGMENTS, RecordBatch, RecordBlock, Records
+from credcli.report.records import SEGMENTS, RecordBatch, RecordBlock, Records, StreamedRecords
 from credcli.report.tables import Report, Table
 
 
@@ -263,7 +263,7 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
         for key, value in report.document.items()
     }
     records = document.get(SEGMENTS)
-    texts = _record_texts(records) if isinstance(records, Records) else None
+    texts = _record_texts(records) if isinstance(records, (Records, StreamedRecords)) else None
     pieces = jsontext.iterencode(document, SEGMENTS, TEXT_PIECE, texts)
     last = next(pieces)
     for piece in pieces:
@@ -271,6 +271,9 @@ def text_pieces(report: Report, fmt: OutputFormat, width: int = 160) -> Iterator
         last = piece
     yield last + "\n"
 
+
+TEXT_RECORDS = 64
+"""Records whose JSON texts are handed to the encoder together (:func:`_record_texts`)."""
 
 BATCH_ROWS = 4096
 """Records of a batch (:class:`credcli.report.records.RecordBatch`) written at a time: the
@@ -284,15 +287,16 @@ def _batch_chunks(batch: RecordBatch) -> Iterator[tuple[dict, int]]:
         yield batch.columns(start, stop), stop - start
 
 
-def _record_texts(records: Records) -> Iterator[list[str]]:
+def _record_texts(records: Records | StreamedRecords) -> Iterator[list[str]]:
     """The records' JSON texts at level 2 in lists of consecutive records, a batch's from
-    one template (:func:`credcli.report.jsontext.encode_rows`)."""
+    one template (:func:`credcli.report.jsontext.encode_rows`); streamed records are made
+    as their texts are asked for."""
     singles: list[str] = []
     for part in records.parts:
         if not isinstance(part, RecordBatch):
             for record in part if isinstance(part, RecordBlock) else (part,):
                 singles.append(jsontext.encode(record, 2))
-                if len(singles) >= 64:
+                if len(singles) >= TEXT_RECORDS:
                     yield singles
                     singles = []
             continue

@@ -122,8 +122,8 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None, write=Non
         A `credcli.schedule.cluster.DaskRunner`: the segments are diagnosed on a Dask cluster whose
         workers read the logs themselves. None: in this process and local workers.
     write : callable, optional
-        Called once as ``write(report)`` with the streamed report, to write its JSON
-        (:func:`credcli.report.render.text_pieces`); None: the report is made whole.
+        Called once as ``write(report)`` with the streamed report, to write its JSON or
+        CSV (:func:`credcli.report.render.text_pieces`); None: the report is made whole.
 
     Returns
     -------
@@ -176,7 +176,10 @@ def run_diagnose(request: DiagnoseRequest, progress=None, runner=None, write=Non
         if write is None:
             report = diagnose_report(parts, config, parameters, logs, show_all, mc)  # reads them
         else:  # the segments are diagnosed as their records are written
-            report = streamed_diagnose_report(parts, parameters, logs, mc)
+            innovations = reading.options.innovations
+            report = streamed_diagnose_report(
+                parts, config, parameters, logs, show_all, innovations, mc
+            )
             write(report)
     finally:  # an error or Ctrl-C while the report reads them: the workers stop now
         for source in (parts, results):

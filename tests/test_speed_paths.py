@@ -782,6 +782,59 @@ def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_wa
     assert not out.exists()
 
 
+def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(tmp_path):
+    """`diagnose` streams ``-f json -o FILE`` always and ``-f csv -o FILE`` where the
+    table's columns are known before any result (one log, not of innovations, not Monte
+    Carlo runs); the screen's tables, other formats, figures, ``--summary``, standard
+    output and a device get the whole report."""
+    from credcli.cli.emit import streamed_writer
+    from credcli.cli.options import OutputOptions, VerdictOptions
+    from credcli.io.schema import LogReading, ReadOptions
+    from credcli.report.formats import OutputFormat
+    from credcli.requests import DiagnoseRequest
+
+    one = DiagnoseRequest((tmp_path / "a.csv",))
+    two = DiagnoseRequest((tmp_path / "a.csv", tmp_path / "b.csv"))
+    innovations = DiagnoseRequest(one.logs, LogReading(options=ReadOptions(innovations=True)))
+    pooled = DiagnoseRequest(two.logs, monte_carlo=True)
+    file, none = tmp_path / "out", VerdictOptions()
+
+    def streams(fmt, request=one, output=file, plots=None, report=None, ci=none):
+        out = OutputOptions(fmt=fmt, output=output)
+        return streamed_writer(out, plots, report, ci, (), request) is not None
+
+    assert streams(OutputFormat.JSON) and streams(OutputFormat.CSV)
+    for request in (two, innovations, pooled):
+        assert streams(OutputFormat.JSON, request) and not streams(OutputFormat.CSV, request)
+    assert not streams(OutputFormat.TABLE) and not streams(OutputFormat.MARKDOWN)
+    assert not streams(OutputFormat.JSON, output=None)
+    assert not streams(OutputFormat.JSON, output=Path("/dev/null"))
+    assert not streams(OutputFormat.JSON, plots=tmp_path / "plots")
+    assert not streams(OutputFormat.JSON, report=tmp_path / "r.html")
+    assert not streams(OutputFormat.CSV, ci=VerdictOptions(summary=tmp_path / "s.md"))
+
+
+@pytest.mark.parametrize("fmt", ["json", "csv"])
+def test_a_streamed_file_is_the_whole_reports_text(tmp_path, capsys, fmt):
+    """The JSON and CSV files written as the segments are diagnosed are, byte for byte, the
+    text of the whole report (standard output), segments too short for a verdict (one
+    record batch) and one-segment runs among them."""
+    from credcli.cli import main
+
+    rng = np.random.default_rng(8)
+    names = [*["a"] * 40, "s0", "s1", *["b"] * 30, *["c"] * 50, "s2", *["d"] * 25]
+    e = rng.standard_normal((len(names), 2)) + np.where(np.array(names) == "c", 0.8, 0.0)[:, None]
+    frame = pd.DataFrame({"time": np.arange(len(names)) * 0.1, "segment": names})
+    frame = frame.assign(truth_0=e[:, 0], truth_1=e[:, 1], est_0=0.0, est_1=0.0)
+    log = tmp_path / "log.csv"
+    frame.assign(cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_csv(log, index=False)
+    out = tmp_path / f"out.{fmt}"
+    assert main(["diagnose", str(log), "-f", fmt]) == 0
+    whole = capsys.readouterr().out
+    assert main(["diagnose", str(log), "-f", fmt, "-o", str(out)]) == 0
+    assert out.read_bytes() == whole.encode() and whole.count("s0") >= 1
+
+
 def test_the_streamed_json_of_no_records_is_an_empty_list():
     """Texts of no record (a streamed document whose results are none) write ``[]``, as
     the encoder writes an empty list."""

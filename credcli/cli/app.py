@@ -166,7 +166,7 @@ def diagnose(
         figures=figures,
         keep=Kept.NOTHING if conditions is None else Kept.VERDICTS,  # --fail-on reads them
     )
-    write = streamed_writer(out, plots, report_file, ci, inputs)  # JSON as it is diagnosed
+    write = streamed_writer(out, plots, report_file, ci, inputs, request)  # as it is diagnosed
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner, write)
     if write is None:

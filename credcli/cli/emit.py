@@ -443,16 +443,18 @@ def emit_run(
         write_html(report_file, title, run, sources, inputs)
 
 
-def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, inputs):
-    """How `diagnose` writes a JSON file while its segments are diagnosed, or None where the
-    whole report is needed first.
+def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, inputs, request):
+    """How `diagnose` writes its JSON or CSV file while its segments are diagnosed, or None
+    where the whole report is needed first.
 
-    The JSON to a regular file (``-f json -o FILE``) is written as the results arrive
-    (:func:`credcli.workflows.run_diagnose`'s ``write``), so that its memory does not grow
-    with the number of segments; the file is complete or absent, as always
-    (:func:`credcli.io.files.write_atomic`). The tables and their notes, the figures
-    (``--plots``, ``--report``) and ``--summary`` read every result, and a device or FIFO
-    would show half a document if a later segment failed: they get the whole report.
+    ``-f json -o FILE``, and ``-f csv -o FILE`` where the table's columns are known before
+    any result (one log, not of innovations, not Monte Carlo runs:
+    :func:`credcli.report.builders.columns_known_before_results`), are written as the
+    results arrive (:func:`credcli.workflows.run_diagnose`'s ``write``), so that the memory
+    does not grow with the number of segments; the file is complete or absent, as always
+    (:func:`credcli.io.files.write_atomic`). The tables on the screen and their notes, the
+    figures (``--plots``, ``--report``) and ``--summary`` read every result, and a device or
+    FIFO would show half a document if a later segment failed: they get the whole report.
 
     Parameters
     ----------
@@ -464,19 +466,26 @@ def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, input
         ``--summary`` among them.
     inputs : iterable of Path
         The command's input files, which the output may not overwrite.
+    request : DiagnoseRequest
+        The run's logs and settings.
 
     Returns
     -------
     callable or None
-        ``write(report)``: the reading notes on stderr, then the document to the file, then
+        ``write(report)``: the reading notes on stderr, then the report to the file, then
         "wrote FILE" (:func:`emit`); None.
     """
     from credcli.io.streams import is_stream
+    from credcli.report.builders import columns_known_before_results
 
     output = out.output
-    if out.fmt is not OutputFormat.JSON or output is None or is_stream(output):
+    if output is None or is_stream(output):
         return None
     if plots is not None or report_file is not None or ci.summary is not None:
+        return None
+    innovations = request.reading.options.innovations
+    known = columns_known_before_results(len(request.logs), innovations, request.monte_carlo)
+    if not (out.fmt is OutputFormat.JSON or (out.fmt is OutputFormat.CSV and known)):
         return None
 
     def write(report) -> None:

@@ -161,37 +161,77 @@ def diagnose_report(
     return Report(tables, document, lines)
 
 
+def columns_known_before_results(logs: int, innovations: bool, monte_carlo: bool) -> bool:
+    """Whether the segment table's columns are known before any segment is diagnosed: for
+    one log (several add the log's column and a table of the logs, counted from the
+    results), not of innovations (a whiteness column appears where a segment has that
+    test) and not pooled Monte Carlo runs.
+
+    Parameters
+    ----------
+    logs : int
+        The logs given.
+    innovations : bool
+        The logs hold innovations.
+    monte_carlo : bool
+        The logs are Monte Carlo runs, pooled.
+
+    Returns
+    -------
+    bool
+        True where :func:`streamed_diagnose_report` has the CSV's table.
+    """
+    return logs == 1 and not innovations and not monte_carlo
+
+
 def streamed_diagnose_report(
     results: Iterable,
+    config: DiagnosisConfig,
     parameters: dict,
     logs: Mapping[LogId, LogSummary],
+    show_all: bool,
+    innovations: bool = False,
     monte_carlo: MonteCarlo | None = None,
 ) -> Report:
-    """The `credcli diagnose` document alone, its segments' records made as a writer reads
-    them (:class:`~credcli.report.records.StreamedRecords`): written as JSON, it is the
-    document :func:`diagnose_report` makes of the same results, byte for byte, while no
-    more than the record being written is held. It has no tables and no notes (the JSON
-    has neither), and it can be written once.
+    """The `credcli diagnose` report as it can be written while its segments are
+    diagnosed: the records are made as a writer reads them
+    (:class:`~credcli.report.records.StreamedRecords`), so that no more than the record
+    being written is held. Written as JSON, and as CSV where it has a table, it is what
+    :func:`diagnose_report` makes of the same results, byte for byte. It has no notes
+    (neither format has them), the segment table only where its columns are known before
+    any result (:func:`columns_known_before_results`), and it can be written once.
 
     Parameters
     ----------
     results : SegmentResults, or iterable of SegmentDiagnosis and ShortSegments
-        The diagnosed segments, in report order; read only as the document is written.
+        The diagnosed segments, in report order; read only as the report is written.
+    config : DiagnosisConfig
+        The rule the results are decided with (the table's caption).
     parameters : dict
         The document's ``parameters``.
     logs : Mapping of LogId to LogSummary
         Each log's summary by its id, in order (the document's ``logs``).
+    show_all : bool
+        Every metric's column, not only the main ones.
+    innovations : bool, default False
+        The logs hold innovations.
     monte_carlo : MonteCarlo, optional
         The per-epoch ANEES test of Monte Carlo runs (the document's ``monte_carlo``).
 
     Returns
     -------
     Report
-        No tables, no notes, and the document.
+        The segment table or none, no notes, and the document.
     """
+    records = StreamedRecords(results)
     entries = [log_record(summary) for summary in logs.values()]
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
-    return Report([], diagnose_document(parameters, entries, StreamedRecords(results), mc_record))
+    tables = []
+    if columns_known_before_results(len(logs), innovations, monte_carlo is not None):
+        columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
+        caption = _level_caption(config)
+        tables = [Table("credcli diagnose", columns, records, caption=caption)]
+    return Report(tables, diagnose_document(parameters, entries, records, mc_record))
 
 
 def _monte_carlo_line(mc: MonteCarlo) -> str:

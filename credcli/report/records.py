@@ -829,6 +829,24 @@ class StreamedRecords:
         source = results.parts if isinstance(results, SegmentResults) else results
         self.parts: Iterator = map(_record_part, source)
 
+    def keys(self) -> list[str]:
+        """The keys of the first record, in order; it is made now and stays first in
+        :attr:`parts`. They are every record's keys where no segment has a whiteness test
+        (:func:`segment_record`: each diagnosis has every key, None where it has no value),
+        which is where a streamed report has a table
+        (:func:`credcli.report.builders.columns_known_before_results`).
+
+        Returns
+        -------
+        list of str
+            The keys; none when there are no records.
+        """
+        first = next(self.parts, None)
+        if first is None:
+            return []
+        self.parts = itertools.chain([first], self.parts)
+        return list(first.shared if isinstance(first, RecordBatch) else first)
+
 
 def log_record(summary) -> dict:
     """The report's entry for one log: its path, size, dropped rows, notes and accuracy.

@@ -377,7 +377,9 @@ def _csv_pieces(report: Report) -> Iterator[str]:
     for table in report.tables:
         if len(report.tables) > 1:
             prefix = (table.title,)
-        rows = table.rows.parts if isinstance(table.rows, Records) else table.rows
+        rows = (
+            table.rows.parts if isinstance(table.rows, (Records, StreamedRecords)) else table.rows
+        )
         for row in rows:
             if isinstance(row, RecordBatch) and len(prefix) + len(keys) > 1:  # (the writer
                 # quotes a row's only cell when it is empty)
@@ -403,7 +405,7 @@ def _emptied(buf: io.StringIO) -> str:
 
 def _csv_keys(table: Table) -> list[str]:
     """A single table's CSV holds every key of its records, not only the shown columns."""
-    if isinstance(table.rows, Records):
+    if isinstance(table.rows, (Records, StreamedRecords)):
         return table.rows.keys() or [c.key for c in table.columns]
     keys: list[str] = []
     for row in table.rows:

@@ -785,8 +785,9 @@ def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_wa
 def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(tmp_path):
     """`diagnose` streams ``-f json -o FILE`` always and ``-f csv -o FILE`` where the
     table's columns are known before any result (one log, not of innovations, not Monte
-    Carlo runs); the screen's tables, other formats, figures, ``--summary``, standard
-    output and a device get the whole report."""
+    Carlo runs); the screen's tables, other formats, figures, ``--fail-on`` (whose
+    Markdown summary shows the tables), standard output and a device get the whole
+    report."""
     from credcli.cli.emit import streamed_writer
     from credcli.cli.options import OutputOptions, VerdictOptions
     from credcli.io.schema import LogReading, ReadOptions
@@ -811,7 +812,7 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
     assert not streams(OutputFormat.JSON, output=Path("/dev/null"))
     assert not streams(OutputFormat.JSON, plots=tmp_path / "plots")
     assert not streams(OutputFormat.JSON, report=tmp_path / "r.html")
-    assert not streams(OutputFormat.CSV, ci=VerdictOptions(summary=tmp_path / "s.md"))
+    assert not streams(OutputFormat.JSON, ci=VerdictOptions(fail_on="optimism"))
 
 
 @pytest.mark.parametrize("fmt", ["json", "csv"])

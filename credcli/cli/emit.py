@@ -453,8 +453,10 @@ def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, input
     results arrive (:func:`credcli.workflows.run_diagnose`'s ``write``), so that the memory
     does not grow with the number of segments; the file is complete or absent, as always
     (:func:`credcli.io.files.write_atomic`). The tables on the screen and their notes, the
-    figures (``--plots``, ``--report``) and ``--summary`` read every result, and a device or
-    FIFO would show half a document if a later segment failed: they get the whole report.
+    figures (``--plots``, ``--report``) and ``--fail-on`` (whose Markdown summary, for
+    ``--summary`` and $GITHUB_STEP_SUMMARY, shows the tables) read every result, and a
+    device or FIFO would show half a document if a later segment failed: they get the whole
+    report.
 
     Parameters
     ----------
@@ -463,7 +465,7 @@ def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, input
     plots, report_file : Path or None
         ``--plots`` and ``--report``.
     ci : VerdictOptions
-        ``--summary`` among them.
+        ``--fail-on`` among them.
     inputs : iterable of Path
         The command's input files, which the output may not overwrite.
     request : DiagnoseRequest
@@ -481,7 +483,7 @@ def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, input
     output = out.output
     if output is None or is_stream(output):
         return None
-    if plots is not None or report_file is not None or ci.summary is not None:
+    if plots is not None or report_file is not None or ci.fail_on is not None:
         return None
     innovations = request.reading.options.innovations
     known = columns_known_before_results(len(request.logs), innovations, request.monte_carlo)

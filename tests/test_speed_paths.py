@@ -704,7 +704,7 @@ def test_an_error_while_the_report_reads_stops_the_diagnosis_at_once(monkeypatch
 def test_a_json_file_is_written_as_its_segments_are_diagnosed(monkeypatch):
     """Issue 35 item 3: with ``write`` (`diagnose -f json -o FILE`), the writer has each
     segment's text before the segment after next is diagnosed (the encoder holds one piece
-    back), so that at most two records exist at a time, and nothing is held after; the
+    back), so that at most two are diagnosed ahead of it, and nothing is held after; the
     text is the whole report's, byte for byte, and `--fail-on`'s verdicts are kept."""
     from credcli import workflows
     from credcli.engine.diagnosis import SegmentVerdict

@@ -443,7 +443,7 @@ def run_uwb(request: UwbRequest, progress=None):
     return Run(uwb_report(run, results, checks, parameters), figures, results, notes), run
 
 
-def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report:
+def run_baseline(request: DiagnoseRequest, progress=None, runner=None, write=None) -> Report:
     """`diagnose` on one log, marked as a baseline of the current schema version.
 
     Parameters
@@ -454,15 +454,22 @@ def run_baseline(request: DiagnoseRequest, progress=None, runner=None) -> Report
         Called as ``progress(done, total)`` as segments are diagnosed.
     runner : DaskRunner, optional
         A Dask cluster to diagnose on (see `run_diagnose`).
+    write : callable, optional
+        Called once as ``write(report)`` with the baseline's streamed report, written as
+        its segments are diagnosed (see `run_diagnose`); None: the report is made whole.
 
     Returns
     -------
     Report
         The diagnose report, its document marked ``command: baseline`` with the baseline's
-        kind and schema version.
+        kind and schema version (with ``write``: the streamed one, already written).
     """
-    report = run_diagnose(request, progress, runner).report
-    return dataclasses.replace(report, document=baseline_document(report.document))
+
+    def marked(report: Report) -> Report:
+        return dataclasses.replace(report, document=baseline_document(report.document))
+
+    streamed = None if write is None else lambda report: write(marked(report))
+    return marked(run_diagnose(request, progress, runner, streamed).report)
 
 
 @dataclass(frozen=True)

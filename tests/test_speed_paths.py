@@ -819,7 +819,8 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
 def test_a_streamed_file_is_the_whole_reports_text(tmp_path, capsys, fmt):
     """The JSON and CSV files written as the segments are diagnosed are, byte for byte, the
     text of the whole report (standard output), segments too short for a verdict (one
-    record batch) among them; with ``--fail-on``, which reads the whole report, too."""
+    record batch) among them; with ``--fail-on``, which reads the whole report, too; and
+    a baseline's file is its standard output's."""
     from credcli.cli import main
 
     rng = np.random.default_rng(8)
@@ -837,6 +838,11 @@ def test_a_streamed_file_is_the_whole_reports_text(tmp_path, capsys, fmt):
     out.unlink()  # --fail-on reads the whole report (its summary's tables): the same file
     assert main(["diagnose", str(log), "-f", fmt, "-o", str(out), "--fail-on", "bias"]) == 1
     assert out.read_bytes() == whole.encode()
+    if fmt == "json":  # a baseline is streamed to its file too
+        assert main(["baseline", str(log)]) == 0
+        whole = capsys.readouterr().out
+        assert main(["baseline", str(log), "-o", str(out)]) == 0
+        assert out.read_bytes() == whole.encode() and '"kind": ' in whole
 
 
 def test_the_streamed_json_of_no_records_is_an_empty_list():

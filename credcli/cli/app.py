@@ -217,10 +217,13 @@ def baseline(
     request = diagnose_request(
         [log_file], config, log, segments, rule, seed, run, keep=Kept.NOTHING
     )
+    out = OutputOptions(fmt=OutputFormat.JSON, output=output)
+    write = streamed_writer(out, None, None, VerdictOptions(), inputs, request)
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
-        recorded = run_baseline(request, bar, runner)
-    print_notes(recorded)
-    emit(recorded, OutputFormat.JSON, output, inputs=inputs)
+        recorded = run_baseline(request, bar, runner, write)
+    if write is None:
+        print_notes(recorded)
+        emit(recorded, OutputFormat.JSON, output, inputs=inputs)
     return 0
 
 

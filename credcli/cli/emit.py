@@ -444,8 +444,8 @@ def emit_run(
 
 
 def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, inputs, request):
-    """How `diagnose` writes its JSON or CSV file while its segments are diagnosed, or None
-    where the whole report is needed first.
+    """How `diagnose` (and `baseline`, whose file is JSON) writes its JSON or CSV file while
+    its segments are diagnosed, or None where the whole report is needed first.
 
     ``-f json -o FILE``, and ``-f csv -o FILE`` where the table's columns are known before
     any result (one log, not of innovations, not Monte Carlo runs:

@@ -705,7 +705,8 @@ def test_a_json_file_is_written_as_its_segments_are_diagnosed(monkeypatch):
     """Issue 35 item 3: with ``write`` (`diagnose -f json -o FILE`), the writer has each
     segment's text before the segment after next is diagnosed (the encoder holds one piece
     back), so that at most two are diagnosed ahead of it, and nothing is held after; the
-    text is the whole report's, byte for byte, and `--fail-on`'s verdicts are kept."""
+    text is the whole report's, byte for byte, and the verdicts are kept where the request
+    asks for them (``Kept.VERDICTS``)."""
     from credcli import workflows
     from credcli.engine.diagnosis import SegmentVerdict
     from credcli.io.schema import LogReading
@@ -743,7 +744,7 @@ def test_a_json_file_is_written_as_its_segments_are_diagnosed(monkeypatch):
             counts["written"] += sum(f'"segment": "{n}"' in piece for n in names)
             written.append(piece)
 
-    for keep in (Kept.NOTHING, Kept.VERDICTS):  # (`--fail-on` keeps the verdicts)
+    for keep in (Kept.NOTHING, Kept.VERDICTS):
         counts.update(dict.fromkeys(counts, 0))
         ahead.clear()
         written.clear()
@@ -797,7 +798,7 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
     one = DiagnoseRequest((tmp_path / "a.csv",))
     two = DiagnoseRequest((tmp_path / "a.csv", tmp_path / "b.csv"))
     innovations = DiagnoseRequest(one.logs, LogReading(options=ReadOptions(innovations=True)))
-    pooled = DiagnoseRequest(two.logs, monte_carlo=True)
+    pooled = DiagnoseRequest(one.logs, monte_carlo=True)
     file, none = tmp_path / "out", VerdictOptions()
 
     def streams(fmt, request=one, output=file, plots=None, report=None, ci=none):

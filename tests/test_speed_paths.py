@@ -790,7 +790,6 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
     Markdown summary shows the tables), standard output and a device get the whole
     report."""
     from credcli.cli.emit import streamed_writer
-    from credcli.cli.options import OutputOptions, VerdictOptions
     from credcli.io.schema import LogReading, ReadOptions
     from credcli.report.formats import OutputFormat
     from credcli.requests import DiagnoseRequest
@@ -799,11 +798,9 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
     two = DiagnoseRequest((tmp_path / "a.csv", tmp_path / "b.csv"))
     innovations = DiagnoseRequest(one.logs, LogReading(options=ReadOptions(innovations=True)))
     pooled = DiagnoseRequest(one.logs, monte_carlo=True)
-    file, none = tmp_path / "out", VerdictOptions()
 
-    def streams(fmt, request=one, output=file, plots=None, report=None, ci=none):
-        out = OutputOptions(fmt=fmt, output=output)
-        return streamed_writer(out, plots, report, ci, (), request) is not None
+    def streams(fmt, request=one, output=tmp_path / "out", whole=False):
+        return streamed_writer(fmt, output, (), request, whole) is not None
 
     assert streams(OutputFormat.JSON) and streams(OutputFormat.CSV)
     for request in (two, innovations, pooled):
@@ -811,9 +808,7 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
     assert not streams(OutputFormat.TABLE) and not streams(OutputFormat.MARKDOWN)
     assert not streams(OutputFormat.JSON, output=None)
     assert not streams(OutputFormat.JSON, output=Path("/dev/null"))
-    assert not streams(OutputFormat.JSON, plots=tmp_path / "plots")
-    assert not streams(OutputFormat.JSON, report=tmp_path / "r.html")
-    assert not streams(OutputFormat.JSON, ci=VerdictOptions(fail_on="optimism"))
+    assert not streams(OutputFormat.JSON, whole=True)  # figures, --fail-on
 
 
 @pytest.mark.parametrize("fmt", ["json", "csv"])

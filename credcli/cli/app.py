@@ -166,7 +166,8 @@ def diagnose(
         figures=figures,
         keep=Kept.NOTHING if conditions is None else Kept.VERDICTS,  # --fail-on reads them
     )
-    write = streamed_writer(out, plots, report_file, ci, inputs, request)  # as it is diagnosed
+    whole = plots is not None or report_file is not None or conditions is not None
+    write = streamed_writer(out.fmt, out.output, inputs, request, whole)  # as it is diagnosed
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner, write)
     if write is None:
@@ -217,8 +218,7 @@ def baseline(
     request = diagnose_request(
         [log_file], config, log, segments, rule, seed, run, keep=Kept.NOTHING
     )
-    out = OutputOptions(fmt=OutputFormat.JSON, output=output)
-    write = streamed_writer(out, None, None, VerdictOptions(), inputs, request)
+    write = streamed_writer(OutputFormat.JSON, output, inputs, request)
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         recorded = run_baseline(request, bar, runner, write)
     if write is None:

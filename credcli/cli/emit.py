@@ -443,7 +443,7 @@ def emit_run(
         write_html(report_file, title, run, sources, inputs)
 
 
-def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, inputs, request):
+def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, whole=False):
     """How `diagnose` (and `baseline`, whose file is JSON) writes its JSON or CSV file while
     its segments are diagnosed, or None where the whole report is needed first.
 
@@ -452,24 +452,24 @@ def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, input
     :func:`credcli.report.builders.columns_known_before_results`), are written as the
     results arrive (:func:`credcli.workflows.run_diagnose`'s ``write``), so that the memory
     does not grow with the number of segments; the file is complete or absent, as always
-    (:func:`credcli.io.files.write_atomic`). The tables on the screen and their notes, the
-    figures (``--plots``, ``--report``) and ``--fail-on`` (whose Markdown summary, for
-    ``--summary`` and $GITHUB_STEP_SUMMARY, shows the tables) read every result, and a
-    device or FIFO would show half a document if a later segment failed: they get the whole
-    report.
+    (:func:`credcli.io.files.write_atomic`). The tables on the screen and their notes, and
+    a device or FIFO, which would show half a document if a later segment failed, get the
+    whole report, and so does a command whose other outputs read every result (``whole``).
 
     Parameters
     ----------
-    out : OutputOptions
-        ``--format`` and ``--output``.
-    plots, report_file : Path or None
-        ``--plots`` and ``--report``.
-    ci : VerdictOptions
-        ``--fail-on`` among them.
+    fmt : OutputFormat
+        ``--format``.
+    output : Path or None
+        ``--output``.
     inputs : iterable of Path
         The command's input files, which the output may not overwrite.
     request : DiagnoseRequest
         The run's logs and settings.
+    whole : bool, default False
+        Another output reads every result: the figures (``--plots``, ``--report``), or
+        ``--fail-on``, whose Markdown summary (for ``--summary`` and $GITHUB_STEP_SUMMARY)
+        shows the tables.
 
     Returns
     -------
@@ -480,19 +480,16 @@ def streamed_writer(out, plots: Path | None, report_file: Path | None, ci, input
     from credcli.io.streams import is_stream
     from credcli.report.builders import columns_known_before_results
 
-    output = out.output
-    if output is None or is_stream(output):
-        return None
-    if plots is not None or report_file is not None or ci.fail_on is not None:
+    if whole or output is None or is_stream(output):
         return None
     innovations = request.reading.options.innovations
     known = columns_known_before_results(len(request.logs), innovations, request.monte_carlo)
-    if not (out.fmt is OutputFormat.JSON or (out.fmt is OutputFormat.CSV and known)):
+    if not (fmt is OutputFormat.JSON or (fmt is OutputFormat.CSV and known)):
         return None
 
     def write(report) -> None:
         print_notes(report)
-        emit(report, out.fmt, output, inputs=inputs)
+        emit(report, fmt, output, inputs=inputs)
 
     return write
 

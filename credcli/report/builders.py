@@ -134,11 +134,7 @@ def diagnose_report(
     records = Records((*parts, *pending))
     summaries, logs = logs, {log_id: log_record(summary) for log_id, summary in logs.items()}
     multi = len(notes.logs) > 1
-    columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
-    if notes.whiteness.tested:
-        columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
-    if multi:
-        columns = (LOG_NAME_COLUMN,) + columns
+    columns = _segment_columns(show_all, notes.whiteness.tested, multi)
     lines = []
     sub = [f"{log.name}: {name}" if multi else name for log, name in notes.subsampled]
     if sub:
@@ -159,6 +155,17 @@ def diagnose_report(
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
     document = diagnose_document(parameters, list(logs.values()), records, mc_record)
     return Report(tables, document, lines)
+
+
+def _segment_columns(show_all: bool, whiteness: bool = False, multi: bool = False) -> tuple:
+    """The segment table's columns: every metric's with ``show_all``, the innovations'
+    whiteness after the seventh where a segment has that test, the log's name first for
+    several logs (what :func:`columns_known_before_results` says is known only once the
+    results are)."""
+    columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
+    if whiteness:
+        columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
+    return (LOG_NAME_COLUMN,) + columns if multi else columns
 
 
 def columns_known_before_results(logs: int, innovations: bool, monte_carlo: bool) -> bool:
@@ -228,7 +235,7 @@ def streamed_diagnose_report(
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
     tables = []
     if columns_known_before_results(len(logs), innovations, monte_carlo is not None):
-        columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
+        columns = _segment_columns(show_all)
         caption = _level_caption(config)
         tables = [Table("credcli diagnose", columns, records, caption=caption)]
     return Report(tables, diagnose_document(parameters, entries, records, mc_record))

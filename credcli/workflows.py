@@ -32,6 +32,7 @@ from credcli.report.builders import (
 )
 from credcli.report.overview import Source, overview_plots, segments_to_draw
 from credcli.report.records import (
+    SEGMENTS,
     Snapshot,
     baseline_document,
     diagnose_parameters,
@@ -500,6 +501,11 @@ class GateRun:
 def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
     """Diagnose the new log with the baseline's settings and compare segment by segment.
 
+    Each segment's record is made once, as the segment is diagnosed, and kept as what the
+    gate compares (a :class:`Snapshot`); the results themselves are not held (unless the
+    figures need them), so that a log of many segments holds a record each, as its
+    baseline does.
+
     Parameters
     ----------
     request : GateRequest
@@ -514,9 +520,13 @@ def run_gate(request: GateRequest, progress=None, runner=None) -> GateRun:
     GateRun
         The report, the comparisons, the verdict and the figures.
     """
-    run = run_diagnose(request.diagnose, progress, runner)
+    current: list[Snapshot] = []
+
+    def compared(report: Report) -> None:  # what gate compares, kept as each is diagnosed
+        current.extend(map(Snapshot.from_record, report.document[SEGMENTS].dicts()))
+
+    run = run_diagnose(request.diagnose, progress, runner, write=compared)
     baseline, thresholds = request.baseline, request.thresholds
-    current = [Snapshot.from_result(r) for r in run.results]
     check_same_dimension(baseline, current)
     comparisons = compare(list(baseline.segments), current, thresholds, baseline.config.elt_level)
     passed, verdict = verdict_line(comparisons, thresholds)

@@ -758,6 +758,84 @@ def test_a_json_file_is_written_as_its_segments_are_diagnosed(monkeypatch):
     assert list(run.results) == [r.verdict() for r in held.results]
 
 
+def test_gate_keeps_what_it_compares_of_each_segment_and_no_result(monkeypatch, tmp_path):
+    """Issue 35 item 3 for `gate`: each segment's record is made once, as the segment is
+    diagnosed, and only what the gate compares is kept: at every diagnosis at most the
+    one before it is still alive (the encoder-free writer holds none back), and each
+    current Snapshot has its diagnosis's label, NCI, ANEES, ELT p-value, untested
+    questions and dimension, as a whole run's results say."""
+    import gc
+
+    from credcli import workflows
+    from credcli.cli import main
+    from credcli.cli.options import RuleOptions, RunOptions, SegmentOptions, ThresholdOptions
+    from credcli.cli.settings import gate_request
+    from credcli.engine.diagnosis import SegmentDiagnosis
+    from credcli.io.schema import LogReading
+    from credcli.report import records
+    from credcli.requests import DiagnoseRequest
+    from credcli.schedule import plans as scheduling
+
+    log = ROOT / "sample_data" / "estimator_log.csv"
+    baseline = tmp_path / "baseline.json"
+    assert main(["baseline", str(log), "--window", "20s", "-o", str(baseline)]) == 0
+    window = SegmentOptions(window="20s")
+    request = gate_request(
+        log, baseline, None, ThresholdOptions(), None, window, RuleOptions(), None, RunOptions()
+    )
+    diagnose, record = scheduling.diagnose_segment, records.segment_record
+    alive: list[int] = []  # SegmentDiagnosis objects alive as each segment is diagnosed
+    made = {"records": 0}
+
+    def diagnosed(*args):
+        gc.collect()
+        alive.append(sum(isinstance(o, SegmentDiagnosis) for o in gc.get_objects()))
+        return diagnose(*args)
+
+    def recorded(result):
+        made["records"] += 1
+        return record(result)
+
+    monkeypatch.setattr(scheduling, "diagnose_segment", diagnosed)
+    monkeypatch.setattr(records, "segment_record", recorded)
+    gated = workflows.run_gate(request)
+    results = workflows.run_diagnose(DiagnoseRequest((log,), LogReading(window="20s"))).results
+    assert len(results) >= 5 and made["records"] == len(results)  # the gate's, once each
+    assert alive[0] == 0 and max(alive[: len(results)]) <= 1
+    current = [c.new for c in gated.comparisons]
+    for snapshot, result in zip(current, results, strict=True):
+        d = result.diagnosis
+        assert (snapshot.segment, snapshot.label, snapshot.untested, snapshot.dim) == (
+            result.segment,
+            d.label,
+            tuple(q.value for q in d.untested),
+            d.dim,
+        )
+        assert (snapshot.nci, snapshot.anees, snapshot.elt_pvalue) == (d.nci, d.anees, d.elt_pvalue)
+
+
+def test_gate_reads_segments_too_short_for_a_verdict_as_their_baseline_wrote_them(tmp_path):
+    """Segments too short for a verdict are diagnosed together and recorded as a batch
+    (:class:`credcli.report.records.RecordBatch`); the gate reads each record of the batch
+    (``StreamedRecords.dicts``) as the baseline of the same log wrote it."""
+    from credcli.cli import main
+
+    e = np.random.default_rng(5).standard_normal((300, 2))
+    frame = pd.DataFrame({"time": np.arange(300) * 0.1, "segment": np.arange(300) // 10})
+    frame = frame.assign(truth_0=e[:, 0], truth_1=e[:, 1], est_0=0.0, est_1=0.0)
+    log = tmp_path / "log.csv"
+    frame.assign(cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_csv(log, index=False)
+    baseline, out = tmp_path / "baseline.json", tmp_path / "gate.json"
+    short = ["--min-epochs", "11"]  # every segment of 10 epochs too short
+    assert main(["baseline", str(log), *short, "-o", str(baseline)]) == 0
+    assert main(["gate", str(log), "-b", str(baseline), *short, "-f", "json", "-o", str(out)]) == 0
+    written = json.loads(baseline.read_text())["segments"]
+    compared = json.loads(out.read_text())["segments"]
+    assert len(written) == 30 and {s["label"] for s in written} == {"insufficient-data"}
+    assert [c["label"] for c in compared] == [s["label"] for s in written]
+    assert [c["baseline"] for c in compared] == written == [c["current"] for c in compared]
+
+
 def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_was(tmp_path, capsys):
     """A later segment's error while `diagnose -f json -o FILE` streams the document (a
     NEES that overflows) exits 2 with one line naming the segment; the file is as it was,

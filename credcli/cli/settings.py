@@ -617,8 +617,8 @@ def gate_request(
             f"('{Path(recorded_truth).name}'); a baseline never names the files credcli reads: "
             "give the new log's truth with `truth`"
         )
-    diagnose = DiagnoseRequest(
-        (log,), reading, baseline.config, baseline.seed, jobs, figures=figures
+    diagnose = DiagnoseRequest(  # gate keeps what it compares (workflows.run_gate)
+        (log,), reading, baseline.config, baseline.seed, jobs, figures=figures, keep=Kept.NOTHING
     )
     return GateRequest(diagnose, baseline, limits)
 

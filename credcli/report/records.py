@@ -847,6 +847,19 @@ class StreamedRecords:
         self.parts = itertools.chain([first], self.parts)
         return list(first.shared if isinstance(first, RecordBatch) else first)
 
+    def dicts(self) -> Iterator[dict]:
+        """Each record as a dict, in order, made as it is read (a run of segments too short
+        for a verdict one record at a time): a reader that keeps less than the record
+        itself holds no more than that.
+
+        Yields
+        ------
+        dict
+            A segment record (:func:`segment_record`).
+        """
+        for part in self.parts:
+            yield from part if isinstance(part, RecordBatch) else (part,)
+
 
 def log_record(summary) -> dict:
     """The report's entry for one log: its path, size, dropped rows, notes and accuracy.
@@ -1684,12 +1697,13 @@ class Snapshot:
 
     @classmethod
     def from_record(cls, rec: dict) -> Snapshot:
-        """The snapshot of a baseline's segment record.
+        """The snapshot of a segment record: a baseline's, or one made now.
 
         Parameters
         ----------
         rec : dict
-            The segment record, as checked by :func:`read_baseline`.
+            The segment record: a baseline's, as checked by :func:`read_baseline`, or
+            :func:`segment_record` of a segment diagnosed now.
 
         Returns
         -------
@@ -1708,26 +1722,6 @@ class Snapshot:
             tuple(rec.get("untested") or ()),
             rec.get("dim") if type(rec.get("dim")) is int else None,
         )
-
-    @classmethod
-    def from_result(cls, result: SegmentDiagnosis) -> Snapshot:
-        """The snapshot of a segment diagnosed now.
-
-        Parameters
-        ----------
-        result : SegmentDiagnosis
-            The segment's diagnosis.
-
-        Returns
-        -------
-        Snapshot
-            Its name, label, NCI, ANEES, ELT p-value, :func:`segment_record`, its
-            ``untested`` questions and its dimension.
-        """
-        d = result.diagnosis
-        untested = tuple(q.value for q in d.untested)
-        record = segment_record(result)
-        return cls(result.segment, d.label, d.nci, d.anees, d.elt_pvalue, record, untested, d.dim)
 
 
 def _check_baseline(doc: dict, source: str) -> None:

@@ -864,9 +864,8 @@ def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_wa
 def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(tmp_path):
     """`diagnose` streams ``-f json -o FILE`` always and ``-f csv -o FILE`` where the
     table's columns are known before any result (one log, not of innovations, not Monte
-    Carlo runs); the screen's tables, other formats, figures, ``--fail-on`` (whose
-    Markdown summary shows the tables), standard output and a device get the whole
-    report."""
+    Carlo runs); the screen's tables, other formats, figures, a ``--fail-on`` summary
+    (which shows the tables), standard output and a device get the whole report."""
     from credcli.cli.emit import streamed_writer
     from credcli.io.schema import LogReading, ReadOptions
     from credcli.report.formats import OutputFormat
@@ -886,7 +885,43 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
     assert not streams(OutputFormat.TABLE) and not streams(OutputFormat.MARKDOWN)
     assert not streams(OutputFormat.JSON, output=None)
     assert not streams(OutputFormat.JSON, output=Path("/dev/null"))
-    assert not streams(OutputFormat.JSON, whole=True)  # figures, --fail-on
+    assert not streams(OutputFormat.JSON, whole=True)  # figures, a --fail-on summary
+
+
+def test_fail_on_streams_the_file_unless_its_summary_is_written(tmp_path, monkeypatch):
+    """``--fail-on`` reads each segment's verdict, which a streamed run keeps; only its
+    Markdown summary (``--summary``, $GITHUB_STEP_SUMMARY) reads the report's tables. With
+    neither, the JSON file is written as the segments are diagnosed; with either, the whole
+    report is made first and the summary shows the segment table. The file, the JUnit
+    report and the exit code are the same in every case."""
+    from credcli import workflows
+    from credcli.cli import main
+
+    streamed: list[bool] = []
+    run_diagnose = workflows.run_diagnose
+
+    def spy(request, progress=None, runner=None, write=None):
+        streamed.append(write is not None)
+        return run_diagnose(request, progress, runner, write)
+
+    monkeypatch.setattr(workflows, "run_diagnose", spy)
+    monkeypatch.delenv("GITHUB_STEP_SUMMARY", raising=False)
+    log = ROOT / "sample_data" / "estimator_log.csv"
+    step = tmp_path / "step.md"
+    cases = {"none": [], "summary": ["--summary", str(tmp_path / "s.md")], "step": []}
+    outputs = {}
+    for case, extra in cases.items():
+        if case == "step":
+            monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(step))
+        out, junit = tmp_path / f"{case}.json", tmp_path / f"{case}.xml"
+        argv = ["diagnose", str(log), "--fail-on", "optimism", "-f", "json", "-o", str(out)]
+        code = main([*argv, "--junit", str(junit), *extra])
+        outputs[case] = (code, out.read_bytes(), junit.read_bytes())
+    assert streamed == [True, False, False]
+    assert outputs["none"] == outputs["summary"] == outputs["step"]
+    assert outputs["none"][0] == 1  # the sample has an optimistic segment
+    for summary in (tmp_path / "s.md", step):
+        assert "| segment |" in summary.read_text()
 
 
 @pytest.mark.parametrize("fmt", ["json", "csv"])

@@ -8,6 +8,7 @@ import stat
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 from credcli.engine.short import SegmentResults, ShortSegments
 from credcli.errors import CredcliError
@@ -265,6 +266,23 @@ def check_step_summary(path: str) -> None:
             f"GITHUB_STEP_SUMMARY={path}: not a regular file; the job summary is appended "
             "to a file (unset the variable outside GitHub Actions)"
         )
+
+
+def summary_wanted(summary: Path | None) -> bool:
+    """Whether a CI run's Markdown summary is written: to ``summary`` (``--summary``), or
+    to $GITHUB_STEP_SUMMARY when that is set (:func:`append_step_summary`).
+
+    Parameters
+    ----------
+    summary : Path or None
+        ``--summary``.
+
+    Returns
+    -------
+    bool
+        True where the summary, which shows the report's tables, is read.
+    """
+    return summary is not None or bool(os.environ.get("GITHUB_STEP_SUMMARY"))
 
 
 def append_step_summary(markdown: str) -> None:

@@ -144,6 +144,7 @@ def diagnose(
     monte_carlo: MonteCarloOpt = False,
 ) -> int:
     """Diagnose each segment of one or more estimator logs (calibrated rule by default)."""
+    from credcli.ci.reports import summary_wanted
     from credcli.cli.settings import diagnose_request
     from credcli.requests import Kept
     from credcli.workflows import run_diagnose
@@ -166,7 +167,9 @@ def diagnose(
         figures=figures,
         keep=Kept.NOTHING if conditions is None else Kept.VERDICTS,  # --fail-on reads them
     )
-    whole = plots is not None or report_file is not None or conditions is not None
+    # --fail-on's Markdown summary, where it is written, shows the report's tables
+    summary = conditions is not None and summary_wanted(ci.summary)
+    whole = plots is not None or report_file is not None or summary
     write = streamed_writer(out.fmt, out.output, inputs, request, whole)  # as it is diagnosed
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner, write)

@@ -393,19 +393,21 @@ def write_plots(run, directory: Path | None, keep=()) -> None:
         print(printable(f"credcli: note: {note}"), file=sys.stderr)
 
 
-def _write_ci_reports(
-    junit: Path | None, summary: Path | None, cases, markdown: str, inputs
-) -> None:
-    """The JUnit XML of ``cases`` to ``junit`` and ``markdown`` to ``summary`` (each if
-    given), and ``markdown`` appended to $GITHUB_STEP_SUMMARY when that is set."""
-    from credcli.ci.reports import append_step_summary, junit_pieces
+def _write_ci_reports(junit: Path | None, summary: Path | None, cases, markdown, inputs) -> None:
+    """The JUnit XML of ``cases`` to ``junit`` and the Markdown summary to ``summary`` (each
+    if given) and to $GITHUB_STEP_SUMMARY when that is set; ``markdown()`` makes the
+    summary, only where it is written (it reads the report's tables)."""
+    from credcli.ci.reports import append_step_summary, junit_pieces, summary_wanted
     from credcli.io.files import write_atomic
 
     if junit is not None:
         write_atomic(junit, junit_pieces("credcli", cases), inputs)
+    if not summary_wanted(summary):
+        return
+    text = markdown()
     if summary is not None:
-        write_atomic(summary, markdown, inputs)
-    append_step_summary(markdown)
+        write_atomic(summary, text, inputs)
+    append_step_summary(text)
 
 
 def emit_run(
@@ -468,8 +470,8 @@ def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, who
         The run's logs and settings.
     whole : bool, default False
         Another output reads every result: the figures (``--plots``, ``--report``), or
-        ``--fail-on``, whose Markdown summary (for ``--summary`` and $GITHUB_STEP_SUMMARY)
-        shows the tables.
+        ``--fail-on``'s Markdown summary where it is written (``--summary``,
+        $GITHUB_STEP_SUMMARY), which shows the tables.
 
     Returns
     -------
@@ -554,7 +556,7 @@ def emit_fail_on(run, conditions, ci, inputs) -> bool:
         ci.junit,
         ci.summary,
         fail_on_cases(run.results, failing, conditions),
-        summary_markdown("credcli diagnose", verdict, run.report),
+        lambda: summary_markdown("credcli diagnose", verdict, run.report),
         inputs,
     )
     print(printable(f"credcli: {verdict}"), file=sys.stderr)
@@ -600,7 +602,7 @@ def emit_gate_verdict(run, request, conditions, ci, log: str, baseline, inputs) 
         ci.junit,
         ci.summary,
         gate_cases(run.comparisons, thresholds, log),
-        summary_markdown(f"credcli gate: {log}", verdict, run.report, context),
+        lambda: summary_markdown(f"credcli gate: {log}", verdict, run.report, context),
         inputs,
     )
     print(printable(f"credcli: {verdict}"), file=sys.stderr)

@@ -301,6 +301,9 @@ def test_config_keys_are_the_flag_names(tmp_path):
         (lambda d: d["segments"][0].update(n_flips=float("nan")), "'NaN' is not a number JSON"),
         (lambda d: d["parameters"].update(n_flips=10**9), "n_flips 1000000000 would need"),
         (lambda d: d.update(segments=5), "'segments' a list"),
+        # a bare label with untested entries that are no questions; found by fuzzing
+        (lambda d: d["segments"][0].update(untested=[1, 2]), "'untested' lists questions"),
+        (lambda d: d["segments"][0].update(untested=["scale", {}]), "each one of scale"),
     ],
 )
 def test_hand_edited_baselines(tmp_path, edit, words):

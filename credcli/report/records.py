@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from credcli.engine.config import DiagnosisConfig
+from credcli.engine.config import DiagnosisConfig, Question
 from credcli.engine.diagnosis import Diagnosis, Label, SegmentDiagnosis
 from credcli.engine.short import PartSequence, SegmentResults, ShortSegments
 from credcli.errors import CredcliError, plain, shortened
@@ -1745,6 +1745,7 @@ def _check_baseline(doc: dict, source: str) -> None:
             "record it again"
         )
     labels = {lab.value for lab in Label}
+    questions = [q.value for q in Question]
     for k, rec in enumerate(doc["segments"], start=1):
         where = f"{source}: segment {k}"
         if not isinstance(rec, dict) or not isinstance(rec.get("segment"), str):
@@ -1764,6 +1765,11 @@ def _check_baseline(doc: dict, source: str) -> None:
             raise CredcliError(
                 f"{where}: {got}; a label is one of {', '.join(sorted(labels))}, with its "
                 "untested questions in brackets, and agrees with 'label_answered'"
+            )
+        if not all(isinstance(q, str) and q in questions for q in untested):
+            raise CredcliError(
+                f"{where}: 'untested' lists questions, each one of {', '.join(questions)}; "
+                f"got {shortened(repr(untested))}; record it again"
             )
         for key in ("nci", "anees", "elt_pvalue"):
             value = rec.get(key)

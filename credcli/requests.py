@@ -18,7 +18,7 @@ from credcli.studies.settings import CURVE_RUNS, SimulationConfig, UwbSettings
 class Kept(str, enum.Enum):
     """What a `diagnose` run keeps of each segment's result once the report has read it."""
 
-    RESULTS = "results"  # every result: gate, the figures and the Python API read them
+    RESULTS = "results"  # every result: the figures and the Python API read them
     VERDICTS = "verdicts"  # each segment's verdict (SegmentVerdict): --fail-on reads them
     NOTHING = "nothing"  # the report alone: memory holds a record a segment
 

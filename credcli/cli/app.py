@@ -168,8 +168,8 @@ def diagnose(
         keep=Kept.NOTHING if conditions is None else Kept.VERDICTS,  # --fail-on reads them
     )
     # --fail-on's Markdown summary, where it is written, shows the report's tables
-    summary = conditions is not None and summary_wanted(ci.summary)
-    whole = plots is not None or report_file is not None or summary
+    summarised = conditions is not None and summary_wanted(ci.summary)
+    whole = plots is not None or report_file is not None or summarised
     write = streamed_writer(out.fmt, out.output, inputs, request, whole)  # as it is diagnosed
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner, write)

@@ -15,6 +15,7 @@ import os
 import re
 import stat
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from credcli.cli.flags import flag_names
@@ -393,7 +394,9 @@ def write_plots(run, directory: Path | None, keep=()) -> None:
         print(printable(f"credcli: note: {note}"), file=sys.stderr)
 
 
-def _write_ci_reports(junit: Path | None, summary: Path | None, cases, markdown, inputs) -> None:
+def _write_ci_reports(
+    junit: Path | None, summary: Path | None, cases, markdown: Callable[[], str], inputs
+) -> None:
     """The JUnit XML of ``cases`` to ``junit`` and the Markdown summary to ``summary`` (each
     if given) and to $GITHUB_STEP_SUMMARY when that is set; ``markdown()`` makes the
     summary, only where it is written (it reads the report's tables)."""

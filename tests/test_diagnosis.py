@@ -236,3 +236,27 @@ def test_a_setting_that_is_no_choice_is_named(name):
     with pytest.raises(CredcliError, match=f"`{name}` must be one of") as info:
         DiagnosisConfig(**{name: "nonsense"})
     assert info.value.parameter == name
+
+
+@pytest.mark.parametrize("variant", list(Variant))
+@pytest.mark.parametrize("shift", [100, -60])  # errors 2^shift claimed standard deviations
+def test_errors_whose_squares_leave_float64_keep_their_nci_and_label(variant, shift):
+    """The NCI's ε* = eᵀM⁻¹e, M the errors' own MSE matrix, is scale-free. Errors of 2^600
+    (their squares overflow) with covariances of 2^1000, or of 2^-560 (their squares
+    underflow) with covariances of 2^-1000, are the same log as errors of 2^shift with
+    unit covariances, rescaled exactly: the same NCI, NCI baseline and label. (Before, the MSE
+    matrix overflowed to inf, so the NCI was undefined and the ks and paper variants called
+    an optimistic log credible, or underflowed to zeros: insufficient-data.)"""
+    e = np.random.default_rng(3).standard_normal((300, 2))
+    config = DiagnosisConfig(variant=variant)
+    eye = np.broadcast_to(np.eye(2), (300, 2, 2))
+    plain = dg.diagnose_errors(e * 2.0**shift, eye, config, rng=0)
+    scale = 500 if shift > 0 else -500
+    with np.errstate(all="ignore"):  # what the extreme units make of other figures
+        extreme = dg.diagnose_errors(
+            e * 2.0 ** (shift + scale), eye * 2.0 ** (2 * scale), config, rng=0
+        )
+    assert extreme.label is plain.label
+    assert extreme.nci_label is (Label.OPTIMISM if shift > 0 else Label.PESSIMISM)
+    assert extreme.nci == pytest.approx(plain.nci, rel=1e-12)
+    assert abs(plain.nci - 10 * math.log10(2.0 ** (2 * shift))) < 3  # the scale in dB, ± d·κ̂

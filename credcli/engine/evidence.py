@@ -42,6 +42,7 @@ from credcli.engine.scale import (
     under_either,
     untested_scale,
 )
+from credcli.engine.units import power_of_two_unit
 from credcli.errors import CredcliError
 
 
@@ -231,9 +232,12 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     per_epoch = inverse.ndim == 3
     if per_epoch and not probes_possible:  # the factors' last use without the probes: their
         del chol  # inverses stand in for them (2·10⁶ epochs: 61 MiB fewer through the NCI)
-    given = mse is not None
-    mse = np.asarray(mse, dtype=float) if given else metrics.mse_matrix(errors)
-    nci_raw = metrics.nci_of(eps, metrics.nees_factored(errors, mse_cholesky(mse, given)))
+    if mse is not None:  # the caller's MSE matrix
+        star = metrics.nees_factored(errors, mse_cholesky(np.asarray(mse, dtype=float), True))
+    else:
+        star = _mse_nees(errors)
+    nci_raw = metrics.nci_of(eps, star)
+    del star
     ks_p = ks_chi2_pvalue(eps, d)
     nees_total = float(np.sum(eps))
     anees = float(np.mean(eps) / d)
@@ -244,8 +248,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     if again:
         del eps
     centred = _centred(errors)
-    centred_mse = mse_cholesky(metrics.mse_matrix(centred))
-    centred_star = metrics.nees_factored(centred, centred_mse)  # (its temporaries first)
+    centred_star = _mse_nees(centred)  # (its temporaries first)
     centred_eps = metrics.nees_inverse(centred, inverse)
     del centred
     nci_centred = metrics.nci_of(centred_eps, centred_star)
@@ -801,6 +804,41 @@ def mse_cholesky(mse: np.ndarray, given: bool = False) -> np.ndarray:
                 "mse",
             ) from exc
         raise Undecidable(DEGENERATE) from exc
+
+
+def _mse_nees(errors: np.ndarray) -> np.ndarray:
+    """ε*_k = e_kᵀ M⁻¹ e_k with M the segment's own MSE matrix (:func:`metrics.mse_matrix`),
+    the NCI's second term, Eq. (4).
+
+    ε* is scale-free in e, so where the errors' squares leave float64's normal range
+    (errors beyond about 1e154 or below 1e-154 in the log's units, whatever their claimed
+    covariance) it is made on e / 2^j (:func:`credcli.engine.units.power_of_two_unit`), an
+    exact rescaling: elsewhere M is made as before, with the same bits. Without it such
+    errors gave an MSE matrix of inf (no NCI, and the ks and paper variants, which read
+    the NCI, said credible) or of zeros (insufficient-data, as if the errors spanned fewer
+    than d dimensions).
+
+    Parameters
+    ----------
+    errors : numpy.ndarray, shape (N, d)
+        The errors (or the centred errors).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        ε*.
+
+    Raises
+    ------
+    Undecidable
+        When M is singular (the errors span fewer than d dimensions).
+    """
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        mse = metrics.mse_matrix(errors)
+    if not (np.all(np.isfinite(mse)) and np.min(np.diag(mse)) >= np.finfo(float).tiny):
+        errors = errors / power_of_two_unit(errors)
+        mse = metrics.mse_matrix(errors)
+    return metrics.nees_factored(errors, mse_cholesky(mse))
 
 
 def _overflow_message(errors: np.ndarray, chol: np.ndarray, eps: np.ndarray) -> str:

@@ -863,8 +863,8 @@ def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_wa
 
 def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(tmp_path):
     """`diagnose` streams ``-f json -o FILE`` always and ``-f csv -o FILE`` where the
-    table's columns are known before any result (one log, not of innovations, not Monte
-    Carlo runs); the screen's tables, other formats, figures, a ``--fail-on`` summary
+    tables' columns are known before any result (not of innovations, not Monte Carlo
+    runs); the screen's tables, other formats, figures, a ``--fail-on`` summary
     (which shows the tables), standard output and a device get the whole report."""
     from credcli.cli.emit import streamed_writer
     from credcli.io.schema import LogReading, ReadOptions
@@ -880,7 +880,8 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
         return streamed_writer(fmt, output, (), request, whole) is not None
 
     assert streams(OutputFormat.JSON) and streams(OutputFormat.CSV)
-    for request in (two, innovations, pooled):
+    assert streams(OutputFormat.JSON, two) and streams(OutputFormat.CSV, two)
+    for request in (innovations, pooled):
         assert streams(OutputFormat.JSON, request) and not streams(OutputFormat.CSV, request)
     assert not streams(OutputFormat.TABLE) and not streams(OutputFormat.MARKDOWN)
     assert not streams(OutputFormat.JSON, output=None)
@@ -928,8 +929,9 @@ def test_fail_on_streams_the_file_unless_its_summary_is_written(tmp_path, monkey
 def test_a_streamed_file_is_the_whole_reports_text(tmp_path, capsys, fmt):
     """The JSON and CSV files written as the segments are diagnosed are, byte for byte, the
     text of the whole report (standard output), segments too short for a verdict (one
-    record batch) among them; with ``--fail-on``, which reads the whole report, too; and
-    a baseline's file is its standard output's."""
+    record batch) among them; with ``--fail-on``, which reads the whole report, too; of
+    several logs, whose CSV adds a table of the logs counted as the segments pass; and a
+    baseline's file is its standard output's."""
     from credcli.cli import main
 
     rng = np.random.default_rng(8)
@@ -947,6 +949,15 @@ def test_a_streamed_file_is_the_whole_reports_text(tmp_path, capsys, fmt):
     out.unlink()  # --fail-on reads the whole report (its summary's tables): the same file
     assert main(["diagnose", str(log), "-f", fmt, "-o", str(out), "--fail-on", "bias"]) == 1
     assert out.read_bytes() == whole.encode()
+    other = tmp_path / "other.csv"  # several logs: the log's column, and the logs' table
+    frame.assign(truth_0=-e[:, 1], cov_0_0=2.0, cov_0_1=0.0, cov_1_1=1.0).to_csv(other, index=False)
+    assert main(["diagnose", str(log), str(other), "-f", fmt]) == 0
+    whole = capsys.readouterr().out
+    assert main(["diagnose", str(log), str(other), "-f", fmt, "-o", str(out)]) == 0
+    assert (
+        out.read_bytes() == whole.encode()
+        and whole.count("logs compared" if fmt == "csv" else '"path"') == 2
+    )
     if fmt == "json":  # a baseline is streamed to its file too
         assert main(["baseline", str(log)]) == 0
         whole = capsys.readouterr().out

@@ -452,8 +452,8 @@ def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, who
     """How `diagnose` (and `baseline`, whose file is JSON) writes its JSON or CSV file while
     its segments are diagnosed, or None where the whole report is needed first.
 
-    ``-f json -o FILE``, and ``-f csv -o FILE`` where the table's columns are known before
-    any result (one log, not of innovations, not Monte Carlo runs:
+    ``-f json -o FILE``, and ``-f csv -o FILE`` where the tables' columns are known before
+    any result (not of innovations, not Monte Carlo runs:
     :func:`credcli.report.builders.columns_known_before_results`), are written as the
     results arrive (:func:`credcli.workflows.run_diagnose`'s ``write``), so that the memory
     does not grow with the number of segments; the file is complete or absent, as always
@@ -488,7 +488,7 @@ def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, who
     if whole or output is None or is_stream(output):
         return None
     innovations = request.reading.options.innovations
-    known = columns_known_before_results(len(request.logs), innovations, request.monte_carlo)
+    known = columns_known_before_results(innovations, request.monte_carlo)
     if not (fmt is OutputFormat.JSON or (fmt is OutputFormat.CSV and known)):
         return None
 

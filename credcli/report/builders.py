@@ -8,7 +8,7 @@ and writes prose; the records and columns, and every key they have, come from
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 
 from credcli.engine.config import LOCATION_CONDITIONS, DiagnosisConfig, Label, Variant
 from credcli.engine.diagnosis import SegmentDiagnosis
@@ -159,25 +159,23 @@ def diagnose_report(
 
 def _segment_columns(show_all: bool, whiteness: bool = False, multi: bool = False) -> tuple:
     """The segment table's columns: every metric's with ``show_all``, the innovations'
-    whiteness after the seventh where a segment has that test, the log's name first for
-    several logs (what :func:`columns_known_before_results` says is known only once the
-    results are)."""
+    whiteness after the seventh where a segment has that test (known only once the
+    results are: :func:`columns_known_before_results`), the log's name first for several
+    logs."""
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
     if whiteness:
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     return (LOG_NAME_COLUMN,) + columns if multi else columns
 
 
-def columns_known_before_results(logs: int, innovations: bool, monte_carlo: bool) -> bool:
-    """Whether the segment table's columns are known before any segment is diagnosed: for
-    one log (several add the log's column and a table of the logs, counted from the
-    results), not of innovations (a whiteness column appears where a segment has that
-    test) and not pooled Monte Carlo runs.
+def columns_known_before_results(innovations: bool, monte_carlo: bool) -> bool:
+    """Whether the tables' columns are known before any segment is diagnosed: not for
+    innovations (a whiteness column appears where a segment has that test) nor for pooled
+    Monte Carlo runs. (Several logs add the log's column and a table of the logs, whose
+    columns are fixed and whose rows are counted as the segments pass.)
 
     Parameters
     ----------
-    logs : int
-        The logs given.
     innovations : bool
         The logs hold innovations.
     monte_carlo : bool
@@ -186,9 +184,9 @@ def columns_known_before_results(logs: int, innovations: bool, monte_carlo: bool
     Returns
     -------
     bool
-        True where :func:`streamed_diagnose_report` has the CSV's table.
+        True where :func:`streamed_diagnose_report` has the CSV's tables.
     """
-    return logs == 1 and not innovations and not monte_carlo
+    return not innovations and not monte_carlo
 
 
 def streamed_diagnose_report(
@@ -203,10 +201,12 @@ def streamed_diagnose_report(
     """The `credcli diagnose` report as it can be written while its segments are
     diagnosed: the records are made as a writer reads them
     (:class:`~credcli.report.records.StreamedRecords`), so that no more than the record
-    being written is held. Written as JSON, and as CSV where it has a table, it is what
+    being written is held. Written as JSON, and as CSV where it has tables, it is what
     :func:`diagnose_report` makes of the same results, byte for byte. It has no notes
-    (neither format has them), the segment table only where its columns are known before
-    any result (:func:`columns_known_before_results`), and it can be written once.
+    (neither format has them), the tables only where their columns are known before any
+    result (:func:`columns_known_before_results`), and it can be written once. With
+    several logs, the logs' table counts each log's segments as they pass and makes its
+    rows when the writer reaches it, after the last segment.
 
     Parameters
     ----------
@@ -228,17 +228,29 @@ def streamed_diagnose_report(
     Returns
     -------
     Report
-        The segment table or none, no notes, and the document.
+        The tables or none, no notes, and the document.
     """
-    records = StreamedRecords(results)
-    entries = [log_record(summary) for summary in logs.values()]
+    multi = len(logs) > 1
+    notes = _SegmentNotes()
+    records = StreamedRecords(_noted(_parts(results), notes) if multi else results)
+    entries = {log_id: log_record(summary) for log_id, summary in logs.items()}
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
     tables = []
-    if columns_known_before_results(len(logs), innovations, monte_carlo is not None):
-        columns = _segment_columns(show_all)
+    if columns_known_before_results(innovations, monte_carlo is not None):
+        columns = _segment_columns(show_all, multi=multi)
         caption = _level_caption(config)
         tables = [Table("credcli diagnose", columns, records, caption=caption)]
-    return Report(tables, diagnose_document(parameters, entries, records, mc_record))
+        if multi:
+            tables.append(_logs_table(entries, notes, counted_later=True))
+    document = diagnose_document(parameters, list(entries.values()), records, mc_record)
+    return Report(tables, document)
+
+
+def _noted(parts: Iterable, notes: _SegmentNotes) -> Iterator:
+    """``parts`` as they come, each one's share of the notes taken on the way."""
+    for part in parts:
+        notes.add(part)
+        yield part
 
 
 def _monte_carlo_line(mc: MonteCarlo) -> str:
@@ -370,13 +382,35 @@ class _SegmentNotes:
         self.whiteness.add(part)
 
 
-def _logs_table(logs: Mapping[LogId, dict], notes: _SegmentNotes) -> Table:
-    counted = {log_id: notes.logs.get(log_id, [0, 0]) for log_id in logs}
-    rows = [
-        compared_log_row(entry, f"{counted[log_id][0]} of {counted[log_id][1]}")
-        for log_id, entry in logs.items()
-    ]
-    return Table("logs compared", LOG_COLUMNS, rows, caption="accuracy over all epochs of each log")
+def _logs_table(
+    logs: Mapping[LogId, dict], notes: _SegmentNotes, counted_later: bool = False
+) -> Table:
+    """The table comparing several logs: each one's accuracy over all its epochs and its
+    credible segments of all, from ``notes``; with ``counted_later``, the rows are made
+    when the table is read (after the segments whose passing counts them)."""
+
+    def rows() -> Iterator[dict]:
+        for log_id, entry in logs.items():
+            credible, segments = notes.logs.get(log_id, [0, 0])
+            yield compared_log_row(entry, f"{credible} of {segments}")
+
+    caption = "accuracy over all epochs of each log"
+    return Table(
+        "logs compared",
+        LOG_COLUMNS,
+        _Later(rows) if counted_later else list(rows()),
+        caption=caption,
+    )
+
+
+class _Later:
+    """Rows made each time they are read, by ``make()``."""
+
+    def __init__(self, make) -> None:
+        self.make = make
+
+    def __iter__(self) -> Iterator[dict]:
+        return self.make()
 
 
 def _advice_lines(results) -> list[str]:

@@ -387,7 +387,7 @@ def _logs_table(
 ) -> Table:
     """The table comparing several logs: each one's accuracy over all its epochs and its
     credible segments of all, from ``notes``; with ``counted_later``, the rows are made
-    when the table is read (after the segments whose passing counts them)."""
+    when the table is read (after the segments whose passing counts them), once."""
 
     def rows() -> Iterator[dict]:
         for log_id, entry in logs.items():
@@ -395,22 +395,10 @@ def _logs_table(
             yield compared_log_row(entry, f"{credible} of {segments}")
 
     caption = "accuracy over all epochs of each log"
+    # a generator's body runs at its first reading: after the segments, when counted later
     return Table(
-        "logs compared",
-        LOG_COLUMNS,
-        _Later(rows) if counted_later else list(rows()),
-        caption=caption,
+        "logs compared", LOG_COLUMNS, rows() if counted_later else list(rows()), caption=caption
     )
-
-
-class _Later:
-    """Rows made each time they are read, by ``make()``."""
-
-    def __init__(self, make) -> None:
-        self.make = make
-
-    def __iter__(self) -> Iterator[dict]:
-        return self.make()
 
 
 def _advice_lines(results) -> list[str]:

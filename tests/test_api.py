@@ -137,6 +137,21 @@ def test_python_errors_name_python_arguments():
     assert "window" not in str(info.value) and info.value.parameter == "segments"
 
 
+def test_a_variance_of_inf_is_named_without_a_warning():
+    """(N, d) variances with an inf are refused by the epoch, as a matrix with one is; the
+    diagonal matrices were made as inf·0 = NaN first, with numpy's RuntimeWarning."""
+    import warnings
+
+    import pytest
+
+    variances = np.ones((300, 2))
+    variances[7, 1] = np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(credcli.CredcliError, match=r"cov\[7\] has a NaN or Inf value"):
+            credcli.diagnose(_errors(), variances)
+
+
 def test_near_symmetric_covariances_are_symmetrised_with_a_note(tmp_path):
     """Issue 33 item 6: a filter's covariance that drifts from symmetric by the relative
     4.6e-4 measured on Stone Soup's default updater is made symmetric with one note; past

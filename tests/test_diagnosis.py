@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -260,3 +261,36 @@ def test_errors_whose_squares_leave_float64_keep_their_nci_and_label(variant, sh
     assert extreme.nci_label is (Label.OPTIMISM if shift > 0 else Label.PESSIMISM)
     assert extreme.nci == pytest.approx(plain.nci, rel=1e-12)
     assert abs(plain.nci - 10 * math.log10(2.0 ** (2 * shift))) < 3  # the scale in dB, ± d·κ̂
+
+
+@pytest.mark.parametrize("offset", [0.0, 1.0])  # none, and a 1σ bias
+def test_errors_far_above_their_claim_keep_their_location_test(offset):
+    """The mean test is scale-free in the errors: errors of 2^560 with covariances of
+    2^1000 (whitened, 2^60 σ; the errors' squares overflow) are tested as the same errors
+    with unit covariances scaled by 2^-560, to the same p-value and location, with no
+    floating-point warning, and the standard errors of the bias scale with the errors
+    (they were inf)."""
+    e = np.random.default_rng(7).standard_normal((50, 3)) + offset / math.sqrt(3)
+    eye = np.broadcast_to(np.eye(3), (50, 3, 3))
+    plain = dg.diagnose_errors(e * 2.0**60, eye, rng=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        far = dg.diagnose_errors(e * 2.0**560, eye * 2.0**1000, rng=0)
+    assert far.label is plain.label
+    assert far.mean_test.pvalue == pytest.approx(plain.mean_test.pvalue, rel=1e-9)
+    assert far.scale.scale_factor == pytest.approx(plain.scale.scale_factor, rel=1e-9)
+    np.testing.assert_allclose(far.scale.bias_stderr, plain.scale.bias_stderr * 2.0**500, rtol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_errors_far_below_their_claim_are_not_called_biased(seed):
+    """Credible-shaped errors of 2^-600 claimed σ (their squares underflow): pessimism with
+    no bias and a finite mean test, without a floating-point warning. (Before, the mean
+    test's covariance was 0·inf: NaN, a p-value of 0 and a bias found on errors of mean
+    zero.)"""
+    e = np.random.default_rng(seed).standard_normal((50, 6)) * 2.0**-600
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = dg.diagnose_errors(e, np.eye(6)[None].repeat(50, axis=0), rng=0)
+    assert result.label is Label.PESSIMISM
+    assert 0.0 < result.mean_test.pvalue <= 1.0

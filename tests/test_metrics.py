@@ -421,6 +421,32 @@ def test_grouped_accuracy_equals_numpy_per_group(lengths):
         assert a.max_norm == pytest.approx(norms.max(), rel=1e-12)
 
 
+def test_accuracy_of_errors_whose_squares_leave_float64_is_exact():
+    """A group of errors of 2^700 or 2^-700 (their squares over- or underflow) has the
+    figures of the same errors at unit scale times 2^±700, to the bit, beside a group at
+    unit scale whose figures are untouched; RMSE and the norms were inf or 0 before."""
+    e = np.random.default_rng(5).standard_normal((12, 2))
+    plain = metrics.grouped_accuracy(e, np.array([4, 8]))
+    for shift in (700, -700):
+        scaled = e.copy()
+        scaled[4:] *= 2.0**shift
+        ones, far = metrics.grouped_accuracy(scaled, np.array([4, 8]))
+        for name in (
+            "rmse",
+            "mean",
+            "median",
+            "max",
+            "rmse_norm",
+            "mean_norm",
+            "median_norm",
+            "max_norm",
+        ):
+            np.testing.assert_array_equal(getattr(ones, name), getattr(plain[0], name))
+            np.testing.assert_array_equal(
+                getattr(far, name), np.multiply(getattr(plain[1], name), 2.0**shift)
+            )
+
+
 @pytest.mark.parametrize("func", [metrics.expected_norm, metrics.energy_score])
 def test_a_covariance_that_is_not_positive_definite_is_named(func):
     """E‖W‖ of an indefinite "covariance" is not a number to return (it gave 0 before);

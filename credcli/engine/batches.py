@@ -602,7 +602,11 @@ def memory_mean_test(
     u = residuals.whitened
     n, d = u.shape
     unit = power_of_two_unit(residuals.scores)  # scale-free and exact: cannot overflow
-    y = u @ memory.directions
+    # γ in the whitened errors' own unit, m in its ratio to the scores': the same bits
+    # (powers of two), and no square over- or underflows whatever the claim's scale
+    whitened_unit = power_of_two_unit(u)
+    y = (u / whitened_unit) @ memory.directions
+    ratio_units = whitened_unit / unit
     cov = np.zeros((d, d))
     dof_var = math.inf
     for i, series in enumerate(memory.series):
@@ -610,10 +614,10 @@ def memory_mean_test(
         gamma = float(y[:, i] @ y[:, i]) / expected
         dof_var = min(dof_var, 2.0 * expected * expected / variance)
         if inverse.ndim == 2:
-            m = (inverse.T @ memory.directions[:, i]) / unit
+            m = (inverse.T @ memory.directions[:, i]) * ratio_units
             cov += gamma * n * series.mean_ratio(n) * np.outer(m, m)
             continue
-        m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) / unit
+        m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) * ratio_units
         cov += gamma * toeplitz_form(m, series.test_window(n))
     cov = 0.5 * (cov + cov.T)
     total = residuals.scores.sum(axis=0) / unit
@@ -625,8 +629,8 @@ def memory_mean_test(
     precision_unit = power_of_two_unit(residuals.precision_sum)
     precision = residuals.precision_sum / precision_unit
     ratio = unit / precision_unit  # (Σ W)⁻¹ Cov(G) (Σ W)⁻¹ in exact powers of two
-    cov_mean = np.linalg.solve(precision, np.linalg.solve(precision, cov).T) * ratio * ratio
-    stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None))
+    cov_mean = np.linalg.solve(precision, np.linalg.solve(precision, cov).T)  # in ratio²
+    stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None)) * ratio  # exact: a power of two
     dof2 = dof - d + 1.0
     if dof2 < 1.0:
         return MeanTest(math.nan, (float(d), dof2), math.nan, 0), stderr

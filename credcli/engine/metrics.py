@@ -569,7 +569,8 @@ def grouped_accuracy(errors: np.ndarray, lengths: np.ndarray) -> list[Accuracy]:
     Returns
     -------
     list of Accuracy
-        One per group, in order. Errors beyond about 1e154 give inf (no warning).
+        One per group, in order; errors of any finite size (a group whose squares
+        would leave float64's range is summed in a power-of-two unit).
     """
     columns = accuracy_columns(errors, lengths)
     return [columns[g] for g in range(len(columns))]
@@ -647,7 +648,10 @@ def accuracy_columns(errors: np.ndarray, lengths: np.ndarray) -> AccuracyColumns
     """
     lengths = np.asarray(lengths, dtype=np.int64)
     starts = np.r_[0, np.cumsum(lengths)[:-1]]
-    with np.errstate(over="ignore", invalid="ignore"):  # errors past 1e154: inf (null)
+    unit = _group_units(errors, starts)
+    if unit is not None:  # a group whose squares leave float64's range: in its own unit
+        errors = errors / np.repeat(unit, lengths)[:, None]
+    with np.errstate(over="ignore", invalid="ignore"):  # errors past 1e308: inf (null)
         absolute = np.abs(errors)
         squares = errors**2
         norms = np.sqrt(squares.sum(axis=1))
@@ -660,9 +664,32 @@ def accuracy_columns(errors: np.ndarray, lengths: np.ndarray) -> AccuracyColumns
         max_norm = np.maximum.reduceat(norms, starts)
         median = _grouped_median([*absolute.T, norms], starts, lengths)
     d = errors.shape[1]
-    return AccuracyColumns(
-        rmse, mean, median[:, :d], peak, rmse_norm, mean_norm, median[:, d], max_norm
-    )
+    columns = rmse, mean, median[:, :d], peak, rmse_norm, mean_norm, median[:, d], max_norm
+    if unit is not None:  # back in the log's units: exact (powers of two)
+        columns = [c * (unit[:, None] if c.ndim == 2 else unit) for c in columns]
+    return AccuracyColumns(*columns)
+
+
+SQUARES_SAFE = 2.0**500
+"""Largest |error| (and the reciprocal of the smallest non-zero one) whose square, summed
+over a group, stays in float64's normal range; a group beyond it is rescaled by a power of
+two (:func:`accuracy_columns`)."""
+
+
+def _group_units(errors: np.ndarray, starts: np.ndarray) -> np.ndarray | None:
+    """Each group's power of two nearest its largest |error| where that lies outside
+    [1/:data:`SQUARES_SAFE`, :data:`SQUARES_SAFE`] (1 for the others), or None where no
+    group does (the figures then computed as they are, to the same bits)."""
+    with np.errstate(invalid="ignore"):  # max |e| per group, without an |e| array
+        top = np.maximum(
+            np.maximum.reduceat(errors, starts, axis=0),
+            -np.minimum.reduceat(errors, starts, axis=0),
+        ).max(axis=1)
+    finite = np.isfinite(top) & (top > 0)
+    outside = finite & ((top > SQUARES_SAFE) | (top < 1.0 / SQUARES_SAFE))
+    if not outside.any():
+        return None
+    return np.where(outside, np.exp2(np.round(np.log2(np.where(finite, top, 1.0)))), 1.0)
 
 
 COLUMN_PARTITION = 1 << 14

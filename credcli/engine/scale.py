@@ -482,7 +482,11 @@ def scale_test(
     upper, lower = _pvalues(x, dof)
     kappa = total / nu0
     low, high = chi2_interval(x, dof, level)
-    stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None) * kappa * inflation)
+    variances = np.clip(np.diag(cov_mean), 0.0, None)
+    with np.errstate(over="ignore"):
+        stderr = np.sqrt(variances * kappa * inflation)
+    if not np.all(np.isfinite(stderr)):  # the product's range, not its roots': split them
+        stderr = np.sqrt(variances) * math.sqrt(kappa * inflation)
     mean = residuals.mean
     return ScaleTest(
         statistic=total,

@@ -103,8 +103,10 @@ def _covariances(array: np.ndarray, n: int, d: int, notes: list[str] | None = No
         array = array[:, None, None]
     if array.shape == (d, d):
         array = np.broadcast_to(array, (n, d, d))
-    elif array.shape == (n, d):  # variances, one row per epoch
-        array = array[:, :, None] * np.eye(d)
+    elif array.shape == (n, d):  # variances, one row per epoch (inf·0 would be NaN)
+        diagonal = np.zeros((n, d, d), dtype=np.result_type(array, float))
+        diagonal[:, np.arange(d), np.arange(d)] = array
+        array = diagonal
     if array.shape != (n, d, d):
         raise CredcliError(
             f"cov: expected shape (N, d, d) = ({n}, {d}, {d}), one ({d}, {d}) matrix for "

@@ -151,6 +151,24 @@ def test_degrees_of_freedom_and_degenerate_inputs():
     np.testing.assert_allclose(fit.rotation @ r_est, r_true, atol=1e-12)
 
 
+@pytest.mark.parametrize("with_scale", [False, True])
+def test_positions_whose_squares_overflow_are_fitted_in_a_power_of_two(with_scale):
+    """Positions of 2^520 (their squares overflow) give the fit of the same positions at
+    unit scale: the same R and s, t times 2^520; one position of 1e308 among ordinary ones
+    is named (it was numpy's "SVD did not converge", exit 3)."""
+    rng = np.random.default_rng(4)
+    x_hat = rng.standard_normal((40, 3))
+    x = 1.5 * x_hat @ rotation(3, 8).T + [1.0, -2.0, 0.5] + 0.01 * rng.standard_normal((40, 3))
+    plain, far = umeyama(x, x_hat, with_scale), umeyama(x * 2.0**520, x_hat * 2.0**520, with_scale)
+    np.testing.assert_allclose(far.rotation, plain.rotation, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(far.translation, plain.translation * 2.0**520, rtol=1e-12)
+    assert far.scale == pytest.approx(plain.scale, rel=1e-12)
+    x_hat[7] = [1e308, 0.0, 0.0]
+    with pytest.raises(CredcliError, match="a position reaches 1e[+]308") as info:
+        umeyama(x, x_hat, with_scale)
+    assert info.value.parameter == "align"
+
+
 def test_covariance_map_by_perturbation():
     fit = Transform(rotation(3, 4), np.zeros(3), 2.0)
     left, right = covariance_map(fit, 6, world=True), covariance_map(fit, 6, world=False)

@@ -152,6 +152,19 @@ def test_a_variance_of_inf_is_named_without_a_warning():
             credcli.diagnose(_errors(), variances)
 
 
+def test_a_covariance_with_entries_near_the_float64_limit_is_named():
+    """A 3×3 covariance whose off-diagonal pair is 1e308: not positive definite, said by
+    the epoch (symmetrising it as (a + b)/2 overflowed to inf, and numpy's eigenvalue
+    routine failed: exit 3)."""
+    import pytest
+
+    cov = np.broadcast_to(np.eye(3), (300, 3, 3)).copy()
+    cov[9, 0, 2] = cov[9, 2, 0] = 1e308
+    errors = np.random.default_rng(2).standard_normal((300, 3))
+    with pytest.raises(credcli.CredcliError, match=r"cov\[9\]: covariance is not positive"):
+        credcli.diagnose(errors, cov)
+
+
 def test_near_symmetric_covariances_are_symmetrised_with_a_note(tmp_path):
     """Issue 33 item 6: a filter's covariance that drifts from symmetric by the relative
     4.6e-4 measured on Stone Soup's default updater is made symmetric with one note; past

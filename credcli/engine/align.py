@@ -133,6 +133,18 @@ def umeyama(truth: np.ndarray, estimate: np.ndarray, with_scale: bool = False) -
         )
     if not (np.isfinite(x).all() and np.isfinite(x_hat).all()):
         raise CredcliError("`align`: the positions must be finite", "align")
+    top = max(float(np.max(np.abs(x), initial=0.0)), float(np.max(np.abs(x_hat), initial=0.0)))
+    if top > 1e150:  # sums of squares (and of 1e308s, the means) would overflow: fit in one
+        # exact power-of-two unit for both, which leaves R and s as they are; t back after
+        unit = power_of_two_unit(np.concatenate([x, x_hat]))
+        try:
+            fit = _umeyama(x / unit, x_hat / unit, with_scale)
+        except CredcliError as exc:  # one position so far off leaves the rest a point
+            raise CredcliError(
+                f"{exc.message} (a position reaches {top:.3g}: is one diverged or corrupt?)",
+                exc.parameter,
+            ) from exc
+        return Transform(fit.rotation, fit.translation * unit, fit.scale)
     spread_hat = float(np.max(np.abs(x_hat - x_hat.mean(axis=0)), initial=0.0))
     if with_scale and (0.0 < spread_hat < 1e-150 or spread_hat > 1e150):
         # σ²_x̂ would under- or overflow: fit in exact power-of-two units, s and t back after

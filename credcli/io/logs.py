@@ -1264,8 +1264,8 @@ def validated_cov(
                 f"{SYMMETRISE_RTOL:g}): each was replaced by (Σ + Σᵀ)/2"
             )
         if d <= PAIRWISE_MAX_D:
-            for i, j in upper:
-                mean = 0.5 * (cov[:, i, j] + cov[:, j, i])
+            for i, j in upper:  # halves first: two entries near 1.8e308 do not overflow
+                mean = 0.5 * cov[:, i, j] + 0.5 * cov[:, j, i]
                 cov[:, i, j] = mean
                 cov[:, j, i] = mean
         else:  # the same means (halving is exact); the diagonal stays as it is

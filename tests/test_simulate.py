@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 import numpy as np
@@ -244,11 +245,22 @@ def test_bad_simulation_options(capsys):
         (["--trials", "0"], "trials must be 1 … 1,000,000"),
         (["--rho-optimism", "0.5:1.5"], "optimism ρ range"),
         (["--bias", "2:1"], "lower end"),
+        (["--rho-pessimism", "2:inf"], "must be finite numbers"),  # was exit 3 (numpy)
         (["--jobs", "0"], "--jobs"),
         (["--sweep", "x=1"], "unknown parameter"),
     ]:
         code, _, err = _run(capsys, "simulate", *args)
         assert code == 2 and msg in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("name", ["rho_pessimism", "bias", "eigenvalues"])
+def test_a_study_range_must_be_finite(name):
+    """An infinite upper end was accepted and failed in numpy's uniform draw (exit 3)."""
+    from credcli.errors import CredcliError
+
+    with pytest.raises(CredcliError, match="finite") as info:
+        sim.SimulationConfig(**{name: (2.0, math.inf)})
+    assert info.value.parameter == name
 
 
 def test_curves_csv_cells_are_plain_numbers(tmp_path, capsys):

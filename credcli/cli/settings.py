@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import json
+import math
 import sys
 import typing
 from pathlib import Path
@@ -653,6 +654,8 @@ def parse_range(text, what: str) -> tuple[float, float] | None:
         lo, hi = (float(p) for p in parts)
     except (TypeError, ValueError) as exc:
         raise CredcliError(f"{what}: expected a range lo:hi, got '{text}'") from exc
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise CredcliError(f"{what}: the ends of a range must be finite numbers, got '{text}'")
     if lo > hi:
         raise CredcliError(f"{what}: lower end {lo:g} is above the upper end {hi:g}")
     return lo, hi

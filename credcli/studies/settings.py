@@ -247,19 +247,19 @@ class SimulationConfig:
                 f"the optimism ρ range must lie in (0, 1); got {self.rho_optimism}",
             ),
             (
-                1 < self.rho_pessimism[0] <= self.rho_pessimism[1],
+                1 < self.rho_pessimism[0] <= self.rho_pessimism[1] < math.inf,
                 "rho_pessimism",
-                f"the pessimism ρ range must lie above 1; got {self.rho_pessimism}",
+                f"the pessimism ρ range must lie above 1 and be finite; got {self.rho_pessimism}",
             ),
             (
-                0 < self.bias[0] <= self.bias[1],
+                0 < self.bias[0] <= self.bias[1] < math.inf,
                 "bias",
-                f"the bias range must be positive; got {self.bias}",
+                f"the bias range must be positive and finite; got {self.bias}",
             ),
             (
-                0 < self.eigenvalues[0] <= self.eigenvalues[1],
+                0 < self.eigenvalues[0] <= self.eigenvalues[1] < math.inf,
                 "eigenvalues",
-                f"the eigenvalue range must be positive; got {self.eigenvalues}",
+                f"the eigenvalue range must be positive and finite; got {self.eigenvalues}",
             ),
             (self.seed >= 0, "seed", f"`seed` must be >= 0; got {self.seed}"),
         ]

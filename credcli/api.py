@@ -30,6 +30,7 @@ from credcli.engine.diagnosis import (
     SegmentDiagnosis,
     diagnose_errors,
     diagnose_segments,
+    given_config,
 )
 from credcli.engine.rng import RngLike
 from credcli.errors import CredcliError
@@ -366,7 +367,8 @@ def diagnose_log(
     Raises
     ------
     TypeError
-        If ``log`` is not an EstimatorLog (arrays go to [diagnose][credcli.api.diagnose]).
+        If ``log`` is not an EstimatorLog (arrays go to [diagnose][credcli.api.diagnose]),
+        or ``config`` is neither a DiagnosisConfig nor None.
     CredcliError
         For a window that cannot be read, a list of segments given with a log of Monte
         Carlo runs, or a segment whose arrays are invalid (the error names the log and the
@@ -394,7 +396,7 @@ def diagnose_log(
     else:
         plan = list(segments)
     items = diagnose_segments(log, plan, config, seed)
-    alpha = (config or DiagnosisConfig()).nees_alpha
+    alpha = given_config(config).nees_alpha
     return Results(items, Source.of([log], plan, items, alpha))
 
 
@@ -550,7 +552,7 @@ def diagnose_monte_carlo(
     >>> mc[0].diagnosis.n, mc.anees.runs
     (1000, 10)
     """
-    config = config or DiagnosisConfig()
+    config = given_config(config)
     runs = split_runs(runs) if isinstance(runs, EstimatorLog) else list(runs)
     for log in runs:
         _check_log(log)
@@ -596,6 +598,8 @@ def diagnose(
 
     Raises
     ------
+    TypeError
+        If ``config`` is neither a DiagnosisConfig nor None.
     CredcliError
         If both ``seed`` and ``rng`` are given, or for invalid arrays (shapes, non-finite
         values, a covariance that is not symmetric positive definite), naming the argument

@@ -165,6 +165,26 @@ def test_a_covariance_with_entries_near_the_float64_limit_is_named():
         credcli.diagnose(errors, cov)
 
 
+def test_a_config_that_is_not_a_diagnosis_config_is_a_type_error():
+    """``config="paper"`` or a dict failed as an AttributeError inside the engine."""
+    import pytest
+
+    e = _errors()
+    log = credcli.log_from_arrays(errors=e, cov=np.eye(2))
+    runs = credcli.log_from_arrays(errors=e, cov=np.eye(2), run=np.arange(300) // 150)
+    calls = [
+        lambda config: credcli.diagnose(e, np.eye(2), config),
+        lambda config: credcli.diagnose_log(log, None, config),
+        lambda config: credcli.diagnose_log(runs, None, config),
+        lambda config: credcli.diagnose_variants(e, np.eye(2)[None].repeat(300, 0), ["ks"], config),
+    ]
+    for call in calls:
+        with pytest.raises(TypeError, match="config: expected a DiagnosisConfig or None; got str"):
+            call("paper")
+    with pytest.raises(TypeError, match=r"got dict \(DiagnosisConfig\(\*\*settings\) makes one\)"):
+        credcli.diagnose(e, np.eye(2), {"variant": "paper"})
+
+
 def test_near_symmetric_covariances_are_symmetrised_with_a_note(tmp_path):
     """Issue 33 item 6: a filter's covariance that drifts from symmetric by the relative
     4.6e-4 measured on Stone Soup's default updater is made symmetric with one note; past

@@ -605,6 +605,35 @@ class DiagnosisConfig:
         return max(self.min_epochs, dim + 2, (self.min_blocks - 1) * length + 1)
 
 
+def given_config(config) -> DiagnosisConfig:
+    """The configuration a caller gave: ``config`` itself, the defaults for None.
+
+    Parameters
+    ----------
+    config : DiagnosisConfig or None
+        What the caller passed as ``config``.
+
+    Returns
+    -------
+    DiagnosisConfig
+        The configuration to diagnose with.
+
+    Raises
+    ------
+    TypeError
+        For anything else, naming ``config`` (a string or a dict went on to fail as an
+        AttributeError deep in the engine).
+    """
+    if config is None:
+        return DiagnosisConfig()
+    if not isinstance(config, DiagnosisConfig):
+        raise TypeError(
+            f"config: expected a DiagnosisConfig or None; got {type(config).__name__}"
+            + (" (DiagnosisConfig(**settings) makes one)" if isinstance(config, dict) else "")
+        )
+    return config
+
+
 class States(str, enum.Enum):
     """Which error of a pose log is diagnosed (and which block of its 6×6 covariance)."""
 

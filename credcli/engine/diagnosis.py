@@ -25,6 +25,7 @@ from credcli.engine.config import (  # noqa: F401 (the names of a diagnosis, re-
     SlowErrors,
     SrdForm,
     Variant,
+    given_config,
     parse_label,
 )
 from credcli.engine.elt import ELTResult, whiten
@@ -278,7 +279,7 @@ def diagnose_errors(
     >>> diagnose_errors(e, np.broadcast_to(np.eye(2), (200, 2, 2)), rng=1).label.value
     'credible'
     """
-    config = config or DiagnosisConfig()
+    config = given_config(config)
     errors, cov = linalg.check_errors_cov(errors, cov)
     return _diagnose_checked(errors, cov, config, rng, mse, runs, memory)
 
@@ -353,7 +354,7 @@ def diagnose_variants(
         raise CredcliError(
             f"variants must name variants among {names}; got {list(variants)!r}", "variants"
         ) from None
-    configs = _variant_configs(config or DiagnosisConfig(), chosen)
+    configs = _variant_configs(given_config(config), chosen)
     results = _diagnose_variants(errors, cov, configs, as_generator(rng), None)
     return {c.variant: r for c, r in zip(configs, results)}
 
@@ -760,7 +761,7 @@ def diagnose_segments(
     CredcliError
         For an invalid segment, naming the log and the segment (:func:`diagnose_segment`).
     """
-    config = config or DiagnosisConfig()
+    config = given_config(config)
     errors = log.errors
     windows = [seg.index for seg in segments if getattr(seg, "window", False)]
     run = run_model(errors, log.cov, windows, config) if windows else RunModel(None)

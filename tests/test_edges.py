@@ -667,6 +667,27 @@ def test_stdout_on_a_pipe():
     assert head.stdout.startswith("log,segment,") and "Traceback" not in head.stderr
 
 
+def test_output_dash_is_standard_output(tmp_path, monkeypatch):
+    """``-o -`` is standard output, as ``-`` is standard input for a log: the bytes of the
+    run without -o (it wrote a file named "-"), for diagnose and gate, from a subprocess
+    (bytes) and in-process (a text stream); every output file takes it (one writer)."""
+    import subprocess
+    import sys
+
+    monkeypatch.chdir(tmp_path)
+    base = [sys.executable, "-m", "credcli"]
+    plain = subprocess.run([*base, "diagnose", str(LOG), "-f", "json"], capture_output=True)
+    dash = subprocess.run(
+        [*base, "diagnose", str(LOG), "-f", "json", "-o", "-"], capture_output=True
+    )
+    assert dash.returncode == 0 and dash.stdout == plain.stdout and b"wrote" not in dash.stderr
+    assert run("diagnose", LOG, "-f", "csv", "-o", "-")[1] == run("diagnose", LOG, "-f", "csv")[1]
+    assert run("baseline", LOG, "-o", tmp_path / "b.json")[0] == 0
+    code, out, _ = run("gate", LOG, "-b", tmp_path / "b.json", "-f", "json", "-o", "-")
+    assert code == 0 and json.loads(out)["command"] == "gate"
+    assert not (tmp_path / "-").exists()
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     labels=st.lists(st.sampled_from(["a", "b", "c", "d10", ""]), min_size=1, max_size=60),

@@ -40,7 +40,7 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
     inputs : iterable of Path, optional
         The command's input files, which ``output`` may not overwrite.
     """
-    from credcli.io.files import write_atomic
+    from credcli.io.files import STDIN, write_atomic
     from credcli.report.render import rich_table, text_pieces
 
     report = dataclasses.replace(report, notes=[flag_names(n) for n in report.notes])
@@ -49,7 +49,8 @@ def emit(report, fmt: OutputFormat, output: Path | None, inputs=()) -> None:
         if fmt is OutputFormat.CSV and _is_screen(output):  # -o /dev/stdout, /dev/tty
             pieces = map(terminal_csv, pieces)
         write_atomic(output, pieces, inputs)
-        stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
+        if str(output) != STDIN:  # standard output, as without -o: no note
+            stderr_console().print(printable(f"wrote {output}"), highlight=False, markup=False)
         return
     if sys.stdout is None:  # started with its descriptor closed (credcli … >&-)
         raise CredcliError("standard output is closed; pass -o FILE to write the report to a file")
@@ -266,15 +267,16 @@ def write_html(path: Path, title: str, run, sources, inputs) -> None:
     inputs : iterable of Path
         The command's input files, which ``path`` may not overwrite.
     """
-    from credcli.io.files import write_atomic
+    from credcli.io.files import STDIN, write_atomic
     from credcli.report.html import build_html
 
     subtitle = ", ".join(map(str, sources))
     html = build_html(title, run.report, run.plots, subtitle, run.notes, run.results)
     write_atomic(path, html, inputs)
-    stderr_console().print(
-        printable(f"wrote {path} ({len(run.plots)} figures)"), highlight=False, markup=False
-    )
+    if str(path) != STDIN:
+        stderr_console().print(
+            printable(f"wrote {path} ({len(run.plots)} figures)"), highlight=False, markup=False
+        )
 
 
 def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> list[Path]:

@@ -16,10 +16,14 @@ import errno
 import os
 import secrets
 import stat
+import sys
 from collections.abc import Iterable
 from pathlib import Path
 
 from credcli.errors import CredcliError, shortened
+
+STDIN = "-"
+"""The name of standard input as a log, and of standard output as an output file."""
 
 MAX_CONFIG_BYTES = 1 << 20
 """Largest config file read (1 MiB; credcli's every setting fits in a few kB)."""
@@ -191,7 +195,10 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def _is_stream(path: Path) -> bool:
-    """An existing target that is not a regular file or directory (device, FIFO, socket)."""
+    """``-`` (standard output), or an existing target that is not a regular file or
+    directory (device, FIFO, socket)."""
+    if str(path) == STDIN:
+        return True
     try:
         mode = path.stat().st_mode
     except OSError:
@@ -516,8 +523,20 @@ def _write_data(fh, data) -> None:
 
 
 def _write_stream(path: Path, data) -> None:
-    """A device, FIFO or terminal. A FIFO with no reader is refused at once (opening it
-    for writing would wait for one forever)."""
+    """Standard output (``-``), a device, FIFO or terminal. A FIFO with no reader is
+    refused at once (opening it for writing would wait for one forever)."""
+    if str(path) == STDIN:
+        if sys.stdout is None:  # started with its descriptor closed (credcli … >&-)
+            raise CredcliError(f"{path}: standard output is closed; give a file name")
+        sys.stdout.flush()
+        binary = getattr(sys.stdout, "buffer", None)
+        if binary is None:  # a text stream with no bytes beneath (redirected in Python)
+            for piece in [data] if isinstance(data, bytes) else data:
+                sys.stdout.write(piece.decode("utf-8"))
+            return
+        _write_data(binary, data)
+        binary.flush()
+        return
     fd = os.open(path, os.O_WRONLY | getattr(os, "O_NONBLOCK", 0))
     try:
         os.set_blocking(fd, True)

@@ -27,9 +27,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from credcli.errors import CredcliError
-from credcli.io.files import memory_budget
+from credcli.io.files import STDIN, memory_budget  # noqa: F401 (STDIN: its name here)
 
-STDIN = "-"
 _CHUNK = 1 << 20
 _UNPACKERS = (
     (b"\x1f\x8b", lambda raw: gzip.GzipFile(fileobj=raw, mode="rb")),

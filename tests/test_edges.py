@@ -667,6 +667,21 @@ def test_stdout_on_a_pipe():
     assert head.stdout.startswith("log,segment,") and "Traceback" not in head.stderr
 
 
+@pytest.mark.parametrize("column", [0, 1])  # time, truth_0
+def test_an_integer_longer_than_a_float_is_named_by_its_row(tmp_path, column):
+    """A column of integers with one of 400 digits is read by pandas as Python ints, which
+    pd.to_numeric refused with OverflowError (exit 3): it is inf, refused by its row."""
+    rows = ["time,truth_0,truth_1,est_0,est_1,cov_0_0,cov_0_1,cov_1_1"]
+    rows += [f"{k},{k % 3},{k % 5},0,0,1,0,1" for k in range(50)]
+    cells = rows[20].split(",")
+    cells[column] = "9" * 400
+    rows[20] = ",".join(cells)
+    log = tmp_path / "log.csv"
+    log.write_text("\n".join(rows) + "\n")
+    line = error_line(*run("diagnose", log)[::2])
+    assert "row(s) 20" in line and ("time" if column == 0 else "truth_0") in line
+
+
 def test_output_dash_is_standard_output(tmp_path, monkeypatch):
     """``-o -`` is standard output, as ``-`` is standard input for a log: the bytes of the
     run without -o (it wrote a file named "-"), for diagnose and gate, from a subprocess

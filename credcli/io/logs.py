@@ -28,7 +28,13 @@ from credcli.errors import CredcliError
 from credcli.io.files import check_covariance_memory
 from credcli.io.schema import CovKind, LogSchema, TimeUnit  # noqa: F401 (re-exported)
 from credcli.io.streams import TEXT_HEAD, is_compressed, readable
-from credcli.io.text import read_csv_unmapped, read_text_table, seconds, time_seconds
+from credcli.io.text import (
+    numbers_or_nan,
+    read_csv_unmapped,
+    read_text_table,
+    seconds,
+    time_seconds,
+)
 from credcli.logid import LogId, unique_ids
 
 
@@ -1068,7 +1074,7 @@ def numeric_columns(frame, cols: list[str], source: str, out: np.ndarray | None 
             )
         if series.dtype == object or pd.api.types.is_string_dtype(series.dtype):
             # the parser found a cell that is not a number: name the first one
-            converted = pd.to_numeric(series, errors="coerce")
+            converted = numbers_or_nan(series)
             bad = converted.isna() & series.notna()
             if bad.any():
                 i = int(np.argmax(bad.to_numpy()))

@@ -8,6 +8,7 @@ them, so that none imports another in a cycle.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -315,7 +316,7 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
         return np.asarray(array, dtype=float), None
     series = pd.Series(array)
     if not pd.api.types.is_datetime64_any_dtype(series.dtype):
-        numbers = pd.to_numeric(series, errors="coerce")
+        numbers = numbers_or_nan(series)
         if numbers.notna().sum() == series.notna().sum():
             return numbers.to_numpy(dtype=float, na_value=np.nan), None
     try:
@@ -337,3 +338,39 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
     seconds = whole.astype(float) + fraction / 1e9
     seconds[stamps.isna().to_numpy()] = np.nan
     return seconds, ISO_TIME_NOTE.format(what=what)
+
+
+def numbers_or_nan(series):
+    """``pd.to_numeric(series, errors="coerce")``: each cell as a float, NaN where it is not a
+    number; an integer of more digits than a float holds is ±inf, not pandas' OverflowError
+    (a CSV column of integers with one of 400 digits is read as Python ints).
+
+    Parameters
+    ----------
+    series : pandas.Series
+        Cells of any type.
+
+    Returns
+    -------
+    pandas.Series
+        Floats, of the same index.
+    """
+    import pandas as pd
+
+    try:
+        return pd.to_numeric(series, errors="coerce")
+    except OverflowError:
+        return pd.Series([_float_or_nan(v) for v in series], index=series.index, dtype=float)
+
+
+def _float_or_nan(value) -> float:
+    """One cell as a float (:func:`numbers_or_nan`'s rare path)."""
+    try:
+        return float(value)
+    except OverflowError:  # an int beyond float64
+        return math.inf if value > 0 else -math.inf
+    except (TypeError, ValueError):
+        try:
+            return float(str(value))
+        except ValueError:
+            return math.nan

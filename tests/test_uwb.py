@@ -182,6 +182,19 @@ def test_no_static_period_says_so(tmp_path, capsys):
     assert code == 2 and "no static period found" in err and "--window 5s" in err
 
 
+def test_a_ground_truth_too_large_to_calibrate_from_is_named(tmp_path, capsys):
+    """A gt_range of 1e308 (a corrupt cell) made the anchor's linearised fit overflow, and
+    numpy's least squares failed (exit 3): the anchor, the size and --anchors are named."""
+    frame = pd.read_csv(GRID)
+    frame.loc[5, "gt_range"] = 1e308
+    corrupt = tmp_path / "corrupt.csv"
+    frame.to_csv(corrupt, index=False)
+    code, _, err = _run(capsys, "uwb", corrupt)
+    anchor = int(frame.loc[5, "to_id"])
+    assert code == 2 and err.count("\n") == 1
+    assert f"anchor {anchor}: its ground truth" in err and "1e+308" in err and "--anchors" in err
+
+
 def test_not_a_starloc_file(capsys):
     code, _, err = _run(capsys, "uwb", SAMPLE / "estimator_log.csv")
     assert code == 2 and "not a STAR-loc uwb.csv: missing column(s) time_s" in err

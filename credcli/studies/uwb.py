@@ -126,7 +126,16 @@ def calibrate_anchors(ranges: RangeLog) -> list[Anchor]:
         pts, r = ranges.tag_pos[rows], ranges.gt_range[rows]
         # linearised: 2 pᵀa − |a|² = |p|² − r²
         design = np.c_[2 * pts, -np.ones(len(pts))]
-        sol, *_ = np.linalg.lstsq(design, np.sum(pts**2, axis=1) - r**2, rcond=None)
+        with np.errstate(over="ignore", invalid="ignore"):
+            target = np.sum(pts**2, axis=1) - r**2
+        if not (np.all(np.isfinite(target)) and np.all(np.isfinite(design))):
+            size = float(np.max(np.abs(np.c_[pts, r])))
+            raise CredcliError(
+                f"{ranges.source}: anchor {int(anchor_id)}: its ground truth (tag positions, "
+                f"gt_range) reaches {size:.3g} m, too large to self-calibrate the anchor from "
+                "(squares overflow); check those columns, or give the anchors with --anchors"
+            )
+        sol, *_ = np.linalg.lstsq(design, target, rcond=None)
         plane = float(np.mean(pts[:, 2]))
         starts = [sol[:3]] + [
             np.array([sol[0], sol[1], plane + dz]) for dz in (-3.0, -1.5, -0.5, 0.5, 1.5, 3.0)

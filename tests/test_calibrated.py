@@ -404,6 +404,26 @@ def test_tail_factor_reads_student_t_tails():
     assert tail_factor(u * 1e-20) == pytest.approx(tail_factor(u), rel=1e-9)
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_the_tail_ratio_is_the_same_in_every_frame(d):
+    """The tail check pools the principal directions' standardized components; their
+    signs were the eigensolver's, and a skewed column's sign moves the 2.5 and 97.5 %
+    quantiles the ratio reads. Each column now takes the sign of its skewness, so the
+    same residuals in any frame (u → uQᵀ, Q orthogonal: a rotation, a reflection, the
+    components reversed, u → −u) read the same quantiles and the same factor."""
+    from credcli.engine.scale import standardized, tail_factor, tail_quantiles
+
+    rng = np.random.default_rng(d)
+    u = np.c_[rng.exponential(1.0, (400, 1)) ** 2, rng.standard_normal((400, d - 1))]
+    u = u - u.mean(axis=0)
+    plain = tail_quantiles(standardized(u))
+    rotation = np.linalg.qr(rng.standard_normal((d, d)))[0]
+    for q in (rotation, np.eye(d)[::-1], -np.eye(d)):
+        moved = tail_quantiles(standardized(u @ q.T))
+        np.testing.assert_allclose(moved, plain, rtol=1e-10, atol=1e-12)
+        assert tail_factor(u @ q.T) == pytest.approx(tail_factor(u), rel=1e-10)
+
+
 def test_the_tail_gate_keeps_its_size_on_dependent_gaussian_errors():
     """The tail ratio's spread grows with Σρ⁴ under serial dependence (its Hermite rank is
     4). Gaussian AR(2) errors (roots 0.95∠±0.3, 2,000 epochs): with the model's

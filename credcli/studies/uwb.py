@@ -133,7 +133,7 @@ def calibrate_anchors(ranges: RangeLog) -> list[Anchor]:
             raise CredcliError(
                 f"{ranges.source}: anchor {int(anchor_id)}: its ground truth (tag positions, "
                 f"gt_range) reaches {size:.3g} m, too large to self-calibrate the anchor from "
-                "(squares overflow); check those columns, or give the anchors with --anchors"
+                "(squares overflow); check those columns, or give the anchors in a file, `anchors`"
             )
         sol, *_ = np.linalg.lstsq(design, target, rcond=None)
         plane = float(np.mean(pts[:, 2]))

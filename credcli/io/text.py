@@ -370,7 +370,4 @@ def _float_or_nan(value) -> float:
     except OverflowError:  # an int beyond float64
         return math.inf if value > 0 else -math.inf
     except (TypeError, ValueError):
-        try:
-            return float(str(value))
-        except ValueError:
-            return math.nan
+        return math.nan

@@ -697,6 +697,14 @@ def test_output_dash_is_standard_output(tmp_path, monkeypatch):
     )
     assert dash.returncode == 0 and dash.stdout == plain.stdout and b"wrote" not in dash.stderr
     assert run("diagnose", LOG, "-f", "csv", "-o", "-")[1] == run("diagnose", LOG, "-f", "csv")[1]
+    closed = subprocess.run(  # 240 kB to a reader that reads none: exit 0, as without -o
+        f"set -o pipefail; {sys.executable} -m credcli diagnose {LOG} -f csv -w 1s -o - | true",
+        shell=True,
+        executable="/bin/bash",
+        capture_output=True,
+        text=True,
+    )
+    assert closed.returncode == 0 and closed.stderr == ""
     assert run("baseline", LOG, "-o", tmp_path / "b.json")[0] == 0
     code, out, _ = run("gate", LOG, "-b", tmp_path / "b.json", "-f", "json", "-o", "-")
     assert code == 0 and json.loads(out)["command"] == "gate"

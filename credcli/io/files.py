@@ -427,6 +427,8 @@ def write_atomic(path: str | Path, text: str | bytes | Iterable[str], inputs=())
         finally:
             os.close(directory)
     except OSError as exc:
+        if isinstance(exc, BrokenPipeError) and str(path) == STDIN:
+            raise  # a reader that stopped reading (| head): as without -o, not an error
         raise CredcliError(f"{path}: cannot be written ({_os_reason(exc)})") from exc
 
 

@@ -708,6 +708,8 @@ def test_output_dash_is_standard_output(tmp_path, monkeypatch):
     assert run("baseline", LOG, "-o", tmp_path / "b.json")[0] == 0
     code, out, _ = run("gate", LOG, "-b", tmp_path / "b.json", "-f", "json", "-o", "-")
     assert code == 0 and json.loads(out)["command"] == "gate"
+    code, _, err = run("diagnose", LOG, "--plots", "-")  # a directory: "-" has none
+    assert "'-' is standard output, not a directory" in error_line(code, err)
     assert not (tmp_path / "-").exists()
 
 

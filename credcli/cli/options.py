@@ -96,6 +96,30 @@ def file_name(text: str) -> Path:
     return Path(text)
 
 
+def directory_name(text: str) -> Path:
+    """A directory to write into: a path (:func:`file_name`), not ``-``, which names
+    standard output for a file and has no directory.
+
+    Parameters
+    ----------
+    text : str
+        The argument as typed.
+
+    Returns
+    -------
+    Path
+        The path.
+
+    Raises
+    ------
+    typer.BadParameter
+        If ``text`` is empty or ``-``.
+    """
+    if text == "-":
+        raise typer.BadParameter("'-' is standard output, not a directory; give a directory")
+    return file_name(text)
+
+
 def output_name(text: str) -> Path:
     """A file to write: not empty, and not a name ending in '/' (a directory).
 
@@ -506,7 +530,7 @@ PlotsOpt = Annotated[
     Path | None,
     typer.Option(
         "--plots",
-        parser=file_name,
+        parser=directory_name,
         metavar="DIR",
         help="Write PNG figures into this directory (needs credcli[plots]).",
         rich_help_panel=OUTPUT,

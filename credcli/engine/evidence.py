@@ -27,6 +27,7 @@ from credcli.engine.memory import (
     TimeScales,
     fit_memory,
     mean_free,
+    principal_directions,
     time_scales,
 )
 from credcli.engine.scale import (
@@ -285,7 +286,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
         if again:  # the inverses are made again where the model's tests read them, not
             inverse = None  # held through its fit and checks (2·10⁶ epochs: 61 MiB)
         try:
-            memory = segment_memory(gls, None, s, r1, residuals=fitted_on)[0]
+            memory = segment_memory(gls, None, s, residuals=fitted_on)[0]
         except NoFiniteMemory:
             drifting = _drift_evidence(gls, n)
             source, fitted_on = None, None
@@ -1361,7 +1362,7 @@ def white_refit(
     return with_long_memory(fit_memory(residuals, q, screened=True), residuals)
 
 
-def segment_memory(gls, inverse, s, r1=None, residuals=None) -> tuple[Memory, np.ndarray]:
+def segment_memory(gls, inverse, s, residuals=None) -> tuple[Memory, np.ndarray]:
     """The dependence model fitted on one segment (or run), and the residuals it was
     fitted on, for its check at every averaging time (:func:`time_scales`), which the
     caller makes once the per-epoch inverses are freed (a long segment's peak memory).
@@ -1369,7 +1370,9 @@ def segment_memory(gls, inverse, s, r1=None, residuals=None) -> tuple[Memory, np
     Below :data:`SCREENED_BELOW` epochs the sieve is also told of memory that the lag-1
     autocorrelation of the whitened errors ``s`` shows, centred or about zero, at
     SCREENING_LEVEL (a slow excursion moves a window's mean and hides from the centred
-    one).
+    one), read along their principal directions
+    (:func:`credcli.engine.memory.principal_directions`), not the log's axes: the same
+    errors in a rotated frame are screened alike (``benchmarks/frame.py``).
 
     Parameters
     ----------
@@ -1381,8 +1384,6 @@ def segment_memory(gls, inverse, s, r1=None, residuals=None) -> tuple[Memory, np
     s : numpy.ndarray, shape (N, d), or None
         The whitened errors, for the lag-1 screening (None for a segment of
         :data:`SCREENED_BELOW` epochs or more, which is not screened).
-    r1 : numpy.ndarray, shape (d,), optional
-        Their lag-1 autocorrelations, if already computed.
     residuals : numpy.ndarray, shape (N, d), optional
         :func:`memory_residuals` of ``gls`` and ``inverse``, where the caller has made
         them (``inverse`` is not read then).
@@ -1395,14 +1396,14 @@ def segment_memory(gls, inverse, s, r1=None, residuals=None) -> tuple[Memory, np
         The mean-free whitened residuals it was fitted on (:func:`memory_residuals`).
     """
     n = gls.whitened.shape[0]
-    screened = n < SCREENED_BELOW and (
-        correlation.serially_dependent(
-            correlation.autocorrelation(s) if r1 is None else r1, n, correlation.SCREENING_LEVEL
+    screened = False
+    if n < SCREENED_BELOW:
+        along = s @ principal_directions(s)
+        screened = correlation.serially_dependent(
+            correlation.autocorrelation(along), n, correlation.SCREENING_LEVEL
+        ) or correlation.serially_dependent(
+            correlation.autocorrelation(along, about_zero=True), n, correlation.SCREENING_LEVEL
         )
-        or correlation.serially_dependent(
-            correlation.autocorrelation(s, about_zero=True), n, correlation.SCREENING_LEVEL
-        )
-    )
     if residuals is None:
         residuals = memory_residuals(gls, inverse)
     return with_long_memory(fit_memory(residuals, gls.q, screened=screened), residuals), residuals

@@ -629,3 +629,29 @@ def test_time_scales_are_the_variances_of_block_means_at_each_scale(n):
         sums -= sums.mean(axis=0)
         expected = np.mean(np.sum(sums**2, axis=0) / ((k - 1) * m * np.array(variances)))
         assert observed == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_short_segment_is_screened_alike_in_a_rotated_frame():
+    """The lag-1 screening of a short segment (whether the sieve must take memory) read the
+    whitened errors axis by axis, so an AR(1) direction at 30° was screened otherwise than
+    the same errors turned to put it on an axis (3 of 60 segments got another model and
+    label). Along the principal directions, the frame does not matter: the same label and
+    the same model's degrees of freedom in both, on every seed."""
+    from credcli.engine.diagnosis import diagnose_errors
+
+    n, angle = 50, np.pi / 6
+    turn = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    cov = np.broadcast_to(np.eye(2), (n, 2, 2))
+    for seed in range(60):
+        rng = np.random.default_rng(seed)
+        z = rng.standard_normal(n)
+        x = np.zeros(n)
+        for k in range(1, n):
+            x[k] = 0.45 * x[k - 1] + np.sqrt(1 - 0.45**2) * z[k]
+        e = np.c_[x, rng.standard_normal(n)] @ turn.T
+        tilted, aligned = (
+            diagnose_errors(e, cov, rng=seed),
+            diagnose_errors(e @ turn, cov, rng=seed),
+        )
+        assert tilted.label is aligned.label, seed
+        assert tilted.memory.dof == pytest.approx(aligned.memory.dof, rel=1e-9), seed

@@ -96,25 +96,9 @@ def file_name(text: str) -> Path:
     return Path(text)
 
 
-def directory_name(text: str) -> Path:
-    """A directory to write into: a path (:func:`file_name`), not ``-``, which names
-    standard output for a file and has no directory.
-
-    Parameters
-    ----------
-    text : str
-        The argument as typed.
-
-    Returns
-    -------
-    Path
-        The path.
-
-    Raises
-    ------
-    typer.BadParameter
-        If ``text`` is empty or ``-``.
-    """
+def _directory_name(text: str) -> Path:
+    """:func:`file_name` for a directory to write into (``--plots``), which refuses ``-``
+    too: it names standard output for a file, and has no directory."""
     if text == "-":
         raise typer.BadParameter("'-' is standard output, not a directory; give a directory")
     return file_name(text)
@@ -530,7 +514,7 @@ PlotsOpt = Annotated[
     Path | None,
     typer.Option(
         "--plots",
-        parser=directory_name,
+        parser=_directory_name,
         metavar="DIR",
         help="Write PNG figures into this directory (needs credcli[plots]).",
         rich_help_panel=OUTPUT,

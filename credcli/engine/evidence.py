@@ -1169,8 +1169,8 @@ def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) ->
     direction), so where it excludes the margin so does the fitted model's, and the claim
     holds whichever memory is right, as the scale's interval covers both
     (:func:`credcli.engine.scale.directions_under_either`). The ELT, whose sign blocks the
-    longer memory would lengthen, does not run. Where the alternative's region is not the wider one, or its
-    test has too few degrees of freedom, the location is untested."""
+    longer memory would lengthen, does not run. Where the alternative's region is not the
+    wider one, or its test has too few degrees of freedom, the location is untested."""
     alternative = memory.alternative
     test = plan.mean_test
     if alternative is None or test is None or not test.pvalue < plan.mean_level:

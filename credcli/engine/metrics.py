@@ -21,6 +21,7 @@ from credcli.engine.linalg import (
     whitened_by,
 )
 from credcli.engine.quadrature import centred_norm, expected_norms
+from credcli.engine.units import power_of_two_unit
 from credcli.errors import CredcliError
 
 _LOG10 = np.log(10.0)
@@ -685,11 +686,10 @@ def _group_units(errors: np.ndarray, starts: np.ndarray) -> np.ndarray | None:
             np.maximum.reduceat(errors, starts, axis=0),
             -np.minimum.reduceat(errors, starts, axis=0),
         ).max(axis=1)
-    finite = np.isfinite(top) & (top > 0)
-    outside = finite & ((top > SQUARES_SAFE) | (top < 1.0 / SQUARES_SAFE))
+    outside = (top > SQUARES_SAFE) | ((top > 0) & (top < 1.0 / SQUARES_SAFE))
     if not outside.any():
         return None
-    return np.where(outside, np.exp2(np.round(np.log2(np.where(finite, top, 1.0)))), 1.0)
+    return np.where(outside, power_of_two_unit(top[:, None], axis=1), 1.0)
 
 
 COLUMN_PARTITION = 1 << 14

@@ -662,7 +662,7 @@ def test_the_other_perturbation_convention_is_named_when_it_fits_far_better():
 
 def test_smm_advice_says_what_it_means_and_where_to_look():
     code, out, _ = run("diagnose", LOG)
-    assert "gps-multipath: bias (0.889, -1.24)" in out and "look first at component 1" in out
+    assert "gps-multipath: bias (1.04, -1)" in out and "look first at component 0" in out
     assert "bias: the errors have a mean that no covariance allows for" in out
 
 

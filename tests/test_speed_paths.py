@@ -1263,12 +1263,13 @@ def test_a_long_segments_nees_made_again_gives_the_same_bursts(monkeypatch):
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_factors_made_by_chunks_give_the_whole_segments_numbers(d):
-    """A long segment makes its inverse factors, NEES and GLS scores again a chunk of epochs
-    at a time rather than hold them (evidence.gather): over several chunks, the bits of the
-    factors made once (linalg.inverse_factors, linalg.by_inverse_chunks,
-    scale._per_epoch_scores), and GLS residuals whose scores come from the covariances when
-    read are those made with them."""
+    """A long segment makes its whitening factors, NEES, GLS scores and the ELT's whitened
+    errors again a chunk of epochs at a time rather than hold them (evidence.gather): over
+    several chunks, the bits of the factors made once (linalg.whitening_factors,
+    linalg.by_inverse_chunks, scale._per_epoch_scores, elt.whiten), and GLS residuals whose
+    scores come from the covariances when read are those made with them."""
     from credcli.engine import linalg, metrics
+    from credcli.engine.elt import whiten
     from credcli.engine.scale import _per_epoch_scores, gls_residuals
 
     rng = np.random.default_rng(d)
@@ -1276,18 +1277,46 @@ def test_factors_made_by_chunks_give_the_whole_segments_numbers(d):
     a = rng.standard_normal((n, d, d))
     cov = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(d)
     e = rng.standard_normal((n, d))
-    chol = linalg.cholesky(cov)
-    inverse = linalg.lower_inverse(chol)
-    np.testing.assert_array_equal(linalg.inverse_factors(cov), inverse)
+    inverse = linalg.whitening_factors(cov)
     chunked = linalg.by_inverse_chunks(metrics.nees_inverse, e, cov)
     np.testing.assert_array_equal(chunked, metrics.nees_inverse(e, inverse))
-    made = gls_residuals(e, chol)
+    np.testing.assert_array_equal(whiten(e, cov), linalg.whitened_by(inverse, e))
+    made = gls_residuals(e, None, inverse)
     np.testing.assert_array_equal(_per_epoch_scores(e, cov), made.scores)
     read = gls_residuals(e, None, inverse, cov)
     for name in ("mean", "whitened", "precision_sum", "scores"):
         np.testing.assert_array_equal(getattr(read, name), getattr(made, name))
     read.release_scores()  # made again when read again: the same numbers
     np.testing.assert_array_equal(read.scores, made.scores)
+
+
+@pytest.mark.parametrize("d", [1, 2, 3, 6])
+def test_whitening_factors_are_symmetric_roots_that_turn_with_the_frame(d):
+    """linalg.whitening_factors: F_k symmetric with F_k Σ_k F_k = I (so the NEES is
+    ‖F_k e_k‖², as with the Cholesky factor), and for an orthogonal R the factors of
+    RΣ_kRᵀ are R F_k Rᵀ, so the whitened errors of Re_k are R F_k e_k: one constant turn of
+    the frame, where the inverse Cholesky factors differ from epoch to epoch."""
+    from scipy.stats import special_ortho_group
+
+    from credcli.engine import linalg, metrics
+
+    rng = np.random.default_rng(10 + d)
+    a = rng.standard_normal((500, d, d))
+    cov = a @ a.transpose(0, 2, 1) + 0.05 * np.eye(d)
+    f = linalg.whitening_factors(cov)
+    eye = np.broadcast_to(np.eye(d), cov.shape)
+    np.testing.assert_allclose(f, f.transpose(0, 2, 1), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(f @ cov @ f, eye, rtol=0, atol=1e-8)
+    e = rng.standard_normal((500, d))
+    nees = metrics.nees_factored(e, np.linalg.cholesky(cov))
+    np.testing.assert_allclose(metrics.nees_inverse(e, f), nees, rtol=1e-9)
+    r = special_ortho_group.rvs(d, random_state=3) if d > 1 else np.array([[-1.0]])
+    turned = linalg.whitening_factors(r @ cov @ r.T)
+    np.testing.assert_allclose(turned, r @ f @ r.T, rtol=0, atol=1e-8)
+    q = linalg.lower_inverse(np.linalg.cholesky(r @ cov @ r.T)) @ r @ np.linalg.cholesky(cov)
+    np.testing.assert_allclose(q @ q.transpose(0, 2, 1), eye, rtol=0, atol=1e-8)
+    if d > 1:  # L'⁻¹Re_k = Q_k L⁻¹e_k: a turn Q_k of its own at each epoch
+        assert np.ptp(q, axis=0).max() > 0.05
 
 
 def _ar1(rng, n: int, phi: float) -> np.ndarray:

@@ -589,7 +589,8 @@ def memory_mean_test(
     memory : Memory
         The fitted dependence model.
     inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        L⁻¹, or L_k⁻¹ per epoch.
+        The whitening factors the residuals were made with: F_k = Σ_k^{-1/2} per epoch
+        (:func:`credcli.engine.linalg.whitening_factors`), or one shared L⁻¹.
 
     Returns
     -------

@@ -928,8 +928,8 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
         return RunModel(None)
     errors, cov = linalg.check_errors_cov(errors, cov)
     d = errors.shape[1]
-    chol = _cholesky(cov)
-    inverse = linalg.lower_inverse(chol)
+    chol = _cholesky(cov)  # positive definite, or the error naming the epoch
+    inverse = linalg.whitening_factors(cov)
     gls = gls_residuals(errors, chol, inverse)
     z = evidence.memory_residuals(gls, inverse)
     parts, means, sizes = [], [], []
@@ -1168,10 +1168,10 @@ def block_scales(
         idx = np.asarray(indices)
         e = errors[:, idx]
         c = cov[:, idx[:, None], idx[None, :]]
-        chol = _cholesky(c)
-        inverse = linalg.lower_inverse(chol)
+        chol = _cholesky(c)  # positive definite, or the error naming the epoch
+        inverse = linalg.whitening_factors(c)
         gls = gls_residuals(e, chol, inverse)
-        s = whiten(e, c)
+        s = linalg.whitened_by(inverse, e)
         if evidence.reads_memory(config, runs):  # the block's memory, fitted as a segment's
             try:
                 memory, residuals = evidence.segment_memory(gls, inverse, s)

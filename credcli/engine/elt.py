@@ -14,7 +14,6 @@ import numpy as np
 from credcli.engine import linalg
 from credcli.engine.config import DEFAULT_MAX_EPOCHS
 from credcli.engine.flips import FlipOutcome, pair_upper, sign_flip_test
-from credcli.engine.linalg import epoch_chunks
 from credcli.engine.rng import RngLike, as_generator
 from credcli.errors import CredcliError
 
@@ -88,9 +87,10 @@ class ELTResult:
 def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     r"""Whitened errors :math:`s_k = \hat\Sigma_k^{-1/2} e_k`, Eq. (12).
 
-    With the symmetric inverse square root, computed in chunks of epochs: in closed form
-    for d = 2 (:func:`credcli.engine.linalg.inverse_sqrt_2x2`), from ``eigh`` otherwise.
-    Nothing is validated here (``location_test`` does that).
+    With the symmetric inverse square root, computed in chunks of epochs
+    (:func:`credcli.engine.linalg.by_inverse_chunks`): the numbers of
+    ``whitened_by(whitening_factors(cov), errors)``, the whitening the memory's model and
+    the NEES read too. Nothing is validated here (``location_test`` does that).
 
     Parameters
     ----------
@@ -109,15 +109,13 @@ def whiten(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     >>> whiten(np.array([[2.0, 3.0]]), np.diag([4.0, 9.0])[None]).tolist()
     [[1.0, 1.0]]
     """
-    out = np.empty(errors.shape)
-    for sl in epoch_chunks(errors.shape[0]):
-        if errors.shape[1] == 2:
-            out[sl] = np.einsum("nij,nj->ni", linalg.inverse_sqrt_2x2(cov[sl]), errors[sl])
-            continue
-        lam, vecs = np.linalg.eigh(cov[sl])
-        rotated = np.einsum("nji,nj->ni", vecs, errors[sl]) / np.sqrt(lam)
-        out[sl] = np.einsum("nij,nj->ni", vecs, rotated)
-    return out
+    return linalg.by_inverse_chunks(_whitened, errors, cov, errors.shape[1:])
+
+
+def _whitened(errors: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """F_k e_k (:func:`credcli.engine.linalg.whitened_by`) in the argument order of
+    :func:`credcli.engine.linalg.by_inverse_chunks`."""
+    return linalg.whitened_by(factors, errors)
 
 
 def energy_statistic(s: np.ndarray) -> float:

@@ -224,8 +224,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     """
     n, d = errors.shape
     probes_possible = any(not c.calibrated or c.metrics is MetricsLevel.ALL for c in configs)
-    # the one factorisation's inverse L_k⁻¹: the NEES, the GLS residuals and the memory's
-    inverse = _inverse(chol)
+    # the one whitening F_k = Σ_k^{-1/2}: the NEES, the GLS residuals, the memory's and the
+    # ELT's (frame-free: linalg.whitening_factors)
+    inverse = linalg.whitening_factors(cov) if chol.ndim == 3 else _inverse(chol)
     with np.errstate(over="ignore", invalid="ignore"):
         eps = metrics.nees_inverse(errors, inverse)
     if not np.all(np.isfinite(eps)):
@@ -267,7 +268,9 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     # segment is too long for the lag-1 screening, it is made after the model's tests,
     # when the per-epoch inverses and the model's residuals are freed (the peak memory)
     early = len(modelled) < len(configs) or n < SCREENED_BELOW
-    s = whiten(errors, cov) if early else None
+    s = None
+    if early:  # with the factors held, their product (whiten's bits: made without them)
+        s = linalg.whitened_by(inverse, errors) if per_epoch else whiten(errors, cov)
     r1 = correlation.autocorrelation(s) if early else None
     if len(modelled) < len(configs):  # the lag-1 screening of paper, ks and fixed blocks
         dep = dependence.serial_dependence(s, gls.q, r1)
@@ -1012,12 +1015,13 @@ MIN_MEAN_DOF = 3
 
 
 class Inverses:
-    """L_k⁻¹ of a segment's covariances, made when a model's test first reads them.
+    """The whitening factors F_k = Σ_k^{-1/2} of a segment's covariances, made when a
+    model's test first reads them.
 
     A white model's tests read them only for a bias they find, so a long credible segment
     does not make and hold N × d × d numbers it has no use for (2·10⁶ epochs, d = 2:
     61 MiB at the peak of its diagnosis); the numbers are those of the factors made at the
-    start (:func:`credcli.engine.linalg.inverse_factors`).
+    start (:func:`credcli.engine.linalg.whitening_factors`).
     """
 
     def __init__(self, cov: np.ndarray) -> None:
@@ -1026,7 +1030,7 @@ class Inverses:
 
     def __call__(self) -> np.ndarray:
         if self._made is None:
-            self._made = linalg.inverse_factors(self._cov)
+            self._made = linalg.whitening_factors(self._cov)
         return self._made
 
 
@@ -1070,7 +1074,9 @@ def memory_evidence(
     gls : GlsResiduals
         The segment's GLS residuals.
     inverse : numpy.ndarray, shape (d, d) or (N, d, d), or Inverses
-        L⁻¹, or L_k⁻¹ per epoch, or the :class:`Inverses` that makes them where read.
+        The whitening factors, F_k = Σ_k^{-1/2} per epoch
+        (:func:`credcli.engine.linalg.whitening_factors`) or one shared L⁻¹, or the
+        :class:`Inverses` that makes them where read.
     config : DiagnosisConfig
         The configuration (calibrated).
     memory : Memory
@@ -1208,8 +1214,7 @@ _MEMORY_BLOCKS = "the errors' memory needs sign blocks of {block} epochs, which"
 
 
 def memory_residuals(gls, inverse) -> np.ndarray:
-    """The Cholesky-whitened errors without their fitted constants: what the memory is
-    fitted on.
+    """The whitened errors without their fitted constants: what the memory is fitted on.
 
     In the frame the model's tests use (the GLS residuals and scores).
 
@@ -1218,12 +1223,13 @@ def memory_residuals(gls, inverse) -> np.ndarray:
     gls : GlsResiduals
         The GLS residuals (their ``whitened`` errors and ``mean``).
     inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        L⁻¹, or L_k⁻¹ per epoch.
+        The whitening factors the residuals were made with: F_k = Σ_k^{-1/2} per epoch
+        (:func:`credcli.engine.linalg.whitening_factors`), or one shared L⁻¹.
 
     Returns
     -------
     numpy.ndarray, shape (N, d)
-        z_k = L_k⁻¹e_k less its fitted constants (:func:`credcli.engine.memory.mean_free`).
+        z_k = F_k e_k less its fitted constants (:func:`credcli.engine.memory.mean_free`).
     """
     if inverse.ndim == 2:
         z = gls.whitened + inverse @ gls.mean
@@ -1380,7 +1386,7 @@ def segment_memory(gls, inverse, s, residuals=None) -> tuple[Memory, np.ndarray]
         The segment's GLS residuals (the model is fitted on
         :func:`memory_residuals` and their ``q``).
     inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        L⁻¹, or L_k⁻¹ per epoch.
+        The whitening factors the GLS residuals were made with (:func:`memory_residuals`).
     s : numpy.ndarray, shape (N, d), or None
         The whitened errors, for the lag-1 screening (None for a segment of
         :data:`SCREENED_BELOW` epochs or more, which is not screened).

@@ -358,36 +358,44 @@ def lower_inverse(chol: np.ndarray) -> np.ndarray:
     return out
 
 
-def inverse_factors(cov: np.ndarray) -> np.ndarray:
-    """L_k⁻¹ of positive definite (N, d, d) matrices, a chunk of epochs at a time: the
-    numbers of ``lower_inverse(cholesky(cov))`` without their N × d × d factors beside them.
+def whitening_factors(cov: np.ndarray) -> np.ndarray:
+    """F_k = Σ_k^{-1/2} of positive definite (N, d, d) matrices, a chunk of epochs at a
+    time (:func:`inverse_sqrt`): the one whitening of a segment's errors, read by the NEES,
+    the GLS residuals, the memory's model and the ELT (Eq. (12)).
+
+    Any F_k with F_kᵀF_k = Σ_k⁻¹ gives the same NEES and GLS mean, but the series
+    F_k(e_k − μ) that the memory is fitted on depends on the choice. The symmetric root
+    turns with the state's frame (e → Re, Σ → RΣRᵀ gives F → RFRᵀ, so the whitened errors
+    turn by the one constant R), where the inverse Cholesky factor L_k⁻¹ = Q_kΣ_k^{-1/2}
+    adds an orthogonal Q_k that changes with Σ_k and with the components' order: with it,
+    13 and 9 of 1,104 labels changed under a reversed order and a rotation
+    (``benchmarks/frame.py``, docs/measured.md).
 
     Parameters
     ----------
     cov : numpy.ndarray, shape (N, d, d)
-        Positive definite matrices (checked already: a failure names the epoch within
-        its chunk).
+        Positive definite matrices (checked already).
 
     Returns
     -------
     numpy.ndarray, shape (N, d, d)
-        The inverse Cholesky factors, lower triangular.
+        Σ_k^{-1/2}, symmetric.
 
     Examples
     --------
-    >>> inverse_factors(np.array([[[4.0, 2.0], [2.0, 17.0]]])).tolist()
-    [[[0.5, 0.0], [-0.125, 0.25]]]
+    >>> whitening_factors(np.array([[[4.0, 0.0], [0.0, 16.0]]])).tolist()
+    [[[0.5, 0.0], [0.0, 0.25]]]
     """
     out = np.empty(cov.shape)
     for sl in epoch_chunks(cov.shape[0]):
-        out[sl] = lower_inverse(cholesky(cov[sl]))
+        out[sl] = inverse_sqrt(cov[sl])
     return out
 
 
 def by_inverse_chunks(func, errors: np.ndarray, cov: np.ndarray, trailing=()) -> np.ndarray:
-    """``func(e, L⁻¹)`` of each chunk of epochs, with L_k⁻¹ made there from ``cov``
-    (:func:`inverse_factors`' numbers): what a per-epoch function of the inverse factors
-    gives on the whole segment, without its N × d × d factors held.
+    """``func(e, F)`` of each chunk of epochs, with F_k = Σ_k^{-1/2} made there from ``cov``
+    (:func:`whitening_factors`' numbers): what a per-epoch function of the whitening
+    factors gives on the whole segment, without its N × d × d factors held.
 
     Parameters
     ----------
@@ -415,24 +423,25 @@ def by_inverse_chunks(func, errors: np.ndarray, cov: np.ndarray, trailing=()) ->
     """
     out = np.empty((errors.shape[0], *trailing))
     for sl in epoch_chunks(errors.shape[0]):
-        out[sl] = func(errors[sl], inverse_factors(cov[sl]))
+        out[sl] = func(errors[sl], inverse_sqrt(cov[sl]))
     return out
 
 
 def whitened_by(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """L_k⁻¹ v_k for every epoch k: the Cholesky-whitened vectors.
+    """F_k v_k for every epoch k: the vectors whitened by factors F_k with
+    F_kᵀF_k = Σ_k⁻¹ (:func:`whitening_factors`, or :func:`lower_inverse`'s L_k⁻¹).
 
     Parameters
     ----------
     inverse : numpy.ndarray, shape (N, d, d) or (d, d)
-        L_k⁻¹ per epoch (:func:`lower_inverse`), or one shared.
+        F_k per epoch, or one shared.
     vectors : numpy.ndarray, shape (N, d) or (d,)
         v_k per epoch, or one v at every epoch.
 
     Returns
     -------
     numpy.ndarray, shape (N, d), or (d,) for one inverse and one vector
-        L_k⁻¹ v_k, a row per epoch.
+        F_k v_k, a row per epoch.
     """
     if inverse.ndim == 2:
         return vectors @ inverse.T
@@ -585,7 +594,8 @@ def _inverse_sqrt_eigh(cov: np.ndarray) -> np.ndarray:
 
 def inverse_sqrt(cov: np.ndarray) -> np.ndarray:
     """The symmetric inverse square roots Σ_k^{-1/2} = U Λ^{-1/2} Uᵀ of positive definite
-    matrices: the ELT's whitening, Eq. (12), and the time offset's.
+    matrices: the segment's whitening (:func:`whitening_factors`; the ELT's, Eq. (12)) and
+    the time offset's.
 
     Parameters
     ----------
@@ -595,7 +605,9 @@ def inverse_sqrt(cov: np.ndarray) -> np.ndarray:
     Returns
     -------
     numpy.ndarray, shape (N, d, d)
-        Σ_k^{-1/2}: in closed form for d = 2 (:func:`inverse_sqrt_2x2`), from ``eigh``
-        otherwise.
+        Σ_k^{-1/2}: in closed form for d = 1 and d = 2 (:func:`inverse_sqrt_2x2`), from
+        ``eigh`` otherwise.
     """
+    if cov.shape[-1] == 1:
+        return 1.0 / np.sqrt(cov)
     return inverse_sqrt_2x2(cov) if cov.shape[-1] == 2 else _inverse_sqrt_eigh(cov)

@@ -1540,9 +1540,10 @@ def mean_free(s: np.ndarray, inverse: np.ndarray, overwrite: bool = False) -> np
     Parameters
     ----------
     s : numpy.ndarray, shape (N, d)
-        The whitened errors s_k = L_k⁻¹e_k.
+        The whitened errors s_k = F_k e_k.
     inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        L⁻¹, one inverse Cholesky factor for every epoch, or L_k⁻¹ per epoch.
+        The whitening factors: F_k = Σ_k^{-1/2} per epoch
+        (:func:`credcli.engine.linalg.whitening_factors`), or one shared L⁻¹.
     overwrite : bool, default False
         Whether the residuals may be made in ``s`` itself (a caller's own copy: a
         segment of millions of epochs then holds one array of them, not three).

@@ -199,8 +199,10 @@ def gls_residuals(
     inverse: np.ndarray | None = None,
     cov: np.ndarray | None = None,
 ) -> GlsResiduals:
-    """μ̂ = (Σ W_k)⁻¹ Σ W_k e_k and the whitened residuals, with L_k⁻¹ from
-    :func:`credcli.engine.linalg.lower_inverse`.
+    """μ̂ = (Σ Σ_k⁻¹)⁻¹ Σ Σ_k⁻¹ e_k and the whitened residuals F_k(e_k − μ̂), with
+    whitening factors F_kᵀF_k = Σ_k⁻¹ given (the segment's Σ_k^{-1/2},
+    :func:`credcli.engine.linalg.whitening_factors`) or made here as L_k⁻¹
+    (:func:`credcli.engine.linalg.lower_inverse`).
 
     Parameters
     ----------
@@ -210,13 +212,14 @@ def gls_residuals(
         The Cholesky factors L_k of Σ̂_k, or one shared factor; None where ``inverse``
         is given (not read then).
     inverse : numpy.ndarray or None, shape (N, d, d)
-        Their inverses L_k⁻¹ where the caller has them already (the same matrices, so the
-        same result); None (default): computed here chunk by chunk. Not read with a
-        shared factor.
+        The whitening factors F_k where the caller has them (the residuals are then
+        F_k(e_k − μ̂)); None (default): L_k⁻¹, computed here chunk by chunk. Not read with
+        a shared factor.
     cov : numpy.ndarray or None, shape (N, d, d)
         The covariances, where the scores are to be made from them when first read
-        (a chunk of epochs at a time: the same numbers; a long segment's model fit and
-        checks then do not hold them); None (default): made here.
+        (a chunk of epochs at a time, with ``inverse`` the segment's
+        :func:`credcli.engine.linalg.whitening_factors`: the same numbers; a long
+        segment's model fit and checks then do not hold them); None (default): made here.
 
     Returns
     -------

@@ -72,9 +72,13 @@ def estimator_log(
 
     The truth moves on a circle of radius 50 m at 0.05 rad/s; the true error covariance
     Σ_k has 1-σ axes of 1.5 m and 0.6 m turning with the heading. Each epoch's error is
-    e_k = L_k (z_k + μ) + o, L_k L_kᵀ = Σ_k, z_k ~ N(0, I), with o the segment's constant
-    offset, and the claimed covariance is ρ Σ_k. Segments follow each other in time, one
-    epoch interval apart.
+    e_k = L_k z_k + Σ_k^{1/2} μ + o, L_k L_kᵀ = Σ_k, z_k ~ N(0, I), with o the segment's
+    constant offset, and the claimed covariance is ρ Σ_k. The bias μ is the mean of the
+    whitened errors Σ_k^{-1/2} e_k (the engine's whitening, which turns with the state's
+    frame): L_k μ would be a mean of the Cholesky-whitened errors, whose frame depends on
+    the components' order and turns with Σ_k, so that in any other frame its mean would
+    vary through the segment. Segments follow each other in time, one epoch interval
+    apart.
 
     Parameters
     ----------
@@ -118,8 +122,10 @@ def estimator_log(
         rot = np.stack([np.c_[c, -s], np.c_[s, c]], axis=1)  # (n, 2, 2)
         true_cov = rot @ np.diag(sig**2) @ np.swapaxes(rot, 1, 2)
         chol = np.linalg.cholesky(true_cov)
+        root = rot @ np.diag(sig) @ np.swapaxes(rot, 1, 2)  # Σ_k^{1/2}
         white = rng.standard_normal((n, 2))
-        error = np.einsum("nij,nj->ni", chol, white + np.asarray(seg.bias)) + seg.offset
+        error = np.einsum("nij,nj->ni", chol, white) + seg.offset
+        error += np.einsum("nij,j->ni", root, np.asarray(seg.bias))
         estimate = truth - error  # e = x - x̂
         claimed = seg.rho * true_cov
         frames.append(

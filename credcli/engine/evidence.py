@@ -264,14 +264,17 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     )
     if not probes_possible and not per_epoch:  # the shared factor's last use
         del chol
-    # the ELT's whitening: where only the memory model reads the errors' dependence and the
-    # segment is too long for the lag-1 screening, it is made after the model's tests,
-    # when the per-epoch inverses and the model's residuals are freed (the peak memory)
+    # the whitened errors s_k = F_k e_k (the ELT's, Eq. (12), and the lag-1 screening's):
+    # the held factors' product, whiten's bits; past one chunk of epochs, where only the
+    # memory model reads the dependence, whiten makes them after the model's tests, when
+    # the model's residuals are freed (the peak memory)
     early = len(modelled) < len(configs) or n < SCREENED_BELOW
     s = None
-    if early:  # with the factors held, their product (whiten's bits: made without them)
-        s = linalg.whitened_by(inverse, errors) if per_epoch else whiten(errors, cov)
-    r1 = correlation.autocorrelation(s) if early else None
+    if per_epoch and not again:
+        s = linalg.whitened_by(inverse, errors)
+    elif early:
+        s = whiten(errors, cov)
+    r1 = correlation.autocorrelation(s) if s is not None else None
     if len(modelled) < len(configs):  # the lag-1 screening of paper, ks and fixed blocks
         dep = dependence.serial_dependence(s, gls.q, r1)
         located, tau_location = dependence.location_dependence(s, r1, dep)

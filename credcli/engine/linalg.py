@@ -383,8 +383,11 @@ def whitening_factors(cov: np.ndarray) -> np.ndarray:
 
     Examples
     --------
-    >>> whitening_factors(np.array([[[4.0, 0.0], [0.0, 16.0]]])).tolist()
-    [[[0.5, 0.0], [0.0, 0.25]]]
+    >>> f = whitening_factors(np.array([[[2.0, 1.0], [1.0, 2.0]]]))
+    >>> f[0].round(4).tolist()
+    [[0.7887, -0.2113], [-0.2113, 0.7887]]
+    >>> ((f[0] @ np.array([[2.0, 1.0], [1.0, 2.0]]) @ f[0]).round(12) + 0.0).tolist()  # no -0.0
+    [[1.0, 0.0], [0.0, 1.0]]
     """
     out = np.empty(cov.shape)
     for sl in epoch_chunks(cov.shape[0]):

@@ -863,8 +863,8 @@ def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_wa
 
 def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(tmp_path):
     """`diagnose` streams ``-f json -o FILE`` always and ``-f csv -o FILE`` where the
-    tables' columns are known before any result (not of innovations, not Monte Carlo
-    runs); the screen's tables, other formats, figures, a ``--fail-on`` summary
+    tables' columns are known before any result (not of innovations; pooled Monte Carlo
+    runs too); the screen's tables, other formats, figures, a ``--fail-on`` summary
     (which shows the tables), standard output and a device get the whole report."""
     from credcli.cli.emit import streamed_writer
     from credcli.io.schema import LogReading, ReadOptions
@@ -881,8 +881,8 @@ def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(t
 
     assert streams(OutputFormat.JSON) and streams(OutputFormat.CSV)
     assert streams(OutputFormat.JSON, two) and streams(OutputFormat.CSV, two)
-    for request in (innovations, pooled):
-        assert streams(OutputFormat.JSON, request) and not streams(OutputFormat.CSV, request)
+    assert streams(OutputFormat.JSON, innovations) and not streams(OutputFormat.CSV, innovations)
+    assert streams(OutputFormat.JSON, pooled) and streams(OutputFormat.CSV, pooled)
     assert not streams(OutputFormat.TABLE) and not streams(OutputFormat.MARKDOWN)
     assert not streams(OutputFormat.JSON, output=None)
     assert not streams(OutputFormat.JSON, output=Path("/dev/null"))
@@ -963,6 +963,26 @@ def test_a_streamed_file_is_the_whole_reports_text(tmp_path, capsys, fmt):
         whole = capsys.readouterr().out
         assert main(["baseline", str(log), "-o", str(out)]) == 0
         assert out.read_bytes() == whole.encode() and '"kind": ' in whole
+
+
+@pytest.mark.parametrize("window", [[], ["--window", "10s"]])
+def test_monte_carlo_runs_streamed_are_the_whole_reports_text(capsys, tmp_path, window):
+    """Pooled Monte Carlo runs (`--monte-carlo`) are one log's segments: their CSV file,
+    written as the segments are diagnosed, is the whole report's text byte for byte (no
+    table of the runs as logs), as their JSON is."""
+    from helpers import SAMPLE
+
+    from credcli.cli import main
+
+    runs = [str(SAMPLE / "formats" / f"mc_run_{k}.csv") for k in (1, 2, 3)]
+    for fmt in ("csv", "json"):
+        args = ["diagnose", *runs, "--monte-carlo", *window, "-f", fmt]
+        assert main(args) == 0
+        whole = capsys.readouterr().out
+        out = tmp_path / f"out.{fmt}"
+        assert main([*args, "-o", str(out)]) == 0
+        assert out.read_bytes() == whole.encode() and "monte-carlo (3 runs)" in whole
+        assert "logs compared" not in whole
 
 
 def test_the_streamed_json_of_no_records_is_an_empty_list():

@@ -455,7 +455,7 @@ def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, who
     its segments are diagnosed, or None where the whole report is needed first.
 
     ``-f json -o FILE``, and ``-f csv -o FILE`` where the tables' columns are known before
-    any result (not of innovations, not Monte Carlo runs:
+    any result (not of innovations:
     :func:`credcli.report.builders.columns_known_before_results`), are written as the
     results arrive (:func:`credcli.workflows.run_diagnose`'s ``write``), so that the memory
     does not grow with the number of segments; the file is complete or absent, as always
@@ -490,7 +490,7 @@ def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, who
     if whole or output is None or is_stream(output):
         return None
     innovations = request.reading.options.innovations
-    known = columns_known_before_results(innovations, request.monte_carlo)
+    known = columns_known_before_results(innovations)
     if not (fmt is OutputFormat.JSON or (fmt is OutputFormat.CSV and known)):
         return None
 

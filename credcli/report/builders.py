@@ -168,25 +168,23 @@ def _segment_columns(show_all: bool, whiteness: bool = False, multi: bool = Fals
     return (LOG_NAME_COLUMN,) + columns if multi else columns
 
 
-def columns_known_before_results(innovations: bool, monte_carlo: bool) -> bool:
+def columns_known_before_results(innovations: bool) -> bool:
     """Whether the tables' columns are known before any segment is diagnosed: not for
-    innovations (a whiteness column appears where a segment has that test) nor for pooled
-    Monte Carlo runs. (Several logs add the log's column and a table of the logs, whose
-    columns are fixed and whose rows are counted as the segments pass.)
+    innovations (a whiteness column appears where a segment has that test). (Several logs
+    add the log's column and a table of the logs, whose columns are fixed and whose rows
+    are counted as the segments pass; pooled Monte Carlo runs are one log.)
 
     Parameters
     ----------
     innovations : bool
         The logs hold innovations.
-    monte_carlo : bool
-        The logs are Monte Carlo runs, pooled.
 
     Returns
     -------
     bool
         True where :func:`streamed_diagnose_report` has the CSV's tables.
     """
-    return not innovations and not monte_carlo
+    return not innovations
 
 
 def streamed_diagnose_report(
@@ -230,13 +228,13 @@ def streamed_diagnose_report(
     Report
         The tables or none, no notes, and the document.
     """
-    multi = len(logs) > 1
+    multi = len(logs) > 1 and monte_carlo is None  # pooled runs are one log's segments
     notes = _SegmentNotes()
     records = StreamedRecords(_noted(_parts(results), notes) if multi else results)
     entries = {log_id: log_record(summary) for log_id, summary in logs.items()}
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
     tables = []
-    if columns_known_before_results(innovations, monte_carlo is not None):
+    if columns_known_before_results(innovations):
         columns = _segment_columns(show_all, multi=multi)
         caption = _level_caption(config)
         tables = [Table("credcli diagnose", columns, records, caption=caption)]

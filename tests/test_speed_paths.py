@@ -862,27 +862,17 @@ def test_a_segment_that_fails_while_the_json_is_written_leaves_the_file_as_it_wa
 
 
 def test_json_and_csv_files_are_streamed_where_nothing_else_reads_every_result(tmp_path):
-    """`diagnose` streams ``-f json -o FILE`` always and ``-f csv -o FILE`` where the
-    tables' columns are known before any result (not of innovations; pooled Monte Carlo
-    runs too); the screen's tables, other formats, figures, a ``--fail-on`` summary
-    (which shows the tables), standard output and a device get the whole report."""
+    """`diagnose` streams ``-f json -o FILE`` and ``-f csv -o FILE`` (their columns are
+    known before any result, of innovations and pooled Monte Carlo runs too); the
+    screen's tables, other formats, figures, a ``--fail-on`` summary (which shows the
+    tables), standard output and a device get the whole report."""
     from credcli.cli.emit import streamed_writer
-    from credcli.io.schema import LogReading, ReadOptions
     from credcli.report.formats import OutputFormat
-    from credcli.requests import DiagnoseRequest
 
-    one = DiagnoseRequest((tmp_path / "a.csv",))
-    two = DiagnoseRequest((tmp_path / "a.csv", tmp_path / "b.csv"))
-    innovations = DiagnoseRequest(one.logs, LogReading(options=ReadOptions(innovations=True)))
-    pooled = DiagnoseRequest(one.logs, monte_carlo=True)
-
-    def streams(fmt, request=one, output=tmp_path / "out", whole=False):
-        return streamed_writer(fmt, output, (), request, whole) is not None
+    def streams(fmt, output=tmp_path / "out", whole=False):
+        return streamed_writer(fmt, output, (), whole) is not None
 
     assert streams(OutputFormat.JSON) and streams(OutputFormat.CSV)
-    assert streams(OutputFormat.JSON, two) and streams(OutputFormat.CSV, two)
-    assert streams(OutputFormat.JSON, innovations) and not streams(OutputFormat.CSV, innovations)
-    assert streams(OutputFormat.JSON, pooled) and streams(OutputFormat.CSV, pooled)
     assert not streams(OutputFormat.TABLE) and not streams(OutputFormat.MARKDOWN)
     assert not streams(OutputFormat.JSON, output=None)
     assert not streams(OutputFormat.JSON, output=Path("/dev/null"))
@@ -983,6 +973,42 @@ def test_monte_carlo_runs_streamed_are_the_whole_reports_text(capsys, tmp_path, 
         assert main([*args, "-o", str(out)]) == 0
         assert out.read_bytes() == whole.encode() and "monte-carlo (3 runs)" in whole
         assert "logs compared" not in whole
+
+
+def test_innovations_streamed_are_the_whole_reports_text(capsys, tmp_path):
+    """A log of innovations has the whiteness column and, in every record, the whiteness
+    keys (None for a segment too short for the test: N < d + 5), so its CSV's columns are
+    known before any result: the CSV and JSON files written as the segments are diagnosed
+    are the whole report's text byte for byte, the short segment first or not."""
+    import csv
+    import io
+    import json
+
+    from credcli.cli import main
+
+    rng = np.random.default_rng(5)
+    for names in ([*["s"] * 6, *["a"] * 80], [*["a"] * 80, *["s"] * 6]):
+        e = rng.standard_normal((len(names), 2))
+        frame = pd.DataFrame({"time": np.arange(len(names)) * 0.1, "segment": names})
+        frame = frame.assign(innov_0=e[:, 0], innov_1=e[:, 1])
+        log = tmp_path / "innov.csv"
+        frame.assign(innov_cov_0_0=1.0, innov_cov_0_1=0.0, innov_cov_1_1=1.0).to_csv(
+            log, index=False
+        )
+        for fmt in ("csv", "json"):
+            args = ["diagnose", str(log), "--innovations", "-f", fmt]
+            assert main(args) == 0
+            whole = capsys.readouterr().out
+            out = tmp_path / f"out.{fmt}"
+            assert main([*args, "-o", str(out)]) == 0
+            assert out.read_bytes() == whole.encode()
+        rows = {
+            r["segment"]: r
+            for r in csv.DictReader(io.StringIO(out.with_suffix(".csv").read_text()))
+        }
+        assert rows["s"]["whiteness_pvalue"] == "" and float(rows["a"]["whiteness_pvalue"]) > 0
+        records = {r["segment"]: r for r in json.loads(whole)["segments"]}
+        assert records["s"]["whiteness_rejected"] is None and "whiteness_lags" in records["a"]
 
 
 def test_the_streamed_json_of_no_records_is_an_empty_list():

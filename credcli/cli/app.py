@@ -170,7 +170,7 @@ def diagnose(
     # --fail-on's Markdown summary, where it is written, shows the report's tables
     summarised = conditions is not None and summary_wanted(ci.summary)
     whole = plots is not None or report_file is not None or summarised
-    write = streamed_writer(out.fmt, out.output, inputs, request, whole)  # as it is diagnosed
+    write = streamed_writer(out.fmt, out.output, inputs, whole)  # as it is diagnosed
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         result = run_diagnose(request, bar, runner, write)
     if write is None:
@@ -221,7 +221,7 @@ def baseline(
     request = diagnose_request(
         [log_file], config, log, segments, rule, seed, run, keep=Kept.NOTHING
     )
-    write = streamed_writer(OutputFormat.JSON, output, inputs, request)
+    write = streamed_writer(OutputFormat.JSON, output, inputs)
     with cluster(run.scheduler) as runner, Progress("diagnosing segments") as bar:
         recorded = run_baseline(request, bar, runner, write)
     if write is None:

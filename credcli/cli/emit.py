@@ -450,15 +450,13 @@ def emit_run(
         write_html(report_file, title, run, sources, inputs)
 
 
-def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, whole=False):
+def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, whole: bool = False):
     """How `diagnose` (and `baseline`, whose file is JSON) writes its JSON or CSV file while
     its segments are diagnosed, or None where the whole report is needed first.
 
-    ``-f json -o FILE``, and ``-f csv -o FILE`` where the tables' columns are known before
-    any result (not of innovations:
-    :func:`credcli.report.builders.columns_known_before_results`), are written as the
-    results arrive (:func:`credcli.workflows.run_diagnose`'s ``write``), so that the memory
-    does not grow with the number of segments; the file is complete or absent, as always
+    ``-f json -o FILE`` and ``-f csv -o FILE`` are written as the results arrive
+    (:func:`credcli.workflows.run_diagnose`'s ``write``), so that the memory does not grow
+    with the number of segments; the file is complete or absent, as always
     (:func:`credcli.io.files.write_atomic`). The tables on the screen and their notes, and
     a device or FIFO, which would show half a document if a later segment failed, get the
     whole report, and so does a command whose other outputs read every result (``whole``).
@@ -471,8 +469,6 @@ def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, who
         ``--output``.
     inputs : iterable of Path
         The command's input files, which the output may not overwrite.
-    request : DiagnoseRequest
-        The run's logs and settings.
     whole : bool, default False
         Another output reads every result: the figures (``--plots``, ``--report``), or
         ``--fail-on``'s Markdown summary where it is written (``--summary``,
@@ -485,13 +481,10 @@ def streamed_writer(fmt: OutputFormat, output: Path | None, inputs, request, who
         "wrote FILE" (:func:`emit`); None.
     """
     from credcli.io.streams import is_stream
-    from credcli.report.builders import columns_known_before_results
 
     if whole or output is None or is_stream(output):
         return None
-    innovations = request.reading.options.innovations
-    known = columns_known_before_results(innovations)
-    if not (fmt is OutputFormat.JSON or (fmt is OutputFormat.CSV and known)):
+    if fmt not in (OutputFormat.JSON, OutputFormat.CSV):
         return None
 
     def write(report) -> None:

@@ -653,6 +653,10 @@ class SegmentDiagnosis:
         The segment's [Diagnosis][credcli.engine.diagnosis.Diagnosis].
     whiteness : Whiteness or None
         The portmanteau test of the innovations (``credcli diagnose --innovations``).
+    innovations : bool, default False
+        The errors are a filter's innovations (``--innovations``): the segment's record
+        has the whiteness keys, None where it is too short for the test (N < d + 5), so
+        that every record of such a log has the same keys.
 
     Examples
     --------
@@ -668,6 +672,7 @@ class SegmentDiagnosis:
     t_end: float | None
     diagnosis: Diagnosis
     whiteness: Whiteness | None = None  # of innovations (--innovations)
+    innovations: bool = False
 
     def verdict(self) -> SegmentVerdict:
         """What a CI check reads of this segment

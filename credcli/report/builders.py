@@ -134,7 +134,7 @@ def diagnose_report(
     records = Records((*parts, *pending))
     summaries, logs = logs, {log_id: log_record(summary) for log_id, summary in logs.items()}
     multi = len(notes.logs) > 1
-    columns = _segment_columns(show_all, notes.whiteness.tested, multi)
+    columns = _segment_columns(show_all, notes.whiteness.column, multi)
     lines = []
     sub = [f"{log.name}: {name}" if multi else name for log, name in notes.subsampled]
     if sub:
@@ -159,32 +159,12 @@ def diagnose_report(
 
 def _segment_columns(show_all: bool, whiteness: bool = False, multi: bool = False) -> tuple:
     """The segment table's columns: every metric's with ``show_all``, the innovations'
-    whiteness after the seventh where a segment has that test (known only once the
-    results are: :func:`columns_known_before_results`), the log's name first for several
-    logs."""
+    whiteness after the seventh for innovations, the log's name first for several logs:
+    all known before any result (:func:`streamed_diagnose_report`)."""
     columns = SEGMENT_COLUMNS_ALL if show_all else SEGMENT_COLUMNS
     if whiteness:
         columns = columns[:7] + (WHITENESS_COLUMN,) + columns[7:]
     return (LOG_NAME_COLUMN,) + columns if multi else columns
-
-
-def columns_known_before_results(innovations: bool) -> bool:
-    """Whether the tables' columns are known before any segment is diagnosed: not for
-    innovations (a whiteness column appears where a segment has that test). (Several logs
-    add the log's column and a table of the logs, whose columns are fixed and whose rows
-    are counted as the segments pass; pooled Monte Carlo runs are one log.)
-
-    Parameters
-    ----------
-    innovations : bool
-        The logs hold innovations.
-
-    Returns
-    -------
-    bool
-        True where :func:`streamed_diagnose_report` has the CSV's tables.
-    """
-    return not innovations
 
 
 def streamed_diagnose_report(
@@ -201,10 +181,11 @@ def streamed_diagnose_report(
     (:class:`~credcli.report.records.StreamedRecords`), so that no more than the record
     being written is held. Written as JSON, and as CSV where it has tables, it is what
     :func:`diagnose_report` makes of the same results, byte for byte. It has no notes
-    (neither format has them), the tables only where their columns are known before any
-    result (:func:`columns_known_before_results`), and it can be written once. With
-    several logs, the logs' table counts each log's segments as they pass and makes its
-    rows when the writer reaches it, after the last segment.
+    (neither format has them), and it can be written once. Its tables' columns are known
+    before any result (:func:`_segment_columns`: a log of innovations has the whiteness
+    column, and every record of it the whiteness keys). With several logs, the logs' table
+    counts each log's segments as they pass and makes its rows when the writer reaches it,
+    after the last segment.
 
     Parameters
     ----------
@@ -226,20 +207,17 @@ def streamed_diagnose_report(
     Returns
     -------
     Report
-        The tables or none, no notes, and the document.
+        The tables, no notes, and the document.
     """
     multi = len(logs) > 1 and monte_carlo is None  # pooled runs are one log's segments
     notes = _SegmentNotes()
     records = StreamedRecords(_noted(_parts(results), notes) if multi else results)
     entries = {log_id: log_record(summary) for log_id, summary in logs.items()}
     mc_record = None if monte_carlo is None else monte_carlo_record(monte_carlo)
-    tables = []
-    if columns_known_before_results(innovations):
-        columns = _segment_columns(show_all, multi=multi)
-        caption = _level_caption(config)
-        tables = [Table("credcli diagnose", columns, records, caption=caption)]
-        if multi:
-            tables.append(_logs_table(entries, notes, counted_later=True))
+    columns = _segment_columns(show_all, innovations, multi)
+    tables = [Table("credcli diagnose", columns, records, caption=_level_caption(config))]
+    if multi:
+        tables.append(_logs_table(entries, notes, counted_later=True))
     document = diagnose_document(parameters, list(entries.values()), records, mc_record)
     return Report(tables, document)
 
@@ -333,20 +311,18 @@ class _Findings(_Listed):
 class _Whiteness(_Listed):
     """Segments whose innovations are not white at the whiteness test's share of α (the
     engine's decision, ``Whiteness.rejected``), at most ``limit`` lines; and whether any
-    segment had the test (the table's column)."""
+    segment is of innovations or has the test (the table's column)."""
 
     MORE = "segment(s) with correlated innovations"
 
     def __init__(self, limit: int = 10):
         super().__init__(limit)
-        self.tested = False
+        self.column = False
 
     def add(self, result: SegmentDiagnosis) -> None:
         white = result.whiteness
-        if white is None:
-            return
-        self.tested = True
-        if white.rejected:
+        self.column = self.column or result.innovations or white is not None
+        if white is not None and white.rejected:
             self.listed(
                 f"{result.segment}: innovations correlated in time (portmanteau p = "
                 f"{format_cell(white.pvalue, 3)}, {white.lags} lags, level "

@@ -484,7 +484,8 @@ def segment_record(result: SegmentDiagnosis) -> dict:
     -------
     dict
         ``log``, ``segment``, ``t_start`` and ``t_end``, then :func:`diagnosis_record`, then
-        the ``whiteness_*`` keys of the innovations' whiteness test when there is one.
+        for innovations the ``whiteness_*`` keys (:data:`WHITENESS_KEYS`) of their
+        whiteness test, None where the segment is too short for one.
     """
     rec = {
         "log": str(result.log),
@@ -494,14 +495,21 @@ def segment_record(result: SegmentDiagnosis) -> dict:
     } | diagnosis_record(result.diagnosis)
     white = result.whiteness
     if white is not None:
-        rec |= {
-            "whiteness_statistic": white.statistic,
-            "whiteness_pvalue": white.pvalue,
-            "whiteness_lags": white.lags,
-            "whiteness_level": white.level,
-            "whiteness_rejected": white.rejected,
-        }
+        values = (white.statistic, white.pvalue, white.lags, white.level, white.rejected)
+        rec |= dict(zip(WHITENESS_KEYS, values))
+    elif result.innovations:
+        rec |= dict.fromkeys(WHITENESS_KEYS)
     return rec
+
+
+WHITENESS_KEYS = (
+    "whiteness_statistic",
+    "whiteness_pvalue",
+    "whiteness_lags",
+    "whiteness_level",
+    "whiteness_rejected",
+)
+"""The keys of the innovations' whiteness test in a segment record (:func:`segment_record`)."""
 
 
 BATCH_KEYS = frozenset({"segment", "t_start", "t_end", "n", "reason", *ACCURACY_KEYS})
@@ -831,10 +839,9 @@ class StreamedRecords:
 
     def keys(self) -> list[str]:
         """The keys of the first record, in order; it is made now and stays first in
-        :attr:`parts`. They are every record's keys where no segment has a whiteness test
-        (:func:`segment_record`: each diagnosis has every key, None where it has no value),
-        which is where a streamed report has a table
-        (:func:`credcli.report.builders.columns_known_before_results`).
+        :attr:`parts`. They are every record's keys (:func:`segment_record`: each diagnosis
+        has every key, None where it has no value; a log of innovations has the whiteness
+        keys in every record).
 
         Returns
         -------

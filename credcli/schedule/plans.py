@@ -102,7 +102,7 @@ def _diagnose_chunk(task) -> list[SegmentDiagnosis]:
             fitted,
             known,
         )
-        out.append(SegmentDiagnosis(log_id, name, t0, t1, diag, white))
+        out.append(SegmentDiagnosis(log_id, name, t0, t1, diag, white, innovations))
     return out
 
 

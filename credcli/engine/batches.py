@@ -383,7 +383,8 @@ def mean_spread(cov_sum: np.ndarray, precision: np.ndarray, ratio: float, n: int
     """
     try:
         lam, vecs = np.linalg.eigh(precision)
-        root = (vecs / np.sqrt(lam)) @ vecs.T  # S^{-1/2} (scaled)
+        with np.errstate(divide="ignore", invalid="ignore"):  # S numerically singular:
+            root = (vecs / np.sqrt(lam)) @ vecs.T  # S^{-1/2} (scaled); NaN, and so the result
         values = np.linalg.eigvalsh(root @ cov_sum @ root)
     except np.linalg.LinAlgError:
         return math.nan

@@ -575,24 +575,44 @@ def inverse_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
     unit = np.ldexp(1.0, exponent + exponent % 2)  # 4^k: exact scaling, exact √unit
     big, small = eigenvalues_2x2(cov)
     p, q, r = cov[:, 0, 0] / unit, cov[:, 0, 1] / unit, cov[:, 1, 1] / unit
-    root = np.sqrt(big / unit) * np.sqrt(small / unit)  # √det of the scaled matrix
-    denominator = root * np.sqrt(p + r + 2.0 * root) * np.sqrt(unit)
     out = np.empty(cov.shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # the lost epochs, made below
+        root = np.sqrt(big / unit) * np.sqrt(small / unit)  # √det of the scaled matrix
+        denominator = root * np.sqrt(p + r + 2.0 * root) * np.sqrt(unit)
         out[:, 0, 0] = (r + root) / denominator
         out[:, 1, 1] = (p + root) / denominator
         out[:, 0, 1] = out[:, 1, 0] = -q / denominator
     # near-singular (condition near 1/ε): det's cancellation leaves no positive root
     lost = ~(small > 0)
     if lost.any():
-        out[lost] = _inverse_sqrt_eigh(cov[lost])
+        out[lost] = _inverse_sqrt_eigh(cov[lost])  # (and, where eigh fails too, Cholesky)
     return out
 
 
 def _inverse_sqrt_eigh(cov: np.ndarray) -> np.ndarray:
-    """U Λ^{-1/2} Uᵀ from ``eigh``."""
+    """U Λ^{-1/2} Uᵀ from ``eigh``; where an eigenvalue comes out not positive, from the
+    Cholesky factor (:func:`_inverse_sqrt_factored`)."""
     lam, vecs = np.linalg.eigh(cov)
-    return np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)
+    lost = ~(lam[:, 0] > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)
+    if lost.any():
+        out[lost] = _inverse_sqrt_factored(cov[lost])
+    return out
+
+
+def _inverse_sqrt_factored(cov: np.ndarray) -> np.ndarray:
+    """Σ^{-1/2} = W S⁻¹ Wᵀ from the singular values S and left singular vectors W of the
+    Cholesky factor L = W S Vᵀ (Σ = L Lᵀ = W S² Wᵀ).
+
+    A positive definite matrix whose condition number is near 1/ε passes the Cholesky
+    factorisation, yet ``eigh`` may return its smallest eigenvalue as 0 or below (an
+    absolute error of ε·λ_max); L's singular values, the eigenvalues' square roots, have
+    the condition number's square root and keep their relative accuracy. Without this, such
+    a covariance's NEES was NaN and read as an overflow.
+    """
+    w, sv, _ = np.linalg.svd(np.linalg.cholesky(cov))
+    return np.einsum("nij,nj,nkj->nik", w, 1.0 / sv, w)
 
 
 def inverse_sqrt(cov: np.ndarray) -> np.ndarray:

@@ -368,8 +368,8 @@ def whitening_factors(cov: np.ndarray) -> np.ndarray:
     turns with the state's frame (e → Re, Σ → RΣRᵀ gives F → RFRᵀ, so the whitened errors
     turn by the one constant R), where the inverse Cholesky factor L_k⁻¹ = Q_kΣ_k^{-1/2}
     adds an orthogonal Q_k that changes with Σ_k and with the components' order: with it,
-    13 and 9 of 1,104 labels changed under a reversed order and a rotation
-    (``benchmarks/frame.py``, docs/measured.md).
+    13 and 6 of 1,104 labels changed under a reversed order and a rotation, with this
+    root none (``benchmarks/frame.py``, docs/measured.md).
 
     Parameters
     ----------

@@ -93,15 +93,17 @@ def nees_factored(errors: np.ndarray, chol: np.ndarray) -> np.ndarray:
 
 
 def nees_inverse(errors: np.ndarray, inverse: np.ndarray) -> np.ndarray:
-    """The NEES ‖L_k⁻¹ e_k‖² from the inverse Cholesky factors: where a segment holds them
-    already (the diagnosis's one inverse), the same numbers as :func:`nees_factored`.
+    """The NEES ‖F_k e_k‖² from whitening factors F_kᵀF_k = Σ_k⁻¹: where a segment holds
+    them already (the diagnosis's one whitening,
+    :func:`credcli.engine.linalg.whitening_factors`), the numbers of :func:`nees_factored`
+    to rounding.
 
     Parameters
     ----------
     errors : numpy.ndarray, shape (N, d)
         The errors e_k.
     inverse : numpy.ndarray, shape (N, d, d) or (d, d)
-        L_k⁻¹ (:func:`credcli.engine.linalg.lower_inverse`), or one shared.
+        F_k per epoch (Σ_k^{-1/2}, or an inverse Cholesky factor L_k⁻¹), or one shared.
 
     Returns
     -------

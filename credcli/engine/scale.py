@@ -269,14 +269,15 @@ def _as_made(scores: np.ndarray) -> np.ndarray:
 
 
 def _per_epoch_scores(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """The GLS scores g_k = W_k e_k = L_k⁻ᵀ(L_k⁻¹e_k) (N, d), with L_k⁻¹ made from ``cov``
-    a chunk of epochs at a time (:func:`credcli.engine.linalg.by_inverse_chunks`): the
-    numbers :func:`gls_residuals` makes with its factors."""
+    """The GLS scores g_k = W_k e_k = F_kᵀ(F_k e_k) (N, d), with F_k = Σ_k^{-1/2} made
+    from ``cov`` a chunk of epochs at a time
+    (:func:`credcli.engine.linalg.by_inverse_chunks`): the numbers :func:`gls_residuals`
+    makes with the segment's factors."""
     return by_inverse_chunks(_scores_of, errors, cov, errors.shape[1:])
 
 
 def _scores_of(errors: np.ndarray, inverse: np.ndarray) -> np.ndarray:
-    """g_k = L_k⁻ᵀ(L_k⁻¹e_k), as :func:`gls_residuals` makes them."""
+    """g_k = F_kᵀ(F_k e_k), as :func:`gls_residuals` makes them."""
     return np.einsum("nki,nk->ni", inverse, np.einsum("nij,nj->ni", inverse, errors))
 
 

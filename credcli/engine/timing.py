@@ -4,7 +4,7 @@ An estimate stamped δ seconds late, x̂_k = x(t_k − δ), has errors e_k = x(t
 ≈ δ·ẋ(t_k): a misfit proportional to the truth's velocity, which no covariance fixes. The
 offset is estimated jointly with a constant bias μ by generalised least squares in the
 claimed metric, e_k = μ + δ ẋ_k + ε_k with Cov ε_k = Σ̂_k, on the whitened errors
-z_k = L_k⁻¹ e_k and velocities w_k = L_k⁻¹ ẋ_k (so that on a straight line at constant
+z_k = Σ̂_k^{-1/2} e_k and velocities w_k = Σ̂_k^{-1/2} ẋ_k (so that on a straight line at constant
 speed, where a lag and a bias are the same data, δ has no precision and nothing is claimed).
 
 Its standard error under the claim is (Σ_k w̃_kᵀ w̃_k)^{-1/2}, w̃ the velocities with their

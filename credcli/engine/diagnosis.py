@@ -933,9 +933,9 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
         return RunModel(None)
     errors, cov = linalg.check_errors_cov(errors, cov)
     d = errors.shape[1]
-    chol = _cholesky(cov)  # positive definite, or the error naming the epoch
+    _cholesky(cov)  # positive definite, or the error naming the epoch
     inverse = linalg.whitening_factors(cov)
-    gls = gls_residuals(errors, chol, inverse)
+    gls = gls_residuals(errors, None, inverse)
     z = evidence.memory_residuals(gls, inverse)
     parts, means, sizes = [], [], []
     for index in windows:
@@ -1173,9 +1173,9 @@ def block_scales(
         idx = np.asarray(indices)
         e = errors[:, idx]
         c = cov[:, idx[:, None], idx[None, :]]
-        chol = _cholesky(c)  # positive definite, or the error naming the epoch
+        _cholesky(c)  # positive definite, or the error naming the epoch
         inverse = linalg.whitening_factors(c)
-        gls = gls_residuals(e, chol, inverse)
+        gls = gls_residuals(e, None, inverse)
         s = linalg.whitened_by(inverse, e)
         if evidence.reads_memory(config, runs):  # the block's memory, fitted as a segment's
             try:

@@ -226,14 +226,13 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     probes_possible = any(not c.calibrated or c.metrics is MetricsLevel.ALL for c in configs)
     # the one whitening F_k = Σ_k^{-1/2}: the NEES, the GLS residuals, the memory's and the
     # ELT's (frame-free: linalg.whitening_factors)
-    inverse = linalg.whitening_factors(cov) if chol.ndim == 3 else _inverse(chol)
+    inverse = linalg.whitening_factors(cov)
     with np.errstate(over="ignore", invalid="ignore"):
         eps = metrics.nees_inverse(errors, inverse)
     if not np.all(np.isfinite(eps)):
         raise CredcliError(_overflow_message(errors, chol, eps))
-    per_epoch = inverse.ndim == 3
-    if per_epoch and not probes_possible:  # the factors' last use without the probes: their
-        del chol  # inverses stand in for them (2·10⁶ epochs: 61 MiB fewer through the NCI)
+    if not probes_possible:  # the Cholesky factors' last use without the probes: the
+        del chol  # whitening stands in for them (2·10⁶ epochs: 61 MiB fewer through the NCI)
     if mse is not None:  # the caller's MSE matrix
         star = metrics.nees_factored(errors, mse_cholesky(np.asarray(mse, dtype=float), True))
     else:
@@ -246,7 +245,7 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     # past one chunk of epochs the NEES, the inverses and the GLS scores are made again
     # (the same bits) where they are read rather than held through the model's fit, checks
     # and tests (2·10⁶ epochs: peak 561 → 459 MiB resident, docs/performance.md)
-    again = n > linalg.EPOCH_CHUNK and per_epoch
+    again = n > linalg.EPOCH_CHUNK
     if again:
         del eps
     centred = _centred(errors)
@@ -257,20 +256,14 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     del centred_eps, centred_star
     modelled = [c for c in configs if reads_memory(c, runs)]
     # a long segment's scores are made where its model's tests read them, from cov
-    gls = (
-        gls_residuals(errors, None, inverse, cov if again else None)
-        if per_epoch
-        else gls_residuals(errors, chol)
-    )
-    if not probes_possible and not per_epoch:  # the shared factor's last use
-        del chol
+    gls = gls_residuals(errors, None, inverse, cov if again else None)
     # the whitened errors s_k = F_k e_k (the ELT's, Eq. (12), and the lag-1 screening's):
     # the held factors' product, whiten's bits; past one chunk of epochs, where only the
     # memory model reads the dependence, whiten makes them after the model's tests, when
     # the model's residuals are freed (the peak memory)
     early = len(modelled) < len(configs) or n < SCREENED_BELOW
     s = None
-    if per_epoch and not again:
+    if not again:
         s = linalg.whitened_by(inverse, errors)
     elif early:
         s = whiten(errors, cov)
@@ -1316,11 +1309,6 @@ def _declined(ev: ModelEvidence, reason: str) -> ModelEvidence:
     """``ev`` with both questions declined for ``reason``."""
     plan = LocationPlan(ev.plan.block, None, 0.0, None, None)
     return ModelEvidence(ev.scale, reason, None, plan)
-
-
-def _inverse(chol: np.ndarray) -> np.ndarray:
-    """L_k⁻¹ per epoch from the factors L_k (N, d, d), or L⁻¹ from one factor (d, d)."""
-    return linalg.lower_inverse(chol) if chol.ndim == 3 else linalg.lower_inverse(chol[None])[0]
 
 
 WHITE_REFIT_LEVEL = 0.05

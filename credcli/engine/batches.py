@@ -589,9 +589,9 @@ def memory_mean_test(
         The segment's GLS residuals.
     memory : Memory
         The fitted dependence model.
-    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        The whitening factors the residuals were made with: F_k = Σ_k^{-1/2} per epoch
-        (:func:`credcli.engine.linalg.whitening_factors`), or one shared L⁻¹.
+    inverse : numpy.ndarray, shape (N, d, d)
+        The whitening factors the residuals were made with, F_k = Σ_k^{-1/2} per epoch
+        (:func:`credcli.engine.linalg.whitening_factors`).
 
     Returns
     -------
@@ -615,10 +615,6 @@ def memory_mean_test(
         expected, variance = series.centred_square_moments(n)
         gamma = float(y[:, i] @ y[:, i]) / expected
         dof_var = min(dof_var, 2.0 * expected * expected / variance)
-        if inverse.ndim == 2:
-            m = (inverse.T @ memory.directions[:, i]) * ratio_units
-            cov += gamma * n * series.mean_ratio(n) * np.outer(m, m)
-            continue
         m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) * ratio_units
         cov += gamma * toeplitz_form(m, series.test_window(n))
     cov = 0.5 * (cov + cov.T)

@@ -1069,10 +1069,10 @@ def memory_evidence(
     ----------
     gls : GlsResiduals
         The segment's GLS residuals.
-    inverse : numpy.ndarray, shape (d, d) or (N, d, d), or Inverses
+    inverse : numpy.ndarray, shape (N, d, d), or Inverses
         The whitening factors, F_k = Σ_k^{-1/2} per epoch
-        (:func:`credcli.engine.linalg.whitening_factors`) or one shared L⁻¹, or the
-        :class:`Inverses` that makes them where read.
+        (:func:`credcli.engine.linalg.whitening_factors`), or the :class:`Inverses` that
+        makes them where read.
     config : DiagnosisConfig
         The configuration (calibrated).
     memory : Memory
@@ -1218,20 +1218,17 @@ def memory_residuals(gls, inverse) -> np.ndarray:
     ----------
     gls : GlsResiduals
         The GLS residuals (their ``whitened`` errors and ``mean``).
-    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        The whitening factors the residuals were made with: F_k = Σ_k^{-1/2} per epoch
-        (:func:`credcli.engine.linalg.whitening_factors`), or one shared L⁻¹.
+    inverse : numpy.ndarray, shape (N, d, d)
+        The whitening factors the residuals were made with, F_k = Σ_k^{-1/2} per epoch
+        (:func:`credcli.engine.linalg.whitening_factors`).
 
     Returns
     -------
     numpy.ndarray, shape (N, d)
         z_k = F_k e_k less its fitted constants (:func:`credcli.engine.memory.mean_free`).
     """
-    if inverse.ndim == 2:
-        z = gls.whitened + inverse @ gls.mean
-    else:
-        z = np.einsum("nij,j->ni", inverse, gls.mean)
-        z += gls.whitened
+    z = np.einsum("nij,j->ni", inverse, gls.mean)
+    z += gls.whitened
     return mean_free(z, inverse, overwrite=True)
 
 
@@ -1376,7 +1373,7 @@ def segment_memory(gls, inverse, s, residuals=None) -> tuple[Memory, np.ndarray]
     gls : GlsResiduals
         The segment's GLS residuals (the model is fitted on
         :func:`memory_residuals` and their ``q``).
-    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
+    inverse : numpy.ndarray, shape (N, d, d)
         The whitening factors the GLS residuals were made with (:func:`memory_residuals`).
     s : numpy.ndarray, shape (N, d), or None
         The whitened errors, for the lag-1 screening (None for a segment of

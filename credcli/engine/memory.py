@@ -1541,9 +1541,10 @@ def mean_free(s: np.ndarray, inverse: np.ndarray, overwrite: bool = False) -> np
     ----------
     s : numpy.ndarray, shape (N, d)
         The whitened errors s_k = F_k e_k.
-    inverse : numpy.ndarray, shape (d, d) or (N, d, d)
-        The whitening factors: F_k = Σ_k^{-1/2} per epoch
-        (:func:`credcli.engine.linalg.whitening_factors`), or one shared L⁻¹.
+    inverse : numpy.ndarray, shape (N, d, d)
+        The whitening factors F_k = Σ_k^{-1/2}, one per epoch
+        (:func:`credcli.engine.linalg.whitening_factors`; a constant covariance's are
+        one factor broadcast).
     overwrite : bool, default False
         Whether the residuals may be made in ``s`` itself (a caller's own copy: a
         segment of millions of epochs then holds one array of them, not three).
@@ -1551,12 +1552,10 @@ def mean_free(s: np.ndarray, inverse: np.ndarray, overwrite: bool = False) -> np
     Returns
     -------
     numpy.ndarray, shape (N, d)
-        s_k − m̂ − L_k⁻¹b̂; with one covariance (the two constants are one), s less its
-        column means.
+        s_k − m̂ − F_k b̂ (with one covariance the two constants are one, and the
+        least-squares solution of least norm fits them).
     """
     n, d = s.shape
-    if inverse.ndim == 2:  # one covariance: the two constants are one
-        return s - s.mean(axis=0)
     # the sums are those of inverse/unit, whose squares cannot overflow; within SAFE_UNIT
     # of 1 they are taken on the inverse and divided after, which gives the same bits
     # (rounding commutes with a power of two) without a copy of the inverse

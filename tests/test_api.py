@@ -231,3 +231,28 @@ def test_bad_choices_in_the_python_api_name_their_parameter():
         with pytest.raises(CredcliError, match=rf"\b{name}\b") as info:
             call()
         assert info.value.parameter == name
+
+
+def test_a_state_in_mixed_units_is_diagnosed_as_in_one_unit():
+    """A pose whose position is in metres (σ 30–50 m) and attitude in radians (σ 2–5
+    µrad), standard deviations 2.5·10⁷ apart: diagnosed as the same errors and
+    covariances in one unit (each component divided by its σ), with the same label and
+    statistics to 1e-9 (it was refused: "not positive definite", its smallest eigenvalue
+    below 1e-12 of its largest entry). Correlated components, the claim growing over time
+    (Σ_k = c_k·DRD), a bias on the second run."""
+    rng = np.random.default_rng(11)
+    sd = np.array([30.0, 30.0, 50.0, 2e-6, 2e-6, 5e-6])
+    a = rng.standard_normal((6, 8))
+    c = a @ a.T
+    r = c / np.sqrt(np.outer(np.diag(c), np.diag(c)))
+    grow = np.linspace(1.0, 3.0, 500)[:, None, None]
+    for bias in (0.0, 0.4):
+        w = rng.standard_normal((500, 6)) @ np.linalg.cholesky(r).T * np.sqrt(grow[:, :, 0])
+        w[:, 3] += bias * np.sqrt(grow[:, 0, 0])
+        one = credcli.diagnose(w, grow * r, seed=3)
+        mixed = credcli.diagnose(w * sd, grow * r * np.outer(sd, sd), seed=3)
+        assert (mixed.label, mixed.untested) == (one.label, one.untested)
+        for name in ("anees", "elt_pvalue"):
+            assert getattr(mixed, name) == pytest.approx(getattr(one, name), rel=1e-9)
+        assert mixed.scale.scale_factor == pytest.approx(one.scale.scale_factor, rel=1e-9)
+        assert mixed.mean_test.pvalue == pytest.approx(one.mean_test.pvalue, rel=1e-9, abs=1e-300)

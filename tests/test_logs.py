@@ -362,28 +362,56 @@ def test_api_raises_credcli_error(tmp_path):
 
 
 def test_two_by_two_positive_definiteness_matches_eigvalsh():
-    """The closed-form smallest eigenvalue of 2×2 covariances decides as eigvalsh does,
-    from 1e-250 to 1e250 and at the 1e-12 relative threshold."""
-    import numpy as np
-
-    from credcli.errors import CredcliError
-    from credcli.io.logs import CovKind, validated_cov
+    """The closed-form smallest eigenvalue 1 − |ρ| of 2×2 correlation matrices decides as
+    eigvalsh of the correlation matrix does, from 1e-250 to 1e250, with the variances up to
+    10^6 apart, and near the 1e-12 threshold (cases within 0.1 % of it not asked)."""
+    from credcli.io.logs import CORRELATION_FLOOR, CovKind, validated_cov
 
     rng = np.random.default_rng(0)
     for exponent in (-250, 0, 250):
-        a = rng.standard_normal((2000, 2, 2))
-        cov = a @ np.swapaxes(a, 1, 2)
-        lam, vec = np.linalg.eigh(cov)
-        lam[:, 0] = lam[:, 1] * rng.choice([1e-14, 1e-10, 0.3], size=2000)  # near the threshold
-        cov = np.einsum("nij,nj,nkj->nik", vec, lam, vec) * 10.0**exponent
+        gap = rng.choice([1e-14, 1e-12, 1e-10, 0.3], 2000)
+        rho = rng.choice([-1.0, 1.0], 2000) * (1.0 - gap)
+        sd = 10.0 ** rng.uniform(-3, 3, (2000, 2))
+        cov = np.empty((2000, 2, 2))
+        cov[:, 0, 0], cov[:, 1, 1] = sd[:, 0] ** 2, sd[:, 1] ** 2
+        cov[:, 0, 1] = cov[:, 1, 0] = rho * sd[:, 0] * sd[:, 1]
+        cov *= 10.0**exponent
         rows = np.arange(1, 2001)
         for k in range(0, 2000, 7):
             one = cov[k : k + 1]
-            eig = np.linalg.eigvalsh(one)[0, 0]
-            ok = eig > 1e-12 * np.abs(one).max()
+            root = np.sqrt(np.diagonal(one, axis1=1, axis2=2))[0]
+            eig = np.linalg.eigvalsh(one[0] / np.outer(root, root))[0]
+            if abs(eig / CORRELATION_FLOOR - 1.0) < 1e-3:
+                continue
             try:
                 validated_cov(one.copy(), rows[k : k + 1], "x", CovKind.FULL)
                 accepted = True
             except CredcliError:
                 accepted = False
-            assert accepted == ok, (exponent, k, eig)
+            assert accepted == (eig > CORRELATION_FLOOR), (exponent, k, eig)
+
+
+def test_a_covariance_is_refused_for_what_it_is():
+    """A variance not positive, standard deviations more than 10^8 apart, and components
+    correlated ±1 are each refused by name; a graded but positive definite covariance
+    (standard deviations 10^7 apart, as metres beside 0.1 µrad) is not (it was: its
+    smallest eigenvalue is below 1e-12 of its largest entry)."""
+    from credcli.io.logs import CovKind, validated_cov
+
+    rows = np.arange(1, 2)
+    graded = np.diag([1e2, 1e2, 1e-12])
+    graded[0, 2] = graded[2, 0] = 0.5 * 1e1 * 1e-6
+    validated_cov(graded[None].copy(), rows, "x", CovKind.FULL)
+    cases = [
+        (
+            np.diag([1.0, 0.0, 1.0]),
+            r"row 1: covariance is not positive definite \(a variance is 0\)",
+        ),
+        (np.diag([1.0, 1e-17, 1.0]), r"standard deviations are 3.16e\+08 times apart"),
+        (np.array([[1.0, 2.0, 0], [2.0, 4.0, 0], [0, 0, 1.0]]), r"of its correlation matrix is"),
+    ]
+    for cov, message in cases:
+        with pytest.raises(CredcliError, match=message):
+            validated_cov(cov[None].copy(), rows, "x", CovKind.FULL)
+    with pytest.raises(CredcliError, match=r"a variance is -1"):
+        validated_cov(np.diag([1.0, -1.0])[None].copy(), rows, "x", CovKind.VAR)

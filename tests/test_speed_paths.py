@@ -1488,3 +1488,32 @@ def test_covariances_near_singular_for_eigh_are_whitened(d):
     np.testing.assert_allclose(f / scale, f.transpose(0, 2, 1) / scale, rtol=0, atol=1e-6)
     e = np.einsum("nij,nj->ni", np.linalg.cholesky(cov), rng.standard_normal((200, d)))
     assert diagnose_errors(e, cov, rng=1).label is not None
+
+
+@pytest.mark.parametrize("d", [3, 6])
+def test_graded_covariances_are_whitened_to_working_accuracy(d):
+    """A state in mixed units has a graded covariance Σ = DRD, its standard deviations
+    orders of magnitude apart. ``eigh`` of such a matrix in a random component order lost
+    the small eigenvalues' accuracy (spread 10^5: NEES off by 1e-5 relatively; 10^8: by
+    7.7, F Σ F by 130 from I); with the components in decreasing order of variance
+    (linalg._inverse_sqrt_eigh) F stays the symmetric root to working accuracy: F Σ F = I
+    and the NEES equals the Cholesky factor's, to 1e-8."""
+    from credcli.engine import linalg
+
+    rng = np.random.default_rng(7)
+    for spread in (1e5, 1e8):
+        a = rng.standard_normal((300, d, d + 2))
+        c = a @ a.transpose(0, 2, 1)
+        root = np.sqrt(np.diagonal(c, axis1=1, axis2=2))
+        r = c / root[:, :, None] / root[:, None, :]
+        sd = np.array([rng.permutation(spread ** -np.linspace(0, 1, d)) for _ in range(300)])
+        cov = r * sd[:, :, None] * sd[:, None, :]
+        f = linalg.whitening_factors(cov)
+        eye = np.broadcast_to(np.eye(d), cov.shape)
+        np.testing.assert_allclose(f @ cov @ f, eye, rtol=0, atol=1e-8)
+        scale = np.abs(f).max(axis=(1, 2))[:, None, None]
+        np.testing.assert_allclose(f / scale, f.transpose(0, 2, 1) / scale, rtol=0, atol=1e-12)
+        e = np.einsum("nij,nj->ni", np.linalg.cholesky(cov), rng.standard_normal((300, d)))
+        chol = np.linalg.solve(np.linalg.cholesky(cov), e[:, :, None])[:, :, 0]
+        white = np.einsum("nij,nj->ni", f, e)
+        np.testing.assert_allclose(np.sum(white**2, 1), np.sum(chol**2, 1), rtol=1e-8)

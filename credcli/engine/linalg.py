@@ -589,10 +589,49 @@ def inverse_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
     return out
 
 
+GRADED_SPREAD = 16.0
+"""Ratio of a covariance's largest to smallest standard deviation √Σ_ii beyond which
+:func:`_inverse_sqrt_eigh` takes its components in decreasing order of variance. Below it
+``eigh`` is accurate in any order (spread 10, random order: the NEES within 1e-13
+relatively); the order costs 12–22 % of the whitening at d = 3–15."""
+
+
 def _inverse_sqrt_eigh(cov: np.ndarray) -> np.ndarray:
-    """U Λ^{-1/2} Uᵀ from ``eigh``; where an eigenvalue comes out not positive, from the
-    Cholesky factor (:func:`_inverse_sqrt_factored`)."""
-    lam, vecs = np.linalg.eigh(cov)
+    """U Λ^{-1/2} Uᵀ from ``eigh``, a graded matrix's (:data:`GRADED_SPREAD`) with its
+    components in decreasing order of variance; where an eigenvalue comes out not
+    positive, from the Cholesky factor (:func:`_inverse_sqrt_factored`).
+
+    A state that mixes units (metres beside radians) has a graded covariance, Σ = DRD with
+    D's entries orders of magnitude apart. ``eigh`` keeps a graded matrix's small
+    eigenvalues and their vectors to working accuracy when the large variances come first,
+    not otherwise: R well conditioned, d = 6, standard deviations spread over 10^5 in a
+    random order, the NEES of the root's whitened errors was off by up to 1.4·10⁻⁵
+    relatively and F Σ F by 8·10⁻⁵ from I; over 10^8, by 7.7 and 130. Permuting the
+    components first (exact, and undone exactly) leaves both within 2·10⁻¹⁰ up to 10^12
+    (``tests/test_speed_paths.py``). The result is the same matrix: the permutation is
+    orthogonal and the root commutes with it."""
+    variances = np.diagonal(cov, axis1=1, axis2=2)
+    graded = variances.max(axis=1) > GRADED_SPREAD**2 * variances.min(axis=1)
+    if not graded.any():
+        return _root_by_eigh(cov)
+    out = np.empty(cov.shape)
+    out[~graded] = _root_by_eigh(cov[~graded])
+    order = np.argsort(-variances[graded], axis=1, kind="stable")  # ties in their own order
+    out[graded] = _root_by_eigh(cov[graded], order)
+    return out
+
+
+def _root_by_eigh(cov: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
+    """U Λ^{-1/2} Uᵀ of each matrix from ``eigh`` of P Σ Pᵀ, its components taken in
+    ``order`` (None: as they are), with U's rows put back; the Cholesky factor's where an
+    eigenvalue comes out not positive."""
+    if order is None:
+        lam, vecs = np.linalg.eigh(cov)
+    else:
+        epochs = np.arange(cov.shape[0])[:, None, None]
+        lam, vecs = np.linalg.eigh(cov[epochs, order[:, :, None], order[:, None, :]])
+        # Pᵀ U: the rows back in the components' order, so F = Pᵀ U Λ^{-1/2} Uᵀ P
+        vecs = np.take_along_axis(vecs, np.argsort(order, axis=1)[:, :, None], axis=1)
     lost = ~(lam[:, 0] > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
         out = np.einsum("nij,nj,nkj->nik", vecs, 1.0 / np.sqrt(lam), vecs)

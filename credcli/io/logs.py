@@ -19,7 +19,6 @@ import numpy as np
 from credcli.engine.config import Perturbation
 from credcli.engine.linalg import (
     SYMMETRY_RTOL,
-    eigenvalues_2x2,
     epoch_chunks,
     index_range,
     per_epoch,
@@ -1166,6 +1165,18 @@ float arithmetic over many updates. Above it, the matrix is refused as not symme
 wrong column, a transposed layout)."""
 
 
+CORRELATION_FLOOR = 1e-12
+"""Smallest eigenvalue a claimed covariance's correlation matrix D^{-1/2}ΣD^{-1/2} (D its
+diagonal) must exceed: below it two components are correlated ±1 to working precision.
+Read on the correlation matrix, the test is free of the components' units: a state that
+mixes metres and radians has a graded covariance whose own smallest eigenvalue is tiny
+beside its largest entry, and is positive definite all the same."""
+MAX_DEVIATION_SPREAD = 1e8
+"""Largest ratio of a claimed covariance's largest to smallest standard deviation √Σ_ii
+(metres beside 10 nm, kilometres beside 10 µm). The whitening keeps working accuracy on
+such graded matrices (:func:`credcli.engine.linalg.whitening_factors`; checked to a ratio
+of 10^12); beyond this one the components' units should be changed."""
+
 PAIRWISE_MAX_D = 16
 """Largest d whose full covariances are checked and symmetrised an entry pair at a time
 (no N×d×d temporaries); above it, a chunk of whole matrices at a time."""
@@ -1221,8 +1232,9 @@ def validated_cov(
     ------
     CredcliError
         Naming the first bad matrix: a variance that overflows double precision, a relative
-        asymmetry above :data:`SYMMETRISE_RTOL`, or a smallest eigenvalue not above 1e-12
-        times the largest entry (not positive definite).
+        asymmetry above :data:`SYMMETRISE_RTOL`, a variance not positive, standard deviations
+        more than :data:`MAX_DEVIATION_SPREAD` times apart, or a correlation matrix whose smallest
+        eigenvalue is not above :data:`CORRELATION_FLOOR` (not positive definite).
     """
 
     def where(i: int) -> str:
@@ -1277,21 +1289,45 @@ def validated_cov(
         else:  # the same means (halving is exact); the diagonal stays as it is
             for sl in _matrix_chunks(cov.shape[0], d):
                 cov[sl] = 0.5 * cov[sl] + 0.5 * cov[sl].transpose(0, 2, 1)
-    else:
-        scale = per_epoch(np.maximum, np.abs(diag))  # a PD matrix's largest entry is diagonal
-    if kind in (CovKind.VAR, CovKind.STD):
-        min_eig = per_epoch(np.minimum, diag)
-    elif cov.shape[1] == 2:  # closed form, scale-free, no cancellation
-        min_eig = eigenvalues_2x2(cov)[1]
-    else:
-        min_eig = np.empty(cov.shape[0])
-        for sl in epoch_chunks(cov.shape[0]):  # bounded temporaries
-            min_eig[sl] = np.linalg.eigvalsh(cov[sl])[:, 0]
-    not_pd = ~(min_eig > 1e-12 * np.maximum(scale, np.finfo(float).tiny))
-    if not_pd.any():
-        i = int(np.argmax(not_pd))
+    smallest = per_epoch(np.minimum, diag)
+    if not np.all(smallest > 0):
+        i = int(np.argmax(~(smallest > 0)))
         raise CredcliError(
-            f"{where(i)}: covariance is not positive definite (smallest eigenvalue "
-            f"{min_eig[i]:.3g}); a claimed covariance must be positive definite"
+            f"{where(i)}: covariance is not positive definite (a variance is "
+            f"{smallest[i]:.3g}); a claimed covariance must be positive definite"
         )
+    spread = np.sqrt(per_epoch(np.maximum, diag)) / np.sqrt(smallest)
+    wide = spread > MAX_DEVIATION_SPREAD * (1.0 + 1e-12)  # the limit itself, rounded, passes
+    if wide.any():
+        i = int(np.argmax(wide))
+        raise CredcliError(
+            f"{where(i)}: the covariance's standard deviations are {spread[i]:.3g} times "
+            f"apart, more than {MAX_DEVIATION_SPREAD:g}; give the components in units of "
+            "more similar size"
+        )
+    if kind is CovKind.FULL and cov.shape[1] > 1:
+        min_eig = _smallest_correlation_eigenvalue(cov)
+        not_pd = ~(min_eig > CORRELATION_FLOOR)
+        if not_pd.any():
+            i = int(np.argmax(not_pd))
+            raise CredcliError(
+                f"{where(i)}: covariance is not positive definite (the smallest eigenvalue "
+                f"of its correlation matrix is {min_eig[i]:.3g}, not above "
+                f"{CORRELATION_FLOOR:g}); a claimed covariance must be positive definite"
+            )
     return cov
+
+
+def _smallest_correlation_eigenvalue(cov: np.ndarray) -> np.ndarray:
+    """The smallest eigenvalue of each matrix's correlation matrix D^{-1/2}ΣD^{-1/2}
+    (positive diagonals): 1 − |ρ| in closed form for d = 2, else ``eigvalsh`` a chunk of
+    epochs at a time (bounded temporaries). Each entry is divided by √Σ_ii·√Σ_jj, which
+    neither overflows nor underflows where the variances are far apart."""
+    root = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
+    if cov.shape[1] == 2:
+        return 1.0 - np.abs(cov[:, 0, 1] / root[:, 0] / root[:, 1])
+    out = np.empty(cov.shape[0])
+    for sl in epoch_chunks(cov.shape[0]):
+        r = root[sl]
+        out[sl] = np.linalg.eigvalsh(cov[sl] / r[:, :, None] / r[:, None, :])[:, 0]
+    return out

@@ -256,3 +256,4 @@ def test_a_state_in_mixed_units_is_diagnosed_as_in_one_unit():
             assert getattr(mixed, name) == pytest.approx(getattr(one, name), rel=1e-9)
         assert mixed.scale.scale_factor == pytest.approx(one.scale.scale_factor, rel=1e-9)
         assert mixed.mean_test.pvalue == pytest.approx(one.mean_test.pvalue, rel=1e-9, abs=1e-300)
+        assert mixed.mean_test.spread == pytest.approx(one.mean_test.spread, rel=1e-9)

@@ -257,3 +257,12 @@ def test_a_state_in_mixed_units_is_diagnosed_as_in_one_unit():
         assert mixed.scale.scale_factor == pytest.approx(one.scale.scale_factor, rel=1e-9)
         assert mixed.mean_test.pvalue == pytest.approx(one.mean_test.pvalue, rel=1e-9, abs=1e-300)
         assert mixed.mean_test.spread == pytest.approx(one.mean_test.spread, rel=1e-9)
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "a"])
+def test_a_bad_seed_is_a_credcli_error_naming_the_seed(seed):
+    """numpy's own ValueError or TypeError ("expected non-negative integer") named no
+    argument and was no CredcliError; the command line already said which."""
+    with pytest.raises(credcli.CredcliError, match="the seed must be") as info:
+        credcli.diagnose(_errors(), np.eye(2), seed=seed)
+    assert info.value.parameter == "seed"

@@ -6,6 +6,8 @@ import sys
 
 import numpy as np
 
+from credcli.errors import CredcliError
+
 RngLike = np.random.Generator | np.random.SeedSequence | int | None
 
 
@@ -23,6 +25,11 @@ def as_generator(rng: RngLike) -> np.random.Generator:
     numpy.random.Generator
         The generator to draw from.
 
+    Raises
+    ------
+    CredcliError
+        For anything else (a negative or fractional seed, a string), naming the seed.
+
     Examples
     --------
     >>> gen = np.random.default_rng(0)
@@ -31,7 +38,14 @@ def as_generator(rng: RngLike) -> np.random.Generator:
     """
     if isinstance(rng, np.random.Generator):
         return rng
-    return np.random.default_rng(rng)
+    try:
+        return np.random.default_rng(rng)
+    except (TypeError, ValueError) as exc:  # numpy's own words name no argument
+        raise CredcliError(
+            "the seed must be a non-negative integer, a numpy Generator or SeedSequence, or "
+            f"None; got {rng!r}",
+            "seed",
+        ) from exc
 
 
 def rademacher(gen: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:

@@ -290,10 +290,11 @@ def test_baseline_of_overflowing_errors_is_exit_2(overflowing, tmp_path):
 
 
 def test_errors_and_covariances_at_the_edge_of_the_range_scale_out(tmp_path):
-    """Errors of 1e150 with covariances of 1e300: whitened, they are ordinary numbers."""
+    """Errors of 1e145 with covariances of 1e290 (standard deviations within
+    DEVIATION_RANGE, 1e-150 … 1e150): whitened, they are ordinary numbers."""
     frame = pd.read_csv(LOG)
-    frame[["truth_0", "truth_1", "est_0", "est_1"]] *= 1e150
-    frame[["cov_0_0", "cov_0_1", "cov_1_1"]] *= 1e300
+    frame[["truth_0", "truth_1", "est_0", "est_1"]] *= 1e145
+    frame[["cov_0_0", "cov_0_1", "cov_1_1"]] *= 1e290
     path = tmp_path / "scaled.csv"
     frame.to_csv(path, index=False)
     code, out, err = run("diagnose", path, "-f", "json")
@@ -758,3 +759,36 @@ def test_stopping_workers_killed_mid_result_returns():
     stopped = threading.Event()
     threading.Thread(target=lambda: (pool.stop(), stopped.set()), daemon=True).start()
     assert stopped.wait(20), "stopping the pool hung"
+
+
+@pytest.mark.parametrize("scale", [1e-153, 1e154])
+def test_standard_deviations_beyond_double_precisions_reach_are_refused(tmp_path, scale):
+    """Errors and standard deviations scaled by 1e-153 failed as an internal error
+    ("eigenvalues did not converge": the precisions' sum overflowed), by 1e154 gave a
+    wrong κ̂ (d = 3); now both are exit 2, naming the row and the range."""
+    rng = np.random.default_rng(1)
+    e = rng.standard_normal((300, 3)) * scale
+    frame = pd.DataFrame({f"truth_{i}": e[:, i] for i in range(3)})
+    for i in range(3):
+        frame[f"est_{i}"] = 0.0
+        frame[f"var_{i}"] = scale * scale * (1.0 + 0.2 * i)
+    path = tmp_path / "extreme.csv"
+    frame.to_csv(path, index=False)
+    line = error_line(*run("diagnose", path)[::2])
+    assert "row 1" in line and "lies outside 1e-150 … 1e+150" in line
+
+
+def test_results_are_the_same_in_any_unit_within_the_range():
+    """Errors and standard deviations scaled by 10^±140 (d = 3, correlated, a bias): the
+    same label and κ̂, to 1e-9, as in the log's own unit."""
+    import credcli
+
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((3, 5))
+    cov = a @ a.T / 5
+    e = rng.standard_normal((300, 3)) @ np.linalg.cholesky(cov).T + [0.3, 0.0, 0.0]
+    one = credcli.diagnose(e, cov, seed=1)
+    for scale in (1e-140, 1e140):
+        other = credcli.diagnose(e * scale, cov * scale * scale, seed=1)
+        assert (other.label, other.untested) == (one.label, one.untested)
+        assert other.scale.scale_factor == pytest.approx(one.scale.scale_factor, rel=1e-9)

@@ -611,7 +611,7 @@ def _inverse_sqrt_eigh(cov: np.ndarray) -> np.ndarray:
     (``tests/test_speed_paths.py``). The result is the same matrix: the permutation is
     orthogonal and the root commutes with it."""
     variances = np.diagonal(cov, axis1=1, axis2=2)
-    graded = variances.max(axis=1) > GRADED_SPREAD**2 * variances.min(axis=1)
+    graded = variances.max(axis=1) / variances.min(axis=1) > GRADED_SPREAD**2
     if not graded.any():
         return _root_by_eigh(cov)
     out = np.empty(cov.shape)

@@ -1177,6 +1177,15 @@ MAX_DEVIATION_SPREAD = 1e8
 such graded matrices (:func:`credcli.engine.linalg.whitening_factors`; checked to a ratio
 of 10^12); beyond this one the components' units should be changed."""
 
+DEVIATION_RANGE = (1e-150, 1e150)
+"""The claimed standard deviations √Σ_ii a log may hold, in its own unit: within them every
+result is the same as in any other unit (errors and standard deviations scaled by 10^±145,
+d = 1 … 6, 12 … 20,000 epochs: every label and κ̂ unchanged; ``tests/test_edge_signals.py``
+at 10^±140). Beyond them the precisions Σ_k⁻¹, summed over the
+epochs, or the variances themselves leave double precision's range: with standard
+deviations of 1e-153 (d = 3, 300 epochs) the diagnosis failed ("eigenvalues did not
+converge", an internal error), with 1e154 it gave κ̂ 0.64 for 0.97."""
+
 PAIRWISE_MAX_D = 16
 """Largest d whose full covariances are checked and symmetrised an entry pair at a time
 (no N×d×d temporaries); above it, a chunk of whole matrices at a time."""
@@ -1232,8 +1241,8 @@ def validated_cov(
     ------
     CredcliError
         Naming the first bad matrix: a variance that overflows double precision, a relative
-        asymmetry above :data:`SYMMETRISE_RTOL`, a variance not positive, standard deviations
-        more than :data:`MAX_DEVIATION_SPREAD` times apart, or a correlation matrix whose smallest
+        asymmetry above :data:`SYMMETRISE_RTOL`, a variance not positive, a standard deviation
+        outside :data:`DEVIATION_RANGE`, standard deviations more than :data:`MAX_DEVIATION_SPREAD` times apart, or a correlation matrix whose smallest
         eigenvalue is not above :data:`CORRELATION_FLOOR` (not positive definite).
     """
 
@@ -1295,6 +1304,16 @@ def validated_cov(
         raise CredcliError(
             f"{where(i)}: covariance is not positive definite (a variance is "
             f"{smallest[i]:.3g}); a claimed covariance must be positive definite"
+        )
+    low, high = DEVIATION_RANGE
+    outside = ~((np.sqrt(smallest) >= low) & (np.sqrt(per_epoch(np.maximum, diag)) <= high))
+    if outside.any():
+        i = int(np.argmax(outside))
+        size = np.sqrt(np.diagonal(cov[i]))
+        size = size.min() if size.min() < low else size.max()
+        raise CredcliError(
+            f"{where(i)}: a claimed standard deviation of {size:.3g} lies outside "
+            f"{low:g} … {high:g} of the log's unit; give the log in other units"
         )
     spread = np.sqrt(per_epoch(np.maximum, diag)) / np.sqrt(smallest)
     wide = spread > MAX_DEVIATION_SPREAD * (1.0 + 1e-12)  # the limit itself, rounded, passes

@@ -792,3 +792,27 @@ def test_results_are_the_same_in_any_unit_within_the_range():
         other = credcli.diagnose(e * scale, cov * scale * scale, seed=1)
         assert (other.label, other.untested) == (one.label, one.untested)
         assert other.scale.scale_factor == pytest.approx(one.scale.scale_factor, rel=1e-9)
+
+
+@pytest.mark.skipif(
+    not Path("/proc/self").is_dir(), reason="needs /proc, where no file can be made"
+)
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--plots", "/proc/credcli-figures"],
+        ["--report", "/proc/credcli.html"],
+        ["--fail-on", "bias", "--junit", "/proc/credcli.xml"],
+        ["--fail-on", "bias", "--summary", "/proc/credcli.md"],
+    ],
+)
+def test_an_output_that_cannot_be_written_stops_the_run_before_any_is(tmp_path, extra):
+    """-o was written (replacing the file there) and only then a side output in a place
+    that takes no file failed, with two lines on stderr. Every output's place is tried
+    before any work: exit 2, one line naming the option, -o's file untouched."""
+    out = tmp_path / "m.json"
+    out.write_text("ORIG")
+    code, _, err = run("diagnose", LOG, "-f", "json", "-o", out, *extra)
+    line = error_line(code, err)
+    assert extra[-2] in line and "cannot write in /proc" in line
+    assert out.read_text() == "ORIG"

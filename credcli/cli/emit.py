@@ -308,15 +308,19 @@ def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> list[Path
         output's path.
     """
     from credcli.ci.reports import check_step_summary
-    from credcli.io.files import check_directory_output, check_outputs
+    from credcli.io.files import check_directory_output, check_outputs, check_writable
 
     summary = os.environ.get("GITHUB_STEP_SUMMARY")
     if summary:  # appended at the end of a run: checked, like every output, first
         check_step_summary(summary)
         outputs = outputs | {"GITHUB_STEP_SUMMARY": Path(summary)}
     check_outputs(outputs, [p for p in inputs if p is not None], plots)
+    for name, path in outputs.items():  # every place can take a file: none fails after
+        if path is not None:  # another output was written
+            check_writable(name, Path(path))
     if plots is not None:
         check_directory_output("--plots", plots, outputs, inputs)
+        check_writable("--plots", plots, directory=True)
         where = Path(os.path.abspath(plots))
         inside = [
             p

@@ -337,6 +337,52 @@ def check_directory_output(name: str, directory: Path, outputs: dict, inputs=())
             raise CredcliError(f"{name} {directory}: is also an input ({src})")
 
 
+def check_writable(name: str, path: Path, directory: bool = False) -> None:
+    """Refuse, before any work, an output that cannot be written where it is to go: a file
+    is written beside its name and renamed over it (:func:`write_atomic`), and a directory
+    (``--plots``) is made with its parents, so what must take a new file is ``path``'s
+    directory, or ``path`` itself when it is an existing directory, or else the nearest
+    directory that exists. That is tried by making (and removing) an empty file there: the
+    permission bits do not tell (a root process passes them, an immutable directory or a
+    read-only mount refuses all the same). Without this, an output that failed after
+    another was written left the run half done: ``-o`` replaced, then ``--plots`` refused.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, as messages give it.
+    path : pathlib.Path
+        The output (a file, or with ``directory`` a directory to write into).
+    directory : bool, default False
+        Whether ``path`` is a directory that outputs are written into.
+
+    Raises
+    ------
+    CredcliError
+        If no file can be made there, naming the option, the place and the reason.
+    """
+    if not directory and _is_stream(path):
+        return
+    place = Path(os.path.abspath(path))
+    if not directory:
+        place = place.parent
+    while not place.is_dir() and place != place.parent:
+        place = place.parent
+    probe = place / _temporary_name("credcli-probe")
+    try:
+        fd = os.open(
+            probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600
+        )
+    except OSError as exc:
+        raise CredcliError(
+            f"{name} {shown(path)}: cannot write in {shown(place)} ({_os_reason(exc)}); "
+            "choose another place"
+        ) from exc
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+
+
 def check_new_file(name: str, path: Path, keep=()) -> None:
     """Refuse, before it is written, an output ``path`` that is a directory or one of
     ``keep`` (the command's inputs and other outputs): for outputs whose names are known

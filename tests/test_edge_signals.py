@@ -816,3 +816,52 @@ def test_an_output_that_cannot_be_written_stops_the_run_before_any_is(tmp_path, 
     line = error_line(code, err)
     assert extra[-2] in line and "cannot write in /proc" in line
     assert out.read_text() == "ORIG"
+
+
+def _innovations_log(path, rows):
+    head = "time,innov_0,innov_1,innov_cov_0_0,innov_cov_0_1,innov_cov_1_1\n"
+    path.write_text(
+        head + "".join(f"{k},{float(a)!r},{float(b)!r},{s},{c},{t}\n" for k, a, b, s, c, t in rows)
+    )
+    return path
+
+
+def test_an_innovation_covariance_in_the_upper_layout_is_checked(tmp_path):
+    """A singular or indefinite S given as its upper triangle (innov_cov_0_0, _0_1, _1_1)
+    reached the whitening and failed there as an internal error (exit 3); it is refused
+    when the log is read, by row, as a full matrix is."""
+    rng = np.random.default_rng(8)
+    for off in (1.0, 2.0):
+        rows = [(k, rng.normal(), rng.normal(), 1, off, 1) for k in range(60)]
+        path = _innovations_log(tmp_path / f"s{off}.csv", rows)
+        line = error_line(*run("diagnose", path, "--innovations")[::2])
+        assert "row 1: covariance is not positive definite" in line and "correlation" in line
+
+
+def test_innovations_that_span_fewer_dimensions_are_declined_not_an_error(tmp_path):
+    """Collinear innovations (innov_0 = innov_1) have a singular sample covariance, and
+    Hosking's portmanteau statistic inverts it: the run failed as an internal error
+    (exit 3). The whiteness test is not run there, and the segment is insufficient-data
+    with its reason."""
+    rng = np.random.default_rng(8)
+    rows = [(k, x, x, 1, 0, 1) for k, x in enumerate(rng.normal(size=60))]
+    path = _innovations_log(tmp_path / "collinear.csv", rows)
+    code, out, err = run("diagnose", path, "--innovations", "-f", "json")
+    assert code == 0, err
+    record = json.loads(out)["segments"][0]
+    assert record["label"] == "insufficient-data"
+    assert "fewer than d dimensions" in record["reason"]
+
+
+def test_errors_equal_in_two_components_are_insufficient_data_whatever_the_rounding():
+    """Two equal columns make the MSE matrix singular, but its Cholesky factorisation
+    passed by rounding on 7 of 40 such segments, which then read "bias" or "credible"
+    (their sample covariance inverted). The correlation matrix's smallest eigenvalue says
+    singular on all 40."""
+    import credcli
+
+    for seed in range(40):
+        x = np.random.default_rng(seed).normal(size=60)
+        diagnosis = credcli.diagnose(np.c_[x, x], np.eye(2), seed=1)
+        assert diagnosis.label.value == "insufficient-data"
+        assert "fewer than d dimensions" in diagnosis.reason

@@ -811,11 +811,17 @@ def innovation_whiteness(
     Returns
     -------
     Whiteness or None
-        The test, or None for a segment too short for one lag (N < d + 5).
+        The test, or None for a segment too short for one lag (N < d + 5), or whose
+        innovations span fewer than d dimensions (their sample covariance Ĉ_0 singular:
+        constant or collinear innovations, which the two questions then decline with
+        their reason).
     """
     if errors.shape[0] < 5 + errors.shape[1]:
         return None
-    white = portmanteau(whiten(errors, cov))
+    try:
+        white = portmanteau(whiten(errors, cov))
+    except np.linalg.LinAlgError:
+        return None
     return white if level is None else replace(white, level=level)
 
 

@@ -501,6 +501,47 @@ def _factorable(matrix: np.ndarray) -> bool:
     return True
 
 
+CORRELATION_FLOOR = 1e-12
+"""Smallest eigenvalue a claimed covariance's (or a segment's MSE matrix's) correlation
+matrix D^{-1/2}ΣD^{-1/2} (D its diagonal) must exceed: below it two components are
+correlated ±1 to working precision. Read on the correlation matrix, the test is free of the
+components' units: a state that mixes metres and radians has a graded covariance whose own
+smallest eigenvalue is tiny beside its largest entry, and is positive definite all the
+same."""
+
+
+def smallest_correlation_eigenvalue(cov: np.ndarray) -> np.ndarray:
+    """The smallest eigenvalue of each matrix's correlation matrix D^{-1/2}ΣD^{-1/2}: 1 − |ρ|
+    in closed form for d = 2, else ``eigvalsh`` a chunk of epochs at a time (bounded
+    temporaries). Each entry is divided by √Σ_ii·√Σ_jj, which neither overflows nor
+    underflows where the variances are far apart.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray, shape (N, d, d)
+        Symmetric matrices with positive diagonals, d >= 2.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        The smallest eigenvalues; not above :data:`CORRELATION_FLOOR` where two components
+        are correlated ±1 to working precision.
+
+    Examples
+    --------
+    >>> smallest_correlation_eigenvalue(np.array([[[4.0, 1.0], [1.0, 1.0]]])).tolist()
+    [0.5]
+    """
+    root = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
+    if cov.shape[1] == 2:
+        return 1.0 - np.abs(cov[:, 0, 1] / root[:, 0] / root[:, 1])
+    out = np.empty(cov.shape[0])
+    for sl in epoch_chunks(cov.shape[0]):
+        r = root[sl]
+        out[sl] = np.linalg.eigvalsh(cov[sl] / r[:, :, None] / r[:, None, :])[:, 0]
+    return out
+
+
 def eigenvalues_2x2(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The larger and the smaller eigenvalue of symmetric 2×2 matrices, in closed form.
 

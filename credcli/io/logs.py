@@ -18,10 +18,12 @@ import numpy as np
 
 from credcli.engine.config import Perturbation
 from credcli.engine.linalg import (
+    CORRELATION_FLOOR,
     SYMMETRY_RTOL,
     epoch_chunks,
     index_range,
     per_epoch,
+    smallest_correlation_eigenvalue,
 )
 from credcli.errors import CredcliError
 from credcli.io.files import check_covariance_memory
@@ -1165,12 +1167,6 @@ float arithmetic over many updates. Above it, the matrix is refused as not symme
 wrong column, a transposed layout)."""
 
 
-CORRELATION_FLOOR = 1e-12
-"""Smallest eigenvalue a claimed covariance's correlation matrix D^{-1/2}ΣD^{-1/2} (D its
-diagonal) must exceed: below it two components are correlated ±1 to working precision.
-Read on the correlation matrix, the test is free of the components' units: a state that
-mixes metres and radians has a graded covariance whose own smallest eigenvalue is tiny
-beside its largest entry, and is positive definite all the same."""
 MAX_DEVIATION_SPREAD = 1e8
 """Largest ratio of a claimed covariance's largest to smallest standard deviation √Σ_ii
 (metres beside 10 nm, kilometres beside 10 µm). The whitening keeps working accuracy on
@@ -1242,8 +1238,10 @@ def validated_cov(
     CredcliError
         Naming the first bad matrix: a variance that overflows double precision, a relative
         asymmetry above :data:`SYMMETRISE_RTOL`, a variance not positive, a standard deviation
-        outside :data:`DEVIATION_RANGE`, standard deviations more than :data:`MAX_DEVIATION_SPREAD` times apart, or a correlation matrix whose smallest
-        eigenvalue is not above :data:`CORRELATION_FLOOR` (not positive definite).
+        outside :data:`DEVIATION_RANGE`, standard deviations more than
+        :data:`MAX_DEVIATION_SPREAD` times apart, or a correlation matrix whose smallest
+        eigenvalue is not above :data:`credcli.engine.linalg.CORRELATION_FLOOR` (not
+        positive definite).
     """
 
     def where(i: int) -> str:
@@ -1324,8 +1322,8 @@ def validated_cov(
             f"apart, more than {MAX_DEVIATION_SPREAD:g}; give the components in units of "
             "more similar size"
         )
-    if kind is CovKind.FULL and cov.shape[1] > 1:
-        min_eig = _smallest_correlation_eigenvalue(cov)
+    if kind not in (CovKind.VAR, CovKind.STD) and cov.shape[1] > 1:  # full or upper
+        min_eig = smallest_correlation_eigenvalue(cov)
         not_pd = ~(min_eig > CORRELATION_FLOOR)
         if not_pd.any():
             i = int(np.argmax(not_pd))
@@ -1335,18 +1333,3 @@ def validated_cov(
                 f"{CORRELATION_FLOOR:g}); a claimed covariance must be positive definite"
             )
     return cov
-
-
-def _smallest_correlation_eigenvalue(cov: np.ndarray) -> np.ndarray:
-    """The smallest eigenvalue of each matrix's correlation matrix D^{-1/2}ΣD^{-1/2}
-    (positive diagonals): 1 − |ρ| in closed form for d = 2, else ``eigvalsh`` a chunk of
-    epochs at a time (bounded temporaries). Each entry is divided by √Σ_ii·√Σ_jj, which
-    neither overflows nor underflows where the variances are far apart."""
-    root = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
-    if cov.shape[1] == 2:
-        return 1.0 - np.abs(cov[:, 0, 1] / root[:, 0] / root[:, 1])
-    out = np.empty(cov.shape[0])
-    for sl in epoch_chunks(cov.shape[0]):
-        r = root[sl]
-        out[sl] = np.linalg.eigvalsh(cov[sl] / r[:, :, None] / r[:, None, :])[:, 0]
-    return out

@@ -865,3 +865,23 @@ def test_errors_equal_in_two_components_are_insufficient_data_whatever_the_round
         diagnosis = credcli.diagnose(np.c_[x, x], np.eye(2), seed=1)
         assert diagnosis.label.value == "insufficient-data"
         assert "fewer than d dimensions" in diagnosis.reason
+
+
+def test_a_time_cell_that_is_no_time_is_named_by_row(tmp_path):
+    """A numeric time column with one word in row 31 was refused quoting its first, valid
+    value ('1') and no row."""
+    rows = "".join(f"{k},0,0.{k},1\n" for k in range(1, 31))
+    path = tmp_path / "t.csv"
+    path.write_text("time,truth_0,est_0,var_0\n" + rows + "abc,0,1,1\n")
+    line = error_line(*run("diagnose", path)[::2])
+    assert "(time): row 31: 'abc' is neither a number nor an ISO-8601 date-time" in line
+
+
+def test_a_csv_that_is_not_utf8_is_named_by_line_and_byte(tmp_path):
+    """A Latin-1 byte in line 52 was reported at pandas' buffer position ("position 0")
+    with no fix; now its line, its byte and the way to convert the file."""
+    rows = b"".join(b"%d,0,1,1\n" % k for k in range(50))
+    path = tmp_path / "latin1.csv"
+    path.write_bytes(b"time,truth_0,est_0,var_0\n" + rows + b"50,0,1,1 \xe9\n")
+    line = error_line(*run("diagnose", path)[::2])
+    assert "line 52: byte 0xe9 is not UTF-8 text; save the file as UTF-8" in line

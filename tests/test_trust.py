@@ -468,7 +468,7 @@ def test_a_bad_time_is_named_from_one_vectorised_pass():
 
     stamps = [f"2024-05-01T12:00:{k % 60:02d}Z" for k in range(5000)]
     stamps[1234], stamps[4000] = "12:00 yesterday", "later"
-    with pytest.raises(CredcliError, match=r"a value \('12:00 yesterday'\) is neither"):
+    with pytest.raises(CredcliError, match=r"row 1235: '12:00 yesterday' is neither"):
         time_seconds(stamps, "time")
 
 

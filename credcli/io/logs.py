@@ -548,8 +548,42 @@ def _read_frame(path: Path):
 
 
 def _unreadable(path: Path, exc: Exception) -> CredcliError:
+    if isinstance(exc, UnicodeDecodeError):
+        where = _first_non_utf8(path)
+        if where is not None:
+            line, byte = where
+            return CredcliError(
+                f"{path}: line {line}: byte 0x{byte:02x} is not UTF-8 text; save the file as "
+                "UTF-8 (e.g. iconv -f LATIN1 -t UTF-8, for Latin-1 text)"
+            )
     first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return CredcliError(f"{path}: cannot be read as CSV/Parquet: {first}")
+
+
+def _first_non_utf8(path: Path) -> tuple[int, int] | None:
+    """The line (from 1) and value of the file's first byte that is not UTF-8, read a
+    megabyte at a time; None where there is none (or the file cannot be read again).
+    pandas' own error gives the byte's position in its read buffer, not in the file."""
+    import codecs
+
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    lines = 1
+    try:
+        with open(path, "rb") as fh:
+            while True:
+                chunk = fh.read(1 << 20)
+                try:
+                    decoder.decode(chunk, final=not chunk)
+                except UnicodeDecodeError as exc:
+                    # exc.object is the chunk behind the (at most 3) bytes held from the last
+                    held = len(exc.object) - len(chunk)
+                    before = chunk[: max(0, exc.start - held)]
+                    return lines + before.count(b"\n"), exc.object[exc.start]
+                if not chunk:
+                    return None
+                lines += chunk.count(b"\n")
+    except OSError:
+        return None
 
 
 def _plain_csv(path: Path) -> bool:

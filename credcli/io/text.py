@@ -325,12 +325,14 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
         # the first value that is not a date-time, in one vectorised pass (not a parse per
         # row)
         coerced = pd.to_datetime(series, utc=True, format="ISO8601", errors="coerce")
-        wrong = np.flatnonzero((coerced.isna() & series.notna()).to_numpy())
-        bad = [series.iloc[int(wrong[0])]] if wrong.size else []
-        shown = f" ('{bad[0]}')" if bad else ""
+        neither = coerced.isna() & series.notna()
+        if not pd.api.types.is_datetime64_any_dtype(series.dtype):
+            neither &= numbers.isna()  # a column of numbers with one word: name the word
+        wrong = np.flatnonzero(neither.to_numpy())
+        shown = f" row {int(wrong[0]) + 1}: '{series.iloc[int(wrong[0])]}'" if wrong.size else ""
         raise CredcliError(
-            f"{what}: a value{shown} is neither a number nor an ISO-8601 date-time such as "
-            "2024-05-01T12:00:00.25Z"
+            f"{what}:{shown or ' a value'} is neither a number nor an ISO-8601 date-time such "
+            "as 2024-05-01T12:00:00.25Z"
         ) from None
     nanoseconds = stamps.to_numpy(dtype="datetime64[ns]").astype(np.int64)
     # whole seconds and the fraction apart: one rounding, not two (ns as a float loses 256 ns)

@@ -316,9 +316,11 @@ def by_window(n: int, window: Window, time: np.ndarray | None) -> list[Segment]:
                 f"`window` {window} needs a time column; use an epoch count (e.g. `window` 200) "
                 "or name the time column"
             )
-        if np.any(np.diff(time) < 0):
+        back = np.flatnonzero(np.diff(time) < 0)
+        if back.size:
             raise CredcliError(
-                "the time column is not sorted; sort the log by time to use `window`"
+                f"the time column is not sorted (it goes back at row {int(back[0]) + 2}); "
+                "sort the log by time to use `window`"
             )
         with np.errstate(over="ignore", invalid="ignore"):
             index = np.floor((time - time[0]) / window.length)
@@ -492,7 +494,10 @@ def split(
         return _whole_log(log.n, log.time)
     if window is not None:
         parsed = Window.parse(window)
-        out = by_window(log.n, parsed, log.time)
+        try:
+            out = by_window(log.n, parsed, log.time)
+        except CredcliError as exc:  # which log, where several are read
+            raise CredcliError(f"{log.id}: {exc.message}", exc.parameter) from None
         largest = max(len(s.index) for s in out)
         if parsed.seconds and largest < min_epochs and log.n >= min_epochs:
             step = float(np.median(np.diff(log.time))) if log.n > 1 else float("nan")

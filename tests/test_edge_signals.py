@@ -885,3 +885,20 @@ def test_a_csv_that_is_not_utf8_is_named_by_line_and_byte(tmp_path):
     path.write_bytes(b"time,truth_0,est_0,var_0\n" + rows + b"50,0,1,1 \xe9\n")
     line = error_line(*run("diagnose", path)[::2])
     assert "line 52: byte 0xe9 is not UTF-8 text; save the file as UTF-8" in line
+
+
+def test_an_unsorted_time_column_under_a_window_names_the_log_and_row(tmp_path):
+    """With several logs the message did not say which, nor where the time went back."""
+    rows = "0,0,1,1\n1,0,1,1\n3,0,1,1\n2,0,1,1\n" + "".join(f"{k},0,1,1\n" for k in range(4, 40))
+    path = tmp_path / "unsorted.csv"
+    path.write_text("time,truth_0,est_0,var_0\n" + rows)
+    line = error_line(*run("diagnose", path, "--window", "5s")[::2])
+    assert "unsorted.csv" in line and "goes back at row 4" in line
+
+
+def test_a_seed_beyond_64_bits_in_a_config_says_so(tmp_path):
+    """It said "seed must be an integer; got int 99999999999999999999"."""
+    config = tmp_path / "c.toml"
+    config.write_text("[diagnosis]\nseed = 99999999999999999999\n")
+    line = error_line(*run("diagnose", LOG, "--config", config)[::2])
+    assert "seed must be an integer within ±2^63 (64 bits); got 99999999999999999999" in line

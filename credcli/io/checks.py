@@ -100,6 +100,16 @@ def _type_ok(value, hint) -> bool:
     return True
 
 
+def _wide_integer(value, hint) -> bool:
+    """Whether ``value`` is an integer that ``hint`` (or one of its Union members) would
+    take as an int but for its 64 bits."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        return False
+    origin = typing.get_origin(hint)
+    members = typing.get_args(hint) if origin in (typing.Union, types.UnionType) else (hint,)
+    return int in members
+
+
 def check_types(section: dict, hints: dict, where: str) -> None:
     """Each config value against its field's type, naming the key and the expected type.
 
@@ -132,6 +142,10 @@ def check_types(section: dict, hints: dict, where: str) -> None:
     for key, value in section.items():
         hint = hints.get(key)
         if hint is not None and not _type_ok(value, hint):
+            if _wide_integer(value, hint):
+                raise CredcliError(
+                    f"{where}: {key} must be an integer within ±2^63 (64 bits); got {value}"
+                )
             raise CredcliError(
                 f"{where}: {key} must be {_describe(hint)}; got {type(value).__name__} {value!r}"
             )

@@ -386,8 +386,9 @@ def test_an_offset_beyond_what_a_slow_error_explains_is_a_bias(n, end):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_where_slow_errors_are_expected_a_pessimism_needs_an_offset_too_small_for_them(seed):
-    """``slow_errors`` expected: white errors of covariance 0.5 I under a claimed I (100
-    epochs, pessimism), centred and shifted so that ‖μ̂‖² is 2 % below and above the
+    """``slow_errors`` expected: white errors of covariance 0.5 I under a claimed I (300
+    epochs, pessimism; at 100 the largest direction's interval, widened for the directions'
+    selection, reaches 1 and leaves no lower end), centred and shifted so that ‖μ̂‖² is 2 % below and above the
     closed-form end (1 − κ)·χ²_d at α one-sided, κ the largest direction's high end: a
     slow part holding the rest of the claim draws a smaller offset with probability α.
     Below it the pessimism stands; above it the segment is insufficient-data (the offset
@@ -398,9 +399,9 @@ def test_where_slow_errors_are_expected_a_pessimism_needs_an_offset_too_small_fo
     level = DiagnosisConfig().mean_level
     expected = DiagnosisConfig(slow_errors="expected")
     rng = np.random.default_rng(seed)
-    white = math.sqrt(0.5) * rng.standard_normal((100, 2))
+    white = math.sqrt(0.5) * rng.standard_normal((300, 2))
     white -= white.mean(axis=0)
-    cov = np.broadcast_to(np.eye(2), (100, 2, 2))
+    cov = np.broadcast_to(np.eye(2), (300, 2, 2))
     d = diagnose_errors(white, cov, rng=1)
     assert d.label is Label.PESSIMISM
     high = max(d.directions.high) if d.directions is not None else d.scale.scale_factor_high

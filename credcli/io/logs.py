@@ -8,6 +8,7 @@ other layouts onto it.
 
 from __future__ import annotations
 
+import codecs
 import collections
 import itertools
 import re
@@ -564,8 +565,6 @@ def _first_non_utf8(path: Path) -> tuple[int, int] | None:
     """The line (from 1) and value of the file's first byte that is not UTF-8, read a
     megabyte at a time; None where there is none (or the file cannot be read again).
     pandas' own error gives the byte's position in its read buffer, not in the file."""
-    import codecs
-
     decoder = codecs.getincrementaldecoder("utf-8")()
     lines = 1
     try:

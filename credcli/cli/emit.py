@@ -317,7 +317,7 @@ def guard_outputs(outputs: dict, inputs, plots: Path | None = None) -> list[Path
     check_outputs(outputs, [p for p in inputs if p is not None], plots)
     for name, path in outputs.items():  # every place can take a file: none fails after
         if path is not None:  # another output was written
-            check_writable(name, Path(path))
+            check_writable(name, Path(path), append=name == "GITHUB_STEP_SUMMARY")
     if plots is not None:
         check_directory_output("--plots", plots, outputs, inputs)
         check_writable("--plots", plots, directory=True)

@@ -337,7 +337,7 @@ def check_directory_output(name: str, directory: Path, outputs: dict, inputs=())
             raise CredcliError(f"{name} {directory}: is also an input ({src})")
 
 
-def check_writable(name: str, path: Path, directory: bool = False) -> None:
+def check_writable(name: str, path: Path, directory: bool = False, append: bool = False) -> None:
     """Refuse, before any work, an output that cannot be written where it is to go: a file
     is written beside its name and renamed over it (:func:`write_atomic`), and a directory
     (``--plots``) is made with its parents, so what must take a new file is ``path``'s
@@ -355,6 +355,10 @@ def check_writable(name: str, path: Path, directory: bool = False) -> None:
         The output (a file, or with ``directory`` a directory to write into).
     directory : bool, default False
         Whether ``path`` is a directory that outputs are written into.
+    append : bool, default False
+        Whether ``path`` is appended to where it exists ($GITHUB_STEP_SUMMARY): an
+        existing file is then opened for appending (nothing written), its directory not
+        tried.
 
     Raises
     ------
@@ -362,6 +366,14 @@ def check_writable(name: str, path: Path, directory: bool = False) -> None:
         If no file can be made there, naming the option, the place and the reason.
     """
     if not directory and _is_stream(path):
+        return
+    if append and Path(path).is_file():
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_APPEND | getattr(os, "O_NOFOLLOW", 0)))
+        except OSError as exc:
+            raise CredcliError(
+                f"{name} {shown(path)}: cannot be appended to ({_os_reason(exc)})"
+            ) from exc
         return
     place = Path(os.path.abspath(path))
     if not directory:

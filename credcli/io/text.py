@@ -325,10 +325,13 @@ def time_seconds(values, what: str) -> tuple[np.ndarray, str | None]:
         # the first value that is not a date-time, in one vectorised pass (not a parse per
         # row)
         coerced = pd.to_datetime(series, utc=True, format="ISO8601", errors="coerce")
-        neither = coerced.isna() & series.notna()
+        no_date = coerced.isna() & series.notna()
+        wrong = np.flatnonzero(no_date.to_numpy())
         if not pd.api.types.is_datetime64_any_dtype(series.dtype):
-            neither &= numbers.isna()  # a column of numbers with one word: name the word
-        wrong = np.flatnonzero(neither.to_numpy())
+            # a column of numbers with one word names the word (numbers among date-times,
+            # the first number)
+            words = np.flatnonzero((no_date & numbers.isna()).to_numpy())
+            wrong = words if words.size else wrong
         shown = f" row {int(wrong[0]) + 1}: '{series.iloc[int(wrong[0])]}'" if wrong.size else ""
         raise CredcliError(
             f"{what}:{shown or ' a value'} is neither a number nor an ISO-8601 date-time such "

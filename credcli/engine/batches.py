@@ -387,7 +387,7 @@ def mean_spread(cov_sum: np.ndarray, precision: np.ndarray, ratio: float, n: int
     # apart: the spread 62 % off)
     diagonal = np.diag(precision)
     if diagonal.max() > linalg.GRADED_SPREAD**2 * diagonal.min() > 0:
-        unit = np.exp2(-np.round(0.5 * np.log2(diagonal)))
+        unit = 1.0 / power_of_two_unit(np.sqrt(diagonal)[None, :], axis=0)
         precision = precision * np.outer(unit, unit)
         cov_sum = cov_sum * np.outer(unit, unit)
     try:

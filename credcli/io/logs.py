@@ -1337,7 +1337,8 @@ def validated_cov(
             f"{smallest[i]:.3g}); a claimed covariance must be positive definite"
         )
     low, high = DEVIATION_RANGE
-    outside = ~((np.sqrt(smallest) >= low) & (np.sqrt(per_epoch(np.maximum, diag)) <= high))
+    least, most = np.sqrt(smallest), np.sqrt(per_epoch(np.maximum, diag))  # √Σ_ii
+    outside = ~((least >= low) & (most <= high))
     if outside.any():
         i = int(np.argmax(outside))
         size = np.sqrt(np.diagonal(cov[i]))
@@ -1346,7 +1347,7 @@ def validated_cov(
             f"{where(i)}: a claimed standard deviation of {size:.3g} lies outside "
             f"{low:g} … {high:g} of the log's unit; give the log in other units"
         )
-    spread = np.sqrt(per_epoch(np.maximum, diag)) / np.sqrt(smallest)
+    spread = most / least
     wide = spread > MAX_DEVIATION_SPREAD * (1.0 + 1e-12)  # the limit itself, rounded, passes
     if wide.any():
         i = int(np.argmax(wide))

@@ -836,3 +836,18 @@ def test_the_mean_test_under_a_fitted_model_holds_its_level():
     share = np.mean(np.array(pvalues) < level)
     assert share <= level + 2.5 * math.sqrt(level * (1 - level) / len(pvalues))
 
+
+def test_a_direction_beyond_the_margin_is_not_credible():
+    """κ̂ is the mean of the directions' factors: a covariance 4× too large along one of
+    15 directions leaves it at 0.8, credible, and before this rule the segment was called
+    credible (0 of 20 found at 1,000 epochs, session 33). A direction whose interval lies
+    wholly below 1/2 is a misfit the label names: pessimism by direction in 5 of 6 at least."""
+    found = []
+    for seed in range(6):
+        rng = np.random.default_rng([15, seed, 35])
+        q, _ = np.linalg.qr(rng.standard_normal((15, 15)))
+        true = (q * np.r_[0.25, np.ones(14)]) @ q.T
+        e = rng.standard_normal((1000, 15)) @ np.linalg.cholesky(true).T
+        x = diagnose_errors(e, _eye(1000, 15), rng=seed)
+        found.append(x.label.value == "pessimism" and x.by_direction)
+    assert sum(found) >= 5, found

@@ -58,8 +58,9 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
     """The label of one segment from its evidence, by ``config``'s variant.
 
     calibrated: the scale test at α_S with the relevance floor τ and the equivalence margin
-    :data:`CREDIBLE_FACTOR` (or the principal directions where they disagree; or the
-    median bound where the scale test cannot decide), and the location condition of the
+    :data:`CREDIBLE_FACTOR` (or the principal directions where they disagree, or where one
+    lies wholly beyond the margin of a scale otherwise credible: :func:`beyond_margin`; or
+    the median bound where the scale test cannot decide), and the location condition of the
     GLS mean test and the ELT at their shares of α_L: bias, asymmetric, or smm where no
     mean test ran; a location no test rejects is credible only within
     :func:`bias_margin`. paper and ks: Algorithm 1 (lines 2–23), SMM from the ELT.
@@ -93,6 +94,12 @@ def decide(evidence: Evidence, config: DiagnosisConfig) -> Verdict:
             noise_override = direction_noise(directions, config)
             if noise_override is not None:
                 scale_reason = None  # decided along a principal direction
+        elif (
+            directions is not None
+            and scale_reason is None
+            and noise(evidence.scale, config) is None
+        ):
+            noise_override = beyond_margin(directions)  # credible overall, not along one
     declined = scale_reason
     if config.calibrated and scale_reason is not None and median_optimism(evidence, config):
         scale_reason, by_median = None, True  # too large for any memory to explain
@@ -630,6 +637,36 @@ def mixed(directions: DirectionScales, config: DiagnosisConfig) -> bool:
     too_small = np.any((directions.low > 1.0) & (db > config.tau_nci))
     too_large = np.any((directions.high < 1.0) & (db < -config.tau_nci))
     return bool(too_small and too_large)
+
+
+def beyond_margin(directions: DirectionScales) -> str | None:
+    """The noise label of a principal direction whose interval lies wholly beyond the
+    credible margin, where the overall scale is credible; else None.
+
+    κ̂ is the mean of the directions' factors: one direction 4× too small among 30 leaves
+    it at 1.1, within [1/F, F]. "Credible" claims that no misfit of a factor F is left
+    (:func:`inconclusive_scale`); a direction whose interval (at the directions' level,
+    widened for their selection: :func:`credcli.engine.scale.selection_widened`) lies
+    wholly above F, or below 1/F, is such a misfit, found at that level. A covariance too
+    small along one direction makes the estimator overconfident there: optimism, as
+    :func:`direction_noise`; else pessimism.
+
+    Parameters
+    ----------
+    directions : DirectionScales
+        The scale factor per principal direction, with its interval.
+
+    Returns
+    -------
+    str or None
+        "optimism" when some direction's interval lies above F = :data:`CREDIBLE_FACTOR`;
+        else "pessimism" when some direction's lies below 1/F; else None.
+    """
+    if np.any(directions.low > CREDIBLE_FACTOR):
+        return "optimism"
+    if np.any(directions.high < 1.0 / CREDIBLE_FACTOR):
+        return "pessimism"
+    return None
 
 
 def direction_noise(directions: DirectionScales, config: DiagnosisConfig) -> str | None:

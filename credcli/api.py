@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +32,7 @@ from credcli.engine.diagnosis import (
     diagnose_segments,
     given_config,
 )
-from credcli.engine.rng import RngLike
+from credcli.engine.rng import RngLike, check_seed
 from credcli.errors import CredcliError
 from credcli.io import logs
 from credcli.io.arrays import error_arrays, log_from_arrays, write_log
@@ -383,6 +383,7 @@ def diagnose_log(
     1
     """
     _check_log(log)
+    seed = check_seed(seed)
     if log.run is not None:
         if not (segments is None or isinstance(segments, str)):
             raise CredcliError(
@@ -394,10 +395,37 @@ def diagnose_log(
         with _python_names():
             plan = split(log, None if segments is None or whole else segments, whole)
     else:
-        plan = list(segments)
+        plan = _given_segments(segments, log.n)
     items = diagnose_segments(log, plan, config, seed)
     alpha = given_config(config).nees_alpha
     return Results(items, Source.of([log], plan, items, alpha))
+
+
+def _given_segments(segments, n: int) -> list[seg.Segment]:
+    """A list of Segment checked against a log of ``n`` epochs: at least one, each a
+    Segment whose epochs are in the log (a CredcliError naming ``segments`` otherwise)."""
+    forms = "None, 'whole', a window such as '5s' or '200', or a list of Segment"
+    if isinstance(segments, (bytes, np.ndarray)) or not isinstance(segments, Iterable):
+        raise CredcliError(f"segments: expected {forms}; got {type(segments).__name__}", "segments")
+    plan = list(segments)
+    if not plan:
+        raise CredcliError(
+            f"segments: an empty list, nothing to diagnose; give {forms}", "segments"
+        )
+    for k, item in enumerate(plan):
+        if not isinstance(item, seg.Segment):
+            raise CredcliError(
+                f"segments[{k}]: expected a Segment (credcli.segments.split makes them); got {type(item).__name__}",
+                "segments",
+            )
+        index = np.asarray(item.index)
+        if index.dtype.kind not in "iu" or (index.size and (index.min() < 0 or index.max() >= n)):
+            raise CredcliError(
+                f"segments[{k}] ({item.name!r}): its epochs are not in this log of {n} epochs "
+                "(a segment of another log?)",
+                "segments",
+            )
+    return plan
 
 
 def _check_log(log) -> None:
@@ -553,6 +581,7 @@ def diagnose_monte_carlo(
     (1000, 10)
     """
     config = given_config(config)
+    seed = check_seed(seed)
     runs = split_runs(runs) if isinstance(runs, EstimatorLog) else list(runs)
     for log in runs:
         _check_log(log)

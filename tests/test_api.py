@@ -266,3 +266,48 @@ def test_a_bad_seed_is_a_credcli_error_naming_the_seed(seed):
     with pytest.raises(credcli.CredcliError, match="the seed must be") as info:
         credcli.diagnose(_errors(), np.eye(2), seed=seed)
     assert info.value.parameter == "seed"
+
+
+def test_the_api_refuses_what_diagnoses_nothing_or_cannot_be_read(tmp_path):
+    """A test of the estimator that saw no data must not pass; a seed, a list of segments
+    or a label the command line would refuse is a CredcliError naming the argument (an
+    empty list of segments passed assert_credible, and the others ended in numpy's or
+    Python's own errors)."""
+    from credcli.errors import CredcliError
+    from credcli.segments import split
+    from credcli.testing import assert_credible, assert_label
+
+    errors = np.random.default_rng(0).standard_normal((400, 2))
+    log = credcli.log_from_arrays(errors=errors, cov=np.eye(2))
+    other = credcli.log_from_arrays(errors=np.zeros((1000, 2)) + 0.1, cov=np.eye(2))
+    refused = {
+        "empty list": (lambda: assert_credible(5 * errors, np.eye(2), segments=[]), "segments"),
+        "empty, label": (
+            lambda: assert_label("optimism", errors, np.eye(2), segments=[]),
+            "segments",
+        ),
+        "negative seed": (lambda: assert_credible(errors, np.eye(2), seed=-1), "seed"),
+        "fractional seed": (lambda: credcli.diagnose_log(log, seed=1.5), "seed"),
+        "boolean seed": (lambda: credcli.diagnose_log(log, seed=True), "seed"),
+        "a string": (lambda: assert_credible(errors, np.eye(2), segments=["a"]), "segments"),
+        "an int": (lambda: credcli.diagnose_log(log, segments=5), "segments"),
+        "another log's": (lambda: credcli.diagnose_log(log, segments=split(other)), "segments"),
+        "NaN run": (
+            lambda: credcli.log_from_arrays(
+                errors=errors, cov=np.eye(2), run=np.r_[np.full(200, np.nan), np.zeros(200)]
+            ),
+            "run",
+        ),
+        "None segment": (
+            lambda: credcli.log_from_arrays(
+                errors=errors, cov=np.eye(2), segment=["a"] * 399 + [None]
+            ),
+            "segment",
+        ),
+    }
+    for case, (call, parameter) in refused.items():
+        with pytest.raises(CredcliError) as caught:
+            call()
+        assert caught.value.parameter == parameter, case
+    named = credcli.log_from_arrays(errors=errors, cov=np.eye(2), segment=[1] * 200 + [2] * 200)
+    assert [r.segment for r in credcli.diagnose_log(named, seed=np.int64(3))] == ["1", "2"]

@@ -48,6 +48,20 @@ def as_generator(rng: RngLike) -> np.random.Generator:
         ) from exc
 
 
+def check_seed(seed) -> int:
+    """``seed`` as a non-negative int, the seed of every segment's sign flips
+    (:func:`credcli.engine.diagnosis.diagnose_segments`); a CredcliError naming it otherwise.
+
+    Examples
+    --------
+    >>> check_seed(7), check_seed(np.int64(3))
+    (7, 3)
+    """
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0:
+        return int(seed)
+    raise CredcliError(f"the seed must be a non-negative integer; got {seed!r}", "seed")
+
+
 def rademacher(gen: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
     """±1 signs (int8), bit for bit ``2 * gen.integers(0, 2, shape, dtype=np.int8) - 1``,
     leaving ``gen`` in the same state, faster (the signs are bits of the raw 64-bit

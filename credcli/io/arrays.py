@@ -289,7 +289,23 @@ def _labels(name: str, values, n: int) -> np.ndarray | None:
         ) from exc
     if labels.shape != (n,):
         raise CredcliError(f"{name}: expected shape ({n},); got {labels.shape}")
+    missing = _missing_labels(values)
+    if missing.any():  # as a log file's empty or NA cell: no segment or run named "nan"
+        first = int(np.argmax(missing))
+        raise CredcliError(
+            f"{name}: epoch {first} has no label ({values[first]}); give every epoch one",
+            name,
+        )
     return labels
+
+
+def _missing_labels(values: np.ndarray) -> np.ndarray:
+    """(N,) bool: None, NaN, pandas' NA or NaT among ``values`` (any dtype)."""
+    import pandas as pd
+
+    if values.dtype.kind in "US":
+        return np.zeros(values.shape, dtype=bool)
+    return np.asarray(pd.isna(values), dtype=bool).reshape(values.shape)
 
 
 def log_table(log: EstimatorLog):

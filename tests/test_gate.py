@@ -298,3 +298,18 @@ def test_a_number_the_gate_table_lacks_is_a_dash_not_nan():
         "— → 1.25"
     )
     assert _pair(None, _rec("credible", nci=0.5), "nci") == "— → 0.5"
+
+
+def test_a_gate_that_compares_no_segment_fails(tmp_path, baseline):
+    """New and missing segments allowed, but no segment of the log in the baseline: the
+    gate compared nothing and cannot say "no regression" (it said PASS)."""
+    other = tmp_path / "other.csv"
+    lines = GOOD.read_text().splitlines(keepends=True)
+    renamed = [lines[0]] + [line.replace(",urban,", ",elsewhere,") for line in lines[1:]]
+    other.write_text(
+        "".join(line for line in renamed if ",elsewhere," in line or line is renamed[0])
+    )
+    proc = _cli("gate", other, "--baseline", baseline, "--allow-new-segments")
+    assert proc.returncode == 1, proc.stderr
+    assert "no segment of the log is in the baseline" in proc.stderr
+    assert "nothing was compared" in proc.stderr

@@ -505,7 +505,8 @@ def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[
     Returns
     -------
     passed : bool
-        Whether no segment fails.
+        Whether no segment fails and at least one was compared (new and missing segments
+        alone, allowed or not, compare nothing and fail).
     line : str
         ``"PASS: no regression in …"`` or ``"FAIL: k of n segment(s) regressed (…);
         first: …"``, with the count of each status.
@@ -513,6 +514,12 @@ def verdict_line(comparisons: list[SegmentComparison], th: Thresholds) -> tuple[
     failed = [c for c in comparisons if c.failed_with(th)]
     counts = {s: sum(c.status is s for c in comparisons) for s in Status}
     tally = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n)
+    if not failed and counts[Status.NEW] + counts[Status.MISSING] == len(comparisons):
+        # new and missing segments allowed, but none compared: no evidence of no regression
+        return False, (
+            f"FAIL: no segment of the log is in the baseline ({tally}), so nothing was "
+            "compared; give the log the baseline was recorded from (its segment names)"
+        )
     if failed:
         first = failed[0]
         return False, (

@@ -660,11 +660,29 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
                 f"d = {log.dim} against {base.n} of d = {base.dim} in {base.id}"
                 + ("" if log.n != base.n or log.dim != base.dim else ", and different stamps")
             )
+    _distinct_runs(loaded)
     segments = plans[0][1]
     mc = anees_test(
         [log.errors for log in loaded], [log.cov for log in loaded], alpha, base.time, segments
     )
     return [pool_runs(loaded, segments)], mc
+
+
+def _distinct_runs(loaded: list[EstimatorLog]) -> None:
+    """A CredcliError where two runs hold the same errors: the runs are pooled as
+    independent draws of the scenario, and one run given twice (the same log named twice,
+    a copy) would count its epochs twice and halve every standard error without a note."""
+    import hashlib
+
+    seen: dict[bytes, EstimatorLog] = {}
+    for log in loaded:
+        key = hashlib.sha256(np.ascontiguousarray(log.errors, dtype=float).tobytes()).digest()
+        if key in seen:
+            raise CredcliError(
+                f"{log.id}: its errors are those of {seen[key].id}, epoch for epoch; `monte_carlo` "
+                "pools independent runs, so give each run once"
+            )
+        seen[key] = log
 
 
 @dataclass(frozen=True)

@@ -736,3 +736,37 @@ def test_the_note_says_which_covariance_blocks_were_read():
     ros = ("diagnose", FORMATS / "odom_ros.csv", "--truth", FORMATS / "euroc_groundtruth.csv")
     code, _, err = run(*ros, "--states", "pose", "--perturbation", "right")
     assert code == 0 and "the whole 6×6 covariance" in err
+
+
+def test_one_run_given_twice_is_not_pooled(tmp_path):
+    """Monte Carlo runs are pooled as independent draws: one log given twice (or a copy of
+    it) counted its epochs twice, halved the standard errors and turned a credible segment
+    into a bias, without a note."""
+    one = sorted(FORMATS.glob("mc_run_*.csv"))[0]
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(one.read_bytes())
+    for runs in ((one, one), (one, copy)):
+        code, _, err = run("diagnose", *runs, "--monte-carlo")
+        line = error_line(code, err)
+        assert "its errors are those of" in line and "give each run once" in line
+
+
+def test_an_estimate_logged_twice_is_an_error(tmp_path):
+    """Two estimates with one stamp count one epoch twice; repeated truth stamps were an
+    error already, repeated estimate stamps were read as more epochs. A covariance cell
+    that is not a number is named as the covariance's (it was "in the estimate")."""
+    lines = (FORMATS / "openvins_estimate.txt").read_text().splitlines(keepends=True)
+    head = [line for line in lines if line.startswith("#")]
+    body = [line for line in lines if line.strip() and not line.startswith("#")]
+    twice = tmp_path / "twice.txt"
+    twice.write_text("".join([*head, body[0], *body]))
+    code, _, err = run("diagnose", twice, "--truth", FORMATS / "tum_groundtruth.txt")
+    line = error_line(code, err)
+    assert "have the same stamp 1700000000.0123 s" in line
+    assert "estimate stamps must be distinct" in line
+    cells = body[3].split()
+    cells[-1] = "nan"
+    holed = tmp_path / "holed.txt"
+    holed.write_text("".join([*head, *body[:3], " ".join(cells) + "\n", *body[4:]]))
+    code, _, err = run("diagnose", holed, "--truth", FORMATS / "tum_groundtruth.txt")
+    assert "NaN, Inf or empty value in the estimate's covariance" in error_line(code, err)

@@ -131,7 +131,7 @@ def read_trajectory(
     CredcliError
         If the file is missing or empty, is a directory but not read as a bag, has a
         ``topic`` but is not a bag, or cannot be read as its format (missing columns,
-        NaN or Inf values, zero quaternions, repeated truth stamps).
+        NaN or Inf values, zero quaternions, repeated stamps).
     """
     path = Path(path)
     fmt, notes = _format_of(path, fmt, role, topic)
@@ -430,16 +430,19 @@ def _checked(traj: Trajectory, role: str) -> Trajectory:
     """Finite values, non-zero quaternions (normalised), a covariance for an estimate, and
     epochs sorted by time (a note says when they were not)."""
     src = traj.source
-    parts = [traj.time[:, None], traj.position]
+    parts = {"time": traj.time[:, None], "position": traj.position}
     if traj.quaternion is not None:
-        parts.append(traj.quaternion)
-    finite = np.isfinite(np.concatenate(parts, axis=1)).all(axis=1)
+        parts["orientation"] = traj.quaternion
     if traj.cov is not None:
-        finite &= np.isfinite(traj.cov).all(axis=(1, 2))
-    if not finite.all():
-        i = int(np.argmax(~finite))
+        parts["covariance"] = traj.cov.reshape(traj.cov.shape[0], -1)
+    bad = {name: ~np.isfinite(values).all(axis=1) for name, values in parts.items()}
+    where = np.logical_or.reduce(list(bad.values()))
+    if where.any():
+        i = int(np.argmax(where))
+        what = next(name for name, rows in bad.items() if rows[i])
         raise CredcliError(
-            f"{src}: row {traj.rows[i]}: NaN, Inf or empty value in the {role}; fix or remove the row"
+            f"{src}: row {traj.rows[i]}: NaN, Inf or empty value in the {role}'s {what}; fix or "
+            "remove the row"
         )
     quaternion = traj.quaternion
     if quaternion is not None:
@@ -464,15 +467,15 @@ def _checked(traj: Trajectory, role: str) -> Trajectory:
     if np.any(np.diff(traj.time) < 0):
         order = np.argsort(traj.time, kind="stable")
         notes.append(f"{src}: {role} epochs were not in time order; sorted by stamp")
-    if role == "truth":
-        t = traj.time if order is None else traj.time[order]
-        repeated = np.flatnonzero(np.diff(t) == 0)
-        if repeated.size:
-            rows = traj.rows if order is None else traj.rows[order]
-            raise CredcliError(
-                f"{src}: rows {rows[repeated[0]]} and {rows[repeated[0] + 1]} have the same stamp "
-                f"{t[repeated[0]]:.9g} s; truth stamps must be distinct to interpolate"
-            )
+    t = traj.time if order is None else traj.time[order]
+    repeated = np.flatnonzero(np.diff(t) == 0)
+    if repeated.size:  # truth: no interpolation; estimates: one epoch counted twice
+        rows = traj.rows if order is None else traj.rows[order]
+        why = "to interpolate" if role == "truth" else "(an epoch logged twice counts twice)"
+        raise CredcliError(
+            f"{src}: rows {rows[repeated[0]]} and {rows[repeated[0] + 1]} have the same stamp "
+            f"{t[repeated[0]]:.15g} s; {role} stamps must be distinct {why}"
+        )
     if order is None:
         return _with(traj, quaternion=quaternion, notes=tuple(notes))
     return _with(

@@ -415,3 +415,24 @@ def test_a_covariance_is_refused_for_what_it_is():
             validated_cov(cov[None].copy(), rows, "x", CovKind.FULL)
     with pytest.raises(CredcliError, match=r"a variance is -1"):
         validated_cov(np.diag([1.0, -1.0])[None].copy(), rows, "x", CovKind.VAR)
+
+
+def test_a_segment_that_loses_every_row_is_named(tmp_path, capsys):
+    """--drop-invalid that empties a segment says so (it only counted the rows before, and
+    the segment was gone from the table without a word)."""
+    gen = np.random.default_rng(1)
+    header = "time,segment,truth_0,truth_1,est_0,est_1,cov_0_0,cov_0_1,cov_1_1\n"
+    rows = [
+        f"{k / 10},{'turn' if k >= 40 else 'cruise'},{gen.normal()},{gen.normal()},0,"
+        f"{'nan' if k >= 40 else 0},1,0,1\n"
+        for k in range(80)
+    ]
+    path = _write(tmp_path, header + "".join(rows))
+    code, out, err = _run(capsys, "diagnose", path, "--drop-invalid", "-f", "json")
+    assert code == 0, err
+    assert "segment(s) 'turn' had a NaN/Inf value in every row" in err
+    import json
+
+    doc = json.loads(out)
+    assert [s["segment"] for s in doc["segments"]] == ["cruise"]
+    assert any("'turn'" in note for note in doc["logs"][0]["notes"])

@@ -1020,13 +1020,22 @@ def log_from_frame(
         segment = seg_values[rows - 1]
     estimate = None if innovations else estimate
     notes = ()
+    if dropped and segment is not None:  # a segment that lost every row is named, not gone
+        lost = sorted(set(seg_values.tolist()) - set(segment.tolist()), key=str)
+        if lost:
+            shown = ", ".join(repr(str(name)) for name in lost[:10])
+            more = f" and {len(lost) - 10} more" if len(lost) > 10 else ""
+            notes = (
+                f"{source}: segment(s) {shown}{more} had a NaN/Inf value in every row: all "
+                "dropped, not diagnosed",
+            )
     time = None
     if time_col:
         if time_note is None:
             time, note = seconds(blocks[3][:, 0], time_unit, None, f"{source} ({time_col})")
-            notes = (note,) if note else ()
+            notes = (*notes, note) if note else notes
         else:  # date-times: seconds since the Unix epoch already
-            time, notes = blocks[3][:, 0].copy(), (time_note,)
+            time, notes = blocks[3][:, 0].copy(), (*notes, time_note)
     if errors_only:
         notes = (
             *notes,

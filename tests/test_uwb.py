@@ -265,3 +265,15 @@ def test_a_marker_without_a_finite_position_is_named(tmp_path, cell):
     path.write_text(f",x,y,z\n10,1.0,2.0,0.5\n11,3.0,{cell},0.5\n")
     with pytest.raises(CredcliError, match="row 2: marker 11 has a position that is not"):
         read_markers(path)
+
+
+def test_a_marker_given_twice_is_an_error(tmp_path):
+    """Two positions for one anchor id: which one ranged is unknown (it was taken silently,
+    the last one winning)."""
+    from credcli.errors import CredcliError
+    from credcli.io.starloc import read_markers
+
+    path = tmp_path / "markers.csv"
+    path.write_text(",x,y,z\n10,1.0,2.0,0.5\n11,3.0,1.0,0.5\n10,1.5,2.0,0.5\n")
+    with pytest.raises(CredcliError, match="marker id 10 is given twice \\(rows 1 and 3\\)"):
+        read_markers(path)

@@ -229,8 +229,8 @@ def read_markers(path: str | Path) -> dict[int, np.ndarray]:
     ------
     CredcliError
         If the file has no ``x``, ``y``, ``z`` columns, a value is not a number, a position
-        is not finite (NaN, an empty cell, inf), or an id is not a whole number up to
-        ``MAX_ID``.
+        is not finite (NaN, an empty cell, inf), an id is not a whole number up to
+        ``MAX_ID``, or an id is given twice.
     """
     path = Path(path)
     frame = read_table(path)
@@ -259,4 +259,12 @@ def read_markers(path: str | Path) -> dict[int, np.ndarray]:
             "finite number; give x, y, z of every anchor"
         )
     ids = raw.astype(np.int64)
+    unique, counts = np.unique(ids, return_counts=True)
+    if np.any(counts > 1):  # two positions for one anchor: which one ranged is unknown
+        twice = int(unique[np.argmax(counts > 1)])
+        rows = np.flatnonzero(ids == twice)[:2] + 1
+        raise CredcliError(
+            f"{path}: marker id {twice} is given twice (rows {rows[0]} and {rows[1]}); give "
+            "each anchor one position"
+        )
     return {int(i): p for i, p in zip(ids, xyz)}

@@ -30,6 +30,13 @@ class Noise(str, enum.Enum):
     STUDENT_T = "student-t"
 
 
+MIN_NU = 4.0
+"""Student-t noise needs more degrees of freedom than this: the scale test's variance is the
+NEES's, which is finite only for ν > 4 (the fourth moment). Measured by a review helper
+(100 credible trials each): ν = 2.0001 labelled 99 of 100 pessimism, ν = 2.1 and 2.5 gave
+7 and 8 % false labels, ν = 3 gave 3 %."""
+
+
 @dataclass(frozen=True)
 class ErrorModel:
     """How whitened errors are drawn: Gaussian or multivariate Student-t with ``nu`` degrees
@@ -72,8 +79,8 @@ class ErrorModel:
         Raises
         ------
         CredcliError
-            If ``noise`` is neither form, NU is not a number > 2, or ``ar`` is not in
-            (−1, 1).
+            If ``noise`` is neither form, NU is not a number > :data:`MIN_NU`, or ``ar`` is
+            not in (−1, 1).
 
         Examples
         --------
@@ -89,10 +96,11 @@ class ErrorModel:
                 nu = float(text.split(":", 1)[1])
             except ValueError:
                 nu = float("nan")
-            if not (math.isfinite(nu) and nu > 2):
+            if not (math.isfinite(nu) and nu > MIN_NU):
                 raise CredcliError(
-                    f"`noise` '{noise}': the degrees of freedom must be a number > 2 "
-                    "(the covariance must exist), e.g. student-t:5",
+                    f"`noise` '{noise}': the degrees of freedom must be a number > {MIN_NU:g} "
+                    "(the scale test's level rests on a finite fourth moment), e.g. "
+                    "student-t:5",
                     "noise",
                 )
             model = cls(Noise.STUDENT_T, nu, ar)

@@ -49,7 +49,7 @@ class ErrorModel:
     noise : Noise
         The law of z_k (default Gaussian).
     nu : float or None
-        Degrees of freedom ν > 2 of the Student-t; None for Gaussian.
+        Degrees of freedom ν > :data:`MIN_NU` of the Student-t; None for Gaussian.
     ar : float
         The AR(1) coefficient φ in (−1, 1); 0 (the default) for errors independent in
         time.

@@ -328,3 +328,17 @@ def test_student_t_noise_needs_a_finite_fourth_moment(nu, capsys):
     assert main(["simulate", "--noise", f"student-t:{nu}", "--trials", "2"]) == 2
     err = capsys.readouterr().err
     assert "must be a number > 4" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--sweep", "rho=1,2", "--sweep", "n=20,30"], "--sweep is given 2 times"),
+        (["--sweep", "rho=1,2", "--curves"], "--sweep and --curves make different tables"),
+    ],
+)
+def test_a_sweep_asked_twice_or_beside_the_curves_is_refused(args, message, capsys):
+    """The first of two sweeps, or a sweep beside the curves, was dropped silently."""
+    assert main(["simulate", *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1

@@ -326,7 +326,7 @@ def simulate(
     ] = "all",
     study: StudyOptions = StudyOptions(),
     sweep: Annotated[
-        str | None,
+        list[str] | None,
         typer.Option(
             "--sweep",
             help="Sweep one parameter: rho=0.1:10:20, bias=0:3:13, n=25,50,100, dim=…, B=…, "
@@ -356,7 +356,7 @@ def simulate(
     out: OutputOptions = OutputOptions(),
 ) -> int:
     """The paper's Monte Carlo study (Tables II and III), sweeps and the Fig. 1 curves."""
-    from credcli.cli.settings import simulate_request
+    from credcli.cli.settings import only_one, simulate_request
     from credcli.workflows import run_simulate
 
     keep = guard_outputs({"--output": out.output}, [config], plots)
@@ -368,7 +368,7 @@ def simulate(
         seed,
         run,
         scenario=scenario,
-        sweep=sweep,
+        sweep=only_one("--sweep", sweep),
         curves=curves,
         curve_runs=curve_runs,
         figures=plots is not None,

@@ -661,6 +661,22 @@ def parse_range(text, what: str) -> tuple[float, float] | None:
     return lo, hi
 
 
+def only_one(option: str, values: list[str] | None) -> str | None:
+    """The one value of an option that takes one, given as a list so that a repeated
+    option is an error rather than its last value silently replacing the others.
+
+    Examples
+    --------
+    >>> only_one("--sweep", ["rho=1,2"]), only_one("--sweep", None)
+    ('rho=1,2', None)
+    """
+    if not values:
+        return None
+    if len(values) > 1:
+        raise CredcliError(f"{option} is given {len(values)} times; give it once")
+    return values[0]
+
+
 def simulate_request(
     config_file: Path | None,
     study: StudyOptions,
@@ -707,11 +723,14 @@ def simulate_request(
     Raises
     ------
     CredcliError
-        If ``curve_runs`` is below 1, a range is not ``lo:hi``, or a setting is invalid.
+        If ``curve_runs`` is below 1, a sweep is asked with the curves, a range is not
+        ``lo:hi``, or a setting is invalid.
     """
     jobs = jobs_value(run.jobs)
     if curve_runs < 1:
         raise CredcliError(f"--curve-runs must be >= 1; got {curve_runs}")
+    if curves and sweep is not None:  # the curves are a table of their own: one or the other
+        raise CredcliError("--sweep and --curves make different tables; give one of them")
     config = load_config(config_file)
     given = dataclasses.asdict(study)
     values = merged(config, "simulate", given | {"seed": seed})

@@ -311,3 +311,13 @@ def test_the_api_refuses_what_diagnoses_nothing_or_cannot_be_read(tmp_path):
         assert caught.value.parameter == parameter, case
     named = credcli.log_from_arrays(errors=errors, cov=np.eye(2), segment=[1] * 200 + [2] * 200)
     assert [r.segment for r in credcli.diagnose_log(named, seed=np.int64(3))] == ["1", "2"]
+
+
+def test_booleans_are_not_errors_or_covariances():
+    """A mask passed by mistake was read as errors of 0 and 1."""
+    from credcli.errors import CredcliError
+
+    with pytest.raises(CredcliError, match="errors: booleans"):
+        credcli.diagnose(np.ones((50, 2), dtype=bool), np.eye(2))
+    with pytest.raises(CredcliError, match="cov: booleans"):
+        credcli.log_from_arrays(errors=np.zeros((50, 2)), cov=np.ones((2, 2), dtype=bool))

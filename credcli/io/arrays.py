@@ -24,9 +24,12 @@ from credcli.logid import LogId
 
 def _refuse_complex(name: str, value) -> None:
     """Complex numbers are refused: casting would drop their imaginary parts with only a
-    warning."""
+    warning; so are booleans, which are no errors or covariances (a mask passed by
+    mistake would be read as 0 and 1)."""
     if np.iscomplexobj(value):
         raise CredcliError(f"{name}: complex numbers; expected real numbers")
+    if np.asarray(value).dtype.kind == "b":
+        raise CredcliError(f"{name}: booleans; expected real numbers")
 
 
 def _matrix(name: str, value, n: int | None, d: int | None = None) -> np.ndarray:

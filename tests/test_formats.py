@@ -770,3 +770,17 @@ def test_an_estimate_logged_twice_is_an_error(tmp_path):
     holed.write_text("".join([*head, *body[:3], " ".join(cells) + "\n", *body[4:]]))
     code, _, err = run("diagnose", holed, "--truth", FORMATS / "tum_groundtruth.txt")
     assert "NaN, Inf or empty value in the estimate's covariance" in error_line(code, err)
+
+
+def test_stamps_shifted_out_of_reach_are_written_short(tmp_path):
+    """An offset of 1e300 s printed both stamps in 300 digits."""
+    code, _, err = run(
+        "diagnose",
+        FORMATS / "openvins_estimate.txt",
+        "--truth",
+        FORMATS / "tum_groundtruth.txt",
+        "--time-offset",
+        "1e300",
+    )
+    line = error_line(code, err)
+    assert "its stamps (1e+300 … 1e+300 s) do not overlap" in line and len(line) < 300

@@ -147,4 +147,10 @@ def pair(estimate: Trajectory, truth: Trajectory, max_dt: float | None, time_off
 
 
 def _span(t: np.ndarray) -> str:
-    return f"{t[0]:.6f} … {t[-1]:.6f} s"
+    """The first and last stamps, to the microsecond where they are of a clock's size (a
+    stamp shifted by 1e300 s is written in 15 digits, not 300)."""
+    return f"{_stamp(t[0])} … {_stamp(t[-1])} s"
+
+
+def _stamp(value: float) -> str:
+    return f"{value:.6f}" if abs(value) < 1e12 else f"{value:.15g}"

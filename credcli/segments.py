@@ -3,6 +3,7 @@ and Monte Carlo runs: split by their run ids, pooled segment by segment."""
 
 from __future__ import annotations
 
+import hashlib
 import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
@@ -672,8 +673,6 @@ def _distinct_runs(loaded: list[EstimatorLog]) -> None:
     """A CredcliError where two runs hold the same errors: the runs are pooled as
     independent draws of the scenario, and one run given twice (the same log named twice,
     a copy) would count its epochs twice and halve every standard error without a note."""
-    import hashlib
-
     seen: dict[bytes, EstimatorLog] = {}
     for log in loaded:
         key = hashlib.sha256(np.ascontiguousarray(log.errors, dtype=float).tobytes()).digest()

@@ -436,3 +436,26 @@ def test_a_segment_that_loses_every_row_is_named(tmp_path, capsys):
     doc = json.loads(out)
     assert [s["segment"] for s in doc["segments"]] == ["cruise"]
     assert any("'turn'" in note for note in doc["logs"][0]["notes"])
+
+
+def test_time_that_goes_back_within_a_segment_is_noted(tmp_path, capsys):
+    """The memory and the whiteness test read the epochs in file order: where time goes
+    back within a segment (not between segments) a note says so (it was silent)."""
+    gen = np.random.default_rng(2)
+
+    def log(times, names):
+        header = "time,segment,truth_0,truth_1,est_0,est_1,cov_0_0,cov_0_1,cov_1_1\n"
+        rows = "".join(
+            f"{t},{s},{gen.normal()},{gen.normal()},0,0,1,0,1\n" for t, s in zip(times, names)
+        )
+        return _write(tmp_path, header + rows, f"{len(times)}-{names[0]}.csv")
+
+    restart = log([k / 10 for k in range(60)] * 2, ["a"] * 60 + ["b"] * 60)
+    code, _, err = _run(capsys, "diagnose", restart)
+    assert code == 0 and "time goes back" not in err
+    times = [k / 10 for k in range(60)]
+    times[30], times[31] = times[31], times[30]
+    swapped = log(times + [6 + k / 10 for k in range(60)], ["b"] * 120)
+    code, _, err = _run(capsys, "diagnose", swapped)
+    assert code == 0
+    assert "time goes back at row 32 in segment 'b' (1 place(s) in all)" in err

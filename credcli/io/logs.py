@@ -1042,6 +1042,8 @@ def log_from_frame(
             f"{source}: errors-only log: {', '.join(_ends(truth_cols))} are the errors e_k",
         )
     notes = (*notes, *cov_notes)
+    if time is not None:
+        notes = (*notes, *_time_back_notes(time, segment, rows, source))
     del blocks
     if innovations or errors_only:
         truth, estimate, errors = None, None, truth
@@ -1059,6 +1061,28 @@ def log_from_frame(
         state_errors=errors,
         notes=notes,
         run=run,
+    )
+
+
+def _time_back_notes(time, segment, rows, source: str) -> tuple[str, ...]:
+    """A note where time goes back within a segment (the whole log without a segment
+    column): the errors' memory, the time scales and an innovations' whiteness test read
+    the epochs in file order, which is then not their order in time (``--window`` refuses
+    such a log; a plain diagnosis reads it, and says so)."""
+    if segment is None:
+        order = np.arange(time.size)
+    else:
+        _, codes = np.unique(segment, return_inverse=True)
+        order = np.argsort(codes, kind="stable")  # each segment's rows, in file order
+    same = np.ones(time.size - 1, dtype=bool) if segment is None else np.diff(codes[order]) == 0
+    back = np.flatnonzero(same & (np.diff(time[order]) < 0))
+    if back.size == 0:
+        return ()
+    k = int(np.min(order[back + 1]))  # the first such row in the file
+    where = "" if segment is None else f" in segment '{segment[k]}'"
+    return (
+        f"{source}: time goes back at row {rows[k]}{where} ({back.size} place(s) in all); the "
+        "errors' memory, time scales and whiteness test are read in file order",
     )
 
 

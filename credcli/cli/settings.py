@@ -665,6 +665,23 @@ def only_one(option: str, values: list[str] | None) -> str | None:
     """The one value of an option that takes one, given as a list so that a repeated
     option is an error rather than its last value silently replacing the others.
 
+    Parameters
+    ----------
+    option : str
+        The option's name, for the message (``--sweep``).
+    values : list of str or None
+        What the command line gave.
+
+    Returns
+    -------
+    str or None
+        The value; None where the option was not given.
+
+    Raises
+    ------
+    CredcliError
+        If the option was given more than once.
+
     Examples
     --------
     >>> only_one("--sweep", ["rho=1,2"]), only_one("--sweep", None)

@@ -50,7 +50,22 @@ def as_generator(rng: RngLike) -> np.random.Generator:
 
 def check_seed(seed) -> int:
     """``seed`` as a non-negative int, the seed of every segment's sign flips
-    (:func:`credcli.engine.diagnosis.diagnose_segments`); a CredcliError naming it otherwise.
+    (:func:`credcli.engine.diagnosis.diagnose_segments`).
+
+    Parameters
+    ----------
+    seed : int
+        The seed (a numpy integer too; not a bool).
+
+    Returns
+    -------
+    int
+        The seed.
+
+    Raises
+    ------
+    CredcliError
+        Naming ``seed``, for anything but a non-negative integer.
 
     Examples
     --------

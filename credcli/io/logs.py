@@ -1069,10 +1069,14 @@ def _time_back_notes(time, segment, rows, source: str) -> tuple[str, ...]:
     column): the errors' memory, the time scales and an innovations' whiteness test read
     the epochs in file order, which is then not their order in time (``--window`` refuses
     such a log; a plain diagnosis reads it, and says so)."""
+    if not np.any(np.diff(time) < 0):  # the common case: one pass, no grouping
+        return ()
     if segment is None:
         order = np.arange(time.size)
     else:
-        _, codes = np.unique(segment, return_inverse=True)
+        import pandas as pd
+
+        codes = pd.factorize(segment)[0]  # hashed: no sort of 10⁶ names
         order = np.argsort(codes, kind="stable")  # each segment's rows, in file order
     same = np.ones(time.size - 1, dtype=bool) if segment is None else np.diff(codes[order]) == 0
     back = np.flatnonzero(same & (np.diff(time[order]) < 0))

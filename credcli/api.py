@@ -412,6 +412,13 @@ def _given_segments(segments, n: int) -> list[seg.Segment]:
         raise CredcliError(
             f"segments: an empty list, nothing to diagnose; give {forms}", "segments"
         )
+    if isinstance(segments, seg.Segments):  # split's columns: every row checked at once
+        rows = segments.rows
+        if rows.size and (rows.min() < 0 or rows.max() >= n):
+            raise CredcliError(
+                f"segments: epochs beyond this log of {n} (segments of another log?)", "segments"
+            )
+        return plan
     for k, item in enumerate(plan):
         if not isinstance(item, seg.Segment):
             raise CredcliError(

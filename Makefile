@@ -68,6 +68,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/se3.py
 	$(BIN)/python benchmarks/findings.py
 	$(BIN)/python benchmarks/frame.py
+	$(BIN)/python benchmarks/dimensions.py
 
 ## bench-elt: the ELT's pair-matrix pass before (ELT_BASE) and after, interleaved (issue 35)
 ELT_BASE ?= 2ee3e12

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from helpers import SAMPLE
+from helpers import SAMPLE, error_line, run
 
 from credcli import DiagnosisConfig
 from credcli.cli import main
@@ -245,3 +245,10 @@ def test_the_subsample_note_names_the_log_among_several(tmp_path, capsys):
     assert f"{a}:cruise" in note and f"{b}:cruise" in note
     code, out, err = _run(capsys, "diagnose", str(a), "--max-elt-epochs", "100")
     assert "segment(s)cruise,turn" in "".join((out + err).split())  # one log: as before
+
+
+def test_standard_input_given_twice_is_refused(monkeypatch):
+    """'-' twice: the second read found no data and said "<stdin>: holds no data"."""
+    monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(b"time,truth_0\n")))
+    code, _, err = run("diagnose", "-", "-")
+    assert "'-' (standard input) is given 2 times" in error_line(code, err)

@@ -174,7 +174,7 @@ def note_warnings(caught, debug: bool) -> None:
     if floating:
         print(
             "credcli: note: some numbers overflowed or were undefined while computing "
-            f"({'; '.join(floating)}); the log's values may be far outside the range of its "
+            f"({'; '.join(floating)}); the errors may be far outside the range of their "
             "claimed covariances, so read the affected figures with care",
             file=sys.stderr,
         )

@@ -33,7 +33,7 @@ from credcli.engine.config import AUTO
 from credcli.engine.diagnosis import DiagnosisConfig
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
-from credcli.io.files import check_small_input, read_toml
+from credcli.io.files import STDIN, check_small_input, read_toml
 from credcli.io.logs import LogSchema
 from credcli.io.schema import LogReading, ReadOptions
 from credcli.report.records import read_baseline
@@ -524,8 +524,11 @@ def diagnose_request(
     Raises
     ------
     CredcliError
-        If the config file or a setting is invalid.
+        If the config file or a setting is invalid, or '-' is given more than once.
     """
+    stdin = sum(str(path) == STDIN for path in logs)
+    if stdin > 1:  # standard input is read once: the second '-' would hold no data
+        raise CredcliError(f"'-' (standard input) is given {stdin} times; it can be read once")
     config = load_config(config_file)
     diagnosis, seed_value = build_diagnosis_config(config, rule_values(rule), seed)
     reading = log_reading(config, log, segments)

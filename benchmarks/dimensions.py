@@ -16,9 +16,9 @@ Families, each with the claimed covariance exact ("none") and misfit:
 Misfits: ``small4`` / ``large4`` (the claim 4× too small / large), ``bias1`` (a 1σ bias,
 ``zoo._bias_vector``), ``dir-small4`` / ``dir-large4`` (the claim 4× too small / large
 along one random direction of the whitened errors only, the others right: the classic
-overconfidence of a filter in one unobservable direction). Per cell: the share decided
-(both questions answered), the share with a label naming a misfit (false alarms under
-"none"), and the share whose label names the misfit (power).
+overconfidence of a filter in one unobservable direction). Per cell, counts of R: decided
+(both questions answered), a label naming a misfit (false alarms under "none"), and a
+label naming the misfit made (power).
 """
 
 from __future__ import annotations

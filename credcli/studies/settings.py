@@ -32,9 +32,9 @@ class Noise(str, enum.Enum):
 
 MIN_NU = 4.0
 """Student-t noise needs more degrees of freedom than this: the scale test's variance is the
-NEES's, which is finite only for ν > 4 (the fourth moment). Measured by a review helper
-(100 credible trials each): ν = 2.0001 labelled 99 of 100 pessimism, ν = 2.1 and 2.5 gave
-7 and 8 % false labels, ν = 3 gave 3 %."""
+NEES's, which is finite only for ν > 4 (the fourth moment), so below it no level is held in
+general. Measured by a review helper (100 credible trials each): ν = 2.0001 labelled 99 of
+100 pessimism, ν = 2.1 and 2.5 gave 7 and 8 % false labels; ν = 3 happened to give 3 %."""
 
 
 @dataclass(frozen=True)

@@ -252,3 +252,18 @@ def test_standard_input_given_twice_is_refused(monkeypatch):
     monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(b"time,truth_0\n")))
     code, _, err = run("diagnose", "-", "-")
     assert "'-' (standard input) is given 2 times" in error_line(code, err)
+
+
+def test_a_config_files_bad_setting_is_named_as_the_config_s(tmp_path):
+    """A bad seed or a missing truth file that a config file gave said only "the seed must
+    be …" or "nope.csv: file not found", as if typed on the command line."""
+    config = tmp_path / "c.toml"
+    config.write_text("[diagnosis]\nseed = -1\n")
+    code, _, err = run("diagnose", SAMPLE / "estimator_log.csv", "--config", config)
+    assert error_line(code, err).startswith("credcli: error: config [diagnosis] seed:")
+    code, _, err = run("diagnose", SAMPLE / "estimator_log.csv", "--seed", "-1")
+    assert error_line(code, err).startswith("credcli: error: --seed:")
+    config.write_text(f'[input]\ntruth = "{tmp_path / "nope.csv"}"\n')
+    code, _, err = run("diagnose", SAMPLE / "estimator_log.csv", "--config", config)
+    line = error_line(code, err)
+    assert "config [input] truth:" in line and "nope.csv: file not found" in line

@@ -784,3 +784,21 @@ def test_stamps_shifted_out_of_reach_are_written_short(tmp_path):
     )
     line = error_line(code, err)
     assert "its stamps (1e+300 … 1e+300 s) do not overlap" in line and len(line) < 300
+
+
+def test_a_quaternion_far_from_unit_norm_is_noted(tmp_path):
+    """Quaternions of norm 2 (a wrong column or scale) were normalised without a word."""
+    lines = (FORMATS / "openvins_estimate.txt").read_text().splitlines(keepends=True)
+    head = [line for line in lines if line.startswith("#")]
+    body = [line for line in lines if line.strip() and not line.startswith("#")]
+    cells = body[5].split()
+    cells[4:8] = [f"{2 * float(c):.9g}" for c in cells[4:8]]
+    doubled = tmp_path / "doubled.txt"
+    doubled.write_text("".join([*head, *body[:5], " ".join(cells) + "\n", *body[6:]]))
+    code, _, err = run("diagnose", doubled, "--truth", FORMATS / "tum_groundtruth.txt")
+    assert code == 0, err
+    assert "1 quaternion(s) of norm far from 1 (first in row 6: 2)" in err
+    code, _, err = run(
+        "diagnose", FORMATS / "openvins_estimate.txt", "--truth", FORMATS / "tum_groundtruth.txt"
+    )
+    assert code == 0 and "quaternion(s) of norm" not in err

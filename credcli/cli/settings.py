@@ -234,11 +234,18 @@ def build_reading(config: dict, cli: dict) -> ReadOptions:
     Raises
     ------
     CredcliError
-        If a value is invalid (see `built`).
+        If a value is invalid (see `built`), or the config's truth file does not exist.
     """
     values = merged(config, "input", cli)
     if values.get("truth") is not None:
         values["truth"] = truth_name(values["truth"])
+        named = values["truth"]  # where the config names it, the message says so
+        local = named != STDIN and "://" not in named
+        if cli.get("truth") is None and local and not Path(named).exists():
+            raise CredcliError(
+                f"config [input] truth: {values['truth']}: file not found (a relative path is "
+                "read from the working directory)"
+            )
     return built(ReadOptions, values, config, "input", cli)
 
 
@@ -307,7 +314,7 @@ def segment_settings(
 
 
 def build_diagnosis_config(
-    config: dict, cli: dict, seed: int | None = None
+    config: dict, cli: dict, seed: int | None = None, seed_source: str = "--seed"
 ) -> tuple[DiagnosisConfig, int]:
     """The DiagnosisConfig and the seed (default 0) from [diagnosis] and the CLI.
 
@@ -319,6 +326,8 @@ def build_diagnosis_config(
         The rule's values by DiagnosisConfig field name (`rule_values`; None: not given).
     seed : int or None, optional
         ``--seed`` (None: from [diagnosis], else 0).
+    seed_source : str, default "--seed"
+        Where ``seed`` came from, for the message of a bad one.
 
     Returns
     -------
@@ -332,8 +341,9 @@ def build_diagnosis_config(
     """
     values = merged(config, "diagnosis", cli | {"seed": seed})
     seed_value = values.pop("seed", 0)
-    if not isinstance(seed_value, int) or seed_value < 0:
-        raise CredcliError(f"the seed must be a non-negative integer; got {seed_value!r}")
+    if not isinstance(seed_value, int) or isinstance(seed_value, bool) or seed_value < 0:
+        where = seed_source if seed is not None else "config [diagnosis] seed"
+        raise CredcliError(f"{where}: the seed must be a non-negative integer; got {seed_value!r}")
     return built(DiagnosisConfig, values, config, "diagnosis", cli), seed_value
 
 
@@ -758,8 +768,9 @@ def simulate_request(
         if key in values:
             where = f"`{key}`" if given[key] is not None else f"config [simulate] {key}"
             values[key] = parse_range(values[key], where)
+    source = "--seed" if seed is not None else "config [simulate] seed"
     diagnosis, seed_value = build_diagnosis_config(
-        config, rule_values(rule), values.pop("seed", None)
+        config, rule_values(rule), values.pop("seed", None), source
     )
     values |= {"seed": seed_value, "diagnosis": diagnosis}
     sim = built(SimulationConfig, values, config, "simulate", given)

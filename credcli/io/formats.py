@@ -426,6 +426,12 @@ def _credcli(path: Path, role: str, unit: TimeUnit, schema: LogSchema) -> Trajec
 # ------------------------------------------------------------------------- validation
 
 
+QUATERNION_NORM_NOTE = 1e-3
+"""A written quaternion whose norm is further than this from 1 gets a note when it is
+normalised (rounding in a text file stays far below it; a norm of 2 is a wrong column or
+scale)."""
+
+
 def _checked(traj: Trajectory, role: str) -> Trajectory:
     """Finite values, non-zero quaternions (normalised), a covariance for an estimate, and
     epochs sorted by time (a note says when they were not)."""
@@ -463,6 +469,14 @@ def _checked(traj: Trajectory, role: str) -> Trajectory:
             )
         quaternion = quaternion / norm[:, None]
     notes = list(traj.notes)
+    if quaternion is not None:
+        off = np.flatnonzero(np.abs(norm - 1.0) > QUATERNION_NORM_NOTE)
+        if off.size:  # not a unit quaternion as written: normalised, and said so
+            notes.append(
+                f"{src}: {off.size} quaternion(s) of norm far from 1 (first in row "
+                f"{traj.rows[off[0]]}: {norm[off[0]]:.6g}) were normalised; check the "
+                "orientation columns' order and units"
+            )
     order = None
     if np.any(np.diff(traj.time) < 0):
         order = np.argsort(traj.time, kind="stable")

@@ -3,7 +3,6 @@ and Monte Carlo runs: split by their run ids, pooled segment by segment."""
 
 from __future__ import annotations
 
-import hashlib
 import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
@@ -562,7 +561,7 @@ def split_runs(log: EstimatorLog) -> list[EstimatorLog]:
                 # the file's counts, not any run's: kept once, so that the runs add up
                 dropped_rows=log.dropped_rows if k == 0 else 0,
                 state_errors=None if log.state_errors is None else log.state_errors[index],
-                notes=log.notes,
+                notes=log.notes if k == 0 else (),  # the file's, said once
                 unpaired=log.unpaired if k == 0 else 0,
                 blocks=log.blocks,
                 fitted_mean=log.fitted_mean,
@@ -669,19 +668,34 @@ def monte_carlo_plan(loaded: list[EstimatorLog], plans, alpha: float):
     return [pool_runs(loaded, segments)], mc
 
 
+SAME_RUN = 1e-6
+"""Two Monte Carlo runs whose errors differ nowhere by more than this times their RMS are
+one run given twice (a copy in another precision or with truth and estimate shifted
+alike differs in its last bits; independent runs differ by about their RMS)."""
+
+
 def _distinct_runs(loaded: list[EstimatorLog]) -> None:
-    """A CredcliError where two runs hold the same errors: the runs are pooled as
-    independent draws of the scenario, and one run given twice (the same log named twice,
-    a copy) would count its epochs twice and halve every standard error without a note."""
-    seen: dict[bytes, EstimatorLog] = {}
-    for log in loaded:
-        key = hashlib.sha256(np.ascontiguousarray(log.errors, dtype=float).tobytes()).digest()
-        if key in seen:
-            raise CredcliError(
-                f"{log.id}: its errors are those of {seen[key].id}, epoch for epoch; `monte_carlo` "
-                "pools independent runs, so give each run once"
-            )
-        seen[key] = log
+    """A CredcliError where two runs hold the same errors, to :data:`SAME_RUN`: the runs
+    are pooled as independent draws of the scenario, and one run given twice (the same log
+    named twice, a copy) would count its epochs twice and halve every standard error
+    without a note. Runs are ordered by the sum of their errors, and each is compared with
+    its two next in that order (a copy's sum is the original's, to rounding)."""
+    sums, rms = np.empty(len(loaded)), np.empty(len(loaded))
+    for k, log in enumerate(loaded):  # one run's errors at a time: M runs are not all held
+        e = np.asarray(log.errors, dtype=float)
+        sums[k], rms[k] = float(np.sum(e)), float(np.sqrt(np.mean(e * e)))
+    order = np.argsort(sums, kind="stable")
+    for a, i in enumerate(order):
+        for j in order[a + 1 : a + 3]:
+            scale = max(rms[i], rms[j])
+            gap = np.abs(np.asarray(loaded[i].errors, float) - np.asarray(loaded[j].errors, float))
+            if np.max(gap) <= SAME_RUN * scale:
+                first, second = sorted((int(i), int(j)))
+                raise CredcliError(
+                    f"{loaded[second].id}: its errors are those of {loaded[first].id}, epoch "
+                    "for epoch (to 1e-6 of their RMS); `monte_carlo` pools independent runs, "
+                    "so give each run once"
+                )
 
 
 @dataclass(frozen=True)

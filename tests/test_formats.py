@@ -802,3 +802,19 @@ def test_a_quaternion_far_from_unit_norm_is_noted(tmp_path):
         "diagnose", FORMATS / "openvins_estimate.txt", "--truth", FORMATS / "tum_groundtruth.txt"
     )
     assert code == 0 and "quaternion(s) of norm" not in err
+
+
+def test_a_run_copied_in_its_last_bits_is_not_pooled_as_another(tmp_path):
+    """A copy of a run with truth and estimate shifted alike (its errors equal to rounding)
+    passed a check of identical bytes and was pooled as an independent run."""
+    one = sorted(FORMATS.glob("mc_run_*.csv"))[0]
+    frame = pd.read_csv(one)
+    for column in [c for c in frame.columns if c.startswith(("truth_", "est_"))]:
+        frame[column] = frame[column] + 1000.125
+    shifted = tmp_path / "shifted.csv"
+    frame.to_csv(shifted, index=False)
+    code, _, err = run("diagnose", one, shifted, "--monte-carlo")
+    assert "its errors are those of" in error_line(code, err)
+    others = sorted(FORMATS.glob("mc_run_*.csv"))
+    code, _, err = run("diagnose", *others, "--monte-carlo")
+    assert code == 0, err

@@ -459,3 +459,20 @@ def test_time_that_goes_back_within_a_segment_is_noted(tmp_path, capsys):
     code, _, err = _run(capsys, "diagnose", swapped)
     assert code == 0
     assert "time goes back at row 32 in segment 'b' (1 place(s) in all)" in err
+
+
+def test_monte_carlo_runs_in_one_file_restart_their_clock_without_a_note(tmp_path, capsys):
+    """Each run restarts its time: no note that time goes back (it was given, once per
+    run); a run that --drop-invalid empties is named, as a segment is."""
+    gen = np.random.default_rng(3)
+    header = "time,run,truth_0,truth_1,est_0,est_1,cov_0_0,cov_0_1,cov_1_1\n"
+    rows = "".join(
+        f"{k / 10},{r},{'nan' if r == 2 else gen.normal()},{gen.normal()},0,0,1,0,1\n"
+        for r in range(3)
+        for k in range(60)
+    )
+    path = _write(tmp_path, header + rows, "runs.csv")
+    code, _, err = _run(capsys, "diagnose", path, "--monte-carlo", "--drop-invalid")
+    assert code == 0, err
+    assert "time goes back" not in err
+    assert err.count("run(s) '2' had a NaN/Inf value in every row") == 1

@@ -1020,15 +1020,16 @@ def log_from_frame(
         segment = seg_values[rows - 1]
     estimate = None if innovations else estimate
     notes = ()
-    if dropped and segment is not None:  # a segment that lost every row is named, not gone
-        lost = sorted(set(seg_values.tolist()) - set(segment.tolist()), key=str)
-        if lost:
-            shown = ", ".join(repr(str(name)) for name in lost[:10])
-            more = f" and {len(lost) - 10} more" if len(lost) > 10 else ""
-            notes = (
-                f"{source}: segment(s) {shown}{more} had a NaN/Inf value in every row: all "
-                "dropped, not diagnosed",
+    if dropped:  # a segment or a run that lost every row is named, not gone
+        notes = tuple(
+            f"{source}: {what}(s) {shown} had a NaN/Inf value in every row: all dropped, not "
+            "diagnosed"
+            for what, shown in (
+                ("run", _lost(run_values if run is not None else None, run)),
+                ("segment", _lost(seg_values if segment is not None else None, segment)),
             )
+            if shown
+        )
     time = None
     if time_col:
         if time_note is None:
@@ -1043,7 +1044,7 @@ def log_from_frame(
         )
     notes = (*notes, *cov_notes)
     if time is not None:
-        notes = (*notes, *_time_back_notes(time, segment, rows, source))
+        notes = (*notes, *_time_back_notes(time, segment, rows, source, run))
     del blocks
     if innovations or errors_only:
         truth, estimate, errors = None, None, truth
@@ -1064,21 +1065,38 @@ def log_from_frame(
     )
 
 
-def _time_back_notes(time, segment, rows, source: str) -> tuple[str, ...]:
-    """A note where time goes back within a segment (the whole log without a segment
-    column): the errors' memory, the time scales and an innovations' whiteness test read
-    the epochs in file order, which is then not their order in time (``--window`` refuses
-    such a log; a plain diagnosis reads it, and says so)."""
+def _lost(every, kept) -> str | None:
+    """The labels in ``every`` (a column's values before rows were dropped) that ``kept``
+    no longer holds, quoted, at most ten named; None when there are none."""
+    if every is None or kept is None:
+        return None
+    lost = sorted(set(every.tolist()) - set(kept.tolist()), key=str)
+    if not lost:
+        return None
+    more = f" and {len(lost) - 10} more" if len(lost) > 10 else ""
+    return ", ".join(repr(str(name)) for name in lost[:10]) + more
+
+
+def _time_back_notes(time, segment, rows, source: str, run=None) -> tuple[str, ...]:
+    """A note where time goes back within a segment of a run (the whole log without a
+    segment column; each Monte Carlo run restarts its clock): the errors' memory, the time
+    scales and an innovations' whiteness test read the epochs in file order, which is then
+    not their order in time (``--window`` refuses such a log; a plain diagnosis reads it,
+    and says so)."""
     if not np.any(np.diff(time) < 0):  # the common case: one pass, no grouping
         return ()
-    if segment is None:
+    keys = [k for k in (run, segment) if k is not None]
+    if not keys:
         order = np.arange(time.size)
+        same = np.ones(time.size - 1, dtype=bool)
     else:
         import pandas as pd
 
-        codes = pd.factorize(segment)[0]  # hashed: no sort of 10⁶ names
-        order = np.argsort(codes, kind="stable")  # each segment's rows, in file order
-    same = np.ones(time.size - 1, dtype=bool) if segment is None else np.diff(codes[order]) == 0
+        # hashed group codes of (run, segment): no sort of 10⁶ names
+        codes = pd.MultiIndex.from_arrays(keys).factorize()[0] if len(keys) > 1 else None
+        codes = pd.factorize(keys[0])[0] if codes is None else codes
+        order = np.argsort(codes, kind="stable")  # each group's rows, in file order
+        same = np.diff(codes[order]) == 0
     back = np.flatnonzero(same & (np.diff(time[order]) < 0))
     if back.size == 0:
         return ()

@@ -267,3 +267,10 @@ def test_a_config_files_bad_setting_is_named_as_the_config_s(tmp_path):
     code, _, err = run("diagnose", SAMPLE / "estimator_log.csv", "--config", config)
     line = error_line(code, err)
     assert "config [input] truth:" in line and "nope.csv: file not found" in line
+
+
+def test_standard_input_as_log_and_truth_is_refused(monkeypatch):
+    """'-' for the log and for --truth: the second read found no data."""
+    monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(b"time,truth_0\n")))
+    code, _, err = run("diagnose", "-", "--truth", "-")
+    assert "'-' (standard input) is given 2 times" in error_line(code, err)

@@ -536,9 +536,7 @@ def diagnose_request(
     CredcliError
         If the config file or a setting is invalid, or '-' is given more than once.
     """
-    stdin = sum(str(path) == STDIN for path in logs)
-    if stdin > 1:  # standard input is read once: the second '-' would hold no data
-        raise CredcliError(f"'-' (standard input) is given {stdin} times; it can be read once")
+    read_once([*logs, log.truth])
     config = load_config(config_file)
     diagnosis, seed_value = build_diagnosis_config(config, rule_values(rule), seed)
     reading = log_reading(config, log, segments)
@@ -596,9 +594,10 @@ def gate_request(
     Raises
     ------
     CredcliError
-        If the baseline cannot be read, a given setting differs from the baseline's, or
-        the baseline had a separate ground truth and none is given.
+        If the baseline cannot be read, a given setting differs from the baseline's, the
+        baseline had a separate ground truth and none is given, or '-' is given twice.
     """
+    read_once([log, truth])
     config = load_config(config_file)
     given = dataclasses.asdict(thresholds)
     limits = built(Thresholds, merged(config, "gate", given), config, "gate", given)
@@ -672,6 +671,25 @@ def parse_range(text, what: str) -> tuple[float, float] | None:
     if lo > hi:
         raise CredcliError(f"{what}: lower end {lo:g} is above the upper end {hi:g}")
     return lo, hi
+
+
+def read_once(paths) -> None:
+    """A CredcliError where standard input ('-') is among ``paths`` more than once (the
+    logs, ``--truth``): it is read once, and a second read would find no data.
+
+    Parameters
+    ----------
+    paths : sequence of Path or None
+        The inputs read as logs or truth (None: not given).
+
+    Raises
+    ------
+    CredcliError
+        If '-' is given more than once.
+    """
+    stdin = sum(path is not None and str(path) == STDIN for path in paths)
+    if stdin > 1:
+        raise CredcliError(f"'-' (standard input) is given {stdin} times; it can be read once")
 
 
 def only_one(option: str, values: list[str] | None) -> str | None:

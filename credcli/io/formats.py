@@ -486,9 +486,12 @@ def _checked(traj: Trajectory, role: str) -> Trajectory:
     if repeated.size:  # truth: no interpolation; estimates: one epoch counted twice
         rows = traj.rows if order is None else traj.rows[order]
         why = "to interpolate" if role == "truth" else "(an epoch logged twice counts twice)"
+        stamp = float(t[repeated[0]])
+        step = float(np.spacing(stamp))  # seconds in float64 resolve no finer than this
+        resolution = f" (to float64's {step:.2g} s here)" if step >= 1e-9 else ""
         raise CredcliError(
             f"{src}: rows {rows[repeated[0]]} and {rows[repeated[0] + 1]} have the same stamp "
-            f"{t[repeated[0]]:.15g} s; {role} stamps must be distinct {why}"
+            f"{stamp:.15g} s{resolution}; {role} stamps must be distinct {why}"
         )
     if order is None:
         return _with(traj, quaternion=quaternion, notes=tuple(notes))

@@ -405,7 +405,7 @@ def _given_segments(segments, n: int) -> list[seg.Segment]:
     """A list of Segment checked against a log of ``n`` epochs: at least one, each a
     Segment whose epochs are in the log (a CredcliError naming ``segments`` otherwise)."""
     forms = "None, 'whole', a window such as '5s' or '200', or a list of Segment"
-    if isinstance(segments, (bytes, np.ndarray)) or not isinstance(segments, Iterable):
+    if isinstance(segments, (bytes, dict, np.ndarray)) or not isinstance(segments, Iterable):
         raise CredcliError(f"segments: expected {forms}; got {type(segments).__name__}", "segments")
     plan = list(segments)
     if not plan:
@@ -426,7 +426,10 @@ def _given_segments(segments, n: int) -> list[seg.Segment]:
                 "segments",
             )
         index = np.asarray(item.index)
-        if index.dtype.kind not in "iu" or (index.size and (index.min() < 0 or index.max() >= n)):
+        if index.dtype.kind == "b" or index.size == 0:
+            what = "a boolean mask; give epoch indices" if index.size else "no epochs"
+            raise CredcliError(f"segments[{k}] ({item.name!r}): {what}", "segments")
+        if index.dtype.kind not in "iu" or index.min() < 0 or index.max() >= n:
             raise CredcliError(
                 f"segments[{k}] ({item.name!r}): its epochs are not in this log of {n} epochs "
                 "(a segment of another log?)",

@@ -321,3 +321,33 @@ def test_booleans_are_not_errors_or_covariances():
         credcli.diagnose(np.ones((50, 2), dtype=bool), np.eye(2))
     with pytest.raises(CredcliError, match="cov: booleans"):
         credcli.log_from_arrays(errors=np.zeros((50, 2)), cov=np.ones((2, 2), dtype=bool))
+
+
+def test_a_segment_without_epochs_or_with_a_mask_is_named():
+    """An empty index ended in numpy's IndexError; a boolean mask was called "not in this
+    log"."""
+    import dataclasses
+
+    from credcli.errors import CredcliError
+    from credcli.segments import split
+
+    log = credcli.log_from_arrays(
+        errors=np.random.default_rng(0).standard_normal((300, 2)), cov=np.eye(2)
+    )
+    whole = list(split(log))[0]
+    with pytest.raises(CredcliError, match="no epochs"):
+        credcli.diagnose_log(log, [dataclasses.replace(whole, index=np.array([], dtype=int))])
+    with pytest.raises(CredcliError, match="a boolean mask; give epoch indices"):
+        credcli.diagnose_log(log, [dataclasses.replace(whole, index=np.ones(300, dtype=bool))])
+
+
+def test_a_direction_interval_at_the_float_limit_raises_no_warning():
+    """Six dimensions over 20 epochs: a direction's upper end near the largest float,
+    widened for the selection, overflowed to ∞ with a RuntimeWarning that the command line
+    turned into a note blaming the data."""
+    import warnings
+
+    errors = np.random.default_rng(6021).standard_normal((20, 6))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        credcli.diagnose(errors, np.eye(6), seed=0)

@@ -313,3 +313,13 @@ def test_a_gate_that_compares_no_segment_fails(tmp_path, baseline):
     assert proc.returncode == 1, proc.stderr
     assert "no segment of the log is in the baseline" in proc.stderr
     assert "nothing was compared" in proc.stderr
+
+
+def test_a_baseline_without_segments_is_refused(tmp_path, baseline):
+    """A baseline holding no segment compares nothing; it was accepted."""
+    doc = json.loads(baseline.read_text())
+    doc["segments"] = []
+    empty = tmp_path / "empty.json"
+    empty.write_text(json.dumps(doc))
+    proc = _cli("gate", GOOD, "--baseline", empty)
+    assert proc.returncode == 2 and "the baseline holds no segments" in proc.stderr

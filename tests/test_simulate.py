@@ -321,13 +321,13 @@ def test_the_json_names_the_slow_errors_the_trials_were_judged_by(args, shown, c
     assert json.loads(capsys.readouterr().out)["parameters"]["slow_errors"] == shown
 
 
-@pytest.mark.parametrize("nu", ["2.0001", "3", "4"])
+@pytest.mark.parametrize("nu", ["2.0001", "3", "4", "inf"])
 def test_student_t_noise_needs_a_finite_fourth_moment(nu, capsys):
     """The scale test's variance is the NEES's, finite only for ν > 4: at ν = 2.0001 a
     credible claim was labelled pessimism in 99 of 100 trials."""
     assert main(["simulate", "--noise", f"student-t:{nu}", "--trials", "2"]) == 2
     err = capsys.readouterr().err
-    assert "must be a number > 4" in err and "Traceback" not in err
+    assert "must be a finite number > 4" in err and "Traceback" not in err
 
 
 @pytest.mark.parametrize(

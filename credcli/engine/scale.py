@@ -865,7 +865,8 @@ def selection_widened(
     spread = edge / (2.0 * math.sqrt(dof)) if dof > 0 else math.inf
     if spread >= 1.0:
         return low / (1.0 + spread) ** 2, np.full(np.shape(high), np.inf)
-    return low / (1.0 + spread) ** 2, high / (1.0 - spread) ** 2
+    with np.errstate(over="ignore"):  # an end already near the largest float: ∞, as meant
+        return low / (1.0 + spread) ** 2, high / (1.0 - spread) ** 2
 
 
 def sphericity_pvalue(residuals: GlsResiduals, batches: int = 0) -> float | None:

@@ -1917,4 +1917,6 @@ def read_baseline(path: str | Path) -> Baseline:
             f"{path}: baseline parameters are incomplete ({exc}); record it again"
         ) from exc
     segments = tuple(Snapshot.from_record(r) for r in doc["segments"])
+    if not segments:  # nothing a log could be compared with
+        raise CredcliError(f"{path}: the baseline holds no segments; record it again from a log")
     return Baseline(str(path), config, seed, reading, segments)

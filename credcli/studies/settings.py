@@ -98,7 +98,7 @@ class ErrorModel:
                 nu = float("nan")
             if not (math.isfinite(nu) and nu > MIN_NU):
                 raise CredcliError(
-                    f"`noise` '{noise}': the degrees of freedom must be a number > {MIN_NU:g} "
+                    f"`noise` '{noise}': the degrees of freedom must be a finite number > {MIN_NU:g} "
                     "(the scale test's level rests on a finite fourth moment), e.g. "
                     "student-t:5",
                     "noise",

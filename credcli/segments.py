@@ -693,8 +693,8 @@ def _distinct_runs(loaded: list[EstimatorLog]) -> None:
                 first, second = sorted((int(i), int(j)))
                 raise CredcliError(
                     f"{loaded[second].id}: its errors are those of {loaded[first].id}, epoch "
-                    "for epoch (to 1e-6 of their RMS); `monte_carlo` pools independent runs, "
-                    "so give each run once"
+                    f"for epoch (to {SAME_RUN:g} of their RMS); `monte_carlo` pools "
+                    "independent runs, so give each run once"
                 )
 
 

@@ -1101,7 +1101,11 @@ def _time_back_notes(time, segment, rows, source: str, run=None) -> tuple[str, .
     if back.size == 0:
         return ()
     k = int(np.min(order[back + 1]))  # the first such row in the file
-    where = "" if segment is None else f" in segment '{segment[k]}'"
+    where = "".join(
+        f" in {name} '{labels[k]}'"
+        for name, labels in (("run", run), ("segment", segment))
+        if labels is not None
+    )
     return (
         f"{source}: time goes back at row {rows[k]}{where} ({back.size} place(s) in all); the "
         "errors' memory, time scales and whiteness test are read in file order",

@@ -31,6 +31,7 @@ from credcli.cli.options import (
 )
 from credcli.engine.config import AUTO
 from credcli.engine.diagnosis import DiagnosisConfig
+from credcli.engine.rng import check_seed
 from credcli.errors import CredcliError, plain
 from credcli.io.checks import SEGMENT_HINTS, check_types, diagnosis_hints
 from credcli.io.files import STDIN, check_small_input, read_toml
@@ -340,10 +341,11 @@ def build_diagnosis_config(
         If the seed is not a non-negative integer, or a rule setting is invalid.
     """
     values = merged(config, "diagnosis", cli | {"seed": seed})
-    seed_value = values.pop("seed", 0)
-    if not isinstance(seed_value, int) or isinstance(seed_value, bool) or seed_value < 0:
+    try:
+        seed_value = check_seed(values.pop("seed", 0))
+    except CredcliError as exc:  # the API's check, with where the seed came from
         where = seed_source if seed is not None else "config [diagnosis] seed"
-        raise CredcliError(f"{where}: the seed must be a non-negative integer; got {seed_value!r}")
+        raise CredcliError(f"{where}: {exc.message}") from exc
     return built(DiagnosisConfig, values, config, "diagnosis", cli), seed_value
 
 

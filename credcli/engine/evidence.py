@@ -333,8 +333,8 @@ def gather(errors, cov, chol, configs, gen, mse, runs=1, memory=None) -> list[Ev
     if any(diverging.values()):  # the divergence names the run-away tail: not a burst
         found_bursts = tuple(b for b in found_bursts if b.stop < n)
     slow = _slow_memory(scales_check, memory) if memory is not None else None
-    if slow is None and modelled and source == "segment":
-        slow = _unresolved_memory(memory, n)
+    if slow is None and modelled and source is not None:
+        slow = _unresolved_memory(memory, n, source == "run")
     if slow is not None:
         model_evidence = {c: _declined(ev, slow) for c, ev in model_evidence.items()}
     # every scale and mean test now, so the GLS residuals can be freed
@@ -1270,14 +1270,28 @@ MIN_RESOLUTION = 8.0
 """Fewest correlation times a segment must hold to be judged by the memory fitted on it:
 an AR fit on a window of a few correlation times sees only the part of the memory that the
 window resolves, underestimating τ and calling windows a misfit (docs/measured.md), so
-the memory itself is then unknown."""
+the memory itself is then unknown. A window of a run, judged by the run's model, needs as
+many: its spread about its own mean is then mostly the part of the error faster than the
+window, and reading the claim's scale from it rests on the model's split of slow and fast
+memory within the window, which the run's fit knows least (windows of the development zoo
+below N/τ 4: false alarms in 11–32 % of credible windows of several families, measured
+when the run's model was first corrected for the windows' centring; docs/measured.md)."""
 
 
-def _unresolved_memory(memory: Memory, n: int) -> str | None:
-    """Why a segment is too short for the memory fitted on it, or None."""
+def _unresolved_memory(memory: Memory, n: int, window: bool = False) -> str | None:
+    """Why a segment (a window of a run judged by the run's model, where ``window``) is too
+    short for the memory, or None."""
     tau = float(np.max(memory.variance_ratios))
     if n / tau >= MIN_RESOLUTION:
         return None
+    if window:
+        return (
+            f"memory comparable to the window: the run's model has τ̂ {tau:.3g} epochs, which "
+            f"leaves N/τ̂ {n / tau:.3g}, fewer than {MIN_RESOLUTION:g} correlation times; the "
+            "window's spread about its own mean is mostly the error's faster part, so neither "
+            "question is answered for the window (the run's own verdict covers the total "
+            "error; longer windows can decide)"
+        )
     fraction = max(m.fraction for m in memory.series)
     if fraction > 0:
         return (
@@ -1416,7 +1430,9 @@ def segment_memory(gls, inverse, s, residuals=None) -> tuple[Memory, np.ndarray]
     return with_long_memory(fit_memory(residuals, gls.q, screened=screened), residuals), residuals
 
 
-def segment_memory_of(residuals: np.ndarray, q: np.ndarray, cover: int | None = None) -> Memory:
+def segment_memory_of(
+    residuals: np.ndarray, q: np.ndarray, cover: int | None = None, runs: int = 1
+) -> Memory:
     """The dependence model of mean-free whitened residuals and their squares.
 
     Screened by their own lag-1 autocorrelation at SCREENING_LEVEL, whatever their length
@@ -1425,11 +1441,14 @@ def segment_memory_of(residuals: np.ndarray, q: np.ndarray, cover: int | None = 
     Parameters
     ----------
     residuals : numpy.ndarray, shape (N, d)
-        Mean-free whitened residuals.
+        Mean-free whitened residuals, ``runs`` equal runs one after the other.
     q : numpy.ndarray, shape (N,)
         Their squares summed over components (centred NEES).
     cover : int, optional
         The longest window the model will judge (:func:`credcli.engine.memory.fit_memory`).
+    runs : int, default 1
+        The runs pooled: one model, each run centred on its own mean
+        (:func:`credcli.engine.memory.fit_memory`; no long-memory candidates).
 
     Returns
     -------
@@ -1440,5 +1459,5 @@ def segment_memory_of(residuals: np.ndarray, q: np.ndarray, cover: int | None = 
     screened = correlation.serially_dependent(
         correlation.autocorrelation(residuals), n, correlation.SCREENING_LEVEL
     )
-    memory = fit_memory(residuals, q, screened=screened, cover=cover)
+    memory = fit_memory(residuals, q, runs=runs, screened=screened, cover=cover)
     return with_long_memory(memory, residuals)

@@ -178,7 +178,8 @@ class Results(Sequence):
         ------
         CredcliError
             If ``kind`` is not one of the kinds above, ``k`` is not a positive number,
-            ``window`` is not between 1 and N, the results hold no log (made by hand, not
+            ``window`` is not between 1 and N or is given to a kind without a running mean
+            (not ``nees`` or ``all``), the results hold no log (made by hand, not
             by [diagnose_log][credcli.api.diagnose_log]), or, for ``timescales``, no
             segment has a fitted memory.
 
@@ -196,6 +197,12 @@ class Results(Sequence):
             )
         if not (isinstance(k, int | float) and np.isfinite(k) and k > 0):
             raise CredcliError(f"k must be a positive number; got {k!r}", "k")
+        if window is not None and kind not in (PlotKind.NEES, PlotKind.ALL):
+            raise CredcliError(
+                f"window is the running mean's length of the 'nees' figure; '{kind}' has "
+                "none: leave it out",
+                "window",
+            )
         if kind is PlotKind.ALL:
             return {str(one): draw(self._source, one, k, window)[0] for one in DRAWN}
         return draw(self._source, kind, k, window)[0]

@@ -329,6 +329,18 @@ def test_plot_errors_band_is_k_root_diagonal(small):
     _close(fig)
 
 
+@pytest.mark.parametrize("kind", ["errors", "whitened", "timeline"])
+def test_a_plot_window_is_refused_by_a_kind_without_a_running_mean(small, kind):
+    """Only the NEES figure has a running mean: a window given to another kind was
+    dropped without a word; now it is an error naming the argument."""
+    from credcli.errors import CredcliError
+
+    _, results = small
+    with pytest.raises(CredcliError, match="window is the running mean's length"):
+        results.plot(kind, window=7)
+    _close(*results.plot("all", window=7).values())
+
+
 def test_plot_nees_running_mean_and_its_chi2_interval(small):
     import pandas as pd
 

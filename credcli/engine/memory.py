@@ -1273,8 +1273,8 @@ CENTRING_STEPS = 4
 """Fixed-point steps of :func:`centring_corrected`. Each moves the reflections by the
 bootstrap's bias at the last step's model. On 4,000 windows of 10 epochs of an AR(1) with
 φ = 0.5, Burg's pooled φ̂ is 0.31 and the corrected one 0.50 (0.50 and 0.002 at order 2);
-eight steps give the same model to the bootstrap's noise (v_10 of 40-window runs: median
-2.36 against 2.31, true 2.6)."""
+eight steps moved the median v_10 of 20 runs of 40 such windows by 2 % (2.31 → 2.36, true
+2.6)."""
 REFLECTION_LIMIT = 0.999
 """Largest |reflection| a corrected model takes (a stationary AR model has |k_j| < 1)."""
 
@@ -1285,7 +1285,7 @@ def centring_corrected(fit: BurgFit, orders, t: int, seed: int) -> BurgFit:
 
     Burg's pooled fit of runs of t epochs, each centred on its own mean, is biased towards
     less memory by O(τ/t) (within-group estimation of an autoregression, Nickell 1981):
-    over windows of 10 epochs of an AR(1) with φ = 0.5 it gives φ̂ ≈ 0.34, so τ̂ ≈ 2.0
+    over windows of 10 epochs of an AR(1) with φ = 0.5 it gives φ̂ ≈ 0.31, so τ̂ ≈ 1.9
     for τ = 3, and that bias does not fall with the number of runs. The correction is the
     fixed point of k = k̂ − (E k̂*(k) − k) (bootstrap bias correction, iterated; Efron &
     Tibshirani 1993, Ch. 10), with k̂ the fit's reflections at each series' order and

@@ -1054,8 +1054,8 @@ def _whole_run_unresolved(z: np.ndarray, length: int) -> str | None:
     except NoFiniteMemory:
         return (
             "memory comparable to the window: the whole run's errors have no finite memory "
-            "(its model has a root on the unit circle); no window is judged, and the run's "
-            "own verdict says why"
+            "(a drift, a random walk, or long memory at the edge of stationarity); no window "
+            "is judged, and the run's own verdict says why"
         )
     ratio = max(m.mean_ratio(length) for m in whole.series)
     if length / ratio >= evidence.MIN_RESOLUTION:

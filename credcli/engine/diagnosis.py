@@ -1024,7 +1024,6 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
     else:
         pvalue = float(special.chdtrc(dof, statistic))
     findings = ()
-    unresolved = _whole_run_unresolved(z, length)
     if pvalue < HOMOGENEITY_LEVEL:
         findings = (
             f"slowly varying error: the {len(parts)} windows' means vary "
@@ -1032,6 +1031,8 @@ def run_model(errors: np.ndarray, cov: np.ndarray, windows, config: DiagnosisCon
             f"(p {pvalue:.2g}): a slowly varying error, or conditions that change between "
             "windows; this verdict of the whole run covers the total error",
         )
+    # where the finding declines the windows already, the whole run's fit is not needed
+    unresolved = None if findings else _whole_run_unresolved(z, length)
     return RunModel(memory, findings, unresolved)
 
 
@@ -1060,12 +1061,9 @@ def _whole_run_unresolved(z: np.ndarray, length: int) -> str | None:
     ratio = max(m.mean_ratio(length) for m in whole.series)
     if length / ratio >= evidence.MIN_RESOLUTION:
         return None
-    return (
-        f"memory comparable to the window: the whole run's model has v {ratio:.3g} over a "
-        f"window of {length} epochs, which leaves N/v {length / ratio:.3g}, fewer than "
-        f"{evidence.MIN_RESOLUTION:g} correlation times; the window's spread about its own "
-        "mean is mostly the error's faster part, so neither question is answered for the "
-        "window (the run's own verdict covers the total error; longer windows can decide)"
+    return evidence.window_unresolved(
+        f"the whole run's model has v {ratio:.3g} over a window of {length} epochs, which "
+        f"leaves N/v {length / ratio:.3g}"
     )
 
 

@@ -1278,6 +1278,28 @@ below N/τ 4: false alarms in 11–32 % of credible windows of several families,
 when the run's model was first corrected for the windows' centring; docs/measured.md)."""
 
 
+def window_unresolved(measure: str) -> str:
+    """The reason of a window of a run left unjudged for memory it does not resolve, with
+    ``measure`` saying which model leaves it how many correlation times.
+
+    Parameters
+    ----------
+    measure : str
+        E.g. "the run's model has τ̂ 20 epochs, which leaves N/τ̂ 2.5".
+
+    Returns
+    -------
+    str
+        The reason.
+    """
+    return (
+        f"memory comparable to the window: {measure}, fewer than {MIN_RESOLUTION:g} "
+        "correlation times; the window's spread about its own mean is mostly the error's "
+        "faster part, so neither question is answered for the window (the run's own verdict "
+        "covers the total error; longer windows can decide)"
+    )
+
+
 def _unresolved_memory(memory: Memory, n: int, window: bool = False) -> str | None:
     """Why a segment (a window of a run judged by the run's model, where ``window``) is too
     short for the memory, or None."""
@@ -1285,12 +1307,8 @@ def _unresolved_memory(memory: Memory, n: int, window: bool = False) -> str | No
     if n / tau >= MIN_RESOLUTION:
         return None
     if window:
-        return (
-            f"memory comparable to the window: the run's model has τ̂ {tau:.3g} epochs, which "
-            f"leaves N/τ̂ {n / tau:.3g}, fewer than {MIN_RESOLUTION:g} correlation times; the "
-            "window's spread about its own mean is mostly the error's faster part, so neither "
-            "question is answered for the window (the run's own verdict covers the total "
-            "error; longer windows can decide)"
+        return window_unresolved(
+            f"the run's model has τ̂ {tau:.3g} epochs, which leaves N/τ̂ {n / tau:.3g}"
         )
     fraction = max(m.fraction for m in memory.series)
     if fraction > 0:

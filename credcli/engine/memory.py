@@ -221,10 +221,31 @@ class BurgFit:
         numpy.ndarray, shape (p,)
             The coefficients φ_1 … φ_p of x_t = Σ φ_j x_{t−j} + u_t (empty for p = 0).
         """
-        a = np.zeros(0)
-        for k in self.reflection[series, :order]:
-            a = np.concatenate([a + k * a[::-1], [k]])
-        return -a
+        return ar_coefficients(self.reflection[series, :order])
+
+
+def ar_coefficients(reflection: np.ndarray) -> np.ndarray:
+    """φ_1 … φ_p of the AR model with reflection coefficients k_1 … k_p (Levinson's step).
+
+    Parameters
+    ----------
+    reflection : numpy.ndarray, shape (p,)
+        The reflection coefficients, as :func:`burg` gives them.
+
+    Returns
+    -------
+    numpy.ndarray, shape (p,)
+        The coefficients of x_t = Σ φ_j x_{t−j} + u_t (empty for p = 0).
+
+    Examples
+    --------
+    >>> ar_coefficients(np.array([-0.5])).tolist()
+    [0.5]
+    """
+    a = np.zeros(0)
+    for k in reflection:
+        a = np.concatenate([a + k * a[::-1], [k]])
+    return -a
 
 
 BURG_CHUNK = 1 << 16
@@ -1332,7 +1353,7 @@ def centring_corrected(fit: BurgFit, orders, t: int, seed: int) -> BurgFit:
     for _ in range(CENTRING_STEPS):
         draws = np.empty((rows.size, b * drawn, t))
         for j, i in enumerate(rows.tolist()):
-            phi = BurgFit(k[j : j + 1], np.ones((1, p + 1)), t, 1).coefficients(0, orders[i])
+            phi = ar_coefficients(k[j, : orders[i]])
             burn = min(MAX_BURN_IN, decay_horizon(phi, 0))
             z = gen.standard_normal((b * drawn, t + burn))
             draws[j] = ar_filter(phi, z.T)[burn:].T

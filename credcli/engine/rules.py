@@ -662,11 +662,7 @@ def beyond_margin(directions: DirectionScales) -> str | None:
         "optimism" when some direction's interval lies above F = :data:`CREDIBLE_FACTOR`;
         else "pessimism" when some direction's lies below 1/F; else None.
     """
-    if np.any(directions.low > CREDIBLE_FACTOR):
-        return "optimism"
-    if np.any(directions.high < 1.0 / CREDIBLE_FACTOR):
-        return "pessimism"
-    return None
+    return _label_by_direction(directions, CREDIBLE_FACTOR)
 
 
 def direction_noise(directions: DirectionScales, config: DiagnosisConfig) -> str | None:
@@ -690,10 +686,17 @@ def direction_noise(directions: DirectionScales, config: DiagnosisConfig) -> str
         "optimism" when some direction's factor is above 1 (interval and relevance floor
         τ); else "pessimism" when some direction's is below 1; else None.
     """
+    return _label_by_direction(directions, 1.0, config.tau_nci)
+
+
+def _label_by_direction(directions: DirectionScales, bound: float, floor_db: float = 0.0):
+    """ "optimism" where some direction's interval lies wholly above ``bound`` and its
+    factor above the relevance floor (dB); else "pessimism" where some direction's lies
+    below 1/``bound`` and its factor below minus the floor; else None."""
     db = 10.0 * np.log10(np.maximum(directions.factors, np.finfo(float).tiny))
-    if np.any((directions.low > 1.0) & (db > config.tau_nci)):
+    if np.any((directions.low > bound) & (db > floor_db)):
         return "optimism"
-    if np.any((directions.high < 1.0) & (db < -config.tau_nci)):
+    if np.any((directions.high < 1.0 / bound) & (db < -floor_db)):
         return "pessimism"
     return None
 

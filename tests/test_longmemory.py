@@ -12,7 +12,7 @@ from scipy import integrate, special
 from credcli.engine import evidence, longmemory, rules
 from credcli.engine.config import LOCATION_CONDITIONS, DiagnosisConfig, Label, Question
 from credcli.engine.diagnosis import diagnose_errors, memory_ratio
-from credcli.engine.memory import SeriesMemory, fit_memory
+from credcli.engine.memory import SeriesMemory, fit_memory, mean_variance_ratio
 from credcli.report.records import diagnosis_record
 
 
@@ -371,7 +371,8 @@ def _slow_under_white(i: int, shift: float = 0.0, n: int = 300) -> np.ndarray:
 def test_a_location_the_long_memory_leaves_near_zero_is_judged_under_it(monkeypatch):
     """The 2nd of :func:`_slow_under_white`'s stream (credible, τ 4.8 epochs, N/τ 62): the
     sieve finds no memory and its mean test a bias (p 0.006), the fractional alternative
-    (d̂ 0.15) does not; its confidence region, the wider, excludes the margin √2σ, so the
+    (d̂ 0.15 in one direction; in the other the fractional model fitted on both directions
+    together, d̂ 0.05, session 36) does not (p 0.077); its confidence region, the wider, excludes the margin √2σ, so the
     location is decided, credible, whichever memory is right, where it was untested
     before. Without the check the same segment says "bias"."""
     cov = np.broadcast_to(np.eye(2), (300, 2, 2))
@@ -380,8 +381,8 @@ def test_a_location_the_long_memory_leaves_near_zero_is_judged_under_it(monkeypa
     assert judged.label is Label.CREDIBLE and judged.untested == ()
     assert "judged under the latter" in judged.reason
     test = judged.mean_test  # the alternative's: no bias at its level, margin excluded
-    assert test.pvalue > 0.2
     level = DiagnosisConfig().mean_level  # the plan's: the sieve's model left the ELT a share
+    assert test.pvalue > level
     assert test.bias_bound(judged.scale.bias_mahalanobis, level) < rules.bias_margin(2)
     monkeypatch.setattr(evidence, "_held_under_alternative", lambda plan, *args: plan)
     assert diagnose_errors(errors, cov, rng=1).label is Label.BIAS
@@ -420,32 +421,43 @@ def test_fractional_noise_of_ar_order_zero_is_not_white():
     assert replace(memory, series=(white, white)).white
 
 
-def test_the_long_memory_alternative_reaches_every_direction():
-    """A weakly chosen fractional model (AICc prefers it, BIC does not) in one direction is
-    the alternative of every direction whose own model implies less memory over the
-    segment: ρ(1) = d/(1 − d) of fractional noise (Hosking 1981) in both; a direction
-    with more memory of its own keeps it; no weak direction, no alternative."""
-    n = 300
-    white = SeriesMemory(np.zeros(0), np.ones(1), math.inf)
-    slow = SeriesMemory(np.array([0.99]), 0.99 ** np.arange(n), 50.0)
-    candidates = [(0.3, np.zeros(0)), (0.05, np.zeros(0))]
-    none = np.array([False, False])  # no ARMA alternative
-    out = longmemory._weak_alternative(
-        [white, white], np.array([True, False]), candidates, n, none, []
-    )
-    assert [m.fraction for m in out] == [0.3, 0.3]
-    assert out[1].rho[1] == pytest.approx(0.3 / 0.7, rel=1e-12)
-    assert out[1].mean_ratio(n) > white.mean_ratio(n)
-    kept = longmemory._weak_alternative(
-        [white, slow], np.array([True, False]), candidates, n, none, []
-    )
-    assert kept[0].fraction == 0.3 and kept[1] is slow
-    assert (
-        longmemory._weak_alternative(
-            [white, white], np.array([False, False]), candidates, n, none, []
+def test_a_memory_shared_by_the_directions_is_fitted_on_them_together():
+    """Two independent unit ARFIMA(0, 0.3, 0) components of 2,000 epochs (v_N 86.5): the
+    model fitted on both together is their fractional noise, d̂ 0.3, its v_N the truth's
+    (4 seeds of 5; the fifth takes an ARMA(1, 1) of less memory). One such component among
+    14 independent ones: the model the 15 directions share has little memory (v_N < 4,
+    the rule before session 36 gave every direction the first one's)."""
+    n = 2000
+    gamma = longmemory.fractional_autocovariance(0.3, n)
+    truth = mean_variance_ratio(gamma / gamma[0])
+    for seed in range(1, 5):
+        rng = np.random.default_rng(seed)
+        two = longmemory._circulant_draws(gamma, 2, rng) / math.sqrt(gamma[0])
+        ratio, (fraction, theta, _, _) = longmemory._shared_model(
+            two - two.mean(axis=1, keepdims=True), {True, False}, n, 12
         )
-        is None
-    )
+        assert fraction == pytest.approx(0.3) and theta == 0.0
+        assert ratio == pytest.approx(truth, rel=0.05)
+        mixed = np.vstack([two[:1], rng.standard_normal((14, n))])
+        shared = longmemory._shared_model(
+            mixed - mixed.mean(axis=1, keepdims=True), {True, False}, n, 12
+        )
+        assert shared is None or shared[0] < 4.0
+
+
+def test_a_weak_memory_of_one_direction_does_not_hide_a_bias_in_fifteen():
+    """Independent errors, d = 15, 300 epochs, a 1σ bias along the first axis (mean test
+    t about 17): 12 seeded segments, all "bias". Until session 36 a weakly supported memory
+    of any of the 15 directions was every direction's alternative, under which the bias
+    did not hold: found in 4 of these 12 (9 of 20 in benchmarks/dimensions.py)."""
+    n, d = 300, 15
+    cov = np.broadcast_to(np.eye(d), (n, d, d))
+    found = 0
+    for seed in range(12):
+        errors = np.random.default_rng([36, seed]).standard_normal((n, d))
+        errors[:, 0] += 1.0
+        found += diagnose_errors(errors, cov, rng=seed).label is Label.BIAS
+    assert found == 12
 
 
 def test_a_scale_finding_must_hold_under_the_long_memory_the_data_do_not_exclude(monkeypatch):
@@ -490,14 +502,22 @@ def test_a_scale_test_under_either_model_is_the_union_of_the_two():
     assert both.model_dof == 40.0 and both.scale_factor == a.scale_factor
 
 
-def test_a_scale_left_open_by_long_memory_says_so():
-    """The 17th draw of :func:`_fractional_draw`'s stream at 200 epochs: the short-memory
-    model's one-sided scale bounds lie within [½, 2], the long-memory alternative's reach
-    past 2, so the scale is untested, and the reason names the short-memory bounds and the
-    long memory instead of too few epochs. (The 110th at 300 epochs was this case until an
-    ARMA(p, 1) that beats fractional noise by BIC's margin took the alternative away.)"""
-    errors, cov = _fractional_draw(17, n=200)
+def test_a_scale_left_open_by_long_memory_says_so(monkeypatch):
+    """The 17th draw of :func:`_fractional_draw`'s stream at 200 epochs, with the model
+    shared by both directions taken as fractional noise of d = 0.4 (the first direction's
+    weak candidate; the rule before session 36 gave it to both, and this draw was then
+    this case): the short-memory model's one-sided scale bounds lie within [½, 2], the
+    long-memory alternative's reach past 2, so the scale is untested, and the reason names
+    the short-memory bounds and the long memory instead of too few epochs. (The 110th at
+    300 epochs was this case until an ARMA(p, 1) that beats fractional noise by BIC's
+    margin took the alternative away.)"""
+    n = 200
+    rho = longmemory.arfima_autocorrelation(np.zeros(0), 0.4, n)
+    shared = (mean_variance_ratio(rho), (0.4, 0.0, np.zeros(0), rho))
+    monkeypatch.setattr(longmemory, "_shared_model", lambda *args: shared)
+    errors, cov = _fractional_draw(17, n=n)
     checked = diagnose_errors(errors, cov, rng=36)
+    assert [m.fraction for m in checked.memory.alternative.series] == [0.4, 0.4]
     low, high = checked.scale.short_memory_interval
     assert 0.5 <= low and high <= 2.0 < checked.scale.equivalence_interval[1]
     assert Question.SCALE in checked.untested
@@ -565,24 +585,28 @@ def test_an_ar1_under_white_noise_is_short_memory_beside_arma(monkeypatch):
 
 
 def test_a_bias_must_hold_under_a_supported_arma_with_more_memory(monkeypatch):
-    """A slow + white segment (AR(1) φ 0.9 with 30 % of the variance, 300 epochs, seed
-    [30, 101]) biased by 0.8σ in one direction: the second direction's sieve model implies
-    v_N 1.8, the ARMA(1, 1) the data prefer (θ̂ −0.7, within 2 of the best AICc) 10.9,
-    the truth 6.4; the bias the mean test finds under the sieve does not hold under the
-    ARMA, so the location is untested and the reason names it. Without the ARMA
-    competitor the same segment says "bias". (Biased by 1σ, the bias holds under the ARMA
-    too since the test under a model refers to F(d, ν), session 34: "bias".)"""
+    """A slow + white segment (AR(1) φ 0.9 with 30 % of the variance in both directions,
+    v_N 6.4, 300 epochs, seed [30, 101]) biased by 0.6σ in one direction. The second
+    principal direction's own model implies v_N 1.8 (it is the direction of least memory
+    by selection); the ARMA(p, 1) fitted on both directions together (θ̂ −0.7, which beats
+    their pooled sieve) implies 5.5, and is its alternative. The bias the mean test finds
+    under the sieve does not hold under the ARMA, so no bias is claimed and the reason
+    names the ARMA; without the ARMA competitor the same segment says "bias". Biased by
+    0.8σ (5.5 standard errors of the mean under the truth) the bias holds under the ARMA
+    too: "bias". (Until session 36 the first direction's ARMA, v_N 10.9, was given to the
+    second, and 0.8σ was not claimed.)"""
     rng = np.random.default_rng([30, 101])
     n = 300
     z = rng.standard_normal((n + 200, 2)) * math.sqrt(1 - 0.81)
     slow = longmemory.ar_filter(np.array([0.9]), z)[200:]
     white = math.sqrt(0.7) * rng.standard_normal((n, 2))
-    errors = math.sqrt(0.3) * slow + white + [0.8, 0.0]
+    errors = math.sqrt(0.3) * slow + white + [0.6, 0.0]
     cov = np.broadcast_to(np.eye(2), (n, 2, 2))
     assert diagnose_errors(errors + [0.2, 0.0], cov, rng=0).label is Label.BIAS
     found = diagnose_errors(errors, cov, rng=0)
-    assert found.memory.alternative is not None
-    assert found.memory.alternative.series[1].moving == pytest.approx(-0.7)
+    second = found.memory.alternative.series[1]
+    assert second.moving == pytest.approx(-0.7)
+    assert 4.0 < second.mean_ratio(n) < 8.0 and found.memory.series[1].mean_ratio(n) < 2.0
     assert found.label is Label.CREDIBLE and Question.LOCATION in found.untested
     assert "but not under an ARMA one (θ̂ -0.7) with more memory" in found.reason
     monkeypatch.setattr(

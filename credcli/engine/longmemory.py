@@ -567,7 +567,8 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     if memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
         return memory
     x, search = _direction_series(memory, residuals)
-    fractions, orders, coefficients, weak, candidates, arma_weak, arma = _fractional_fits(x, search)
+    choice = _fractional_fits(x, search)
+    fractions, orders, coefficients, weak, candidates = choice[:5]
     if np.any(fractions >= FRACTIONS[-1] - 1e-9):
         raise NoFiniteMemory(
             f"a fractional order at the grid's top, {FRACTIONS[-1]:g}: the errors are no "
@@ -582,7 +583,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
         spread = fractional_spread(phi, fraction, n, search, int(orders[i]) + i)
         log_v = math.log(mean_variance_ratio(rho))
         series[i] = corrected_memory(phi, rho, log_v, spread, fraction)
-    alternative = _weak_alternative(series, weak, candidates, n, arma_weak, arma)
+    alternative = _weak_alternative(series, weak, choice, x, n, search)
     if alternative is None and all(new is old for new, old in zip(series, memory.series)):
         return memory
     chosen = replace(memory, series=tuple(series))
@@ -625,9 +626,7 @@ def white_alternative(memory: Memory, residuals: np.ndarray) -> Memory | None:
     choice = _fractional_fits(x, search)
     weak = choice.weak | (choice.fractions > 0)  # a fractional model BIC takes: more so
     series = list(memory.series)
-    alternative = _weak_alternative(
-        series, weak, choice.candidates, n, choice.arma_weak, choice.arma
-    )
+    alternative = _weak_alternative(series, weak, choice, x, n, search)
     if alternative is None:
         return None
     return replace(memory, alternative=replace(memory, series=alternative))
@@ -647,51 +646,138 @@ def _direction_series(memory: Memory, residuals: np.ndarray) -> tuple[np.ndarray
 
 
 def _weak_alternative(
-    series: list, weak: np.ndarray, candidates: list, n: int, arma_weak: np.ndarray, arma: list
+    series: list, weak: np.ndarray, choice: _Choice, x: np.ndarray, n: int, p_max: int
 ):
-    """The directions' models with the weakly chosen memory in every direction, or None
-    where no direction has any.
+    """The directions' models with the memory the data weakly support, or None where no
+    direction has any.
 
-    An ARMA(p, 1) that the data prefer to the sieve and that is within :data:`SUPPORT` of
-    the best model (``arma_weak``, ``arma``: :func:`_fractional_fits`) is such a memory too
-    (an AR(1) under white noise, whose slow part a short segment's sieve fits too little,
-    or long memory that an ARMA with a root near the unit circle describes as well).
-
-    Each weakly chosen fractional model (AICc within :data:`SUPPORT` of the sieve's, not
+    A weakly chosen fractional model (AICc within :data:`SUPPORT` of the sieve's, not
     taken as the model, no ARMA(p, 1) beating it by BIC's margin) is a memory the segment
-    cannot rule out, and not in its own direction only: the principal directions are
-    ordered by their fitted memory, so a direction that shares the long memory shows it
-    less by selection (two independent ARFIMA(0, 0.3, 0) components of 300 epochs: on the
-    segments whose mean was called a bias, the second direction's fit gave v_N 2–5, the
-    truth 28). So each direction takes, of the weakly chosen models, the one that implies
-    the most memory over the segment (:func:`mean_variance_ratio`), where that is more than
-    its own model's.
+    cannot rule out in its direction; so is an ARMA(p, 1) that the data prefer to the
+    sieve and that is within :data:`SUPPORT` of the best model (``choice.arma_weak``,
+    ``choice.arma``: :func:`_fractional_fits`; an AR(1) under white noise, whose slow part
+    a short segment's sieve fits too little, or long memory that an ARMA with a root near
+    the unit circle describes as well). Each direction takes its own such model where it
+    implies more memory over the segment than the direction's model
+    (:func:`mean_variance_ratio`).
+
+    Such a memory may be shared by other directions, which show it less: the principal
+    directions are ordered by their fitted memory, so a direction that shares the long
+    memory shows it less by selection (two independent ARFIMA(0, 0.3, 0) components of
+    300 epochs: on the segments whose mean was called a bias, the second direction's fit
+    gave v_N 2–5, the truth 28). So one model of those classes is fitted on the directions
+    together (:func:`_shared_model`: the direction of most such memory and every direction
+    with less memory of its own), and where their pooled data support it as one direction
+    supports its weak candidate, it is each such direction's alternative too, where it
+    implies more memory than the direction's own. The pooled fit does not select by
+    memory, as each direction's own fit does. Where one direction's weak memory is not
+    the others' (a slow heading error beside a fast position error, or a chance candidate
+    among many independent directions) the pooled data do not support it, or the model
+    fitted on all of them has little memory, and the others keep their own: giving the
+    weak memory of any direction to every direction (the rule before session 36) made a
+    chance candidate of one of 15 independent directions every direction's alternative,
+    and a 1σ bias over 300 independent epochs was found in 9 of 20 segments, 20 of 20
+    since (``benchmarks/dimensions.py``, docs/measured.md).
 
     Its degrees of freedom are the direction's own (no bootstrap): the alternative serves
     only to check that a location or scale finding holds under more memory as well
     (:func:`credcli.engine.evidence.memory_evidence`), and more degrees of freedom make
     that check reject more readily, so it declines no more findings than a bootstrap
     would."""
-    fitted = []
+    fitted = []  # (v_n, model, origin) of each direction's weakly supported memory
     for i in np.flatnonzero(weak).tolist():
-        fraction, phi = candidates[i]
+        fraction, phi = choice.candidates[i]
         rho = None if fraction >= FRACTIONS[-1] - 1e-9 else _fractional_rho(phi, fraction, n)
         if rho is not None:
-            fitted.append((mean_variance_ratio(rho), fraction, 0.0, phi, rho))
-    for i in np.flatnonzero(arma_weak).tolist():
-        theta, phi = arma[i]
+            fitted.append((mean_variance_ratio(rho), (fraction, 0.0, phi, rho), i))
+    for i in np.flatnonzero(choice.arma_weak).tolist():
+        theta, phi = choice.arma[i]
         try:
             rho = arma_autocorrelation(phi, theta, n)
         except np.linalg.LinAlgError:  # a root on the unit circle: no ARMA memory to hold
             continue
         if np.all(np.isfinite(rho)):
-            fitted.append((mean_variance_ratio(rho), 0.0, theta, phi, rho))
+            fitted.append((mean_variance_ratio(rho), (0.0, theta, phi, rho), i))
     if not fitted:
         return None
-    ratio, fraction, theta, phi, rho = max(fitted, key=lambda f: f[0])
-    out, changed = list(series), False
-    for i, own in enumerate(series):
-        if ratio > own.mean_ratio(n):
+    ratios = [own.mean_ratio(n) for own in series]
+    best: list = [None] * len(series)  # (v_n, model) of each direction's alternative
+    for ratio, model, origin in fitted:
+        if ratio > ratios[origin] and (best[origin] is None or ratio > best[origin][0]):
+            best[origin] = (ratio, model)
+    most, _, origin = max(fitted, key=lambda f: f[0])
+    rows = [origin] + [i for i, r in enumerate(ratios) if i != origin and r < most]
+    if len(rows) > 1:
+        classes = {model[1] == 0.0 for _, model, _ in fitted}  # True: fractional
+        shared = _shared_model(x[rows], classes, n, p_max)
+        if shared is not None:
+            ratio, model = shared
+            for i in rows:
+                if ratio > ratios[i] and (best[i] is None or ratio > best[i][0]):
+                    best[i] = shared
+    if all(b is None for b in best):
+        return None
+    out = list(series)
+    for i, chosen in enumerate(best):
+        if chosen is not None:
+            fraction, theta, phi, rho = chosen[1]
+            own = series[i]
             out[i] = SeriesMemory(phi, rho, own.dof, own.square_dof, fraction, theta)
-            changed = True
-    return tuple(out) if changed else None
+    return tuple(out)
+
+
+def _shared_model(x: np.ndarray, classes: set, n: int, p_max: int):
+    """One model of long memory or of an ARMA(p, 1) shared by the series ``x`` (rows),
+    with its v_n and (d, θ, φ, ρ), where the rows together support it as one direction
+    supports its weak candidate (:func:`_fractional_fits`); None otherwise.
+
+    The rows, each scaled to unit mean square, are pooled by Burg's recursion (one
+    reflection coefficient from every row's prediction errors): the AR sieve, ARFIMA(p, d,
+    0) with d on the grid :data:`FRACTIONS` below its top and ARMA(p, 1) with θ on
+    :data:`MOVING_AVERAGES`, for the classes in ``classes`` (True: fractional, False: ARMA),
+    the orders up to ``p_max``, each by AICc over all the rows' epochs. A fractional model
+    is supported where its AICc is within :data:`SUPPORT` of the sieve's and no ARMA(p, 1)
+    beats it by BIC's margin; an ARMA(p, 1) where it beats the sieve and is within
+    :data:`SUPPORT` of the best of the three. Of those supported,
+    the one of more memory over ``n`` epochs. The rows share the selection of the
+    principal directions on both sides of the comparison, so a direction that shows less
+    memory by that selection does not count against the shared model."""
+    m, t = x.shape
+    z = x / np.sqrt(np.mean(x * x, axis=1, keepdims=True))
+    sieve = float(np.min(burg(z[None], p_max).aicc()))
+    found = []
+    if True in classes:
+        stack = np.stack([fractional_difference(z, g) for g in FRACTIONS[:-1]])
+        fit = burg(stack, p_max)
+        costs = fit.aicc(extra=1)
+        which, order = np.unravel_index(int(np.argmin(costs)), costs.shape)
+        found.append((float(costs[which, order]), float(FRACTIONS[which]), 0.0, fit, which, order))
+    if False in classes:
+        stack = np.stack([ar_filter(np.array([-g]), z.T).T for g in MOVING_AVERAGES])
+        fit = burg(stack, p_max)
+        costs = fit.aicc(extra=1)
+        which, order = np.unravel_index(int(np.argmin(costs)), costs.shape)
+        found.append(
+            (float(costs[which, order]), 0.0, float(MOVING_AVERAGES[which]), fit, which, order)
+        )
+    moving = min((f[0] for f in found if f[2] != 0.0), default=math.inf)
+    least = min([sieve] + [f[0] for f in found])
+    out = []
+    for cost, fraction, theta, fit, which, order in found:
+        if fraction > 0:
+            supported = cost < sieve + SUPPORT and not moving + (math.log(m * t) - 2.0) < cost
+        else:
+            supported = cost < sieve and cost < least + SUPPORT
+        if not supported:
+            continue
+        phi = fit.coefficients(int(which), int(order))
+        if fraction > 0:
+            rho = _fractional_rho(phi, fraction, n)
+        else:
+            try:
+                rho = arma_autocorrelation(phi, theta, n)
+            except np.linalg.LinAlgError:
+                rho = None
+        if rho is not None and np.all(np.isfinite(rho)):
+            out.append((mean_variance_ratio(rho), (fraction, theta, phi, rho)))
+    return max(out, key=lambda f: f[0]) if out else None

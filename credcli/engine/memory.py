@@ -990,10 +990,12 @@ class Memory(_Answering):
         The same model with more memory where the data support one: a fractional model
         (its AICc within ``longmemory.SUPPORT`` of the sieve's, no ARMA(p, 1) better by
         BIC's margin) that BIC does not take, or an ARMA(p, 1) preferred to the sieve and
-        within ``longmemory.SUPPORT`` of the best, whichever implies the most memory, in
-        every direction with less memory of its own (:mod:`credcli.engine.longmemory`): a
-        location or scale finding must hold under it as well. None where there is no such
-        direction.
+        within ``longmemory.SUPPORT`` of the best, in the direction whose data support
+        it, and a model of that class fitted on the directions together in those with less
+        memory of their own where their pooled data support it (:mod:`credcli.engine.
+        longmemory`); each direction keeps its own model where these imply less memory. A
+        location or scale finding must hold under it as well. None where no direction
+        changes.
     """
 
     directions: np.ndarray

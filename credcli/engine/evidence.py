@@ -1175,9 +1175,10 @@ def _held_under_alternative(plan: LocationPlan, gls, memory: Memory, inverse) ->
     A bias is then not claimed, and "no bias of the margin's size"
     (:func:`credcli.engine.rules.inconclusive_location`) is claimed only as the
     alternative's mean test supports it: its confidence region, about the same centre and
-    at the same level, is the wider of the two (the alternative has at least as much memory
-    in every direction), so where it excludes the margin so does the fitted model's, and the claim
-    holds whichever memory is right, as the scale's interval covers both
+    at the same level, is the wider of the two (the alternative has at least as much
+    memory in every direction), so where it excludes the margin so does the fitted
+    model's, and the claim holds whichever memory is right, as the scale's interval covers
+    both
     (:func:`credcli.engine.scale.directions_under_either`). The ELT, whose sign blocks the
     longer memory would lengthen, does not run. Where the alternative's region is not the
     wider one, or its test has too few degrees of freedom, the location is untested."""

@@ -738,12 +738,13 @@ def _shared_model(x: np.ndarray, classes: set, n: int, p_max: int):
     the orders up to ``p_max``, each by AICc over all the rows' epochs. A fractional model
     is supported where its AICc is within :data:`SUPPORT` of the sieve's and no ARMA(p, 1)
     beats it by BIC's margin; an ARMA(p, 1) where it beats the sieve and is within
-    :data:`SUPPORT` of the best of the three. Of those supported,
-    the one of more memory over ``n`` epochs. The rows share the selection of the
-    principal directions on both sides of the comparison, so a direction that shows less
-    memory by that selection does not count against the shared model."""
+    :data:`SUPPORT` of the best of the three. Of those supported, the one of more memory
+    over ``n`` epochs. The rows share the selection of the principal directions on both
+    sides of the comparison, so a direction that shows less memory by that selection does
+    not count against the shared model."""
     m, t = x.shape
-    z = x / np.sqrt(np.mean(x * x, axis=1, keepdims=True))
+    rms = np.sqrt(np.mean(x * x, axis=1, keepdims=True))
+    z = x / np.where(rms > 0.0, rms, 1.0)
     sieve = float(np.min(burg(z[None], p_max).aicc()))
     found = []
     if True in classes:

@@ -182,6 +182,24 @@ def test_missing_segment_names_are_an_error(tmp_path, frame, where, fmt):
     assert ("first in row 1" if where == "all" else "first in row 6") in line
 
 
+def test_segment_and_run_names_that_pandas_reads_as_missing_are_names(tmp_path, frame):
+    """A CSV's segment and run names "NA", "NaN", "None", "null" and "N/A" are names, not
+    missing cells (pandas' default reading): five segments so named, diagnosed; an empty
+    cell among them is still missing, exit 2 naming its row."""
+    names = ["NA", "NaN", "None", "null", "N/A"]
+    frame["segment"] = [names[k * len(names) // len(frame)] for k in range(len(frame))]
+    frame["run"] = "NA"
+    path = tmp_path / "log.csv"
+    frame.to_csv(path, index=False)
+    code, out, _ = run("diagnose", path, "-f", "json")
+    assert code == 0
+    assert [s["segment"] for s in json.loads(out)["segments"]] == names
+    frame.loc[3, "segment"] = ""
+    frame.to_csv(path, index=False)
+    line = error_line(*run("diagnose", path)[::2])
+    assert "segment column 'segment' is empty or NA in 1 row(s), first in row 4" in line
+
+
 def test_duplicate_columns_are_an_error(tmp_path, frame):
     frame.insert(5, "dup", frame["est_0"])
     path = tmp_path / "log.csv"

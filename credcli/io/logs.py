@@ -226,12 +226,53 @@ def load_log(
     """
     url = as_url(path)
     path = Path(path)
+    schema = schema or LogSchema()
     frame = read_table(path, columnwise=True)
+    if url is None:
+        frame = _names_as_written(frame, path, (schema.segment, schema.run))
     name = url or str(path)
-    log = log_from_frame(
-        frame, schema or LogSchema(), name, drop_invalid, time_unit, innovations, errors_only
-    )
+    log = log_from_frame(frame, schema, name, drop_invalid, time_unit, innovations, errors_only)
     return replace(log, id=LogId.of(name, name))
+
+
+def _names_as_written(frame, path: Path, columns: tuple[str, ...]):
+    r"""``frame`` with its segment and run names as a plain CSV file writes them.
+
+    pandas reads "NA", "NaN", "None", "null", "N/A" and the like as missing in every
+    column; in a name column they are names (a region "NA", a mode "None"), and only an
+    empty cell is missing. Such a column is read again as text, empty cells alone missing.
+    Other files (Parquet keeps its strings; text tables, compressed files) are returned as
+    they are.
+
+    Examples
+    --------
+    >>> import tempfile, pandas as pd
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     p = Path(d) / "log.csv"
+    ...     _ = p.write_text("time,segment\n0,NA\n1,\n2,b\n")
+    ...     _names_as_written(pd.read_csv(p), p, ("segment", "run"))["segment"].tolist()
+    ['NA', nan, 'b']
+    """
+    import pandas as pd
+
+    redo = [
+        c
+        for c in columns
+        if isinstance(frame, pd.DataFrame) and c in frame.columns and frame[c].isna().any()
+    ]
+    if not redo or path.suffix.lower() in (".parquet", ".pq") or not _plain_csv(path):
+        return frame
+    text = read_csv_unmapped(
+        path,
+        usecols=redo,
+        dtype=str,
+        keep_default_na=False,
+        na_values=[""],
+        skipinitialspace=True,
+    )
+    if len(text) != len(frame):  # not the table read before: leave it to the checks
+        return frame
+    return frame.assign(**{c: text[c].to_numpy(dtype=object) for c in redo})
 
 
 ERRORS_SCHEMA = {"truth_prefix": "err_"}

@@ -568,7 +568,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
         return memory
     x, search = _direction_series(memory, residuals)
     choice = _fractional_fits(x, search)
-    fractions, orders, coefficients, weak, candidates = choice[:5]
+    fractions, orders, weak = choice.fractions, choice.orders, choice.weak
     if np.any(fractions >= FRACTIONS[-1] - 1e-9):
         raise NoFiniteMemory(
             f"a fractional order at the grid's top, {FRACTIONS[-1]:g}: the errors are no "
@@ -576,7 +576,7 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
         )
     series = list(memory.series)
     for i in np.flatnonzero(fractions > 0).tolist():
-        phi, fraction = coefficients[i], float(fractions[i])
+        phi, fraction = choice.coefficients[i], float(fractions[i])
         rho = _longer_memory(phi, fraction, n, series[i])
         if rho is None:
             continue

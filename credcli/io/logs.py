@@ -255,11 +255,9 @@ def _names_as_written(frame, path: Path, columns: tuple[str, ...]):
     """
     import pandas as pd
 
-    redo = [
-        c
-        for c in columns
-        if isinstance(frame, pd.DataFrame) and c in frame.columns and frame[c].isna().any()
-    ]
+    if not isinstance(frame, pd.DataFrame):  # Parquet read a column at a time: strings kept
+        return frame
+    redo = [c for c in columns if c in frame.columns and frame[c].isna().any()]
     if not redo or path.suffix.lower() in (".parquet", ".pq") or not _plain_csv(path):
         return frame
     text = read_csv_unmapped(

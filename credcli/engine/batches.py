@@ -587,24 +587,23 @@ def memory_mean_test(
     a Toeplitz quadratic form per direction (:func:`toeplitz_form`; a closed form when the
     claimed covariance is constant). γ_i is estimated from the centred residuals, unbiased
     under the model (divided by the expected centred sum of squares). T² = GᵀĈ⁻¹G with
-    G = Σ g_k is referred to T²/d ~ F(d, ν), where 1/ν = 1/ν_Ω + 1/ν_γ: the model's own
-    estimation error (:class:`credcli.engine.memory.Memory`) and the Satterthwaite degrees
-    of freedom of the variance estimate, both of the least certain direction.
+    G = Σ g_k.
 
-    The model's directions are independent series, so Ĉ is made of d estimated scalars
-    (one variance and one long-run factor per direction), not a Wishart matrix: T² is,
-    where the claim is constant, the sum of d independent squared t statistics, t²_{ν_i}
-    with ν_i >= ν. Each is stochastically at most a t²_ν, and one denominator shared by the
-    d terms, as in F(d, ν), makes the sum's upper tail heavier than independent ones:
-    the test is conservative, exact for d = 1, and near its level for two directions of
-    equal ν (simulated sizes at 0.0253 with 400,000 draws: 0.023–0.024 for d = 2,
-    ν = 3…30; 0.0003–0.019 for d = 6 and 15 with equal and unequal ν;
-    ``tests/test_dependence_verdicts.py`` checks the whole test's size by Monte Carlo).
-    Hotelling's (ν − d + 1)T²/(νd) ~ F(d, ν − d + 1), which this test used before,
-    charges for the d(d + 1)/2 entries of a Wishart estimate: its size at 0.0253 was
-    0.005 at d = 6, ν = 30, and it had no degrees of freedom left at all where ν < d
-    (i.i.d. errors of 15 dimensions over 300 epochs: no mean test in 15 of 20 segments,
-    a fitted direction's ν of 14 being enough to lose it).
+    The directions are the data's: :func:`credcli.engine.memory.principal_directions`
+    turns them to diagonalise the sample covariance as well as the long-run one, so the
+    γ̂_i are close to the eigenvalues of a Wishart estimate, spread beyond the truth (the
+    last ones too small), and T² is Hotelling's. With ν_γ the Satterthwaite degrees of
+    freedom of the variance estimate (of the least certain direction), (ν_γ − d + 1)T²/(ν_γ d)
+    is referred to F(d, ν), 1/ν = 1/ν_Ω + 1/(ν_γ − d + 1), ν_Ω the model's own estimation
+    error (:class:`credcli.engine.memory.Memory`): Hotelling's reference for the
+    variances, with the model's error beside it. Without the factor, a 16-output
+    constant-velocity filter over 600 epochs (one memory shared by its directions) gave a
+    mean F of 1.30 where F(16, 59) has 1.04, and rejected at 0.0127 in 4 of 60 credible
+    segments; with it, 1.04 and 1 of 60 (``benchmarks/dimensions.py``, docs/measured.md).
+    Hotelling's reference with the model's ν in place of ν_γ, which this test used before
+    session 34, charged the model's error d(d + 1)/2 times: it had no degrees of freedom
+    left where ν_Ω < d (i.i.d. errors of 15 dimensions over 300 epochs: no mean test in 15
+    of 20 segments).
 
     Parameters
     ----------
@@ -642,7 +641,11 @@ def memory_mean_test(
         cov += gamma * toeplitz_form(m, series.test_window(n))
     cov = 0.5 * (cov + cov.T)
     total = residuals.scores.sum(axis=0) / unit
-    dof = 1.0 / (1.0 / memory.dof + 1.0 / dof_var)
+    # the directions are the data's (principal_directions turns them to diagonalise the
+    # sample covariance as well), so their variances are a Wishart estimate's eigenvalues:
+    # Hotelling's reference for them (ν_γ − d + 1), the model's ν beside it
+    wishart = dof_var - d + 1.0
+    dof = 1.0 / (1.0 / memory.dof + 1.0 / wishart) if wishart > 0 else 0.0
     try:
         t2 = float(total @ np.linalg.solve(cov, total))
     except np.linalg.LinAlgError:
@@ -654,7 +657,7 @@ def memory_mean_test(
     stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None)) * ratio  # exact: a power of two
     if dof < 1.0:
         return MeanTest(math.nan, (float(d), dof), math.nan, 0), stderr
-    f = t2 / d
+    f = t2 / d * wishart / dof_var
     p = float(special.fdtrc(d, dof, f)) if math.isfinite(f) else 0.0
     spread = mean_spread(cov, precision, ratio * unit, n)
-    return MeanTest(f, (float(d), dof), p, 0, spread, float(d)), stderr
+    return MeanTest(f, (float(d), dof), p, 0, spread, d * dof_var / wishart), stderr

@@ -799,19 +799,21 @@ def _many_dimensions(seed, d, n, bias=0.0):
 
 
 def test_the_mean_of_many_dimensions_is_tested_where_one_direction_is_uncertain():
-    """The mean test under a fitted model refers T²/d to F(d, ν), ν of the least certain
-    direction: the directions' variances are d estimated scalars, not a Wishart matrix,
-    whose Hotelling reference F(d, ν − d + 1) left no test where ν < d. Independent errors
-    of 15 dimensions over 300 epochs, whose sieve fits a direction with ν near 15 by
-    chance, had their location tested in 5 of 20 segments before; now in at least 10 of
-    12, with no misfit named on them, and a 1σ bias found in at least 7 of the 12."""
+    """The mean test under a fitted model takes the model's ν apart from the variances'
+    Wishart ν_γ (batches.memory_mean_test); Hotelling's reference with the model's ν,
+    F(d, ν − d + 1), left no test where ν < d. Independent errors of 15 dimensions over
+    300 epochs, whose sieve fits a direction with ν near 15 by chance, had their location
+    tested in 5 of 20 segments before session 34; now in at least 10 of 12, a misfit
+    named on at most one of them (the mean test's level is 1.27 %: one of 12 has a
+    probability near 14 %; since session 37 the 15 directions share one white model, and
+    seed 1's mean has p 0.0011), and a 1σ bias found in at least 7 of the 12."""
     config = DiagnosisConfig()
     credible = [
         diagnose_errors(_many_dimensions(s, 15, 300), _eye(300, 15), rng=s) for s in range(12)
     ]
     tested = sum(Question.LOCATION not in x.untested for x in credible)
     assert tested >= 10, [x.reason for x in credible]
-    assert not any(x.label.conditions for x in credible)
+    assert sum(bool(x.label.conditions) for x in credible) <= 1
     biased = [
         diagnose_errors(_many_dimensions(s, 15, 300, 1.0), _eye(300, 15), rng=s).label
         for s in range(12)
@@ -864,6 +866,34 @@ def test_the_mean_test_reads_the_datas_directions_as_a_wishart_estimate():
     assert share <= 0.05 + 2.5 * math.sqrt(0.05 * 0.95 / len(pvalues)), share
     nu = test.dof[1]
     assert abs(np.mean(f) - nu / (nu - 2.0)) < 3.0 * np.std(f) / math.sqrt(len(f))
+
+
+def test_the_mean_test_of_sixteen_directions_of_one_memory_is_calibrated():
+    """Sixteen independent AR(1) directions (φ 0.8, v_600 8.93) over 600 epochs share one
+    memory: the mean test's F under the fitted model has the mean of its reference
+    F(16, ν), ν/(ν − 2), within three Monte Carlo standard errors (40 credible segments).
+    Two biases of the data's own directions cancelled before session 37: the first
+    directions' own fits took the selection's extra memory (a mean F of 1.17 against the
+    1.43 of F(16, 6.6): conservative), and where one model is shared, the directions'
+    variances, a Wishart estimate's eigenvalues, and their pooling at unit mean square made
+    it 1.30 against 1.02 (batches.memory_mean_test)."""
+    from credcli.engine.batches import memory_mean_test
+    from credcli.engine.memory import fit_memory
+    from credcli.engine.scale import gls_residuals
+
+    n, d = 600, 16
+    eye = _eye(n, d)
+    f, expected = [], []
+    for seed in range(40):
+        e = ar1_errors(n, d, 0.8, np.random.default_rng([16, seed, 37]))
+        residuals = gls_residuals(e, eye)
+        u = residuals.whitened - residuals.whitened.mean(axis=0)
+        test, _ = memory_mean_test(residuals, fit_memory(u, (u * u).sum(axis=1) - d), eye)
+        nu = test.dof[1]
+        f.append(test.statistic)
+        expected.append(nu / (nu - 2.0))
+    se = np.std(f) / math.sqrt(len(f))
+    assert abs(np.mean(f) - np.mean(expected)) < 3.0 * se, (np.mean(f), np.mean(expected), se)
 
 
 def test_a_direction_beyond_the_margin_is_not_credible():

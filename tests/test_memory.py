@@ -405,6 +405,55 @@ def test_the_direction_of_least_memory_is_not_fitted_too_little():
     assert np.median(lows) > 0.8
 
 
+def test_many_white_directions_share_one_model_not_the_selections_memory():
+    """30 independent white directions over 300 epochs: the principal directions are
+    ordered by their long-run variance, so the first ones' own fits show memory by
+    selection alone (τ̂ 4.6–14.5 on the most persistent before session 37, where the truth
+    is 1). Their long-run variances do not stand out of that selection
+    (:func:`memory._distinct_directions`), so they share one model: the largest τ̂ stays
+    below 1.5 in at least 10 of 12 segments (one in ten may keep a model of its own by the
+    test's level)."""
+    small = 0
+    for seed in range(12):
+        s = np.random.default_rng(seed).standard_normal((300, 30))
+        s = s - s.mean(axis=0)
+        small += float(np.max(mem.fit_memory(s, (s**2).sum(axis=1)).variance_ratios)) < 1.5
+    assert small >= 10
+
+
+def test_one_slow_direction_among_white_ones_keeps_its_own_memory():
+    """One AR(1) direction (φ 0.9, τ 19) among 14 white ones over 600 epochs: its long-run
+    variance stands out, so it keeps its own model, and the 14 white directions share one
+    (two models in at least 10 of 12 segments, the white ones' τ̂ below 1.5); the slow
+    direction's τ̂ has a median within 0.6–1.6 of 19. Before session 37 every direction
+    kept its own fit (15 models, the white ones' τ̂ up to 4)."""
+    shared, slow = 0, []
+    for seed in range(12):
+        rng = np.random.default_rng(seed)
+        s = rng.standard_normal((600, 15))
+        s[:, 0] = _ar([1, -0.9], 600, rng)[:, 0] * math.sqrt(1 - 0.81)
+        s = s - s.mean(axis=0)
+        m = mem.fit_memory(s, (s**2).sum(axis=1))
+        ratios = np.sort(m.variance_ratios)[::-1]
+        shared += len(m.models()) == 2 and ratios[1] < 1.5
+        slow.append(ratios[0])
+    assert shared >= 10
+    assert 0.6 * 19 < np.median(slow) < 1.6 * 19
+
+
+def test_one_memory_in_six_directions_is_rarely_split():
+    """Six independent AR(1) directions (φ 0.7) over 300 epochs share one memory: the first
+    direction stands out of the selection in about :data:`memory.DISTINCT_LEVEL` of the
+    segments (40 segments: expected 4, standard error 1.9; bound 10)."""
+    split = 0
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        s = _ar([1, -0.7], 300, rng, cols=6)
+        s = s - s.mean(axis=0)
+        split += len(mem.fit_memory(s, (s**2).sum(axis=1)).models()) > 1
+    assert split <= 10
+
+
 def test_the_bootstrap_refits_shared_models_on_all_their_segments():
     """A model fitted on d directions as segments of one series is refitted on d segments
     per replicate: Var(log τ̂*) about halves for two (10 seeds averaged, each from 40

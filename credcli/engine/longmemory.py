@@ -32,6 +32,10 @@ ARMA(p, 1) that fits better than the sieve and within :data:`SUPPORT` of the bes
 model keeps the one implying the most memory as its ``alternative``, in every direction
 that has less memory of its own (:func:`_weak_alternative`), under which a bias and a
 scale finding must hold as well (:func:`credcli.engine.evidence.memory_evidence`).
+Directions that share one model (from three directions on, those whose memory does not
+stand out of the principal directions' selection, :func:`credcli.engine.memory.
+_distinct_directions`) are fitted their candidates together, as one series of their
+epochs, and take one choice (:func:`_pooled_choice`).
 
 The model's autocorrelation is exact (:func:`arfima_autocorrelation`), so every test of
 the engine reads the variance of a window mean, of a centred sum of squares and of sign
@@ -65,6 +69,7 @@ from scipy import special
 from credcli.engine.memory import (
     BOOTSTRAP_EPOCHS,
     BOOTSTRAP_REPLICATES,
+    SELECTED_FROM,
     Memory,
     NoFiniteMemory,
     SeriesMemory,
@@ -229,8 +234,9 @@ def _moving_average_fits(
 
     Parameters
     ----------
-    x : numpy.ndarray, shape (k, T)
-        Centred series.
+    x : numpy.ndarray, shape (k, T) or (k, m, T)
+        Centred series, each of one segment or pooled over m segments (Burg's recursion
+        pools them).
     p_max : int
         The largest AR order.
     thetas : numpy.ndarray, default MOVING_AVERAGES
@@ -243,10 +249,11 @@ def _moving_average_fits(
     models : list of (float, numpy.ndarray)
         (θ, φ) of each series' model of least AICc.
     """
-    k, t = x.shape
+    x = x[:, None, :] if x.ndim == 2 else x
+    k, m, t = x.shape
     # (1 + θB)u = x is u_t = x_t − θ u_{t−1}: the AR filter with coefficient −θ
     filtered = np.stack([ar_filter(np.array([-theta]), x.T).T for theta in thetas])
-    fit = burg(filtered.reshape(-1, 1, t), p_max)
+    fit = burg(filtered.reshape(-1, m, t), p_max)
     flat = fit.aicc(extra=1).reshape(thetas.size, k, p_max + 1)
     flat = flat.transpose(1, 0, 2).reshape(k, -1)
     best = np.argmin(flat, axis=1)
@@ -318,8 +325,9 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
 
     Parameters
     ----------
-    x : numpy.ndarray, shape (k, T)
-        Centred series.
+    x : numpy.ndarray, shape (k, T) or (k, m, T)
+        Centred series, each of one segment or pooled over m segments (the directions
+        that share a model, :func:`_pooled_choice`); BIC's log T is then log mT.
     p_max : int
         The largest order.
     choose : bool, default True
@@ -338,11 +346,13 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
         AICc below the sieve's and within :data:`SUPPORT` of the best of the three), and
         its (θ, φ).
     """
-    k, t = x.shape
+    x = x[:, None, :] if x.ndim == 2 else x
+    k, m, t = x.shape
+    log_epochs = math.log(m * t)
     step = float(FRACTIONS[1] - FRACTIONS[0])
     coarse = FRACTIONS[1::2]
     fit = burg(
-        np.stack([x] + [fractional_difference(x, g) for g in coarse]).reshape(-1, 1, t), p_max
+        np.stack([x] + [fractional_difference(x, g) for g in coarse]).reshape(-1, m, t), p_max
     )
     sieve_cost = fit.aicc()[:k]
     plain = sieve_cost.min(axis=1)
@@ -351,7 +361,8 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     centre = coarse[best]
     neighbours = [centre - step, centre + step]
     near = burg(
-        np.stack([fractional_difference(x, f) for f in neighbours]).reshape(-1, 1, t), p_max
+        np.stack([fractional_difference(x, f[:, None]) for f in neighbours]).reshape(-1, m, t),
+        p_max,
     )
     # the candidates of each series: the best coarse d, then its two neighbours
     fractions = np.stack([centre, *neighbours])
@@ -383,8 +394,8 @@ def _fractional_fits(x: np.ndarray, p_max: int, choose: bool = True):
     # a fractional model the data support, unless an ARMA(p, 1) beats it by the margin that
     # takes a fractional model over the sieve (BIC's log T − 2 beyond AICc): short memory
     # the data choose as firmly as they would choose long memory over the sieve
-    preferred = (cost < plain + SUPPORT) & ~(moving + (math.log(t) - 2.0) < cost)
-    taken = (cost + (math.log(t) - 2.0) < plain) & ((cost < moving) | top)
+    preferred = (cost < plain + SUPPORT) & ~(moving + (log_epochs - 2.0) < cost)
+    taken = (cost + (log_epochs - 2.0) < plain) & ((cost < moving) | top)
     if not choose:
         taken[:] = True
     candidates = []
@@ -567,7 +578,8 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     if memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
         return memory
     x, search = _direction_series(memory, residuals)
-    choice = _fractional_fits(x, search)
+    units = _units(memory)
+    choice = _pooled_choice(x, search, units)
     fractions, orders, weak = choice.fractions, choice.orders, choice.weak
     if np.any(fractions >= FRACTIONS[-1] - 1e-9):
         raise NoFiniteMemory(
@@ -575,15 +587,20 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
             "more stationary than d = 1/2 allows"
         )
     series = list(memory.series)
-    for i in np.flatnonzero(fractions > 0).tolist():
+    for rows in units:
+        i = rows[0]
+        if not fractions[i] > 0:
+            continue
         phi, fraction = choice.coefficients[i], float(fractions[i])
         rho = _longer_memory(phi, fraction, n, series[i])
         if rho is None:
             continue
         spread = fractional_spread(phi, fraction, n, search, int(orders[i]) + i)
         log_v = math.log(mean_variance_ratio(rho))
-        series[i] = corrected_memory(phi, rho, log_v, spread, fraction)
-    alternative = _weak_alternative(series, weak, choice, x, n, search)
+        taken = corrected_memory(phi, rho, log_v, spread, fraction)
+        for j in rows:  # the directions that share a model share its fractional one
+            series[j] = taken
+    alternative = _weak_alternative(series, weak, choice, x, n, search, units)
     if alternative is None and all(new is old for new, old in zip(series, memory.series)):
         return memory
     chosen = replace(memory, series=tuple(series))
@@ -623,10 +640,11 @@ def white_alternative(memory: Memory, residuals: np.ndarray) -> Memory | None:
     if not memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
         return None
     x, search = _direction_series(memory, residuals)
-    choice = _fractional_fits(x, search)
+    units = _units(memory)
+    choice = _pooled_choice(x, search, units)
     weak = choice.weak | (choice.fractions > 0)  # a fractional model BIC takes: more so
     series = list(memory.series)
-    alternative = _weak_alternative(series, weak, choice, x, n, search)
+    alternative = _weak_alternative(series, weak, choice, x, n, search, units)
     if alternative is None:
         return None
     return replace(memory, alternative=replace(memory, series=alternative))
@@ -634,19 +652,73 @@ def white_alternative(memory: Memory, residuals: np.ndarray) -> Memory | None:
 
 def _direction_series(memory: Memory, residuals: np.ndarray) -> tuple[np.ndarray, int]:
     """The residuals in the model's principal directions, centred and scaled to a unit of
-    their own (a row per direction, at most :data:`FIT_EPOCHS` epochs), and the largest AR
-    order of the candidates fitted to them."""
+    their own, one for the directions that share a model (:func:`_units`; a row per
+    direction, at most :data:`FIT_EPOCHS` epochs), and the largest AR order of the
+    candidates fitted to them."""
     x = (residuals[:FIT_EPOCHS] @ memory.directions).T
     x = x - x.mean(axis=1, keepdims=True)
-    x = x / power_of_two_unit(x, axis=1)[:, None]
+    for rows in _units(memory):
+        x[rows] /= power_of_two_unit(x[rows])
     # the fractional part carries the memory the sieve's orders were reaching for, so its
     # AR part needs no more lags than the bootstrap's search beyond the directions' own
     search = min(max_order(residuals.shape[0]), 2 * max(m.order for m in memory.series) + 4)
     return x, search
 
 
+def _units(memory: Memory) -> list[list[int]]:
+    """The directions grouped by the model they hold, from
+    :data:`~credcli.engine.memory.SELECTED_FROM` directions on: a model fitted on one
+    direction is a group of one; directions that share one (where their memory is not
+    their own, :func:`credcli.engine.memory._distinct_directions`, or a white model) are
+    one group, whose candidates are fitted on them together (:func:`_pooled_choice`). With
+    fewer directions each is a group of one, as the sieve's directions are there."""
+    if len(memory.series) < SELECTED_FROM:
+        return [[i] for i in range(len(memory.series))]
+    return [list(rows) for _, rows in memory.models()]
+
+
+def _pooled_choice(x: np.ndarray, p_max: int, units: list[list[int]]) -> _Choice:
+    """:func:`_fractional_fits` of each direction (rows of ``x``), where each group of
+    directions that share a model is fitted together: its rows, in one unit
+    (:func:`_direction_series`, as the sieve pooled them: :func:`credcli.engine.memory.
+    _one_unit`), pooled as segments of one series, and the one choice is every row's.
+
+    The directions share a model where their memory does not stand out of the principal
+    directions' selection (:func:`credcli.engine.memory._distinct_directions`), and the
+    principal directions are ordered by their memory: fitted apart, the first of them
+    shows the most by selection, and among many directions a chance long-memory candidate
+    in one of them is the rule (30 independent white directions over 300 epochs, one
+    white model shared: a fractional model "fits" a direction in 2 of 20 segments and
+    fractional noise at the grid's top a third, and 4 more lose their location to a weak
+    candidate of one direction, ``benchmarks/dimensions.py``). Pooled, the candidate is
+    judged on all their epochs, without selection. A fractional model the group takes
+    gets the estimation error of one direction's fit (:func:`fractional_spread` draws one
+    series), larger than the pooled fit's: its degrees of freedom err low.
+    """
+    if all(len(rows) == 1 for rows in units):
+        return _fractional_fits(x, p_max)
+    fields: dict = {name: [None] * x.shape[0] for name in _Choice._fields}
+    alone = [rows[0] for rows in units if len(rows) == 1]
+    fits = [(_fractional_fits(x[alone], p_max), [[i] for i in alone])] if alone else []
+    # each group in one unit (:func:`_direction_series`), as the sieve pooled it
+    fits += [(_fractional_fits(x[rows][None], p_max), [rows]) for rows in units if len(rows) > 1]
+    for choice, groups in fits:
+        for name, values in choice._asdict().items():
+            for value, rows in zip(values, groups):
+                for i in rows:
+                    fields[name][i] = value
+    arrays = ("fractions", "orders", "weak", "arma_weak")
+    return _Choice(**{k: np.array(v) if k in arrays else v for k, v in fields.items()})
+
+
 def _weak_alternative(
-    series: list, weak: np.ndarray, choice: _Choice, x: np.ndarray, n: int, p_max: int
+    series: list,
+    weak: np.ndarray,
+    choice: _Choice,
+    x: np.ndarray,
+    n: int,
+    p_max: int,
+    units: list[list[int]],
 ):
     """The directions' models with the memory the data weakly support, or None where no
     direction has any.
@@ -684,13 +756,14 @@ def _weak_alternative(
     (:func:`credcli.engine.evidence.memory_evidence`), and more degrees of freedom make
     that check reject more readily, so it declines no more findings than a bootstrap
     would."""
+    firsts = [rows[0] for rows in units]  # a group's choice is each of its rows'
     fitted = []  # (v_n, model, origin) of each direction's weakly supported memory
-    for i in np.flatnonzero(weak).tolist():
+    for i in [i for i in firsts if weak[i]]:
         fraction, phi = choice.candidates[i]
         rho = None if fraction >= FRACTIONS[-1] - 1e-9 else _fractional_rho(phi, fraction, n)
         if rho is not None:
             fitted.append((mean_variance_ratio(rho), (fraction, 0.0, phi, rho), i))
-    for i in np.flatnonzero(choice.arma_weak).tolist():
+    for i in [i for i in firsts if choice.arma_weak[i]]:
         theta, phi = choice.arma[i]
         try:
             rho = arma_autocorrelation(phi, theta, n)
@@ -715,14 +788,23 @@ def _weak_alternative(
             for i in rows:
                 if ratio > ratios[i] and (best[i] is None or ratio > best[i][0]):
                     best[i] = shared
+    for rows in units:  # a group's rows take one alternative, the one of most memory
+        held = [best[j] for j in rows if best[j] is not None]
+        if held:
+            most_held = max(held, key=lambda b: b[0])
+            for j in rows:
+                best[j] = most_held
     if all(b is None for b in best):
         return None
     out = list(series)
-    for i, chosen in enumerate(best):
+    for rows in units:  # one model object per group: its directions share its error
+        chosen = best[rows[0]]
         if chosen is not None:
             fraction, theta, phi, rho = chosen[1]
-            own = series[i]
-            out[i] = SeriesMemory(phi, rho, own.dof, own.square_dof, fraction, theta)
+            own = series[rows[0]]
+            made = SeriesMemory(phi, rho, own.dof, own.square_dof, fraction, theta)
+            for i in rows:
+                out[i] = made
     return tuple(out)
 
 

@@ -839,14 +839,15 @@ def test_the_mean_test_under_a_fitted_model_holds_its_level():
     assert share <= level + 2.5 * math.sqrt(level * (1 - level) / len(pvalues))
 
 
-def test_the_mean_test_reads_the_datas_directions_as_a_wishart_estimate():
+def test_directions_that_share_a_model_share_one_variance_in_the_mean_test():
     """Sixteen independent white directions over 60 epochs, their model known (white, no
-    estimation error), but their directions the data's (:func:`memory.principal_directions`
-    turns them to diagonalise the sample covariance): the directions' variances are a
-    Wishart estimate's eigenvalues, and T² is Hotelling's. Read as independent scalars
-    (F(16, 59), before session 37) the test rejected 17.5 % of 400 credible segments at
-    0.05; with Hotelling's reference its size over 200 is within 2.5 standard errors of
-    0.05, and its mean F within three of the reference's."""
+    estimation error, one model object), but their directions the data's
+    (:func:`memory.principal_directions` turns them to diagonalise the sample covariance):
+    each direction's own variance is spread like a Wishart estimate's eigenvalues, and
+    read as independent scalars (F(16, 59), before session 37) the test rejected 17.5 %
+    of 400 credible segments at 0.05. The directions share one model, so they share one
+    variance (batches.memory_mean_test): the size over 200 is within 2.5 standard errors
+    of 0.05, and the mean F within three of the reference's."""
     from credcli.engine import memory
     from credcli.engine.batches import memory_mean_test
     from credcli.engine.scale import gls_residuals
@@ -874,9 +875,10 @@ def test_the_mean_test_of_sixteen_directions_of_one_memory_is_calibrated():
     F(16, ν), ν/(ν − 2), within three Monte Carlo standard errors (40 credible segments).
     Two biases of the data's own directions cancelled before session 37: the first
     directions' own fits took the selection's extra memory (a mean F of 1.17 against the
-    1.43 of F(16, 6.6): conservative), and where one model is shared, the directions'
-    variances, a Wishart estimate's eigenvalues, and their pooling at unit mean square made
-    it 1.30 against 1.02 (batches.memory_mean_test)."""
+    1.43 of F(16, 6.6): conservative); where one model is shared, the directions' own
+    variances (spread like a Wishart estimate's eigenvalues) and the model pooled from the
+    directions each at unit mean square made it 1.30 against 1.02 (memory._one_unit,
+    batches.memory_mean_test)."""
     from credcli.engine.batches import memory_mean_test
     from credcli.engine.memory import fit_memory
     from credcli.engine.scale import gls_residuals

@@ -36,6 +36,7 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import correlation, linalg
+from credcli.engine.memory import SELECTED_FROM
 from credcli.engine.units import power_of_two_unit
 
 if TYPE_CHECKING:
@@ -590,20 +591,26 @@ def memory_mean_test(
     G = Σ g_k.
 
     The directions are the data's: :func:`credcli.engine.memory.principal_directions`
-    turns them to diagonalise the sample covariance as well as the long-run one, so the
-    γ̂_i are close to the eigenvalues of a Wishart estimate, spread beyond the truth (the
-    last ones too small), and T² is Hotelling's. With ν_γ the Satterthwaite degrees of
-    freedom of the variance estimate (of the least certain direction), (ν_γ − d + 1)T²/(ν_γ d)
-    is referred to F(d, ν), 1/ν = 1/ν_Ω + 1/(ν_γ − d + 1), ν_Ω the model's own estimation
-    error (:class:`credcli.engine.memory.Memory`): Hotelling's reference for the
-    variances, with the model's error beside it. Without the factor, a 16-output
-    constant-velocity filter over 600 epochs (one memory shared by its directions) gave a
-    mean F of 1.30 where F(16, 59) has 1.04, and rejected at 0.0127 in 4 of 60 credible
-    segments; with it, 1.04 and 1 of 60 (``benchmarks/dimensions.py``, docs/measured.md).
-    Hotelling's reference with the model's ν in place of ν_γ, which this test used before
-    session 34, charged the model's error d(d + 1)/2 times: it had no degrees of freedom
-    left where ν_Ω < d (i.i.d. errors of 15 dimensions over 300 epochs: no mean test in 15
-    of 20 segments).
+    turns them to diagonalise the sample covariance as well as the long-run one, so each
+    direction's own γ̂_i is spread beyond the truth (close to a Wishart estimate's
+    eigenvalues, the last ones too small), and with many directions T² grows beyond its
+    reference: 16 white directions over 60 epochs, their model known, rejected 17.5 % at
+    0.05; six directions of an oscillating AR(2) over 50 epochs, 6.1 % at 0.0127. From
+    :data:`~credcli.engine.memory.SELECTED_FROM` directions on, the directions that
+    share one model (:meth:`credcli.engine.memory.Memory.models`: their memory did not
+    stand out of the selection, or the model is white) share one γ̂ as well, their sum of
+    squares over their number, which no rotation among them changes: 3.8 % and 1.1 % in
+    those two cases (``tests/test_dependence_verdicts.py``). A direction with a model of
+    its own keeps its own γ̂; so do both of two directions (one angle: 1.45 % at 0.0127
+    in the AR(2) case). T²/d is referred to F(d, ν), 1/ν = 1/ν_Ω + 1/ν_γ: the model's own
+    estimation error (:class:`credcli.engine.memory.Memory`) and the Satterthwaite degrees
+    of freedom of the variance estimate (a shared γ̂'s summed over its directions), both
+    of the least certain model. Each direction's term is then a squared t statistic, and
+    one denominator shared by the d terms, as in F(d, ν), makes the sum's upper tail
+    heavier than independent ones: conservative, exact for d = 1. Hotelling's
+    (ν − d + 1)T²/(νd) ~ F(d, ν − d + 1), which this test used before session 34, charged
+    the model's error d(d + 1)/2 times and had no degrees of freedom left where ν < d
+    (i.i.d. errors of 15 dimensions over 300 epochs: no mean test in 15 of 20 segments).
 
     Parameters
     ----------
@@ -633,19 +640,23 @@ def memory_mean_test(
     ratio_units = whitened_unit / unit
     cov = np.zeros((d, d))
     dof_var = math.inf
-    for i, series in enumerate(memory.series):
+    # from SELECTED_FROM directions on, those that share a model share one variance
+    groups = (
+        [(series, list(rows)) for series, rows in memory.models()]
+        if d >= SELECTED_FROM
+        else [(series, [i]) for i, series in enumerate(memory.series)]
+    )
+    for series, rows in groups:
         expected, variance = series.centred_square_moments(n)
-        gamma = float(y[:, i] @ y[:, i]) / expected
-        dof_var = min(dof_var, 2.0 * expected * expected / variance)
-        m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) * ratio_units
-        cov += gamma * toeplitz_form(m, series.test_window(n))
+        gamma = float(np.sum(y[:, rows] * y[:, rows])) / (expected * len(rows))
+        dof_var = min(dof_var, 2.0 * expected * expected * len(rows) / variance)
+        window = series.test_window(n)
+        for i in rows:
+            m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) * ratio_units
+            cov += gamma * toeplitz_form(m, window)
     cov = 0.5 * (cov + cov.T)
     total = residuals.scores.sum(axis=0) / unit
-    # the directions are the data's (principal_directions turns them to diagonalise the
-    # sample covariance as well), so their variances are a Wishart estimate's eigenvalues:
-    # Hotelling's reference for them (ν_γ − d + 1), the model's ν beside it
-    wishart = dof_var - d + 1.0
-    dof = 1.0 / (1.0 / memory.dof + 1.0 / wishart) if wishart > 0 else 0.0
+    dof = 1.0 / (1.0 / memory.dof + 1.0 / dof_var)
     try:
         t2 = float(total @ np.linalg.solve(cov, total))
     except np.linalg.LinAlgError:
@@ -657,7 +668,7 @@ def memory_mean_test(
     stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None)) * ratio  # exact: a power of two
     if dof < 1.0:
         return MeanTest(math.nan, (float(d), dof), math.nan, 0), stderr
-    f = t2 / d * wishart / dof_var
+    f = t2 / d
     p = float(special.fdtrc(d, dof, f)) if math.isfinite(f) else 0.0
     spread = mean_spread(cov, precision, ratio * unit, n)
-    return MeanTest(f, (float(d), dof), p, 0, spread, d * dof_var / wishart), stderr
+    return MeanTest(f, (float(d), dof), p, 0, spread, float(d)), stderr

@@ -648,7 +648,7 @@ def memory_mean_test(
     )
     for series, rows in groups:
         expected, variance = series.centred_square_moments(n)
-        gamma = float(np.sum(y[:, rows] * y[:, rows])) / (expected * len(rows))
+        gamma = sum(float(y[:, i] @ y[:, i]) for i in rows) / (expected * len(rows))
         dof_var = min(dof_var, 2.0 * expected * expected * len(rows) / variance)
         window = series.test_window(n)
         for i in rows:

@@ -1390,8 +1390,8 @@ def fit_memory(
     share one model fitted on them together (:func:`_distinct_directions`); with fewer,
     or runs pooled, where AICc cannot tell the directions' memories apart
     (:func:`_common_model`), a direction whose own model shows less memory than their
-    common model takes the common one. Where BIC, whose choice of order 0 is consistent, finds no
-    memory in any series and the caller's lag-1 screening (``screened``, on short
+    common model takes the common one. Where BIC, whose choice of order 0 is consistent,
+    finds no memory in any series and the caller's lag-1 screening (``screened``, on short
     segments) found no dependence either, the errors are taken as independent (the exact
     tests apply, :attr:`Memory.white`). AICc, an efficient criterion for a sieve (Shibata
     1980), chooses the order of each series where there is memory. Otherwise every series gets
@@ -1659,6 +1659,11 @@ DISTINCT_EPOCHS = 1 << 12
 """Most epochs :func:`_distinct_directions` reads and draws: the selection matters where a
 segment is short against its directions' number; 4,096 epochs of 30 directions, 40 times,
 are 39 MB."""
+DISTINCT_DRAWN = 1 << 24
+"""Most values :func:`_distinct_directions` draws at once, burn-in included (128 MB): a
+model whose decay horizon is longer than that allows (a root within about 10⁻⁴ of the unit
+circle with 30 directions) starts its draws short of stationarity, on segments whose
+memory leaves them undecided anyway."""
 
 
 def _long_run_ratios(x: np.ndarray) -> np.ndarray:
@@ -1747,6 +1752,7 @@ def _distinct_directions(y, s, orders, minimum: int, p_max: int, seed: int):
         pooled, p = _pooled_fit(_one_unit(y[j:]), orders[j:d], minimum, p_max)
         phi = pooled.coefficients(0, p)
         burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
+        burn = min(burn, max(0, DISTINCT_DRAWN // (b * (d - j)) - t))
         drawn = ar_filter(phi, gen.standard_normal((t + burn, b * (d - j))))[burn:]
         null = _long_run_ratios(drawn.reshape(t, b, d - j).transpose(1, 0, 2))[:, 0]
         if not observed[j] > np.quantile(null, 1.0 - DISTINCT_LEVEL):

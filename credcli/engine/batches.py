@@ -36,7 +36,6 @@ import numpy as np
 from scipy import special
 
 from credcli.engine import correlation, linalg
-from credcli.engine.memory import SELECTED_FROM
 from credcli.engine.units import power_of_two_unit
 
 if TYPE_CHECKING:
@@ -640,13 +639,7 @@ def memory_mean_test(
     ratio_units = whitened_unit / unit
     cov = np.zeros((d, d))
     dof_var = math.inf
-    # from SELECTED_FROM directions on, those that share a model share one variance
-    groups = (
-        [(series, list(rows)) for series, rows in memory.models()]
-        if d >= SELECTED_FROM
-        else [(series, [i]) for i, series in enumerate(memory.series)]
-    )
-    for series, rows in groups:
+    for series, rows in memory.pooled_groups():  # those that share a model: one variance
         expected, variance = series.centred_square_moments(n)
         gamma = sum(float(y[:, i] @ y[:, i]) for i in rows) / (expected * len(rows))
         dof_var = min(dof_var, 2.0 * expected * expected * len(rows) / variance)

@@ -69,7 +69,6 @@ from scipy import special
 from credcli.engine.memory import (
     BOOTSTRAP_EPOCHS,
     BOOTSTRAP_REPLICATES,
-    SELECTED_FROM,
     Memory,
     NoFiniteMemory,
     SeriesMemory,
@@ -577,8 +576,8 @@ def with_long_memory(memory: Memory, residuals: np.ndarray) -> Memory:
     n = residuals.shape[0]
     if memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
         return memory
-    x, search = _direction_series(memory, residuals)
-    units = _units(memory)
+    units = [rows for _, rows in memory.pooled_groups()]
+    x, search = _direction_series(memory, residuals, units)
     choice = _pooled_choice(x, search, units)
     fractions, orders, weak = choice.fractions, choice.orders, choice.weak
     if np.any(fractions >= FRACTIONS[-1] - 1e-9):
@@ -639,8 +638,8 @@ def white_alternative(memory: Memory, residuals: np.ndarray) -> Memory | None:
     n = residuals.shape[0]
     if not memory.white or memory.segments != 1 or n < FEWEST_EPOCHS:
         return None
-    x, search = _direction_series(memory, residuals)
-    units = _units(memory)
+    units = [rows for _, rows in memory.pooled_groups()]
+    x, search = _direction_series(memory, residuals, units)
     choice = _pooled_choice(x, search, units)
     weak = choice.weak | (choice.fractions > 0)  # a fractional model BIC takes: more so
     series = list(memory.series)
@@ -650,31 +649,21 @@ def white_alternative(memory: Memory, residuals: np.ndarray) -> Memory | None:
     return replace(memory, alternative=replace(memory, series=alternative))
 
 
-def _direction_series(memory: Memory, residuals: np.ndarray) -> tuple[np.ndarray, int]:
+def _direction_series(
+    memory: Memory, residuals: np.ndarray, units: list[list[int]]
+) -> tuple[np.ndarray, int]:
     """The residuals in the model's principal directions, centred and scaled to a unit of
-    their own, one for the directions that share a model (:func:`_units`; a row per
-    direction, at most :data:`FIT_EPOCHS` epochs), and the largest AR order of the
-    candidates fitted to them."""
+    their own, one for each group in ``units`` (:meth:`~credcli.engine.memory.Memory.
+    pooled_groups`; a row per direction, at most :data:`FIT_EPOCHS` epochs), and the
+    largest AR order of the candidates fitted to them."""
     x = (residuals[:FIT_EPOCHS] @ memory.directions).T
     x = x - x.mean(axis=1, keepdims=True)
-    for rows in _units(memory):
+    for rows in units:
         x[rows] /= power_of_two_unit(x[rows])
     # the fractional part carries the memory the sieve's orders were reaching for, so its
     # AR part needs no more lags than the bootstrap's search beyond the directions' own
     search = min(max_order(residuals.shape[0]), 2 * max(m.order for m in memory.series) + 4)
     return x, search
-
-
-def _units(memory: Memory) -> list[list[int]]:
-    """The directions grouped by the model they hold, from
-    :data:`~credcli.engine.memory.SELECTED_FROM` directions on: a model fitted on one
-    direction is a group of one; directions that share one (where their memory is not
-    their own, :func:`credcli.engine.memory._distinct_directions`, or a white model) are
-    one group, whose candidates are fitted on them together (:func:`_pooled_choice`). With
-    fewer directions each is a group of one, as the sieve's directions are there."""
-    if len(memory.series) < SELECTED_FROM:
-        return [[i] for i in range(len(memory.series))]
-    return [list(rows) for _, rows in memory.models()]
 
 
 def _pooled_choice(x: np.ndarray, p_max: int, units: list[list[int]]) -> _Choice:

@@ -1075,6 +1075,22 @@ class Memory(_Answering):
             served.setdefault(id(series), (series, []))[1].append(i)
         return [(series, tuple(index)) for series, index in served.values()]
 
+    def pooled_groups(self) -> list[tuple[SeriesMemory, list[int]]]:
+        """The directions taken together wherever they share a model: :meth:`models` from
+        :data:`SELECTED_FROM` directions on, where such directions are fitted their
+        long-memory candidates together (:mod:`credcli.engine.longmemory`) and share one
+        variance in the mean test (:func:`credcli.engine.batches.memory_mean_test`); with
+        fewer directions each is a group of one, as the sieve's directions are there.
+
+        Returns
+        -------
+        list of (SeriesMemory, list of int)
+            Each group's model and its directions, in order of first use.
+        """
+        if len(self.series) < SELECTED_FROM:
+            return [(series, [i]) for i, series in enumerate(self.series)]
+        return [(series, list(rows)) for series, rows in self.models()]
+
     @_memoised
     def block_length(self, loss: float) -> int:
         """The shortest sign block that loses at most ``loss`` of the variance in every

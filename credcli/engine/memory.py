@@ -438,6 +438,49 @@ def ar_filter(phi: np.ndarray, z: np.ndarray) -> np.ndarray:
     return x.reshape(z.shape)
 
 
+def stationary_draws(
+    phi: np.ndarray, gen: np.random.Generator, rows: int, n: int, burn: int, out=None
+) -> np.ndarray:
+    """``rows`` series of ``n`` epochs of the AR model ``phi`` with unit Gaussian
+    innovations, each the last ``n`` of ``burn + n`` epochs from a zero state.
+
+    The innovations are those of one draw ``gen.standard_normal((rows, burn + n))``, taken
+    in chunks of whole rows of at most :data:`DRAWN_AT_ONCE` values (a generator fills an
+    array in order, and :func:`ar_filter` filters each series on its own), so the series
+    are the same bits as drawn whole, and the burn-in is never held for every row at once.
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,)
+        The AR coefficients (p may be 0: white noise).
+    gen : numpy.random.Generator
+        The draws' source.
+    rows, n, burn : int
+        The series, the epochs kept of each, and the epochs before them.
+    out : numpy.ndarray, shape (rows, n), optional
+        Where to write the series.
+
+    Returns
+    -------
+    numpy.ndarray, shape (rows, n)
+        The series, one per row (``out`` where given).
+
+    Examples
+    --------
+    >>> phi = np.array([0.9])
+    >>> whole = ar_filter(phi, np.random.default_rng(3).standard_normal((5, 12)).T)[4:].T
+    >>> drawn = stationary_draws(phi, np.random.default_rng(3), 5, 8, 4)
+    >>> bool(np.array_equal(drawn, whole))
+    True
+    """
+    out = np.empty((rows, n)) if out is None else out
+    step = max(1, DRAWN_AT_ONCE // (n + burn))
+    for start in range(0, rows, step):
+        stop = min(rows, start + step)
+        out[start:stop] = ar_filter(phi, gen.standard_normal((stop - start, n + burn)).T)[burn:].T
+    return out
+
+
 def decay_horizon(phi: np.ndarray, n: int) -> int:
     """Lags to keep of an AR model's autocorrelation.
 
@@ -737,6 +780,12 @@ MAX_BIAS_FACTOR = 3.0
 """Most the bootstrap's bias correction stretches the fitted correlations."""
 MAX_BURN_IN = 200_000
 """Longest burn-in of a bootstrap series (epochs); the model's own decay horizon below."""
+DRAWN_AT_ONCE = 1 << 22
+"""Most values of white noise drawn at once for a bootstrap's AR series, burn-in included
+(:func:`stationary_draws`, 32 MiB): a slow model's burn-in of up to :data:`MAX_BURN_IN`
+epochs for each of many series then costs time, not memory. Drawn whole, 20 directions
+sharing a model of τ̂ about 17,000 over 20,000 epochs took 1.7 GB in one bootstrap, and
+100-epoch windows of a 36,000-epoch run of such errors 4.8 GB (docs/performance.md)."""
 BOOTSTRAP_EPOCHS = 1 << 14
 """Longest bootstrap series. Longer runs are bootstrapped at this length and the spread
 and bias scaled by its ratio to the run's length (both are O(1/N) for a fitted AR model,
@@ -822,8 +871,7 @@ def bootstrap_spread(
     draws = np.empty((len(phis), b * series, n))
     for i, phi in enumerate(phis):
         burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
-        z = gen.standard_normal((b * series, n + burn))
-        draws[i] = ar_filter(phi, z.T)[burn:].T
+        stationary_draws(phi, gen, b * series, n, burn, out=draws[i])
     draws -= draws.mean(axis=2, keepdims=True)
     fit = burg(draws.reshape(len(phis) * b, series, n), p_max)
     orders = fit.orders(minimum)
@@ -1375,8 +1423,7 @@ def centring_corrected(fit: BurgFit, orders, t: int, seed: int) -> BurgFit:
         for j, i in enumerate(rows.tolist()):
             phi = ar_coefficients(k[j, : orders[i]])
             burn = min(MAX_BURN_IN, decay_horizon(phi, 0))
-            z = gen.standard_normal((b * drawn, t + burn))
-            draws[j] = ar_filter(phi, z.T)[burn:].T
+            stationary_draws(phi, gen, b * drawn, t, burn, out=draws[j])
         draws -= draws.mean(axis=2, keepdims=True)
         refit = burg(draws.reshape(rows.size * b, drawn, t), p).reflection
         mean = refit.reshape(rows.size, b, p).mean(axis=1)

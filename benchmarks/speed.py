@@ -72,9 +72,10 @@ def _child(argv: list[str]) -> tuple[float, float, float]:
     return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
 
 
-def diagnose_argv(log: str, out: str) -> list[str]:
-    """The measured command line: ``credcli diagnose LOG -f json -o OUT`` in a child."""
-    return [sys.executable, "-m", "credcli", "diagnose", log, "-f", "json", "-o", out]
+def diagnose_argv(log: str, out: str, options: tuple[str, ...] = ()) -> list[str]:
+    """The measured command line: ``credcli diagnose LOG -f json -o OUT [OPTIONS]`` in a
+    child."""
+    return [sys.executable, "-m", "credcli", "diagnose", log, "-f", "json", "-o", out, *options]
 
 
 def medians(runs: dict[str, list[tuple[float, float, float]]]) -> dict:
@@ -119,11 +120,31 @@ def _wide(path, d: int, n: int = 100_000, segments: int = 10) -> Path:
     return Path(path)
 
 
+def _slow_errors(path, n: int, d: int, phi: float = 0.99999) -> Path:
+    """``n`` epochs of d independent AR(1) directions with a root near 1 (φ = 0.99999, a
+    slowly drifting error), scaled to the claimed identity: the bootstrap's burn-in is then
+    MAX_BURN_IN epochs for every series it draws (memory.stationary_draws)."""
+    import pandas as pd
+
+    from credcli.engine.memory import ar_filter
+
+    burn = 20_000  # the drift's start forgotten, as in a run already under way
+    e = ar_filter(np.array([phi]), np.random.default_rng(d).standard_normal((burn + n, d)))[burn:]
+    e /= e.std(axis=0)
+    columns = {"time": np.arange(n) * 0.1}
+    columns |= {f"truth_{i}": e[:, i] for i in range(d)}
+    columns |= {f"est_{i}": np.zeros(n) for i in range(d)}
+    columns |= {f"cov_{i}_{j}": np.full(n, float(i == j)) for i in range(d) for j in range(i, d)}
+    pd.DataFrame(columns).to_parquet(path)
+    return Path(path)
+
+
 @dataclass(frozen=True)
 class Workload:
     name: str
     build: str  # a call of this module or bench's, run in a child, returning the path
     target: str
+    options: tuple[str, ...] = ()  # more of diagnose's options
 
 
 WORKLOADS = (
@@ -149,6 +170,17 @@ WORKLOADS = (
     ),
     Workload("100,000 epochs, d = 3", "speed._wide({tmp!r} + '/d3.parquet', 3)", "d growth"),
     Workload("100,000 epochs, d = 15", "speed._wide({tmp!r} + '/d15.parquet', 15)", "d^1.5"),
+    Workload(
+        "slow errors: 100-epoch windows of a 36,000-epoch run, d = 2",
+        "speed._slow_errors({tmp!r} + '/slow2.parquet', 36_000, 2)",
+        "memory: < 500 MB",
+        ("--window", "100"),
+    ),
+    Workload(
+        "slow errors: 20,000 epochs, d = 20",
+        "speed._slow_errors({tmp!r} + '/slow20.parquet', 20_000, 20)",
+        "memory: < 1 GB",
+    ),
 )
 
 
@@ -185,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
             runs: dict[str, list[tuple[float, float, float]]] = {"plain": [], "credcli": []}
             for _ in range(args.rounds):
                 runs["plain"].append(_child([*plain, log]))
-                runs["credcli"].append(_child(diagnose_argv(log, out)))
+                runs["credcli"].append(_child(diagnose_argv(log, out, work.options)))
                 os.unlink(out)
             med = medians(runs)
             (pw, pc, _), (cw, cc, peak) = med["plain"], med["credcli"]

@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
                 for name, tree in trees.items():
                     os.environ["PYTHONPATH"] = str(tree)
                     out = str(Path(tmp) / f"{name}.json")
-                    runs[name].append(speed._child(speed.diagnose_argv(log, out)))
+                    runs[name].append(speed._child(speed.diagnose_argv(log, out, work.options)))
                     os.unlink(out)
             os.chdir(ROOT)
             wall, cpu, peak = ({k: m[i] for k, m in speed.medians(runs).items()} for i in range(3))

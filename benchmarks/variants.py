@@ -165,7 +165,26 @@ FIFTH: dict[str, Synthetic] = {
 """Session 30's fifth set (run with ``--seed 2468``): fourteen families at parameters no
 other set uses, first run on an engine not changed after (nothing was chosen on it)."""
 
-SETS = {"variants": VARIANTS, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH}
+SIXTH: dict[str, Synthetic] = {
+    "iid": _arma_family(()),
+    "ar1-0.75": _arma_family((0.75,)),
+    "ar2-0.88∠0.7": _arma_family(_ar2(0.88, 0.7)),
+    "ar2-0.96∠0.2": _arma_family(_ar2(0.96, 0.2)),
+    "arma-0.75,-0.4": _arma_family((0.75,), (-0.4,)),
+    "arma-0.5,0.8": _arma_family((0.5,), (0.8,)),
+    "slow-white-0.985-0.8": _slow_white_family(0.985, 0.8),
+    "slow-white-0.95-0.7": _slow_white_family(0.95, 0.7),
+    "slow-white-0.9-0.85": _slow_white_family(0.9, 0.85),
+    "arfima-0.22": _arfima_family(0.22),
+    "arfima-0.33": _arfima_family(0.33),
+    "slow-and-white-dirs-0.85": _slow_and_white_dirs(0.85),
+    "rotating-cov-0.6": _moving_cov(zoo.rotating_cov, 0.6),
+    "resized-cov-0.7": _moving_cov(zoo.resized_cov, 0.7),
+}
+"""Session 38's sixth set (run with ``--seed 1357``): fourteen families at parameters no
+other set uses, run once on the engine as it stood, nothing chosen on it."""
+
+SETS = {"variants": VARIANTS, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH}
 
 EXPECTED = {"small4": "optimism", "large4": "pessimism", "bias1": "bias"}
 

@@ -62,6 +62,44 @@ def test_autocovariance_of_ar_matches_statsmodels(ar):
     np.testing.assert_allclose(ours, ref, rtol=1e-7, atol=1e-9 * abs(ref[0]))
 
 
+@pytest.mark.parametrize("ar", [[1, -0.9], [1, -1.6, 0.8], [1, -0.5, 0.3, -0.2]])
+def test_the_autocovariance_in_chunks_of_lags_is_the_recursion(ar, monkeypatch):
+    """Past RECURSION_CHUNK lags the recursion runs in chunks, each continuing from the
+    lags before it: chunks of 7 and 64 lags against statsmodels over 300 lags, and the
+    first chunk the bits of one pass."""
+    from statsmodels.tsa.arima_process import arma_acovf
+
+    phi = -np.asarray(ar[1:], dtype=float)
+    whole = mem.autocovariance_of_ar(phi, 2.0, 300)
+    ref = arma_acovf(np.asarray(ar, float), np.array([1.0]), nobs=300, sigma2=2.0)
+    for chunk in (7, 64):
+        monkeypatch.setattr(mem, "RECURSION_CHUNK", chunk)
+        chunked = mem.autocovariance_of_ar(phi, 2.0, 300)
+        np.testing.assert_allclose(chunked, ref, rtol=1e-7, atol=1e-9 * abs(ref[0]))
+        first = phi.size + 1 + chunk
+        np.testing.assert_array_equal(chunked[:first], whole[:first])
+
+
+def test_a_high_order_autocovariance_over_a_long_segment_holds_no_band_of_its_length():
+    """A model of order 53 kept over 2^20 lags (a segment of 2,000,000 epochs keeps that
+    many): LAPACK's banded solve held 54 rows of every lag (a peak of 880 MiB as
+    tracemalloc counts numpy's allocations; a 2M-epoch segment of such errors peaked at
+    1.47 GB of RSS); in chunks the peak is 63 MiB, the result and one chunk's band."""
+    import tracemalloc
+
+    phi = mem.ar_coefficients(np.full(53, 0.3) * 0.97 ** np.arange(53))
+    lags = 1 << 20
+    tracemalloc.start()
+    try:
+        gamma = mem.autocovariance_of_ar(phi, 1.0, lags)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert np.isfinite(gamma).all() and gamma[0] > 0
+    band = 54 * mem.RECURSION_CHUNK * 8
+    assert peak < 3 * lags * 8 + 2 * band < 54 * lags * 8 / 4
+
+
 def test_ar1_variance_ratio_and_block_loss_closed_form():
     """AR(1): τ = (1 + φ)/(1 − φ) and G/Ω = (τ² − 1)/(2τ) (Politis & White 2004)."""
     phi = 0.9

@@ -350,6 +350,12 @@ class NoFiniteMemory(ArithmeticError):
     curve) and have no finite memory that a segment could resolve (:func:`fit_memory`)."""
 
 
+RECURSION_CHUNK = 1 << 16
+"""Most lags :func:`autocovariance_of_ar` runs its recursion over at once: LAPACK's banded
+solve holds p + 1 rows of that length and a copy (a model of order 53 kept over 2^20 lags,
+as a segment of 2,000,000 epochs keeps it, held 880 MiB; docs/performance.md)."""
+
+
 def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarray:
     """γ(0) … γ(lags − 1) of the stationary AR(p) x_t = Σ φ_j x_{t−j} + u_t, Var u = σ².
 
@@ -371,7 +377,9 @@ def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarra
     -----
     γ(0) … γ(p) solve the p + 1 Yule–Walker equations γ(k) − Σ_j φ_j γ(|k − j|) = σ² δ_k0;
     later lags follow the recursion γ(h) = Σ_j φ_j γ(h − j) (:func:`ar_filter`, with the
-    known γ(1) … γ(p) as inputs).
+    known γ(1) … γ(p) as inputs), run over at most :data:`RECURSION_CHUNK` lags at once,
+    each chunk's inputs the terms of the p lags before it. The first chunk is one pass's
+    bits; later ones agree with one pass to rounding (the filter's own order of sums).
 
     Examples
     --------
@@ -391,12 +399,20 @@ def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarra
     gamma = np.linalg.solve(a, rhs)
     if lags <= p + 1:
         return gamma[:lags].copy()
-    # γ(p + 1 + t) − Σ_j φ_j γ(p + 1 + t − j) = Σ over the j that reach back to γ(1 … p)
-    known = np.zeros(lags - p - 1)
-    for j in range(1, p + 1):
-        reach = min(j, known.size)  # rows t < j read γ(p + 1 + t − j), t − j < 0
-        known[:reach] += phi[j - 1] * gamma[p + 1 - j : p + 1 - j + reach]
-    return np.concatenate([gamma, ar_filter(phi, known)])
+    # γ(start + t) − Σ_j φ_j γ(start + t − j) = Σ over the j that reach back before start
+    out = np.empty(lags)
+    out[: p + 1] = gamma
+    known = np.zeros(min(lags - p - 1, RECURSION_CHUNK))
+    for start in range(p + 1, lags, RECURSION_CHUNK):
+        stop = min(lags, start + RECURSION_CHUNK)
+        known = known[: stop - start]
+        known[:] = 0.0
+        # the lags before the chunk that its first p rows reach back to
+        for j in range(1, p + 1):
+            reach = min(j, known.size)  # rows t < j read γ(start + t − j), t − j < 0
+            known[:reach] += phi[j - 1] * out[start - j : start - j + reach]
+        out[start:stop] = ar_filter(phi, known)
+    return out
 
 
 def ar_filter(phi: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -139,6 +139,21 @@ def _slow_errors(path, n: int, d: int, phi: float = 0.99999) -> Path:
     return Path(path)
 
 
+def _arma_segment(path, n: int = 2_000_000) -> Path:
+    """One segment of ``n`` epochs, d = 2, of ARMA(1, 1) errors (φ 0.98, θ −0.93: nearly
+    cancelling roots, a slow part under fast noise, whose AR sieve takes an order near 50)
+    scaled to the claimed identity: the 2M row's segment with the memory of a filter's
+    errors."""
+    import pandas as pd
+    import zoo
+
+    e = zoo.arma((0.98,), (-0.93,), n, 2, np.random.default_rng(12))
+    e /= e.std(axis=0)
+    frame = pd.DataFrame({"time": np.arange(n) * 0.01, "truth_0": e[:, 0], "truth_1": e[:, 1]})
+    frame.assign(est_0=0.0, est_1=0.0, cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_parquet(path)
+    return Path(path)
+
+
 @dataclass(frozen=True)
 class Workload:
     name: str
@@ -170,6 +185,11 @@ WORKLOADS = (
     ),
     Workload("100,000 epochs, d = 3", "speed._wide({tmp!r} + '/d3.parquet', 3)", "d growth"),
     Workload("100,000 epochs, d = 15", "speed._wide({tmp!r} + '/d15.parquet', 15)", "d^1.5"),
+    Workload(
+        "one 2M-epoch segment of ARMA(1, 1) errors, d = 2",
+        "speed._arma_segment({tmp!r} + '/arma.parquet')",
+        "<= 500 MB as the 2M row (not issue 35's log)",
+    ),
     Workload(
         "slow errors: 100-epoch windows of a 36,000-epoch run, d = 2",
         "speed._slow_errors({tmp!r} + '/slow2.parquet', 36_000, 2)",

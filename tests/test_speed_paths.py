@@ -406,6 +406,32 @@ def test_a_short_diagnosis_does_not_load_numba():
     assert out.stdout.strip().splitlines()[-1] == "False"
 
 
+def test_a_parquet_log_is_diagnosed_without_pandas(tmp_path):
+    """Issue 35 (the 2M-epoch segment's 500 MB): a Parquet log is read a column at a time
+    by pyarrow, and nothing on its way to the JSON report needs pandas, whose import alone
+    holds some 40 MB (since session 36 the check of a CSV's name columns imported it for
+    every log: the 2M segment 469 → 511 MiB of RSS)."""
+    import subprocess
+    import sys
+
+    import pandas as pd
+
+    e = np.random.default_rng(0).standard_normal((400, 2))
+    frame = pd.DataFrame({"time": np.arange(400) * 0.1, "truth_0": e[:, 0], "truth_1": e[:, 1]})
+    frame = frame.assign(est_0=0.0, est_1=0.0, cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0)
+    frame.to_parquet(tmp_path / "log.parquet")
+    code = (
+        "import sys\n"
+        "from credcli.cli.edge import main\n"
+        f"code = main(['diagnose', {str(tmp_path / 'log.parquet')!r}, '-f', 'json',"
+        f" '-o', {str(tmp_path / 'out.json')!r}, '--jobs', '1'])\n"
+        "print(code, 'pandas' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "0 False"
+    assert (tmp_path / "out.json").stat().st_size > 0
+
+
 _LOADED: list = []  # what a before_fork call loaded in the test's process
 
 

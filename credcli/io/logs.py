@@ -253,12 +253,14 @@ def _names_as_written(frame, path: Path, columns: tuple[str, ...]):
     ...     _names_as_written(pd.read_csv(p), p, ("segment", "run"))["segment"].tolist()
     ['NA', nan, 'b']
     """
+    if path.suffix.lower() in (".parquet", ".pq") or not _plain_csv(path):
+        return frame  # before pandas is imported: a Parquet log is read without it
     import pandas as pd
 
-    if not isinstance(frame, pd.DataFrame):  # Parquet read a column at a time: strings kept
+    if not isinstance(frame, pd.DataFrame):  # read a column at a time: strings kept
         return frame
     redo = [c for c in columns if c in frame.columns and frame[c].isna().any()]
-    if not redo or path.suffix.lower() in (".parquet", ".pq") or not _plain_csv(path):
+    if not redo:
         return frame
     text = read_csv_unmapped(
         path,

@@ -12,6 +12,7 @@ import codecs
 import collections
 import itertools
 import re
+import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -253,14 +254,11 @@ def _names_as_written(frame, path: Path, columns: tuple[str, ...]):
     ...     _names_as_written(pd.read_csv(p), p, ("segment", "run"))["segment"].tolist()
     ['NA', nan, 'b']
     """
-    if path.suffix.lower() in (".parquet", ".pq") or not _plain_csv(path):
-        return frame  # before pandas is imported: a Parquet log is read without it
-    import pandas as pd
-
-    if not isinstance(frame, pd.DataFrame):  # read a column at a time: strings kept
-        return frame
+    pandas = sys.modules.get("pandas")  # a DataFrame needs it imported: never import it here
+    if pandas is None or not isinstance(frame, pandas.DataFrame):
+        return frame  # Parquet, read a column at a time: its strings kept
     redo = [c for c in columns if c in frame.columns and frame[c].isna().any()]
-    if not redo:
+    if not redo or path.suffix.lower() in (".parquet", ".pq") or not _plain_csv(path):
         return frame
     text = read_csv_unmapped(
         path,

@@ -402,11 +402,9 @@ def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarra
     # γ(start + t) − Σ_j φ_j γ(start + t − j) = Σ over the j that reach back before start
     out = np.empty(lags)
     out[: p + 1] = gamma
-    known = np.zeros(min(lags - p - 1, RECURSION_CHUNK))
     for start in range(p + 1, lags, RECURSION_CHUNK):
         stop = min(lags, start + RECURSION_CHUNK)
-        known = known[: stop - start]
-        known[:] = 0.0
+        known = np.zeros(stop - start)
         # the lags before the chunk that its first p rows reach back to
         for j in range(1, p + 1):
             reach = min(j, known.size)  # rows t < j read γ(start + t − j), t − j < 0
@@ -455,10 +453,11 @@ def ar_filter(phi: np.ndarray, z: np.ndarray) -> np.ndarray:
 
 
 def stationary_draws(
-    phi: np.ndarray, gen: np.random.Generator, rows: int, n: int, burn: int, out=None
+    phi: np.ndarray, gen: np.random.Generator, rows: int, n: int, burn: int | None = None, out=None
 ) -> np.ndarray:
     """``rows`` series of ``n`` epochs of the AR model ``phi`` with unit Gaussian
-    innovations, each the last ``n`` of ``burn + n`` epochs from a zero state.
+    innovations, each the last ``n`` of ``burn + n`` epochs from a zero state (by default
+    the model's own decay horizon, at most :data:`MAX_BURN_IN`: stationary to rounding).
 
     The innovations are those of one draw ``gen.standard_normal((rows, burn + n))``, taken
     in chunks of whole rows of at most :data:`DRAWN_AT_ONCE` values (a generator fills an
@@ -471,8 +470,11 @@ def stationary_draws(
         The AR coefficients (p may be 0: white noise).
     gen : numpy.random.Generator
         The draws' source.
-    rows, n, burn : int
-        The series, the epochs kept of each, and the epochs before them.
+    rows, n : int
+        The series, and the epochs kept of each.
+    burn : int, optional
+        The epochs drawn before them; default min(:data:`MAX_BURN_IN`,
+        :func:`decay_horizon`), 0 for white noise.
     out : numpy.ndarray, shape (rows, n), optional
         Where to write the series.
 
@@ -489,6 +491,8 @@ def stationary_draws(
     >>> bool(np.array_equal(drawn, whole))
     True
     """
+    if burn is None:
+        burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
     out = np.empty((rows, n)) if out is None else out
     step = max(1, DRAWN_AT_ONCE // (n + burn))
     for start in range(0, rows, step):
@@ -886,8 +890,7 @@ def bootstrap_spread(
     series = segments * drawn
     draws = np.empty((len(phis), b * series, n))
     for i, phi in enumerate(phis):
-        burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
-        stationary_draws(phi, gen, b * series, n, burn, out=draws[i])
+        stationary_draws(phi, gen, b * series, n, out=draws[i])
     draws -= draws.mean(axis=2, keepdims=True)
     fit = burg(draws.reshape(len(phis) * b, series, n), p_max)
     orders = fit.orders(minimum)
@@ -1438,8 +1441,7 @@ def centring_corrected(fit: BurgFit, orders, t: int, seed: int) -> BurgFit:
         draws = np.empty((rows.size, b * drawn, t))
         for j, i in enumerate(rows.tolist()):
             phi = ar_coefficients(k[j, : orders[i]])
-            burn = min(MAX_BURN_IN, decay_horizon(phi, 0))
-            stationary_draws(phi, gen, b * drawn, t, burn, out=draws[j])
+            stationary_draws(phi, gen, b * drawn, t, out=draws[j])
         draws -= draws.mean(axis=2, keepdims=True)
         refit = burg(draws.reshape(rows.size * b, drawn, t), p).reflection
         mean = refit.reshape(rows.size, b, p).mean(axis=1)

@@ -91,52 +91,49 @@ def medians(runs: dict[str, list[tuple[float, float, float]]]) -> dict:
     }
 
 
-def _ten_epoch_segments(path, segments: int = 100_000) -> Path:
-    """``segments`` segments of 10 epochs, d = 2, credible (issue 35: per-segment cost)."""
+def _log(path, errors: np.ndarray, step: float, cov: np.ndarray, segment=None) -> Path:
+    """Write ``errors`` (N, d) as a Parquet log: the time every ``step`` s, the segment
+    column where given, truth = errors, estimate 0 and the one claimed covariance ``cov``
+    at every epoch."""
     import pandas as pd
 
+    n, d = errors.shape
+    columns = {"time": np.arange(n) * step}
+    if segment is not None:
+        columns["segment"] = segment
+    columns |= {f"truth_{i}": errors[:, i] for i in range(d)}
+    columns |= {f"est_{i}": np.zeros(n) for i in range(d)}
+    columns |= {f"cov_{i}_{j}": np.full(n, cov[i, j]) for i in range(d) for j in range(i, d)}
+    pd.DataFrame(columns).to_parquet(path)
+    return Path(path)
+
+
+def _ten_epoch_segments(path, segments: int = 100_000) -> Path:
+    """``segments`` segments of 10 epochs, d = 2, credible (issue 35: per-segment cost)."""
     n = segments * 10
     e = np.random.default_rng(1).standard_normal((n, 2))
-    frame = pd.DataFrame({"time": np.arange(n) * 0.1, "segment": np.arange(n) // 10})
-    frame = frame.assign(truth_0=e[:, 0], truth_1=e[:, 1], est_0=0.0, est_1=0.0)
-    frame.assign(cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_parquet(path)
-    return Path(path)
+    return _log(path, e, 0.1, np.eye(2), segment=np.arange(n) // 10)
 
 
 def _wide(path, d: int, n: int = 100_000, segments: int = 10) -> Path:
     """``n`` credible epochs of dimension ``d`` in ``segments`` segments, identity-scaled
     covariances with a fixed random shape (issue 35: the cost's growth with d)."""
-    import pandas as pd
-
     rng = np.random.default_rng(d)
     a = rng.standard_normal((d, d))
     shape = a @ a.T / d + np.eye(d)
     e = rng.standard_normal((n, d)) @ np.linalg.cholesky(shape).T
-    columns = {"time": np.arange(n) * 0.01, "segment": np.arange(n) * segments // n}
-    columns |= {f"truth_{i}": e[:, i] for i in range(d)}
-    columns |= {f"est_{i}": np.zeros(n) for i in range(d)}
-    columns |= {f"cov_{i}_{j}": np.full(n, shape[i, j]) for i in range(d) for j in range(i, d)}
-    pd.DataFrame(columns).to_parquet(path)
-    return Path(path)
+    return _log(path, e, 0.01, shape, segment=np.arange(n) * segments // n)
 
 
 def _slow_errors(path, n: int, d: int, phi: float = 0.99999) -> Path:
     """``n`` epochs of d independent AR(1) directions with a root near 1 (φ = 0.99999, a
     slowly drifting error), scaled to the claimed identity: the bootstrap's burn-in is then
     MAX_BURN_IN epochs for every series it draws (memory.stationary_draws)."""
-    import pandas as pd
-
     from credcli.engine.memory import ar_filter
 
     burn = 20_000  # the drift's start forgotten, as in a run already under way
     e = ar_filter(np.array([phi]), np.random.default_rng(d).standard_normal((burn + n, d)))[burn:]
-    e /= e.std(axis=0)
-    columns = {"time": np.arange(n) * 0.1}
-    columns |= {f"truth_{i}": e[:, i] for i in range(d)}
-    columns |= {f"est_{i}": np.zeros(n) for i in range(d)}
-    columns |= {f"cov_{i}_{j}": np.full(n, float(i == j)) for i in range(d) for j in range(i, d)}
-    pd.DataFrame(columns).to_parquet(path)
-    return Path(path)
+    return _log(path, e / e.std(axis=0), 0.1, np.eye(d))
 
 
 def _arma_segment(path, n: int = 2_000_000) -> Path:
@@ -144,14 +141,10 @@ def _arma_segment(path, n: int = 2_000_000) -> Path:
     cancelling roots, a slow part under fast noise, whose AR sieve takes an order near 50)
     scaled to the claimed identity: the 2M row's segment with the memory of a filter's
     errors."""
-    import pandas as pd
     import zoo
 
     e = zoo.arma((0.98,), (-0.93,), n, 2, np.random.default_rng(12))
-    e /= e.std(axis=0)
-    frame = pd.DataFrame({"time": np.arange(n) * 0.01, "truth_0": e[:, 0], "truth_1": e[:, 1]})
-    frame.assign(est_0=0.0, est_1=0.0, cov_0_0=1.0, cov_0_1=0.0, cov_1_1=1.0).to_parquet(path)
-    return Path(path)
+    return _log(path, e / e.std(axis=0), 0.01, np.eye(2))
 
 
 @dataclass(frozen=True)

@@ -455,14 +455,23 @@ def ar_filter(phi: np.ndarray, z: np.ndarray) -> np.ndarray:
 def stationary_draws(
     phi: np.ndarray, gen: np.random.Generator, rows: int, n: int, burn: int | None = None, out=None
 ) -> np.ndarray:
-    """``rows`` series of ``n`` epochs of the AR model ``phi`` with unit Gaussian
-    innovations, each the last ``n`` of ``burn + n`` epochs from a zero state (by default
-    the model's own decay horizon, at most :data:`MAX_BURN_IN`: stationary to rounding).
+    """``rows`` series of ``n`` epochs of the stationary AR model ``phi`` with unit Gaussian
+    innovations.
 
-    The innovations are those of one draw ``gen.standard_normal((rows, burn + n))``, taken
-    in chunks of whole rows of at most :data:`DRAWN_AT_ONCE` values (a generator fills an
-    array in order, and :func:`ar_filter` filters each series on its own), so the series
-    are the same bits as drawn whole, and the burn-in is never held for every row at once.
+    By default each series is the last ``n`` of ``burn + n`` epochs from a zero state, the
+    burn-in the model's own decay horizon (:func:`decay_horizon`, 0 for white noise):
+    stationary to :data:`NEGLIGIBLE`. Where that horizon is longer than
+    :data:`EXACT_START_BEYOND` epochs, each series starts instead from the model's
+    stationary distribution itself (:func:`started_filter`): as many values drawn, and
+    exact at any horizon, where a burn-in of :data:`MAX_BURN_IN` epochs left a model near
+    a unit root short of its variance (φ = 0.99999: by e^{-4}, 2 %) and cost that many
+    draws for every series. A given ``burn`` always takes the burn-in.
+
+    The values are those of one draw ``gen.standard_normal((rows, burn + n))`` (with the
+    stationary start, ``burn`` 0), taken in chunks of whole rows of at most
+    :data:`DRAWN_AT_ONCE` values (a generator fills an array in order, and each series is
+    filtered on its own), so the series are the same bits as drawn whole, and the burn-in
+    is never held for every row at once.
 
     Parameters
     ----------
@@ -473,8 +482,8 @@ def stationary_draws(
     rows, n : int
         The series, and the epochs kept of each.
     burn : int, optional
-        The epochs drawn before them; default min(:data:`MAX_BURN_IN`,
-        :func:`decay_horizon`), 0 for white noise.
+        The epochs drawn before them from a zero state; default the model's decay horizon,
+        or the stationary start beyond :data:`EXACT_START_BEYOND`.
     out : numpy.ndarray, shape (rows, n), optional
         Where to write the series.
 
@@ -491,14 +500,105 @@ def stationary_draws(
     >>> bool(np.array_equal(drawn, whole))
     True
     """
+    factor = None
     if burn is None:
         burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
+        if burn > EXACT_START_BEYOND:
+            factor = stationary_factor(phi)
+            burn = 0 if factor is not None else burn
     out = np.empty((rows, n)) if out is None else out
     step = max(1, DRAWN_AT_ONCE // (n + burn))
     for start in range(0, rows, step):
         stop = min(rows, start + step)
-        out[start:stop] = ar_filter(phi, gen.standard_normal((stop - start, n + burn)).T)[burn:].T
+        z = gen.standard_normal((stop - start, n + burn)).T
+        if factor is None:
+            out[start:stop] = ar_filter(phi, z)[burn:].T
+        else:
+            out[start:stop] = started_filter(phi, z, factor).T
     return out
+
+
+def stationary_factor(phi: np.ndarray) -> np.ndarray | None:
+    """The lower Cholesky factor L of Γ_p, the covariance of p consecutive values of the
+    stationary AR(p) ``phi`` with unit innovations (Toeplitz in γ(0) … γ(p − 1),
+    :func:`autocovariance_of_ar`); None where it is not positive definite to working
+    precision (a root too near the unit circle), which the burn-in then stands in for.
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,), p >= 1
+        The AR coefficients (stationary).
+
+    Returns
+    -------
+    numpy.ndarray, shape (p, p), or None
+        L with L Lᵀ = Γ_p.
+
+    Examples
+    --------
+    An AR(1) has Γ_1 = 1/(1 − φ²):
+
+    >>> stationary_factor(np.array([0.6])).round(12).tolist()
+    [[1.25]]
+    """
+    p = phi.size
+    try:
+        gamma = autocovariance_of_ar(phi, 1.0, p)
+        lags = np.abs(np.arange(p)[:, None] - np.arange(p)[None, :])
+        factor = np.linalg.cholesky(gamma[lags])
+    except np.linalg.LinAlgError:
+        return None
+    return factor if np.all(np.isfinite(factor)) else None
+
+
+def started_filter(phi: np.ndarray, z: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    """Stationary AR series from standard normal draws, along the first axis of z,
+    written over z: the first p values (x_0 … x_{p−1}) = L (z_0 … z_{p−1}), with L the
+    factor of their stationary covariance (:func:`stationary_factor`), and
+    x_t = Σ_j φ_j x_{t−j} + z_t after them. Every x_t then has the stationary distribution
+    exactly (a Gaussian AR(p) is a Markov chain in its last p values, and they start in
+    its stationary law), which a burn-in from a zero state reaches only to the power of its
+    slowest root.
+
+    The recursion past the start is :func:`ar_filter` from a zero state, with the terms
+    that reach back to the start added to its first p inputs (as
+    :func:`autocovariance_of_ar` continues its lags). Written over z, so that a chunk of
+    draws holds two arrays of its size, as the burn-in's does (z and the filter's output).
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,), p >= 1
+        The AR coefficients (stationary).
+    z : numpy.ndarray, shape (T,) or (T, m), float64
+        Independent standard normal values, one series per column; overwritten.
+    factor : numpy.ndarray, shape (p, p)
+        L, lower triangular, L Lᵀ = Γ_p.
+
+    Returns
+    -------
+    numpy.ndarray
+        x, in the shape of z (z itself).
+
+    Examples
+    --------
+    >>> z = np.array([1.0, 0.5, 0.0])
+    >>> started_filter(np.array([0.6]), z, np.array([[1.25]])).tolist()
+    [1.25, 1.25, 0.75]
+    """
+    t, p = z.shape[0], phi.size
+    head = min(p, t)
+    column = (slice(None),) + (None,) * (z.ndim - 1)
+    start = np.zeros((head, *z.shape[1:]))
+    for k in range(head):  # L z term by term: each series' own sums, whatever the others
+        start[k:] += factor[k:head, k][column] * z[k]
+    z[:head] = start
+    if t <= p:
+        return z
+    for j in range(1, p + 1):  # the terms of x_{p+s} that reach back to the start: s < j
+        reach = min(j, t - p)
+        z[p : p + reach] += phi[j - 1] * z[p - j : p - j + reach]
+    z[p:] = ar_filter(phi, z[p:])
+    return z
 
 
 def decay_horizon(phi: np.ndarray, n: int) -> int:
@@ -800,6 +900,14 @@ MAX_BIAS_FACTOR = 3.0
 """Most the bootstrap's bias correction stretches the fitted correlations."""
 MAX_BURN_IN = 200_000
 """Longest burn-in of a bootstrap series (epochs); the model's own decay horizon below."""
+EXACT_START_BEYOND = 1024
+"""Decay horizon (epochs) beyond which a bootstrap series starts from its model's
+stationary distribution instead of a burn-in (:func:`stationary_draws`). Both give
+stationary series (the burn-in to :data:`NEGLIGIBLE`, below :data:`MAX_BURN_IN`), so this
+is a choice of cost alone: past it the burn-in is longer than most series drawn and
+costs that many draws and filter steps for every one, where the start costs a p × p
+factor once per model (measured: docs/performance.md). Below it the burn-in is kept, and
+so are the draws of every model that is not slow."""
 DRAWN_AT_ONCE = 1 << 22
 """Most values of white noise drawn at once for a bootstrap's AR series, burn-in included
 (:func:`stationary_draws`, 32 MiB): a slow model's burn-in of up to :data:`MAX_BURN_IN`
@@ -1741,9 +1849,11 @@ DISTINCT_EPOCHS = 1 << 12
 segment is short against its directions' number; 4,096 epochs of 30 directions, 40 times,
 are 39 MB."""
 DISTINCT_DRAWN = 1 << 24
-"""Most values :func:`_distinct_directions` draws at once, burn-in included (128 MB): a
-model whose decay horizon is longer than that allows (a root within about 10⁻⁴ of the unit
-circle with 30 directions) starts its draws short of stationarity, on segments whose
+"""Most values :func:`_distinct_directions` draws at once, burn-in included (128 MB). A
+model whose decay horizon is longer than :data:`EXACT_START_BEYOND` starts its draws from
+its stationary distribution (:func:`started_filter`) and draws no burn-in; one whose
+factor is not positive definite to working precision (a root nearer the unit circle)
+takes the burn-in this allows, and may start short of stationarity, on segments whose
 memory leaves them undecided anyway."""
 
 
@@ -1833,8 +1943,12 @@ def _distinct_directions(y, s, orders, minimum: int, p_max: int, seed: int):
         pooled, p = _pooled_fit(_one_unit(y[j:]), orders[j:d], minimum, p_max)
         phi = pooled.coefficients(0, p)
         burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
-        burn = min(burn, max(0, DISTINCT_DRAWN // (b * (d - j)) - t))
-        drawn = ar_filter(phi, gen.standard_normal((t + burn, b * (d - j))))[burn:]
+        factor = stationary_factor(phi) if burn > EXACT_START_BEYOND else None
+        if factor is None:  # a burn-in, within the draws' budget
+            burn = min(burn, max(0, DISTINCT_DRAWN // (b * (d - j)) - t))
+            drawn = ar_filter(phi, gen.standard_normal((t + burn, b * (d - j))))[burn:]
+        else:  # a slow model's series from its stationary start (stationary_draws)
+            drawn = started_filter(phi, gen.standard_normal((t, b * (d - j))), factor)
         null = _long_run_ratios(drawn.reshape(t, b, d - j).transpose(1, 0, 2))[:, 0]
         if not observed[j] > np.quantile(null, 1.0 - DISTINCT_LEVEL):
             return j, (pooled, p)

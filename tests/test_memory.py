@@ -401,6 +401,11 @@ def test_a_slow_models_series_start_from_its_stationary_law(phi, monkeypatch):
     np.testing.assert_allclose(innovations, z[:, p:], rtol=1e-9, atol=1e-9 * np.abs(x).max())
     monkeypatch.setattr(mem, "DRAWN_AT_ONCE", 1 << 22)
     np.testing.assert_array_equal(x, mem.stationary_draws(phi, np.random.default_rng(4), 5, 12))
+    # series shorter than the order: the first epochs of the start (L's leading block)
+    short = mem.stationary_draws(phi, np.random.default_rng(4), 5, 2)
+    z = np.random.default_rng(4).standard_normal((5, 2))
+    m = min(p, 2)
+    np.testing.assert_allclose(short[:, :m], z[:, :m] @ factor[:m, :m].T, rtol=1e-12)
 
 
 @pytest.mark.parametrize("phi", [[0.9995], [1.97, -0.9704]])

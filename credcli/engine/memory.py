@@ -500,12 +500,7 @@ def stationary_draws(
     >>> bool(np.array_equal(drawn, whole))
     True
     """
-    factor = None
-    if burn is None:
-        burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
-        if burn > EXACT_START_BEYOND:
-            factor = stationary_factor(phi)
-            burn = 0 if factor is not None else burn
+    burn, factor = draws_start(phi) if burn is None else (burn, None)
     out = np.empty((rows, n)) if out is None else out
     step = max(1, DRAWN_AT_ONCE // (n + burn))
     for start in range(0, rows, step):
@@ -516,6 +511,37 @@ def stationary_draws(
         else:
             out[start:stop] = started_filter(phi, z, factor).T
     return out
+
+
+def draws_start(phi: np.ndarray) -> tuple[int, np.ndarray | None]:
+    """How a bootstrap's series of the AR model ``phi`` start stationary: a burn-in of the
+    model's decay horizon (at most :data:`MAX_BURN_IN`, 0 for white noise) from a zero
+    state, or, past :data:`EXACT_START_BEYOND` epochs of it, the stationary law's factor
+    (:func:`stationary_factor`, :func:`started_filter`) and no burn-in.
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,)
+        The AR coefficients (stationary).
+
+    Returns
+    -------
+    burn : int
+        The epochs to draw and filter before each series.
+    factor : numpy.ndarray, shape (p, p), or None
+        The start's factor; None where the burn-in starts the series.
+
+    Examples
+    --------
+    >>> draws_start(np.array([0.5]))[0], draws_start(np.array([0.5]))[1] is None
+    (32, True)
+    >>> burn, factor = draws_start(np.array([0.999]))
+    >>> burn, factor.round(3).tolist()
+    (0, [[22.366]])
+    """
+    burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
+    factor = stationary_factor(phi) if burn > EXACT_START_BEYOND else None
+    return (burn, None) if factor is None else (0, factor)
 
 
 def stationary_factor(phi: np.ndarray) -> np.ndarray | None:
@@ -1942,8 +1968,7 @@ def _distinct_directions(y, s, orders, minimum: int, p_max: int, seed: int):
     for j in range(d - 1):
         pooled, p = _pooled_fit(_one_unit(y[j:]), orders[j:d], minimum, p_max)
         phi = pooled.coefficients(0, p)
-        burn = min(MAX_BURN_IN, decay_horizon(phi, 0)) if phi.size else 0
-        factor = stationary_factor(phi) if burn > EXACT_START_BEYOND else None
+        burn, factor = draws_start(phi)
         if factor is None:  # a burn-in, within the draws' budget
             burn = min(burn, max(0, DISTINCT_DRAWN // (b * (d - j)) - t))
             drawn = ar_filter(phi, gen.standard_normal((t + burn, b * (d - j))))[burn:]

@@ -127,8 +127,9 @@ def _wide(path, d: int, n: int = 100_000, segments: int = 10) -> Path:
 
 def _slow_errors(path, n: int, d: int, phi: float = 0.99999) -> Path:
     """``n`` epochs of d independent AR(1) directions with a root near 1 (φ = 0.99999, a
-    slowly drifting error), scaled to the claimed identity: the bootstrap's burn-in is then
-    MAX_BURN_IN epochs for every series it draws (memory.stationary_draws)."""
+    slowly drifting error), scaled to the claimed identity: a burn-in for the bootstrap's
+    series would be MAX_BURN_IN epochs for every one (memory.stationary_draws, which
+    starts such a model's series from its stationary law since session 39)."""
     from credcli.engine.memory import ar_filter
 
     burn = 20_000  # the drift's start forgotten, as in a run already under way

@@ -399,18 +399,43 @@ def autocovariance_of_ar(phi: np.ndarray, sigma2: float, lags: int) -> np.ndarra
     gamma = np.linalg.solve(a, rhs)
     if lags <= p + 1:
         return gamma[:lags].copy()
-    # γ(start + t) − Σ_j φ_j γ(start + t − j) = Σ over the j that reach back before start
     out = np.empty(lags)
     out[: p + 1] = gamma
     for start in range(p + 1, lags, RECURSION_CHUNK):
         stop = min(lags, start + RECURSION_CHUNK)
-        known = np.zeros(stop - start)
-        # the lags before the chunk that its first p rows reach back to
-        for j in range(1, p + 1):
-            reach = min(j, known.size)  # rows t < j read γ(start + t − j), t − j < 0
-            known[:reach] += phi[j - 1] * out[start - j : start - j + reach]
-        out[start:stop] = ar_filter(phi, known)
+        out[start:stop] = ar_continued(phi, out[start - p : start], np.zeros(stop - start))
     return out
+
+
+def ar_continued(phi: np.ndarray, before: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """x with x_t = Σ_j φ_j x_{t−j} + z_t along the first axis of z, the p values before
+    x_0 given (``before``, x_{−p} … x_{−1}): :func:`ar_filter` from a zero state, with the
+    terms that reach back before x_0 added to its first p inputs (written over z).
+
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (p,), p >= 1
+        The AR coefficients.
+    before : numpy.ndarray, shape (p,) or (p, m)
+        The p values before the first, oldest first.
+    z : numpy.ndarray, shape (T,) or (T, m), float64
+        The inputs; overwritten.
+
+    Returns
+    -------
+    numpy.ndarray
+        x, in the shape of z.
+
+    Examples
+    --------
+    >>> ar_continued(np.array([0.5]), np.array([2.0]), np.zeros(3)).tolist()
+    [1.0, 0.5, 0.25]
+    """
+    p = phi.size
+    for j in range(1, p + 1):  # x_t reads x_{t−j} from before where t < j
+        reach = min(j, z.shape[0])
+        z[:reach] += phi[j - 1] * before[p - j : p - j + reach]
+    return ar_filter(phi, z)
 
 
 def ar_filter(phi: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -586,8 +611,7 @@ def started_filter(phi: np.ndarray, z: np.ndarray, factor: np.ndarray) -> np.nda
     its stationary law), which a burn-in from a zero state reaches only to the power of its
     slowest root.
 
-    The recursion past the start is :func:`ar_filter` from a zero state, with the terms
-    that reach back to the start added to its first p inputs (as
+    The recursion past the start is :func:`ar_continued` from the start (as
     :func:`autocovariance_of_ar` continues its lags). Written over z, so that a chunk of
     draws holds two arrays of its size, as the burn-in's does (z and the filter's output).
 
@@ -618,12 +642,8 @@ def started_filter(phi: np.ndarray, z: np.ndarray, factor: np.ndarray) -> np.nda
     for k in range(head):  # L z term by term: each series' own sums, whatever the others
         start[k:] += factor[k:head, k][column] * z[k]
     z[:head] = start
-    if t <= p:
-        return z
-    for j in range(1, p + 1):  # the terms of x_{p+s} that reach back to the start: s < j
-        reach = min(j, t - p)
-        z[p : p + reach] += phi[j - 1] * z[p - j : p - j + reach]
-    z[p:] = ar_filter(phi, z[p:])
+    if t > p:
+        z[p:] = ar_continued(phi, z[:p], z[p:])
     return z
 
 

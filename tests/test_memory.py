@@ -441,24 +441,32 @@ def test_a_model_without_a_stationary_factor_takes_the_burn_in():
     assert gen.standard_normal() == copy.standard_normal()
 
 
-def test_a_slow_shared_model_is_bootstrapped_without_holding_its_burn_in():
-    """A model near a unit root has a burn-in of MAX_BURN_IN epochs; drawn whole for 40
-    replicates of four directions that share it, the white noise and its filtered copy
-    held 2 × 160 × 204,096 values (a peak of 510 MiB as tracemalloc counts numpy's
-    allocations). In chunks the peak is 74 MiB: the 160 series kept and one chunk."""
+def test_a_burn_in_is_drawn_in_chunks_and_a_slow_model_draws_none():
+    """A burn-in of MAX_BURN_IN epochs, drawn whole for 160 series (40 replicates of four
+    directions that share a model), held the white noise and its filtered copy, 2 × 160 ×
+    204,096 values (a peak of 510 MiB as tracemalloc counts numpy's allocations); drawn
+    in chunks, the kept series and one chunk. A slow model (φ 0.99999, a horizon past
+    MAX_BURN_IN) starts from its stationary law and draws no burn-in at all: its whole
+    bootstrap stays within the kept series and one chunk too."""
     import tracemalloc
 
     phi = np.array([0.99999])
     assert mem.decay_horizon(phi, 0) >= mem.MAX_BURN_IN
-    tracemalloc.start()
-    try:
-        mem.bootstrap_spread([phi], 4096, 4, seed=1, minimum=1, segments=4)
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
     held = 8 * (160 * 4096 + 2 * mem.DRAWN_AT_ONCE)  # the kept series and one chunk
     assert 2 * held < 160 * (4096 + mem.MAX_BURN_IN) * 8  # (the bound can tell the two apart)
-    assert peak < 2 * held
+    peaks = []
+    for run in (
+        lambda: mem.stationary_draws(phi, np.random.default_rng(1), 160, 4096, mem.MAX_BURN_IN),
+        lambda: mem.bootstrap_spread([phi], 4096, 4, seed=1, minimum=1, segments=4),
+    ):
+        tracemalloc.start()
+        try:
+            run()
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        finally:
+            tracemalloc.stop()
+    assert peaks[0] < 2 * held
+    assert peaks[1] < 2 * held
 
 
 def test_a_pickled_model_leaves_its_answers_behind_and_answers_the_same():

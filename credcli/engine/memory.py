@@ -1141,13 +1141,14 @@ def _square_sums(reflection: np.ndarray, a: np.ndarray) -> np.ndarray:
 
     ρ(0) … ρ(p − 1) come from the reflection coefficients by Levinson's recursion run
     backwards, ρ(m) = −k_m E_{m−1} − Σ_{i<m} a_i^{(m−1)} ρ(m − i), E_m = E_{m−1}(1 − k_m²),
-    E_0 = ρ(0) = 1 (Brockwell & Davis 1991, §5.2 and §8.2). Beyond, the state
-    X_h = (ρ(h), …, ρ(h − p + 1)) follows X_{h+1} = F X_h with F the companion matrix, so
-    Σ_{h>=p−1} ρ(h)² = W₁₁ with W = Σ_m F^m X Xᵀ (F^m)ᵀ, X = X_{p−1}: the solution of the
-    Stein equation W − F W Fᵀ = X Xᵀ, found by Smith's (1968) doubling, W ← W + G W Gᵀ,
-    G ← G² from G = F, which after j steps has summed 2^j lags. Every term is positive
-    semi-definite (no cancellation), and j is about log₂ of the model's horizon, so a root
-    of modulus 1 − 10⁻⁶ costs some 25 products of p × p matrices.
+    E_0 = ρ(0) = 1 (the Durbin–Levinson algorithm, Brockwell & Davis 1991, §5.2). Beyond,
+    the state X_h = (ρ(h), …, ρ(h − p + 1)) follows X_{h+1} = F X_h with F the companion
+    matrix, so Σ_{h>=p−1} ρ(h)² = W₁₁ with W = Σ_m F^m X Xᵀ (F^m)ᵀ, X = X_{p−1}: the
+    solution of the Stein equation W − F W Fᵀ = X Xᵀ, found by Smith's doubling (R. A.
+    Smith 1968, SIAM J. Appl. Math. 16(1)), W ← W + G W Gᵀ, G ← G² from G = F, which after
+    j steps has summed 2^j lags. Every term is positive semi-definite (no cancellation),
+    and j is about log₂ of the model's horizon, so a root of modulus 1 − 10⁻⁶ costs some 25
+    products of p × p matrices.
 
     Parameters
     ----------
@@ -1179,13 +1180,14 @@ def _square_sums(reflection: np.ndarray, a: np.ndarray) -> np.ndarray:
     power[:, np.arange(1, p), np.arange(p - 1)] = 1.0
     total = state[:, :, None] * state[:, None, :]
     done = np.zeros(count, dtype=bool)
-    for _ in range(MAX_DOUBLINGS):
-        total = total + power @ total @ np.swapaxes(power, 1, 2)
-        power = power @ power
-        # the lags left are G W Gᵀ: below 10⁻¹⁸ of W once G is
-        done = np.max(np.abs(power), axis=(1, 2)) < NEGLIGIBLE**2
-        if done.all():
-            break
+    with np.errstate(over="ignore", invalid="ignore"):  # a unit root's sums grow: τ₂ = ∞
+        for _ in range(MAX_DOUBLINGS):
+            total = total + power @ total @ np.swapaxes(power, 1, 2)
+            power = power @ power
+            # the lags not yet summed are G W Gᵀ, negligible once G's entries are
+            done = np.max(np.abs(power), axis=(1, 2)) < NEGLIGIBLE**2
+            if done.all():
+                break
     head = np.sum(rho[:, : p - 1] ** 2, axis=1)
     return np.where(done, head + total[:, 0, 0], np.inf)
 

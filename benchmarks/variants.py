@@ -184,7 +184,35 @@ SIXTH: dict[str, Synthetic] = {
 """Session 38's sixth set (run with ``--seed 1357``): fourteen families at parameters no
 other set uses, run once on the engine as it stood, nothing chosen on it."""
 
-SETS = {"variants": VARIANTS, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH}
+SEVENTH: dict[str, Synthetic] = {
+    "iid": _arma_family(()),
+    "ar1-0.7": _arma_family((0.7,)),
+    "ar2-0.93∠0.9": _arma_family(_ar2(0.93, 0.9)),
+    "ar2-0.8∠2.0": _arma_family(_ar2(0.8, 2.0)),
+    "arma-0.95,-0.7": _arma_family((0.95,), (-0.7,)),
+    "arma-0.7,0.5": _arma_family((0.7,), (0.5,)),
+    "slow-white-0.975-0.65": _slow_white_family(0.975, 0.65),
+    "slow-white-0.995-0.2": _slow_white_family(0.995, 0.2),
+    "slow-white-0.9-0.6": _slow_white_family(0.9, 0.6),
+    "arfima-0.27": _arfima_family(0.27),
+    "arfima-0.38": _arfima_family(0.38),
+    "slow-and-white-dirs-0.95": _slow_and_white_dirs(0.95),
+    "rotating-cov-0.7": _moving_cov(zoo.rotating_cov, 0.7),
+    "resized-cov-0.6": _moving_cov(zoo.resized_cov, 0.6),
+}
+"""Session 40's seventh set (run with ``--seed 8642``): fourteen families at parameters no
+other set uses, among them a strongly oscillating AR(2) (roots near −0.33 ± 0.73i), the
+slowest long memory of any set (d 0.38) and a slow part of 80 % at 0.995; run once on the
+engine as it stood, nothing chosen on it."""
+
+SETS = {
+    "variants": VARIANTS,
+    "third": THIRD,
+    "fourth": FOURTH,
+    "fifth": FIFTH,
+    "sixth": SIXTH,
+    "seventh": SEVENTH,
+}
 
 EXPECTED = {"small4": "optimism", "large4": "pessimism", "bias1": "bias"}
 

@@ -912,3 +912,26 @@ def test_a_direction_beyond_the_margin_is_not_credible():
         x = diagnose_errors(e, _eye(1000, 15), rng=seed)
         found.append(x.label.value == "pessimism" and x.by_direction)
     assert sum(found) >= 5, found
+
+
+def test_a_scale_untested_for_its_references_dof_names_the_squares_memory(monkeypatch):
+    """The scale test's reference is the variance of the squared errors, which τ₂ = Σρ²
+    of the errors' model sets (or the squares' own memory where it implies more): the
+    reason once gave the mean's τ̂ and N/τ̂ instead, which on oscillating errors read as
+    plenty (τ̂ 0.2, N/τ̂ 250) beside too few degrees of freedom. An oscillating AR(2) of 50
+    epochs, with the interval's least ν set out of reach so that the reason is given; its
+    figures are the model's own."""
+    from credcli.engine import evidence
+    from credcli.engine.memory import ar_filter
+
+    monkeypatch.setattr(evidence, "MIN_MODEL_DOF", 1e9)
+    phi = np.array([2 * 0.8 * math.cos(2.0), -0.64])  # roots 0.8 e^{±2i}
+    e = ar_filter(phi, np.random.default_rng(14).standard_normal((550, 2)))[500:]
+    d = diagnose_errors(e, np.broadcast_to(2.2 * np.eye(2), (50, 2, 2)), rng=14)
+    assert Question.SCALE in d.untested
+    tau2 = max(2.0 * np.sum(s.rho**2) - 1.0 for s in d.memory.series)
+    tau_q = d.memory.squares.variance_ratio
+    assert max(s.variance_ratio for s in d.memory.series) < 1.0  # the mean's τ̂: not named
+    assert f"known to {d.scale.model_dof:.3g} degrees of freedom" in d.reason
+    assert f"τ₂ = Σρ² {tau2:.3g} epochs, N/τ₂ {50 / tau2:.3g}" in d.reason
+    assert f"the squares' own: τ̂ {tau_q:.3g} epochs, N/τ̂ {50 / tau_q:.3g}" in d.reason

@@ -1121,10 +1121,16 @@ def memory_evidence(
         untested = untested_scale(gls)
         scale = replace(untested, bias_stderr=stderr, model_dof=scale.model_dof)
         directions = None
+        # the reference is the variance of the squares: under the errors' model τ₂ = Σρ²
+        # sets it (not τ: an oscillating memory has τ̂ well below 1 and τ₂ of several
+        # epochs), or the squares' own memory where it implies more (memory_scale_test)
+        tau2 = max(float(2.0 * np.sum(series.rho**2) - 1.0) for series in memory.series)
+        tau_q = memory.squares.variance_ratio
         scale_reason = (
-            f"scale untested: the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) is "
-            f"known to {scale.model_dof:.3g} degrees of freedom, fewer than the "
-            f"{MIN_MODEL_DOF} an interval needs"
+            f"scale untested: the variance of the squared errors it is referred to is known "
+            f"to {scale.model_dof:.3g} degrees of freedom, fewer than the {MIN_MODEL_DOF} an "
+            f"interval needs (the errors' memory: τ₂ = Σρ² {tau2:.3g} epochs, N/τ₂ "
+            f"{n / tau2:.3g}; the squares' own: τ̂ {tau_q:.3g} epochs, N/τ̂ {n / tau_q:.3g})"
         )
     else:
         directions = direction_scales(gls, level, 0, memory, tail) if d > 1 else None

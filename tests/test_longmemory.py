@@ -649,3 +649,42 @@ def test_the_alternative_is_named_by_the_directions_it_changes():
     white = SeriesMemory(np.zeros(0), np.array([1.0]), math.inf)
     assert Memory(np.eye(1), (white,), white, 300).white
     assert not Memory(np.eye(1), (moving_average,), white, 300).white
+
+
+def test_a_longer_segments_bias_a_slow_error_fits_is_declined_where_more_memory_is_supported(
+    monkeypatch,
+):
+    """On 200 epochs or more a bias whose slow reading fits with p >= rules.SLOW_READING_FIT
+    stands (with a finding) unless the errors support a model with more memory under
+    which they hold fewer than rules.ALTERNATIVE_EPOCHS independent epochs: then one
+    segment cannot tell its memory from that longer one, and the bias is declined as a
+    short segment's is. ARFIMA(0, 0.3, 0) errors of 300 epochs (the 65th of
+    :func:`_fractional_draw`'s stream) fit a fractional alternative; their offset is
+    declined ("offset within the claim", the alternative and its N/τ named) where slow
+    errors are possible, and is a bias where they are excluded. White errors of 300
+    epochs shifted by 0.25σ, spread 0.95 of the claim (no alternative; the slow reading's
+    p above 0.3 all the same) keep their bias and its finding; so does the same ARFIMA
+    segment where the alternative's N/τ is not below the bound."""
+    from credcli.engine.scale import slow_offset_pvalue
+
+    errors, cov = _fractional_draw(65)
+    d = diagnose_errors(errors, cov, rng=64)
+    excluded = diagnose_errors(errors, cov, DiagnosisConfig(slow_errors="excluded"), rng=64)
+    assert excluded.label is Label.BIAS
+    p, _ = slow_offset_pvalue(excluded.scale, excluded.mean_test, 2)
+    assert p >= rules.SLOW_READING_FIT and d.memory.alternative is not None
+    epochs = 300 / max(d.memory.alternative.variance_ratios)
+    assert epochs < rules.ALTERNATIVE_EPOCHS
+    assert d.label is Label.INSUFFICIENT and not d.findings
+    assert d.reason.startswith("offset within the claim")
+    named = f"another with more memory, {d.memory.alternative_name}, under which they hold"
+    assert f"{named} {epochs:.3g} independent epochs)" in d.reason
+    monkeypatch.setattr(rules, "ALTERNATIVE_EPOCHS", epochs)  # the bound at its N/τ
+    kept = diagnose_errors(errors, cov, rng=64)
+    assert kept.label is Label.BIAS
+    assert any(f.startswith("the bias may be an error slower") for f in kept.findings)
+    white = math.sqrt(0.95) * np.random.default_rng(2).standard_normal((300, 2))
+    d = diagnose_errors(white - white.mean(axis=0) + 0.25 / math.sqrt(2), cov, rng=1)
+    assert d.memory.alternative is None and d.label is Label.BIAS
+    assert slow_offset_pvalue(d.scale, d.mean_test, 2)[0] >= rules.SLOW_READING_FIT
+    assert any(f.startswith("the bias may be an error slower") for f in d.findings)

@@ -315,9 +315,12 @@ class SlowErrors(str, enum.Enum):
         The errors may hold memory slower than the segment: such a segment is
         insufficient-data, its reason saying why (windows of one run, or more runs, can
         tell the two apart); so is a bias alone on a segment shorter than
-        ``credcli.engine.rules.SLOW_READING_BELOW`` epochs whose slow reading (the offset
-        and the spread together, ``credcli.engine.scale.slow_offset_pvalue``) fits with a
-        p-value of at least ``credcli.engine.rules.SLOW_READING_FIT``, and a pessimism
+        ``credcli.engine.rules.SLOW_READING_BELOW`` epochs, or on a longer one whose
+        errors support a model with more memory under which they hold fewer than
+        ``credcli.engine.rules.ALTERNATIVE_EPOCHS`` independent epochs, whose slow reading
+        (the offset and the spread together, ``credcli.engine.scale.slow_offset_pvalue``)
+        fits with a p-value of at least ``credcli.engine.rules.SLOW_READING_FIT``, and a
+        pessimism
         alone whose offset such an error draws as small or smaller with that p-value
         (``credcli.engine.rules._spread_covered``); a bias whose slow reading is not
         rejected at the mean test's level otherwise has a finding naming it.

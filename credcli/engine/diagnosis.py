@@ -481,11 +481,14 @@ def slow_offset_findings(
     Pessimism with a bias is not looked at here: the rule itself weighs the slow reading
     there, and declines the segment where it holds (:func:`credcli.engine.rules.offset_covered`).
 
-    On a segment shorter than :data:`credcli.engine.rules.SLOW_READING_BELOW` epochs
-    where the slow reading fits with a p-value of at least
+    On a segment shorter than :data:`credcli.engine.rules.SLOW_READING_BELOW` epochs, or
+    on a longer one whose errors support a model with more memory under which they hold
+    few independent epochs (:func:`credcli.engine.rules.few_under_alternative`), where
+    the slow reading fits with a p-value of at least
     :data:`credcli.engine.rules.SLOW_READING_FIT` the rule declines the bias
     (``rules.offset_covered``), so this finding stands beside a bias whose slow reading's
-    p-value lies between the mean test's level and that, or beside a longer segment's.
+    p-value lies between the mean test's level and that, or beside a longer segment's
+    without such an alternative.
     ``slow_errors`` expected declines those too; not by default, measured
     (docs/measured.md): on ``benchmarks/variants.py`` declining every such bias cuts the
     false alarms of slow + white (0.97, 75 %) errors at 50 epochs to 2 of 60 (8 by

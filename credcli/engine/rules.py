@@ -300,16 +300,18 @@ def _spread_covered(evidence: Evidence) -> str | None:
 
 SLOW_READING_FIT = 0.3
 """The p-value of the slow reading of a bias (:func:`credcli.engine.scale.slow_offset_pvalue`)
-at and above which the bias of a segment shorter than :data:`SLOW_READING_BELOW` epochs is
-declined where slow errors are possible (``SlowErrors`` auto or possible), and so is a
-pessimism alone at any length (:func:`_spread_covered`): the slow
-reading then fits the offset and the spread as well as three in ten of its own draws
+at and above which the bias of a segment shorter than :data:`SLOW_READING_BELOW` epochs (or
+of a longer one with few independent epochs under a supported model with more memory,
+:func:`few_under_alternative`) is declined where slow errors are possible (``SlowErrors``
+auto or possible), and so is a pessimism alone at any length (:func:`_spread_covered`): the
+slow reading then fits the offset and the spread as well as three in ten of its own draws
 would. Where the p-value lies between the mean test's level and this, or the segment is
-longer, the label stands and a finding names the reading
+longer without such a model, the label stands and a finding names the reading
 (:func:`credcli.engine.diagnosis.slow_offset_findings`); ``SlowErrors.EXPECTED`` declines
-every bias whose p-value is not below the mean test's level. Chosen on three sets of synthetic families (``benchmarks/variants.py``, seeds
-4242, 9191 and 777, docs/measured.md) as the smallest of 0.05, 0.1, 0.2, 0.3 and 0.5 that
-keeps the share of a 1σ bias found at N/τ >= 30 within 3 points of never declining it."""
+every bias whose p-value is not below the mean test's level. Chosen on three sets of
+synthetic families (``benchmarks/variants.py``, seeds 4242, 9191 and 777,
+docs/measured.md) as the smallest of 0.05, 0.1, 0.2, 0.3 and 0.5 that keeps the share of a
+1σ bias found at N/τ >= 30 within 3 points of never declining it."""
 SLOW_READING_BELOW = FORCED_BELOW
 """Segments shorter than this (epochs) have their bias weighed against the slow reading by
 :data:`SLOW_READING_FIT`: the sieve's short-run bound (:data:`credcli.engine.memory.

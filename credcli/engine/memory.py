@@ -1116,7 +1116,7 @@ def _square_ratios(reflection: np.ndarray, orders: np.ndarray) -> np.ndarray:
     slow = grid == 0
     for order in np.unique(orders[slow]).tolist():
         rows = slow & (orders == order)
-        ratios[rows] = 2.0 * _square_sums(reflection[rows, :order], a[rows, : order + 1]) - 1.0
+        ratios[rows] = 2.0 * _square_sums(reflection[rows, :order]) - 1.0
     for points in np.unique(grid[~slow]).tolist():
         rows = grid == points
         # the coefficients are real, so the spectrum is even: its half from rfft, the inner
@@ -1134,10 +1134,10 @@ MAX_DOUBLINGS = 64
 whose powers have not died out by then has τ₂ = ∞ (a root on the unit circle)."""
 
 
-def _square_sums(reflection: np.ndarray, a: np.ndarray) -> np.ndarray:
+def _square_sums(reflection: np.ndarray) -> np.ndarray:
     """S = Σ_{h>=0} ρ(h)² of AR(p) models of one order p >= 1, given by their reflection
-    coefficients (rows of ``reflection``, shape (k, p)) and polynomials (rows of ``a``,
-    a_0 = 1), however near the unit circle their roots.
+    coefficients (rows of ``reflection``, shape (k, p)), however near the unit circle
+    their roots.
 
     ρ(0) … ρ(p − 1) come from the reflection coefficients by Levinson's recursion run
     backwards, ρ(m) = −k_m E_{m−1} − Σ_{i<m} a_i^{(m−1)} ρ(m − i), E_m = E_{m−1}(1 − k_m²),
@@ -1154,8 +1154,6 @@ def _square_sums(reflection: np.ndarray, a: np.ndarray) -> np.ndarray:
     ----------
     reflection : numpy.ndarray, shape (k, p)
         Reflection coefficients, |k_j| < 1.
-    a : numpy.ndarray, shape (k, p + 1)
-        The polynomials A(z) = 1 + Σ a_i z^i they give (Levinson's step-up).
 
     Returns
     -------
@@ -1166,13 +1164,14 @@ def _square_sums(reflection: np.ndarray, a: np.ndarray) -> np.ndarray:
     count, p = reflection.shape
     rho = np.zeros((count, p))
     rho[:, 0] = 1.0
-    step_up = np.ones((count, 1))  # a^{(m−1)}, its E_{m−1} in ``error``
+    a = np.ones((count, 1))  # a^{(m−1)}, its E_{m−1} in ``error``; a^{(p)} at the end
     error = np.ones(count)
-    for m in range(1, p):
+    for m in range(1, p + 1):
         k_m = reflection[:, m - 1]
-        rho[:, m] = -k_m * error - np.sum(step_up[:, 1:] * rho[:, m - 1 : 0 : -1], axis=1)
-        step_up = np.concatenate([step_up, np.zeros((count, 1))], axis=1)
-        step_up = step_up + k_m[:, None] * step_up[:, ::-1]
+        if m < p:
+            rho[:, m] = -k_m * error - np.sum(a[:, 1:] * rho[:, m - 1 : 0 : -1], axis=1)
+        a = np.concatenate([a, np.zeros((count, 1))], axis=1)
+        a = a + k_m[:, None] * a[:, ::-1]  # Levinson's step-up
         error = error * (1.0 - k_m**2)
     state = rho[:, ::-1]  # X_{p−1} = (ρ(p − 1), …, ρ(0))
     power = np.zeros((count, p, p))

@@ -60,6 +60,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/calibrated_rule.py
 	$(BIN)/python benchmarks/filters.py
 	$(BIN)/python benchmarks/libraries.py
+	$(BIN)/python benchmarks/heldout_filters.py
 	$(BIN)/python benchmarks/cv_kf_600.py
 	$(BIN)/python benchmarks/memory.py --quick
 	$(BIN)/python benchmarks/memory.py --quick --windows 13 --lengths 50,300

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections import Counter
 
 import numpy as np
@@ -937,10 +938,14 @@ def test_a_claim_that_shrinks_as_the_errors_grow_names_no_bias_beyond_the_level(
     asymmetric) in at most α + 2 s.e. (5 measured), and the noise verdict stays: optimism
     in 78 either way (86 segments hold a burst)."""
     rng = np.random.default_rng(5)
-    labels = Counter()
+    labels, short = Counter(), []
     for k in range(100):
         e, cov = _collapsing(300, rng)
-        labels[diagnose_errors(e, cov, rng=k).label] += 1
+        x = diagnose_errors(e, cov, rng=k)
+        labels[x.label] += 1
+        short += re.findall(r"mean test[^;]* degrees of freedom, fewer than", x.reason or "")
+    # a mean test left without degrees of freedom names the claim that follows the errors
+    assert short and all("a claim that shrinks where the errors grow" in r for r in short)
     biased = sum(n for label, n in labels.items() if label.location is not None)
     assert biased <= 100 * (0.05 + 2 * math.sqrt(0.05 * 0.95 / 100)), labels
     optimism = sum(n for label, n in labels.items() if label.value.startswith("optimism"))

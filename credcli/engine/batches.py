@@ -325,6 +325,10 @@ class MeanTest:
         confidence region).
     t2_per_f : float, default nan
         T² = t2_per_f · F: the confidence region's radius.
+    weights_follow : float, default 1
+        Under a dependence model, the largest r of :func:`claim_following_errors` (the
+        scores vary r× as much as the model says, the claim shrinking where the errors
+        grow); 1 where no direction's weights follow the errors' size.
     """
 
     statistic: float
@@ -333,6 +337,7 @@ class MeanTest:
     batches: int
     spread: float = math.nan
     t2_per_f: float = math.nan
+    weights_follow: float = 1.0
 
     def bias_bound(self, norm: float, level: float) -> float:
         """An upper bound on ‖μ‖ in σ over the mean's confidence region.
@@ -723,6 +728,7 @@ def memory_mean_test(
     ratio_units = whitened_unit / unit
     cov = np.zeros((d, d))
     dof_var = math.inf
+    follow = 1.0
     for series, rows in memory.pooled_groups():  # those that share a model: one variance
         expected, variance = series.centred_square_moments(n)
         gamma = sum(float(y[:, i] @ y[:, i]) for i in rows) / (expected * len(rows))
@@ -736,6 +742,7 @@ def memory_mean_test(
                 np.einsum("ni,ni->n", m, m), y[:, i], square_ratio
             )
             dof_var = min(dof_var, dof_weighted)
+            follow = max(follow, inflation)
             cov += gamma * inflation * toeplitz_form(m, window)
     cov = 0.5 * (cov + cov.T)
     total = residuals.scores.sum(axis=0) / unit
@@ -750,8 +757,8 @@ def memory_mean_test(
     cov_mean = np.linalg.solve(precision, np.linalg.solve(precision, cov).T)  # in ratio²
     stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None)) * ratio  # exact: a power of two
     if dof < 1.0:
-        return MeanTest(math.nan, (float(d), dof), math.nan, 0), stderr
+        return MeanTest(math.nan, (float(d), dof), math.nan, 0, weights_follow=follow), stderr
     f = t2 / d
     p = float(special.fdtrc(d, dof, f)) if math.isfinite(f) else 0.0
     spread = mean_spread(cov, precision, ratio * unit, n)
-    return MeanTest(f, (float(d), dof), p, 0, spread, float(d)), stderr
+    return MeanTest(f, (float(d), dof), p, 0, spread, float(d), follow), stderr

@@ -1140,9 +1140,16 @@ def memory_evidence(
         scale_reason = None
     why_not = None
     if not mean.dof[1] >= MIN_MEAN_DOF:
+        cause = f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) leaves"
+        if mean.weights_follow > 1.0:  # batches.claim_following_errors
+            cause = (
+                f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) and a claim "
+                "that shrinks where the errors grow (the GLS sum varies "
+                f"{mean.weights_follow:.3g}× as much as the memory alone says, and a few "
+                "epochs hold it) leave"
+            )
         why_not = (
-            f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) leaves it "
-            f"{max(mean.dof[1], 0.0):.3g} degrees of freedom, fewer than {MIN_MEAN_DOF}"
+            f"{cause} it {max(mean.dof[1], 0.0):.3g} degrees of freedom, fewer than {MIN_MEAN_DOF}"
         )
         mean = None
     block = memory.block_length(MEMORY_BLOCK_LOSS)

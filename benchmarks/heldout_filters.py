@@ -594,14 +594,15 @@ def _table(problem: Problem, index: int, runs: int, seed: int) -> dict:
         eff = [d.effective_n for d in diagnoses if d.effective_n is not None]
         eff_med = f"{np.median(eff):.0f}" if eff else "-"
         shown = ", ".join(f"{lab} {n}" for lab, n in labels.most_common())
-        anees_case = _consistency(arrays)[0]
+        checked = _consistency(arrays)
+        anees_case = checked[0]
         print(
             f"  {case:<10}{want:<11}{right:>4}/{runs:<2}{partial:>8}{insufficient:>8}{wrong:>7}"
             f"{eff_med:>9}{anees_case:>7.2f}{seconds:>7.1f}  {shown}"
         )
         tallies[case] = (right, insufficient, partial, wrong)
         if case == "right":
-            consistency = _consistency(arrays)
+            consistency = checked
         if case == "bias":
             bias_sig, bias_spread = _bias_effect(arrays)
     anees, se, ratio = consistency

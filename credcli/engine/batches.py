@@ -656,8 +656,9 @@ def claim_following_errors(
     if not (spread > 0 and following > FOLLOWING_SIGNIFICANCE * math.sqrt(spread)):
         return 1.0, math.inf
     weighted = weight * squares
-    ratio = float(weighted.sum()) * weight.size / (total_weight * total_square)
-    return ratio, 3.0 * float(weighted.sum()) ** 2 / (float(weighted @ weighted) * square_ratio)
+    total_weighted = float(weighted.sum())
+    ratio = total_weighted * weight.size / (total_weight * total_square)
+    return ratio, 3.0 * total_weighted**2 / (float(weighted @ weighted) * square_ratio)
 
 
 def memory_mean_test(

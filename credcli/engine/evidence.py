@@ -1142,9 +1142,8 @@ def memory_evidence(
     if not mean.dof[1] >= MIN_MEAN_DOF:
         cause = f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) leaves"
         if mean.weights_follow > 1.0:  # batches.claim_following_errors
-            cause = (
-                f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) and a claim "
-                "that shrinks where the errors grow (the GLS sum varies "
+            cause = cause.removesuffix(" leaves") + (
+                " and a claim that shrinks where the errors grow (the GLS sum varies "
                 f"{mean.weights_follow:.3g}× as much as the memory alone says, and a few "
                 "epochs hold it) leave"
             )

@@ -585,6 +585,76 @@ cross-lag term must, ``scale.CROSS_SIGNIFICANCE``): below it the covariation is 
 which would only widen the region and take degrees of freedom from the test."""
 
 
+def left_out_residuals(
+    u: np.ndarray, inverse: np.ndarray, precision: np.ndarray, directions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Each epoch's leverage along each principal direction, and the whitened GLS
+    residuals as the errors left out of the fit.
+
+    The GLS mean's hat matrix has the blocks H_kk = F_k P⁻¹ F_k, P = Σ_j W_j (Hoaglin &
+    Welsch 1978); its trace, summed over the epochs, is d. h_{k,i} = v_iᵀ H_kk v_i is
+    epoch k's share of the information along the principal direction v_i: the same under
+    any change of the state's coordinates or units, where the scores' norm ‖F_k v_i‖² is
+    ruled by the state component of the smallest claimed variance, and for a claim of one
+    shape whose size changes proportional to that norm. A claimed covariance near
+    singular at one epoch gives that epoch a leverage near 1 along its short axis, the GLS
+    mean there follows that epoch, and its residual u_k is near 0 whatever its error; left
+    out, ũ_k = (I − H_kk)⁻¹ u_k = F_k (e_k − μ̂_{(k)}) is its error against the GLS mean
+    of the others (the jackknife's residual, as in MacKinnon & White's 1985 HC3 reading of
+    White's estimator). A smoother's marginal near singular at one step
+    (``benchmarks/heldout_filters.py``'s ISAM2, seed 1) held 88 % of the information
+    along one axis, and its 12σ error there named a bias of the whole run.
+
+    Parameters
+    ----------
+    u : numpy.ndarray, shape (N, d)
+        The whitened GLS residuals u_k = F_k (e_k − μ̂).
+    inverse : numpy.ndarray, shape (N, d, d)
+        The whitening factors F_k = Σ_k^{-1/2}.
+    precision : numpy.ndarray, shape (d, d)
+        P = Σ_k F_k², the GLS precision sum (scaled here by a power of two).
+    directions : numpy.ndarray, shape (d, d)
+        The principal directions V (columns).
+
+    Returns
+    -------
+    leverage : numpy.ndarray, shape (N, d)
+        h_{k,i}, each in [0, 1].
+    left_out : numpy.ndarray, shape (N, d)
+        ũ_k in the principal directions, ũ_k V.
+
+    References
+    ----------
+    D. C. Hoaglin and R. E. Welsch, "The hat matrix in regression and ANOVA", Am. Stat.
+    32(1), 1978.
+    J. G. MacKinnon and H. White, "Some heteroskedasticity-consistent covariance matrix
+    estimators with improved finite sample properties", J. Econometrics 29(3), 1985.
+
+    Examples
+    --------
+    Two epochs of d = 1, the second claiming four times the precision: leverages 1/5 and
+    4/5, and each residual left out is its error against the other's.
+
+    >>> h, left = left_out_residuals(np.array([[0.8], [-0.4]]), np.array([[[1.0]], [[2.0]]]),
+    ...                              np.array([[5.0]]), np.eye(1))
+    >>> h.ravel().round(12).tolist(), left.ravel().round(12).tolist()
+    ([0.2, 0.8], [1.0, -2.0])
+    """
+    n, d = u.shape
+    unit = power_of_two_unit(precision)
+    reach = np.linalg.inv(precision / unit)  # P⁻¹ in 1/unit, exact scaling
+    leverage = np.empty((n, d))
+    left = np.empty((n, d))
+    for part in linalg.epoch_chunks(n):  # an N × d × d product at a time, not held
+        f = inverse[part]
+        hat = f @ reach @ (f / unit)  # F_k P⁻¹ F_k, of order 1 whatever the units
+        leverage[part] = np.einsum("nab,ai,bi->ni", hat, directions, directions)
+        hat *= -1.0
+        hat[:, np.arange(d), np.arange(d)] += 1.0
+        left[part] = np.linalg.solve(hat, u[part][..., None])[..., 0] @ directions
+    return leverage, left
+
+
 def claim_following_errors(
     weight: np.ndarray, errors: np.ndarray, square_ratio: float
 ) -> tuple[float, float]:
@@ -595,8 +665,12 @@ def claim_following_errors(
     The model's variance of Σ_k m_k y_k (y the whitened errors along the direction, m_k
     their score weights) is γ Σ_{k,l} ρ(k − l) m_k m_lᵀ: every epoch's y with the same
     variance γ. Where the claim shrinks as the errors grow (a particle filter whose cloud
-    collapses, a filter that diverges), the epochs with the largest weights w_k = ‖m_k‖²
-    are those with the largest errors, and that form is too small. White's (1980)
+    collapses, a filter that diverges, a marginal near singular at one step), the epochs
+    with the largest weights are those with the largest errors, and that form is too
+    small. The weights are the epochs' leverages w_k = h_k along the direction and the
+    errors their GLS residuals left out (:func:`left_out_residuals`), so that an epoch the
+    GLS mean follows shows its error, not a residual near 0; for a claim of one shape whose
+    size changes, w_k ∝ ‖m_k‖² (session 41's weights, unchanged in r and ν). White's (1980)
     heteroscedasticity-consistent reading of its lag-0 term, Σ_k w_k y_k² against
     γ̂ Σ_k w_k with γ̂ = Σ_k y_k²/N, gives the ratio
 
@@ -622,10 +696,9 @@ def claim_following_errors(
     Parameters
     ----------
     weight : numpy.ndarray, shape (N,)
-        w_k = ‖m_k‖², the score weights' squared norms.
+        w_k, the epochs' leverages along the direction (any positive multiple).
     errors : numpy.ndarray, shape (N,)
-        y_k, the whitened errors along the direction (squared here, and only where the
-        weights vary: a constant claim makes no array of N squares).
+        y_k, the whitened residuals along the direction, left out of the fit.
     square_ratio : float
         τ₂, the variance of the Gaussian centred sum of squares per epoch over 2E
         (:meth:`credcli.engine.memory.SeriesMemory.centred_square_moments`).
@@ -694,7 +767,8 @@ def memory_mean_test(
     of freedom of the variance estimate (a shared γ̂'s summed over its directions), both
     of the least certain model. Where the claim varies with the errors' size, a
     direction's form is widened, and ν_γ lowered, as :func:`claim_following_errors` reads
-    its scores. Each direction's term is then a squared t statistic, and
+    its epochs' leverages and residuals left out (:func:`left_out_residuals`). Each
+    direction's term is then a squared t statistic, and
     one denominator shared by the d terms, as in F(d, ν), makes the sum's upper tail
     heavier than independent ones: conservative, exact for d = 1. Hotelling's
     (ν − d + 1)T²/(νd) ~ F(d, ν − d + 1), which this test used before session 34, charged
@@ -727,6 +801,17 @@ def memory_mean_test(
     whitened_unit = power_of_two_unit(u)
     y = (u / whitened_unit) @ memory.directions
     ratio_units = whitened_unit / unit
+    precision_unit = power_of_two_unit(residuals.precision_sum)
+    precision = residuals.precision_sum / precision_unit
+    # each epoch's leverage and residual left out, where the claim varies (a claim the
+    # same at every epoch gives every epoch one weight, which cannot follow the errors)
+    if n and np.any(np.ptp(inverse, axis=0)):
+        leverage, left_out = left_out_residuals(
+            u, inverse, residuals.precision_sum, memory.directions
+        )
+        left_out /= whitened_unit  # in y's unit
+    else:
+        leverage = left_out = None
     cov = np.zeros((d, d))
     dof_var = math.inf
     follow = 1.0
@@ -739,11 +824,14 @@ def memory_mean_test(
         square_ratio = variance / (2.0 * expected)
         for i in rows:
             m = np.einsum("nji,j->ni", inverse, memory.directions[:, i]) * ratio_units
-            inflation, dof_weighted = claim_following_errors(
-                np.einsum("ni,ni->n", m, m), y[:, i], square_ratio
-            )
-            dof_var = min(dof_var, dof_weighted)
-            follow = max(follow, inflation)
+            if leverage is not None:
+                inflation, dof_weighted = claim_following_errors(
+                    leverage[:, i], left_out[:, i], square_ratio
+                )
+                dof_var = min(dof_var, dof_weighted)
+                follow = max(follow, inflation)
+            else:
+                inflation = 1.0
             cov += gamma * inflation * toeplitz_form(m, window)
     cov = 0.5 * (cov + cov.T)
     total = residuals.scores.sum(axis=0) / unit
@@ -752,8 +840,6 @@ def memory_mean_test(
         t2 = float(total @ np.linalg.solve(cov, total))
     except np.linalg.LinAlgError:
         t2 = math.inf if np.any(total != 0) else 0.0
-    precision_unit = power_of_two_unit(residuals.precision_sum)
-    precision = residuals.precision_sum / precision_unit
     ratio = unit / precision_unit  # (Σ W)⁻¹ Cov(G) (Σ W)⁻¹ in exact powers of two
     cov_mean = np.linalg.solve(precision, np.linalg.solve(precision, cov).T)  # in ratio²
     stderr = np.sqrt(np.clip(np.diag(cov_mean), 0.0, None)) * ratio  # exact: a power of two

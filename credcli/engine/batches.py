@@ -670,7 +670,7 @@ def claim_following_errors(
     small. The weights are the epochs' leverages w_k = h_k along the direction and the
     errors their GLS residuals left out (:func:`left_out_residuals`), so that an epoch the
     GLS mean follows shows its error, not a residual near 0; for a claim of one shape whose
-    size changes, w_k ∝ ‖m_k‖² (session 41's weights, unchanged in r and ν). White's (1980)
+    size changes, w_k ∝ ‖m_k‖², session 41's weights. White's (1980)
     heteroscedasticity-consistent reading of its lag-0 term, Σ_k w_k y_k² against
     γ̂ Σ_k w_k with γ̂ = Σ_k y_k²/N, gives the ratio
 
@@ -691,7 +691,9 @@ def claim_following_errors(
     the claim shrinks 8×, zero mean, 300 epochs: a bias named in 33 of 100 segments
     without this reading, 5 with it (``tests/test_dependence_verdicts.py``); a bootstrap
     particle filter with its noises 4× too small (``benchmarks/heldout_filters.py``'s
-    ``numpy-pf-range3``, 60 runs at seed 7): 43 → 1.
+    ``numpy-pf-range3``, 60 runs at seed 7): 43 → 1 (session 41, its weights the scores'
+    norms); with leverages and residuals left out (session 42) 5 and 1, the particle
+    filter's location untested in 56 of 60 (51).
 
     Parameters
     ----------

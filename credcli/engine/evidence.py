@@ -1066,12 +1066,16 @@ def memory_evidence(
     (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or
     adjacent blocks. The scale is untested when the model has fewer than
     :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
-    :data:`MIN_MEAN_DOF`. Where the model has an alternative with more memory (a fractional
-    model the data support and BIC does not take, or an ARMA(p, 1) they prefer to the
-    sieve: :attr:`credcli.engine.memory.Memory.alternative`), a finding must hold under it
-    as well: the scale's and the directions' intervals are the
-    union of the two models' (:func:`credcli.engine.scale.under_either`), and a bias the
-    mean test finds must be found under both (:func:`_held_under_alternative`).
+    :data:`MIN_MEAN_DOF`; where a few epochs hold the GLS weights
+    (:func:`credcli.engine.batches.claim_following_errors`), the unweighted whitened sum's
+    test (:func:`credcli.engine.batches.whitened_mean_test`) stands in where it has that
+    many and finds no bias at the location's level, so that "no bias beyond the margin"
+    can still be claimed (it never names one). Where the model has an alternative with
+    more memory (a fractional model the data support and BIC does not take, or an
+    ARMA(p, 1) they prefer to the sieve: :attr:`credcli.engine.memory.Memory.alternative`),
+    a finding must hold under it as well: the scale's and the directions' intervals are
+    the union of the two models' (:func:`credcli.engine.scale.under_either`), and a bias
+    the mean test finds must be found under both (:func:`_held_under_alternative`).
 
     Parameters
     ----------
@@ -1139,6 +1143,13 @@ def memory_evidence(
             directions = directions_under_either(directions, other)
         scale_reason = None
     why_not = None
+    if not mean.dof[1] >= MIN_MEAN_DOF and mean.weights_follow > 1.0:
+        # a few epochs hold the GLS weights: the unweighted whitened sum answers "no bias
+        # beyond the margin" where it has the degrees of freedom and finds no bias
+        plain, centre, centre_stderr, norm = batches.whitened_mean_test(gls, memory, _read(inverse))
+        if plain.dof[1] >= MIN_MEAN_DOF and not plain.pvalue < config.location_level:
+            mean = plain
+            scale = replace(scale, bias=centre, bias_stderr=centre_stderr, bias_mahalanobis=norm)
     if not mean.dof[1] >= MIN_MEAN_DOF:
         cause = f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) leaves"
         if mean.weights_follow > 1.0:  # batches.claim_following_errors

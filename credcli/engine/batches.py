@@ -752,10 +752,10 @@ def whitened_mean_test(
     :func:`memory_mean_test`'s). T² = (Σ s)ᵀ Cov(Σ s)⁻¹ (Σ s), T²/d against F(d, ν),
     1/ν = 1/ν_Ω + 1/ν_γ with ν_γ the Satterthwaite degrees of freedom of the sum of
     squares, 3(Σ y²)²/(τ₂ Σ y⁴), which the bursts of a collapsing particle cloud keep
-    few but not as few as the GLS sum's. Less efficient than the GLS test where the claim
-    is right, as where it only varies; it stands in for that test only where the weights
-    leave it none, and only to answer "no bias beyond the margin" (:mod:`credcli.engine.
-    evidence`).
+    few but not as few as the GLS sum's. Where the claim is right, or only varies, it is
+    less efficient than the GLS test; it stands in for that test only where the weights
+    leave it none, and only to answer "no bias beyond the margin"
+    (:func:`credcli.engine.evidence.memory_evidence`).
 
     Parameters
     ----------

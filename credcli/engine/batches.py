@@ -798,9 +798,7 @@ def whitened_mean_test(
         dof_var = min(
             dof_var, 3.0 * float(pooled.sum()) ** 2 / (square_ratio * float(pooled @ pooled))
         )
-        window = np.asarray(series.test_window(n), dtype=float)[:n]
-        lags = np.arange(window.size)
-        kernel = float(n * window[0] + 2.0 * np.sum((n - lags[1:]) * window[1:]))
+        kernel = n * series.mean_ratio(n)  # Σ_{k,l} ρ(k − l), antipersistence floored
         for i in rows:
             v = memory.directions[:, i]
             cov += gamma * kernel * np.outer(v, v)

@@ -1067,10 +1067,9 @@ def memory_evidence(
     adjacent blocks. The scale is untested when the model has fewer than
     :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
     :data:`MIN_MEAN_DOF`; where a few epochs hold the GLS weights
-    (:func:`credcli.engine.batches.claim_following_errors`), the unweighted whitened sum's
-    test (:func:`credcli.engine.batches.whitened_mean_test`) stands in where it has that
-    many and finds no bias at the location's level, so that "no bias beyond the margin"
-    can still be claimed (it never names one). Where the model has an alternative with
+    (:func:`credcli.engine.batches.claim_following_errors`), only the test of the claim
+    as its local misfit corrects it answers "no bias beyond the margin"
+    (:func:`_corrected_claim_location`; it never names a bias). Where the model has an alternative with
     more memory (a fractional model the data support and BIC does not take, or an
     ARMA(p, 1) they prefer to the sieve: :attr:`credcli.engine.memory.Memory.alternative`),
     a finding must hold under it as well: the scale's and the directions' intervals are
@@ -1143,13 +1142,8 @@ def memory_evidence(
             directions = directions_under_either(directions, other)
         scale_reason = None
     why_not = None
-    if not mean.dof[1] >= MIN_MEAN_DOF and mean.weights_follow > 1.0:
-        # a few epochs hold the GLS weights: the unweighted whitened sum answers "no bias
-        # beyond the margin" where it has the degrees of freedom and finds no bias
-        plain, centre, centre_stderr, norm = batches.whitened_mean_test(gls, memory, _read(inverse))
-        if plain.dof[1] >= MIN_MEAN_DOF and not plain.pvalue < config.location_level:
-            mean = plain
-            scale = replace(scale, bias=centre, bias_stderr=centre_stderr, bias_mahalanobis=norm)
+    if mean.weights_follow > 1.0:  # a few epochs hold the GLS weights
+        mean, scale = _corrected_claim_location(gls, _read(inverse), memory, mean, scale, config)
     if not mean.dof[1] >= MIN_MEAN_DOF:
         cause = f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) leaves"
         if mean.weights_follow > 1.0:  # batches.claim_following_errors
@@ -1167,6 +1161,59 @@ def memory_evidence(
     return ModelEvidence(
         scale, scale_reason, directions, _held_under_alternative(plan, gls, memory, inverse)
     )
+
+
+def _corrected_claim_location(
+    gls, inverse: np.ndarray, memory: Memory, mean, scale: ScaleTest, config: DiagnosisConfig
+):
+    """The mean test that answers "no bias beyond the margin" where the claim follows the
+    errors' size (``mean.weights_follow`` > 1), and the scale test with its bias fields.
+
+    The whitened errors are corrected by the claim's local misfit
+    (:func:`credcli.engine.batches.local_misfit`, its window from ``memory``'s τ), a model
+    is fitted on them (:func:`segment_memory_of`), and their unweighted sum is tested
+    (:func:`credcli.engine.batches.whitened_mean_test`). Where it has
+    :data:`MIN_MEAN_DOF` degrees of freedom and finds no bias at the location's level it
+    is the mean test, and the scale's bias fields are its centre, standard errors and
+    norm: it never names a misfit. Otherwise the GLS test ``mean`` stays to name a bias,
+    without its region (``spread`` NaN): one test answers "no bias", not whichever of two
+    excludes the margin.
+
+    Parameters
+    ----------
+    gls : GlsResiduals
+        The segment's GLS residuals.
+    inverse : numpy.ndarray, shape (N, d, d)
+        The whitening factors F_k.
+    memory : Memory
+        The model the GLS test was referred to (its τ sets the misfit's window).
+    mean : MeanTest
+        The GLS test under ``memory``.
+    scale : ScaleTest
+        The scale test, whose bias fields are the GLS mean's.
+    config : DiagnosisConfig
+        The configuration (its location level).
+
+    Returns
+    -------
+    mean : MeanTest
+        The corrected claim's test, or ``mean`` without its region.
+    scale : ScaleTest
+        ``scale`` with the bias fields of the test returned.
+    """
+    s = gls.whitened + np.einsum("nij,j->ni", inverse, gls.mean)
+    misfit = batches.local_misfit(s, float(np.max(memory.variance_ratios)))
+    root = 1.0 / np.sqrt(misfit)
+    corrected = mean_free(s * root[:, None], inverse * root[:, None, None], overwrite=True)
+    try:
+        model = segment_memory_of(corrected, np.einsum("ni,ni->n", corrected, corrected))
+    except NoFiniteMemory:
+        model = None
+    if model is not None:
+        test, centre, stderr, norm = batches.whitened_mean_test(gls, model, inverse, misfit)
+        if test.dof[1] >= MIN_MEAN_DOF and not test.pvalue < config.location_level:
+            return test, replace(scale, bias=centre, bias_stderr=stderr, bias_mahalanobis=norm)
+    return replace(mean, spread=math.nan), scale
 
 
 def _held_if_white(

@@ -612,6 +612,13 @@ def inconclusive_location(evidence: Evidence) -> str | None:
     bound = mean.bias_bound(evidence.scale.bias_mahalanobis, evidence.mean_level)
     if bound < margin:
         return None
+    if math.isnan(bound) and mean.weights_follow > 1.0:  # evidence._corrected_claim_location
+        return (
+            f"location inconclusive: the bias is {evidence.scale.bias_mahalanobis:.3g}σ, and no "
+            f"test excludes one of {margin:.3g}σ (the claim shrinks where the errors grow, so "
+            "a few epochs rule the GLS test's variance, and the test of the claim as its local "
+            "misfit corrects it finds a shift or has too few degrees of freedom)"
+        )
     return (
         f"location inconclusive: the bias is {evidence.scale.bias_mahalanobis:.3g}σ and its "
         f"{1 - evidence.mean_level:.4g} confidence region reaches {bound:.3g}σ, which does "

@@ -1069,12 +1069,13 @@ def memory_evidence(
     :data:`MIN_MEAN_DOF`; where a few epochs hold the GLS weights
     (:func:`credcli.engine.batches.claim_following_errors`), only the test of the claim
     as its local misfit corrects it answers "no bias beyond the margin"
-    (:func:`_corrected_claim_location`; it never names a bias). Where the model has an alternative with
-    more memory (a fractional model the data support and BIC does not take, or an
-    ARMA(p, 1) they prefer to the sieve: :attr:`credcli.engine.memory.Memory.alternative`),
-    a finding must hold under it as well: the scale's and the directions' intervals are
-    the union of the two models' (:func:`credcli.engine.scale.under_either`), and a bias
-    the mean test finds must be found under both (:func:`_held_under_alternative`).
+    (:func:`_corrected_claim_location`; it never names a bias). Where the model has an
+    alternative with more memory (a fractional model the data support and BIC does not
+    take, or an ARMA(p, 1) they prefer to the sieve:
+    :attr:`credcli.engine.memory.Memory.alternative`), a finding must hold under it as
+    well: the scale's and the directions' intervals are the union of the two models'
+    (:func:`credcli.engine.scale.under_either`), and a bias the mean test finds must be
+    found under both (:func:`_held_under_alternative`).
 
     Parameters
     ----------

@@ -595,9 +595,11 @@ def inconclusive_location(evidence: Evidence) -> str | None:
     Returns
     -------
     str or None
-        The reason when no mean test ran (the ELT has no margin), or when the mean's
+        The reason when no mean test ran (the ELT has no margin), when the mean's
         1 − ``mean_level`` confidence region reaches :func:`bias_margin` (in the σ of the
-        covariance corrected by κ̂ where κ̂ > 1); None when it excludes that bias.
+        covariance corrected by κ̂ where κ̂ > 1), or when the test that ran carries no
+        region (a GLS test whose weights follow the errors' size,
+        :func:`credcli.engine.evidence.memory_evidence`); None when it excludes that bias.
     """
     mean = evidence.mean_test
     # in the σ of the covariance as the scale's answer corrects it (κ̂ > 1): the bias that

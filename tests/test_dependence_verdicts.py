@@ -1033,10 +1033,11 @@ def test_one_epoch_whose_claim_is_near_singular_names_no_bias_beyond_the_level()
     weights seemed not to follow the errors (their norm is ruled by the small third
     component), so a location misfit was named in 46 of 60 segments of 300 epochs
     (session 41's engine). Read by leverages and left-out residuals
-    (batches.left_out_residuals), in at most α + 2 s.e. (3 measured); the GLS test then
-    has few degrees of freedom, and the whitened mean test (batches.whitened_mean_test)
-    answers the location in all but 7 of 60 (51 untested without it). With a real 1σ
-    bias as well the location misfit is still found (39 of 40 measured; floor 36)."""
+    (batches.left_out_residuals), in at most α + 2 s.e. (4 measured); the GLS test then
+    has few degrees of freedom, and the whitened mean test of the claim corrected by its
+    local misfit (evidence._corrected_claim_location) answers the location in all but 1
+    of 60 (7 with the claim as given, session 42; 51 untested without either). With a
+    real 1σ bias as well the location misfit is still found (39 of 40 measured; floor 36)."""
     rng = np.random.default_rng(9)
     credible, biased, untested = Counter(), Counter(), 0
     for k in range(60):
@@ -1176,7 +1177,7 @@ def test_a_claim_that_collapses_where_the_errors_do_not_has_its_location_answere
     claim corrected by its local misfit (evidence._corrected_claim_location): untested in
     at most 10 (0 measured), a misfit in at most α + 2 s.e. (3, asymmetric, from the ELT).
     A bias of 1.7 along x, beyond the margin (√2 in the claim's mean metric scaled by
-    κ̂): "no bias" claimed in none (0 measured), a location misfit found in at least 50 (57)."""
+    κ̂): "no bias" claimed in none (0 measured), a location misfit found in at least 50 (58)."""
     rng = np.random.default_rng(3)
     credible = Counter()
     untested = 0

@@ -1067,11 +1067,11 @@ def memory_evidence(
     adjacent blocks. The scale is untested when the model has fewer than
     :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
     :data:`MIN_MEAN_DOF`; where a few epochs hold the GLS weights
-    (:func:`credcli.engine.batches.claim_following_errors`), only the test of the claim
-    as its local misfit corrects it answers "no bias beyond the margin"
-    (:func:`_corrected_claim_location`; it never names a bias). Where the model has an
-    alternative with more memory (a fractional model the data support and BIC does not
-    take, or an ARMA(p, 1) they prefer to the sieve:
+    (:func:`credcli.engine.batches.claim_following_errors`), the test of the claim as its
+    local misfit corrects it answers "no bias beyond the margin" where its region is the
+    narrower (:func:`_corrected_claim_location`; it never names a bias). Where the model
+    has an alternative with more memory (a fractional model the data support and BIC does
+    not take, or an ARMA(p, 1) they prefer to the sieve:
     :attr:`credcli.engine.memory.Memory.alternative`), a finding must hold under it as
     well: the scale's and the directions' intervals are the union of the two models'
     (:func:`credcli.engine.scale.under_either`), and a bias the mean test finds must be
@@ -1173,12 +1173,15 @@ def _corrected_claim_location(
     The whitened errors are corrected by the claim's local misfit
     (:func:`credcli.engine.batches.local_misfit`, its window from ``memory``'s τ), a model
     is fitted on them (:func:`segment_memory_of`), and their unweighted sum is tested
-    (:func:`credcli.engine.batches.whitened_mean_test`). Where it has
-    :data:`MIN_MEAN_DOF` degrees of freedom and finds no bias at the location's level it
-    is the mean test, and the scale's bias fields are its centre, standard errors and
-    norm: it never names a misfit. Otherwise the GLS test ``mean`` stays to name a bias,
-    without its region (``spread`` NaN): one test answers "no bias", not whichever of two
-    excludes the margin.
+    (:func:`credcli.engine.batches.whitened_mean_test`). Of the two tests with
+    :data:`MIN_MEAN_DOF` degrees of freedom, the one whose confidence region is the
+    narrower (its ``spread``, which the variance estimate sets, not the centre) answers
+    "no bias": one test chosen before its answer is read, not whichever of two excludes
+    the margin. Where the GLS test answers, it stays as it is. Where the corrected one
+    does and finds no bias at the location's level, it is the mean test, and the scale's
+    bias fields are its centre, standard errors and norm; where it finds one, the GLS test
+    stays to name a bias, without its region (``spread`` NaN): the corrected test never
+    names a misfit, and no "no bias" is claimed.
 
     Parameters
     ----------
@@ -1198,7 +1201,7 @@ def _corrected_claim_location(
     Returns
     -------
     mean : MeanTest
-        The corrected claim's test, or ``mean`` without its region.
+        ``mean``, the corrected claim's test, or ``mean`` without its region.
     scale : ScaleTest
         ``scale`` with the bias fields of the test returned.
     """
@@ -1210,11 +1213,16 @@ def _corrected_claim_location(
         model = segment_memory_of(corrected, np.einsum("ni,ni->n", corrected, corrected))
     except NoFiniteMemory:
         model = None
-    if model is not None:
-        test, centre, stderr, norm = batches.whitened_mean_test(gls, model, inverse, misfit)
-        if test.dof[1] >= MIN_MEAN_DOF and not test.pvalue < config.location_level:
-            return test, replace(scale, bias=centre, bias_stderr=stderr, bias_mahalanobis=norm)
-    return replace(mean, spread=math.nan), scale
+    if model is None:
+        return mean, scale
+    test, centre, stderr, norm = batches.whitened_mean_test(gls, model, inverse, misfit)
+    if not test.dof[1] >= MIN_MEAN_DOF:
+        return mean, scale
+    if mean.dof[1] >= MIN_MEAN_DOF and not test.spread < mean.spread:
+        return mean, scale  # the GLS region is the narrower: the GLS test answers
+    if test.pvalue < config.location_level:  # a shift the GLS test may name; no "no bias"
+        return replace(mean, spread=math.nan), scale
+    return test, replace(scale, bias=centre, bias_stderr=stderr, bias_mahalanobis=norm)
 
 
 def _held_if_white(

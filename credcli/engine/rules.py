@@ -618,8 +618,8 @@ def inconclusive_location(evidence: Evidence) -> str | None:
         return (
             f"location inconclusive: the bias is {evidence.scale.bias_mahalanobis:.3g}σ, and no "
             f"test excludes one of {margin:.3g}σ (the claim shrinks where the errors grow, so "
-            "a few epochs rule the GLS test's variance, and the test of the claim as its local "
-            "misfit corrects it finds a shift or has too few degrees of freedom)"
+            "a few epochs rule the GLS test's variance; the test of the claim as its local "
+            "misfit corrects it, the more precise here, finds a shift the GLS test does not name)"
         )
     return (
         f"location inconclusive: the bias is {evidence.scale.bias_mahalanobis:.3g}σ and its "

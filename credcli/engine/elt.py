@@ -242,6 +242,9 @@ def tested_blocks(n: int, block_length: int, max_epochs: int, runs: int = 1) -> 
     return n_blocks
 
 
+tested_blocks.__test__ = False  # not a test: pytest given a module that imports it collects it
+
+
 def sign_blocks(n: int, block_length: int, runs: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """The sign block of each epoch, and an adjacency key of each block.
 

@@ -1164,16 +1164,51 @@ def memory_evidence(
     )
 
 
+def corrected_claim_test(gls, inverse: np.ndarray, memory: Memory):
+    """The mean test of the claim as its local misfit corrects it
+    (:func:`_corrected_claim_location` reads it).
+
+    κ_k from :func:`credcli.engine.batches.local_misfit` with ``memory``'s τ; the
+    whitened errors and factors divided by √κ_k; a model fitted on the corrected errors
+    less their constants (:func:`segment_memory_of`); their unweighted sum tested under it
+    (:func:`credcli.engine.batches.whitened_mean_test`).
+
+    Parameters
+    ----------
+    gls : GlsResiduals
+        The segment's GLS residuals.
+    inverse : numpy.ndarray, shape (N, d, d)
+        The whitening factors F_k.
+    memory : Memory
+        The segment's model (its τ sets the misfit's window).
+
+    Returns
+    -------
+    tuple or None
+        (test, centre, standard errors, norm) as
+        :func:`credcli.engine.batches.whitened_mean_test` returns them; None where the
+        corrected errors have no finite memory.
+    """
+    s = gls.whitened + np.einsum("nij,j->ni", inverse, gls.mean)
+    misfit = batches.local_misfit(s, float(np.max(memory.variance_ratios)))
+    root = 1.0 / np.sqrt(misfit)
+    corrected = mean_free(s * root[:, None], inverse * root[:, None, None], overwrite=True)
+    try:
+        model = segment_memory_of(corrected, np.einsum("ni,ni->n", corrected, corrected))
+    except NoFiniteMemory:
+        return None
+    return batches.whitened_mean_test(gls, model, inverse, misfit)
+
+
 def _corrected_claim_location(
     gls, inverse: np.ndarray, memory: Memory, mean, scale: ScaleTest, config: DiagnosisConfig
 ):
     """The mean test that answers "no bias beyond the margin" where the claim follows the
     errors' size (``mean.weights_follow`` > 1), and the scale test with its bias fields.
 
-    The whitened errors are corrected by the claim's local misfit
-    (:func:`credcli.engine.batches.local_misfit`, its window from ``memory``'s τ), a model
-    is fitted on them (:func:`segment_memory_of`), and their unweighted sum is tested
-    (:func:`credcli.engine.batches.whitened_mean_test`). Of the two tests with
+    The whitened errors are corrected by the claim's local misfit and their unweighted
+    sum tested under a model fitted on them (:func:`corrected_claim_test`). Of the two
+    tests with
     :data:`MIN_MEAN_DOF` degrees of freedom, the one whose confidence region is the
     narrower (its ``spread``, which the variance estimate sets, not the centre) answers
     "no bias": one test chosen before its answer is read, not whichever of two excludes
@@ -1205,17 +1240,10 @@ def _corrected_claim_location(
     scale : ScaleTest
         ``scale`` with the bias fields of the test returned.
     """
-    s = gls.whitened + np.einsum("nij,j->ni", inverse, gls.mean)
-    misfit = batches.local_misfit(s, float(np.max(memory.variance_ratios)))
-    root = 1.0 / np.sqrt(misfit)
-    corrected = mean_free(s * root[:, None], inverse * root[:, None, None], overwrite=True)
-    try:
-        model = segment_memory_of(corrected, np.einsum("ni,ni->n", corrected, corrected))
-    except NoFiniteMemory:
-        model = None
-    if model is None:
+    corrected = corrected_claim_test(gls, inverse, memory)
+    if corrected is None:
         return mean, scale
-    test, centre, stderr, norm = batches.whitened_mean_test(gls, model, inverse, misfit)
+    test, centre, stderr, norm = corrected
     if not test.dof[1] >= MIN_MEAN_DOF:
         return mean, scale
     if mean.dof[1] >= MIN_MEAN_DOF and not test.spread < mean.spread:

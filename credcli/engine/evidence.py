@@ -1066,10 +1066,12 @@ def memory_evidence(
     (:meth:`credcli.engine.memory.Memory.block_length`), leaving out pairs in the same or
     adjacent blocks. The scale is untested when the model has fewer than
     :data:`MIN_MODEL_DOF` degrees of freedom, the mean test when it leaves fewer than
-    :data:`MIN_MEAN_DOF`; where a few epochs hold the GLS weights
-    (:func:`credcli.engine.batches.claim_following_errors`), the test of the claim as its
-    local misfit corrects it answers "no bias beyond the margin" where its region is the
-    narrower (:func:`_corrected_claim_location`; it never names a bias). Where the model
+    :data:`MIN_MEAN_DOF`, or fewer than
+    :data:`credcli.engine.batches.MIN_HOLDING_EPOCHS` epochs' worth of leverage hold the
+    GLS mean; where a few epochs hold the GLS weights
+    (:func:`credcli.engine.batches.claim_following_errors`, or that floor), the test of
+    the claim as its local misfit corrects it answers "no bias beyond the margin" where its
+    region is the narrower (:func:`_corrected_claim_location`; it never names a bias). Where the model
     has an alternative with more memory (a fractional model the data support and BIC does
     not take, or an ARMA(p, 1) they prefer to the sieve:
     :attr:`credcli.engine.memory.Memory.alternative`), a finding must hold under it as
@@ -1143,11 +1145,18 @@ def memory_evidence(
             directions = directions_under_either(directions, other)
         scale_reason = None
     why_not = None
-    if mean.weights_follow > 1.0:  # a few epochs hold the GLS weights
+    if mean.weights_follow > 1.0 or mean.holding < batches.MIN_HOLDING_EPOCHS:
+        # a few epochs hold the GLS weights
         mean, scale = _corrected_claim_location(gls, _read(inverse), memory, mean, scale, config)
     if not mean.dof[1] >= MIN_MEAN_DOF:
         cause = f"the errors' memory (τ̂ {tau:.3g} epochs, N/τ̂ {n / tau:.3g}) leaves"
-        if mean.weights_follow > 1.0:  # batches.claim_following_errors
+        if mean.holding < batches.MIN_HOLDING_EPOCHS:  # batches.holding_epochs
+            cause = (
+                f"the claim's precision puts the GLS mean on {mean.holding:.3g} epochs' worth "
+                f"of leverage along one direction, fewer than {batches.MIN_HOLDING_EPOCHS}, "
+                "whose variance no model or reading of so few epochs knows: that leaves"
+            )
+        elif mean.weights_follow > 1.0:  # batches.claim_following_errors
             cause = cause.removesuffix(" leaves") + (
                 " and a claim that shrinks where the errors grow (the GLS sum varies "
                 f"{mean.weights_follow:.3g}× as much as the memory alone says, and a few "

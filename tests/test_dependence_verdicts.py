@@ -1033,11 +1033,13 @@ def test_one_epoch_whose_claim_is_near_singular_names_no_bias_beyond_the_level()
     weights seemed not to follow the errors (their norm is ruled by the small third
     component), so a location misfit was named in 46 of 60 segments of 300 epochs
     (session 41's engine). Read by leverages and left-out residuals
-    (batches.left_out_residuals), in at most α + 2 s.e. (4 measured); the GLS test then
-    has few degrees of freedom, and the whitened mean test of the claim corrected by its
-    local misfit (evidence._corrected_claim_location) answers the location in all but 1
-    of 60 (7 with the claim as given, session 42; 51 untested without either). With a
-    real 1σ bias as well the location misfit is still found (39 of 40 measured; floor 36)."""
+    (batches.left_out_residuals), in at most α + 2 s.e. (1 measured; 3 in session 42);
+    the epoch holds most of the GLS mean, whose test is then declined (few degrees of
+    freedom, or fewer than batches.MIN_HOLDING_EPOCHS epochs' worth of leverage), and the
+    whitened mean test of the claim corrected by its local misfit
+    (evidence._corrected_claim_location) answers the location in all but 1 of 60 (7 with
+    the claim as given, session 42; 51 untested without either). With a real 1σ bias as
+    well the location misfit is still found (39 of 40 measured, by the ELT; floor 36)."""
     rng = np.random.default_rng(9)
     credible, biased, untested = Counter(), Counter(), 0
     for k in range(60):

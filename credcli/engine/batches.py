@@ -29,7 +29,7 @@ tenth of the correlation time, so the same K and the same batches in time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -1059,8 +1059,8 @@ def memory_mean_test(
     if holding < MIN_HOLDING_EPOCHS:  # too few epochs hold the mean to know its variance
         dof = 0.0
     if dof < 1.0:
-        declined = MeanTest(math.nan, (float(d), dof), math.nan, 0, weights_follow=follow)
-        return replace(declined, holding=holding), stderr
+        declined = (math.nan, (float(d), dof), math.nan, 0)
+        return MeanTest(*declined, weights_follow=follow, holding=holding), stderr
     f = t2 / d
     p = float(special.fdtrc(d, dof, f)) if math.isfinite(f) else 0.0
     spread = mean_spread(cov, precision, ratio * unit, n)

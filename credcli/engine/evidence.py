@@ -1071,9 +1071,9 @@ def memory_evidence(
     GLS mean; where a few epochs hold the GLS weights
     (:func:`credcli.engine.batches.claim_following_errors`, or that floor), the test of
     the claim as its local misfit corrects it answers "no bias beyond the margin" where its
-    region is the narrower (:func:`_corrected_claim_location`; it never names a bias). Where the model
-    has an alternative with more memory (a fractional model the data support and BIC does
-    not take, or an ARMA(p, 1) they prefer to the sieve:
+    region is the narrower (:func:`_corrected_claim_location`; it never names a bias).
+    Where the model has an alternative with more memory (a fractional model the data
+    support and BIC does not take, or an ARMA(p, 1) they prefer to the sieve:
     :attr:`credcli.engine.memory.Memory.alternative`), a finding must hold under it as
     well: the scale's and the directions' intervals are the union of the two models'
     (:func:`credcli.engine.scale.under_either`), and a bias the mean test finds must be
@@ -1213,7 +1213,9 @@ def _corrected_claim_location(
     gls, inverse: np.ndarray, memory: Memory, mean, scale: ScaleTest, config: DiagnosisConfig
 ):
     """The mean test that answers "no bias beyond the margin" where the claim follows the
-    errors' size (``mean.weights_follow`` > 1), and the scale test with its bias fields.
+    errors' size (``mean.weights_follow`` > 1) or few epochs hold the GLS mean
+    (``mean.holding`` below :data:`credcli.engine.batches.MIN_HOLDING_EPOCHS`), and the
+    scale test with its bias fields.
 
     The whitened errors are corrected by the claim's local misfit and their unweighted
     sum tested under a model fitted on them (:func:`corrected_claim_test`). Of the two

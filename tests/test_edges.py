@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from helpers import LOG, UWB, error_line, run
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 
@@ -409,6 +409,10 @@ def _assert_clean(code: int, err: str, files: dict[Path, bytes]) -> None:
     rows=st.lists(st.lists(_CELL, min_size=0, max_size=10), min_size=0, max_size=14),
     sep=st.sampled_from([",", ";", "\t"]),
 )
+# a repeated segment column in a text table (not pandas' CSV reader, which renames it) once
+# reached the re-reading of names before the check of repeated names: an internal error
+@example(header=["truth_0", "segment", "segment"], rows=[[0.0, 0.0, 0.0]], sep="\t")
+@example(header=["truth_0", "segment", "segment"], rows=[["0", "NA", "NA"]], sep=",")
 def test_random_csv_logs_never_crash(tmp_path, header, rows, sep):
     path = tmp_path / "log.csv"
     lines = [sep.join(header)] + [sep.join(str(c) for c in row) for row in rows]

@@ -257,6 +257,8 @@ def _names_as_written(frame, path: Path, columns: tuple[str, ...]):
     pandas = sys.modules.get("pandas")  # a DataFrame needs it imported: never import it here
     if pandas is None or not isinstance(frame, pandas.DataFrame):
         return frame  # Parquet, read a column at a time: its strings kept
+    if frame.columns.has_duplicates:  # a repeated name: log_from_frame names it
+        return frame
     redo = [c for c in columns if c in frame.columns and frame[c].isna().any()]
     if not redo or path.suffix.lower() in (".parquet", ".pq") or not _plain_csv(path):
         return frame

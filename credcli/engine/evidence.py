@@ -1219,8 +1219,7 @@ def _corrected_claim_location(
 
     The whitened errors are corrected by the claim's local misfit and their unweighted
     sum tested under a model fitted on them (:func:`corrected_claim_test`). Of the two
-    tests with
-    :data:`MIN_MEAN_DOF` degrees of freedom, the one whose confidence region is the
+    tests with :data:`MIN_MEAN_DOF` degrees of freedom, the one whose confidence region is the
     narrower (its ``spread``, which the variance estimate sets, not the centre) answers
     "no bias": one test chosen before its answer is read, not whichever of two excludes
     the margin. Where the GLS test answers, it stays as it is. Where the corrected one

@@ -42,6 +42,8 @@ def assert_text_equivalent(new: Path, old: Path) -> None:
     old_lines = old.read_text().splitlines()
     assert len(new_lines) == len(old_lines), f"{new.name}: line count differs"
     for row, (a_line, b_line) in enumerate(zip(new_lines, old_lines, strict=True), start=1):
+        if a_line == b_line:  # most lines: nothing to weigh token by token
+            continue
         a_tokens, b_tokens = _TOKENS.findall(a_line), _TOKENS.findall(b_line)
         assert len(a_tokens) == len(b_tokens), f"{new.name} line {row}: token count differs"
         for a, b in zip(a_tokens, b_tokens, strict=True):

@@ -910,3 +910,27 @@ def test_a_short_segment_is_screened_alike_in_a_rotated_frame():
         )
         assert tilted.label is aligned.label, seed
         assert tilted.memory.dof == pytest.approx(aligned.memory.dof, rel=1e-9), seed
+
+
+def test_each_spectrum_grid_is_the_fewest_points_that_keep_the_aliasing_down():
+    """The grid of each AR polynomial (padded with zeros to one width, as the bootstrap's
+    refits of several orders are) is the smallest power of two G from 64 to 4,096 with
+    G²r^G <= 1e-18, r the largest root modulus found independently by ``np.roots`` of the
+    polynomial at its own degree; 0 where none is. Degrees 0 to 6, roots from 0 to 0.999."""
+    gen = np.random.default_rng(21)
+    width, rows, want = 8, [], []
+    for degree in [0, 1, 1, 2, 2, 3, 4, 6] * 6:
+        roots = gen.uniform(0.0, 0.999, degree) * np.exp(1j * gen.uniform(0, np.pi, degree))
+        roots = np.r_[
+            roots[: degree // 2], np.conj(roots[: degree // 2]), roots[degree // 2 * 2 :].real
+        ]
+        poly = np.real(np.poly(roots)) if degree else np.array([1.0])
+        rows.append(np.r_[poly, np.zeros(width - poly.size)])
+        r = np.max(np.abs(np.roots(poly))) if degree else 0.0
+        fine = (
+            [g for g in 64 * 2 ** np.arange(7) if 2 * np.log(g) + g * np.log(r) <= np.log(1e-18)]
+            if r > 0
+            else [64]
+        )
+        want.append(fine[0] if fine else 0)
+    np.testing.assert_array_equal(mem._grid_points(np.array(rows)), want)

@@ -1078,14 +1078,24 @@ def _grid_points(a: np.ndarray) -> np.ndarray:
     points, a power of two from :data:`FEWEST_SPECTRUM_POINTS` to :data:`SPECTRUM_POINTS`,
     with G²r^G <= :data:`ALIASING`; 0 where no such grid has that few points. The grid
     mean of f or f² differs from its integral by the autocovariances of f or f² at
-    multiples of G (the Poisson sum), which decay as r^h and h·r^h."""
+    multiples of G (the Poisson sum), which decay as r^h and h·r^h.
+
+    r is the largest root modulus of each polynomial at its own degree (the coefficients
+    past it are zeros, roots at 0): |a_1| at degree 1, the eigenvalues of the companion
+    matrix of that degree from degree 2 on, one batch per degree (a refit of a
+    bootstrap is mostly of degree 0–2 in a fit of p_max up to some 60)."""
     p = a.shape[1] - 1
     if p == 0:
         return np.full(a.shape[0], FEWEST_SPECTRUM_POINTS)
-    companion = np.zeros((a.shape[0], p, p))
-    companion[:, 0, :] = -a[:, 1:]
-    companion[:, np.arange(1, p), np.arange(p - 1)] = 1.0
-    radius = np.max(np.abs(np.linalg.eigvals(companion)), axis=1)
+    present = a[:, 1:] != 0
+    degree = np.where(present.any(axis=1), p - np.argmax(present[:, ::-1], axis=1), 0)
+    radius = np.where(degree == 1, np.abs(a[:, 1]), 0.0)
+    for order in np.unique(degree[degree >= 2]).tolist():
+        rows = degree == order
+        companion = np.zeros((int(rows.sum()), order, order))
+        companion[:, 0, :] = -a[rows, 1 : order + 1]
+        companion[:, np.arange(1, order), np.arange(order - 1)] = 1.0
+        radius[rows] = np.max(np.abs(np.linalg.eigvals(companion)), axis=1)
     grids = FEWEST_SPECTRUM_POINTS * 2 ** np.arange(
         int(math.log2(SPECTRUM_POINTS // FEWEST_SPECTRUM_POINTS)) + 1
     )

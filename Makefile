@@ -7,7 +7,7 @@ EXTRAS := .[plots,ros,dask,filterpy,stonesoup,fast,docs,dev]
 # the tested versions (requirements/constraints.txt); `make lock` refreshes them
 LOCK   := requirements/constraints.txt
 
-.PHONY: install demo test docs test-oldest lock lint format bench bench-elt bench-versus outputs bench-dask sample-data config clean
+.PHONY: install demo test fuzz docs test-oldest lock lint format bench bench-elt bench-versus outputs bench-dask sample-data config clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -44,6 +44,12 @@ demo: $(STAMP)
 ## test: install, then run the whole test suite (on every core: pytest-xdist)
 test: $(STAMP)
 	$(BIN)/python -m pytest -n auto --dist worksteal  # long tests do not wait behind a queue
+
+## fuzz: the property tests with fresh random examples (make test draws each from a seed
+## fixed by the test's source); run it as often as you like, and keep what it finds as an
+## @example beside the test
+fuzz: $(STAMP)
+	HYPOTHESIS_PROFILE=fuzz $(BIN)/python -m pytest -n auto -m property
 
 lint: $(STAMP)
 	$(BIN)/ruff check credcli tests

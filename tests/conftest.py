@@ -11,6 +11,25 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 from helpers import LOG, run
+from hypothesis import settings
+
+# The property tests draw their examples from a seed fixed by each test's source under
+# `make test` (CI included), so that a run passes or fails whatever the day: a failure
+# there is a change of the code, never a new draw. `make fuzz` runs them with fresh random
+# examples (and Hypothesis' example database), to look further; what it finds is kept as
+# an @example beside the test.
+settings.register_profile("repeatable", derandomize=True, database=None)
+settings.register_profile("fuzz", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
+
+
+def pytest_collection_modifyitems(items):
+    """Mark the property tests ``property``, so that ``make fuzz`` selects them."""
+    from hypothesis import is_hypothesis_test
+
+    for item in items:
+        if is_hypothesis_test(getattr(item, "obj", None)):
+            item.add_marker(pytest.mark.property)
 
 
 @pytest.fixture

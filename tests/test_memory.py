@@ -934,3 +934,20 @@ def test_each_spectrum_grid_is_the_fewest_points_that_keep_the_aliasing_down():
         )
         want.append(fine[0] if fine else 0)
     np.testing.assert_array_equal(mem._grid_points(np.array(rows)), want)
+
+
+@pytest.mark.parametrize("p", [1, 2, 3, 7, 30])
+def test_the_yule_walker_matrix_collects_each_coefficient_at_its_lag(p):
+    """A[k, l] = δ_kl − Σ φ_j over j in 1 … p with |k − j| = l, written out entry by entry;
+    and γ(0) … γ(p) of a stationary model solve A γ = σ² e_0 (γ from the model's MA(∞)
+    weights, summed to 4,000 lags)."""
+    phi = np.random.default_rng(p).uniform(-0.9, 0.9, p) / p
+    want = np.eye(p + 1)
+    for k in range(p + 1):
+        for j in range(1, p + 1):
+            want[k, abs(k - j)] -= phi[j - 1]
+    got = mem._yule_walker_matrix(phi)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+    psi = mem.ar_filter(phi, np.eye(4000, 1)[:, 0])  # the MA(∞) weights ψ_h
+    gamma = np.array([psi[: 4000 - h] @ psi[h:] for h in range(p + 1)])
+    np.testing.assert_allclose(got @ gamma, np.eye(p + 1, 1)[:, 0], atol=1e-12)

@@ -336,12 +336,27 @@ def burg(x: np.ndarray, order: int) -> BurgFit:
 
 def _yule_walker_matrix(phi: np.ndarray) -> np.ndarray:
     """A of the Yule–Walker system A γ = σ² e_0 of an AR(p): A[k, l] collects φ_j at
-    |k − j| = l (γ(0) … γ(p) solve it)."""
+    |k − j| = l (γ(0) … γ(p) solve it). An entry that collects two terms (j = k − l and
+    j = k + l) subtracts the one of the smaller j first (:func:`_yule_walker_places`)."""
     p = phi.size
     a = np.eye(p + 1)
-    k, j = np.meshgrid(np.arange(p + 1), np.arange(1, p + 1), indexing="ij")
-    np.subtract.at(a, (k, np.abs(k - j)), np.broadcast_to(phi, k.shape))
+    for rows, columns, terms in _yule_walker_places(p):
+        a[rows, columns] -= phi[terms]
     return a
+
+
+@functools.lru_cache(maxsize=128)
+def _yule_walker_places(p: int) -> tuple:
+    """Where each φ_j enters the Yule–Walker matrix of order p, in two passes in which no
+    entry repeats: j <= k (column k − j), then j > k (column j − k); each pass (rows,
+    columns, indices into φ)."""
+    k, j = np.divmod(np.arange((p + 1) * p), p)
+    j += 1
+    below = j <= k
+    places = tuple((k[part], np.abs(k - j)[part], j[part] - 1) for part in (below, ~below))
+    for index in (i for part in places for i in part):
+        index.flags.writeable = False  # shared by every call of this order
+    return places
 
 
 class NoFiniteMemory(ArithmeticError):

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import fcntl
-import json
 import os
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 import pytest
-from helpers import LOG, run
+import threadpoolctl
+from helpers import LOG, once_per_run, run
 from hypothesis import settings
+
+from credcli.schedule.pool import single_threaded_blas
 
 # The property tests draw their examples from a seed fixed by each test's source under
 # `make test` (CI included), so that a run passes or fails whatever the day: a failure
@@ -21,6 +22,13 @@ from hypothesis import settings
 settings.register_profile("repeatable", derandomize=True, database=None)
 settings.register_profile("fuzz", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
+
+# One BLAS thread in each test process, as the command line and its workers have
+# (credcli.schedule.pool): make test runs a test process per core, and a second BLAS
+# thread per process only contends for the cores. The thread variables reach the BLAS
+# libraries loaded from here on (scipy's); numpy's is loaded already, and is limited.
+single_threaded_blas()
+threadpoolctl.threadpool_limits(1, user_api="blas")
 
 
 def pytest_collection_modifyitems(items):
@@ -60,22 +68,6 @@ class SampleRun(NamedTuple):
     err: str
     report: Path  # the HTML report (--report)
     plots: Path  # the directory of its figures (--plots)
-
-
-def once_per_run(tmp_path_factory, name: str, make) -> dict:
-    """``make(directory)`` (a JSON-able dict) once per test run: the first test process
-    (pytest-xdist worker) to ask makes it under a lock, the others wait for it and read
-    it. ``directory`` is the run's own, shared by its workers (xdist's documented way)."""
-    if os.environ.get("PYTEST_XDIST_WORKER") is None:  # one process: nothing to share
-        return make(tmp_path_factory.mktemp(name))
-    directory = tmp_path_factory.getbasetemp().parent / name
-    with open(f"{directory}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
-        made = directory / "made.json"
-        if not made.exists():
-            directory.mkdir(exist_ok=True)
-            made.write_text(json.dumps(make(directory)))
-        return json.loads(made.read_text())
 
 
 @pytest.fixture(scope="session")

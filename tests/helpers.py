@@ -5,7 +5,10 @@ data as in the paper's Section IV-A. Imported as ``from helpers import ...`` (py
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import io
+import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -51,3 +54,19 @@ def gaussian_segment(rng, n=200, d=2, rho=1.0, bias=None, varying=False):
     if bias is not None:
         errors = errors + np.asarray(bias, dtype=float)
     return errors, rho * true_cov
+
+
+def once_per_run(tmp_path_factory, name: str, make) -> dict:
+    """``make(directory)`` (a JSON-able dict) once per test run: the first test process
+    (pytest-xdist worker) to ask makes it under a lock, the others wait for it and read
+    it. ``directory`` is the run's own, shared by its workers (xdist's documented way)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:  # one process: nothing to share
+        return make(tmp_path_factory.mktemp(name))
+    directory = tmp_path_factory.getbasetemp().parent / name
+    with open(f"{directory}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        made = directory / "made.json"
+        if not made.exists():
+            directory.mkdir(exist_ok=True)
+            made.write_text(json.dumps(make(directory)))
+        return json.loads(made.read_text())

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from helpers import LOG, error_line, run
+from helpers import LOG, error_line, once_per_run, run
 
 ROOT = Path(__file__).resolve().parents[1]
 FORMATS = ROOT / "sample_data" / "formats"
@@ -38,7 +38,12 @@ so keeps it ignored: the Ctrl-C tests would then wait for a whole run and fail w
 def long_log(tmp_path_factory) -> Path:
     """1,600,000 credible epochs in 1,600 segments: a run of many seconds, with worker
     processes, however fast the diagnosis becomes (400 segments ended within the tests'
-    waits once the ELT's rechecks got cheaper)."""
+    waits once the ELT's rechecks got cheaper). Written once per test run, whichever
+    test process asks first (:func:`once_per_run`)."""
+    return Path(once_per_run(tmp_path_factory, "long_log", _write_long_log)["path"])
+
+
+def _write_long_log(where: Path) -> dict:
     rng = np.random.default_rng(0)
     n = 1_600_000
     errors = rng.standard_normal((n, 2))
@@ -55,9 +60,9 @@ def long_log(tmp_path_factory) -> Path:
             "cov_1_1": 1.0,
         }
     )
-    path = tmp_path_factory.mktemp("long") / "long.parquet"
+    path = where / "long.parquet"
     frame.to_parquet(path)
-    return path
+    return {"path": str(path)}
 
 
 def _children(pid: int) -> set[int]:

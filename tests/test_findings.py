@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import once_per_run
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
@@ -559,21 +560,43 @@ def test_the_slow_reading_against_an_independent_computation(offset_sq, spread, 
     assert share == pytest.approx(want_share, abs=0.005)
 
 
+def _slow_readings(fast: float, reps: int) -> list[list]:
+    """(label, the slow reading's p-value or None where no mean test ran) of the first
+    ``reps`` segments of :func:`_slow_over_white` ``(fast, 100, ·, 11)``."""
+    from credcli.engine.scale import slow_offset_pvalue
+
+    return [
+        [
+            d.label.value,
+            None if d.mean_test is None else slow_offset_pvalue(d.scale, d.mean_test, 2)[0],
+        ]
+        for d in _slow_over_white(fast, 100, reps, 11)
+    ]
+
+
+@pytest.fixture(scope="module")
+def slow_readings_08(tmp_path_factory) -> list[list]:
+    """:func:`_slow_readings` of 300 segments at κ 0.8, made once per test run for the two
+    Monte Carlo checks that read them (the decline's check reads the first 200: the same
+    draws, one generator's)."""
+    return once_per_run(
+        tmp_path_factory, "slow_readings_08", lambda _: {"rows": _slow_readings(0.8, 300)}
+    )["rows"]
+
+
 @pytest.mark.parametrize("fast", [0.8, 1.0])
-def test_the_slow_reading_is_rejected_at_most_at_its_level(fast):
+def test_the_slow_reading_is_rejected_at_most_at_its_level(fast, request):
     """Monte Carlo size check: 300 segments of 100 epochs (d = 2) made as the reading says,
     a constant draw N(0, (1 − κ)I) over white noise of κI under a claimed I (κ 0.8, and 1:
     no slow part at all). Its p-value falls below the mean test's level α (1.27 %) in at
     most α plus three standard errors of the 300 (3.8 + 5.8): the supremum over κ keeps
     the level at every true share."""
-    from credcli.engine.scale import slow_offset_pvalue
-
     reps, level = 300, DiagnosisConfig().mean_level
-    rejected = sum(
-        slow_offset_pvalue(d.scale, d.mean_test, 2)[0] < level
-        for d in _slow_over_white(fast, 100, reps, 11)
-        if d.mean_test is not None  # no mean test: memory the segment cannot resolve
+    rows = (
+        request.getfixturevalue("slow_readings_08") if fast == 0.8 else _slow_readings(fast, reps)
     )
+    # no mean test (None): memory the segment cannot resolve
+    rejected = sum(p is not None and p < level for _, p in rows)
     assert rejected <= reps * level + 3 * math.sqrt(reps * level * (1 - level))
 
 
@@ -631,7 +654,7 @@ def test_a_bias_a_slow_error_fits_well_is_declined():
     assert windowed.memory_source == "run" and windowed.label is Label.BIAS
 
 
-def test_a_bias_on_slow_errors_is_named_at_most_at_the_slow_readings_rate():
+def test_a_bias_on_slow_errors_is_named_at_most_at_the_slow_readings_rate(slow_readings_08):
     """Monte Carlo check of the decline: 200 credible segments of 100 epochs made as the
     slow reading says (one constant draw N(0, 0.2 I) over white noise of 0.8 I, claim I).
     The slow reading's p-value is at least uniform there, so a bias is named in at most
@@ -642,7 +665,7 @@ def test_a_bias_on_slow_errors_is_named_at_most_at_the_slow_readings_rate():
     from credcli.engine.rules import SLOW_READING_FIT
 
     reps = 200
-    biased = sum(d.label is Label.BIAS for d in _slow_over_white(0.8, 100, reps, 11))
+    biased = sum(label == Label.BIAS.value for label, _ in slow_readings_08[:reps])
     share = SLOW_READING_FIT
     assert biased <= reps * share + 3 * math.sqrt(reps * share * (1 - share))
     rng = np.random.default_rng(12)

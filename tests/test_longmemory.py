@@ -3,6 +3,7 @@ autocovariances against independent computations, and the choice on simulated se
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -19,9 +20,18 @@ from credcli.report.records import diagnosis_record
 def _fractional_noise(d: float, n: int, count: int, rng) -> np.ndarray:
     """(count, n) exact fractional noise by Cholesky of its Toeplitz covariance (a
     construction independent of the module's circulant draws)."""
+    return rng.standard_normal((count, n)) @ _toeplitz_factor(d, n).T
+
+
+@functools.lru_cache(maxsize=4)
+def _toeplitz_factor(d: float, n: int) -> np.ndarray:
+    """The Cholesky factor of the covariance of n epochs of fractional noise d (a
+    2,000-epoch one is asked for 13 times)."""
     gamma = longmemory.fractional_autocovariance(d, n)
     lags = np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
-    return rng.standard_normal((count, n)) @ np.linalg.cholesky(gamma[lags]).T
+    factor = np.linalg.cholesky(gamma[lags])
+    factor.flags.writeable = False  # shared by the calls
+    return factor
 
 
 def test_fractional_difference_inverts_itself():

@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     debug = (
         "--debug" in args[: next((i for i, a in enumerate(args) if a in app_commands()), len(args))]
     )
-    command = typer.main.get_command(app)
+    command = _command()
     code = 3
     strict = _escape_unencodable()
     with warnings.catch_warnings(record=True) as caught:
@@ -271,11 +271,20 @@ def _internal_error(exc: BaseException, debug: bool) -> int:
 
 
 @functools.cache
+def _command():
+    """The app's Click command, built once per process: Typer reads every command's
+    signature and type hints to build it (about 15 ms), which a process that calls
+    :func:`main` many times (a notebook's, the test suite's 900 runs) paid on each call.
+    Click keeps nothing of a run on the command (each run has a Context of its own)."""
+    return typer.main.get_command(app)
+
+
+@functools.cache
 def _flags() -> dict[str, str]:
     """Parameter name -> flag, for every option of every command, and for the settings
     fields that an option of another name sets (``n_flips`` is ``--flips``)."""
     flags: dict[str, str] = {}
-    for command in typer.main.get_command(app).commands.values():
+    for command in _command().commands.values():
         for param in command.params:
             if getattr(param, "param_type_name", "") == "option":
                 flags.setdefault(param.name, next(o for o in param.opts if o.startswith("--")))

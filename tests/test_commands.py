@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import dataclasses
+import functools
 import inspect
 import json
 from pathlib import Path
@@ -87,12 +88,19 @@ def test_library_messages_name_only_parameters_the_command_line_has():
     assert unknown == {}
 
 
+@functools.cache
+def _parsed(path: Path) -> ast.Module:
+    """The syntax tree of a source file, parsed once for the checks below (read, never
+    changed)."""
+    return ast.parse(path.read_text())
+
+
 def _message_strings():
     """(module, text) of every string constant outside cli/ that is not a docstring."""
     for path in (ROOT / "credcli").rglob("*.py"):
         if "cli" in path.parts:
             continue
-        tree = ast.parse(path.read_text())
+        tree = _parsed(path)
         docstrings = {
             id(node.value)
             for node in ast.walk(tree)
@@ -268,7 +276,7 @@ def test_function_local_imports_are_lazy_for_a_stated_reason():
     found = {}
     for path in (ROOT / "credcli").rglob("*.py"):
         relative = path.relative_to(ROOT / "credcli")
-        tree = ast.parse(path.read_text())
+        tree = _parsed(path)
         for function in ast.walk(tree):
             if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
@@ -295,7 +303,7 @@ def _module_imports() -> dict[str, set[str]]:
         modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
     graph: dict[str, set[str]] = {name: set() for name in modules}
     for name, path in modules.items():
-        for node in ast.parse(path.read_text()).body:
+        for node in _parsed(path).body:
             if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("credcli"):
                 for alias in node.names:
                     child = f"{node.module}.{alias.name}"
@@ -341,7 +349,7 @@ def test_imports_go_down_the_layers():
     for path in (ROOT / "credcli").rglob("*.py"):
         parts = path.relative_to(ROOT).with_suffix("").parts
         name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_parsed(path)):
             if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("credcli"):
                 targets = [node.module]
                 if node.module == "credcli":  # from credcli import x: the module x
@@ -515,14 +523,14 @@ def test_only_records_name_json_keys():
             rel = path.relative_to(ROOT).as_posix()
             if rel == RECORDS_MODULE:
                 continue
-            for line, how, key in literal_keys(ast.parse(path.read_text())):
+            for line, how, key in literal_keys(_parsed(path)):
                 exemptions = _exemptions(rel, key)
                 used.update(exemptions)
                 if not exemptions:
                     found.append(f"{rel}:{line} {how} {key!r}")
     assert found == []
     assert used == set(NOT_RECORD_KEYS)  # every exemption is still needed
-    keys = {key for _, _, key in literal_keys(ast.parse((ROOT / RECORDS_MODULE).read_text()))}
+    keys = {key for _, _, key in literal_keys(_parsed(ROOT / RECORDS_MODULE))}
     assert {"scale_factor", "segments", "parameters", "published", "status"} <= keys  # read
 
 
@@ -545,7 +553,7 @@ def _all_imports() -> dict[str, set[str]]:
         parts = path.relative_to(ROOT).with_suffix("").parts
         name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
         targets = set()
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_parsed(path)):
             if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("credcli"):
                 base = node.module
                 targets |= {
